@@ -1,0 +1,1 @@
+"""Fits and calibrations on run records; never imports drivers or bench."""

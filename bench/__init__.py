@@ -1,0 +1,1 @@
+"""The bench: sequences, runner, safety supervisor, recorder, rig files and the CLI."""

@@ -1,0 +1,1 @@
+"""Device contracts, real backends, protocol codecs and the simulated plant and devices."""

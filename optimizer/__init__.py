@@ -1,0 +1,1 @@
+"""Component catalogs, the multirotor design model and MILP design selection (Papers D, E)."""

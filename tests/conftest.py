@@ -1,0 +1,46 @@
+"""Shared test fixtures: paths to the repo's fixtures and to ../shared/data."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+FIXTURES = REPO / "fixtures"
+
+
+def _shared_data() -> Path:
+    env = os.environ.get("ROTORBENCH_SHARED_DATA")
+    if env:
+        return Path(env)
+    return REPO.parent / "shared" / "data"
+
+
+SHARED_DATA = _shared_data()
+
+
+@pytest.fixture
+def fixtures_dir() -> Path:
+    return FIXTURES
+
+
+@pytest.fixture
+def shared_data() -> Path:
+    if not SHARED_DATA.is_dir():
+        pytest.skip(f"shared data folder not found at {SHARED_DATA}")
+    return SHARED_DATA
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    parser.addoption("--run-hardware", action="store_true", help="run tests that need devices")
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    if config.getoption("--run-hardware"):
+        return
+    skip = pytest.mark.skip(reason="needs hardware; pass --run-hardware")
+    for item in items:
+        if "hardware" in item.keywords:
+            item.add_marker(skip)
