@@ -1,0 +1,106 @@
+"""Measured actuator constants that replace modelled ones in the design grid.
+
+Paper E notes after (E.39) that measured time constants, where available for a
+combination, should replace the datasheet estimates. A bench run of one propeller on one
+motor (optionally with a given ESC mode) yields a ``MeasuredActuator``: its 63 % time
+constant and its current at a set of thrusts. ``optimizer.model.evaluate_grid`` uses them
+for every design built from that pair and marks those cells as measured.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from optimizer.errors import RequestError
+
+
+@dataclass(frozen=True)
+class MeasuredActuator:
+    """Bench-measured constants of one (propeller, motor[, ESC mode]) actuator.
+
+    ``time_constant_s``: measured time constant (replaces eq. (E.35)).
+    ``hover_thrust_n`` / ``hover_current_a``: current drawn by one actuator at each thrust
+    (ascending thrusts); interpolated linearly at the design's hover thrust, it replaces
+    the per-actuator current N_a W / (N_a B_V) of eq. (E.67). Hover thrusts outside the
+    measured range keep the modelled current (no extrapolation).
+    ``supply_voltage_v``: bench supply voltage; if given, the current is rescaled to the
+    in-flight battery voltage at equal electrical power.
+    """
+
+    propeller_id: str
+    motor_id: str
+    esc_mode: str | None = None
+    time_constant_s: float | None = None
+    hover_thrust_n: Sequence[float] = ()
+    hover_current_a: Sequence[float] = ()
+    supply_voltage_v: float | None = None
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        label = f"measured actuator ({self.propeller_id}, {self.motor_id}, {self.esc_mode})"
+        tc = self.time_constant_s
+        if tc is not None and not (math.isfinite(tc) and tc > 0):
+            raise RequestError(f"{label}: time_constant_s must be > 0, got {tc!r}")
+        thrust = np.asarray(self.hover_thrust_n, float)
+        current = np.asarray(self.hover_current_a, float)
+        if thrust.shape != current.shape or thrust.ndim != 1:
+            raise RequestError(f"{label}: hover_thrust_n and hover_current_a differ in length")
+        if thrust.size == 1:
+            raise RequestError(f"{label}: need at least two (thrust, current) points")
+        if thrust.size and (
+            not np.all(np.isfinite(thrust))
+            or not np.all(np.isfinite(current))
+            or np.any(current < 0)
+            or np.any(np.diff(thrust) <= 0)
+        ):
+            raise RequestError(
+                f"{label}: thrusts must be finite and strictly ascending, currents finite >= 0"
+            )
+        v = self.supply_voltage_v
+        if v is not None and not (math.isfinite(v) and v > 0):
+            raise RequestError(f"{label}: supply_voltage_v must be > 0, got {v!r}")
+
+    @property
+    def has_current(self) -> bool:
+        return len(self.hover_thrust_n) >= 2
+
+    def current_at(
+        self, thrust_n: np.ndarray, voltage_v: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Per-actuator current at the given hover thrusts, and where it is measured."""
+        thrust = np.asarray(self.hover_thrust_n, float)
+        current = np.asarray(self.hover_current_a, float)
+        inside = (thrust_n >= thrust[0]) & (thrust_n <= thrust[-1])
+        value = np.interp(thrust_n, thrust, current)
+        if self.supply_voltage_v is not None:
+            value = value * self.supply_voltage_v / voltage_v
+        return value, inside
+
+
+def select_overrides(
+    overrides: Iterable[MeasuredActuator] | None, esc_mode: str | None
+) -> dict[tuple[str, str], MeasuredActuator]:
+    """Pick one override per (propeller, motor) for the requested ESC mode.
+
+    An override for the requested mode wins over a mode-less one; overrides for another
+    mode are ignored. Two overrides for the same key are an error.
+    """
+    chosen: dict[tuple[str, str], MeasuredActuator] = {}
+    seen: set[tuple[str, str, str | None]] = set()
+    for item in overrides or ():
+        if not isinstance(item, MeasuredActuator):
+            raise RequestError(f"overrides: expected MeasuredActuator, got {type(item).__name__}")
+        key3 = (item.propeller_id, item.motor_id, item.esc_mode)
+        if key3 in seen:
+            raise RequestError(f"overrides: two entries for {key3}")
+        seen.add(key3)
+        if item.esc_mode is not None and item.esc_mode != esc_mode:
+            continue
+        key = (item.propeller_id, item.motor_id)
+        if key not in chosen or item.esc_mode is not None:
+            chosen[key] = item
+    return chosen

@@ -1,0 +1,350 @@
+"""The design model: every metric of every (propeller, motor, battery) design at hover.
+
+``evaluate_grid`` fills an ``optimizer.grid.DesignGrid`` for one actuator count and
+payload with numpy broadcasting over the axes (P, M, B); ``evaluate_design`` reads one
+design out of it. The physics is Papers D and E (see ``optimizer.physics``); the open
+readings of the printed equations are catalog constants (``optimizer.constants``).
+
+Metric definitions (all at hover, the operating point of Paper E's flight time):
+- ``propeller_power_w``: power of one propeller, x17 (E.61-E.63).
+- ``power_w``: total hover power of all N propellers, N x17 = B_V x18. This is what the
+  "min power" objective minimises. Table E.2 literally minimises x17; for a fixed actuator
+  count (each thesis MILP has a fixed N) both pick the same design.
+- ``current_a``: battery current, x18 (E.67-E.69).
+- ``flight_time_min``: 60 B_Ah / x18 (E.72-E.74 inverted).
+- ``time_constant_ms``: (E.35) at the design's hover speed.
+- ``total_mass_kg``: take-off mass incl. payload, x1 + m_L (E.17, E.19).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from optimizer import physics
+from optimizer.catalog import Catalog
+from optimizer.errors import RequestError
+from optimizer.grid import METRIC_KEYS, Check, DesignGrid
+from optimizer.measured import MeasuredActuator, select_overrides
+
+
+@dataclass(frozen=True)
+class ModelGrid(DesignGrid):
+    """A ``DesignGrid`` plus which cells hold measured rather than modelled values.
+
+    ``measured[key]`` is a boolean (P, M, B) mask for each metric that has at least one
+    measured cell; metrics not in the mapping are modelled everywhere. ``extras`` holds
+    intermediate quantities (hover thrust, voltage, frame mass, ...) for reports.
+    """
+
+    measured: dict[str, np.ndarray] = field(default_factory=dict)
+    extras: dict[str, np.ndarray] = field(default_factory=dict)
+
+
+def _check_request(n_actuators: Any, payload_kg: Any) -> tuple[int, float]:
+    if isinstance(n_actuators, bool) or not isinstance(n_actuators, int | np.integer):
+        raise RequestError(f"actuators: expected a whole number >= 3, got {n_actuators!r}")
+    if n_actuators < 3:
+        raise RequestError(f"actuators: expected a whole number >= 3, got {n_actuators}")
+    try:
+        payload = float(payload_kg)
+    except (TypeError, ValueError):
+        raise RequestError(f"payload: expected a number of kg >= 0, got {payload_kg!r}") from None
+    if not math.isfinite(payload) or payload < 0:
+        raise RequestError(f"payload: expected a number of kg >= 0, got {payload_kg!r}")
+    return int(n_actuators), payload
+
+
+def _propeller_inertia(catalog: Catalog) -> np.ndarray:
+    props = catalog.propellers
+    given = props["inertia_kgm2"].to_numpy(float)
+    k = catalog.constants.propeller_inertia_coefficient
+    estimate = k * props["mass_kg"].to_numpy(float) * props["diameter_m"].to_numpy(float) ** 2
+    return np.where(np.isnan(given), estimate, given)
+
+
+def _motor_inertia(catalog: Catalog) -> np.ndarray:
+    mot = catalog.motors
+    given = mot["inertia_kgm2"].to_numpy(float)
+    rotor = physics.hollow_rotor_inertia_kgm2(
+        mot["rotor_diameter_m"].to_numpy(float),
+        mot["rotor_length_m"].to_numpy(float),
+        mot["rotor_wall_m"].to_numpy(float),
+        mot["rotor_density_kg_m3"].to_numpy(float),
+    )
+    # Neither inertia nor rotor geometry: the rotor inertia is unknown and left out (0).
+    return np.where(np.isnan(given), np.nan_to_num(rotor, nan=0.0), given)
+
+
+def _battery_voltage(catalog: Catalog) -> np.ndarray:
+    c = catalog.constants
+    bat = catalog.batteries
+    cells = bat["cells"].to_numpy(float)
+    if c.battery_voltage == "in_flight":
+        return cells * c.cell_voltage_in_flight_v  # Paper D section 2.1
+    nominal = bat["nominal_voltage_v"].to_numpy(float)
+    return np.where(np.isnan(nominal), cells * c.cell_voltage_nominal_v, nominal)
+
+
+def evaluate_grid(
+    catalog: Catalog,
+    n_actuators: int,
+    payload_kg: float = 0.0,
+    *,
+    overrides: Iterable[MeasuredActuator] | None = None,
+    esc_mode: str | None = None,
+) -> ModelGrid:
+    """All metrics and limit checks of every design with ``n_actuators`` actuators.
+
+    ``overrides`` replace the modelled time constant and hover current of given
+    (propeller, motor[, ``esc_mode``]) pairs; ``ModelGrid.measured`` says where.
+    """
+    n, payload = _check_request(n_actuators, payload_kg)
+    c = catalog.constants
+    props, mots, bats = catalog.propellers, catalog.motors, catalog.batteries
+    rho, g = c.air_density_kg_m3, c.gravity_m_s2
+
+    # Axis layout: propellers (P,1,1), motors (1,M,1), batteries (1,1,B).
+    def p_(col: str) -> np.ndarray:
+        return props[col].to_numpy(float)[:, None, None]
+
+    def m_(col: str) -> np.ndarray:
+        return mots[col].to_numpy(float)[None, :, None]
+
+    def b_(col: str) -> np.ndarray:
+        return bats[col].to_numpy(float)[None, None, :]
+
+    diameter, ct, cp = p_("diameter_m"), p_("ct"), p_("cp")
+    m_prop, m_motor, m_batt = p_("mass_kg"), m_("mass_kg"), b_("mass_kg")
+    j_total = _propeller_inertia(catalog)[:, None, None] + _motor_inertia(catalog)[None, :, None]
+    resistance = m_("resistance_ohm")
+    kt = physics.torque_constant(m_("kv_rad_s_per_v"))
+    voltage = _battery_voltage(catalog)[None, None, :]
+    capacity_ah = b_("capacity_ah")
+
+    arm = physics.arm_length_m(diameter, n, c.propeller_clearance_m, c.arm_length)  # (D.4)
+    frame = physics.frame_mass_kg(arm, n, c.frame_linear_density_kg_m)  # (E.26)
+    actuator_mass = m_prop + m_motor
+    # (E.16)-(E.17) total weight; (E.19) plus payload m_L.
+    total_mass = n * actuator_mass + frame + m_batt + payload
+    hover_thrust = total_mass * g / n  # (E.19)-(E.20), per propeller
+    n_rev_s = physics.hover_speed_rev_s(hover_thrust, ct, rho, diameter)  # (E.20)
+    prop_power = physics.propeller_power_w(cp, rho, n_rev_s, diameter)  # (E.60)-(E.63)
+    actuator_current = prop_power / voltage  # (E.67): x18 / N_a per actuator
+    damping = physics.propeller_damping(cp, rho, n_rev_s, diameter)  # (E.34)
+    tau = physics.time_constant_s(resistance, j_total, kt, damping)  # (E.35)
+    shape = (len(props), len(mots), len(bats))
+    tau = np.broadcast_to(tau, shape)
+    actuator_current = np.broadcast_to(actuator_current, shape)
+
+    measured: dict[str, np.ndarray] = {}
+    chosen = select_overrides(overrides, esc_mode)
+    if chosen:
+        tau, actuator_current, measured = _apply_overrides(
+            catalog,
+            chosen,
+            tau,
+            actuator_current,
+            np.broadcast_to(hover_thrust, shape),
+            np.broadcast_to(voltage, shape),
+        )
+
+    current = n * actuator_current  # (E.69) x18
+    flight_time_min = 60.0 * capacity_ah / current  # (E.72)-(E.74), inverted
+    power = current * voltage  # N x17 when modelled
+
+    prop_price = p_("price") if c.price_includes_propellers else 0.0
+    price = n * (prop_price + m_("price")) + b_("price")  # (E.18)
+
+    roll_sum, pitch_sum = physics.arm_axis_sums(n)  # (E.42)-(E.45)
+    arm_tube_mass = c.frame_linear_density_kg_m * arm
+    roll = physics.body_inertia_kgm2(actuator_mass, arm_tube_mass, arm, roll_sum)  # (E.58)
+    pitch = physics.body_inertia_kgm2(actuator_mass, arm_tube_mass, arm, pitch_sum)  # (E.59)
+
+    def full(a: Any) -> np.ndarray:
+        return np.ascontiguousarray(np.broadcast_to(np.asarray(a, float), shape))
+
+    metrics = {
+        "flight_time_min": full(flight_time_min),
+        "time_constant_ms": full(tau * 1e3),
+        "price": full(price),
+        "total_mass_kg": full(total_mass),
+        "hover_rpm": full(n_rev_s * 60.0),
+        "propeller_power_w": full(prop_power),
+        "power_w": full(power),
+        "current_a": full(current),
+        "roll_inertia_kgm2": full(roll),
+        "pitch_inertia_kgm2": full(pitch),
+    }
+    assert tuple(metrics) == METRIC_KEYS
+
+    checks = [
+        Check("motor power", "W", metrics["propeller_power_w"], m_("max_power_w")),
+        Check("motor current", "A", full(actuator_current), m_("max_current_a")),
+        Check("battery current", "A", metrics["current_a"], b_("max_current_a")),
+    ]
+    extras = {
+        "hover_thrust_n": full(hover_thrust),
+        "voltage_v": full(voltage),
+        "frame_mass_kg": full(frame),
+        "arm_length_m": full(arm),
+    }
+    if c.min_thrust_to_weight is not None:
+        omega_max = physics.full_throttle_speed_rad_s(voltage, kt, resistance, cp, rho, diameter)
+        max_thrust = physics.thrust_n(ct, rho, omega_max / physics.TWO_PI, diameter)
+        ratio = full(max_thrust / hover_thrust)
+        extras["thrust_to_weight"] = ratio
+        checks.append(
+            Check("thrust to weight", "", ratio, np.asarray(c.min_thrust_to_weight), ">=")
+        )
+
+    notes = {
+        "source": catalog.source,
+        "battery_voltage": c.battery_voltage,
+        "arm_length": c.arm_length,
+        "power_w": "total hover power of all propellers (N x17, Table E.2 'min power')",
+        "total_mass_kg": "take-off mass including payload",
+    }
+    if np.any(
+        np.isnan(catalog.motors["inertia_kgm2"]) & np.isnan(catalog.motors["rotor_diameter_m"])
+    ):
+        notes["motor_inertia"] = "some motors have neither inertia_kgm2 nor rotor geometry: J_m = 0"
+    return ModelGrid(
+        n_actuators=n,
+        payload_kg=payload,
+        propeller_ids=catalog.propeller_ids,
+        motor_ids=catalog.motor_ids,
+        battery_ids=catalog.battery_ids,
+        metrics=metrics,
+        checks=tuple(checks),
+        notes=notes,
+        measured=measured,
+        extras=extras,
+    )
+
+
+def _apply_overrides(
+    catalog: Catalog,
+    chosen: dict[tuple[str, str], MeasuredActuator],
+    tau: np.ndarray,
+    actuator_current: np.ndarray,
+    hover_thrust: np.ndarray,
+    voltage: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+    p_index = {pid: i for i, pid in enumerate(catalog.propeller_ids)}
+    m_index = {mid: i for i, mid in enumerate(catalog.motor_ids)}
+    tau = tau.copy()
+    actuator_current = actuator_current.copy()
+    tau_mask = np.zeros(tau.shape, bool)
+    cur_mask = np.zeros(tau.shape, bool)
+    for (pid, mid), item in chosen.items():
+        if pid not in p_index:
+            raise RequestError(
+                f"overrides: unknown propeller id {pid!r} in catalog {catalog.source}"
+            )
+        if mid not in m_index:
+            raise RequestError(f"overrides: unknown motor id {mid!r} in catalog {catalog.source}")
+        i, j = p_index[pid], m_index[mid]
+        if item.time_constant_s is not None:
+            tau[i, j, :] = item.time_constant_s
+            tau_mask[i, j, :] = True
+        if item.has_current:
+            value, inside = item.current_at(hover_thrust[i, j, :], voltage[i, j, :])
+            actuator_current[i, j, :] = np.where(inside, value, actuator_current[i, j, :])
+            cur_mask[i, j, :] = inside
+    measured: dict[str, np.ndarray] = {}
+    if tau_mask.any():
+        measured["time_constant_ms"] = tau_mask
+    if cur_mask.any():
+        for key in ("current_a", "power_w", "flight_time_min"):
+            measured[key] = cur_mask
+    return tau, actuator_current, measured
+
+
+def _index(ids: tuple[str, ...], wanted: str, kind: str, catalog: Catalog) -> int:
+    try:
+        return ids.index(str(wanted))
+    except ValueError:
+        known = ", ".join(ids[:20]) + (", ..." if len(ids) > 20 else "")
+        raise RequestError(
+            f"unknown {kind} id {wanted!r} in catalog {catalog.source} (known: {known})"
+        ) from None
+
+
+def evaluate_design(
+    catalog: Catalog,
+    n_actuators: int,
+    propeller_id: str,
+    motor_id: str,
+    battery_id: str,
+    payload_kg: float = 0.0,
+    *,
+    overrides: Iterable[MeasuredActuator] | None = None,
+    esc_mode: str | None = None,
+) -> dict[str, Any]:
+    """One design's metrics, feasibility and violated checks (JSON-ready dict)."""
+    i = _index(catalog.propeller_ids, propeller_id, "propeller", catalog)
+    j = _index(catalog.motor_ids, motor_id, "motor", catalog)
+    k = _index(catalog.battery_ids, battery_id, "battery", catalog)
+    single = Catalog(
+        catalog.propellers.iloc[[i]].reset_index(drop=True),
+        catalog.motors.iloc[[j]].reset_index(drop=True),
+        catalog.batteries.iloc[[k]].reset_index(drop=True),
+        catalog.constants,
+        catalog.source,
+    )
+    grid = evaluate_grid(
+        single, n_actuators, payload_kg, overrides=_relevant(overrides, single), esc_mode=esc_mode
+    )
+    return design_record(grid, 0, 0, 0)
+
+
+def _relevant(
+    overrides: Iterable[MeasuredActuator] | None, single: Catalog
+) -> list[MeasuredActuator]:
+    pid, mid = single.propeller_ids[0], single.motor_ids[0]
+    return [o for o in overrides or () if (o.propeller_id, o.motor_id) == (pid, mid)]
+
+
+def design_record(grid: DesignGrid, i: int, j: int, k: int) -> dict[str, Any]:
+    """The JSON keys of the issue for cell (i, j, k) of a grid, plus its checks."""
+    record: dict[str, Any] = {
+        "actuators": grid.n_actuators,
+        "propeller": grid.propeller_ids[i],
+        "motor": grid.motor_ids[j],
+        "battery": grid.battery_ids[k],
+        "payload_kg": grid.payload_kg,
+    }
+    for key in METRIC_KEYS:
+        record[key] = float(grid.metrics[key][i, j, k])
+    checks = []
+    violated = []
+    for check in grid.checks:
+        value = float(np.broadcast_to(check.value, grid.shape)[i, j, k])
+        limit = float(np.broadcast_to(check.limit, grid.shape)[i, j, k])
+        margin = float(np.broadcast_to(check.margin(), grid.shape)[i, j, k])
+        ok = bool(margin >= -1e-9 * max(1.0, abs(limit)))
+        checks.append(
+            {
+                "label": check.label,
+                "unit": check.unit,
+                "value": value,
+                "limit": limit,
+                "sense": check.sense,
+                "ok": ok,
+            }
+        )
+        if not ok:
+            unit = f" {check.unit}" if check.unit else ""
+            op = ">" if check.sense == "<=" else "<"
+            violated.append(f"{check.label} {value:.4g}{unit} {op} limit {limit:.4g}{unit}")
+    record["feasible"] = not violated
+    record["reason"] = "; ".join(violated)
+    record["checks"] = checks
+    measured = getattr(grid, "measured", {})
+    record["measured"] = sorted(key for key, mask in measured.items() if mask[i, j, k])
+    return record
