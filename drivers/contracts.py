@@ -8,6 +8,8 @@ go straight into a run record. Timestamps are seconds on the rig clock.
 
 from __future__ import annotations
 
+import enum
+import time
 from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
 
@@ -92,3 +94,35 @@ class Esc(Protocol):
         ...
 
     def close(self) -> None: ...
+
+
+class Fault(enum.Enum):
+    """Fault switches a simulated (or test) device can be set to, see ``drivers.sim.faults``.
+
+    DROPOUT: samples go missing; SPIKES: single samples jump to full scale; STUCK: the
+    reading freezes; TIMEOUT: reads/commands raise ``DeviceError`` while it lasts;
+    DISCONNECT: the device is gone until cleared (reads/commands raise ``DeviceError``).
+    """
+
+    DROPOUT = "dropout"
+    SPIKES = "spikes"
+    STUCK = "stuck"
+    TIMEOUT = "timeout"
+    DISCONNECT = "disconnect"
+
+
+class MonotonicClock:
+    """Real rig time: the host's monotonic clock, zero at construction.
+
+    ``sleep`` really waits; the simulated rig uses ``drivers.sim.clock.SimClock`` instead.
+    """
+
+    def __init__(self) -> None:
+        self._t0 = time.monotonic()
+
+    def now(self) -> float:
+        return time.monotonic() - self._t0
+
+    def sleep(self, seconds: float) -> None:
+        if seconds > 0:
+            time.sleep(seconds)

@@ -1,0 +1,482 @@
+"""Rig files: the TOML that names a bench's devices, limits, components and ESC settings.
+
+``load_rig(path)`` validates everything up front and returns a frozen ``RigConfig``; any
+problem raises ``bench.errors.RigError`` naming the file, the field and what was expected.
+The static thrust map measured by a sweep (Paper C section 4.4) lives in a CSV side file
+the rig file references (``[thrust_map] file = ...``); ``save_thrust_map`` writes it
+atomically so the step sequences can turn thrust setpoints into ESC commands.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+import tempfile
+import tomllib
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, fields, replace
+from pathlib import Path
+from typing import Any
+from urllib.parse import urlsplit
+
+import numpy as np
+
+from bench.errors import RigError
+
+REPO = Path(__file__).resolve().parents[1]
+ROLES = ("esc", "load_cell", "power", "rpm")
+URL_SCHEMES = ("sim", "replay", "serial", "can", "nidaq", "tcp")
+ESC_MODES = ("complementary", "diode", "stock")
+FRAME_RATE_RANGE_HZ = (50.0, 490.0)
+PULSE_RANGE_US = (1000.0, 2000.0)
+
+
+def default_rig_path() -> Path:
+    """The simulated rig every command uses when no ``--rig`` is given."""
+    return REPO / "fixtures" / "rigs" / "sim.toml"
+
+
+# --- the config objects -------------------------------------------------------------------
+@dataclass(frozen=True)
+class DeviceConfig:
+    """One device: where it is (URL), which channel, its calibration and extra options."""
+
+    url: str
+    channel: str = ""
+    calibration: Mapping[str, float] = field(default_factory=dict)
+    options: Mapping[str, Any] = field(default_factory=dict)
+
+    @property
+    def scheme(self) -> str:
+        return urlsplit(self.url).scheme
+
+
+_MAXIMA = ("thrust_n", "current_a", "rpm", "voltage_max_v", "temperature_c")
+_MINIMA = ("voltage_min_v",)
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Safety limits; a sequence may only tighten them (``tightened``). None = no limit."""
+
+    thrust_n: float | None = None
+    current_a: float | None = None
+    rpm: float | None = None
+    voltage_min_v: float | None = None
+    voltage_max_v: float | None = None
+    temperature_c: float | None = None
+    source: str = field(default="", compare=False)
+
+    def tightened(self, other: Limits) -> Limits:
+        """Limits with ``other``'s values where set; raises ``RigError`` if any is looser."""
+        where = f"{self.source}: " if self.source else ""
+        out: dict[str, float | None] = {}
+        for name in _MAXIMA + _MINIMA:
+            mine, theirs = getattr(self, name), getattr(other, name)
+            if theirs is None:
+                out[name] = mine
+                continue
+            looser = (
+                mine is not None
+                and (theirs > mine if name in _MAXIMA else theirs < mine)
+            )
+            if looser or not math.isfinite(theirs):
+                raise RigError(
+                    f"{where}[limits] {name}: a sequence may only tighten limits "
+                    f"(rig {mine}, requested {theirs})"
+                )
+            out[name] = theirs
+        return replace(self, **out)
+
+    def as_dict(self) -> dict[str, float | None]:
+        return {f.name: getattr(self, f.name) for f in fields(self) if f.name != "source"}
+
+
+@dataclass(frozen=True)
+class Components:
+    """The hardware under test, as ids of an optimizer catalog (``fixtures/catalogs/<id>``)."""
+
+    catalog: str
+    motor: str
+    propeller: str
+    esc: str
+    esc_mode: str
+    battery: str
+
+
+@dataclass(frozen=True)
+class EscConfig:
+    """ESC input protocol: PWM frame rate and pulse widths (us)."""
+
+    frame_rate_hz: float = 400.0
+    idle_us: float = 1000.0
+    min_us: float = 1000.0
+    max_us: float = 2000.0
+    arm_us: float = 1000.0
+    timeout_s: float = 0.5  # the ESC's own failsafe: no command for this long -> idle
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """Settings of the simulated rig: seed, ESC scheme, noise, parameter overrides."""
+
+    seed: int = 0
+    esc_mode: str = "complementary"
+    noise: bool = True
+    plant: Mapping[str, float] = field(default_factory=dict)  # PlantParams overrides
+    sensors: Mapping[str, float] = field(default_factory=dict)  # SensorParams overrides
+
+
+@dataclass(frozen=True)
+class ThrustMap:
+    """Static thrust against command, measured by a slow sweep (Paper C section 4.4)."""
+
+    command_us: tuple[float, ...]
+    thrust_n: tuple[float, ...]
+    path: Path | None = None
+
+    def command_for(self, thrust_n: float | np.ndarray) -> np.ndarray | float:
+        """ESC command that gives ``thrust_n`` in steady state (monotone interpolation)."""
+        cmd = np.asarray(self.command_us)
+        thr = np.maximum.accumulate(np.asarray(self.thrust_n))  # enforce monotone
+        keep = np.concatenate(([True], np.diff(thr) > 0))
+        thr, cmd = thr[keep], cmd[keep]
+        t = np.asarray(thrust_n, dtype=float)
+        if np.any(t < thr[0]) or np.any(t > thr[-1]):
+            raise RigError(
+                f"{self.path or 'thrust map'}: thrust {thrust_n} N outside the measured "
+                f"range {thr[0]:.3f}-{thr[-1]:.3f} N"
+            )
+        out = np.interp(t, thr, cmd)
+        return float(out) if out.ndim == 0 else out
+
+    def thrust_for(self, command_us: float | np.ndarray) -> np.ndarray | float:
+        out = np.interp(np.asarray(command_us, dtype=float), self.command_us, self.thrust_n)
+        return float(out) if out.ndim == 0 else out
+
+
+@dataclass(frozen=True)
+class RigConfig:
+    """A validated rig file."""
+
+    path: Path
+    name: str
+    devices: Mapping[str, DeviceConfig]
+    limits: Limits
+    components: Components
+    esc: EscConfig
+    sim: SimConfig
+    thrust_map: ThrustMap | None = None
+    thrust_map_path: Path | None = None  # side file named by [thrust_map] file
+    description: str = ""
+
+    @property
+    def is_simulated(self) -> bool:
+        return all(d.scheme == "sim" for d in self.devices.values())
+
+    def with_thrust_map(self, command_us: Sequence[float], thrust_n: Sequence[float]) -> RigConfig:
+        tm = _make_thrust_map(self.path, command_us, thrust_n, self.thrust_map_path)
+        return replace(self, thrust_map=tm)
+
+    def with_esc_mode(self, mode: str) -> RigConfig:
+        """The same rig with another ESC scheme (``--esc-mode``): components and sim."""
+        if mode not in ESC_MODES:
+            modes = ", ".join(ESC_MODES)
+            raise RigError(f"{self.path}: esc mode {mode!r}: expected one of {modes}")
+        return replace(
+            self,
+            components=replace(self.components, esc_mode=mode),
+            sim=replace(self.sim, esc_mode=mode),
+        )
+
+    def with_seed(self, seed: int) -> RigConfig:
+        return replace(self, sim=replace(self.sim, seed=int(seed)))
+
+
+# --- loading --------------------------------------------------------------------------------
+class _Table:
+    """A TOML table with its location, for error messages that name file and field."""
+
+    def __init__(self, path: Path, where: str, data: Any) -> None:
+        self.path, self.where = path, where
+        if not isinstance(data, dict):
+            self.fail("", f"expected a table, got {type(data).__name__}")
+        self.data: dict[str, Any] = data
+
+    def fail(self, key: str, msg: str) -> RigError:
+        """Raise the RigError for ``key`` of this table (return type eases type checking)."""
+        where = f"[{self.where}] " if self.where else ""
+        raise RigError(f"{self.path}: {where}{key}: {msg}".replace(" : ", ": "))
+
+    def only(self, *allowed: str) -> None:
+        for key in self.data:
+            if key not in allowed:
+                self.fail(key, f"unknown key; expected one of {', '.join(allowed)}")
+
+    def table(self, key: str, required: bool = True) -> _Table | None:
+        if key not in self.data:
+            if required:
+                self.fail(key, "missing table")
+            return None
+        return _Table(self.path, f"{self.where}.{key}" if self.where else key, self.data[key])
+
+    def text(self, key: str, default: str | None = None) -> str:
+        if key not in self.data:
+            if default is None:
+                self.fail(key, "missing; expected a string")
+            return default  # type: ignore[return-value]
+        value = self.data[key]
+        if not isinstance(value, str) or not value.strip():
+            self.fail(key, f"expected a non-empty string, got {value!r}")
+        return value
+
+    def number(self, key: str, default: float | None = None, *, required: bool = False,
+               lo: float = -math.inf, hi: float = math.inf, unit: str = "") -> float | None:
+        if key not in self.data:
+            if required:
+                self.fail(key, f"missing; expected a number{' in ' + unit if unit else ''}")
+            return default
+        value = self.data[key]
+        is_number = isinstance(value, int | float) and not isinstance(value, bool)
+        if not is_number or not math.isfinite(value):
+            self.fail(key, f"expected a number, got {value!r}")
+        if not lo <= value <= hi:
+            self.fail(key, f"{value} {unit}".rstrip() + f" outside {lo:g}-{hi:g} {unit}".rstrip())
+        return float(value)
+
+    def flag(self, key: str, default: bool) -> bool:
+        value = self.data.get(key, default)
+        if not isinstance(value, bool):
+            self.fail(key, f"expected true or false, got {value!r}")
+        return value
+
+
+def _read_toml(path: Path) -> dict[str, Any]:
+    try:
+        with path.open("rb") as fh:
+            return tomllib.load(fh)
+    except FileNotFoundError:
+        raise RigError(f"{path}: rig file not found") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise RigError(f"{path}: not valid TOML: {exc}") from None
+    except OSError as exc:
+        raise RigError(f"{path}: cannot read rig file: {exc}") from None
+
+
+def _device(top: _Table, role: str) -> DeviceConfig:
+    t = top.table(role)
+    assert t is not None
+    t.only("url", "channel", "calibration", "options")
+    url = t.text("url")
+    parts = urlsplit(url)
+    if parts.scheme not in URL_SCHEMES:
+        t.fail("url", f"{url!r}: unknown scheme {parts.scheme!r}; expected one of "
+                      + ", ".join(f"{s}://" for s in URL_SCHEMES))
+    if parts.scheme == "sim" and parts.netloc not in ("", role):
+        t.fail("url", f"{url!r}: a sim device for role {role!r} must be sim://{role}")
+    channel = t.text("channel", "")
+    cal = t.table("calibration", required=False)
+    calibration: dict[str, float] = {}
+    if cal is not None:
+        for key in cal.data:
+            calibration[key] = cal.number(key)  # type: ignore[assignment]
+    opts = t.table("options", required=False)
+    return DeviceConfig(url, channel, calibration, dict(opts.data) if opts else {})
+
+
+def _limits(path: Path, t: _Table) -> Limits:
+    t.only(*(f.name for f in fields(Limits) if f.name != "source"))
+    vals = {
+        "thrust_n": t.number("thrust_n", required=True, lo=0.0, unit="N"),
+        "current_a": t.number("current_a", required=True, lo=0.0, unit="A"),
+        "rpm": t.number("rpm", required=True, lo=0.0, unit="rpm"),
+        "voltage_min_v": t.number("voltage_min_v", required=True, lo=0.0, unit="V"),
+        "voltage_max_v": t.number("voltage_max_v", required=True, lo=0.0, unit="V"),
+        "temperature_c": t.number("temperature_c", None, lo=-50.0, hi=300.0, unit="C"),
+    }
+    if vals["voltage_min_v"] >= vals["voltage_max_v"]:  # type: ignore[operator]
+        t.fail("voltage_min_v", f"{vals['voltage_min_v']} V must be below voltage_max_v "
+                                f"{vals['voltage_max_v']} V")
+    return Limits(**vals, source=str(path))  # type: ignore[arg-type]
+
+
+def _esc(t: _Table | None) -> EscConfig:
+    if t is None:
+        return EscConfig()
+    t.only(*(f.name for f in fields(EscConfig)))
+    lo_us, hi_us = PULSE_RANGE_US
+    d = EscConfig()
+    cfg = EscConfig(
+        frame_rate_hz=t.number("frame_rate_hz", d.frame_rate_hz, lo=FRAME_RATE_RANGE_HZ[0],
+                               hi=FRAME_RATE_RANGE_HZ[1], unit="Hz"),  # type: ignore[arg-type]
+        idle_us=t.number("idle_us", d.idle_us, lo=lo_us, hi=hi_us, unit="us"),  # type: ignore[arg-type]
+        min_us=t.number("min_us", d.min_us, lo=lo_us, hi=hi_us, unit="us"),  # type: ignore[arg-type]
+        max_us=t.number("max_us", d.max_us, lo=lo_us, hi=hi_us, unit="us"),  # type: ignore[arg-type]
+        arm_us=t.number("arm_us", d.arm_us, lo=lo_us, hi=hi_us, unit="us"),  # type: ignore[arg-type]
+        timeout_s=t.number("timeout_s", d.timeout_s, lo=0.01, hi=60.0, unit="s"),  # type: ignore[arg-type]
+    )
+    if cfg.min_us >= cfg.max_us:
+        t.fail("min_us", f"{cfg.min_us} us must be below max_us {cfg.max_us} us")
+    for key in ("idle_us", "arm_us"):
+        v = getattr(cfg, key)
+        if not cfg.min_us <= v <= cfg.max_us:
+            t.fail(key, f"{v} us outside min_us-max_us ({cfg.min_us:g}-{cfg.max_us:g} us)")
+    return cfg
+
+
+def _sim(t: _Table | None, esc_mode: str) -> SimConfig:
+    from drivers.sim.plant import PlantParams
+    from drivers.sim.sensors import SensorParams
+
+    if t is None:
+        return SimConfig(esc_mode=esc_mode)
+    t.only("seed", "esc_mode", "noise", "plant", "sensors")
+    seed = t.number("seed", 0.0, lo=0.0, hi=2**63)
+    if seed != int(seed):  # type: ignore[arg-type]
+        t.fail("seed", f"expected a whole number, got {seed}")
+    mode = t.text("esc_mode", esc_mode)
+    if mode not in ESC_MODES:
+        t.fail("esc_mode", f"{mode!r}: expected one of {', '.join(ESC_MODES)}")
+    overrides: dict[str, dict[str, float]] = {}
+    for key, cls in (("plant", PlantParams), ("sensors", SensorParams)):
+        sub = t.table(key, required=False)
+        overrides[key] = {}
+        if sub is None:
+            continue
+        names = [f.name for f in fields(cls)]
+        sub.only(*names)
+        for name in sub.data:
+            default = getattr(cls(), name)
+            if isinstance(default, bool):
+                overrides[key][name] = sub.flag(name, default)
+            else:
+                overrides[key][name] = sub.number(name, lo=0.0)  # type: ignore[assignment]
+    return SimConfig(int(seed), mode, t.flag("noise", True),  # type: ignore[arg-type]
+                     overrides["plant"], overrides["sensors"])
+
+
+def _components(path: Path, t: _Table) -> Components:
+    keys = [f.name for f in fields(Components)]
+    t.only(*keys)
+    comp = Components(**{k: t.text(k) for k in keys})
+    if comp.esc_mode not in ESC_MODES:
+        t.fail("esc_mode", f"{comp.esc_mode!r}: expected one of {', '.join(ESC_MODES)}")
+    cat_dir = REPO / "fixtures" / "catalogs" / comp.catalog
+    for key, csv_name in (("motor", "motors.csv"), ("propeller", "propellers.csv"),
+                          ("battery", "batteries.csv")):
+        table = cat_dir / csv_name
+        if not table.is_file():
+            continue  # catalog without such a table (or not shipped): ids are free text
+        with table.open(newline="", encoding="utf-8") as fh:
+            ids = {row.get("id", "") for row in csv.DictReader(fh)}
+        if getattr(comp, key) not in ids:
+            t.fail(key, f"{getattr(comp, key)!r} is not an id in {table} "
+                        f"(expected one of {', '.join(sorted(ids))})")
+    return comp
+
+
+def _make_thrust_map(where: Path | str, command_us: Sequence[float], thrust_n: Sequence[float],
+                     path: Path | None) -> ThrustMap:
+    cmd = np.asarray(command_us, dtype=float)
+    thr = np.asarray(thrust_n, dtype=float)
+    if cmd.ndim != 1 or cmd.shape != thr.shape or cmd.size < 2:
+        raise RigError(f"{where}: thrust map needs two equal-length columns of >= 2 values "
+                       f"(got {cmd.shape} and {thr.shape})")
+    if not (np.all(np.isfinite(cmd)) and np.all(np.isfinite(thr))):
+        raise RigError(f"{where}: thrust map holds non-finite values")
+    if np.any(np.diff(cmd) <= 0):
+        raise RigError(f"{where}: thrust map command_us must increase strictly")
+    return ThrustMap(tuple(cmd.tolist()), tuple(thr.tolist()), path)
+
+
+def _read_thrust_map(path: Path) -> ThrustMap:
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise RigError(f"{path}: cannot read thrust map: {exc}") from None
+    rows = list(csv.DictReader(io.StringIO(text)))
+    if not rows or not {"command_us", "thrust_n"} <= set(rows[0]):
+        raise RigError(f"{path}: thrust map needs columns command_us,thrust_n")
+    cmd, thr = [], []
+    for i, row in enumerate(rows, start=2):
+        try:
+            cmd.append(float(row["command_us"]))
+            thr.append(float(row["thrust_n"]))
+        except (TypeError, ValueError):
+            raise RigError(f"{path}: row {i}: expected numbers in command_us,thrust_n, "
+                           f"got {row}") from None
+    return _make_thrust_map(path, cmd, thr, path)
+
+
+def load_rig(path: str | os.PathLike[str]) -> RigConfig:
+    """Read and validate a rig file; raises ``RigError`` naming file and field."""
+    path = Path(path).resolve()
+    top = _Table(path, "", _read_toml(path))
+    top.only("rig", "devices", "limits", "components", "esc", "sim", "thrust_map")
+    rig = top.table("rig")
+    assert rig is not None
+    rig.only("name", "description")
+    name = rig.text("name")
+    devices_t = top.table("devices")
+    assert devices_t is not None
+    devices_t.only(*ROLES)
+    for role in ROLES:
+        if role not in devices_t.data:
+            devices_t.fail(role, f"missing device; a rig needs {', '.join(ROLES)}")
+    devices = {role: _device(devices_t, role) for role in ROLES}
+    limits = _limits(path, top.table("limits"))  # type: ignore[arg-type]
+    components = _components(path, top.table("components"))  # type: ignore[arg-type]
+    esc = _esc(top.table("esc", required=False))
+    sim = _sim(top.table("sim", required=False), components.esc_mode)
+    tm_path: Path | None = None
+    thrust_map: ThrustMap | None = None
+    tm = top.table("thrust_map", required=False)
+    if tm is not None:
+        tm.only("file")
+        tm_path = (path.parent / tm.text("file")).resolve()
+        if tm_path.is_file():
+            thrust_map = _read_thrust_map(tm_path)
+    return RigConfig(path, name, devices, limits, components, esc, sim, thrust_map, tm_path,
+                     rig.text("description", ""))
+
+
+# --- writing the thrust map ---------------------------------------------------------------
+def _atomic_write(path: Path, text: str) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def save_thrust_map(rig: RigConfig, command_us: Sequence[float], thrust_n: Sequence[float],
+                    path: str | os.PathLike[str] | None = None) -> RigConfig:
+    """Write the measured thrust map as CSV next to the rig file, atomically.
+
+    ``path`` defaults to the file the rig names in ``[thrust_map]``, else
+    ``<rig stem>.thrust_map.csv``; if the rig file does not reference it yet, a
+    ``[thrust_map]`` table is appended to the rig file (also atomically).
+    Returns the rig with the new map.
+    """
+    target = Path(path).resolve() if path else (
+        rig.thrust_map_path or rig.path.with_name(f"{rig.path.stem}.thrust_map.csv"))
+    tm = _make_thrust_map(target, command_us, thrust_n, target)
+    lines = ["command_us,thrust_n"] + [f"{c:.6g},{f:.6g}" for c, f in
+                                       zip(tm.command_us, tm.thrust_n, strict=True)]
+    _atomic_write(target, "\n".join(lines) + "\n")
+    if rig.thrust_map_path != target:
+        raw = rig.path.read_text(encoding="utf-8")
+        if "thrust_map" in _read_toml(rig.path):
+            raise RigError(f"{rig.path}: [thrust_map] names {rig.thrust_map_path}; "
+                           f"refusing to repoint it to {target}")
+        rel = os.path.relpath(target, rig.path.parent)
+        _atomic_write(rig.path, raw.rstrip("\n") + f'\n\n[thrust_map]\nfile = "{rel}"\n')
+    return replace(rig, thrust_map=tm, thrust_map_path=target)

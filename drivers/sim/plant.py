@@ -1,0 +1,289 @@
+"""The simulated actuator plant: supply -> ESC duty -> motor -> propeller (thesis E.1-E.7, C.1-C.4).
+
+One seeded plant per simulated rig. The ESC model (``drivers.sim.esc``) hands the plant one
+duty cycle per PWM frame; the plant integrates the rotor speed (and, optionally, the winding
+current with inductance, C.1) over the frame in a few fixed substeps with scalar float
+arithmetic, and stores the trajectory at the substep points. Sensors then sample that
+trajectory at 25 kHz with vectorised interpolation, so no Python loop ever runs per sample.
+
+Every default parameter carries its source; ``docs/sim-rig.md`` lists them in a table.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass, field, fields, replace
+
+import numpy as np
+
+from drivers.errors import DeviceError
+
+
+class EscScheme(enum.Enum):
+    """Switching scheme of the ESC firmware (Paper C sections 2 and 3.3)."""
+
+    COMPLEMENTARY = "complementary"  # active freewheeling: winding current may reverse (brakes)
+    DIODE = "diode"  # body-diode freewheeling: current cannot reverse, coasts on drag
+    STOCK = "stock"  # diode + the standard firmware's longer latency and input filter
+
+    @classmethod
+    def parse(cls, text: str) -> EscScheme:
+        try:
+            return cls(str(text).lower())
+        except ValueError:
+            names = ", ".join(m.value for m in cls)
+            raise ValueError(f"unknown ESC mode {text!r}; expected one of {names}") from None
+
+
+@dataclass(frozen=True)
+class PlantParams:
+    """Physical parameters of the simulated actuator, SI units. Defaults: DJI 2212/920 kV,
+    8x4.5 in propeller, Hobbyking F30A ESC, 3S supply (Table C.2 unless noted)."""
+
+    r_ohm: float = 0.22  # winding resistance R_a, Table C.2 (measured 0.220 V at 1.000 A)
+    l_h: float = 80e-6  # winding inductance L_a, Table C.2 (Amprobe 37XR-A)
+    use_inductance: bool = False  # C.2: L_a neglected (tau_e = L/R = 0.36 ms << tau_m)
+    kt_nm_a: float = 0.0104  # torque constant K_T, Table C.2 (K_T = K_E, Hughes and Drury)
+    ke_v_s_rad: float = 0.0104  # back-emf constant K_E from K_V = 920 RPM/V, Table C.2
+    j_kg_m2: float = 17.2e-6  # inertia of motor + propeller J, Table C.2
+    diameter_m: float = 0.2032  # 8 inch propeller, Paper C section 2.1
+    ct: float = 0.1215  # thrust coefficient, APC 8x4.5MR static data at 6000 RPM (E.1)
+    cp: float = 0.0518  # power coefficient, APC 8x4.5MR static data at 6000 RPM (E.2)
+    rho_kg_m3: float = 1.225  # ISA sea-level air density
+    supply_v: float = 11.1  # 3S LiPo nominal voltage (Table E.6: 11.1 V)
+    supply_r_ohm: float = 0.025  # pack + wiring internal resistance (assumption; C.15: fast)
+    esc_quiescent_a: float = 0.05  # ESC logic current draw (assumption)
+    esc_latency_s: float = 0.012  # input-to-duty latency, SimonK firmware (set from Table C.1)
+    stock_latency_s: float = 0.017  # input-to-duty latency, stock firmware (from Table C.1)
+    stock_filter_tau_s: float = 0.020  # stock firmware throttle low-pass (from Table C.1 tau_up)
+    max_substep_s: float = 0.0025  # integration substep (RK4), <= 1/10 of tau_m
+    max_substep_l_s: float = 0.0005  # substep with inductance (exponential update of current)
+
+    @classmethod
+    def with_overrides(cls, overrides: dict[str, float]) -> PlantParams:
+        """Defaults with the named fields replaced; unknown names raise ``KeyError``."""
+        known = {f.name for f in fields(cls)}
+        for name in overrides:
+            if name not in known:
+                raise KeyError(name)
+        return replace(cls(), **overrides)
+
+    # --- derived constants -------------------------------------------------------------
+    @property
+    def thrust_k(self) -> float:
+        """F = k_f * omega^2, from F = C_t rho n^2 D^4 with n = omega / 2 pi (E.1)."""
+        return self.ct * self.rho_kg_m3 * self.diameter_m**4 / (4.0 * math.pi**2)
+
+    @property
+    def torque_k(self) -> float:
+        """T = k_q * omega^2, from W = C_p rho n^3 D^5 and T = W / omega (E.2, E.3)."""
+        return self.cp * self.rho_kg_m3 * self.diameter_m**5 / (8.0 * math.pi**3)
+
+    def latency_for(self, scheme: EscScheme) -> float:
+        return self.stock_latency_s if scheme is EscScheme.STOCK else self.esc_latency_s
+
+    def filter_tau_for(self, scheme: EscScheme) -> float:
+        return self.stock_filter_tau_s if scheme is EscScheme.STOCK else 0.0
+
+
+def thrust_n(params: PlantParams, omega_rad_s: np.ndarray | float) -> np.ndarray | float:
+    """Propeller thrust (E.1)."""
+    return params.thrust_k * np.square(omega_rad_s)  # (E.1)
+
+
+def prop_torque_nm(params: PlantParams, omega_rad_s: np.ndarray | float) -> np.ndarray | float:
+    """Propeller drag torque T = W / omega (E.2, E.3)."""
+    return params.torque_k * np.square(omega_rad_s)  # (E.2), (E.3)
+
+
+@dataclass(frozen=True)
+class OperatingPoint:
+    """The plant linearised at a steady thrust: speed, duty and time constants (C.3, E.8)."""
+
+    thrust_n: float
+    omega_rad_s: float
+    duty: float
+    current_bus_a: float
+    tau_drive_s: float  # J / (K_T K_E / R + dT/domega): C.3 with D from the propeller, E.8
+    tau_coast_s: float  # J / (dT/domega): no winding current (diode scheme decelerating)
+
+
+def steady_omega(params: PlantParams, duty: float) -> float:
+    """Rotor speed where motor torque equals propeller torque at a given duty (E.4-E.7)."""
+    if duty <= 0.0:
+        return 0.0
+    r_tot = params.r_ohm + duty * duty * params.supply_r_ohm
+    a = params.torque_k
+    b = params.kt_nm_a * params.ke_v_s_rad / r_tot
+    c = -params.kt_nm_a * duty * params.supply_v / r_tot
+    return (-b + math.sqrt(b * b - 4.0 * a * c)) / (2.0 * a)
+
+
+def operating_point(params: PlantParams, thrust: float) -> OperatingPoint:
+    """Linearise the plant around the steady state that produces ``thrust`` newtons."""
+    omega = math.sqrt(thrust / params.thrust_k)
+    i_w = params.torque_k * omega**2 / params.kt_nm_a  # (E.6), (E.7) at d omega/dt = 0
+    duty = 0.5
+    for _ in range(20):  # the supply sag term depends on duty; a few fixed-point steps
+        r_tot = params.r_ohm + duty * duty * params.supply_r_ohm
+        duty = (params.ke_v_s_rad * omega + r_tot * i_w) / params.supply_v  # (E.4), (E.5)
+    r_tot = params.r_ohm + duty * duty * params.supply_r_ohm
+    drag_slope = 2.0 * params.torque_k * omega
+    tau_drive = params.j_kg_m2 / (params.kt_nm_a * params.ke_v_s_rad / r_tot + drag_slope)
+    tau_coast = params.j_kg_m2 / drag_slope
+    return OperatingPoint(
+        thrust_n=thrust,
+        omega_rad_s=omega,
+        duty=duty,
+        current_bus_a=duty * i_w + params.esc_quiescent_a,
+        tau_drive_s=tau_drive,
+        tau_coast_s=tau_coast,
+    )
+
+
+@dataclass
+class Trajectory:
+    """Plant state at the integration points; grows as the plant advances, trimmed behind."""
+
+    names: tuple[str, ...] = ("t", "omega", "theta", "i_w", "i_bus", "v_bus", "duty")
+    arrays: dict[str, np.ndarray] = field(default_factory=dict)
+    pending: dict[str, list[float]] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.arrays = {n: np.empty(0) for n in self.names}
+        self.pending = {n: [] for n in self.names}
+
+    def flush(self) -> None:
+        if self.pending["t"]:
+            for n in self.names:
+                self.arrays[n] = np.concatenate((self.arrays[n], np.asarray(self.pending[n])))
+                self.pending[n] = []
+
+    def trim_before(self, t: float) -> None:
+        """Drop points not needed to interpolate at times >= t (keeps one point before t)."""
+        self.flush()
+        tt = self.arrays["t"]
+        k = int(np.searchsorted(tt, t, side="right")) - 1
+        if k > 0:
+            for n in self.names:
+                self.arrays[n] = self.arrays[n][k:]
+
+    def sample(self, t: np.ndarray, names: tuple[str, ...]) -> dict[str, np.ndarray]:
+        self.flush()
+        tt = self.arrays["t"]
+        return {n: np.interp(t, tt, self.arrays[n]) for n in names}
+
+
+class Plant:
+    """Rotor speed (and optionally winding current) driven frame by frame by an ESC model.
+
+    ``esc`` must provide ``frame_ns`` and ``latch(k) -> float``: the duty cycle the ESC
+    applies during frame ``k`` (negative = transistors off, the motor coasts). A frame latched
+    at ``k * frame`` acts on the motor from ``k * frame + latency`` on (input latency).
+    """
+
+    def __init__(self, params: PlantParams, esc: EscFrameSource, scheme: EscScheme) -> None:
+        self.params = params
+        self.scheme = scheme
+        self.esc = esc
+        self.latency_ns = round(params.latency_for(scheme) * 1e9)
+        self.frame_ns = esc.frame_ns
+        step = params.max_substep_l_s if params.use_inductance else params.max_substep_s
+        self.n_sub = max(1, math.ceil(self.frame_ns * 1e-9 / step - 1e-9))
+        self.k = 0  # next frame to integrate
+        self.omega = 0.0
+        self.theta = 0.0
+        self.i_w = 0.0
+        self.i_bus = params.esc_quiescent_a
+        self.v_bus = params.supply_v - params.supply_r_ohm * self.i_bus
+        self.duty = 0.0
+        self.traj = Trajectory()
+        self._append(self.latency_ns * 1e-9)
+
+    # ------------------------------------------------------------------------------------
+    def _append(self, t: float) -> None:
+        p = self.traj.pending
+        p["t"].append(t)
+        p["omega"].append(self.omega)
+        p["theta"].append(self.theta)
+        p["i_w"].append(self.i_w)
+        p["i_bus"].append(self.i_bus)
+        p["v_bus"].append(self.v_bus)
+        p["duty"].append(self.duty)
+
+    @property
+    def t_ns(self) -> int:
+        """Time up to which the plant state is known."""
+        return self.k * self.frame_ns + self.latency_ns
+
+    def advance_to(self, t_ns: int) -> None:
+        """Integrate frame by frame until the state is known at ``t_ns`` (or later)."""
+        if not math.isfinite(self.omega):
+            raise DeviceError("sim plant diverged (non-finite rotor speed)")
+        while self.t_ns < t_ns:
+            duty = self.esc.latch(self.k)
+            self._integrate_frame(duty)
+            self.k += 1
+
+    def _integrate_frame(self, duty: float) -> None:
+        p = self.params
+        h = self.frame_ns * 1e-9 / self.n_sub
+        t0 = self.k * self.frame_ns * 1e-9 + self.latency_ns * 1e-9
+        coast = duty <= 0.0
+        d = 0.0 if coast else duty
+        allow_negative = self.scheme is EscScheme.COMPLEMENTARY and not coast
+        r_tot = p.r_ohm + d * d * p.supply_r_ohm
+        v_drive = d * p.supply_v
+        kt, ke, kq, j = p.kt_nm_a, p.ke_v_s_rad, p.torque_k, p.j_kg_m2
+        omega, theta, i_w = self.omega, self.theta, self.i_w
+        if p.use_inductance:
+            decay = math.exp(-h * r_tot / p.l_h)  # exact current step for frozen omega (C.1)
+
+        def f(w: float) -> float:
+            if coast:
+                i = 0.0
+            else:
+                i = (v_drive - ke * w) / r_tot  # (E.4), (E.5)
+                if not allow_negative and i < 0.0:
+                    i = 0.0
+            return (kt * i - kq * w * abs(w)) / j  # (E.6), (E.7)
+
+        for m in range(1, self.n_sub + 1):
+            if p.use_inductance:
+                i_ss = (v_drive - ke * omega) / r_tot
+                i_new = 0.0 if coast else i_ss + (i_w - i_ss) * decay
+                if not allow_negative and i_new < 0.0:
+                    i_new = 0.0  # the body diode blocks reverse current
+                i_avg = 0.5 * (i_w + i_new)
+                w_mid = omega + 0.5 * h * (kt * i_avg - kq * omega * abs(omega)) / j
+                omega_new = omega + h * (kt * i_avg - kq * w_mid * abs(w_mid)) / j  # (E.7)
+                i_w = i_new
+            else:
+                # RK4 on J domega/dt = K_T i - T(omega), i = (d V - K_E omega) / R  (E.4-E.7)
+                k1 = f(omega)
+                k2 = f(omega + 0.5 * h * k1)
+                k3 = f(omega + 0.5 * h * k2)
+                k4 = f(omega + h * k3)
+                omega_new = omega + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+                if coast:
+                    i_w = 0.0
+                else:
+                    i_w = (v_drive - ke * omega_new) / r_tot
+                    if not allow_negative and i_w < 0.0:
+                        i_w = 0.0
+            theta += 0.5 * h * (omega + omega_new)
+            omega = omega_new
+            self.omega, self.theta, self.i_w, self.duty = omega, theta, i_w, d
+            self.i_bus = d * i_w + p.esc_quiescent_a
+            self.v_bus = p.supply_v - p.supply_r_ohm * self.i_bus
+            self._append(t0 + m * h)
+
+
+class EscFrameSource:
+    """What the plant needs from an ESC model (see ``drivers.sim.esc.EscModel``)."""
+
+    frame_ns: int
+
+    def latch(self, k: int) -> float:  # pragma: no cover - interface only
+        raise NotImplementedError

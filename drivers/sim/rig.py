@@ -1,0 +1,161 @@
+"""The simulated rig: one seeded plant, one sim clock, the ESC and the three sensors.
+
+``SimRig`` is what ``drivers.factory.open_rig`` builds for a rig file whose devices are all
+``sim://``. Advancing the clock advances the plant; sensors sample the same trajectory.
+``truth()`` exposes the plant's true parameters and state for accuracy tests.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from drivers.contracts import Fault
+from drivers.sim.clock import SimClock
+from drivers.sim.esc import EscModel, EscSettings, SimEsc
+from drivers.sim.faults import FaultSwitches
+from drivers.sim.plant import (
+    EscScheme,
+    OperatingPoint,
+    Plant,
+    PlantParams,
+    operating_point,
+    steady_omega,
+)
+from drivers.sim.sensors import (
+    SampleClock,
+    SensorParams,
+    SimLoadCell,
+    SimPowerSensor,
+    SimRpmSensor,
+)
+
+
+@dataclass(frozen=True)
+class PlantTruth:
+    """The simulated plant's true parameters and current state (sim rigs only)."""
+
+    params: PlantParams
+    sensor_params: SensorParams
+    esc: EscSettings
+    esc_mode: str
+    latency_s: float  # ESC input-to-duty latency (firmware), excluding the frame wait
+    frame_period_s: float  # a command waits 0..1 frame before the ESC latches it
+    filter_tau_s: float  # ESC input low-pass (stock firmware), 0 if none
+    load_cell_delay_s: float  # low-frequency group delay of the load cell, 2 zeta / omega_n
+    t_s: float
+    omega_rad_s: float
+    rpm: float
+    thrust_n: float
+    current_winding_a: float
+    current_bus_a: float
+    voltage_bus_v: float
+    duty: float
+    armed: bool
+    failsafe: bool
+    failsafe_count: int
+
+    def operating_point(self, thrust_n: float) -> OperatingPoint:
+        """Plant linearised around a steady thrust: duty, speed and tau (C.3, E.8)."""
+        return operating_point(self.params, thrust_n)
+
+    def tau_up_s(self, thrust_n: float) -> float:
+        """Linearised time constant for a thrust increase (motor driving), C.3 / E.8."""
+        return self.operating_point(thrust_n).tau_drive_s
+
+    def tau_dn_s(self, thrust_n: float) -> float:
+        """Linearised time constant for a decrease: driving (complementary) or coasting."""
+        op = self.operating_point(thrust_n)
+        return op.tau_drive_s if self.esc_mode == EscScheme.COMPLEMENTARY.value else op.tau_coast_s
+
+    def steady_thrust_n(self, pulse_us: float) -> float:
+        """Static thrust the plant settles at for a constant pulse (E.1, E.4-E.7)."""
+        omega = steady_omega(self.params, self.esc.duty(pulse_us))
+        return self.params.thrust_k * omega * omega
+
+    def pulse_for_thrust_us(self, thrust_n: float) -> float:
+        """Inverse of ``steady_thrust_n`` (static model, no measurement)."""
+        duty = self.operating_point(thrust_n).duty
+        return self.esc.min_us + duty * (self.esc.max_us - self.esc.min_us)
+
+
+class SimRig:
+    """One seeded plant plus its devices on a shared simulated clock."""
+
+    def __init__(
+        self,
+        *,
+        params: PlantParams | None = None,
+        sensor_params: SensorParams | None = None,
+        esc_settings: EscSettings | None = None,
+        esc_mode: EscScheme | str = EscScheme.COMPLEMENTARY,
+        seed: int = 0,
+        urls: dict[str, str] | None = None,
+        load_cell_cal: dict[str, float] | None = None,
+        power_cal: dict[str, float] | None = None,
+        rpm_cal: dict[str, float] | None = None,
+    ) -> None:
+        self.params = params or PlantParams()
+        self.sensor_params = sensor_params or SensorParams()
+        self.esc_settings = esc_settings or EscSettings()
+        self.scheme = EscScheme.parse(esc_mode) if isinstance(esc_mode, str) else esc_mode
+        self.seed = seed
+        urls = {"esc": "sim://esc", "load_cell": "sim://load_cell", "power": "sim://power",
+                "rpm": "sim://rpm", **(urls or {})}
+        seeds = np.random.SeedSequence(seed).spawn(6)
+        rngs = [np.random.default_rng(s) for s in seeds]
+        self.clock = SimClock()
+        self.esc_model = EscModel(self.esc_settings, self.scheme, self.params)
+        self.plant = Plant(self.params, self.esc_model, self.scheme)
+        self.sample_clock = SampleClock(self.sensor_params, rngs[0])
+        self.clock.on_advance(self.plant.advance_to)
+        self.esc = SimEsc(urls["esc"], self.esc_model, self.clock,
+                          FaultSwitches(urls["esc"], rngs[1], (Fault.TIMEOUT, Fault.DISCONNECT)))
+        sp = self.sensor_params
+        lc = {"scale_n_per_v": 1.0 / sp.load_cell_v_per_n, "offset_v": 0.0, **(load_cell_cal or {})}
+        pw = {"current_mv_per_a": sp.current_mv_per_a, "voltage_mv_per_v": sp.voltage_mv_per_v,
+              "current_offset_mv": 0.0, **(power_cal or {})}
+        magnets = int((rpm_cal or {}).get("magnets", sp.magnets))
+        self.load_cell = SimLoadCell(self, urls["load_cell"], rngs[2], **lc)
+        self.power = SimPowerSensor(self, urls["power"], rngs[3], **pw)
+        self.rpm = SimRpmSensor(self, urls["rpm"], rngs[4], magnets)
+        self.sensors = {"load_cell": self.load_cell, "power": self.power, "rpm": self.rpm}
+
+    def trim(self) -> None:
+        """Forget plant history and clock jitter no sensor still needs."""
+        n_min = min(s.next_n for s in self.sensors.values())
+        self.sample_clock.trim_before(n_min)
+        self.plant.traj.trim_before(n_min * self.sample_clock.dt_ns * 1e-9)
+
+    def truth(self) -> PlantTruth:
+        self.plant.advance_to(self.clock.now_ns())
+        pl = self.plant
+        sp = self.sensor_params
+        wn = 2.0 * np.pi * sp.load_cell_fn_hz
+        return PlantTruth(
+            params=self.params,
+            sensor_params=sp,
+            esc=self.esc_settings,
+            esc_mode=self.scheme.value,
+            latency_s=self.params.latency_for(self.scheme),
+            frame_period_s=self.esc_model.frame_ns * 1e-9,
+            filter_tau_s=self.params.filter_tau_for(self.scheme),
+            load_cell_delay_s=2.0 * sp.load_cell_zeta / wn,
+            t_s=pl.t_ns * 1e-9,
+            omega_rad_s=pl.omega,
+            rpm=pl.omega * 60.0 / (2.0 * np.pi),
+            thrust_n=self.params.thrust_k * pl.omega**2,
+            current_winding_a=pl.i_w,
+            current_bus_a=pl.i_bus,
+            voltage_bus_v=pl.v_bus,
+            duty=pl.duty,
+            armed=self.esc_model.armed,
+            failsafe=self.esc_model.failsafe,
+            failsafe_count=self.esc_model.failsafe_count,
+        )
+
+    def close(self) -> None:
+        self.esc.close()
+        for s in self.sensors.values():
+            s.close()

@@ -1,0 +1,296 @@
+"""Simulated sensors: load cell, AttoPilot current/voltage sensor and hall RPM counter.
+
+All three sample the plant trajectory on one shared sample clock (25 kHz by default, like
+the thesis' cRIO, Paper C section 2.2), so their columns line up sample for sample. Each
+``read_block`` returns every sample up to the current simulated time since the previous
+read; everything is vectorised over the block (interpolation, ``scipy.signal.lfilter``
+with carried state for the load cell's mechanics, noise, quantisation).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields, replace
+from typing import TYPE_CHECKING
+
+import numpy as np
+from scipy import signal
+
+from drivers.contracts import Block, ChannelInfo, DeviceInfo, Fault
+from drivers.errors import DeviceError
+from drivers.sim.faults import FaultSwitches
+
+if TYPE_CHECKING:
+    from drivers.sim.rig import SimRig
+
+
+@dataclass(frozen=True)
+class SensorParams:
+    """Sensor models of the simulated rig; sources in docs/sim-rig.md."""
+
+    sample_rate_hz: float = 25_000.0  # load cell and current sampled at 25 kHz (Paper C 2.2)
+    jitter_s: float = 1e-6  # timestamp jitter, uniform +-sqrt(3) sigma (assumption)
+    noise: bool = True  # master switch for every random noise term
+    load_cell_fn_hz: float = 150.0  # mechanical natural frequency, cell + mount (assumption)
+    load_cell_zeta: float = 0.25  # its damping ratio (assumption)
+    load_cell_v_per_n: float = 0.1  # bridge + amplifier sensitivity (assumption)
+    load_cell_offset_v: float = 0.012  # zero offset of the bridge (so a tare matters)
+    load_cell_noise_n: float = 0.03  # white force noise at 25 kHz (assumption, ~3 g)
+    load_cell_range_n: float = 49.0  # Phidget micro load cell 0-5 kg (Paper C 2.2)
+    current_mv_per_a: float = 36.60  # AttoPilot 90 A current scale (issue 3 / datasheet)
+    voltage_mv_per_v: float = 63.69  # AttoPilot 90 A voltage scale (issue 3 / datasheet)
+    sensor_out_max_v: float = 3.3  # AttoPilot output swing, unidirectional (0-3.3 V)
+    current_noise_a: float = 0.15  # PWM ripple + sensor noise at 25 kHz (assumption)
+    voltage_noise_v: float = 0.02  # (assumption)
+    adc_bits: int = 16  # NI 9215-class ADC, 16 bit (assumption)
+    adc_range_v: float = 10.0  # +-10 V input range
+    magnets: int = 14  # hall sensor sees the 14 rotor magnets (Paper C 2.2)
+    counter_hz: float = 40e6  # FPGA counter timebase of the cRIO (NI-9401 on a 40 MHz FPGA)
+    rpm_timeout_s: float = 0.1  # no hall edge for this long -> the counter reports 0 rpm
+
+    @classmethod
+    def with_overrides(cls, overrides: dict[str, float]) -> SensorParams:
+        known = {f.name for f in fields(cls)}
+        for name in overrides:
+            if name not in known:
+                raise KeyError(name)
+        return replace(cls(), **overrides)
+
+
+def quantise(volts: np.ndarray, params: SensorParams) -> np.ndarray:
+    """ADC: clip to the input range and round to the LSB."""
+    lsb = 2.0 * params.adc_range_v / 2**params.adc_bits
+    v = np.clip(volts, -params.adc_range_v, params.adc_range_v - lsb)
+    return np.round(v / lsb) * lsb
+
+
+class SampleClock:
+    """The DAQ's shared sample clock: index n -> nominal time n / fs plus jitter.
+
+    Jitter values are drawn once per sample index and shared by every sensor on the clock.
+    """
+
+    def __init__(self, params: SensorParams, rng: np.random.Generator) -> None:
+        self.params = params
+        self.dt_ns = round(1e9 / params.sample_rate_hz)
+        self.rng = rng
+        self._b0 = 0
+        self._buf = np.empty(0)
+
+    def index_end(self, now_ns: int) -> int:
+        """One past the last sample index taken at or before ``now_ns``."""
+        return now_ns // self.dt_ns + 1
+
+    def nominal(self, n0: int, n1: int) -> np.ndarray:
+        return np.arange(n0, n1, dtype=np.float64) * (self.dt_ns * 1e-9)
+
+    def stamps(self, n0: int, n1: int) -> np.ndarray:
+        t = self.nominal(n0, n1)
+        if not self.params.noise or self.params.jitter_s <= 0:
+            return t
+        b1 = self._b0 + self._buf.size
+        if n1 > b1:
+            half = math.sqrt(3.0) * self.params.jitter_s
+            new = self.rng.uniform(-half, half, n1 - b1)
+            self._buf = np.concatenate((self._buf, new))
+        return t + self._buf[n0 - self._b0 : n1 - self._b0]
+
+    def trim_before(self, n: int) -> None:
+        if n > self._b0:
+            cut = min(n - self._b0, self._buf.size)
+            self._buf = self._buf[cut:]
+            self._b0 += cut
+
+
+class SimSensor:
+    """Common part of the simulated sensors: cursor on the sample clock, faults, describe."""
+
+    kind = "sensor"
+    model = "simulated"
+    allowed_faults = (Fault.DROPOUT, Fault.SPIKES, Fault.STUCK, Fault.TIMEOUT, Fault.DISCONNECT)
+
+    def __init__(self, rig: SimRig, url: str, rng: np.random.Generator) -> None:
+        self.rig = rig
+        self.url = url
+        self.rng = rng
+        self.params = rig.sensor_params
+        self.faults = FaultSwitches(url, rng, self.allowed_faults)
+        self.next_n = 0
+        self.closed = False
+
+    # subclasses fill these
+    def channels(self) -> tuple[ChannelInfo, ...]:
+        raise NotImplementedError
+
+    def measure(self, n0: int, n1: int, t: np.ndarray) -> dict[str, np.ndarray]:
+        raise NotImplementedError
+
+    def describe(self) -> DeviceInfo:
+        return DeviceInfo(
+            kind=self.kind, model=self.model, url=self.url, channels=self.channels(),
+            extra={"sample_rate_hz": self.params.sample_rate_hz, "noise": self.params.noise},
+        )
+
+    def read_block(self) -> Block:
+        if self.closed:
+            raise DeviceError(f"{self.url}: sensor is closed")
+        now_ns = self.rig.clock.now_ns()
+        n1 = self.rig.sample_clock.index_end(now_ns)
+        n0 = self.next_n
+        try:
+            self.faults.check(now_ns * 1e-9, "read_block")
+        except DeviceError:
+            self.next_n = n1  # samples during an outage are lost
+            self.rig.trim()
+            raise
+        if n1 <= n0:
+            return Block.empty(tuple(c.name for c in self.channels()))
+        self.rig.plant.advance_to(now_ns)
+        t_nominal = self.rig.sample_clock.nominal(n0, n1)
+        values = self.measure(n0, n1, t_nominal)
+        block = Block(self.rig.sample_clock.stamps(n0, n1), values)
+        self.next_n = n1
+        self.rig.trim()
+        full_scale = {c.name: c.high for c in self.channels()}
+        return self.faults.apply(block, full_scale)
+
+    def close(self) -> None:
+        self.closed = True
+
+    def inject(self, fault: Fault | str, **kwargs: float) -> None:
+        """Switch a fault on for a window of sim time, see ``FaultSwitches.inject``."""
+        self.faults.inject(fault, **kwargs)
+
+    def clear(self, fault: Fault | str | None = None) -> None:
+        self.faults.clear(fault)
+
+    def _noise(self, sigma: float, n: int) -> np.ndarray | float:
+        if not self.params.noise or sigma <= 0:
+            return 0.0
+        return self.rng.normal(0.0, sigma, n)
+
+
+class SimLoadCell(SimSensor):
+    """Load cell under the motor: 2nd-order mechanics, noise, bridge offset, calibration."""
+
+    kind = "load_cell"
+    model = "simulated Phidget micro load cell 5 kg"
+
+    def __init__(self, rig: SimRig, url: str, rng: np.random.Generator,
+                 scale_n_per_v: float, offset_v: float) -> None:
+        super().__init__(rig, url, rng)
+        p = self.params
+        wn = 2.0 * math.pi * p.load_cell_fn_hz
+        b, a = signal.bilinear([wn * wn], [1.0, 2.0 * p.load_cell_zeta * wn, wn * wn],
+                               fs=p.sample_rate_hz)
+        self._b, self._a = b, a
+        self._zi = np.zeros(max(len(a), len(b)) - 1)
+        self.scale_n_per_v = scale_n_per_v
+        self.offset_v = offset_v
+
+    def channels(self) -> tuple[ChannelInfo, ...]:
+        r = self.params.load_cell_range_n
+        return (ChannelInfo("thrust_n", "N", self.params.sample_rate_hz, -r, r),)
+
+    def measure(self, n0: int, n1: int, t: np.ndarray) -> dict[str, np.ndarray]:
+        p = self.params
+        omega = self.rig.plant.traj.sample(t, ("omega",))["omega"]
+        force = self.rig.plant.params.thrust_k * omega * omega  # (E.1)
+        felt, self._zi = signal.lfilter(self._b, self._a, force, zi=self._zi)
+        force_noisy = felt + self._noise(p.load_cell_noise_n, t.size)
+        volts = quantise(force_noisy * p.load_cell_v_per_n + p.load_cell_offset_v, p)
+        return {"thrust_n": (volts - self.offset_v) * self.scale_n_per_v}
+
+
+class SimPowerSensor(SimSensor):
+    """AttoPilot 90 A: bus current and voltage as 0-3.3 V signals read by the ADC."""
+
+    kind = "power_sensor"
+    model = "simulated AttoPilot 90 A"
+
+    def __init__(self, rig: SimRig, url: str, rng: np.random.Generator,
+                 current_mv_per_a: float, voltage_mv_per_v: float,
+                 current_offset_mv: float = 0.0) -> None:
+        super().__init__(rig, url, rng)
+        self.current_mv_per_a = current_mv_per_a
+        self.voltage_mv_per_v = voltage_mv_per_v
+        self.current_offset_mv = current_offset_mv
+
+    def channels(self) -> tuple[ChannelInfo, ...]:
+        fs = self.params.sample_rate_hz
+        top = self.params.sensor_out_max_v * 1000.0
+        return (
+            ChannelInfo("current_a", "A", fs, 0.0, top / self.current_mv_per_a),
+            ChannelInfo("voltage_v", "V", fs, 0.0, top / self.voltage_mv_per_v),
+        )
+
+    def measure(self, n0: int, n1: int, t: np.ndarray) -> dict[str, np.ndarray]:
+        p = self.params
+        s = self.rig.plant.traj.sample(t, ("i_bus", "v_bus"))
+        n = t.size
+        vi = (s["i_bus"] + self._noise(p.current_noise_a, n)) * p.current_mv_per_a * 1e-3
+        vv = (s["v_bus"] + self._noise(p.voltage_noise_v, n)) * p.voltage_mv_per_v * 1e-3
+        vi = quantise(np.clip(vi, 0.0, p.sensor_out_max_v), p)  # unidirectional output
+        vv = quantise(np.clip(vv, 0.0, p.sensor_out_max_v), p)
+        return {
+            "current_a": (vi * 1e3 - self.current_offset_mv) / self.current_mv_per_a,
+            "voltage_v": vv * 1e3 / self.voltage_mv_per_v,
+        }
+
+
+class SimRpmSensor(SimSensor):
+    """Hall sensor on the rotor magnets + FPGA period counter, sampled on the shared clock.
+
+    At every hall edge the counter latches the time since the previous edge (quantised to
+    the counter timebase); the DAQ loop reads the latest value at each sample, so the
+    column holds rpm = 60 / (magnets * period) of the last completed magnet pitch.
+    """
+
+    kind = "rpm_sensor"
+    model = "simulated hall sensor + period counter"
+
+    def __init__(self, rig: SimRig, url: str, rng: np.random.Generator, magnets: int) -> None:
+        super().__init__(rig, url, rng)
+        if magnets < 1:
+            raise DeviceError(f"{url}: magnets must be >= 1, got {magnets}")
+        self.magnets = magnets
+        self._count = 0  # magnet edges seen so far
+        self._theta = 0.0
+        self._t_prev = 0.0
+        self._last_edge = -math.inf
+        self._rpm = 0.0
+
+    def channels(self) -> tuple[ChannelInfo, ...]:
+        return (ChannelInfo("rpm", "rpm", self.params.sample_rate_hz, 0.0, 60_000.0),)
+
+    def measure(self, n0: int, n1: int, t: np.ndarray) -> dict[str, np.ndarray]:
+        theta = self.rig.plant.traj.sample(t, ("theta",))["theta"]
+        pitch = 2.0 * math.pi / self.magnets
+        counts = np.floor(theta / pitch).astype(np.int64)
+        th_all = np.concatenate(([self._theta], theta))
+        t_all = np.concatenate(([self._t_prev], t))
+        c_all = np.concatenate(([self._count], counts))
+        step = np.flatnonzero(np.diff(c_all) > 0)  # sample interval (i, i+1) holds an edge
+        # edge time: linear interpolation of the rotor angle inside the sample interval
+        th_edge = c_all[step + 1] * pitch
+        frac = (th_edge - th_all[step]) / (th_all[step + 1] - th_all[step])
+        t_edge = t_all[step] + frac * (t_all[step + 1] - t_all[step])
+        tick = 1.0 / self.params.counter_hz
+        t_edge = np.round(t_edge / tick) * tick
+        edges = np.concatenate(([self._last_edge], t_edge))
+        period = np.diff(edges)
+        with np.errstate(divide="ignore"):
+            rpm_edge = np.where(np.isfinite(period) & (period > 0),
+                                60.0 / (self.magnets * period), 0.0)
+        rpm_edge = np.concatenate(([self._rpm], rpm_edge))
+        # for each sample: the latest edge at or before it (0 = carried from the last read)
+        which = np.searchsorted(step, np.arange(t.size), side="right")
+        rpm = rpm_edge[which]
+        last_edge_t = edges[which]
+        rpm = np.where(t - last_edge_t > self.params.rpm_timeout_s, 0.0, rpm)
+        self._count = int(counts[-1])
+        self._theta = float(theta[-1])
+        self._t_prev = float(t[-1])
+        self._last_edge = float(edges[-1])
+        self._rpm = float(rpm_edge[-1])
+        return {"rpm": rpm}
