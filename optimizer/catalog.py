@@ -114,9 +114,9 @@ def _read_csv(path: Path) -> _Table:
     except (pd.errors.ParserError, UnicodeDecodeError) as exc:
         raise CatalogError(f"{label}: not a readable CSV file: {exc}") from None
     frame.columns = [str(c).strip() for c in frame.columns]
-    blank = frame.apply(lambda r: all(str(v).strip() == "" for v in r), axis=1)
-    lines = [i + 2 for i in range(len(frame)) if not blank.iloc[i]]  # header is line 1
-    frame = frame[~blank].reset_index(drop=True)
+    blank = (frame.map(lambda v: str(v).strip()) == "").all(axis=1).to_numpy(bool)
+    lines = [i + 2 for i in range(len(frame)) if not blank[i]]  # header is line 1
+    frame = frame.loc[~blank].reset_index(drop=True)
     return _Table(label, frame, lines)
 
 

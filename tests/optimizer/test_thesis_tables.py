@@ -7,6 +7,7 @@ readings. See docs/thesis-reproduction.md for the readings and the discussion.
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from optimizer.catalog import load_catalog
@@ -67,3 +68,69 @@ def test_readings_matter(thesis_e):
         t = evaluate_design(other, 4, "P4", "M3", "B3")["flight_time_min"]
         assert abs(t / 62.5 - 1) > 0.005, change
     assert base == pytest.approx(62.5, rel=0.005)
+
+
+# Paper D, Tables D.5 (case 1: 0.5 kg payload, >= 10 min) and D.6 (case 2: max flight time).
+# (table, N_a, propeller, motor, battery, tau_m s, roll+pitch inertia kg m^2, flight time min)
+PAPER_D = [
+    ("D.5", 4, "P5", "M1", "B3", 0.27, 0.04, 19),
+    ("D.5", 6, "P4", "M1", "B1", 0.24, 0.09, 12),
+    ("D.5", 8, "P5", "M1", "B5", 0.24, 0.19, 21),
+    ("D.6", 4, "P6", "M5", "B4", 0.24, 0.10, 23),
+    ("D.6", 6, "P5", "M1", "B4", 0.23, 0.11, 27),
+    ("D.6", 8, "P5", "M2", "B4", 0.21, 0.27, 23),
+]
+D_IDS = [f"{row[0]}-N{row[1]}" for row in PAPER_D]
+D_PAYLOAD_KG = 0.5  # "lift an SLR camera at 0.5 kg" (Paper D section 4.1)
+
+
+@pytest.fixture(scope="module")
+def thesis_d():
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    return load_catalog(root / "fixtures" / "catalogs" / "thesis-d")
+
+
+def _d(thesis_d, row):
+    _, n, prop, motor, batt, *_ = row
+    return evaluate_design(thesis_d, n, prop, motor, batt, D_PAYLOAD_KG)
+
+
+def test_paper_d_designs_are_feasible(thesis_d):
+    for row in PAPER_D:
+        d = _d(thesis_d, row)
+        assert d["feasible"], (row, d["reason"])
+        assert d["flight_time_min"] >= 10.0  # case 1's requirement holds for every design
+
+
+def test_paper_d_flight_times_differ_by_one_common_factor(thesis_d):
+    """Table / model flight time is the same factor (0.60) for all six designs.
+
+    The masses, hover power and capacities agree up to one scale; the printed equations
+    (D.7)-(D.8) do not say where it comes from (docs/thesis-reproduction.md).
+    """
+    ratios = np.array([row[7] / _d(thesis_d, row)["flight_time_min"] for row in PAPER_D])
+    # The table prints whole minutes: +-0.5 min is +-4 % on 12 min.
+    assert np.max(np.abs(ratios / ratios.mean() - 1)) < 0.03
+    assert ratios.mean() == pytest.approx(0.60, abs=0.01)
+
+
+@pytest.mark.xfail(strict=True, reason="Paper D flight times are 0.60 x the model's (see doc)")
+@pytest.mark.parametrize("row", PAPER_D, ids=D_IDS)
+def test_paper_d_flight_time(thesis_d, row):
+    assert _d(thesis_d, row)["flight_time_min"] == pytest.approx(row[7], abs=0.5)
+
+
+@pytest.mark.xfail(strict=True, reason="Paper D's propeller/motor inertias are not printed")
+@pytest.mark.parametrize("row", PAPER_D, ids=D_IDS)
+def test_paper_d_time_constant(thesis_d, row):
+    assert _d(thesis_d, row)["time_constant_ms"] / 1e3 == pytest.approx(row[5], abs=0.005)
+
+
+@pytest.mark.xfail(strict=True, reason="Paper D uses the diagonal of (D.4) as arm (see doc)")
+@pytest.mark.parametrize("row", PAPER_D, ids=D_IDS)
+def test_paper_d_inertia(thesis_d, row):
+    d = _d(thesis_d, row)
+    total = d["roll_inertia_kgm2"] + d["pitch_inertia_kgm2"]
+    assert total == pytest.approx(row[6], abs=0.005)
