@@ -1,0 +1,126 @@
+"""Shared pieces of the bench commands (step, sweep): rig loading, progress, running."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import threading
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any
+
+from rich.console import Console
+from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+from bench.errors import RigError
+from bench.runner import RunOptions
+from bench.safety import LIMIT_FIELDS
+from bench.sequences import Segment, Sequence, format_plan
+from bench.session import RunOutcome, plan_for, run_sequence
+
+DEFAULT_OUT = Path("runs")
+
+
+def err_console() -> Console:
+    return Console(stderr=True)
+
+
+def add_common_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--rig", type=Path, default=None,
+                   help="rig file (TOML); default: the simulated rig fixtures/rigs/sim.toml")
+    p.add_argument("--out", type=Path, default=DEFAULT_OUT,
+                   help="output root for run folders and runs.sqlite (default: ./runs)")
+    p.add_argument("--esc-mode", choices=("complementary", "diode", "stock"), default=None,
+                   help="ESC switching scheme / firmware (overrides the rig file)")
+    p.add_argument("--seed", type=int, default=None, help="seed of the simulated rig")
+    p.add_argument("--limit", action="append", default=[], metavar="NAME=VALUE",
+                   help=f"tighten a limit for this run ({', '.join(LIMIT_FIELDS)}); "
+                        "loosening is refused")
+    p.add_argument("--dry-run", action="store_true",
+                   help="print every step with times and commands; touch no device")
+    p.add_argument("--live", action="store_true",
+                   help="show rolling plots in a window (pyqtgraph); implies --realtime")
+    p.add_argument("--realtime", action="store_true",
+                   help="pace a simulated rig to the wall clock")
+    p.add_argument("--tick", type=float, default=0.02,
+                   help="command/read period in seconds; limits are checked on every "
+                        "sample, the reaction comes within one tick (default 0.02)")
+
+
+def load_rig_from_args(args: argparse.Namespace) -> Any:
+    from bench.rig import default_rig_path, load_rig
+
+    rig = load_rig(args.rig or default_rig_path())
+    if args.esc_mode:
+        rig = rig.with_esc_mode(args.esc_mode)
+    return rig
+
+
+def parse_limits(items: list[str]) -> dict[str, float]:
+    out = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        if not sep or name not in LIMIT_FIELDS:
+            raise RigError(f"--limit {item!r}: expected NAME=VALUE with NAME one of "
+                           f"{', '.join(LIMIT_FIELDS)}")
+        try:
+            out[name] = float(value)
+        except ValueError:
+            raise RigError(f"--limit {item!r}: {value!r} is not a number") from None
+    return out
+
+
+def with_limits(seq: Sequence, extra: Mapping[str, float]) -> Sequence:
+    if not extra:
+        return seq
+    from dataclasses import replace
+
+    return replace(seq, limits={**seq.limits, **extra})
+
+
+def print_dry_run(rig: Any, seq: Sequence) -> None:
+    plan = plan_for(rig, seq, dry_run=True)
+    print(f"rig {rig.name} ({rig.path}); ESC {rig.esc.idle_us:g} us idle, "
+          f"{rig.esc.min_us:g}-{rig.esc.max_us:g} us at {rig.esc.frame_rate_hz:g} Hz")
+    print(format_plan(plan))
+
+
+def execute(rig: Any, seq: Sequence, args: argparse.Namespace,
+            extra_meta: Mapping[str, Any] | None = None) -> RunOutcome:
+    """Run one sequence with a progress bar on stderr (and the live view if asked)."""
+    from drivers.factory import open_rig
+
+    options = RunOptions(tick_s=args.tick, realtime=bool(args.realtime or args.live))
+    stop = threading.Event()
+    total = plan_for(rig, seq).duration_s
+    progress = Progress(TextColumn("{task.description}"), BarColumn(),
+                        TextColumn("{task.completed:6.1f}/{task.total:.1f} s rig time"),
+                        TimeElapsedColumn(), console=err_console())
+    task = progress.add_task(seq.name, total=total)
+
+    def on_progress(t: float, _total: float, seg: Segment) -> None:
+        progress.update(task, completed=t, description=f"{seq.name} [{seg.label}]")
+
+    def work(on_rows: Callable | None) -> RunOutcome:
+        return run_sequence(rig, seq, args.out, open_rig, seed=args.seed, options=options,
+                            on_rows=on_rows, on_progress=on_progress, stop_event=stop,
+                            extra_meta=extra_meta)
+
+    with progress:
+        if args.live:
+            from bench.live import run_with_live_view
+
+            outcome = run_with_live_view(work, stop)
+        else:
+            outcome = work(None)
+        progress.update(task, completed=outcome.result.t_end_s)
+    return outcome
+
+
+def report(outcome: RunOutcome) -> int:
+    res = outcome.result
+    print(f"{outcome.run_dir}: {res.status}: {res.reason} ({res.rows} samples, "
+          f"{res.t_end_s:.2f} s)")
+    if res.safe_stop_errors:
+        print(f"warning: safe stop reported: {'; '.join(res.safe_stop_errors)}", file=sys.stderr)
+    return 0 if res.status == "success" else 1

@@ -1,0 +1,49 @@
+"""``rotorbench step``: Paper C's thrust steps (Step 1 or Step 2) on a rig."""
+
+from __future__ import annotations
+
+import argparse
+
+from bench.commands import _bench_common as common
+from bench.sequences import step1, step2
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "step", help="run Paper C thrust steps (Step 1 / Step 2) and record them",
+        description="Thrust steps between hover -30 %% and +30 %% (175 g and 325 g per rotor "
+                    "of the 1 kg quadcopter, Paper C section 4). Setpoints become ESC "
+                    "commands through the rig's static thrust map; if the rig has none yet, "
+                    "a sweep measures it first and stores it with the rig.")
+    common.add_common_arguments(p)
+    p.add_argument("--sequence", choices=("step1", "step2"), default="step1")
+    p.add_argument("--repeats", type=int, default=20, help="number of up/down steps (20)")
+    p.add_argument("--hold", type=float, default=0.5, help="seconds each level is held (0.5)")
+    p.set_defaults(func=handler)
+
+
+def build(args: argparse.Namespace):
+    maker = step1 if args.sequence == "step1" else step2
+    seq = maker(repeats=args.repeats, hold_s=args.hold)
+    return common.with_limits(seq, common.parse_limits(args.limit))
+
+
+def handler(args: argparse.Namespace) -> int:
+    rig = common.load_rig_from_args(args)
+    seq = build(args)
+    if args.dry_run:
+        if rig.thrust_map is None:
+            print("no static thrust map in the rig yet: a sweep would run first "
+                  "(`rotorbench sweep --dry-run` shows it); thrust-step commands shown as (map)")
+        common.print_dry_run(rig, seq)
+        return 0
+    if rig.thrust_map is None:
+        from bench.commands.sweep import measure_map
+
+        common.err_console().print(
+            f"rig {rig.name} has no static thrust map yet: measuring one with a sweep first")
+        rig, code = measure_map(rig, args)
+        if code:
+            return code
+    outcome = common.execute(rig, seq, args)
+    return common.report(outcome)

@@ -1,0 +1,203 @@
+"""Run folders: ``run.json``, ``samples.parquet/`` (a folder of parts) and ``events.csv``.
+
+Samples are written as they arrive in parts of at most ``chunk_s`` seconds of data.
+Each part is written under a hidden temporary name and renamed into place, and
+``pandas.read_parquet`` skips hidden names, so after a crash or ``kill -9`` every part
+on disk is complete and readable: at most the last (unwritten) chunk is lost.
+``run.json`` is written at the start with status ``running`` and replaced atomically
+at the end; events are appended one flushed line at a time.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import socket
+import time
+from collections.abc import Mapping
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from bench.errors import RigError
+
+__all__ = ["BASE_COLUMNS", "RunRecorder", "atomic_write_json", "new_run_id",
+           "software_version", "utc_now"]
+
+BASE_COLUMNS = ("t_s", "throttle_us", "thrust_setpoint_n", "thrust_n", "current_a",
+                "voltage_v", "rpm")
+SAMPLES_DIR = "samples.parquet"
+EVENT_FIELDS = ("t_s", "utc", "kind", "step", "label", "detail")
+
+
+def utc_now() -> str:
+    return datetime.now(UTC).isoformat(timespec="milliseconds")
+
+
+def software_version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("rotorbench")
+    except PackageNotFoundError:
+        return "unknown"
+
+
+def new_run_id(name: str) -> str:
+    stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%S_%fZ")
+    return f"{stamp}-{name}"
+
+
+def atomic_write_json(path: Path, data: Mapping[str, Any]) -> None:
+    """Write JSON to a temporary file next to ``path`` and rename it into place."""
+    tmp = path.with_name(f".{path.name}.tmp")
+    with open(tmp, "w", encoding="utf-8") as fh:
+        json.dump(_jsonable(data), fh, indent=2, allow_nan=False)
+        fh.write("\n")
+        fh.flush()
+        os.fsync(fh.fileno())
+    os.replace(tmp, path)
+
+
+def _jsonable(obj: Any) -> Any:
+    if isinstance(obj, Mapping):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, np.generic):
+        obj = obj.item()
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    if isinstance(obj, Path):
+        return str(obj)
+    if obj is None or isinstance(obj, str | int | float | bool):
+        return obj
+    return str(obj)
+
+
+class RunRecorder:
+    """Writes one run folder; ``append`` columns as they come, ``finish`` once at the end."""
+
+    def __init__(self, run_dir: Path, meta: Mapping[str, Any], chunk_s: float = 1.0,
+                 compression: str = "lz4") -> None:
+        if not 0 < chunk_s <= 1.0:
+            raise ValueError("chunk_s must be in (0, 1] s: a crash may lose at most one second")
+        self.run_dir = Path(run_dir)
+        self.chunk_s = chunk_s
+        self.compression = compression
+        self.meta: dict[str, Any] = dict(meta)
+        self._buf: list[dict[str, np.ndarray]] = []
+        self._buf_t0 = math.nan
+        self._buf_t1 = math.nan
+        self._schema: pa.Schema | None = None
+        self._columns: tuple[str, ...] | None = None
+        self.parts = 0
+        self.rows_written = 0
+        self.closed = False
+        try:
+            self.run_dir.mkdir(parents=True, exist_ok=False)
+            (self.run_dir / SAMPLES_DIR).mkdir()
+        except OSError as exc:
+            raise RigError(f"{self.run_dir}: cannot create the run folder ({exc})") from None
+        self.meta.setdefault("id", self.run_dir.name)
+        self.meta.update(status="running", reason="", started_utc=utc_now(), ended_utc=None,
+                         software_version=software_version(), host=socket.gethostname(),
+                         pid=os.getpid(), samples=SAMPLES_DIR, events="events.csv")
+        atomic_write_json(self.run_dir / "run.json", self.meta)
+        self._events = open(self.run_dir / "events.csv", "w", newline="", encoding="utf-8")
+        self._events_csv = csv.writer(self._events)
+        self._events_csv.writerow(EVENT_FIELDS)
+        self._events.flush()
+
+    # -- samples ------------------------------------------------------------------------
+
+    def append(self, columns: Mapping[str, np.ndarray]) -> None:
+        """Buffer one batch of rows (same length per column, ``t_s`` increasing)."""
+        t = columns["t_s"]
+        n = len(t)
+        if n == 0:
+            return
+        if self._columns is None:
+            missing = [c for c in BASE_COLUMNS if c not in columns]
+            if missing:
+                raise ValueError(f"samples need the columns {missing}")
+            self._columns = (*BASE_COLUMNS, *[c for c in columns if c not in BASE_COLUMNS])
+        batch = {c: np.asarray(columns[c]) for c in self._columns}
+        if math.isnan(self._buf_t0):
+            self._buf_t0 = float(t[0])
+        self._buf.append(batch)
+        self._buf_t1 = float(t[-1])
+        while self._buf_t1 - self._buf_t0 >= self.chunk_s:
+            self._flush_until(self._buf_t0 + self.chunk_s)
+
+    def flush(self) -> None:
+        """Write everything buffered (used at the end of a run)."""
+        self._flush_until(math.inf)
+
+    def _flush_until(self, t_cut: float) -> None:
+        if not self._buf:
+            return
+        cols = {c: np.concatenate([b[c] for b in self._buf]) for c in self._columns or ()}
+        cut = int(np.searchsorted(cols["t_s"], t_cut, side="left"))
+        if cut == 0:  # a single sample at the cut; never loop forever
+            cut = 1
+        self._write_part({c: v[:cut] for c, v in cols.items()})
+        rest = {c: v[cut:] for c, v in cols.items()}
+        if len(rest["t_s"]):
+            self._buf = [rest]
+            self._buf_t0 = float(rest["t_s"][0])
+            self._buf_t1 = float(rest["t_s"][-1])
+        else:
+            self._buf = []
+            self._buf_t0 = self._buf_t1 = math.nan
+
+    def _write_part(self, cols: Mapping[str, np.ndarray]) -> None:
+        table = pa.table(dict(cols))
+        if self._schema is None:
+            self._schema = table.schema
+        else:
+            table = table.cast(self._schema)
+        name = f"part-{self.parts:06d}.parquet"
+        final = self.run_dir / SAMPLES_DIR / name
+        tmp = final.with_name(f".{name}.tmp")
+        pq.write_table(table, tmp, compression=self.compression, use_dictionary=False,
+                       write_statistics=["t_s"])
+        os.replace(tmp, final)
+        self.parts += 1
+        self.rows_written += table.num_rows
+
+    # -- events and end -------------------------------------------------------------------
+
+    def event(self, t_s: float, kind: str, step: int | None = None, label: str = "",
+              detail: Mapping[str, Any] | None = None) -> None:
+        """Append one event line (flushed at once, so a crash keeps it)."""
+        if self._events.closed:
+            return
+        self._events_csv.writerow([
+            "" if t_s is None or math.isnan(t_s) else f"{t_s:.6f}", utc_now(), kind,
+            "" if step is None else step, label,
+            json.dumps(_jsonable(detail), allow_nan=False) if detail else "",
+        ])
+        self._events.flush()
+
+    def finish(self, status: str, reason: str, **extra: Any) -> dict[str, Any]:
+        """Flush the samples and rewrite ``run.json`` with the exit status; idempotent."""
+        if self.closed:
+            return self.meta
+        try:
+            self.flush()
+        finally:
+            self.closed = True
+            self._events.close()
+            self.meta.update(extra)
+            self.meta.update(status=status, reason=reason, ended_utc=utc_now(),
+                             rows=self.rows_written, parts=self.parts,
+                             finished_unix=time.time())
+            atomic_write_json(self.run_dir / "run.json", self.meta)
+        return self.meta

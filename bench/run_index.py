@@ -1,0 +1,135 @@
+"""SQLite index of the run folders under one output root (``<root>/runs.sqlite``).
+
+The run folders stay the record; the index is for listing and finding them. A run is
+added when it starts (status ``running``) and updated when it ends. If a process died
+(kill -9, power loss) its row still says running; :meth:`RunIndex.list` reports such
+rows as ``killed`` when the recording process is gone. ``rebuild`` re-reads every
+``run.json`` under the root.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sqlite3
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from bench.errors import RigError
+
+__all__ = ["INDEX_NAME", "RunIndex", "RunRow"]
+
+INDEX_NAME = "runs.sqlite"
+_SCHEMA = """
+CREATE TABLE IF NOT EXISTS runs (
+    id TEXT PRIMARY KEY,
+    path TEXT NOT NULL,
+    rig TEXT,
+    components TEXT,
+    sequence TEXT,
+    started_utc TEXT,
+    ended_utc TEXT,
+    status TEXT,
+    reason TEXT,
+    host TEXT,
+    pid INTEGER
+)
+"""
+
+
+@dataclass(frozen=True)
+class RunRow:
+    id: str
+    path: str
+    rig: str
+    components: dict[str, Any]
+    sequence: str
+    started_utc: str
+    ended_utc: str | None
+    status: str
+    reason: str
+
+
+class RunIndex:
+    """A small SQLite table of runs; every call opens its own short connection."""
+
+    def __init__(self, root: Path) -> None:
+        self.root = Path(root)
+        self.path = self.root / INDEX_NAME
+        self.root.mkdir(parents=True, exist_ok=True)
+        with self._connect() as con:
+            con.execute(_SCHEMA)
+
+    def _connect(self) -> sqlite3.Connection:
+        try:
+            return sqlite3.connect(self.path, timeout=10.0)
+        except sqlite3.Error as exc:
+            raise RigError(f"{self.path}: cannot open the run index ({exc})") from None
+
+    def upsert(self, meta: Mapping[str, Any], run_dir: Path) -> None:
+        """Insert or update the row of one run from its ``run.json`` content."""
+        row = (
+            str(meta.get("id", run_dir.name)),
+            os.path.relpath(run_dir, self.root),
+            str(meta.get("rig", {}).get("name", "") if isinstance(meta.get("rig"), Mapping)
+                else meta.get("rig", "")),
+            json.dumps(meta.get("components", {}), default=str),
+            str(meta.get("sequence", {}).get("name", "")
+                if isinstance(meta.get("sequence"), Mapping) else meta.get("sequence", "")),
+            meta.get("started_utc"),
+            meta.get("ended_utc"),
+            meta.get("status"),
+            meta.get("reason", ""),
+            meta.get("host"),
+            meta.get("pid"),
+        )
+        with self._connect() as con:
+            con.execute("INSERT OR REPLACE INTO runs VALUES (?,?,?,?,?,?,?,?,?,?,?)", row)
+
+    def list(self) -> list[RunRow]:
+        import socket
+
+        with self._connect() as con:
+            rows = con.execute(
+                "SELECT id, path, rig, components, sequence, started_utc, ended_utc, status,"
+                " reason, host, pid FROM runs ORDER BY started_utc"
+            ).fetchall()
+        out = []
+        here = socket.gethostname()
+        for (rid, path, rig, comps, seq, start, end, status, reason, host, pid) in rows:
+            if status == "running" and host == here and pid and not _alive(int(pid)):
+                status, reason = "killed", "recording process is gone; samples up to the last part"
+            out.append(RunRow(rid, path, rig or "", json.loads(comps or "{}"), seq or "",
+                              start or "", end, status or "", reason or ""))
+        return out
+
+    def rebuild(self) -> int:
+        """Re-index every run folder with a ``run.json`` under the root; returns the count."""
+        count = 0
+        for meta_path in sorted(self.root.glob("*/run.json")):
+            try:
+                meta = json.loads(meta_path.read_text(encoding="utf-8"))
+            except (OSError, json.JSONDecodeError) as exc:
+                raise RigError(f"{meta_path}: unreadable run.json ({exc})") from None
+            self.upsert(meta, meta_path.parent)
+            count += 1
+        return count
+
+
+def _alive(pid: int) -> bool:
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    # A zombie (killed child not yet reaped) still answers signal 0.
+    try:
+        with open(f"/proc/{pid}/stat", encoding="ascii") as fh:
+            return fh.read().split(")")[-1].split()[0] != "Z"
+    except OSError:
+        return True

@@ -1,0 +1,152 @@
+"""Safety supervisor: checks every sample of every block against the run's limits.
+
+Limits come from the rig file; a sequence may only tighten them (:func:`effective_limits`).
+A trip names the limit, the channel, the value and the whole triggering sample, so the
+run record says exactly why the motor was stopped. Checks are vectorised per block.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from bench.errors import RigError
+from drivers.contracts import Block
+
+__all__ = ["LIMIT_FIELDS", "LimitTrip", "SafetySupervisor", "Trip", "effective_limits",
+           "limits_dict"]
+
+# channel -> (limit field, test). "abs_above": |x| > limit; "above": x > limit; "below": x < limit.
+_CHECKS: dict[str, tuple[tuple[str, str], ...]] = {
+    "thrust_n": (("thrust_n", "abs_above"),),
+    "current_a": (("current_a", "abs_above"),),
+    "rpm": (("rpm", "above"),),
+    "voltage_v": (("voltage_min_v", "below"), ("voltage_max_v", "above")),
+    "temperature_c": (("temperature_c", "above"),),
+}
+LIMIT_FIELDS = ("thrust_n", "current_a", "rpm", "voltage_min_v", "voltage_max_v", "temperature_c")
+_LOWER_BOUNDS = {"voltage_min_v"}  # tightening raises these; every other limit is lowered
+
+
+@dataclass(frozen=True)
+class Trip:
+    """Why and on which sample the supervisor stopped the run."""
+
+    limit: str
+    channel: str
+    sensor: str
+    t_s: float
+    value: float
+    limit_value: float
+    sample: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def message(self) -> str:
+        op = "<" if self.limit in _LOWER_BOUNDS else ">"
+        return (f"limit trip: {self.channel} = {self.value:.4g} {op} {self.limit} "
+                f"{self.limit_value:.4g} at t = {self.t_s:.4f} s ({self.sensor})")
+
+    def to_dict(self) -> dict[str, Any]:
+        return {**dataclasses.asdict(self), "message": self.message}
+
+
+class LimitTrip(Exception):
+    """Raised by the supervisor; the runner turns it into a safe stop with status abort."""
+
+    def __init__(self, trip: Trip) -> None:
+        super().__init__(trip.message)
+        self.trip = trip
+
+
+def limits_dict(limits: Any) -> dict[str, float]:
+    """The finite limit values of a Limits object or mapping, by field name."""
+    raw = limits if isinstance(limits, Mapping) else {
+        f: getattr(limits, f, None) for f in LIMIT_FIELDS
+    }
+    out: dict[str, float] = {}
+    for key, value in raw.items():
+        if value is None:
+            continue
+        value = float(value)
+        if not math.isnan(value):
+            out[key] = value
+    return out
+
+
+def effective_limits(rig_limits: Any, sequence_limits: Mapping[str, float],
+                     source: str = "sequence") -> dict[str, float]:
+    """The rig's limits tightened by the sequence's; loosening raises RigError.
+
+    Uses the rig's own ``Limits.tightened`` when it has one (the rig file's rule), and
+    checks the result again here, so a sequence can never widen a limit.
+    """
+    base = limits_dict(rig_limits)
+    for key, value in sequence_limits.items():
+        if key not in LIMIT_FIELDS:
+            raise RigError(f"{source}: limits.{key}: unknown limit; expected one of "
+                           f"{', '.join(LIMIT_FIELDS)}")
+        if not math.isfinite(float(value)):
+            raise RigError(f"{source}: limits.{key}: expected a finite number, got {value!r}")
+    merged = dict(base)
+    tightened = getattr(rig_limits, "tightened", None)
+    if callable(tightened) and sequence_limits:
+        other = dataclasses.replace(rig_limits, **dict(sequence_limits)) \
+            if dataclasses.is_dataclass(rig_limits) else dict(sequence_limits)
+        merged = limits_dict(tightened(other))
+    else:
+        merged.update({k: float(v) for k, v in sequence_limits.items()})
+    for key, value in merged.items():
+        if key not in base:
+            continue
+        looser = value < base[key] if key in _LOWER_BOUNDS else value > base[key]
+        if looser:
+            raise RigError(f"{source}: limits.{key} = {value:g} would loosen the rig's "
+                           f"limit {base[key]:g}; a sequence may only tighten limits")
+    return merged
+
+
+class SafetySupervisor:
+    """Checks blocks against fixed limits; the first violating sample (earliest) trips."""
+
+    def __init__(self, limits: Mapping[str, float]) -> None:
+        self.limits = dict(limits)
+        self.trip: Trip | None = None
+
+    def check(self, blocks: Mapping[str, Block]) -> Trip | None:
+        """Return the earliest violation in these blocks (and latch it), or None."""
+        best: Trip | None = None
+        for role, block in blocks.items():
+            if len(block) == 0:
+                continue
+            for channel, values in block.values.items():
+                for limit_name, test in _CHECKS.get(channel, ()):
+                    limit = self.limits.get(limit_name)
+                    if limit is None:
+                        continue
+                    v = np.asarray(values, dtype=float)
+                    if test == "abs_above":
+                        bad = np.abs(v) > limit
+                    elif test == "above":
+                        bad = v > limit
+                    else:
+                        bad = v < limit
+                    if not bad.any():
+                        continue
+                    i = int(np.argmax(bad))
+                    t = float(block.t_s[i])
+                    if best is None or t < best.t_s:
+                        sample = {"t_s": t, **{c: float(block.values[c][i]) for c in block.values}}
+                        best = Trip(limit_name, channel, role, t, float(v[i]), limit, sample)
+        if best is not None and self.trip is None:
+            self.trip = best
+        return best
+
+    def raise_if_tripped(self, blocks: Mapping[str, Block]) -> None:
+        trip = self.check(blocks)
+        if trip is not None:
+            raise LimitTrip(trip)

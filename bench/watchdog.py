@@ -1,0 +1,132 @@
+"""Host watchdog: a stalled command loop stops the motor.
+
+The runner checks in (``kick``) on every tick. A separate thread watches the host's
+monotonic clock (never the rig clock: a stalled host also stalls a simulated clock);
+when the loop has not checked in for ``timeout_s`` it latches and disarms the ESC.
+All ESC commands go through :class:`GuardedEsc`, which refuses commands once latched,
+so a loop that wakes up again cannot spin the motor back up.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+
+from drivers.contracts import Esc
+
+__all__ = ["GuardedEsc", "HostWatchdog", "WatchdogTrip"]
+
+
+class WatchdogTrip(Exception):
+    """The command loop stalled longer than the watchdog timeout."""
+
+
+class GuardedEsc:
+    """An ESC wrapper shared by the runner and the watchdog: clamps commands, latches kills."""
+
+    def __init__(self, esc: Esc, min_us: float, max_us: float, idle_us: float) -> None:
+        self.esc = esc
+        self.min_us, self.max_us, self.idle_us = min_us, max_us, idle_us
+        self._lock = threading.Lock()
+        self.killed_reason: str | None = None
+        self.last_us = idle_us
+
+    def arm(self) -> None:
+        with self._lock:
+            self._refuse_if_killed()
+            self.esc.arm()
+
+    def set_pulse_us(self, pulse_us: float) -> None:
+        if pulse_us != self.idle_us:
+            pulse_us = min(max(pulse_us, self.min_us), self.max_us)
+        with self._lock:
+            self._refuse_if_killed()
+            self.esc.set_pulse_us(pulse_us)
+            self.last_us = pulse_us
+
+    def safe_stop(self, lock_timeout_s: float = -1) -> list[str]:
+        """Idle then disarm; each attempted even if the other fails. Returns the errors.
+
+        With ``lock_timeout_s`` >= 0 a command stuck in another thread does not block the
+        stop for longer than that: the ESC is disarmed anyway (``disarm`` is safe anytime).
+        """
+        errors = []
+        locked = self._lock.acquire(timeout=lock_timeout_s)
+        try:
+            for action in (lambda: self.esc.set_pulse_us(self.idle_us), self.esc.disarm):
+                try:
+                    action()
+                except Exception as exc:  # the safe stop must try every step
+                    errors.append(f"{type(exc).__name__}: {exc}")
+            self.last_us = self.idle_us
+        finally:
+            if locked:
+                self._lock.release()
+        return errors
+
+    def kill(self, reason: str) -> list[str]:
+        """Latch (no more commands) and make the ESC safe."""
+        self.killed_reason = reason
+        return self.safe_stop(lock_timeout_s=0.1)
+
+    def _refuse_if_killed(self) -> None:
+        if self.killed_reason is not None:
+            raise WatchdogTrip(self.killed_reason)
+
+
+class HostWatchdog:
+    """A daemon thread that kills the ESC when ``kick`` has not been called for a while."""
+
+    def __init__(self, esc: GuardedEsc, timeout_s: float = 0.5, poll_s: float | None = None):
+        if timeout_s <= 0:
+            raise ValueError("watchdog timeout must be positive")
+        self.esc = esc
+        self.timeout_s = timeout_s
+        self.poll_s = poll_s if poll_s is not None else min(timeout_s / 5.0, 0.05)
+        self._last = time.monotonic()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self.tripped_at: float | None = None
+        self.stall_s: float = 0.0
+        self.errors: list[str] = []
+
+    @property
+    def tripped(self) -> bool:
+        return self.tripped_at is not None
+
+    def kick(self) -> None:
+        self._last = time.monotonic()
+        if self.tripped:
+            raise WatchdogTrip(self.reason)
+
+    @property
+    def reason(self) -> str:
+        return (f"watchdog: command loop stalled {self.stall_s:.3f} s "
+                f"(timeout {self.timeout_s:g} s); ESC disarmed")
+
+    def start(self) -> HostWatchdog:
+        self._last = time.monotonic()
+        self._thread = threading.Thread(target=self._watch, name="rotorbench-watchdog",
+                                        daemon=True)
+        self._thread.start()
+        return self
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=2.0)
+
+    def _watch(self) -> None:
+        while not self._stop.wait(self.poll_s):
+            stalled = time.monotonic() - self._last
+            if stalled > self.timeout_s:
+                self.stall_s = stalled
+                self.tripped_at = time.monotonic()
+                self.errors = self.esc.kill(self.reason)
+                return
+
+    def __enter__(self) -> HostWatchdog:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
