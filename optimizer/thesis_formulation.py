@@ -70,6 +70,56 @@ _EXACT_METRIC: dict[str, tuple[str, str]] = {
     "pitch-inertia": ("pitch_inertia_kgm2", "min"),
 }
 
+#: Weighted sums (Paper D case 1) add terms in SI units: metric key, factor to SI.
+_WEIGHTED_SI: dict[str, tuple[str, float]] = {
+    "time-constant": ("time_constant_ms", 1e-3),
+    "power": ("power_w", 1.0),
+    "price": ("price", 1.0),
+    "roll-inertia": ("roll_inertia_kgm2", 1.0),
+    "pitch-inertia": ("pitch_inertia_kgm2", 1.0),
+}
+
+ObjectiveSpec = str | Mapping[str, float]
+
+
+def _objective_terms(objective: ObjectiveSpec) -> tuple[tuple[str, float], ...]:
+    """A single name, or a weighted sum {name: weight} of the linear objectives."""
+    if isinstance(objective, str):
+        if objective not in OBJECTIVES:
+            raise RequestError(f"objective {objective!r}: expected one of {', '.join(OBJECTIVES)}")
+        return ((objective, 1.0),)
+    terms = []
+    for name, weight in objective.items():
+        if name not in _WEIGHTED_SI:
+            raise RequestError(
+                f"weighted objective: {name!r} cannot be weighted in the thesis formulation "
+                f"(linear terms only: {', '.join(_WEIGHTED_SI)})"
+            )
+        if not math.isfinite(weight) or weight < 0:
+            raise RequestError(f"weighted objective: weight of {name} must be >= 0, got {weight}")
+        terms.append((name, float(weight)))
+    if not terms or all(w == 0 for _, w in terms):
+        raise RequestError("weighted objective: at least one weight must be > 0")
+    return tuple(terms)
+
+
+def _objective_name(terms: tuple[tuple[str, float], ...]) -> str:
+    if len(terms) == 1 and terms[0][1] == 1.0 and terms[0][0] in OBJECTIVES:
+        return terms[0][0]
+    return "weighted(" + ",".join(f"{n}={w:g}" for n, w in terms) + ")"
+
+
+def _objective_sense(terms: tuple[tuple[str, float], ...]) -> str:
+    return _EXACT_METRIC[terms[0][0]][1] if len(terms) == 1 else "min"
+
+
+def _exact_value(terms: tuple[tuple[str, float], ...], get: Any) -> Any:
+    """Exact objective from metric values ``get(key)`` (arrays or floats)."""
+    if len(terms) == 1 and terms[0][1] == 1.0:
+        return get(_EXACT_METRIC[terms[0][0]][0])
+    return sum(w * get(_WEIGHTED_SI[n][0]) * _WEIGHTED_SI[n][1] for n, w in terms)
+
+
 _LINEARISED_KEYS = (
     "flight_time_min",
     "time_constant_ms",
@@ -77,6 +127,7 @@ _LINEARISED_KEYS = (
     "total_mass_kg",
     "hover_rpm",
     "propeller_power_w",
+    "power_w",
     "current_a",
     "roll_inertia_kgm2",
     "pitch_inertia_kgm2",
@@ -116,20 +167,55 @@ class ThesisResult:
     exact_optimum: float | None = None
     #: ids (propeller, motor, battery) of every design reaching the exact optimum
     optimal_designs: tuple[tuple[str, str, str], ...] = ()
+    #: the objective as (name, weight) terms
+    terms: tuple[tuple[str, float], ...] = ()
 
     @property
     def exact_objective(self) -> float | None:
-        """The exact model's objective metric at the thesis formulation's choice."""
+        """The exact model's objective at the thesis formulation's choice."""
         if not self.exact:
             return None
-        return float(self.exact[_EXACT_METRIC[self.objective][0]])
+        return float(_exact_value(self.terms, lambda key: self.exact[key]))
+
+    @property
+    def linearised_objective(self) -> float | None:
+        """The MILP's own (linearised) objective in the units of the exact one."""
+        if not self.linearised:
+            return None
+        return float(_exact_value(self.terms, lambda key: self.linearised[key]))
+
+    def design_entry(self) -> dict[str, Any]:
+        """One ``designs`` entry of ``rotorbench optimize --json`` for this actuator count.
+
+        Metrics are the exact model's values at the chosen design (what the build
+        would do); the MILP's linearised values are under ``linearised``.
+        """
+        entry: dict[str, Any] = {"actuators": self.n_actuators, "feasible": self.feasible}
+        if self.feasible:
+            entry.update({k: v for k, v in self.exact.items() if k not in ("feasible", "reason")})
+            entry["feasible"] = bool(self.exact.get("feasible", True))
+        else:
+            entry.update({"propeller": None, "motor": None, "battery": None})
+            entry["reason"] = (
+                f"thesis formulation: no design meets the requirements (HiGHS: {self.message})"
+            )
+        entry["solve_time_s"] = self.solve_time_s
+        entry["method"] = "thesis"
+        entry["linearised"] = dict(self.linearised)
+        entry["linearised_objective"] = self.linearised_objective
+        entry["model_size"] = {
+            "variables": self.n_vars,
+            "binary": self.n_binary,
+            "constraints": self.n_constraints,
+        }
+        return entry
 
     @property
     def shortfall(self) -> float | None:
         """Relative loss of the choice against the exact optimum (0 when optimal, >= 0)."""
         if self.exact_objective is None or self.exact_optimum is None:
             return None
-        sense = _EXACT_METRIC[self.objective][1]
+        sense = _objective_sense(self.terms)
         diff = self.exact_optimum - self.exact_objective
         loss = diff if sense == "max" else -diff
         return loss / abs(self.exact_optimum) if self.exact_optimum else loss
@@ -158,6 +244,7 @@ class ThesisResult:
             "n_constraints": self.n_constraints,
             "solve_time_s": self.solve_time_s,
             "regions": self.regions,
+            "linearised_objective": self.linearised_objective,
             "exact_objective": self.exact_objective,
             "exact_optimum": self.exact_optimum,
             "optimal_designs": [list(d) for d in self.optimal_designs],
@@ -193,15 +280,14 @@ class _Built:
 def build_thesis_model(
     catalog: Catalog,
     n_actuators: int,
-    objective: str,
+    objective: ObjectiveSpec,
     payload_kg: float = 0.0,
     min_flight_time_min: float | None = None,
     max_time_constant_ms: float | None = None,
     regions: int | Mapping[str, int] = 10,
 ) -> _Built:
     """Build (not solve) the Paper E MILP for one actuator count."""
-    if objective not in OBJECTIVES:
-        raise RequestError(f"objective {objective!r}: expected one of {', '.join(OBJECTIVES)}")
+    terms = _objective_terms(objective)
     reg = _regions(regions)
     grid = evaluate_grid(catalog, n_actuators, payload_kg)
     na = grid.n_actuators
@@ -410,12 +496,22 @@ def build_thesis_model(
         for i, j, k in zip(*np.nonzero(~ok), strict=True):
             model.add(d_prop[i] + d_motor[j] + d_batt[k] <= 2, name=f"cut:{check.label}")
 
-    key, sense = OBJECTIVES[objective]
-    (model.minimize if sense == "min" else model.maximize)(x[key])
+    if len(terms) == 1 and terms[0][1] == 1.0:
+        key, sense = OBJECTIVES[terms[0][0]]  # Table E.2
+        (model.minimize if sense == "min" else model.maximize)(x[key])
+    else:  # weighted sum in SI units (Paper D case 1: x16 + x13 + x14)
+        si = {
+            "time-constant": x16,
+            "power": na * x17,
+            "price": x3,
+            "roll-inertia": x13,
+            "pitch-inertia": x14,
+        }
+        model.minimize(quicksum(w * si[name] for name, w in terms))
     return _Built(model, x, d_prop, d_motor, d_batt, grid)
 
 
-def _linearised_values(sol: Solution, payload_kg: float) -> dict[str, float]:
+def _linearised_values(sol: Solution, payload_kg: float, na: int) -> dict[str, float]:
     """The MILP's x-variables in the units of ``optimizer.grid`` metrics."""
     x21 = sol["x21"]
     return {
@@ -425,6 +521,7 @@ def _linearised_values(sol: Solution, payload_kg: float) -> dict[str, float]:
         "total_mass_kg": sol["x1"] + payload_kg,
         "hover_rpm": 60.0 * math.sqrt(max(sol["x5"], 0.0)),
         "propeller_power_w": sol["x17"],
+        "power_w": na * sol["x17"],
         "current_a": sol["x18"],
         "roll_inertia_kgm2": sol["x13"],
         "pitch_inertia_kgm2": sol["x14"],
@@ -433,19 +530,20 @@ def _linearised_values(sol: Solution, payload_kg: float) -> dict[str, float]:
 
 def exact_optimum(
     grid: Any,
-    objective: str,
+    objective: ObjectiveSpec,
     min_flight_time_min: float | None = None,
     max_time_constant_ms: float | None = None,
     rel_tol: float = 1e-9,
 ) -> tuple[float | None, tuple[tuple[str, str, str], ...]]:
     """Brute-force optimum of ``objective`` on a grid and every design that reaches it."""
-    metric, sense = _EXACT_METRIC[objective]
+    terms = _objective_terms(objective)
+    sense = _objective_sense(terms)
     ok = grid.feasible()
     if min_flight_time_min is not None:
         ok &= grid.metrics["flight_time_min"] >= min_flight_time_min
     if max_time_constant_ms is not None:
         ok &= grid.metrics["time_constant_ms"] <= max_time_constant_ms
-    value = np.asarray(grid.metrics[metric], float)
+    value = np.asarray(_exact_value(terms, lambda key: grid.metrics[key]), float)
     ok &= np.isfinite(value)
     if not ok.any():
         return None, ()
@@ -461,14 +559,20 @@ def exact_optimum(
 def solve_thesis(
     catalog: Catalog,
     n_actuators: int,
-    objective: str,
+    objective: ObjectiveSpec,
     payload_kg: float = 0.0,
     min_flight_time_min: float | None = None,
     max_time_constant_ms: float | None = None,
     regions: int | Mapping[str, int] = 10,
     time_limit: float = 60.0,
 ) -> ThesisResult:
-    """Build and solve the Paper E MILP for one actuator count; compare with the model."""
+    """Build and solve the Paper E MILP for one actuator count; compare with the model.
+
+    ``objective`` is a Table E.2 name (``flight-time``, ``time-constant``, ``power``,
+    ``price``, ``roll-inertia``, ``pitch-inertia``) or a weighted sum ``{name: weight}``
+    of the linear ones in SI units (Paper D case 1: time-constant + roll + pitch).
+    """
+    terms = _objective_terms(objective)
     t0 = time.perf_counter()
     built = build_thesis_model(
         catalog,
@@ -484,7 +588,8 @@ def solve_thesis(
     sol = model.solve(time_limit=time_limit)
     common: dict[str, Any] = dict(
         n_actuators=grid.n_actuators,
-        objective=objective,
+        objective=_objective_name(terms),
+        terms=terms,
         status=sol.status,
         n_vars=model.n_vars,
         n_binary=model.count("binary"),
@@ -514,7 +619,7 @@ def solve_thesis(
     j = int(np.argmax([sol.value(d) for d in built.d_motor]))
     k = int(np.argmax([sol.value(d) for d in built.d_batt]))
     exact = design_record(grid, i, j, k)
-    lin_vals = _linearised_values(sol, grid.payload_kg)
+    lin_vals = _linearised_values(sol, grid.payload_kg, grid.n_actuators)
     errors = {}
     for key, val in lin_vals.items():
         ref = exact[key]

@@ -218,3 +218,51 @@ def test_random_catalogs_choice_is_feasible_and_never_beats_the_oracle(seed, obj
     assert pick(r.exact[metric], best) == pytest.approx(best, rel=1e-12)
     assert r.exact_optimum == pytest.approx(best, rel=1e-12)
     assert r.shortfall >= -1e-12
+
+
+@pytest.mark.parametrize("n", [4, 8])
+def test_weighted_paper_d_case_1_matches_brute_force(thesis_e, n):
+    weights = {"time-constant": 1.0, "roll-inertia": 1.0, "pitch-inertia": 1.0}
+    r = solve_thesis(thesis_e, n, weights)
+    grid = evaluate_grid(thesis_e, n)
+    cost = (
+        grid.metrics["time_constant_ms"] * 1e-3
+        + grid.metrics["roll_inertia_kgm2"]
+        + grid.metrics["pitch_inertia_kgm2"]
+    )
+    best = cost[grid.feasible()].min()
+    assert r.objective.startswith("weighted(")
+    assert r.exact_optimum == pytest.approx(best, rel=1e-12)
+    assert r.exact_objective >= best * (1 - 1e-12)
+    # the linearised sum over-estimates the squared distances (chords of a convex map)
+    assert r.linearised_objective >= r.exact_objective * (1 - 1e-9)
+
+
+def test_weighted_flight_time_is_refused(thesis_e):
+    with pytest.raises(RequestError, match="linear terms only"):
+        solve_thesis(thesis_e, 4, {"flight-time": 1.0, "price": 1.0})
+
+
+def test_design_entry_has_the_cli_keys(thesis_e):
+    keys = {
+        "actuators",
+        "feasible",
+        "propeller",
+        "motor",
+        "battery",
+        "flight_time_min",
+        "time_constant_ms",
+        "price",
+        "total_mass_kg",
+        "hover_rpm",
+        "propeller_power_w",
+        "current_a",
+        "roll_inertia_kgm2",
+        "pitch_inertia_kgm2",
+        "solve_time_s",
+    }
+    entry = solve_thesis(thesis_e, 4, "flight-time").design_entry()
+    assert keys <= set(entry) and entry["feasible"] is True and entry["method"] == "thesis"
+    assert entry["flight_time_min"] > entry["linearised"]["flight_time_min"]
+    bad = solve_thesis(thesis_e, 4, "price", min_flight_time_min=1e4).design_entry()
+    assert bad["feasible"] is False and bad["propeller"] is None and "reason" in bad
