@@ -59,7 +59,8 @@ def _check_request(n_actuators: Any, payload_kg: Any) -> tuple[int, float]:
     return int(n_actuators), payload
 
 
-def _propeller_inertia(catalog: Catalog) -> np.ndarray:
+def propeller_inertia_kgm2(catalog: Catalog) -> np.ndarray:
+    """J_p per propeller: ``inertia_kgm2`` or k m D^2 (k = propeller_inertia_coefficient)."""
     props = catalog.propellers
     given = props["inertia_kgm2"].to_numpy(float)
     k = catalog.constants.propeller_inertia_coefficient
@@ -67,7 +68,8 @@ def _propeller_inertia(catalog: Catalog) -> np.ndarray:
     return np.where(np.isnan(given), estimate, given)
 
 
-def _motor_inertia(catalog: Catalog) -> np.ndarray:
+def motor_inertia_kgm2(catalog: Catalog) -> np.ndarray:
+    """J_m per motor: ``inertia_kgm2``, else the rotor tube of Table E.5, else 0."""
     mot = catalog.motors
     given = mot["inertia_kgm2"].to_numpy(float)
     rotor = physics.hollow_rotor_inertia_kgm2(
@@ -80,7 +82,8 @@ def _motor_inertia(catalog: Catalog) -> np.ndarray:
     return np.where(np.isnan(given), np.nan_to_num(rotor, nan=0.0), given)
 
 
-def _battery_voltage(catalog: Catalog) -> np.ndarray:
+def battery_voltage_v(catalog: Catalog) -> np.ndarray:
+    """B_V per battery as used in (E.67), following ``constants.battery_voltage``."""
     c = catalog.constants
     bat = catalog.batteries
     cells = bat["cells"].to_numpy(float)
@@ -120,10 +123,11 @@ def evaluate_grid(
 
     diameter, ct, cp = p_("diameter_m"), p_("ct"), p_("cp")
     m_prop, m_motor, m_batt = p_("mass_kg"), m_("mass_kg"), b_("mass_kg")
-    j_total = _propeller_inertia(catalog)[:, None, None] + _motor_inertia(catalog)[None, :, None]
+    j_prop = propeller_inertia_kgm2(catalog)[:, None, None]
+    j_total = j_prop + motor_inertia_kgm2(catalog)[None, :, None]
     resistance = m_("resistance_ohm")
     kt = physics.torque_constant(m_("kv_rad_s_per_v"))
-    voltage = _battery_voltage(catalog)[None, None, :]
+    voltage = battery_voltage_v(catalog)[None, None, :]
     capacity_ah = b_("capacity_ah")
 
     arm = physics.arm_length_m(diameter, n, c.propeller_clearance_m, c.arm_length)  # (D.4)
@@ -348,3 +352,9 @@ def design_record(grid: DesignGrid, i: int, j: int, k: int) -> dict[str, Any]:
     measured = getattr(grid, "measured", {})
     record["measured"] = sorted(key for key, mask in measured.items() if mask[i, j, k])
     return record
+
+
+# Earlier names, kept for modules that imported them.
+_propeller_inertia = propeller_inertia_kgm2
+_motor_inertia = motor_inertia_kgm2
+_battery_voltage = battery_voltage_v
