@@ -232,3 +232,67 @@ def test_bad_overrides(cat):
     with pytest.raises(RequestError, match="two entries"):
         item = MeasuredActuator("P1", "M1", time_constant_s=0.1)
         evaluate_grid(cat, 4, overrides=[item, item])
+
+
+def test_random_catalogs_obey_the_model_invariants():
+    """Any valid catalog: finite positive metrics, and more payload never flies longer."""
+    import pandas as pd
+    from hypothesis import given, settings
+    from hypothesis import strategies as st
+
+    from optimizer.catalog import Catalog
+
+    @settings(max_examples=25, deadline=None)
+    @given(
+        seed=st.integers(0, 2**32 - 1), n=st.sampled_from([4, 6, 8]), payload=st.floats(0.0, 3.0)
+    )
+    def check(seed, n, payload):
+        rng = np.random.default_rng(seed)
+        P, M, B = (int(v) for v in rng.integers(1, 5, 3))
+        props = pd.DataFrame(
+            {
+                "id": [f"p{i}" for i in range(P)],
+                "name": "p",
+                "mass_g": rng.uniform(0, 40, P),
+                "diameter_m": rng.uniform(0.1, 0.5, P),
+                "ct": rng.uniform(0.05, 0.15, P),
+                "cp": rng.uniform(0.03, 0.1, P),
+                "price": rng.uniform(0, 9, P),
+            }
+        )
+        mots = pd.DataFrame(
+            {
+                "id": [f"m{i}" for i in range(M)],
+                "name": "m",
+                "kv_rpm_per_v": rng.uniform(200, 4000, M),
+                "resistance_ohm": rng.uniform(0, 0.3, M),
+                "mass_g": rng.uniform(20, 200, M),
+                "max_current_a": rng.uniform(5, 60, M),
+                "max_power_w": rng.uniform(50, 900, M),
+                "price": rng.uniform(0, 80, M),
+            }
+        )
+        bats = pd.DataFrame(
+            {
+                "id": [f"b{i}" for i in range(B)],
+                "name": "b",
+                "mass_g": rng.uniform(50, 2000, B),
+                "capacity_mah": rng.uniform(500, 20000, B),
+                "cells": rng.integers(1, 7, B),
+                "price": rng.uniform(0, 120, B),
+                "c_rating": rng.uniform(5, 60, B),
+            }
+        )
+        cat = Catalog.from_frames(props, mots, bats)
+        light, heavy = evaluate_grid(cat, n, payload), evaluate_grid(cat, n, payload + 0.5)
+        for key in METRIC_KEYS:
+            values = light.metrics[key]
+            assert np.all(np.isfinite(values)) and np.all(values >= 0), key
+        assert np.all(heavy.metrics["flight_time_min"] < light.metrics["flight_time_min"])
+        assert np.all(heavy.metrics["current_a"] > light.metrics["current_a"])
+        i, j, k = (int(rng.integers(0, s)) for s in light.shape)
+        d = evaluate_design(cat, n, f"p{i}", f"m{j}", f"b{k}", payload)
+        assert d["flight_time_min"] == light.metrics["flight_time_min"][i, j, k]
+        assert d["feasible"] == bool(light.feasible()[i, j, k])
+
+    check()

@@ -128,7 +128,9 @@ def test_paper_d_time_constant(thesis_d, row):
     assert _d(thesis_d, row)["time_constant_ms"] / 1e3 == pytest.approx(row[5], abs=0.005)
 
 
-@pytest.mark.xfail(strict=True, reason="Paper D uses the diagonal of (D.4) as arm (see doc)")
+@pytest.mark.xfail(
+    strict=True, reason="Paper D: diagonal of (D.4) as arm for N=4,6; N=8 unexplained (see doc)"
+)
 @pytest.mark.parametrize("row", PAPER_D, ids=D_IDS)
 def test_paper_d_inertia(thesis_d, row):
     d = _d(thesis_d, row)
