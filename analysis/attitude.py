@@ -1,0 +1,157 @@
+"""The trig-free quaternion attitude estimator of Paper B and its evaluation.
+
+Per sample: the gyro quaternion by one Euler step of (B.5) from the previous estimate
+(B.12); the accelerometer quaternion as the shortest arc from the (low-passed, B.28)
+specific force to the navigation z axis (B.15-B.16, the 180° case handled); the
+component-wise blend with gain ``P_err`` (B.17-B.19); normalisation (B.20). Quaternions
+are scalar-first and map body to navigation frame (z up, along the specific force at rest).
+
+The paper's accelerometer quaternion has zero yaw, so the blend also pulls the yaw towards
+zero; with fast yaw motion that leaks into roll and pitch. ``yaw_aligned=True`` (not in the
+paper) gives the accelerometer quaternion the current heading first, trig-free, so that the
+blend corrects only the tilt.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.signal import lfilter
+
+from analysis import quaternion as quat
+
+__all__ = [
+    "AttitudeErrors",
+    "accelerometer_quaternion",
+    "attitude_errors",
+    "estimate_attitude",
+    "lowpass_acc",
+]
+
+Array = NDArray[np.float64]
+
+
+def lowpass_acc(acc: ArrayLike, g_a: float) -> Array:
+    """First-order low-pass ``â_n = â_(n-1)·G_a + a_n·(1 - G_a)`` (B.28), started at a_0."""
+    acc = np.asarray(acc, dtype=float)
+    if not 0.0 <= g_a < 1.0:
+        raise ValueError(f"accelerometer filter gain G_a must be in [0, 1), got {g_a}")
+    if g_a == 0.0:
+        return acc.copy()
+    zi = (g_a * acc[0])[None, :]  # steady state at the first sample
+    out, _ = lfilter([1.0 - g_a], [1.0, -g_a], acc, axis=0, zi=zi)
+    return out
+
+
+def accelerometer_quaternion(acc: ArrayLike, eps: float = 1e-9) -> Array:
+    """Shortest arc from the measured specific force to ``[0, 0, 1]`` (B.15-B.16).
+
+    At exactly upside down (ã_z = -1) there is no shortest arc; the half turn about body x
+    is returned (the if-else workaround Paper B mentions).
+    """
+    a = np.asarray(acc, dtype=float)
+    a = a / np.linalg.norm(a, axis=-1, keepdims=True)
+    one_plus = 1.0 + a[..., 2]
+    safe = np.maximum(one_plus, eps)
+    q0 = np.sqrt(0.5 * safe)  # (B.15)
+    k = 1.0 / np.sqrt(2.0 * safe)  # (B.16)
+    q = np.stack([q0, k * a[..., 1], -k * a[..., 0], np.zeros_like(q0)], axis=-1)
+    flipped = one_plus < eps
+    q[flipped] = [0.0, 1.0, 0.0, 0.0]
+    return quat.normalize(q)
+
+
+def estimate_attitude(
+    t_s: ArrayLike,
+    gyro: ArrayLike,
+    acc: ArrayLike,
+    gain: float = 0.002,
+    acc_lowpass: float = 0.0,
+    q0: ArrayLike | None = None,
+    yaw_aligned: bool = False,
+) -> Array:
+    """Attitude quaternions ``(n, 4)`` from gyro (rad/s) and accelerometer samples.
+
+    ``gain`` is P_err per sample (Paper B used 0.002 at 400 Hz). The first estimate is the
+    accelerometer quaternion unless ``q0`` is given. The loop is sequential by nature; it
+    runs on Python floats (about 1 µs per operation), fast enough for IMU rates.
+    """
+    t = np.asarray(t_s, dtype=float)
+    w = np.asarray(gyro, dtype=float)
+    if not 0.0 <= gain <= 1.0:
+        raise ValueError(f"P_err must be in [0, 1], got {gain}")
+    qa_all = accelerometer_quaternion(lowpass_acc(acc, acc_lowpass))
+    n = len(t)
+    out = np.empty((n, 4))
+    q = quat.normalize(qa_all[0] if q0 is None else np.asarray(q0, dtype=float))
+    out[0] = q
+    dts = np.diff(t).tolist()
+    wl = w.tolist()
+    qal = qa_all.tolist()
+    p = float(gain)
+    s0, s1, s2, s3 = (float(v) for v in q)
+    for k in range(1, n):
+        dt = dts[k - 1]
+        wx, wy, wz = wl[k - 1]
+        h = 0.5 * dt
+        # (B.5), (B.12): q^g = q + ts·½ q ⊗ [0, ω]
+        g0 = s0 + h * (-s1 * wx - s2 * wy - s3 * wz)
+        g1 = s1 + h * (s0 * wx + s2 * wz - s3 * wy)
+        g2 = s2 + h * (s0 * wy - s1 * wz + s3 * wx)
+        g3 = s3 + h * (s0 * wz + s1 * wy - s2 * wx)
+        a0, a1, a2, a3 = qal[k]
+        if yaw_aligned:  # q^a ← h(q^g) ⊗ q^a, h = [g0, 0, 0, g3]/‖·‖
+            nh = math.sqrt(g0 * g0 + g3 * g3)
+            if nh > 0.0:
+                c, s = g0 / nh, g3 / nh
+                a0, a1, a2, a3 = c * a0 - s * a3, c * a1 - s * a2, c * a2 + s * a1, c * a3 + s * a0
+        if g0 * a0 + g1 * a1 + g2 * a2 + g3 * a3 < 0.0:  # same hemisphere as q^g
+            a0, a1, a2, a3 = -a0, -a1, -a2, -a3
+        # (B.17)-(B.19): q = q^g + P_err (q^a - q^g)
+        s0 = g0 + p * (a0 - g0)
+        s1 = g1 + p * (a1 - g1)
+        s2 = g2 + p * (a2 - g2)
+        s3 = g3 + p * (a3 - g3)
+        nq = math.sqrt(s0 * s0 + s1 * s1 + s2 * s2 + s3 * s3)  # (B.20)
+        s0, s1, s2, s3 = s0 / nq, s1 / nq, s2 / nq, s3 / nq
+        out[k] = (s0, s1, s2, s3)
+    return out
+
+
+@dataclass(frozen=True)
+class AttitudeErrors:
+    """RMS errors (rad) over the compared samples; inclination is yaw-free (tilt angle)."""
+
+    roll_rms: float
+    pitch_rms: float
+    inclination_rms: float
+    samples: int
+
+
+def attitude_errors(q_est: ArrayLike, q_ref: ArrayLike, mask: ArrayLike | None = None
+                    ) -> AttitudeErrors:
+    """Roll and pitch RMS error (B.6 angles, yaw-independent) and inclination RMS error.
+
+    Rows whose reference is not finite are skipped, as are rows outside ``mask``.
+    """
+    qe = np.asarray(q_est, dtype=float)
+    qr = np.asarray(q_ref, dtype=float)
+    ok = np.isfinite(qr).all(axis=1) & np.isfinite(qe).all(axis=1)
+    if mask is not None:
+        ok &= np.asarray(mask, dtype=bool)
+    if not ok.any():
+        raise ValueError("no samples with a finite reference to compare")
+    qe, qr = quat.normalize(qe[ok]), quat.normalize(qr[ok])
+    ee, er = quat.to_euler(qe), quat.to_euler(qr)
+    d = ee[:, :2] - er[:, :2]
+    d = (d + np.pi) % (2 * np.pi) - np.pi
+    up = np.array([0.0, 0.0, 1.0])
+    ue = quat.rotate(quat.conjugate(qe), up)
+    ur = quat.rotate(quat.conjugate(qr), up)
+    incl = np.arccos(np.clip(np.sum(ue * ur, axis=1), -1.0, 1.0))
+    rms = np.sqrt(np.mean(d**2, axis=0))
+    return AttitudeErrors(float(rms[0]), float(rms[1]), float(np.sqrt(np.mean(incl**2))),
+                          int(ok.sum()))
