@@ -64,7 +64,7 @@ def test_bad_phase_names_row(tmp_path: Path) -> None:
 
 def test_missing_phase_and_time_order(tmp_path: Path) -> None:
     df = _log()
-    with pytest.raises(LogError, match="no rows for phase.*lever_y"):
+    with pytest.raises(LogError, match=r"no rows for phase.*lever_y"):
         load_calibration_log(_write(df[df["phase"] != "lever_y"], tmp_path / "a.parquet"))
     df.loc[10, "t_s"] = df.loc[9, "t_s"]
     with pytest.raises(LogError, match=r"b\.parquet: row 11, column t_s: time must increase"):

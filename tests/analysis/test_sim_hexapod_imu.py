@@ -44,7 +44,7 @@ def test_motion_beyond_limits_is_refused() -> None:
 
 def test_imu_reads_range_quantised_and_seeded() -> None:
     s = SimHexapod().follow(gyro_sines(), np.arange(0, 5, 0.01))
-    g1, a1 = SimImu(ADIS16400, np.random.default_rng(1)).measure(s)
+    g1, _ = SimImu(ADIS16400, np.random.default_rng(1)).measure(s)
     g2, _ = SimImu(ADIS16400, np.random.default_rng(1)).measure(s)
     assert np.array_equal(g1, g2)
     lsb = ADIS16400.gyro_lsb_rad_s
