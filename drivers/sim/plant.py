@@ -56,6 +56,9 @@ class PlantParams:
     esc_quiescent_a: float = 0.05  # ESC logic current draw (assumption)
     esc_latency_s: float = 0.012  # input-to-duty latency, SimonK firmware (set from Table C.1)
     stock_latency_s: float = 0.017  # input-to-duty latency, stock firmware (from Table C.1)
+    esc_pwm_hz: float = 18_000.0  # motor PWM of the SimonK firmware (Paper C section 2.1)
+    stock_pwm_hz: float = 18_000.0  # motor PWM of the stock firmware (assumption: same)
+    diode_drop_v: float = 0.7  # MOSFET body-diode forward drop (assumption)
     stock_filter_tau_s: float = 0.020  # stock firmware throttle low-pass (from Table C.1 tau_up)
     max_substep_s: float = 0.0025  # integration substep (RK4), <= 1/10 of tau_m
     max_substep_l_s: float = 0.0005  # substep with inductance (exponential update of current)
@@ -82,6 +85,9 @@ class PlantParams:
 
     def latency_for(self, scheme: EscScheme) -> float:
         return self.stock_latency_s if scheme is EscScheme.STOCK else self.esc_latency_s
+
+    def pwm_period_for(self, scheme: EscScheme) -> float:
+        return 1.0 / (self.stock_pwm_hz if scheme is EscScheme.STOCK else self.esc_pwm_hz)
 
     def filter_tau_for(self, scheme: EscScheme) -> float:
         return self.stock_filter_tau_s if scheme is EscScheme.STOCK else 0.0
@@ -198,6 +204,7 @@ class Plant:
         self.i_bus = params.esc_quiescent_a
         self.v_bus = params.supply_v - params.supply_r_ohm * self.i_bus
         self.duty = 0.0
+        self._kq = params.torque_k
         self.traj = Trajectory()
         self._append(self.latency_ns * 1e-9)
 
@@ -235,26 +242,35 @@ class Plant:
         allow_negative = self.scheme is EscScheme.COMPLEMENTARY and not coast
         r_tot = p.r_ohm + d * d * p.supply_r_ohm
         v_drive = d * p.supply_v
-        kt, ke, kq, j = p.kt_nm_a, p.ke_v_s_rad, p.torque_k, p.j_kg_m2
+        kt, ke, kq, j = p.kt_nm_a, p.ke_v_s_rad, self._kq, p.j_kg_m2
         omega, theta, i_w = self.omega, self.theta, self.i_w
         if p.use_inductance:
             decay = math.exp(-h * r_tot / p.l_h)  # exact current step for frozen omega (C.1)
 
-        def f(w: float) -> float:
+        # diode scheme: below the back-emf the current is discontinuous; each PWM period it
+        # rises from 0 during the on time and decays through the body diode (to 0) after
+        v_bus, v_f = p.supply_v, p.diode_drop_v
+        dcm_k = d * d * p.pwm_period_for(self.scheme) * (v_bus + v_f) / (2.0 * p.l_h)
+
+        def current(w: float) -> float:
             if coast:
-                i = 0.0
-            else:
-                i = (v_drive - ke * w) / r_tot  # (E.4), (E.5)
-                if not allow_negative and i < 0.0:
-                    i = 0.0
-            return (kt * i - kq * w * abs(w)) / j  # (E.6), (E.7)
+                return 0.0
+            i = (v_drive - ke * w) / r_tot  # (E.4), (E.5), averaged over the PWM period
+            if allow_negative:
+                return i
+            emf = ke * w
+            i_dcm = dcm_k * (v_bus - emf) / (emf + v_f) if v_bus > emf else 0.0
+            return i if i > i_dcm else i_dcm
+
+        def f(w: float) -> float:
+            return (kt * current(w) - kq * w * abs(w)) / j  # (E.6), (E.7)
 
         for m in range(1, self.n_sub + 1):
             if p.use_inductance:
                 i_ss = (v_drive - ke * omega) / r_tot
                 i_new = 0.0 if coast else i_ss + (i_w - i_ss) * decay
-                if not allow_negative and i_new < 0.0:
-                    i_new = 0.0  # the body diode blocks reverse current
+                if not allow_negative:  # the body diode blocks reverse current
+                    i_new = max(i_new, current(omega) if i_new < i_ss else 0.0, 0.0)
                 i_avg = 0.5 * (i_w + i_new)
                 w_mid = omega + 0.5 * h * (kt * i_avg - kq * omega * abs(omega)) / j
                 omega_new = omega + h * (kt * i_avg - kq * w_mid * abs(w_mid)) / j  # (E.7)
@@ -266,18 +282,28 @@ class Plant:
                 k3 = f(omega + 0.5 * h * k2)
                 k4 = f(omega + h * k3)
                 omega_new = omega + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
-                if coast:
-                    i_w = 0.0
-                else:
-                    i_w = (v_drive - ke * omega_new) / r_tot
-                    if not allow_negative and i_w < 0.0:
-                        i_w = 0.0
+                i_w = current(omega_new)
             theta += 0.5 * h * (omega + omega_new)
             omega = omega_new
             self.omega, self.theta, self.i_w, self.duty = omega, theta, i_w, d
-            self.i_bus = d * i_w + p.esc_quiescent_a
+            self.i_bus = self._bus_current(d, i_w, omega) + p.esc_quiescent_a
             self.v_bus = p.supply_v - p.supply_r_ohm * self.i_bus
             self._append(t0 + m * h)
+
+
+    def _bus_current(self, d: float, i_w: float, omega: float) -> float:
+        """Supply current: d * i in continuous conduction; in discontinuous conduction
+        (diode scheme) the winding current flows from the supply only in the on time."""
+        if d <= 0.0:
+            return 0.0
+        p = self.params
+        if self.scheme is EscScheme.COMPLEMENTARY:
+            return d * i_w
+        emf = p.ke_v_s_rad * omega
+        i_peak = (p.supply_v - emf) * d * p.pwm_period_for(self.scheme) / p.l_h
+        if i_peak <= 0.0 or i_w >= 0.5 * i_peak:
+            return d * i_w  # continuous conduction
+        return 0.5 * i_peak * d
 
 
 class EscFrameSource:

@@ -108,7 +108,7 @@ class SimRig:
         self.clock = SimClock()
         self.esc_model = EscModel(self.esc_settings, self.scheme, self.params)
         self.plant = Plant(self.params, self.esc_model, self.scheme)
-        self.sample_clock = SampleClock(self.sensor_params, rngs[0])
+        self.sample_clock = SampleClock(self.sensor_params, int(rngs[0].integers(2**63)))
         self.clock.on_advance(self.plant.advance_to)
         self.esc = SimEsc(urls["esc"], self.esc_model, self.clock,
                           FaultSwitches(urls["esc"], rngs[1], (Fault.TIMEOUT, Fault.DISCONNECT)))
@@ -124,9 +124,13 @@ class SimRig:
 
     def trim(self) -> None:
         """Forget plant history and clock jitter no sensor still needs."""
-        n_min = min(s.next_n for s in self.sensors.values())
-        self.sample_clock.trim_before(n_min)
-        self.plant.traj.trim_before(n_min * self.sample_clock.dt_ns * 1e-9)
+        traj = self.plant.traj
+        if traj.arrays["t"].size + len(traj.pending["t"]) < 4096:
+            return  # amortise: trimming copies the arrays
+        clock = self.sample_clock
+        n_floor = clock.index_end(self.clock.now_ns() - round(self.sensor_params.buffer_s * 1e9))
+        n_min = max(n_floor, min(s.next_n for s in self.sensors.values()))
+        traj.trim_before(n_min * clock.dt_ns * 1e-9)
 
     def truth(self) -> PlantTruth:
         self.plant.advance_to(self.clock.now_ns())

@@ -47,6 +47,7 @@ class SensorParams:
     magnets: int = 14  # hall sensor sees the 14 rotor magnets (Paper C 2.2)
     counter_hz: float = 40e6  # FPGA counter timebase of the cRIO (NI-9401 on a 40 MHz FPGA)
     rpm_timeout_s: float = 0.1  # no hall edge for this long -> the counter reports 0 rpm
+    buffer_s: float = 30.0  # DAQ buffer: a sensor not read for this long overruns
 
     @classmethod
     def with_overrides(cls, overrides: dict[str, float]) -> SensorParams:
@@ -64,18 +65,27 @@ def quantise(volts: np.ndarray, params: SensorParams) -> np.ndarray:
     return np.round(v / lsb) * lsb
 
 
+def _splitmix64(x: np.ndarray) -> np.ndarray:
+    """Counter-based hash (SplitMix64 finaliser): uint64 index -> uniform uint64 bits."""
+    with np.errstate(over="ignore"):
+        z = x + np.uint64(0x9E3779B97F4A7C15)
+        z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+        z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+        return z ^ (z >> np.uint64(31))
+
+
 class SampleClock:
     """The DAQ's shared sample clock: index n -> nominal time n / fs plus jitter.
 
-    Jitter values are drawn once per sample index and shared by every sensor on the clock.
+    The jitter of sample n is a hash of (seed, n), so every sensor on the clock sees the
+    same timestamps whatever order or block sizes they read in, and no buffer is kept.
     """
 
-    def __init__(self, params: SensorParams, rng: np.random.Generator) -> None:
+    def __init__(self, params: SensorParams, seed: int) -> None:
         self.params = params
         self.dt_ns = round(1e9 / params.sample_rate_hz)
-        self.rng = rng
-        self._b0 = 0
-        self._buf = np.empty(0)
+        self._key = np.uint64(int(seed) & 0xFFFFFFFFFFFFFFFF)
+        self._memo: tuple[tuple[int, int], np.ndarray] = ((-1, -1), np.empty(0))
 
     def index_end(self, now_ns: int) -> int:
         """One past the last sample index taken at or before ``now_ns``."""
@@ -84,22 +94,17 @@ class SampleClock:
     def nominal(self, n0: int, n1: int) -> np.ndarray:
         return np.arange(n0, n1, dtype=np.float64) * (self.dt_ns * 1e-9)
 
-    def stamps(self, n0: int, n1: int) -> np.ndarray:
-        t = self.nominal(n0, n1)
+    def stamps(self, n0: int, n1: int, nominal: np.ndarray) -> np.ndarray:
         if not self.params.noise or self.params.jitter_s <= 0:
-            return t
-        b1 = self._b0 + self._buf.size
-        if n1 > b1:
-            half = math.sqrt(3.0) * self.params.jitter_s
-            new = self.rng.uniform(-half, half, n1 - b1)
-            self._buf = np.concatenate((self._buf, new))
-        return t + self._buf[n0 - self._b0 : n1 - self._b0]
-
-    def trim_before(self, n: int) -> None:
-        if n > self._b0:
-            cut = min(n - self._b0, self._buf.size)
-            self._buf = self._buf[cut:]
-            self._b0 += cut
+            return nominal
+        if self._memo[0] == (n0, n1):  # the sensors on this clock usually read together
+            return self._memo[1].copy()
+        bits = _splitmix64(np.arange(n0, n1, dtype=np.uint64) ^ self._key)
+        u = (bits >> np.uint64(11)).astype(np.float64) * (1.0 / 2**53)  # uniform [0, 1)
+        half = math.sqrt(3.0) * self.params.jitter_s
+        out = nominal + (2.0 * u - 1.0) * half
+        self._memo = ((n0, n1), out)
+        return out.copy()
 
 
 class SimSensor:
@@ -135,8 +140,16 @@ class SimSensor:
         if self.closed:
             raise DeviceError(f"{self.url}: sensor is closed")
         now_ns = self.rig.clock.now_ns()
-        n1 = self.rig.sample_clock.index_end(now_ns)
+        clock = self.rig.sample_clock
+        n1 = clock.index_end(now_ns)
         n0 = self.next_n
+        n_floor = clock.index_end(now_ns - round(self.params.buffer_s * 1e9))
+        if n0 < n_floor:
+            self.next_n = n_floor
+            raise DeviceError(
+                f"{self.url}: DAQ buffer overrun, {n_floor - n0} samples lost; "
+                f"read at least every {self.params.buffer_s:g} s"
+            )
         try:
             self.faults.check(now_ns * 1e-9, "read_block")
         except DeviceError:
@@ -148,9 +161,11 @@ class SimSensor:
         self.rig.plant.advance_to(now_ns)
         t_nominal = self.rig.sample_clock.nominal(n0, n1)
         values = self.measure(n0, n1, t_nominal)
-        block = Block(self.rig.sample_clock.stamps(n0, n1), values)
+        block = Block(self.rig.sample_clock.stamps(n0, n1, t_nominal), values)
         self.next_n = n1
         self.rig.trim()
+        if not self.faults.switches:
+            return block
         full_scale = {c.name: c.high for c in self.channels()}
         return self.faults.apply(block, full_scale)
 
@@ -167,7 +182,7 @@ class SimSensor:
     def _noise(self, sigma: float, n: int) -> np.ndarray | float:
         if not self.params.noise or sigma <= 0:
             return 0.0
-        return self.rng.normal(0.0, sigma, n)
+        return self.rng.standard_normal(n) * sigma
 
 
 class SimLoadCell(SimSensor):
@@ -255,8 +270,6 @@ class SimRpmSensor(SimSensor):
             raise DeviceError(f"{url}: magnets must be >= 1, got {magnets}")
         self.magnets = magnets
         self._count = 0  # magnet edges seen so far
-        self._theta = 0.0
-        self._t_prev = 0.0
         self._last_edge = -math.inf
         self._rpm = 0.0
 
@@ -264,33 +277,33 @@ class SimRpmSensor(SimSensor):
         return (ChannelInfo("rpm", "rpm", self.params.sample_rate_hz, 0.0, 60_000.0),)
 
     def measure(self, n0: int, n1: int, t: np.ndarray) -> dict[str, np.ndarray]:
-        theta = self.rig.plant.traj.sample(t, ("theta",))["theta"]
+        traj = self.rig.plant.traj
+        traj.flush()
+        t_tr, th_tr = traj.arrays["t"], traj.arrays["theta"]
         pitch = 2.0 * math.pi / self.magnets
-        counts = np.floor(theta / pitch).astype(np.int64)
-        th_all = np.concatenate(([self._theta], theta))
-        t_all = np.concatenate(([self._t_prev], t))
-        c_all = np.concatenate(([self._count], counts))
-        step = np.flatnonzero(np.diff(c_all) > 0)  # sample interval (i, i+1) holds an edge
-        # edge time: linear interpolation of the rotor angle inside the sample interval
-        th_edge = c_all[step + 1] * pitch
-        frac = (th_edge - th_all[step]) / (th_all[step + 1] - th_all[step])
-        t_edge = t_all[step] + frac * (t_all[step + 1] - t_all[step])
-        tick = 1.0 / self.params.counter_hz
-        t_edge = np.round(t_edge / tick) * tick
-        edges = np.concatenate(([self._last_edge], t_edge))
-        period = np.diff(edges)
-        with np.errstate(divide="ignore"):
-            rpm_edge = np.where(np.isfinite(period) & (period > 0),
-                                60.0 / (self.magnets * period), 0.0)
-        rpm_edge = np.concatenate(([self._rpm], rpm_edge))
-        # for each sample: the latest edge at or before it (0 = carried from the last read)
-        which = np.searchsorted(step, np.arange(t.size), side="right")
-        rpm = rpm_edge[which]
-        last_edge_t = edges[which]
-        rpm = np.where(t - last_edge_t > self.params.rpm_timeout_s, 0.0, rpm)
-        self._count = int(counts[-1])
-        self._theta = float(theta[-1])
-        self._t_prev = float(t[-1])
-        self._last_edge = float(edges[-1])
-        self._rpm = float(rpm_edge[-1])
+        theta_end = float(np.interp(t[-1], t_tr, th_tr))
+        count_end = math.floor(theta_end / pitch)
+        if count_end > self._count:
+            # edges: the rotor angle passes a magnet; theta(t) is monotone, so invert it
+            angles = np.arange(self._count + 1, count_end + 1) * pitch
+            tick = 1.0 / self.params.counter_hz
+            t_edge = np.round(np.interp(angles, th_tr, t_tr) / tick) * tick
+            edges = np.concatenate(([self._last_edge], t_edge))
+            rpm_edge = 60.0 / (self.magnets * np.diff(edges))  # first may be 60/inf = 0
+            rpm_edge = np.concatenate(([self._rpm], rpm_edge))
+            # each sample holds the latest edge at or before it (0: carried from before)
+            which = np.searchsorted(t_edge, t, side="right")
+            rpm = rpm_edge[which]
+            last = edges[which]
+            self._count = count_end
+            self._last_edge = float(t_edge[-1])
+            self._rpm = float(rpm_edge[-1])
+        else:
+            rpm = np.full(t.size, self._rpm)
+            last = np.full(t.size, self._last_edge)
+        stale = t - last > self.params.rpm_timeout_s
+        if stale.any():
+            rpm[stale] = 0.0
+            if stale[-1]:
+                self._rpm = 0.0
         return {"rpm": rpm}
