@@ -51,7 +51,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("rotorbench: interrupted", file=sys.stderr)
         return 130
-    except Exception as exc:  # noqa: BLE001 - only user-input errors are swallowed
+    except Exception as exc:
         code = getattr(exc, "exit_code", None)
         if code is None:
             raise
