@@ -39,7 +39,12 @@ import numpy as np
 
 from optimizer.catalog import Catalog
 from optimizer.errors import RequestError
-from optimizer.model import _motor_inertia, _propeller_inertia, design_record, evaluate_grid
+from optimizer.model import (
+    design_record,
+    evaluate_grid,
+    motor_inertia_kgm2,
+    propeller_inertia_kgm2,
+)
 from optimizer.modeling import LinExpr, Model, Solution, Var, quicksum
 from optimizer.rules import exactly_one, piecewise_linear, rule1_product, rule4_product
 
@@ -218,7 +223,7 @@ class ThesisResult:
         sense = _objective_sense(self.terms)
         diff = self.exact_optimum - self.exact_objective
         loss = diff if sense == "max" else -diff
-        return loss / abs(self.exact_optimum) if self.exact_optimum else loss
+        return (loss / abs(self.exact_optimum) if self.exact_optimum else loss) + 0.0  # no -0.0
 
     @property
     def feasible(self) -> bool:
@@ -305,7 +310,7 @@ def build_thesis_model(
     ah_b = col(bats, "capacity_ah")
     volt_b = grid.extras["voltage_v"][0, 0, :]  # B_V (E.67), reading of optimizer.model
     arm_p = grid.extras["arm_length_m"][:, 0, 0]  # L_f(D_i, N_a) (E.23)-(E.25)
-    j_m, j_p = _motor_inertia(catalog), _propeller_inertia(catalog)
+    j_m, j_p = motor_inertia_kgm2(catalog), propeller_inertia_kgm2(catalog)
     tau_s = grid.metrics["time_constant_ms"] * 1e-3  # (E.32)-(E.39), per combination
     m_frame = c.frame_linear_density_kg_m  # m_F
     P, M, B = grid.shape
