@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -80,13 +81,15 @@ def handler(args: argparse.Namespace) -> int:
               file=sys.stderr)
         return 2
     df = load_calibration_log(args.from_log)
-    cal = calibrate(
-        df,
-        measured_mounting_deg=tuple(args.mounting_deg) if args.mounting_deg else None,
-        gyro_range_rad_s=math.radians(args.gyro_range_dps),
-        acc_range_m_s2=args.acc_range_g * 9.80665,
-        max_lag_s=args.max_lag,
-    )
+    with warnings.catch_warnings():  # warnings are kept in cal.warnings and printed below
+        warnings.simplefilter("ignore")
+        cal = calibrate(
+            df,
+            measured_mounting_deg=tuple(args.mounting_deg) if args.mounting_deg else None,
+            gyro_range_rad_s=math.radians(args.gyro_range_dps),
+            acc_range_m_s2=args.acc_range_g * 9.80665,
+            max_lag_s=args.max_lag,
+        )
     _print(cal, Console())
     if args.figures is not None:
         from analysis.imu_figures import verification_figures

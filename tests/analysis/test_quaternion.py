@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from analysis import quaternion as quat
@@ -108,3 +112,20 @@ def test_yaw_part_splits_heading_and_tilt() -> None:
     assert np.allclose(h[1:3], 0.0)  # the heading is a pure rotation about navigation z
     up = np.array([0.0, 0.0, 1.0])  # gravity direction in the body depends on the tilt only
     assert np.allclose(quat.rotate(quat.conjugate(q), up), quat.rotate(quat.conjugate(tilt), up))
+
+
+unit_q = st.lists(st.floats(-1, 1), min_size=4, max_size=4).filter(
+    lambda v: float(np.linalg.norm(v)) > 0.1).map(lambda v: quat.normalize(np.asarray(v)))
+
+
+@settings(max_examples=60, deadline=None)
+@given(unit_q, unit_q, unit_q)
+def test_product_is_associative_and_keeps_unit_length(q: np.ndarray, r: np.ndarray,
+                                                      s: np.ndarray) -> None:
+    left = quat.multiply(quat.multiply(q, r), s)  # (2.13)
+    right = quat.multiply(q, quat.multiply(r, s))
+    assert np.allclose(left, right, atol=1e-12)
+    assert math.isclose(float(np.linalg.norm(left)), 1.0, rel_tol=1e-12)
+    v = np.array([0.3, -1.2, 2.0])
+    assert math.isclose(float(np.linalg.norm(quat.rotate(q, v))), float(np.linalg.norm(v)),
+                        rel_tol=1e-12)
