@@ -171,3 +171,15 @@ def test_bad_calibration_file_names_the_field(tmp_path: Path) -> None:
     path.write_text("{not json")
     with pytest.raises(LogError, match="not a readable JSON"):
         load_calibration(path)
+
+
+def test_weakly_excited_axis_warns_but_calibrates() -> None:
+    big, small = math.radians(4.0), math.radians(0.6)
+    weak = Motion("weak_z", 42.0, ((), (), (), ((big, 0.6, 0.0),), ((big, 0.65, 0.0),),
+                                   ((small, 0.7, 0.0),)))
+    phases = paper_a_protocol(short=True)
+    phases[1] = Phase("gyro", weak)
+    with pytest.warns(UserWarning, match="poorly conditioned"):
+        cal = calibrate(_frame(phases=phases, seed=1), time_offset_s=MODEL.clock_offset_s)
+    assert 3.0 < cal.conditioning["gyro"] < 10.0
+    assert any("poorly conditioned" in w for w in cal.warnings)
