@@ -19,6 +19,9 @@ Example::
 
 from __future__ import annotations
 
+import contextlib
+import os
+import sys
 import time
 from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
@@ -253,6 +256,29 @@ class Solution:
         return expr.constant + sum(c * self.values[v.name] for v, c in expr.terms.items())
 
 
+@contextlib.contextmanager
+def _stdout_to_stderr() -> Iterator[None]:
+    """Send C-level writes to fd 1 to stderr for the duration.
+
+    HiGHS occasionally prints debug lines to stdout on its own (e.g.
+    "HighsMipSolverData::transformNewIntegerFeasibleSolution ..."), which would corrupt
+    machine-readable output such as ``rotorbench optimize --json``.
+    """
+    try:
+        fd = sys.stdout.fileno()
+    except (AttributeError, OSError, ValueError):  # no real stdout (e.g. captured)
+        yield
+        return
+    sys.stdout.flush()
+    saved = os.dup(fd)
+    try:
+        os.dup2(sys.stderr.fileno(), fd)
+        yield
+    finally:
+        os.dup2(saved, fd)
+        os.close(saved)
+
+
 _STATUS = {0: "optimal", 1: "time_limit", 2: "infeasible", 3: "unbounded", 4: "error"}
 
 
@@ -408,13 +434,14 @@ class Model:
             [LinearConstraint(arrays.A, arrays.row_lb, arrays.row_ub)] if self.n_constraints else []
         )
         t0 = time.perf_counter()
-        res = milp(
-            arrays.c,
-            integrality=arrays.integrality,
-            bounds=Bounds(arrays.lb, arrays.ub),
-            constraints=constraints,
-            options=dict(options),  # milp mutates its options dict
-        )
+        with _stdout_to_stderr():
+            res = milp(
+                arrays.c,
+                integrality=arrays.integrality,
+                bounds=Bounds(arrays.lb, arrays.ub),
+                constraints=constraints,
+                options=dict(options),  # milp mutates its options dict
+            )
         elapsed = time.perf_counter() - t0
         status = _STATUS.get(int(res.status), "error")
         values: dict[str, float] = {}

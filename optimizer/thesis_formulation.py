@@ -62,6 +62,9 @@ OBJECTIVES: dict[str, tuple[str, str]] = {
 #: and 160 per squared distance ((i2 - i1) / (N_a / 2) = 160 for N_a = 4, 6, 8).
 THESIS_REGIONS: dict[str, int] = {"n3": 230, "distance": 160}
 
+#: Largest catalog product the thesis formulation accepts (one Rule 4 term each).
+MAX_COMBINATIONS = 5000
+
 #: Thesis model sizes (section 3): total variables for N_a = 4, 6, 8.
 THESIS_VARIABLE_COUNTS: dict[int, int] = {4: 1795, 6: 2444, 8: 3091}
 
@@ -294,6 +297,13 @@ def build_thesis_model(
     """Build (not solve) the Paper E MILP for one actuator count."""
     terms = _objective_terms(objective)
     reg = _regions(regions)
+    combos = len(catalog.propellers) * len(catalog.motors) * len(catalog.batteries)
+    if combos > MAX_COMBINATIONS:
+        raise RequestError(
+            f"thesis formulation: {combos} (propeller, motor, battery) combinations; it adds "
+            f"one Rule 4 time constant per combination (E.35), so it is limited to "
+            f"{MAX_COMBINATIONS}. Use the default method for large catalogs."
+        )
     grid = evaluate_grid(catalog, n_actuators, payload_kg)
     na = grid.n_actuators
     c = catalog.constants

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import itertools
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -119,3 +122,20 @@ def test_check_names_violated_rows_and_bounds() -> None:
     m.add(x <= 0.5, name="half")
     assert m.check({"x": 0.75}) == ["half"]
     assert m.check({"x": 2.0}) == ["x", "half"]
+
+
+def test_solver_stdout_noise_goes_to_stderr() -> None:
+    # HiGHS sometimes writes debug lines straight to fd 1; `optimize --json` must stay clean.
+    code = (
+        "import os\n"
+        "from optimizer.modeling import _stdout_to_stderr\n"
+        "with _stdout_to_stderr():\n"
+        "    os.write(1, b'solver noise\\n')\n"
+        "print('clean')\n"
+    )
+    root = Path(__file__).resolve().parents[2]
+    proc = subprocess.run(
+        [sys.executable, "-c", code], cwd=root, capture_output=True, text=True, check=True
+    )
+    assert proc.stdout == "clean\n"
+    assert "solver noise" in proc.stderr

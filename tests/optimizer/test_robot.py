@@ -70,3 +70,20 @@ def test_bad_robot_files_name_row_and_column(tmp_path: Path, text: str, match: s
         load_robot(tmp_path)
     assert exc.value.exit_code == 2
     assert "batteries.csv" in str(exc.value)
+
+
+@pytest.mark.parametrize(
+    ("toml", "match"),
+    [
+        ("robot_mass_kg = -2\n", "robot_mass_kg: expected > 0"),
+        ("robot_mass = 2\n", "unknown key 'robot_mass'"),
+        ("regions = 'ten'\n", "regions: expected a number"),
+        ("regions = \n", "not valid TOML"),
+    ],
+)
+def test_bad_robot_constants_name_the_key(tmp_path: Path, toml: str, match: str) -> None:
+    (tmp_path / "batteries.csv").write_text("id,capacity_ah,mass_kg,price\n1,10,1,100\n")
+    (tmp_path / "robot.toml").write_text(toml)
+    with pytest.raises(CatalogError, match=match) as exc:
+        load_robot(tmp_path)
+    assert "robot.toml" in str(exc.value)

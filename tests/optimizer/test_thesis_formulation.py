@@ -266,3 +266,11 @@ def test_design_entry_has_the_cli_keys(thesis_e):
     assert entry["flight_time_min"] > entry["linearised"]["flight_time_min"]
     bad = solve_thesis(thesis_e, 4, "price", min_flight_time_min=1e4).design_entry()
     assert bad["feasible"] is False and bad["propeller"] is None and "reason" in bad
+
+
+def test_large_catalogs_are_refused_with_a_clear_message(thesis_e, monkeypatch):
+    import optimizer.thesis_formulation as tf
+
+    monkeypatch.setattr(tf, "MAX_COMBINATIONS", 47)  # thesis-e has 4 x 3 x 4 = 48
+    with pytest.raises(RequestError, match=r"48 \(propeller, motor, battery\) combinations"):
+        tf.solve_thesis(thesis_e, 4, "price")
