@@ -11,6 +11,7 @@ at the end; events are appended one flushed line at a time.
 from __future__ import annotations
 
 import csv
+import io
 import json
 import math
 import os
@@ -105,6 +106,9 @@ class RunRecorder:
             (self.run_dir / SAMPLES_DIR).mkdir()
         except OSError as exc:
             raise RigError(f"{self.run_dir}: cannot create the run folder ({exc})") from None
+        # The first Parquet write initialises pyarrow's writer (~0.3 s); do it now, not
+        # inside the command loop where it would look like a stalled host.
+        pq.write_table(pa.table({"t_s": np.zeros(1)}), io.BytesIO(), compression=compression)
         self.meta.setdefault("id", self.run_dir.name)
         self.meta.update(status="running", reason="", started_utc=utc_now(), ended_utc=None,
                          software_version=software_version(), host=socket.gethostname(),

@@ -1,0 +1,87 @@
+"""The step / sweep / runs commands on the simulated rig, through the real CLI entry."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from bench.cli import main
+from bench.rig import load_rig
+
+
+def test_dry_run_prints_every_step_and_touches_no_device(sim_rig_mapped_path, monkeypatch,
+                                                         capsys, tmp_path):
+    import drivers.factory
+
+    def no_devices(*a, **k):
+        raise AssertionError("a dry run opened the rig")
+
+    monkeypatch.setattr(drivers.factory, "open_rig", no_devices)
+    assert main(["step", "--rig", str(sim_rig_mapped_path), "--repeats", "3", "--dry-run",
+                 "--out", str(tmp_path / "runs")]) == 0
+    out = capsys.readouterr().out
+    assert "sequence step1" in out and "3.187 N" in out and "disarm" in out
+    assert out.count("thrust_step") == 1 + 2 * 3
+    assert not (tmp_path / "runs").exists()
+    assert main(["sweep", "--rig", str(sim_rig_mapped_path), "--dry-run"]) == 0
+    assert "ramp to 1900.0 us" in capsys.readouterr().out
+
+
+def test_step_without_a_map_sweeps_first_then_steps(sim_rig_path, tmp_path, capsys):
+    out_root = tmp_path / "runs"
+    assert load_rig(sim_rig_path).thrust_map is None
+    code = main(["step", "--rig", str(sim_rig_path), "--repeats", "2", "--out", str(out_root),
+                 "--sequence", "step2", "--esc-mode", "diode"])
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    assert "no static thrust map yet: measuring one with a sweep first" in captured.err
+    assert "rig time" in captured.err  # the progress bar is on stderr
+    rig = load_rig(sim_rig_path)
+    assert rig.thrust_map is not None  # stored with the rig for the next runs
+    # the measured map agrees with the plant's own steady state (Paper C section 4.4)
+    from drivers.factory import open_rig
+
+    devices = open_rig(rig.with_esc_mode("diode"))
+    truth = devices.truth()
+    devices.close()
+    for us in (1300.0, 1500.0, 1700.0, 1850.0):
+        assert rig.thrust_map.thrust_for(us) == pytest.approx(truth.steady_thrust_n(us), rel=0.03)
+    sweep_dir, step_dir = sorted(out_root.glob("*-sweep")) + sorted(out_root.glob("*-step2"))
+    fig = pd.read_parquet(sweep_dir / "samples.parquet")
+    assert {"throttle_us", "thrust_n", "current_a", "rpm"} <= set(fig.columns)
+    assert (sweep_dir / "static_map.json").is_file()
+    samples = pd.read_parquet(step_dir / "samples.parquet")
+    assert np.nanmax(samples["thrust_setpoint_n"]) == pytest.approx(3.187, abs=1e-3)
+    assert main(["runs", "--out", str(out_root)]) == 0
+    listing = capsys.readouterr().out
+    assert "sweep" in listing and "step2" in listing and listing.count("success") == 2
+    assert "diode" in listing
+
+
+def test_a_looser_limit_is_one_line_and_exit_2(sim_rig_mapped_path, tmp_path, capsys):
+    code = main(["step", "--rig", str(sim_rig_mapped_path), "--limit", "current_a=100",
+                 "--out", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert code == 2 and "only tighten" in err and "Traceback" not in err
+    assert not list(tmp_path.glob("*-step1"))  # refused before any run folder exists
+
+
+def test_a_tighter_limit_trips_and_exits_1(sim_rig_mapped_path, tmp_path, capsys):
+    code = main(["step", "--rig", str(sim_rig_mapped_path), "--limit", "thrust_n=2.5",
+                 "--repeats", "1", "--out", str(tmp_path)])
+    out = capsys.readouterr().out
+    assert code == 1 and "abort: limit trip: thrust_n" in out
+
+
+def test_bad_rig_file_is_one_line_and_exit_2(tmp_path, capsys):
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[rig]\nname = 3\n")
+    assert main(["step", "--rig", str(bad), "--dry-run"]) == 2
+    err = capsys.readouterr().err
+    assert str(bad) in err and len(err.strip().splitlines()) == 1
+
+
+def test_runs_on_an_empty_root(tmp_path, capsys):
+    assert main(["runs", "--out", str(tmp_path)]) == 0
+    assert "no runs recorded" in capsys.readouterr().out

@@ -1,0 +1,80 @@
+"""The host watchdog: a stalled command loop stops the motor, and stays stopped."""
+
+from __future__ import annotations
+
+import json
+import time
+
+import pytest
+
+from bench.runner import Runner, RunOptions
+from bench.sequences import EscRange, compile_plan, step1
+from bench.watchdog import GuardedEsc, HostWatchdog, WatchdogTrip
+
+ESC = EscRange(1000.0, 1050.0, 2000.0)
+
+
+class Esc:
+    def __init__(self):
+        self.armed = False
+        self.pulse = 1000.0
+
+    def arm(self):
+        self.armed = True
+
+    def set_pulse_us(self, us):
+        self.pulse = us
+
+    def disarm(self):
+        self.armed, self.pulse = False, 1000.0
+
+
+def test_watchdog_disarms_when_the_loop_stops_checking_in():
+    esc = Esc()
+    guarded = GuardedEsc(esc, 1050.0, 2000.0, 1000.0)
+    guarded.arm()
+    guarded.set_pulse_us(1500.0)
+    with HostWatchdog(guarded, timeout_s=0.1) as wd:
+        for _ in range(10):  # a healthy loop: no trip
+            wd.kick()
+            time.sleep(0.02)
+        assert esc.armed and not wd.tripped
+        time.sleep(0.4)  # the loop stalls
+        assert wd.tripped
+        assert esc.armed is False and esc.pulse == 1000.0
+        with pytest.raises(WatchdogTrip):  # the loop wakes up: no more commands
+            guarded.set_pulse_us(1500.0)
+        with pytest.raises(WatchdogTrip):
+            wd.kick()
+    assert esc.armed is False and esc.pulse == 1000.0
+
+
+def test_guarded_esc_clamps_commands_to_the_rig_range():
+    esc = Esc()
+    guarded = GuardedEsc(esc, 1050.0, 1800.0, 1000.0)
+    guarded.set_pulse_us(2500.0)
+    assert esc.pulse == 1800.0
+    guarded.set_pulse_us(1010.0)
+    assert esc.pulse == 1050.0
+    guarded.set_pulse_us(1000.0)  # idle is allowed below min
+    assert esc.pulse == 1000.0
+
+
+def test_stalled_runner_is_stopped_by_the_watchdog(fakes, tmp_path):
+    from bench.recorder import RunRecorder
+
+    rig = fakes.FakeRig()
+    rig.faults.stall_at_s = rig.clock.t + 3.3  # spinning at the high level
+    rig.faults.stall_wall_s = 0.6
+    seq = step1(repeats=3)
+    plan = compile_plan(seq, ESC, lambda f: 1050.0 + (f / 1e-7) ** 0.5 / 12.0)
+    rec = RunRecorder(tmp_path / "run", {})
+    runner = Runner(rig, plan, ESC, {"thrust_n": 10.0}, rec,
+                    RunOptions(watchdog_timeout_s=0.15))
+    result = runner.run()
+    # checked inside the stalled read, before the loop could do anything
+    assert rig.faults.seen_during_stall == [False]
+    assert result.status == "abort" and "watchdog" in result.reason
+    assert rig.esc.armed is False
+    meta = json.loads((tmp_path / "run" / "run.json").read_text())
+    assert meta["status"] == "abort" and "stalled" in meta["reason"]
