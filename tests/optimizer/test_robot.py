@@ -35,6 +35,9 @@ def test_power_limited_choice_is_battery_3_with_linearised_power(robot) -> None:
     assert r.active_region == 9
     # Tables 2.3-2.4: x1..x30, 14 of them Boolean
     assert (r.n_vars, r.n_binary) == (30, 14)
+    # the thesis' A has 97 rows (2.66), 28 of them the 0 <= delta <= 1 rows (2.48)-(2.49)
+    # of the 14 Booleans, which milp takes as variable bounds
+    assert r.n_constraints == 97 - 2 * 14
 
 
 def test_without_power_limit_battery_4_wins(robot) -> None:
