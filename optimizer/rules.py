@@ -157,7 +157,7 @@ class PiecewiseLinear:
     breakpoints: np.ndarray
     slopes: np.ndarray
     offsets: np.ndarray
-
+    #: g at the breakpoints (the interpolant's nodes)
     values: np.ndarray
 
     def approx(self, x: float | np.ndarray) -> np.ndarray:
