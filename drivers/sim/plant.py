@@ -51,6 +51,7 @@ class PlantParams:
     ct: float = 0.1215  # thrust coefficient, APC 8x4.5MR static data at 6000 RPM (E.1)
     cp: float = 0.0518  # power coefficient, APC 8x4.5MR static data at 6000 RPM (E.2)
     rho_kg_m3: float = 1.225  # ISA sea-level air density
+    friction_nm: float = 5e-4  # bearing (Coulomb) friction; E.7 omits it (assumption)
     supply_v: float = 11.1  # 3S LiPo nominal voltage (Table E.6: 11.1 V)
     supply_r_ohm: float = 0.025  # pack + wiring internal resistance (assumption; C.15: fast)
     esc_quiescent_a: float = 0.05  # ESC logic current draw (assumption)
@@ -122,14 +123,16 @@ def steady_omega(params: PlantParams, duty: float) -> float:
     r_tot = params.r_ohm + duty * duty * params.supply_r_ohm
     a = params.torque_k
     b = params.kt_nm_a * params.ke_v_s_rad / r_tot
-    c = -params.kt_nm_a * duty * params.supply_v / r_tot
+    c = params.friction_nm - params.kt_nm_a * duty * params.supply_v / r_tot
+    if c >= 0.0:
+        return 0.0  # the motor cannot overcome friction
     return (-b + math.sqrt(b * b - 4.0 * a * c)) / (2.0 * a)
 
 
 def operating_point(params: PlantParams, thrust: float) -> OperatingPoint:
     """Linearise the plant around the steady state that produces ``thrust`` newtons."""
     omega = math.sqrt(thrust / params.thrust_k)
-    i_w = params.torque_k * omega**2 / params.kt_nm_a  # (E.6), (E.7) at d omega/dt = 0
+    i_w = (params.torque_k * omega**2 + params.friction_nm) / params.kt_nm_a  # (E.6), (E.7)
     duty = 0.5
     for _ in range(20):  # the supply sag term depends on duty; a few fixed-point steps
         r_tot = params.r_ohm + duty * duty * params.supply_r_ohm
@@ -262,8 +265,13 @@ class Plant:
             i_dcm = dcm_k * (v_bus - emf) / (emf + v_f) if v_bus > emf else 0.0
             return i if i > i_dcm else i_dcm
 
+        fr = p.friction_nm
+
         def f(w: float) -> float:
-            return (kt * current(w) - kq * w * abs(w)) / j  # (E.6), (E.7)
+            drive = kt * current(w)  # (E.6)
+            if w <= 0.0:  # at rest: friction holds the rotor until the motor overcomes it
+                return (drive - fr) / j if drive > fr else 0.0
+            return (drive - kq * w * w - fr) / j  # (E.7) plus bearing friction
 
         for m in range(1, self.n_sub + 1):
             if p.use_inductance:
@@ -272,8 +280,9 @@ class Plant:
                 if not allow_negative:  # the body diode blocks reverse current
                     i_new = max(i_new, current(omega) if i_new < i_ss else 0.0, 0.0)
                 i_avg = 0.5 * (i_w + i_new)
-                w_mid = omega + 0.5 * h * (kt * i_avg - kq * omega * abs(omega)) / j
-                omega_new = omega + h * (kt * i_avg - kq * w_mid * abs(w_mid)) / j  # (E.7)
+                w_mid = omega + 0.5 * h * (kt * i_avg - kq * omega * abs(omega) - fr) / j
+                omega_new = omega + h * (kt * i_avg - kq * w_mid * abs(w_mid) - fr) / j  # (E.7)
+                omega_new = max(omega_new, 0.0)
                 i_w = i_new
             else:
                 # RK4 on J domega/dt = K_T i - T(omega), i = (d V - K_E omega) / R  (E.4-E.7)
@@ -282,6 +291,8 @@ class Plant:
                 k3 = f(omega + 0.5 * h * k2)
                 k4 = f(omega + h * k3)
                 omega_new = omega + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+                if omega_new < 0.0:
+                    omega_new = 0.0  # friction stops the rotor; it never turns backwards
                 i_w = current(omega_new)
             theta += 0.5 * h * (omega + omega_new)
             omega = omega_new

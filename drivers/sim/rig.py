@@ -117,9 +117,9 @@ class SimRig:
         pw = {"current_mv_per_a": sp.current_mv_per_a, "voltage_mv_per_v": sp.voltage_mv_per_v,
               "current_offset_mv": 0.0, **(power_cal or {})}
         magnets = int((rpm_cal or {}).get("magnets", sp.magnets))
-        self.load_cell = SimLoadCell(self, urls["load_cell"], rngs[2], **lc)
-        self.power = SimPowerSensor(self, urls["power"], rngs[3], **pw)
-        self.rpm = SimRpmSensor(self, urls["rpm"], rngs[4], magnets)
+        self.load_cell = SimLoadCell(self, urls["load_cell"], seeds[2], **lc)
+        self.power = SimPowerSensor(self, urls["power"], seeds[3], **pw)
+        self.rpm = SimRpmSensor(self, urls["rpm"], seeds[4], magnets)
         self.sensors = {"load_cell": self.load_cell, "power": self.power, "rpm": self.rpm}
 
     def trim(self) -> None:

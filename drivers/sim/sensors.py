@@ -114,12 +114,14 @@ class SimSensor:
     model = "simulated"
     allowed_faults = (Fault.DROPOUT, Fault.SPIKES, Fault.STUCK, Fault.TIMEOUT, Fault.DISCONNECT)
 
-    def __init__(self, rig: SimRig, url: str, rng: np.random.Generator) -> None:
+    def __init__(self, rig: SimRig, url: str, seed: np.random.SeedSequence) -> None:
         self.rig = rig
         self.url = url
-        self.rng = rng
+        fault_seed, *channel_seeds = seed.spawn(3)
+        # one generator per channel: the noise does not depend on how reads are sliced
+        self.rngs = [np.random.default_rng(s) for s in channel_seeds]
         self.params = rig.sensor_params
-        self.faults = FaultSwitches(url, rng, self.allowed_faults)
+        self.faults = FaultSwitches(url, np.random.default_rng(fault_seed), self.allowed_faults)
         self.next_n = 0
         self.closed = False
 
@@ -179,10 +181,10 @@ class SimSensor:
     def clear(self, fault: Fault | str | None = None) -> None:
         self.faults.clear(fault)
 
-    def _noise(self, sigma: float, n: int) -> np.ndarray | float:
+    def _noise(self, sigma: float, n: int, channel: int = 0) -> np.ndarray | float:
         if not self.params.noise or sigma <= 0:
             return 0.0
-        return self.rng.standard_normal(n) * sigma
+        return self.rngs[channel].standard_normal(n) * sigma
 
 
 class SimLoadCell(SimSensor):
@@ -191,9 +193,9 @@ class SimLoadCell(SimSensor):
     kind = "load_cell"
     model = "simulated Phidget micro load cell 5 kg"
 
-    def __init__(self, rig: SimRig, url: str, rng: np.random.Generator,
+    def __init__(self, rig: SimRig, url: str, seed: np.random.SeedSequence,
                  scale_n_per_v: float, offset_v: float) -> None:
-        super().__init__(rig, url, rng)
+        super().__init__(rig, url, seed)
         p = self.params
         wn = 2.0 * math.pi * p.load_cell_fn_hz
         b, a = signal.bilinear([wn * wn], [1.0, 2.0 * p.load_cell_zeta * wn, wn * wn],
@@ -223,10 +225,10 @@ class SimPowerSensor(SimSensor):
     kind = "power_sensor"
     model = "simulated AttoPilot 90 A"
 
-    def __init__(self, rig: SimRig, url: str, rng: np.random.Generator,
+    def __init__(self, rig: SimRig, url: str, seed: np.random.SeedSequence,
                  current_mv_per_a: float, voltage_mv_per_v: float,
                  current_offset_mv: float = 0.0) -> None:
-        super().__init__(rig, url, rng)
+        super().__init__(rig, url, seed)
         self.current_mv_per_a = current_mv_per_a
         self.voltage_mv_per_v = voltage_mv_per_v
         self.current_offset_mv = current_offset_mv
@@ -244,7 +246,7 @@ class SimPowerSensor(SimSensor):
         s = self.rig.plant.traj.sample(t, ("i_bus", "v_bus"))
         n = t.size
         vi = (s["i_bus"] + self._noise(p.current_noise_a, n)) * p.current_mv_per_a * 1e-3
-        vv = (s["v_bus"] + self._noise(p.voltage_noise_v, n)) * p.voltage_mv_per_v * 1e-3
+        vv = (s["v_bus"] + self._noise(p.voltage_noise_v, n, 1)) * p.voltage_mv_per_v * 1e-3
         vi = quantise(np.clip(vi, 0.0, p.sensor_out_max_v), p)  # unidirectional output
         vv = quantise(np.clip(vv, 0.0, p.sensor_out_max_v), p)
         return {
@@ -264,8 +266,8 @@ class SimRpmSensor(SimSensor):
     kind = "rpm_sensor"
     model = "simulated hall sensor + period counter"
 
-    def __init__(self, rig: SimRig, url: str, rng: np.random.Generator, magnets: int) -> None:
-        super().__init__(rig, url, rng)
+    def __init__(self, rig: SimRig, url: str, seed: np.random.SeedSequence, magnets: int) -> None:
+        super().__init__(rig, url, seed)
         if magnets < 1:
             raise DeviceError(f"{url}: magnets must be >= 1, got {magnets}")
         self.magnets = magnets
@@ -275,6 +277,21 @@ class SimRpmSensor(SimSensor):
 
     def channels(self) -> tuple[ChannelInfo, ...]:
         return (ChannelInfo("rpm", "rpm", self.params.sample_rate_hz, 0.0, 60_000.0),)
+
+    def _crossing_times(self, angles: np.ndarray) -> np.ndarray:
+        """When the rotor reaches each angle: omega is linear between integration points
+        (the plant integrates theta with the trapezoid rule), so theta is quadratic there."""
+        arr = self.rig.plant.traj.arrays
+        t_tr, th_tr, w_tr = arr["t"], arr["theta"], arr["omega"]
+        k = np.clip(np.searchsorted(th_tr, angles, side="left") - 1, 0, t_tr.size - 2)
+        h = t_tr[k + 1] - t_tr[k]
+        w0, w1 = w_tr[k], w_tr[k + 1]
+        a = (w1 - w0) / (2.0 * h)
+        d_th = angles - th_tr[k]
+        root = np.sqrt(np.maximum(w0 * w0 + 4.0 * a * d_th, 0.0))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            tau = np.where(w0 + root > 0, 2.0 * d_th / (w0 + root), 0.0)
+        return t_tr[k] + np.clip(tau, 0.0, h)
 
     def measure(self, n0: int, n1: int, t: np.ndarray) -> dict[str, np.ndarray]:
         traj = self.rig.plant.traj
@@ -287,7 +304,7 @@ class SimRpmSensor(SimSensor):
             # edges: the rotor angle passes a magnet; theta(t) is monotone, so invert it
             angles = np.arange(self._count + 1, count_end + 1) * pitch
             tick = 1.0 / self.params.counter_hz
-            t_edge = np.round(np.interp(angles, th_tr, t_tr) / tick) * tick
+            t_edge = np.round(self._crossing_times(angles) / tick) * tick
             edges = np.concatenate(([self._last_edge], t_edge))
             rpm_edge = 60.0 / (self.magnets * np.diff(edges))  # first may be 60/inf = 0
             rpm_edge = np.concatenate(([self._rpm], rpm_edge))
