@@ -115,6 +115,8 @@ class FaultSwitches:
                 hit = mask & (self.rng.random(n) < s.probability)
                 for k, v in values.items():
                     v[hit] = full_scale[k]
+            elif s.fault in (Fault.TIMEOUT, Fault.DISCONNECT):
+                keep &= ~mask  # nothing was acquired while the device was unreachable
             elif s.fault is Fault.DROPOUT:
                 lost = mask & (self.rng.random(n) < s.probability)
                 if s.fill_nan:
