@@ -79,15 +79,22 @@ class BlockAligner:
 
     def push(self, blocks: Mapping[str, Block]) -> dict[str, np.ndarray]:
         """Add one read of every sensor; return the rows the base sensor produced."""
-        for role, held in self._held.items():
-            block = blocks.get(role)
-            if block is not None:
-                held.add(block)
         base = blocks.get(self.base)
         t = np.asarray(base.t_s, float) if base is not None else np.empty(0)
         out: dict[str, np.ndarray] = {"t_s": t}
         for n in self.base_names:
             out[n] = np.asarray(base.values[n], float) if base is not None else np.empty(0)
-        for held in self._held.values():
+        for role, held in self._held.items():
+            block = blocks.get(role)
+            if (block is not None and held.t.size == 0 and t.size and len(block) == t.size
+                    and np.array_equal(block.t_s, t)):
+                # Same sample clock as the base (one DAQ): the columns line up as they are.
+                for n in held.names:
+                    v = np.asarray(block.values[n], float)
+                    out[n] = v
+                    held.last[n] = float(v[-1])
+                continue
+            if block is not None:
+                held.add(block)
             out.update(held.at(t))
         return out

@@ -253,8 +253,7 @@ class Runner:
         rows["thrust_setpoint_n"] = self._cmd_sp[idx]
         rows["step"] = self._cmd_seg[idx].astype(np.int32)
         if "thrust_n" in rows:
-            raw = rows["thrust_n"]
-            rows["thrust_raw_n"] = raw
+            raw = rows["thrust_n"]  # the tare offset is in run.json and the events
             rows["thrust_n"] = raw - self.tare_offset_n
             seg = self._segment
             if seg is not None and seg.kind == "tare":

@@ -129,14 +129,19 @@ class SafetySupervisor:
                     if limit is None:
                         continue
                     v = np.asarray(values, dtype=float)
+                    # NaN-skipping reductions first: the usual block has no violation at all
                     if test == "abs_above":
+                        if not (np.fmax.reduce(v) > limit or np.fmin.reduce(v) < -limit):
+                            continue
                         bad = np.abs(v) > limit
                     elif test == "above":
+                        if not np.fmax.reduce(v) > limit:
+                            continue
                         bad = v > limit
                     else:
+                        if not np.fmin.reduce(v) < limit:
+                            continue
                         bad = v < limit
-                    if not bad.any():
-                        continue
                     i = int(np.argmax(bad))
                     t = float(block.t_s[i])
                     if best is None or t < best.t_s:

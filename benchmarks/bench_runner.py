@@ -1,0 +1,103 @@
+"""Benchmark: Paper C Step 1 (20 repeats) on the simulated rig at 25 kHz, wall time and
+real-time factor, with and without recording, for several command-loop ticks.
+
+The rig is a temporary copy of the default sim rig; its static thrust map is taken from
+the plant's steady state (no sweep), so only the step run is timed. Prints measured
+numbers; nothing here is asserted.
+"""
+
+from __future__ import annotations
+
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from bench.rig import default_rig_path, load_rig, save_thrust_map  # noqa: E402
+from bench.runner import Runner, RunOptions  # noqa: E402
+from bench.safety import effective_limits  # noqa: E402
+from bench.sequences import step1  # noqa: E402
+from bench.session import esc_range_of, plan_for, run_sequence  # noqa: E402
+from drivers.factory import open_rig  # noqa: E402
+
+REPEATS = 3
+
+
+def mapped_rig(tmp: Path):
+    path = tmp / "sim.toml"
+    path.write_text(default_rig_path().read_text(encoding="utf-8"), encoding="utf-8")
+    rig = load_rig(path)
+    devices = open_rig(rig)
+    truth = devices.truth()
+    devices.close()
+    grid = np.arange(1100.0, 1951.0, 10.0)
+    return save_thrust_map(rig, grid.tolist(), [truth.steady_thrust_n(u) for u in grid])
+
+
+def time_recorded(rig, tmp: Path, tick: float) -> tuple[list[float], float, int]:
+    walls = []
+    for i in range(REPEATS):
+        t0 = time.perf_counter()
+        out = run_sequence(rig, step1(repeats=20), tmp / f"runs-{tick}-{i}", open_rig,
+                           options=RunOptions(tick_s=tick))
+        walls.append(time.perf_counter() - t0)
+        assert out.result.status == "success", out.result.reason
+    return walls, out.result.t_end_s, out.result.rows
+
+
+def time_unrecorded(rig, tick: float) -> list[float]:
+    seq = step1(repeats=20)
+    walls = []
+    for _ in range(REPEATS):
+        devices = open_rig(rig)
+        runner = Runner(devices, plan_for(rig, seq), esc_range_of(rig),
+                        effective_limits(rig.limits, seq.limits), None, RunOptions(tick_s=tick))
+        t0 = time.perf_counter()
+        result = runner.run()
+        walls.append(time.perf_counter() - t0)
+        devices.close()
+        assert result.status == "success", result.reason
+    return walls
+
+
+def time_plant_only(rig, duration: float, tick: float) -> float:
+    """The simulated devices alone: sleep + read every sensor, no runner."""
+    devices = open_rig(rig)
+    t0 = time.perf_counter()
+    for _ in range(round(duration / tick)):
+        devices.clock.sleep(tick)
+        for s in devices.sensors.values():
+            s.read_block()
+    wall = time.perf_counter() - t0
+    devices.close()
+    return wall
+
+
+def main() -> int:
+    with tempfile.TemporaryDirectory() as d:
+        tmp = Path(d)
+        rig = mapped_rig(tmp)
+        duration = plan_for(rig, step1(repeats=20)).duration_s
+        print(f"Step 1, 20 repeats, default sim rig (25 kHz load cell, current, voltage, rpm): "
+              f"{duration:.1f} s of rig time; best and median of {REPEATS} runs")
+        print(f"{'tick_s':>7} {'what':<28} {'best_s':>7} {'median_s':>8} {'x realtime':>10}")
+        for tick in (0.01, 0.02, 0.05):
+            walls, t_end, rows = time_recorded(rig, tmp, tick)
+            plain = time_unrecorded(rig, tick)
+            plant = time_plant_only(rig, duration, tick)
+            for what, w in (("runner + recorder (full)", walls), ("runner, no recorder", plain),
+                            ("sim devices only", [plant])):
+                best, med = min(w), statistics.median(w)
+                print(f"{tick:>7.2f} {what:<28} {best:>7.3f} {med:>8.3f} {duration / best:>10.1f}")
+        print(f"rows per run: {rows} ({rows / t_end:.0f} rows/s of rig time)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
