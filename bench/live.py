@@ -161,7 +161,7 @@ def run_with_live_view(work: Callable[[Callable[[Mapping[str, np.ndarray]], None
             view.refresh()
             status = getattr(getattr(outcome.get("value"), "result", None), "status", None)
             view.win.setWindowTitle(f"rotorbench live - finished ({status or 'error'})")
-            if close_when_done:
+            if close_when_done or stop_event.is_set():  # stopped by Ctrl-C / SIGTERM
                 app.quit()
             done_timer.stop()
 

@@ -136,7 +136,7 @@ class Runner:
             status, reason = "abort", f"stopped by operator: {exc}" if str(exc) else \
                 "stopped by operator"
         except KeyboardInterrupt as exc:
-            status, reason, pending = "abort", "interrupted by operator (Ctrl-C)", exc
+            status, reason, pending = "abort", "interrupted by operator (Ctrl-C or SIGTERM)", exc
         except DeviceError as exc:
             status, reason, pending = "fail", f"device error: {exc}", exc
         except BaseException as exc:

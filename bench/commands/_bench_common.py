@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
+import signal
 import sys
 import threading
 from collections.abc import Callable, Mapping
@@ -101,12 +103,14 @@ def execute(rig: Any, seq: Sequence, args: argparse.Namespace,
     def on_progress(t: float, _total: float, seg: Segment) -> None:
         progress.update(task, completed=t, description=f"{seq.name} [{seg.label}]")
 
+    meta = {"command_line": ["rotorbench", *sys.argv[1:]], **dict(extra_meta or {})}
+
     def work(on_rows: Callable | None) -> RunOutcome:
         return run_sequence(rig, seq, args.out, open_rig, seed=args.seed, options=options,
                             on_rows=on_rows, on_progress=on_progress, stop_event=stop,
-                            extra_meta=extra_meta)
+                            extra_meta=meta)
 
-    with progress:
+    with progress, _sigterm_as_interrupt(stop, bool(args.live)):
         if args.live:
             from bench.live import run_with_live_view
 
@@ -115,6 +119,25 @@ def execute(rig: Any, seq: Sequence, args: argparse.Namespace,
             outcome = work(None)
         progress.update(task, completed=outcome.result.t_end_s)
     return outcome
+
+
+@contextlib.contextmanager
+def _sigterm_as_interrupt(stop: threading.Event, live: bool):
+    """``kill PID`` (SIGTERM) ends a run like Ctrl-C: safe stop, record, exit 130."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def on_term(*_: object) -> None:
+        stop.set()
+        if not live:  # the runner is on this thread: interrupt it now
+            raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, on_term)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def report(outcome: RunOutcome) -> int:

@@ -18,7 +18,7 @@ if _NAME not in sys.modules:
 fakes_module = sys.modules[_NAME]
 
 
-@pytest.fixture
+@pytest.fixture(scope="session")
 def fakes():
     return fakes_module
 
@@ -26,24 +26,6 @@ def fakes():
 @pytest.fixture
 def fake_rig():
     return fakes_module.FakeRig()
-
-
-def _write_truth_map(rig_path: Path) -> None:
-    """A static map for a copied sim rig from the plant's own steady state (no sweep)."""
-    import numpy as np
-
-    from bench.rig import load_rig, save_thrust_map
-    from drivers.factory import open_rig
-
-    rig = load_rig(rig_path)
-    devices = open_rig(rig)
-    try:
-        truth = devices.truth()
-        grid = np.arange(1100.0, 1951.0, 10.0)
-        thrust = np.array([truth.steady_thrust_n(u) for u in grid])
-    finally:
-        devices.close()
-    save_thrust_map(rig, grid.tolist(), thrust.tolist())
 
 
 @pytest.fixture
@@ -61,5 +43,5 @@ def sim_rig_path(tmp_path: Path) -> Path:
 @pytest.fixture
 def sim_rig_mapped_path(sim_rig_path: Path) -> Path:
     """A copy of the default sim rig with a static map taken from the plant's truth."""
-    _write_truth_map(sim_rig_path)
+    fakes_module.write_truth_map(sim_rig_path)
     return sim_rig_path

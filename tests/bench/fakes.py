@@ -169,3 +169,19 @@ class FakeRig:
 
     def close(self) -> None:
         self.closed = True
+
+
+def write_truth_map(rig_path) -> None:
+    """A static map for a copied sim rig from the plant's own steady state (no sweep)."""
+    from bench.rig import load_rig, save_thrust_map
+    from drivers.factory import open_rig
+
+    rig = load_rig(rig_path)
+    devices = open_rig(rig)
+    try:
+        truth = devices.truth()
+        grid = np.arange(1100.0, 1951.0, 10.0)
+        thrust = np.array([truth.steady_thrust_n(u) for u in grid])
+    finally:
+        devices.close()
+    save_thrust_map(rig, grid.tolist(), thrust.tolist())

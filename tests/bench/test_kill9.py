@@ -69,3 +69,29 @@ def test_kill_9_mid_run_keeps_everything_up_to_the_last_part(sim_rig_mapped_path
     assert meta["status"] == "running"  # never finished: the record says so
     listed = {r.id: r.status for r in RunIndex(out).list()}
     assert listed[run_dir.name] == "killed"
+
+
+def test_sigterm_mid_run_stops_safely_and_records_it(sim_rig_mapped_path, tmp_path):
+    out = tmp_path / "runs"
+    repo = Path(__file__).resolve().parents[2]
+    env = {**os.environ, "PYTHONPATH": str(repo)}
+    child = subprocess.Popen([sys.executable, "-m", "bench.cli", "step", "--rig",
+                              str(sim_rig_mapped_path), "--out", str(out), "--realtime"],
+                             env=env, cwd=repo, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        deadline = time.monotonic() + 30.0
+        while time.monotonic() < deadline and not list(out.glob("*/samples.parquet/part-*")):
+            time.sleep(0.05)
+        child.send_signal(signal.SIGTERM)
+        _, err = child.communicate(timeout=20)
+    finally:
+        if child.poll() is None:
+            child.kill()
+    assert child.returncode == 130, err
+    run_dir = next(out.glob("*-step1"))
+    meta = json.loads((run_dir / "run.json").read_text())
+    assert meta["status"] == "abort" and "SIGTERM" in meta["reason"]
+    assert meta["safe_stop_errors"] == []
+    events = pd.read_csv(run_dir / "events.csv")
+    assert events["kind"].tolist()[-2:] == ["safe_stop", "run_end"]
+    assert meta["command_line"][:2] == ["rotorbench", "step"]

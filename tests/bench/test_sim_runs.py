@@ -30,29 +30,19 @@ def disarmed(devices, rig) -> bool:
     return (not truth.armed) and devices.esc.last_pulse_us == rig.esc.idle_us
 
 
-def _mapped_rig(tmp: Path):
-    import importlib.util
-    import sys
-
-    conftest = sys.modules.get("rotorbench_tests_bench_conftest")
-    if conftest is None:
-        spec = importlib.util.spec_from_file_location(
-            "rotorbench_tests_bench_conftest", Path(__file__).with_name("conftest.py"))
-        conftest = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(conftest)
+def _mapped_rig(tmp: Path, fakes):
     from bench.rig import default_rig_path
 
     path = tmp / "sim.toml"
     path.write_text(default_rig_path().read_text(encoding="utf-8"), encoding="utf-8")
-    (tmp / "sim.thrust_map.csv").unlink(missing_ok=True)
-    conftest._write_truth_map(path)
+    fakes.write_truth_map(path)
     return load_rig(path)
 
 
 @pytest.fixture(scope="module")
-def mapped(tmp_path_factory):
+def mapped(tmp_path_factory, fakes):
     tmp = tmp_path_factory.mktemp("simrig")
-    rig = _mapped_rig(tmp)
+    rig = _mapped_rig(tmp, fakes)
     outcome = run_sequence(rig, step1(repeats=2), tmp / "runs", open_rig)
     samples = pd.read_parquet(outcome.run_dir / "samples.parquet")
     return rig, outcome, samples
