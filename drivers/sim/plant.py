@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import enum
 import math
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
@@ -151,37 +151,65 @@ def operating_point(params: PlantParams, thrust: float) -> OperatingPoint:
     )
 
 
-@dataclass
 class Trajectory:
-    """Plant state at the integration points; grows as the plant advances, trimmed behind."""
+    """Plant state at the integration points, in one growing buffer trimmed from behind.
 
-    names: tuple[str, ...] = ("t", "omega", "theta", "i_w", "i_bus", "v_bus", "duty")
-    arrays: dict[str, np.ndarray] = field(default_factory=dict)
-    pending: dict[str, list[float]] = field(default_factory=dict)
+    New points collect in a Python list (cheap appends from the scalar integrator) and are
+    moved into the numpy buffer in one go when someone samples the trajectory.
+    """
 
-    def __post_init__(self) -> None:
-        self.arrays = {n: np.empty(0) for n in self.names}
-        self.pending = {n: [] for n in self.names}
+    names = ("t", "omega", "theta", "i_w", "i_bus", "v_bus", "duty")
+
+    def __init__(self) -> None:
+        self._buf = np.empty((len(self.names), 4096))
+        self._start = 0
+        self._end = 0
+        self.pending: list[tuple[float, ...]] = []
+        self._index = {n: i for i, n in enumerate(self.names)}
+
+    def append(self, point: tuple[float, ...]) -> None:
+        self.pending.append(point)
 
     def flush(self) -> None:
-        if self.pending["t"]:
-            for n in self.names:
-                self.arrays[n] = np.concatenate((self.arrays[n], np.asarray(self.pending[n])))
-                self.pending[n] = []
+        if not self.pending:
+            return
+        new = np.array(self.pending).T
+        self.pending = []
+        k = new.shape[1]
+        if self._end + k > self._buf.shape[1]:
+            live = self._end - self._start
+            cap = self._buf.shape[1]
+            if live + k > cap // 2:
+                cap = max(2 * cap, 2 * (live + k))
+            buf = np.empty((len(self.names), cap))
+            buf[:, :live] = self._buf[:, self._start : self._end]
+            self._buf, self._start, self._end = buf, 0, live
+        self._buf[:, self._end : self._end + k] = new
+        self._end += k
+
+    def column(self, name: str) -> np.ndarray:
+        return self._buf[self._index[name], self._start : self._end]
+
+    @property
+    def arrays(self) -> dict[str, np.ndarray]:
+        """Views of the flushed columns (call ``flush`` first for the newest points)."""
+        return {n: self.column(n) for n in self.names}
+
+    @property
+    def size(self) -> int:
+        return self._end - self._start + len(self.pending)
 
     def trim_before(self, t: float) -> None:
         """Drop points not needed to interpolate at times >= t (keeps one point before t)."""
         self.flush()
-        tt = self.arrays["t"]
-        k = int(np.searchsorted(tt, t, side="right")) - 1
+        k = int(np.searchsorted(self.column("t"), t, side="right")) - 1
         if k > 0:
-            for n in self.names:
-                self.arrays[n] = self.arrays[n][k:]
+            self._start += k
 
     def sample(self, t: np.ndarray, names: tuple[str, ...]) -> dict[str, np.ndarray]:
         self.flush()
-        tt = self.arrays["t"]
-        return {n: np.interp(t, tt, self.arrays[n]) for n in names}
+        tt = self.column("t")
+        return {n: np.interp(t, tt, self.column(n)) for n in names}
 
 
 class Plant:
@@ -213,14 +241,8 @@ class Plant:
 
     # ------------------------------------------------------------------------------------
     def _append(self, t: float) -> None:
-        p = self.traj.pending
-        p["t"].append(t)
-        p["omega"].append(self.omega)
-        p["theta"].append(self.theta)
-        p["i_w"].append(self.i_w)
-        p["i_bus"].append(self.i_bus)
-        p["v_bus"].append(self.v_bus)
-        p["duty"].append(self.duty)
+        self.traj.pending.append(
+            (t, self.omega, self.theta, self.i_w, self.i_bus, self.v_bus, self.duty))
 
     @property
     def t_ns(self) -> int:
@@ -273,6 +295,18 @@ class Plant:
                 return (drive - fr) / j if drive > fr else 0.0
             return (drive - kq * w * w - fr) / j  # (E.7) plus bearing friction
 
+        # With continuous current the ODE is a Riccati equation with constant coefficients,
+        # J domega/dt = K_T (d V - K_E omega) / R - k_q omega^2 - friction (E.4-E.7),
+        # solved exactly over each substep; the diode scheme's discontinuous conduction
+        # and the rest state fall back to RK4.
+        continuous = not p.use_inductance
+        if coast:
+            a_lin, b_lin = -fr / j, 0.0
+        else:
+            a_lin = (kt * v_drive / r_tot - fr) / j
+            b_lin = kt * ke / (r_tot * j)
+        c_sq = kq / j
+
         for m in range(1, self.n_sub + 1):
             if p.use_inductance:
                 i_ss = (v_drive - ke * omega) / r_tot
@@ -285,6 +319,24 @@ class Plant:
                 omega_new = max(omega_new, 0.0)
                 i_w = i_new
             else:
+                omega_new = -1.0
+                if continuous:
+                    omega_new = _riccati(omega, h, a_lin, b_lin, c_sq)
+                    # diode scheme: exact only while conduction stays continuous all along
+                    if not allow_negative and not coast and (
+                        (v_drive - ke * omega_new) / r_tot < current(omega_new) - 1e-12
+                        or (v_drive - ke * omega) / r_tot < current(omega) - 1e-12
+                    ):
+                        omega_new = -1.0
+                if omega_new >= 0.0:
+                    i_w = current(omega_new)
+                    theta += 0.5 * h * (omega + omega_new)
+                    omega = omega_new
+                    self.omega, self.theta, self.i_w, self.duty = omega, theta, i_w, d
+                    self.i_bus = self._bus_current(d, i_w, omega) + p.esc_quiescent_a
+                    self.v_bus = p.supply_v - p.supply_r_ohm * self.i_bus
+                    self._append(t0 + m * h)
+                    continue
                 # RK4 on J domega/dt = K_T i - T(omega), i = (d V - K_E omega) / R  (E.4-E.7)
                 k1 = f(omega)
                 k2 = f(omega + 0.5 * h * k1)
@@ -315,6 +367,29 @@ class Plant:
         if i_peak <= 0.0 or i_w >= 0.5 * i_peak:
             return d * i_w  # continuous conduction
         return 0.5 * i_peak * d
+
+
+def _riccati(w0: float, h: float, a: float, b: float, c: float) -> float:
+    """Exact step of dw/dt = a - b w - c w^2 (c > 0) from w0 >= 0 over h, stopping at 0.
+
+    Returns -1 when the rotor is at rest and the motor cannot overcome friction (the
+    caller's RK4 handles the stiction logic).
+    """
+    if w0 <= 0.0 and a <= 0.0:
+        return -1.0
+    disc = b * b + 4.0 * a * c
+    if disc > 0.0:
+        s = math.sqrt(disc)
+        w1 = (-b + s) / (2.0 * c)  # stable equilibrium
+        w2 = (-b - s) / (2.0 * c)
+        u = (w0 - w1) / (w0 - w2) * math.exp(-s * h)
+        w = (w1 - u * w2) / (1.0 - u)
+    else:  # no real equilibrium: the rotor decelerates on a tangent curve
+        shift = b / (2.0 * c)
+        g = math.sqrt(-disc) / (2.0 * c)
+        arg = math.atan((w0 + shift) / g) - c * g * h
+        w = g * math.tan(arg) - shift if arg > -math.pi / 2 else 0.0
+    return w if w > 0.0 else 0.0
 
 
 class EscFrameSource:

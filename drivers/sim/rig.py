@@ -24,6 +24,7 @@ from drivers.sim.plant import (
     steady_omega,
 )
 from drivers.sim.sensors import (
+    Acquisition,
     SampleClock,
     SensorParams,
     SimLoadCell,
@@ -109,6 +110,7 @@ class SimRig:
         self.esc_model = EscModel(self.esc_settings, self.scheme, self.params)
         self.plant = Plant(self.params, self.esc_model, self.scheme)
         self.sample_clock = SampleClock(self.sensor_params, int(rngs[0].integers(2**63)))
+        self.acquisition = Acquisition(self, seeds[5])
         self.clock.on_advance(self.plant.advance_to)
         self.esc = SimEsc(urls["esc"], self.esc_model, self.clock,
                           FaultSwitches(urls["esc"], rngs[1], (Fault.TIMEOUT, Fault.DISCONNECT)))
@@ -123,14 +125,15 @@ class SimRig:
         self.sensors = {"load_cell": self.load_cell, "power": self.power, "rpm": self.rpm}
 
     def trim(self) -> None:
-        """Forget plant history and clock jitter no sensor still needs."""
+        """Forget acquired samples every sensor has read, and plant history before the
+        acquisition's end (the acquisition never looks back)."""
+        acq = self.acquisition
+        n_floor = self.sample_clock.index_end(
+            self.clock.now_ns() - round(self.sensor_params.buffer_s * 1e9))
+        acq.buffer.trim_before(max(n_floor, min(s.next_n for s in self.sensors.values())))
         traj = self.plant.traj
-        if traj.arrays["t"].size + len(traj.pending["t"]) < 4096:
-            return  # amortise: trimming copies the arrays
-        clock = self.sample_clock
-        n_floor = clock.index_end(self.clock.now_ns() - round(self.sensor_params.buffer_s * 1e9))
-        n_min = max(n_floor, min(s.next_n for s in self.sensors.values()))
-        traj.trim_before(n_min * clock.dt_ns * 1e-9)
+        if traj.size > 2048:
+            traj.trim_before((acq.buffer.end - 1) * self.sample_clock.dt_ns * 1e-9)
 
     def truth(self) -> PlantTruth:
         self.plant.advance_to(self.clock.now_ns())

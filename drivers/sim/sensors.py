@@ -1,10 +1,13 @@
 """Simulated sensors: load cell, AttoPilot current/voltage sensor and hall RPM counter.
 
-All three sample the plant trajectory on one shared sample clock (25 kHz by default, like
-the thesis' cRIO, Paper C section 2.2), so their columns line up sample for sample. Each
-``read_block`` returns every sample up to the current simulated time since the previous
-read; everything is vectorised over the block (interpolation, ``scipy.signal.lfilter``
-with carried state for the load cell's mechanics, noise, quantisation).
+Like the thesis' cRIO (Paper C section 2.2) one acquisition samples every channel on one
+sample clock (25 kHz by default): the load-cell bridge and the two AttoPilot outputs as
+ADC volts, and the hall period counter. The sensor drivers slice their channels out of
+that shared acquisition and convert volts to units with their rig-file calibration, so the
+columns line up sample for sample. Each ``read_block`` returns every sample up to the
+current simulated time since the previous read. Everything is vectorised over the block:
+interpolation of the plant trajectory, ``scipy.signal.lfilter`` with carried state for the
+load cell's mechanics, noise, quantisation, the counter's edge times.
 """
 
 from __future__ import annotations
@@ -58,13 +61,6 @@ class SensorParams:
         return replace(cls(), **overrides)
 
 
-def quantise(volts: np.ndarray, params: SensorParams) -> np.ndarray:
-    """ADC: clip to the input range and round to the LSB."""
-    lsb = 2.0 * params.adc_range_v / 2**params.adc_bits
-    v = np.clip(volts, -params.adc_range_v, params.adc_range_v - lsb)
-    return np.round(v / lsb) * lsb
-
-
 def _splitmix64(x: np.ndarray) -> np.ndarray:
     """Counter-based hash (SplitMix64 finaliser): uint64 index -> uniform uint64 bits."""
     with np.errstate(over="ignore"):
@@ -75,21 +71,19 @@ def _splitmix64(x: np.ndarray) -> np.ndarray:
 
 
 class SampleClock:
-    """The DAQ's shared sample clock: index n -> nominal time n / fs plus jitter.
+    """The DAQ's sample clock: index n -> nominal time n / fs plus jitter.
 
-    The jitter of sample n is a hash of (seed, n), so every sensor on the clock sees the
-    same timestamps whatever order or block sizes they read in, and no buffer is kept.
+    The jitter of sample n is a hash of (seed, n): reproducible whatever the read slicing.
     """
 
     def __init__(self, params: SensorParams, seed: int) -> None:
         self.params = params
         self.dt_ns = round(1e9 / params.sample_rate_hz)
         self._key = np.uint64(int(seed) & 0xFFFFFFFFFFFFFFFF)
-        self._memo: tuple[tuple[int, int], np.ndarray] = ((-1, -1), np.empty(0))
 
     def index_end(self, now_ns: int) -> int:
         """One past the last sample index taken at or before ``now_ns``."""
-        return now_ns // self.dt_ns + 1
+        return max(0, now_ns // self.dt_ns + 1)
 
     def nominal(self, n0: int, n1: int) -> np.ndarray:
         return np.arange(n0, n1, dtype=np.float64) * (self.dt_ns * 1e-9)
@@ -97,18 +91,171 @@ class SampleClock:
     def stamps(self, n0: int, n1: int, nominal: np.ndarray) -> np.ndarray:
         if not self.params.noise or self.params.jitter_s <= 0:
             return nominal
-        if self._memo[0] == (n0, n1):  # the sensors on this clock usually read together
-            return self._memo[1].copy()
         bits = _splitmix64(np.arange(n0, n1, dtype=np.uint64) ^ self._key)
         u = (bits >> np.uint64(11)).astype(np.float64) * (1.0 / 2**53)  # uniform [0, 1)
         half = math.sqrt(3.0) * self.params.jitter_s
-        out = nominal + (2.0 * u - 1.0) * half
-        self._memo = ((n0, n1), out)
-        return out.copy()
+        return nominal + (2.0 * u - 1.0) * half
+
+
+class ColumnBuffer:
+    """Rows indexed by sample number, appended at the end and trimmed from the front."""
+
+    def __init__(self, width: int, capacity: int = 1 << 15) -> None:
+        self._buf = np.empty((width, capacity))
+        self.first = 0  # sample index of column 0 of the live part
+        self._start = 0
+        self._end = 0
+
+    @property
+    def end(self) -> int:
+        """One past the last sample index held."""
+        return self.first + self._end - self._start
+
+    def restart(self, n: int) -> None:
+        """Forget everything; the next append starts at sample index ``n``."""
+        self.first, self._start, self._end = n, 0, 0
+
+    def append(self, rows: np.ndarray) -> None:
+        k = rows.shape[1]
+        if self._end + k > self._buf.shape[1]:
+            live = self._end - self._start
+            cap = self._buf.shape[1]
+            if live + k > cap // 2:
+                cap = max(2 * cap, 2 * (live + k))
+            buf = np.empty((self._buf.shape[0], cap))
+            buf[:, :live] = self._buf[:, self._start : self._end]
+            self._buf, self._start, self._end = buf, 0, live
+        self._buf[:, self._end : self._end + k] = rows
+        self._end += k
+
+    def window(self, n0: int, n1: int) -> np.ndarray:
+        a = self._start + n0 - self.first
+        return self._buf[:, a : a + n1 - n0]
+
+    def trim_before(self, n: int) -> None:
+        if n > self.first:
+            cut = min(n - self.first, self._end - self._start)
+            self._start += cut
+            self.first += cut
+
+
+# rows of the shared acquisition
+T_S, BRIDGE_V, CURRENT_OUT_V, VOLTAGE_OUT_V, HALL_PERIOD_S = range(5)
+
+
+class Acquisition:
+    """The DAQ task: every channel of the rig sampled at once on the sample clock."""
+
+    def __init__(self, rig: SimRig, seed: np.random.SeedSequence) -> None:
+        self.rig = rig
+        p = self.params = rig.sensor_params
+        self.rng = np.random.default_rng(seed)
+        self.buffer = ColumnBuffer(5)
+        wn = 2.0 * math.pi * p.load_cell_fn_hz
+        b, a = signal.bilinear([wn * wn], [1.0, 2.0 * p.load_cell_zeta * wn, wn * wn],
+                               fs=p.sample_rate_hz)
+        self.cell_b, self.cell_a = b, a
+        self._zi = np.zeros(max(len(a), len(b)) - 1)
+        self._noise_sigma = np.array([
+            [p.load_cell_noise_n * p.load_cell_v_per_n],
+            [p.current_noise_a * p.current_mv_per_a * 1e-3],
+            [p.voltage_noise_v * p.voltage_mv_per_v * 1e-3],
+        ])
+        self._lsb = 2.0 * p.adc_range_v / 2**p.adc_bits
+        self._count = 0  # magnet edges seen so far
+        self._last_edge = -math.inf
+        self._period = math.inf
+
+    def acquire_to(self, n1: int, now_ns: int, n_floor: int) -> None:
+        """Sample every channel up to (not including) index ``n1``."""
+        buf = self.buffer
+        n0 = buf.end
+        if n0 < n_floor:  # older samples would have been overwritten in the DAQ's ring
+            buf.restart(n_floor)
+            n0 = n_floor
+        if n1 <= n0:
+            return
+        self.rig.plant.advance_to(now_ns)
+        clock = self.rig.sample_clock
+        t = clock.nominal(n0, n1)
+        rows = np.empty((5, n1 - n0))
+        rows[T_S] = clock.stamps(n0, n1, t)
+        self._analog(t, rows)
+        rows[HALL_PERIOD_S] = self._counter(t)
+        buf.append(rows)
+
+    def _analog(self, t: np.ndarray, rows: np.ndarray) -> None:
+        p = self.params
+        plant = self.rig.plant
+        traj = plant.traj
+        traj.flush()
+        tt = traj.column("t")
+        omega = np.interp(t, tt, traj.column("omega"))
+        force = plant.params.thrust_k * omega * omega  # (E.1)
+        felt, self._zi = signal.lfilter(self.cell_b, self.cell_a, force, zi=self._zi)
+        out = rows[BRIDGE_V : VOLTAGE_OUT_V + 1]
+        np.multiply(felt, p.load_cell_v_per_n, out=out[0])
+        out[0] += p.load_cell_offset_v
+        np.multiply(np.interp(t, tt, traj.column("i_bus")), p.current_mv_per_a * 1e-3, out=out[1])
+        np.multiply(np.interp(t, tt, traj.column("v_bus")), p.voltage_mv_per_v * 1e-3, out=out[2])
+        if p.noise:  # one draw per sample for all channels: independent of read slicing
+            out += self.rng.standard_normal((t.size, 3)).T * self._noise_sigma
+        # AttoPilot outputs swing 0-3.3 V only (unidirectional); then the ADC
+        pos = out[1:]
+        np.minimum(np.maximum(pos, 0.0, out=pos), p.sensor_out_max_v, out=pos)
+        lsb = self._lsb
+        np.minimum(np.maximum(out, -p.adc_range_v, out=out), p.adc_range_v - lsb, out=out)
+        np.multiply(np.rint(out * (1.0 / lsb), out=out), lsb, out=out)
+
+    def _crossing_times(self, angles: np.ndarray) -> np.ndarray:
+        """When the rotor reaches each angle: omega is linear between integration points
+        (the plant integrates theta with the trapezoid rule), so theta is quadratic there."""
+        traj = self.rig.plant.traj
+        t_tr, th_tr, w_tr = traj.column("t"), traj.column("theta"), traj.column("omega")
+        k = np.searchsorted(th_tr, angles, side="left") - 1
+        np.minimum(np.maximum(k, 0, out=k), t_tr.size - 2, out=k)
+        t0 = t_tr[k]
+        h = t_tr[k + 1] - t0
+        w0 = w_tr[k]
+        a = (w_tr[k + 1] - w0) / (2.0 * h)
+        d_th = angles - th_tr[k]
+        denom = w0 + np.sqrt(np.maximum(w0 * w0 + 4.0 * a * d_th, 0.0))
+        tau = 2.0 * d_th / np.maximum(denom, 1e-12)  # the rotor is turning at every edge
+        return t0 + np.minimum(np.maximum(tau, 0.0, out=tau), h, out=tau)
+
+    def _counter(self, t: np.ndarray) -> np.ndarray:
+        """Hall sensor + FPGA period counter: at each magnet edge the counter latches the
+        time since the previous edge (in counter ticks); the DAQ reads the latest latch."""
+        p = self.params
+        traj = self.rig.plant.traj
+        pitch = 2.0 * math.pi / p.magnets
+        theta_end = float(np.interp(t[-1], traj.column("t"), traj.column("theta")))
+        count_end = math.floor(theta_end / pitch)
+        if count_end > self._count:
+            angles = np.arange(self._count + 1, count_end + 1) * pitch
+            tick = 1.0 / p.counter_hz
+            t_edge = np.round(self._crossing_times(angles) / tick) * tick
+            edges = np.concatenate(([self._last_edge], t_edge))
+            periods = np.concatenate(([self._period], np.diff(edges)))
+            which = np.searchsorted(t_edge, t, side="right")  # latest edge at/before t
+            period = periods[which]
+            last = edges[which]
+            self._count = count_end
+            self._last_edge = float(t_edge[-1])
+            self._period = float(periods[-1])
+        else:
+            period = np.full(t.size, self._period)
+            last = np.full(t.size, self._last_edge)
+        stale = t - last > p.rpm_timeout_s  # no edge for a while: the counter reads "stopped"
+        if stale.any():
+            period[stale] = math.inf
+            if stale[-1]:
+                self._period = math.inf
+        return period
 
 
 class SimSensor:
-    """Common part of the simulated sensors: cursor on the sample clock, faults, describe."""
+    """Common part of the simulated sensors: cursor into the acquisition, faults, describe."""
 
     kind = "sensor"
     model = "simulated"
@@ -117,35 +264,35 @@ class SimSensor:
     def __init__(self, rig: SimRig, url: str, seed: np.random.SeedSequence) -> None:
         self.rig = rig
         self.url = url
-        fault_seed, *channel_seeds = seed.spawn(3)
-        # one generator per channel: the noise does not depend on how reads are sliced
-        self.rngs = [np.random.default_rng(s) for s in channel_seeds]
         self.params = rig.sensor_params
-        self.faults = FaultSwitches(url, np.random.default_rng(fault_seed), self.allowed_faults)
+        self.faults = FaultSwitches(url, np.random.default_rng(seed), self.allowed_faults)
         self.next_n = 0
         self.closed = False
+        self._channels = self.channels()
+        self._names = tuple(c.name for c in self._channels)
 
     # subclasses fill these
     def channels(self) -> tuple[ChannelInfo, ...]:
         raise NotImplementedError
 
-    def measure(self, n0: int, n1: int, t: np.ndarray) -> dict[str, np.ndarray]:
+    def convert(self, raw: np.ndarray) -> dict[str, np.ndarray]:
+        """Acquisition rows (volts, periods) -> calibrated columns."""
         raise NotImplementedError
 
     def describe(self) -> DeviceInfo:
         return DeviceInfo(
-            kind=self.kind, model=self.model, url=self.url, channels=self.channels(),
+            kind=self.kind, model=self.model, url=self.url, channels=self._channels,
             extra={"sample_rate_hz": self.params.sample_rate_hz, "noise": self.params.noise},
         )
 
     def read_block(self) -> Block:
         if self.closed:
             raise DeviceError(f"{self.url}: sensor is closed")
-        now_ns = self.rig.clock.now_ns()
-        clock = self.rig.sample_clock
-        n1 = clock.index_end(now_ns)
+        rig = self.rig
+        now_ns = rig.clock.now_ns()
+        n1 = rig.sample_clock.index_end(now_ns)
         n0 = self.next_n
-        n_floor = clock.index_end(now_ns - round(self.params.buffer_s * 1e9))
+        n_floor = rig.sample_clock.index_end(now_ns - round(self.params.buffer_s * 1e9))
         if n0 < n_floor:
             self.next_n = n_floor
             raise DeviceError(
@@ -156,20 +303,17 @@ class SimSensor:
             self.faults.check(now_ns * 1e-9, "read_block")
         except DeviceError:
             self.next_n = n1  # samples during an outage are lost
-            self.rig.trim()
             raise
         if n1 <= n0:
-            return Block.empty(tuple(c.name for c in self.channels()))
-        self.rig.plant.advance_to(now_ns)
-        t_nominal = self.rig.sample_clock.nominal(n0, n1)
-        values = self.measure(n0, n1, t_nominal)
-        block = Block(self.rig.sample_clock.stamps(n0, n1, t_nominal), values)
+            return Block.empty(self._names)
+        rig.acquisition.acquire_to(n1, now_ns, n_floor)
+        raw = rig.acquisition.buffer.window(n0, n1)
+        block = Block(raw[T_S].copy(), self.convert(raw))
         self.next_n = n1
-        self.rig.trim()
+        rig.trim()
         if not self.faults.switches:
             return block
-        full_scale = {c.name: c.high for c in self.channels()}
-        return self.faults.apply(block, full_scale)
+        return self.faults.apply(block, {c.name: c.high for c in self._channels})
 
     def close(self) -> None:
         self.closed = True
@@ -181,11 +325,6 @@ class SimSensor:
     def clear(self, fault: Fault | str | None = None) -> None:
         self.faults.clear(fault)
 
-    def _noise(self, sigma: float, n: int, channel: int = 0) -> np.ndarray | float:
-        if not self.params.noise or sigma <= 0:
-            return 0.0
-        return self.rngs[channel].standard_normal(n) * sigma
-
 
 class SimLoadCell(SimSensor):
     """Load cell under the motor: 2nd-order mechanics, noise, bridge offset, calibration."""
@@ -196,12 +335,6 @@ class SimLoadCell(SimSensor):
     def __init__(self, rig: SimRig, url: str, seed: np.random.SeedSequence,
                  scale_n_per_v: float, offset_v: float) -> None:
         super().__init__(rig, url, seed)
-        p = self.params
-        wn = 2.0 * math.pi * p.load_cell_fn_hz
-        b, a = signal.bilinear([wn * wn], [1.0, 2.0 * p.load_cell_zeta * wn, wn * wn],
-                               fs=p.sample_rate_hz)
-        self._b, self._a = b, a
-        self._zi = np.zeros(max(len(a), len(b)) - 1)
         self.scale_n_per_v = scale_n_per_v
         self.offset_v = offset_v
 
@@ -209,14 +342,8 @@ class SimLoadCell(SimSensor):
         r = self.params.load_cell_range_n
         return (ChannelInfo("thrust_n", "N", self.params.sample_rate_hz, -r, r),)
 
-    def measure(self, n0: int, n1: int, t: np.ndarray) -> dict[str, np.ndarray]:
-        p = self.params
-        omega = self.rig.plant.traj.sample(t, ("omega",))["omega"]
-        force = self.rig.plant.params.thrust_k * omega * omega  # (E.1)
-        felt, self._zi = signal.lfilter(self._b, self._a, force, zi=self._zi)
-        force_noisy = felt + self._noise(p.load_cell_noise_n, t.size)
-        volts = quantise(force_noisy * p.load_cell_v_per_n + p.load_cell_offset_v, p)
-        return {"thrust_n": (volts - self.offset_v) * self.scale_n_per_v}
+    def convert(self, raw: np.ndarray) -> dict[str, np.ndarray]:
+        return {"thrust_n": (raw[BRIDGE_V] - self.offset_v) * self.scale_n_per_v}
 
 
 class SimPowerSensor(SimSensor):
@@ -228,10 +355,10 @@ class SimPowerSensor(SimSensor):
     def __init__(self, rig: SimRig, url: str, seed: np.random.SeedSequence,
                  current_mv_per_a: float, voltage_mv_per_v: float,
                  current_offset_mv: float = 0.0) -> None:
-        super().__init__(rig, url, seed)
         self.current_mv_per_a = current_mv_per_a
         self.voltage_mv_per_v = voltage_mv_per_v
         self.current_offset_mv = current_offset_mv
+        super().__init__(rig, url, seed)
 
     def channels(self) -> tuple[ChannelInfo, ...]:
         fs = self.params.sample_rate_hz
@@ -241,86 +368,28 @@ class SimPowerSensor(SimSensor):
             ChannelInfo("voltage_v", "V", fs, 0.0, top / self.voltage_mv_per_v),
         )
 
-    def measure(self, n0: int, n1: int, t: np.ndarray) -> dict[str, np.ndarray]:
-        p = self.params
-        s = self.rig.plant.traj.sample(t, ("i_bus", "v_bus"))
-        n = t.size
-        vi = (s["i_bus"] + self._noise(p.current_noise_a, n)) * p.current_mv_per_a * 1e-3
-        vv = (s["v_bus"] + self._noise(p.voltage_noise_v, n, 1)) * p.voltage_mv_per_v * 1e-3
-        vi = quantise(np.clip(vi, 0.0, p.sensor_out_max_v), p)  # unidirectional output
-        vv = quantise(np.clip(vv, 0.0, p.sensor_out_max_v), p)
+    def convert(self, raw: np.ndarray) -> dict[str, np.ndarray]:
         return {
-            "current_a": (vi * 1e3 - self.current_offset_mv) / self.current_mv_per_a,
-            "voltage_v": vv * 1e3 / self.voltage_mv_per_v,
+            "current_a": (raw[CURRENT_OUT_V] * 1e3 - self.current_offset_mv)
+            / self.current_mv_per_a,
+            "voltage_v": raw[VOLTAGE_OUT_V] * (1e3 / self.voltage_mv_per_v),
         }
 
 
 class SimRpmSensor(SimSensor):
-    """Hall sensor on the rotor magnets + FPGA period counter, sampled on the shared clock.
-
-    At every hall edge the counter latches the time since the previous edge (quantised to
-    the counter timebase); the DAQ loop reads the latest value at each sample, so the
-    column holds rpm = 60 / (magnets * period) of the last completed magnet pitch.
-    """
+    """Hall sensor on the rotor magnets + period counter: rpm = 60 / (magnets * period)."""
 
     kind = "rpm_sensor"
     model = "simulated hall sensor + period counter"
 
     def __init__(self, rig: SimRig, url: str, seed: np.random.SeedSequence, magnets: int) -> None:
-        super().__init__(rig, url, seed)
         if magnets < 1:
             raise DeviceError(f"{url}: magnets must be >= 1, got {magnets}")
         self.magnets = magnets
-        self._count = 0  # magnet edges seen so far
-        self._last_edge = -math.inf
-        self._rpm = 0.0
+        super().__init__(rig, url, seed)
 
     def channels(self) -> tuple[ChannelInfo, ...]:
         return (ChannelInfo("rpm", "rpm", self.params.sample_rate_hz, 0.0, 60_000.0),)
 
-    def _crossing_times(self, angles: np.ndarray) -> np.ndarray:
-        """When the rotor reaches each angle: omega is linear between integration points
-        (the plant integrates theta with the trapezoid rule), so theta is quadratic there."""
-        arr = self.rig.plant.traj.arrays
-        t_tr, th_tr, w_tr = arr["t"], arr["theta"], arr["omega"]
-        k = np.clip(np.searchsorted(th_tr, angles, side="left") - 1, 0, t_tr.size - 2)
-        h = t_tr[k + 1] - t_tr[k]
-        w0, w1 = w_tr[k], w_tr[k + 1]
-        a = (w1 - w0) / (2.0 * h)
-        d_th = angles - th_tr[k]
-        root = np.sqrt(np.maximum(w0 * w0 + 4.0 * a * d_th, 0.0))
-        with np.errstate(divide="ignore", invalid="ignore"):
-            tau = np.where(w0 + root > 0, 2.0 * d_th / (w0 + root), 0.0)
-        return t_tr[k] + np.clip(tau, 0.0, h)
-
-    def measure(self, n0: int, n1: int, t: np.ndarray) -> dict[str, np.ndarray]:
-        traj = self.rig.plant.traj
-        traj.flush()
-        t_tr, th_tr = traj.arrays["t"], traj.arrays["theta"]
-        pitch = 2.0 * math.pi / self.magnets
-        theta_end = float(np.interp(t[-1], t_tr, th_tr))
-        count_end = math.floor(theta_end / pitch)
-        if count_end > self._count:
-            # edges: the rotor angle passes a magnet; theta(t) is monotone, so invert it
-            angles = np.arange(self._count + 1, count_end + 1) * pitch
-            tick = 1.0 / self.params.counter_hz
-            t_edge = np.round(self._crossing_times(angles) / tick) * tick
-            edges = np.concatenate(([self._last_edge], t_edge))
-            rpm_edge = 60.0 / (self.magnets * np.diff(edges))  # first may be 60/inf = 0
-            rpm_edge = np.concatenate(([self._rpm], rpm_edge))
-            # each sample holds the latest edge at or before it (0: carried from before)
-            which = np.searchsorted(t_edge, t, side="right")
-            rpm = rpm_edge[which]
-            last = edges[which]
-            self._count = count_end
-            self._last_edge = float(t_edge[-1])
-            self._rpm = float(rpm_edge[-1])
-        else:
-            rpm = np.full(t.size, self._rpm)
-            last = np.full(t.size, self._last_edge)
-        stale = t - last > self.params.rpm_timeout_s
-        if stale.any():
-            rpm[stale] = 0.0
-            if stale[-1]:
-                self._rpm = 0.0
-        return {"rpm": rpm}
+    def convert(self, raw: np.ndarray) -> dict[str, np.ndarray]:
+        return {"rpm": 60.0 / (self.magnets * raw[HALL_PERIOD_S])}  # 60 / inf = 0

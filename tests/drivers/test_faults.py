@@ -60,7 +60,9 @@ def test_stuck_freezes_the_last_good_value():
     rig = SimRig(sensor_params=QUIET)
     rig.esc.arm()
     rig.rpm.inject(Fault.STUCK, at_s=0.5, until_s=0.8)
-    t, rpm = cat(spin(rig, pulse=1700, seconds=1.0)["rpm"], "rpm")
+    first = spin(rig, pulse=1700, seconds=0.6, read=("rpm",))["rpm"]
+    then = spin(rig, pulse=1600, seconds=0.4, read=("rpm",))["rpm"]  # slows down meanwhile
+    t, rpm = cat(first + then, "rpm")
     stuck = (t >= 0.5) & (t < 0.8)
     before = rpm[np.flatnonzero(stuck)[0] - 1]
     assert before > 0 and np.all(rpm[stuck] == before)

@@ -69,10 +69,10 @@ def test_load_cell_reads_thrust_after_tare_and_rings_at_its_frequency():
     data = run(rig, 1700, 1.5)["load_cell"][1]["thrust_n"]
     assert data[-1] - tare == pytest.approx(rig.truth().thrust_n, abs=3e-3)
     # mechanical 2nd-order: an impulse-like disturbance rings near load_cell_fn_hz
-    cell = rig.load_cell
+    acq = rig.acquisition
     from scipy import signal
 
-    h = signal.dimpulse((cell._b, cell._a, 1 / QUIET.sample_rate_hz), n=4000)[1][0].ravel()
+    h = signal.dimpulse((acq.cell_b, acq.cell_a, 1 / QUIET.sample_rate_hz), n=4000)[1][0].ravel()
     spectrum = np.abs(np.fft.rfft(h))
     f = np.fft.rfftfreq(h.size, 1 / QUIET.sample_rate_hz)
     assert f[np.argmax(spectrum)] == pytest.approx(QUIET.load_cell_fn_hz, rel=0.1)
