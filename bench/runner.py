@@ -19,7 +19,8 @@ from typing import Any, Protocol
 import numpy as np
 
 from bench.alignment import BlockAligner
-from bench.recorder import RunRecorder
+from bench.errors import RigError
+from bench.recorder import BASE_COLUMNS, RunRecorder
 from bench.safety import LimitTrip, SafetySupervisor, Trip
 from bench.sequences import EscRange, Plan, Segment
 from bench.watchdog import GuardedEsc, HostWatchdog, WatchdogTrip
@@ -51,6 +52,14 @@ class RunOptions:
     watchdog_timeout_s: float = 0.5
     realtime: bool = False
     base_sensor: str = "load_cell"
+    stale_s: float = 0.25  # a sensor silent this long (rig time) ends the run: limits blind
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.tick_s <= 0.1:
+            raise RigError(f"--tick {self.tick_s}: expected 0 < tick <= 0.1 s (the loop "
+                           "must react to limits and feed the ESC failsafe)")
+        if self.stale_s <= self.tick_s:
+            raise RigError(f"stale_s {self.stale_s} must exceed the tick {self.tick_s}")
 
 
 @dataclass
@@ -107,6 +116,7 @@ class Runner:
         self._tare_sum = 0.0
         self._tare_n = 0
         self._segment: Segment | None = None
+        self._heard: dict[str, float] = {}
         self.rows = 0
 
     # -- public -------------------------------------------------------------------------
@@ -211,9 +221,16 @@ class Runner:
 
     def _acquire(self) -> None:
         blocks: dict[str, Block] = {}
+        now = self._now_rel()
         for role, sensor in self.rig.sensors.items():
             b = sensor.read_block()
             blocks[role] = Block(b.t_s - self._t0, b.values)
+            if len(b):
+                self._heard[role] = now
+            elif now - self._heard.get(role, 0.0) > self.options.stale_s:
+                raise DeviceError(f"{role}: no samples for {now - self._heard.get(role, 0.0):.2f}"
+                                  f" s (limit {self.options.stale_s:g} s); limits cannot be "
+                                  "checked without data")
         rows = self.aligner.push(blocks)
         n = len(rows["t_s"])
         if n:
@@ -247,6 +264,9 @@ class Runner:
 
     def _complete_rows(self, rows: dict[str, np.ndarray]) -> None:
         t = rows["t_s"]
+        for col in BASE_COLUMNS:  # a rig without some sensor still gives every column
+            if col not in rows:
+                rows[col] = np.full(t.shape, np.nan)
         idx = np.searchsorted(self._cmd_t, t, side="right") - 1
         idx = np.clip(idx, 0, None)
         rows["throttle_us"] = self._cmd_us[idx]

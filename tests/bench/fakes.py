@@ -74,6 +74,10 @@ class FakeSensor:
 
     def read_block(self) -> Block:
         self.rig.before_read(self.role)
+        f = self.rig.faults
+        if f.silent_role == self.role and f.silent_at_s is not None \
+                and self.rig.clock.t >= f.silent_at_s:
+            self.pending_t, self.pending_v = [], []
         if not self.pending_t:
             return Block.empty(self.names)
         t = np.concatenate(self.pending_t)
@@ -92,6 +96,8 @@ class Faults:
     bug_at_s: float | None = None
     stall_at_s: float | None = None
     stall_wall_s: float = 0.0
+    silent_role: str = ""  # this sensor stops delivering samples at silent_at_s
+    silent_at_s: float | None = None
     spike: dict[str, tuple[float, float]] = field(default_factory=dict)  # channel: (t, value)
     seen_during_stall: list[bool] = field(default_factory=list)
 

@@ -218,3 +218,21 @@ def test_commands_never_exceed_the_esc_range(fakes, tmp_path):
     runner.run()
     pulses = [p for _, k, p in rig.esc.history if k == "set"]
     assert all(p == 1000.0 or 1050.0 <= p <= 2000.0 for p in pulses)
+
+
+@pytest.mark.parametrize("role", ["load_cell", "power", "rpm"])
+def test_a_silent_sensor_ends_the_run_disarmed(fakes, tmp_path, role):
+    rig = fakes.FakeRig()
+    rig.faults.silent_role, rig.faults.silent_at_s = role, rig.clock.t + 3.1
+    runner, _ = make_runner(rig, tmp_path)
+    with pytest.raises(DeviceError, match=f"{role}: no samples"):
+        runner.run()
+    assert_safe(rig)
+    assert runner.result.t_end_s < 3.1 + 0.25 + 0.05  # within stale_s (+ one tick)
+
+
+def test_bad_tick_is_refused():
+    with pytest.raises(RigError, match="--tick"):
+        RunOptions(tick_s=0.0)
+    with pytest.raises(RigError, match="--tick"):
+        RunOptions(tick_s=0.5)  # slower than the ESC failsafe wants its heartbeat

@@ -183,10 +183,10 @@ def test_stalled_host_is_stopped_by_the_watchdog_on_the_sim_rig(mapped, tmp_path
     holder = {}
 
     def wrap(sensor, devices):
-        holder["w"] = _Raising(sensor, devices, 3.3, stall_s=0.5)
+        holder["w"] = _Raising(sensor, devices, 3.3, stall_s=0.9)
         return holder["w"]
 
-    runner, devices = _run(rig, step1(repeats=2), tmp_path, wrap=wrap, watchdog_timeout_s=0.1)
+    runner, devices = _run(rig, step1(repeats=2), tmp_path, wrap=wrap, watchdog_timeout_s=0.3)
     result = runner.run()
     assert holder["w"].seen == [True]  # disarmed while the loop was still stalled
     assert result.status == "abort" and "watchdog" in result.reason

@@ -34,12 +34,12 @@ def test_watchdog_disarms_when_the_loop_stops_checking_in():
     guarded = GuardedEsc(esc, 1050.0, 2000.0, 1000.0)
     guarded.arm()
     guarded.set_pulse_us(1500.0)
-    with HostWatchdog(guarded, timeout_s=0.1) as wd:
+    with HostWatchdog(guarded, timeout_s=0.3) as wd:
         for _ in range(10):  # a healthy loop: no trip
             wd.kick()
             time.sleep(0.02)
         assert esc.armed and not wd.tripped
-        time.sleep(0.4)  # the loop stalls
+        time.sleep(0.8)  # the loop stalls
         assert wd.tripped
         assert esc.armed is False and esc.pulse == 1000.0
         with pytest.raises(WatchdogTrip):  # the loop wakes up: no more commands
@@ -65,12 +65,12 @@ def test_stalled_runner_is_stopped_by_the_watchdog(fakes, tmp_path):
 
     rig = fakes.FakeRig()
     rig.faults.stall_at_s = rig.clock.t + 3.3  # spinning at the high level
-    rig.faults.stall_wall_s = 0.6
+    rig.faults.stall_wall_s = 0.9
     seq = step1(repeats=3)
     plan = compile_plan(seq, ESC, lambda f: 1050.0 + (f / 1e-7) ** 0.5 / 12.0)
     rec = RunRecorder(tmp_path / "run", {})
     runner = Runner(rig, plan, ESC, {"thrust_n": 10.0}, rec,
-                    RunOptions(watchdog_timeout_s=0.15))
+                    RunOptions(watchdog_timeout_s=0.3))
     result = runner.run()
     # checked inside the stalled read, before the loop could do anything
     assert rig.faults.seen_during_stall == [False]
