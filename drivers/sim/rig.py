@@ -7,7 +7,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -62,13 +62,41 @@ class PlantTruth:
         return operating_point(self.params, thrust_n)
 
     def tau_up_s(self, thrust_n: float) -> float:
-        """Linearised time constant for a thrust increase (motor driving), C.3 / E.8."""
+        """Small-signal time constant at a steady thrust, motor driving (C.3 / E.8)."""
         return self.operating_point(thrust_n).tau_drive_s
 
     def tau_dn_s(self, thrust_n: float) -> float:
-        """Linearised time constant for a decrease: driving (complementary) or coasting."""
-        op = self.operating_point(thrust_n)
-        return op.tau_drive_s if self.esc_mode == EscScheme.COMPLEMENTARY.value else op.tau_coast_s
+        """Small-signal time constant for a small decrease: the same as ``tau_up_s`` in
+        every scheme while the winding current stays continuous. Large decreasing steps
+        in the diode schemes are slower and not first order: see ``step_response``."""
+        return self.operating_point(thrust_n).tau_drive_s
+
+    def step_response(self, from_n: float, to_n: float, duration_s: float = 0.5,
+                      settle_s: float = 1.5) -> tuple[np.ndarray, np.ndarray]:
+        """True thrust after a command step at t = 0 (noise-free plant, same ESC mode).
+
+        The command is sent on a frame boundary, like the bench runner does; the result
+        includes the ESC latency (and the stock filter) but no sensor dynamics.
+        """
+        rig = SimRig(params=self.params, sensor_params=replace(self.sensor_params, noise=False),
+                     esc_settings=self.esc, esc_mode=self.esc_mode)
+        frame = self.frame_period_s
+        rig.esc.arm()
+        for pulse, seconds in ((self.pulse_for_thrust_us(from_n), settle_s),
+                               (self.pulse_for_thrust_us(to_n), duration_s)):
+            for _ in range(round(seconds / frame)):
+                rig.esc.set_pulse_us(pulse)
+                rig.clock.sleep(frame)
+        t_cmd = round(settle_s / frame) * frame
+        t = t_cmd + np.arange(0.0, duration_s, 1e-4)
+        omega = rig.plant.traj.sample(t, ("omega",))["omega"]
+        return t - t_cmd, self.params.thrust_k * omega * omega
+
+    def t63_s(self, from_n: float, to_n: float) -> float:
+        """Time from the command to 63 % of a thrust step (latency included)."""
+        t, f = self.step_response(from_n, to_n)
+        progress = (f - f[0]) / (to_n - f[0])
+        return float(t[np.argmax(progress >= 1.0 - np.exp(-1.0))])
 
     def steady_thrust_n(self, pulse_us: float) -> float:
         """Static thrust the plant settles at for a constant pulse (E.1, E.4-E.7)."""

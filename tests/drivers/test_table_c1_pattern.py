@@ -66,3 +66,14 @@ def test_fitted_delay_is_the_true_latency_chain(fits, mode):
     assert expected - 0.001 < up.delay_s < expected + 0.004
     assert 0.010 < up.delay_s < 0.020
 
+
+
+@pytest.mark.parametrize("mode", ["complementary", "diode", "stock"])
+def test_fitted_delay_plus_tau_is_the_true_63_percent_time(fits, mode):
+    """The identified model reaches 63 % when the noise-free plant does (plus the load
+    cell's group delay): the fit recovers the truth, not a table."""
+    up, down, truth = fits[mode]
+    lo, hi = 0.175 * G, 0.325 * G
+    lag = truth.load_cell_delay_s
+    assert up.delay_s + up.tau_s == pytest.approx(truth.t63_s(lo, hi) + lag, abs=0.004)
+    assert down.delay_s + down.tau_s == pytest.approx(truth.t63_s(hi, lo) + lag, abs=0.005)
