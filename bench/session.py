@@ -117,7 +117,7 @@ def run_sequence(
         "rig_limits": limits_dict(rig.limits),
         "thrust_map": _plain(getattr(rig, "thrust_map", None)),
         "options": dataclasses.asdict(options),
-        "seed": seed,
+        "seed": seed if seed is not None else getattr(getattr(rig, "sim", None), "seed", None),
         **dict(extra_meta or {}),
     }
     recorder = RunRecorder(run_dir, meta)
