@@ -1,0 +1,265 @@
+"""Autopilot parameters from measured static curves and step fits.
+
+Formulas from ``reference/thrust-stands.md`` section 5:
+
+* ArduPilot (AP_Motors_Thrust_Linearization): the firmware inverts
+  ``T = (1 - e) x + e x^2`` with ``x`` the command normalised over
+  [MOT_SPIN_MIN, MOT_SPIN_MAX] of the PWM range and ``T`` the thrust normalised by the
+  thrust at SPIN_MAX. ``MOT_THST_EXPO`` is fitted by least squares (the wiki method, linear
+  in ``e``) and, as a cross-check, by the WebTool criterion (the ``e`` for which thrust is
+  most linear in demand: minimum standard deviation of d thrust / d demand).
+  ``MOT_SPIN_MIN`` is the command where thrust starts and ``MOT_SPIN_MAX`` where it
+  saturates, each only when the data covers that point; ``MOT_THST_HOVER`` is the
+  linearised demand at hover thrust.
+* PX4 (FunctionMotors): ``rel_thrust = f rel_signal^2 + (1 - f) rel_signal`` with both
+  normalised over the experiment (PX4 tuning guide); ``THR_MDL_FAC = f`` in [0, 1].
+* Gazebo / PX4 SITL multirotor motor model: thrust = motorConstant w^2, torque =
+  momentConstant thrust, first-order rotor speed with timeConstantUp / timeConstantDown,
+  maxRotVelocity (rad/s).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from analysis.errors import LogError
+from analysis.run_record import RunRecord
+from analysis.static_curves import RPM_TO_RAD_S, command_curve, fit_static_run
+
+__all__ = [
+    "ThrustCurve",
+    "actuator_of",
+    "ardupilot_params",
+    "expo_least_squares",
+    "expo_webtool",
+    "gazebo_params",
+    "px4_params",
+    "thrust_curve_from_runs",
+]
+
+SPIN_MIN_DEFAULT = 0.15  # ArduPilot defaults, used when the data cannot support a value
+SPIN_MAX_DEFAULT = 0.95
+
+
+@dataclass(frozen=True)
+class ThrustCurve:
+    """Steady thrust against the actuator command as a fraction 0..1 of the output range
+    (PWM: (pwm - min) / (max - min); duty: duty / 100), ascending in command."""
+
+    actuator: np.ndarray
+    thrust_n: np.ndarray
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        a = np.asarray(self.actuator, float)
+        t = np.asarray(self.thrust_n, float)
+        ok = np.isfinite(a) & np.isfinite(t)
+        a, t = a[ok], t[ok]
+        order = np.argsort(a, kind="stable")
+        a, t = a[order], t[order]
+        if a.size < 4 or not a[-1] > a[0]:
+            raise LogError(f"{self.source or 'thrust curve'}: need >= 4 steady (command, thrust) "
+                           f"points over a range of commands, got {a.size}")
+        object.__setattr__(self, "actuator", a)
+        object.__setattr__(self, "thrust_n", t)
+
+
+def _observed_start(c: ThrustCurve, loud: float = 0.02, silent: float = 0.005
+                    ) -> tuple[float, float] | None:
+    """(last command with at most ``silent`` of the maximum thrust, first command with
+    more than ``loud`` of it) if the data shows both, else None (start not observed)."""
+    peak = np.max(c.thrust_n)
+    above = np.flatnonzero(c.thrust_n > loud * peak)
+    if above.size == 0 or above[0] == 0:
+        return None
+    quiet = np.flatnonzero(c.thrust_n[: above[0]] <= silent * peak)
+    if quiet.size == 0:
+        return None
+    return float(c.actuator[int(quiet[-1])]), float(c.actuator[int(above[0])])
+
+
+def _expo_and_spin_min(c: ThrustCurve, spin_max: float, lo: float, hi: float
+                       ) -> tuple[float, float]:
+    """Least squares over SPIN_MIN in [lo, hi] (1e-3 grid) and MOT_THST_EXPO: the model
+    is zero thrust below SPIN_MIN and the expo curve from there to SPIN_MAX."""
+    work = c.actuator <= spin_max
+    a, t = c.actuator[work], c.thrust_n[work] / np.interp(spin_max, c.actuator, c.thrust_n)
+    s = np.arange(lo, hi + 5e-4, 1e-3)[:, None]
+    u = np.clip((a[None, :] - s) / (spin_max - s), 0.0, 1.0)
+    g = u * u - u
+    den = np.sum(g * g, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        e = np.clip(np.where(den > 0, np.sum((t - u) * g, axis=1) / den, 0.0), -1.0, 1.0)
+    sse = np.sum(((1 - e[:, None]) * u + e[:, None] * u * u - t) ** 2, axis=1)
+    k = int(np.argmin(sse))
+    return float(s[k, 0]), float(e[k])
+
+
+def _saturation(c: ThrustCurve, ratio: float = 0.5) -> float | None:
+    """First command above the middle of the range where the local slope falls below
+    ``ratio`` of the steepest slope seen so far (thrust saturates), else None."""
+    a, t = c.actuator, c.thrust_n
+    slope = np.diff(t) / np.diff(a)
+    mid = 0.5 * (a[0] + a[-1])
+    peak = np.maximum.accumulate(slope)
+    sat = np.flatnonzero((a[:-1] >= mid) & (slope < ratio * peak))
+    return float(a[int(sat[0])]) if sat.size else None
+
+
+def expo_least_squares(u: np.ndarray, t: np.ndarray) -> float:
+    """Least-squares ``e`` of ``t = (1 - e) u + e u^2`` (closed form: linear in e), clipped
+    to ArduPilot's range [-1, 1]."""
+    g = u * u - u
+    den = float(np.sum(g * g))
+    if den <= 0:
+        raise LogError("MOT_THST_EXPO: the command points do not span the working range")
+    return float(np.clip(np.sum((t - u) * g) / den, -1.0, 1.0))
+
+
+def expo_webtool(c: ThrustCurve, spin_min: float, spin_max: float, step: float = 0.005
+                 ) -> float:
+    """ArduPilot WebTools ThrustExpo: the expo for which measured thrust is most linear in
+    demand (minimum standard deviation of its gradient), for demands 0..1 step 0.001."""
+    e = np.round(np.arange(-1.0, 1.0 + step / 2, step), 6)
+    d = np.linspace(0.0, 1.0, 1001)
+    ee = e[:, None]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        x = np.where(np.abs(ee) < 1e-12, d[None, :],
+                     ((ee - 1.0) + np.sqrt((1.0 - ee) ** 2 + 4.0 * ee * d[None, :])) / (2.0 * ee))
+    x = np.clip(np.nan_to_num(x), 0.0, 1.0)
+    act = spin_min + (spin_max - spin_min) * x  # thrust_to_actuator
+    thrust = np.interp(act, c.actuator, c.thrust_n)
+    grad = np.diff(thrust, axis=1) / np.diff(d)
+    return float(e[int(np.argmin(np.std(grad, axis=1)))])
+
+
+def ardupilot_params(c: ThrustCurve, hover_thrust_n: float | None = None) -> dict[str, Any]:
+    """MOT_THST_EXPO, MOT_SPIN_MIN/MAX (where supported) and MOT_THST_HOVER (if the hover
+    thrust per motor is given), with the fit residual and notes."""
+    notes = []
+    start = _observed_start(c)
+    sat = _saturation(c)
+    spin_max = sat if sat is not None else SPIN_MAX_DEFAULT
+    if sat is None:
+        if c.actuator[-1] < SPIN_MAX_DEFAULT:
+            spin_max = float(c.actuator[-1])
+            notes.append("MOT_SPIN_MAX: no saturation up to the highest command tested "
+                         f"({spin_max:.3f}); the curve is normalised there, default kept")
+        else:
+            notes.append("MOT_SPIN_MAX: the thrust does not saturate in the data; default kept")
+    if start is not None:
+        # the start of thrust lies below the first loud command
+        spin_min, expo = _expo_and_spin_min(c, spin_max, float(c.actuator[0]), start[1])
+    else:
+        notes.append("MOT_SPIN_MIN: the data does not show where thrust starts; default kept")
+        spin_min = min(SPIN_MIN_DEFAULT, float(c.actuator[0]))
+        expo = None
+    if not spin_max > spin_min:
+        raise LogError(f"{c.source}: SPIN_MAX {spin_max:.3f} is not above SPIN_MIN "
+                       f"{spin_min:.3f}")
+    t_max = float(np.interp(spin_max, c.actuator, c.thrust_n))
+    work = (c.actuator >= spin_min) & (c.actuator <= spin_max)
+    u = (c.actuator[work] - spin_min) / (spin_max - spin_min)
+    t = c.thrust_n[work] / t_max
+    if u.size < 3:
+        raise LogError(f"{c.source}: fewer than 3 points between SPIN_MIN and SPIN_MAX")
+    if expo is None:
+        expo = expo_least_squares(u, t)
+    resid = (1 - expo) * u + expo * u * u - t
+    out: dict[str, Any] = {
+        "MOT_THST_EXPO": round(expo, 3),
+        "MOT_SPIN_MIN": round(spin_min, 3) if start is not None else None,
+        "MOT_SPIN_MAX": round(spin_max, 3) if sat is not None else None,
+        "expo_webtool": expo_webtool(c, spin_min, spin_max),
+        "fit_rms": float(np.sqrt(np.mean(resid**2))),
+        "thrust_at_spin_max_n": t_max,
+        "points": int(u.size),
+    }
+    if hover_thrust_n is not None:
+        demand = hover_thrust_n / t_max  # linearised demand: thrust / lift at SPIN_MAX
+        out["MOT_THST_HOVER"] = round(demand, 4)
+        if not 0.125 <= demand <= 0.6875:
+            notes.append(f"MOT_THST_HOVER {demand:.3f} is outside ArduPilot's range "
+                         "0.125-0.6875: the motor is too weak or too strong for this weight")
+    out["notes"] = notes
+    return out
+
+
+def px4_params(c: ThrustCurve) -> dict[str, Any]:
+    """THR_MDL_FAC by least squares with both axes normalised over the experiment."""
+    a, t = c.actuator, c.thrust_n
+    s = (a - a.min()) / (a.max() - a.min())
+    r = (t - t.min()) / (t.max() - t.min())
+    g = s * s - s
+    den = float(np.sum(g * g))
+    f = float(np.clip(np.sum((r - s) * g) / den, 0.0, 1.0)) if den > 0 else 0.0
+    resid = f * s * s + (1 - f) * s - r
+    return {"THR_MDL_FAC": round(f, 3), "fit_rms": float(np.sqrt(np.mean(resid**2))),
+            "points": int(a.size), "notes": []}
+
+
+def gazebo_params(k_f: float, moment_constant_m: float, tau_up_s: float | None,
+                  tau_down_s: float | None, omega_max: float, reaches_full_command: bool
+                  ) -> dict[str, Any]:
+    """Parameters of the Gazebo multirotor motor model plugin."""
+    notes = []
+    if not (math.isfinite(k_f) and k_f > 0):
+        raise LogError("motorConstant: no thrust-vs-speed data")
+    if not math.isfinite(moment_constant_m):
+        notes.append("momentConstant: no torque in the data")
+    if tau_up_s is None or tau_down_s is None:
+        notes.append("timeConstantUp/Down: give a step run (--step-run) to fit them")
+    if not reaches_full_command:
+        notes.append("maxRotVelocity: the highest speed in the data, below full command")
+
+    def num(x: float | None, nd: int = 6) -> float | None:
+        return None if x is None or not math.isfinite(x) else float(f"{x:.{nd}g}")
+
+    return {"motorConstant": num(k_f), "momentConstant": num(moment_constant_m),
+            "timeConstantUp": num(tau_up_s, 4), "timeConstantDown": num(tau_down_s, 4),
+            "maxRotVelocity": num(omega_max, 5), "notes": notes}
+
+
+# --- from run folders ---------------------------------------------------------------------
+
+
+def actuator_of(record: RunRecord) -> tuple[np.ndarray, str]:
+    """The command as a fraction of the output range: ``throttle_us`` over the ESC range
+    in run.json (1000-2000 us if absent) or ``duty_pct`` / 100."""
+    cols = record.samples.columns
+    if "throttle_us" in cols and np.isfinite(record.column("throttle_us")).any():
+        rig = record.meta.get("rig")
+        esc = rig.get("esc", {}) if isinstance(rig, dict) else {}
+        lo = float(esc.get("min_us", 1000.0)) if isinstance(esc, dict) else 1000.0
+        hi = float(esc.get("max_us", 2000.0)) if isinstance(esc, dict) else 2000.0
+        return (record.column("throttle_us") - lo) / (hi - lo), f"throttle_us over {lo:g}-{hi:g}"
+    if "duty_pct" in cols and np.isfinite(record.column("duty_pct")).any():
+        return record.column("duty_pct") / 100.0, "duty_pct / 100"
+    raise LogError(f"{record.path}: no command column (throttle_us or duty_pct) for an "
+                   "autopilot export")
+
+
+def thrust_curve_from_runs(record: RunRecord, thrust_record: RunRecord | None = None,
+                           bins: int = 40) -> ThrustCurve:
+    """Steady thrust per command level of ``record``; if that run has no thrust (e.g. an
+    ESC telemetry log), the speed per command level goes through the thrust-vs-speed
+    curve fitted on ``thrust_record`` (e.g. the stand log of the same test)."""
+    act, _ = actuator_of(record)
+    cols = record.samples.columns
+    if "thrust_n" in cols and np.isfinite(record.column("thrust_n")).any():
+        a, t = command_curve(act, record.column("thrust_n"), bins=bins)
+        return ThrustCurve(a, t, str(record.path))
+    if thrust_record is None:
+        raise LogError(f"{record.path}: no thrust in this run; give a run with thrust against "
+                       "speed of the same actuator (--thrust-run)")
+    if "rpm" not in cols:
+        raise LogError(f"{record.path}: neither thrust nor rpm to map commands to thrust")
+    static = fit_static_run(thrust_record)
+    a, rpm = command_curve(act, record.column("rpm"), bins=bins)
+    w = rpm * RPM_TO_RAD_S
+    t = np.where(rpm > 0, np.maximum(static.thrust_at(w), 0.0), 0.0)
+    return ThrustCurve(a, t, f"{record.path} via {thrust_record.path}")

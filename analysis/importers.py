@@ -1,0 +1,283 @@
+"""Import other benches' logs as run samples: RCbenchmark CSV, AutoQuad ESC32, any CSV.
+
+Each importer returns a DataFrame whose columns carry the run's names and SI units
+(``t_s``, ``throttle_us``, ``thrust_n``, ``torque_nm``, ``current_a``, ``voltage_v``,
+``rpm``, ...) and the metadata to put in ``run.json``; ``rotorbench import`` writes them
+into a run folder. Units are taken from the column names: a header ``Thrust (gf)`` or
+``thrust [kgf]`` is converted to newtons by its unit, and a column already named like a
+run column (``thrust_n``) is taken as it is.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import re
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from analysis.errors import LogError
+
+__all__ = ["FORMATS", "RUN_COLUMNS", "import_csv", "import_esc32", "import_log",
+           "import_rcbenchmark", "parse_header"]
+
+G0 = 9.80665  # standard gravity (gram-force -> newton)
+
+# run column -> (quantity, SI unit)
+RUN_COLUMNS: dict[str, str] = {
+    "t_s": "time",
+    "throttle_us": "pulse",
+    "thrust_setpoint_n": "force",
+    "thrust_n": "force",
+    "torque_nm": "torque",
+    "current_a": "current",
+    "voltage_v": "voltage",
+    "rpm": "speed",
+    "rpm_optical": "speed",
+    "motor_voltage_v": "voltage",
+    "duty_pct": "percent",
+    "power_w": "power",
+    "temperature_c": "temperature",
+}
+
+# unit spelling (lower case, spaces removed) -> (quantity, factor to the run column's unit)
+_UNITS: dict[str, tuple[str, float]] = {
+    "s": ("time", 1.0), "sec": ("time", 1.0), "ms": ("time", 1e-3), "us": ("time", 1e-6),
+    "µs": ("pulse", 1.0), "μs": ("pulse", 1.0),
+    "n": ("force", 1.0), "gf": ("force", G0 * 1e-3), "g": ("force", G0 * 1e-3),
+    "kgf": ("force", G0), "kg": ("force", G0), "lbf": ("force", 4.4482216152605),
+    "ozf": ("force", 0.27801385095378), "mn": ("force", 1e-3),
+    "n·m": ("torque", 1.0), "nm": ("torque", 1.0), "n.m": ("torque", 1.0),
+    "n*m": ("torque", 1.0), "n·mm": ("torque", 1e-3), "nmm": ("torque", 1e-3),
+    "kgf·cm": ("torque", G0 * 1e-2), "gf·cm": ("torque", G0 * 1e-5),
+    "g·cm": ("torque", G0 * 1e-5), "ozf·in": ("torque", 0.00706155181),
+    "a": ("current", 1.0), "ma": ("current", 1e-3),
+    "v": ("voltage", 1.0), "mv": ("voltage", 1e-3),
+    "rpm": ("speed", 1.0), "rad/s": ("speed", 60.0 / (2.0 * math.pi)), "hz": ("speed", 60.0),
+    "rps": ("speed", 60.0), "%": ("percent", 1.0), "w": ("power", 1.0),
+    "ºc": ("temperature", 1.0), "°c": ("temperature", 1.0), "c": ("temperature", 1.0),
+}
+# "us" is ambiguous: microseconds of a pulse when the column is a pulse/throttle
+_PULSE_WORDS = ("esc", "throttle", "pulse", "pwm", "servo", "signal")
+
+_HEADER = re.compile(r"^\s*(?P<name>.*?)\s*[\(\[](?P<unit>[^\)\]]*)[\)\]]\s*$")
+
+
+def parse_header(header: str) -> tuple[str, str | None]:
+    """``'Thrust (gf)'`` -> ``('Thrust', 'gf')``; a header without a unit -> (name, None)."""
+    m = _HEADER.match(header)
+    if not m:
+        return header.strip(), None
+    return m.group("name"), m.group("unit").strip()
+
+
+def _unit_factor(header: str, target: str, source: str) -> float:
+    """Factor from the file column's unit (from its header) to the run column's unit."""
+    quantity = RUN_COLUMNS.get(target)
+    if quantity is None:
+        return 1.0
+    name, unit = parse_header(header)
+    if unit is None:
+        if header == target:
+            return 1.0
+        # a bare name in run style ("thrust_n", "t_ms"): take the unit from the suffix
+        suffix = header.rsplit("_", 1)[-1].lower() if "_" in header else ""
+        unit = {"ms": "ms", "us": "µs" if quantity == "pulse" else "us", "s": "s",
+                "n": "N", "g": "g", "gf": "gf", "kgf": "kgf", "a": "A", "ma": "mA", "v": "V",
+                "mv": "mV", "rpm": "rpm", "nm": "Nm", "w": "W", "pct": "%"}.get(suffix)
+        if unit is None:
+            return 1.0  # no unit stated: assume the run column's own unit
+    key = unit.lower().replace(" ", "")
+    if key in ("us", "µs", "μs"):
+        if quantity == "pulse" or any(w in name.lower() for w in _PULSE_WORDS):
+            return 1.0
+        if quantity == "time":
+            return 1e-6
+    found = _UNITS.get(key)
+    if found is None or found[0] != quantity:
+        raise LogError(f"{source}: column {header!r}: unit {unit!r} is not a {quantity} "
+                       f"unit for {target}")
+    return found[1]
+
+
+def _read_csv(path: Path, **kwargs: Any) -> pd.DataFrame:
+    try:
+        return pd.read_csv(path, encoding="utf-8-sig", **kwargs)
+    except FileNotFoundError:
+        raise LogError(f"{path}: file not found") from None
+    except (UnicodeDecodeError, pd.errors.ParserError, csv.Error) as exc:
+        raise LogError(f"{path}: not a readable CSV ({exc})") from None
+    except pd.errors.EmptyDataError:
+        raise LogError(f"{path}: empty file") from None
+
+
+def _numeric(df: pd.DataFrame, header: str, path: Path) -> np.ndarray:
+    col = pd.to_numeric(df[header], errors="coerce")
+    bad = col.isna() & df[header].notna() & (df[header].astype(str).str.strip() != "")
+    if bad.any():
+        row = int(np.flatnonzero(bad.to_numpy())[0])
+        raise LogError(f"{path}: row {row + 2}, column {header!r}: expected a number, got "
+                       f"{df[header].iloc[row]!r}")
+    return col.to_numpy(dtype=float)
+
+
+def _frame(columns: Mapping[str, np.ndarray], path: Path) -> pd.DataFrame:
+    out = pd.DataFrame({k: np.asarray(v, float) for k, v in columns.items()})
+    if "t_s" not in out.columns:
+        raise LogError(f"{path}: no time column (t_s)")
+    t = out["t_s"].to_numpy()
+    if not np.isfinite(t).all():
+        row = int(np.flatnonzero(~np.isfinite(t))[0])
+        raise LogError(f"{path}: row {row + 2}: time is empty or not a number")
+    if np.any(np.diff(t) < 0):
+        row = int(np.flatnonzero(np.diff(t) < 0)[0]) + 1
+        raise LogError(f"{path}: row {row + 2}: time goes backwards ({t[row - 1]} -> {t[row]})")
+    return out
+
+
+# --- RCbenchmark --------------------------------------------------------------------------
+
+_RCB_MAP = (  # (header name, run column); the unit comes from the header
+    ("Time", "t_s"),
+    ("ESC signal", "throttle_us"),
+    ("ESC", "throttle_us"),
+    ("Thrust", "thrust_n"),
+    ("Torque", "torque_nm"),
+    ("Voltage", "voltage_v"),
+    ("Current", "current_a"),
+    ("Motor Electrical Speed", "rpm"),
+    ("Motor Optical Speed", "rpm_optical"),
+    ("Electrical Power", "power_w"),
+)
+
+
+def import_rcbenchmark(path: str | Path) -> tuple[pd.DataFrame, dict[str, Any]]:
+    """A Tyto RCbenchmark log (1580-era or later headers, units from the header).
+
+    The stand fills thrust and torque only on some rows (the load cells update slower than
+    the other channels); those cells stay NaN, nothing is forward-filled. When the
+    electrical speed column is all zero and the optical one has data, the optical speed
+    becomes ``rpm``.
+    """
+    path = Path(path)
+    first = path.read_bytes()[:200].decode("utf-8-sig", errors="replace").splitlines()
+    skip = 1 if first and first[0].lower().startswith("control protocol") else 0
+    df = _read_csv(path, skiprows=skip)
+    by_name = {parse_header(h)[0].lower(): h for h in df.columns}
+    if "time" not in by_name:
+        raise LogError(f"{path}: no 'Time (s)' column: not an RCbenchmark log "
+                       f"(columns: {', '.join(df.columns[:6])} ...)")
+    cols: dict[str, np.ndarray] = {}
+    used: dict[str, str] = {}
+    for name, target in _RCB_MAP:
+        header = by_name.get(name.lower())
+        if header is None or target in cols:
+            continue
+        values = _numeric(df, header, path) * _unit_factor(header, target, str(path))
+        if target != "t_s" and not np.isfinite(values).any():
+            continue  # an empty column (e.g. no ESC signal logged)
+        cols[target] = values
+        used[target] = header
+    if "rpm" in cols and "rpm_optical" in cols:
+        if not np.any(cols["rpm"] > 0) and np.any(cols["rpm_optical"] > 0):
+            cols["rpm"], cols["rpm_optical"] = cols["rpm_optical"], cols["rpm"]
+            used["rpm"], used["rpm_optical"] = used["rpm_optical"], used["rpm"]
+    if not np.any(np.nan_to_num(cols.get("rpm_optical", np.zeros(1))) > 0):
+        cols.pop("rpm_optical", None)
+        used.pop("rpm_optical", None)
+    meta = {"format": "rcbenchmark", "source_file": str(path), "columns": used,
+            "control_protocol": first[0].strip() if skip else None}
+    return _frame(cols, path), meta
+
+
+# --- AutoQuad ESC32 -----------------------------------------------------------------------
+
+_ESC32_MAP = (
+    ("Amps", "current_a"),
+    ("Batt. Volts", "voltage_v"),
+    ("Motor Volts", "motor_voltage_v"),
+    ("RPM", "rpm"),
+    ("Duty", "duty_pct"),
+)
+
+
+def import_esc32(path: str | Path) -> tuple[pd.DataFrame, dict[str, Any]]:
+    """The AutoQuad ESC32 configuration utility's telemetry log.
+
+    Timestamps are ``YYYY-MM-DD HH:MM:SS:mmm`` (milliseconds after a colon); ``t_s``
+    counts from the first row, the absolute start goes into the metadata.
+    """
+    path = Path(path)
+    df = _read_csv(path)
+    if "Timestamp" not in df.columns:
+        raise LogError(f"{path}: no 'Timestamp' column: not an ESC32 telemetry log")
+    stamp = pd.to_datetime(df["Timestamp"].astype(str), format="%Y-%m-%d %H:%M:%S:%f",
+                           errors="coerce")
+    if stamp.isna().any():
+        row = int(np.flatnonzero(stamp.isna().to_numpy())[0])
+        raise LogError(f"{path}: row {row + 2}, column 'Timestamp': expected "
+                       f"'YYYY-MM-DD HH:MM:SS:mmm', got {df['Timestamp'].iloc[row]!r}")
+    t = (stamp - stamp.iloc[0]).dt.total_seconds().to_numpy()
+    cols: dict[str, np.ndarray] = {"t_s": t}
+    missing = [h for h, _ in _ESC32_MAP if h not in df.columns]
+    if missing:
+        raise LogError(f"{path}: missing ESC32 columns {missing}")
+    for header, target in _ESC32_MAP:
+        cols[target] = _numeric(df, header, path)
+    meta = {"format": "esc32", "source_file": str(path),
+            "columns": {t: h for h, t in _ESC32_MAP} | {"t_s": "Timestamp"},
+            "start_time": str(stamp.iloc[0])}
+    return _frame(cols, path), meta
+
+
+# --- any CSV ------------------------------------------------------------------------------
+
+
+def import_csv(path: str | Path, mapping: Mapping[str, str] | None = None
+               ) -> tuple[pd.DataFrame, dict[str, Any]]:
+    """Any CSV: ``mapping`` gives RUNCOL -> FILECOL; columns already named like run
+    columns are taken without a mapping. Units come from the file header (``(gf)``) or
+    the name suffix (``thrust_g``); a file column without a unit is taken in the run
+    column's unit."""
+    path = Path(path)
+    df = _read_csv(path)
+    mapping = dict(mapping or {})
+    for run_col, file_col in mapping.items():
+        if run_col not in RUN_COLUMNS:
+            raise LogError(f"--map {run_col}={file_col}: unknown run column {run_col!r} "
+                           f"(one of {', '.join(RUN_COLUMNS)})")
+        if file_col not in df.columns:
+            raise LogError(f"{path}: --map {run_col}={file_col}: no column {file_col!r} in the "
+                           f"file (columns: {', '.join(map(str, df.columns))})")
+    for name in df.columns:
+        if name in RUN_COLUMNS and name not in mapping and name not in mapping.values():
+            mapping[name] = name
+    if "t_s" not in mapping:
+        raise LogError(f"{path}: no time column: name one t_s or pass --map t_s=COLUMN")
+    cols = {run_col: _numeric(df, file_col, path) * _unit_factor(file_col, run_col, str(path))
+            for run_col, file_col in mapping.items()}
+    meta = {"format": "csv", "source_file": str(path), "columns": dict(mapping)}
+    return _frame(cols, path), meta
+
+
+FORMATS = ("rcbenchmark", "esc32", "csv")
+
+
+def import_log(path: str | Path, fmt: str, mapping: Mapping[str, str] | None = None
+               ) -> tuple[pd.DataFrame, dict[str, Any]]:
+    """Dispatch on ``fmt``; a mapping applies to the ``csv`` format only."""
+    if fmt == "rcbenchmark":
+        df, meta = import_rcbenchmark(path)
+    elif fmt == "esc32":
+        df, meta = import_esc32(path)
+    elif fmt == "csv":
+        df, meta = import_csv(path, mapping)
+    else:
+        raise LogError(f"--format {fmt!r}: expected one of {', '.join(FORMATS)}")
+    if mapping and fmt != "csv":
+        raise LogError(f"--map applies to --format csv only (the {fmt} columns are known)")
+    return df, meta

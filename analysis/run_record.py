@@ -1,0 +1,145 @@
+"""Read a run folder (``run.json``, samples, events) without importing ``bench``.
+
+The folder format is the one ``bench.recorder`` writes (DESIGN.md "Run records"):
+``run.json`` with the metadata, the samples as one Parquet file or a folder of Parquet
+parts (hidden temporary names are skipped, so a crashed run stays readable) and an
+``events.csv`` table. Analysis reads logs from any source through this one function, so
+an imported log and a bench run look the same to every fit.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from analysis.errors import LogError
+
+__all__ = ["RunRecord", "esc_frame_s", "event_times", "read_run"]
+
+SAMPLES_DEFAULT = "samples.parquet"
+EVENTS_DEFAULT = "events.csv"
+
+
+@dataclass(frozen=True)
+class RunRecord:
+    """One run: where it is, its metadata, its samples (sorted by ``t_s``) and events."""
+
+    path: Path
+    meta: dict[str, Any]
+    samples: pd.DataFrame
+    events: pd.DataFrame = field(default_factory=pd.DataFrame)
+
+    @property
+    def id(self) -> str:
+        return str(self.meta.get("id") or self.path.name)
+
+    @property
+    def components(self) -> dict[str, Any]:
+        comp = self.meta.get("components")
+        return dict(comp) if isinstance(comp, dict) else {}
+
+    def column(self, name: str) -> np.ndarray:
+        """A sample column as float array; ``LogError`` naming the file if missing."""
+        if name not in self.samples.columns:
+            raise LogError(f"{self.path / _samples_name(self.meta)}: no column {name!r} "
+                           f"(columns: {', '.join(map(str, self.samples.columns))})")
+        return self.samples[name].to_numpy(dtype=float)
+
+
+def _samples_name(meta: dict[str, Any]) -> str:
+    name = meta.get("samples") or SAMPLES_DEFAULT
+    return str(name)
+
+
+def read_run(path: str | Path) -> RunRecord:
+    """Load a run folder; every problem raises ``LogError`` naming the file and the fault."""
+    run_dir = Path(path)
+    if not run_dir.is_dir():
+        raise LogError(f"{run_dir}: not a run folder (expected a folder with run.json)")
+    meta = _read_meta(run_dir / "run.json")
+    samples = _read_samples(run_dir / _samples_name(meta))
+    events = _read_events(run_dir / str(meta.get("events") or EVENTS_DEFAULT))
+    return RunRecord(run_dir, meta, samples, events)
+
+
+def _read_meta(path: Path) -> dict[str, Any]:
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise LogError(f"{path}: missing (every run folder has a run.json)") from None
+    except OSError as exc:
+        raise LogError(f"{path}: cannot read ({exc})") from None
+    try:
+        meta = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise LogError(f"{path}: line {exc.lineno}: invalid JSON ({exc.msg})") from None
+    if not isinstance(meta, dict):
+        raise LogError(f"{path}: expected a JSON object at the top level")
+    return meta
+
+
+def _read_samples(path: Path) -> pd.DataFrame:
+    if not path.exists():
+        raise LogError(f"{path}: missing (the run's samples)")
+    if path.is_dir() and not any(p.suffix == ".parquet" and not p.name.startswith((".", "_"))
+                                 for p in path.iterdir()):
+        raise LogError(f"{path}: no sample parts in the folder (the run recorded nothing)")
+    try:
+        df = pd.read_parquet(path)
+    except Exception as exc:  # pyarrow raises several types for damaged files
+        raise LogError(f"{path}: not readable as Parquet ({type(exc).__name__}: {exc})") from None
+    if "t_s" not in df.columns:
+        raise LogError(f"{path}: no 't_s' column (columns: {', '.join(map(str, df.columns))})")
+    if len(df) == 0:
+        raise LogError(f"{path}: no samples")
+    for name in df.columns:
+        if not pd.api.types.is_numeric_dtype(df[name]):
+            raise LogError(f"{path}: column {name!r} is not numeric ({df[name].dtype})")
+    t = df["t_s"].to_numpy(dtype=float)
+    if not np.all(np.isfinite(t)):
+        bad = int(np.flatnonzero(~np.isfinite(t))[0])
+        raise LogError(f"{path}: row {bad}: t_s is not a finite number")
+    if np.any(np.diff(t) < 0):
+        df = df.sort_values("t_s", kind="stable")
+    return df.reset_index(drop=True)
+
+
+def _read_events(path: Path) -> pd.DataFrame:
+    if not path.exists():
+        return pd.DataFrame(columns=["t_s", "kind", "step", "label", "detail"])
+    try:
+        ev = pd.read_csv(path, dtype={"kind": str, "label": str, "detail": str},
+                         keep_default_na=False, na_values={"t_s": [""], "step": [""]})
+    except Exception as exc:
+        raise LogError(f"{path}: not a readable events table ({exc})") from None
+    if "t_s" not in ev.columns or "kind" not in ev.columns:
+        raise LogError(f"{path}: expected columns t_s and kind, got {list(ev.columns)}")
+    ev["t_s"] = pd.to_numeric(ev["t_s"], errors="coerce")
+    return ev
+
+
+def event_times(record: RunRecord, kind: str = "step_start") -> np.ndarray:
+    """Times (s) of the events of one kind, sorted; empty if the run has none."""
+    ev = record.events
+    if ev.empty or "kind" not in ev.columns:
+        return np.empty(0)
+    t = ev.loc[ev["kind"] == kind, "t_s"].to_numpy(dtype=float)
+    return np.sort(t[np.isfinite(t)])
+
+
+def esc_frame_s(record: RunRecord) -> float:
+    """The ESC input frame period from run.json (``rig.esc.frame_rate_hz``), or NaN."""
+    rig = record.meta.get("rig")
+    esc = rig.get("esc") if isinstance(rig, dict) else None
+    rate = esc.get("frame_rate_hz") if isinstance(esc, dict) else None
+    try:
+        rate = float(rate)
+    except (TypeError, ValueError):
+        return math.nan
+    return 1.0 / rate if rate > 0 else math.nan

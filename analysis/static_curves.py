@@ -1,0 +1,259 @@
+"""Static curves of an actuator (Paper C section 4.4) and motor constants from parameters.
+
+The thesis found thrust against speed (Fig. C.13) and current against speed (Fig. C.14)
+by increasing the speed slowly and fitting polynomials; the inverse (thrust -> speed) turns
+a thrust setpoint into a speed setpoint. Here the samples are first reduced to medians in
+narrow speed bins (so a 25 kHz sweep, a 50 Hz stand log with sparse load-cell rows and a
+log of hand-set plateaus all give a clean point cloud), then fitted by least squares:
+
+* thrust = a w^2 + b w + c and its analytic inverse, and the pure k_f w^2 of (E.1) (the
+  Gazebo motor constant);
+* current = polynomial in w (degree 3: power grows with w^3), whose slope at hover is
+  the damping D of Fig. C.5;
+* torque = k_q w^2 and torque / thrust (the moment constant), when torque is logged;
+* steady command -> speed/thrust curves when the log has a command column.
+
+``motor_constants`` gives K_E = K_T from K_V (2.37); ``from_parameters`` the mechanical time
+constant and gain of (C.3) and (C.4), the "From Parameters" row of Table C.1.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.polynomial import Polynomial
+
+from analysis.errors import LogError
+from analysis.run_record import RunRecord
+
+__all__ = [
+    "TABLE_C2",
+    "MotorParams",
+    "StaticCurves",
+    "binned_medians",
+    "command_curve",
+    "fit_static",
+    "fit_static_run",
+    "from_parameters",
+    "motor_constants",
+]
+
+RPM_TO_RAD_S = 2.0 * math.pi / 60.0
+
+
+@dataclass(frozen=True)
+class MotorParams:
+    """Motor and rotor data of Table C.2 form (SI units; K_V in rpm/V as on datasheets)."""
+
+    kv_rpm_v: float
+    r_ohm: float
+    j_kg_m2: float
+    l_h: float = 0.0
+    d_a_s_rad: float = math.nan  # damping D (A per rad/s), from the current curve
+
+
+# Paper C's DJI 2212/920 kV motor with the 8x4.5 in propeller: measured and datasheet
+# inputs of Table C.2 (not fitted results).
+TABLE_C2 = MotorParams(kv_rpm_v=920.0, r_ohm=0.22, j_kg_m2=17.2e-6, l_h=80e-6, d_a_s_rad=0.004)
+
+
+def motor_constants(kv_rpm_v: float) -> tuple[float, float]:
+    """K_E (V s/rad) and K_T (N m/A) from K_V in rpm/V; K_T = K_E in SI units."""
+    if not kv_rpm_v > 0:
+        raise ValueError(f"K_V must be > 0 rpm/V, got {kv_rpm_v}")
+    # (2.37) converts K_V from rpm/V to SI; the thesis prints the factor as 2 pi / 60 next
+    # to 1 / K_V, but its own numbers (K_V 920 rpm/V -> K_E 0.0104 V s/rad, Table C.2)
+    # need 1 rpm = 2 pi / 60 rad/s applied to the rpm in the denominator:
+    ke = 1.0 / (kv_rpm_v * 2.0 * math.pi / 60.0)  # (2.37)
+    return ke, ke
+
+
+def from_parameters(p: MotorParams, d_a_s_rad: float | None = None) -> tuple[float, float]:
+    """Mechanical time constant (s) and gain of the first-order model from parameters."""
+    d = p.d_a_s_rad if d_a_s_rad is None else d_a_s_rad
+    if not math.isfinite(d):
+        raise ValueError("the damping D is unknown: give it or fit a current curve")
+    ke, kt = motor_constants(p.kv_rpm_v)
+    tau = p.j_kg_m2 * p.r_ohm / (p.r_ohm * kt * d + kt * ke)  # (C.3)
+    gain = ke / (p.r_ohm * d + ke)  # (C.4)
+    return tau, gain
+
+
+def binned_medians(x: np.ndarray, ys: dict[str, np.ndarray], bins: int = 60,
+                   min_count: int = 3) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Median of x and of each y in ``bins`` equal-width bins of x (NaNs ignored per y)."""
+    x = np.asarray(x, float)
+    ok = np.isfinite(x)
+    lo, hi = (float(np.min(x[ok])), float(np.max(x[ok]))) if ok.any() else (0.0, 0.0)
+    if not hi > lo:
+        return np.empty(0), {k: np.empty(0) for k in ys}
+    k = np.clip(((x - lo) / (hi - lo) * bins).astype(np.int64, copy=False), 0, bins - 1)
+    k = np.where(ok, k, -1)
+    order = np.argsort(k, kind="stable")
+    ks = k[order]
+    starts = np.searchsorted(ks, np.arange(bins))
+    ends = np.searchsorted(ks, np.arange(bins), side="right")
+    xm = np.full(bins, np.nan)
+    out = {name: np.full(bins, np.nan) for name in ys}
+    for b in range(bins):  # one median per bin (at most ``bins`` calls)
+        sel = order[starts[b]:ends[b]]
+        if sel.size < min_count:
+            continue
+        xm[b] = np.median(x[sel])
+        for name, y in ys.items():
+            v = np.asarray(y, float)[sel]
+            v = v[np.isfinite(v)]
+            if v.size >= min_count:
+                out[name][b] = np.median(v)
+    keep = np.isfinite(xm)
+    return xm[keep], {name: v[keep] for name, v in out.items()}
+
+
+@dataclass(frozen=True)
+class StaticCurves:
+    """Fitted static curves (speed w in rad/s, thrust in N, current in A, torque in N m)."""
+
+    omega: np.ndarray = field(repr=False)  # binned points the fits used
+    thrust: np.ndarray = field(repr=False)
+    current: np.ndarray = field(repr=False)
+    torque: np.ndarray = field(repr=False)
+    thrust_poly: Polynomial | None  # thrust(w), degree 2 (Fig. C.13)
+    current_poly: Polynomial | None  # current(w), degree 3 (Fig. C.14)
+    k_f: float  # thrust = k_f w^2 (E.1), N s^2/rad^2
+    k_q: float  # torque = k_q w^2 (E.2, E.3), N m s^2/rad^2
+    moment_constant_m: float  # torque / thrust (m)
+    thrust_rms: float
+    current_rms: float
+    omega_max: float  # highest steady speed in the data (rad/s)
+    voltage_v: float  # median supply voltage (V)
+
+    def thrust_at(self, omega: np.ndarray | float) -> np.ndarray:
+        if self.thrust_poly is None:
+            raise LogError("no thrust data: the thrust curve is unknown")
+        return self.thrust_poly(np.asarray(omega, float))
+
+    def omega_for_thrust(self, thrust_n: np.ndarray | float) -> np.ndarray:
+        """Inverse of the thrust curve on its rising branch (Fig. C.6 f(F_Th, w))."""
+        if self.thrust_poly is None:
+            raise LogError("no thrust data: the thrust curve is unknown")
+        c, b, a = ([*list(self.thrust_poly.convert().coef), 0.0, 0.0, 0.0])[:3]
+        f = np.asarray(thrust_n, float)
+        if abs(a) < 1e-15:
+            return (f - c) / b
+        disc = np.maximum(b * b - 4.0 * a * (c - f), 0.0)
+        return (-b + np.sqrt(disc)) / (2.0 * a)
+
+    def current_at(self, omega: np.ndarray | float) -> np.ndarray:
+        if self.current_poly is None:
+            raise LogError("no current data: the current curve is unknown")
+        return self.current_poly(np.asarray(omega, float))
+
+    def damping_at(self, omega: float) -> float:
+        """dI/dw at a speed: the D of Fig. C.5 (A per rad/s)."""
+        if self.current_poly is None:
+            return math.nan
+        return float(self.current_poly.deriv()(omega))
+
+    def summary(self) -> dict[str, Any]:
+        def coef(p: Polynomial | None) -> list[float] | None:
+            return None if p is None else [float(c) for c in p.convert().coef]
+
+        def num(x: float) -> float | None:
+            return float(x) if math.isfinite(x) else None
+
+        return {
+            "thrust_poly_w": coef(self.thrust_poly),
+            "current_poly_w": coef(self.current_poly),
+            "k_f_n_s2": num(self.k_f),
+            "k_q_nm_s2": num(self.k_q),
+            "moment_constant_m": num(self.moment_constant_m),
+            "thrust_rms_n": num(self.thrust_rms),
+            "current_rms_a": num(self.current_rms),
+            "omega_max_rad_s": num(self.omega_max),
+            "rpm_max": num(self.omega_max / RPM_TO_RAD_S),
+            "voltage_v": num(self.voltage_v),
+            "points": int(self.omega.size),
+        }
+
+
+def _lsq_through_origin(x: np.ndarray, y: np.ndarray) -> float:
+    ok = np.isfinite(x) & np.isfinite(y)
+    den = float(np.sum(x[ok] ** 2))
+    return float(np.sum(x[ok] * y[ok]) / den) if den > 0 else math.nan
+
+
+def fit_static(
+    rpm: np.ndarray,
+    thrust_n: np.ndarray | None = None,
+    current_a: np.ndarray | None = None,
+    torque_nm: np.ndarray | None = None,
+    voltage_v: np.ndarray | None = None,
+    *,
+    bins: int = 60,
+    min_rpm: float | None = None,
+    source: str = "log",
+) -> StaticCurves:
+    """Fit the static curves from samples (NaN where a sensor had no value)."""
+    rpm = np.asarray(rpm, float)
+    n = rpm.size
+    nan = np.full(n, np.nan)
+    th = nan if thrust_n is None else np.asarray(thrust_n, float)
+    cu = nan if current_a is None else np.asarray(current_a, float)
+    tq = nan if torque_nm is None else np.asarray(torque_nm, float)
+    vv = nan if voltage_v is None else np.asarray(voltage_v, float)
+    spinning = np.isfinite(rpm) & (rpm > 0)
+    if not spinning.any():
+        raise LogError(f"{source}: the rotor never turns (no rpm > 0): no static curve")
+    floor = 0.1 * float(np.max(rpm[spinning])) if min_rpm is None else min_rpm
+    use = spinning & (rpm >= floor)
+    w, pts = binned_medians(rpm[use] * RPM_TO_RAD_S,
+                            {"thrust": th[use], "current": cu[use], "torque": tq[use]},
+                            bins=bins)
+    if w.size < 4:
+        raise LogError(f"{source}: only {w.size} speed levels with data; need >= 4 for a curve")
+
+    def poly(y: np.ndarray, deg: int) -> tuple[Polynomial | None, float]:
+        ok = np.isfinite(y)
+        if ok.sum() < deg + 2:
+            return None, math.nan
+        p = Polynomial.fit(w[ok], y[ok], deg)
+        return p, float(np.sqrt(np.mean((p(w[ok]) - y[ok]) ** 2)))
+
+    tp, trms = poly(pts["thrust"], 2)
+    cp, crms = poly(pts["current"], 3)
+    k_f = _lsq_through_origin(w**2, pts["thrust"])
+    k_q = _lsq_through_origin(w**2, pts["torque"])
+    vmed = float(np.nanmedian(vv[use])) if np.isfinite(vv[use]).any() else math.nan
+    return StaticCurves(
+        omega=w, thrust=pts["thrust"], current=pts["current"], torque=pts["torque"],
+        thrust_poly=tp, current_poly=cp, k_f=k_f, k_q=k_q,
+        moment_constant_m=k_q / k_f if math.isfinite(k_q) and k_f > 0 else math.nan,
+        thrust_rms=trms, current_rms=crms, omega_max=float(np.max(w)), voltage_v=vmed,
+    )
+
+
+def fit_static_run(record: RunRecord, bins: int = 60) -> StaticCurves:
+    """Static curves of a run folder (sweep, imported stand log, ...)."""
+    cols = record.samples.columns
+
+    def col(name: str) -> np.ndarray | None:
+        return record.column(name) if name in cols else None
+
+    if "rpm" not in cols:
+        raise LogError(f"{record.path}: no 'rpm' column: static curves are against speed")
+    thrust = col("thrust_n")
+    if thrust is not None and not np.isfinite(thrust).any():
+        thrust = None
+    return fit_static(record.column("rpm"), thrust, col("current_a"), col("torque_nm"),
+                      col("voltage_v"), bins=bins, source=str(record.path))
+
+
+def command_curve(command: np.ndarray, value: np.ndarray, bins: int = 40
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Steady value against command: medians per command bin (plateaus or a slow ramp)."""
+    c, v = binned_medians(command, {"v": value}, bins=bins)
+    ok = np.isfinite(v["v"])
+    return c[ok], v["v"][ok]

@@ -1,0 +1,111 @@
+"""``rotorbench export {ardupilot,px4,gazebo} RUN``: fitted curves as autopilot parameters."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from analysis.errors import LogError
+from bench.errors import RigError
+
+G0 = 9.80665
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "export", help="export fitted curves as ArduPilot / PX4 / Gazebo parameters",
+        description="ardupilot: MOT_THST_EXPO (+ MOT_SPIN_MIN/MAX where the data shows them, "
+                    "MOT_THST_HOVER with --hover-thrust or --auw-kg/--motors); px4: "
+                    "THR_MDL_FAC; gazebo: the multirotor motor model plugin parameters. RUN is "
+                    "a sweep or an imported stand log with command and thrust (or rpm with "
+                    "--thrust-run).")
+    p.add_argument("target", choices=("ardupilot", "px4", "gazebo"))
+    p.add_argument("run", type=Path, help="run folder with the static data")
+    p.add_argument("--thrust-run", type=Path, default=None,
+                   help="run with thrust against rpm, if RUN logs rpm but no thrust")
+    p.add_argument("--step-run", type=Path, default=None,
+                   help="gazebo: step run for timeConstantUp/Down (fitted on rpm)")
+    p.add_argument("--hover-thrust", type=float, default=None,
+                   help="ardupilot: hover thrust per motor in newtons")
+    p.add_argument("--auw-kg", type=float, default=None, help="ardupilot: all-up weight (kg)")
+    p.add_argument("--motors", type=int, default=None, help="ardupilot: number of motors")
+    p.add_argument("--json", action="store_true", help="print JSON instead of parameter lines")
+    p.set_defaults(func=handler)
+
+
+def _hover(args: argparse.Namespace) -> float | None:
+    if args.hover_thrust is not None:
+        return float(args.hover_thrust)
+    if args.auw_kg is not None or args.motors is not None:
+        if args.auw_kg is None or not args.motors or args.motors < 1 or args.auw_kg <= 0:
+            raise RigError("--auw-kg and --motors go together (positive weight, >= 1 motor)")
+        return args.auw_kg * G0 / args.motors
+    return None
+
+
+def build(args: argparse.Namespace) -> dict[str, Any]:
+    from analysis.exports import (
+        actuator_of,
+        ardupilot_params,
+        gazebo_params,
+        px4_params,
+        thrust_curve_from_runs,
+    )
+    from analysis.run_record import read_run
+    from analysis.static_curves import fit_static_run
+    from analysis.step_response import fit_run
+
+    record = read_run(args.run)
+    thrust_record = read_run(args.thrust_run) if args.thrust_run else None
+    if args.target in ("ardupilot", "px4"):
+        curve = thrust_curve_from_runs(record, thrust_record)
+        out = ardupilot_params(curve, _hover(args)) if args.target == "ardupilot" \
+            else px4_params(curve)
+        out["command_axis"] = actuator_of(record)[1]
+    else:
+        static = fit_static_run(thrust_record or record)
+        tau_up = tau_dn = None
+        if args.step_run is not None:
+            fit = fit_run(read_run(args.step_run), signal="rpm")
+            tau_up = fit.up.tau.value if fit.up else None
+            tau_dn = fit.down.tau.value if fit.down else None
+        try:
+            act = actuator_of(record)[0]
+            full = bool(np.nanmax(act) >= 0.99)
+        except LogError:  # no command column: the top speed is just the highest seen
+            full = False
+        out = gazebo_params(static.k_f, static.moment_constant_m, tau_up, tau_dn,
+                            static.omega_max, full)
+    out["target"] = args.target
+    out["run"] = str(record.path)
+    return out
+
+
+def handler(args: argparse.Namespace) -> int:
+    out = build(args)
+    if args.json:
+        print(json.dumps(out, indent=2, allow_nan=False))
+        return 0
+    notes = out.get("notes", [])
+    if args.target == "ardupilot":
+        for name in ("MOT_THST_EXPO", "MOT_SPIN_MIN", "MOT_SPIN_MAX", "MOT_THST_HOVER"):
+            if out.get(name) is not None:
+                print(f"{name},{out[name]}")
+        print(f"# fit rms {out['fit_rms']:.4f} (normalised thrust); WebTools criterion gives "
+              f"{out['expo_webtool']:.3f}; command axis {out['command_axis']}")
+    elif args.target == "px4":
+        print(f"param set THR_MDL_FAC {out['THR_MDL_FAC']}")
+        print(f"# fit rms {out['fit_rms']:.4f} (normalised thrust); command axis "
+              f"{out['command_axis']}")
+    else:
+        for name in ("motorConstant", "momentConstant", "timeConstantUp", "timeConstantDown",
+                     "maxRotVelocity"):
+            if out.get(name) is not None:
+                print(f"<{name}>{out[name]}</{name}>")
+    for n in notes:
+        print(f"# {n}")
+    return 0

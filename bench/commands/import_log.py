@@ -1,0 +1,90 @@
+"""``rotorbench import FILE --format F --out DIR``: another bench's log as a run folder.
+
+Parsing lives in ``analysis.importers``; this is the glue that writes the run folder with
+``bench.recorder.RunRecorder`` into a temporary folder beside ``DIR`` and renames it into
+place, so an interrupted import leaves nothing half-written under the final name.
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import shutil
+from pathlib import Path
+
+import numpy as np
+
+from bench.errors import RigError
+
+COMMAND = "import"
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        COMMAND, help="import a thrust-stand log (RCbenchmark, ESC32, any CSV) as a run",
+        description="Reads another bench's log and writes a run folder with the run's column "
+                    "names and SI units (units from the file's column names). A CSV whose "
+                    "columns already carry run names (t_s, throttle_us, thrust_n, rpm, ...) "
+                    "needs no --map.")
+    p.add_argument("file", type=Path, help="log file")
+    p.add_argument("--format", dest="fmt", choices=("rcbenchmark", "esc32", "csv"),
+                   required=True)
+    p.add_argument("--map", dest="mapping", action="append", default=[],
+                   metavar="RUNCOL=FILECOL", help="csv only: take a run column from a file "
+                                                  "column (repeatable)")
+    p.add_argument("--out", type=Path, required=True, help="run folder to create")
+    p.set_defaults(func=handler)
+
+
+def parse_mapping(items: list[str]) -> dict[str, str]:
+    out: dict[str, str] = {}
+    for item in items:
+        run_col, sep, file_col = item.partition("=")
+        if not sep or not run_col or not file_col:
+            raise RigError(f"--map {item!r}: expected RUNCOL=FILECOL")
+        out[run_col.strip()] = file_col.strip()
+    return out
+
+
+def write_run(out: Path, samples, meta: dict) -> Path:
+    """Write ``samples`` (a DataFrame with run columns) and ``meta`` as a run folder."""
+    from bench.recorder import BASE_COLUMNS, RunRecorder
+
+    out = Path(out)
+    if out.exists():
+        raise RigError(f"--out {out}: already exists (choose a new run folder)")
+    tmp = out.with_name(f".{out.name}.importing")
+    if tmp.exists():
+        shutil.rmtree(tmp)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    n = len(samples)
+    cols = {c: samples[c].to_numpy(dtype=float) for c in samples.columns}
+    for c in BASE_COLUMNS:  # the recorder's schema: absent channels are NaN
+        cols.setdefault(c, np.full(n, np.nan))
+    try:
+        rec = RunRecorder(tmp, {"id": out.name, **meta})
+        # append in slices so the recorder writes its usual <= 1 s parts
+        t = cols["t_s"]
+        cuts = np.searchsorted(t, t[0] + np.arange(1, int(t[-1] - t[0]) + 1))
+        bounds = [0, *cuts.tolist(), n]
+        for a, b in itertools.pairwise(bounds):
+            if b > a:
+                rec.append({c: v[a:b] for c, v in cols.items()})
+        rec.finish("success", f"imported from {meta.get('source_file')}",
+                   duration_s=float(t[-1] - t[0]))
+        tmp.rename(out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return out
+
+
+def handler(args: argparse.Namespace) -> int:
+    from analysis.importers import import_log
+
+    samples, meta = import_log(args.file, args.fmt, parse_mapping(args.mapping) or None)
+    meta = {"kind": "import", "components": {}, "import": meta}
+    out = write_run(args.out, samples, meta)
+    cols = ", ".join(c for c in samples.columns)
+    print(f"{out}: imported {len(samples)} rows from {args.file} ({args.fmt}); columns {cols}")
+    return 0

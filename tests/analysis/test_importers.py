@@ -1,0 +1,107 @@
+"""Importers: the shipped real logs (read in place), any CSV, and the import command."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from analysis.errors import LogError
+from analysis.importers import import_csv, import_esc32, import_rcbenchmark, parse_header
+from analysis.run_record import read_run
+from bench.cli import main
+
+RCB = "esc_test/rcbenchmark_Log_2019-11-05_171350.csv"
+ESC32 = "esc_test/autoquad_esc32_f40_steps_5-2.csv"
+
+
+def test_parse_header():
+    assert parse_header("Thrust (gf)") == ("Thrust", "gf")
+    assert parse_header("Torque (N·m)") == ("Torque", "N·m")
+    assert parse_header("rpm") == ("rpm", None)
+    assert parse_header("speed [rad/s]") == ("speed", "rad/s")
+
+
+def test_rcbenchmark_real_log(shared_data):
+    df, meta = import_rcbenchmark(shared_data / RCB)
+    raw = np.genfromtxt(shared_data / RCB, delimiter=",", skip_header=1, usecols=9)
+    assert len(df) == raw.size
+    # gram-force -> newtons by the header's unit; sparse load-cell rows stay NaN
+    np.testing.assert_allclose(df["thrust_n"].to_numpy(), raw * 9.80665e-3, equal_nan=True)
+    assert np.isnan(df["thrust_n"]).sum() == np.isnan(raw).sum() > 0
+    assert meta["columns"]["thrust_n"] == "Thrust (gf)"
+    assert "throttle_us" not in df.columns  # the ESC signal column is empty in this test
+    assert df["rpm"].max() == pytest.approx(15957.0)
+    assert df["t_s"].is_monotonic_increasing
+
+
+def test_esc32_real_log(shared_data):
+    df, meta = import_esc32(shared_data / ESC32)
+    assert df["t_s"].iloc[0] == 0.0
+    assert df["t_s"].iloc[-1] == pytest.approx(115.033, abs=1e-3)  # 17:14:08.947 -> 17:16:03.980
+    assert set(df.columns) >= {"current_a", "voltage_v", "rpm", "duty_pct"}
+    assert df["duty_pct"].max() == 100.0
+    assert meta["start_time"].startswith("2019-11-05 17:14:08")
+
+
+def test_csv_with_run_names_needs_no_mapping(tmp_path):
+    p = tmp_path / "log.csv"
+    p.write_text("t_s,throttle_us,thrust_setpoint_n,thrust_n,rpm,extra\n"
+                 "0,1000,,0,0,1\n0.1,1500,2.0,1.9,6000,2\n", encoding="utf-8")
+    df, _meta = import_csv(p)
+    assert list(df.columns) == ["t_s", "throttle_us", "thrust_setpoint_n", "thrust_n", "rpm"]
+    assert df["thrust_n"].iloc[1] == 1.9 and np.isnan(df["thrust_setpoint_n"].iloc[0])
+
+
+def test_csv_mapping_converts_units_by_name(tmp_path):
+    p = tmp_path / "stand.csv"
+    p.write_text("time (ms),pwm (us),lift (kgf),speed [rad/s],amps\n"
+                 "0,1100,0.1,100,1\n500,1200,0.2,200,2\n", encoding="utf-8")
+    df, _ = import_csv(p, {"t_s": "time (ms)", "throttle_us": "pwm (us)",
+                           "thrust_n": "lift (kgf)", "rpm": "speed [rad/s]",
+                           "current_a": "amps"})
+    assert df["t_s"].tolist() == [0.0, 0.5]
+    assert df["throttle_us"].tolist() == [1100.0, 1200.0]
+    np.testing.assert_allclose(df["thrust_n"], [0.980665, 1.96133])
+    np.testing.assert_allclose(df["rpm"], [100 * 60 / (2 * np.pi), 200 * 60 / (2 * np.pi)])
+    assert df["current_a"].tolist() == [1.0, 2.0]
+
+
+def test_csv_errors_name_file_row_and_column(tmp_path):
+    p = tmp_path / "bad.csv"
+    p.write_text("t_s,thrust (V)\n0,1\n", encoding="utf-8")
+    with pytest.raises(LogError, match=r"column 'thrust \(V\)'.*not a force unit"):
+        import_csv(p, {"thrust_n": "thrust (V)"})
+    with pytest.raises(LogError, match="no column 'nope'"):
+        import_csv(p, {"thrust_n": "nope"})
+    with pytest.raises(LogError, match="unknown run column 'speed'"):
+        import_csv(p, {"speed": "t_s"})
+    p.write_text("t_s,thrust_n\n0,1\n0.1,abc\n", encoding="utf-8")
+    with pytest.raises(LogError, match=r"bad\.csv: row 3, column 'thrust_n'"):
+        import_csv(p)
+    p.write_text("t_s,thrust_n\n1,1\n0.5,1\n", encoding="utf-8")
+    with pytest.raises(LogError, match="time goes backwards"):
+        import_csv(p)
+    with pytest.raises(LogError, match="not an ESC32"):
+        import_esc32(p)
+
+
+def test_import_command_writes_a_run_folder(shared_data, tmp_path, capsys):
+    out = tmp_path / "runs" / "f40"
+    assert main(["import", str(shared_data / RCB), "--format", "rcbenchmark",
+                 "--out", str(out)]) == 0
+    rec = read_run(out)
+    assert rec.meta["status"] == "success" and rec.meta["kind"] == "import"
+    assert rec.meta["import"]["format"] == "rcbenchmark"
+    assert np.isfinite(rec.column("thrust_n")).sum() == 831
+    assert np.isnan(rec.column("throttle_us")).all()  # schema column, no data
+    assert [p.name for p in out.parent.iterdir()] == ["f40"]  # no temp folder left
+    # refuses to overwrite; bad input is one line and exit code 2
+    assert main(["import", str(shared_data / RCB), "--format", "rcbenchmark",
+                 "--out", str(out)]) == 2
+    assert main(["import", str(shared_data / RCB), "--format", "esc32",
+                 "--out", str(tmp_path / "x")]) == 2
+    assert main(["import", str(shared_data / RCB), "--format", "csv", "--map", "thrust_n",
+                 "--out", str(tmp_path / "y")]) == 2
+    err = capsys.readouterr().err
+    assert "already exists" in err and "not an ESC32" in err and "RUNCOL=FILECOL" in err
+    assert not (tmp_path / "x").exists() and not (tmp_path / "y").exists()

@@ -1,0 +1,98 @@
+"""Static curves (Paper C section 4.4) and motor constants from parameters (2.37, C.3, C.4)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from analysis.errors import LogError
+from analysis.importers import import_rcbenchmark
+from analysis.run_record import read_run
+from analysis.static_curves import (
+    RPM_TO_RAD_S,
+    TABLE_C2,
+    MotorParams,
+    fit_static,
+    fit_static_run,
+    from_parameters,
+    motor_constants,
+)
+from bench.rig import default_rig_path, load_rig
+from bench.runner import RunOptions
+from bench.sequences import sweep
+from bench.session import run_sequence
+from drivers.factory import open_rig
+
+
+def test_ke_kt_from_kv_2_37():
+    ke, kt = motor_constants(920.0)
+    assert ke == kt == pytest.approx(60 / (2 * math.pi * 920))
+    assert ke == pytest.approx(0.0104, abs=5e-5)  # Table C.2 rounds it to 0.0104
+    with pytest.raises(ValueError):
+        motor_constants(0.0)
+
+
+def test_from_parameters_c3_c4():
+    tau, gain = from_parameters(TABLE_C2)
+    ke, kt = motor_constants(TABLE_C2.kv_rpm_v)
+    r, j, d = TABLE_C2.r_ohm, TABLE_C2.j_kg_m2, TABLE_C2.d_a_s_rad
+    assert tau == pytest.approx(j * r / (r * kt * d + kt * ke))
+    assert gain == pytest.approx(ke / (r * d + ke))
+    assert round(tau * 1e3) == 32  # the "From Parameters" row of Table C.1
+    # more damping (a heavier-loaded propeller) makes the lag faster and the gain smaller
+    tau2, gain2 = from_parameters(TABLE_C2, d_a_s_rad=0.008)
+    assert tau2 < tau and gain2 < gain
+    with pytest.raises(ValueError, match="damping"):
+        from_parameters(MotorParams(920.0, 0.22, 17e-6))
+
+
+def test_fit_recovers_synthetic_curves_and_inverse():
+    rng = np.random.default_rng(1)
+    rpm = np.repeat(np.linspace(2000, 12000, 40), 50)
+    w = rpm * RPM_TO_RAD_S
+    thrust = 2.0e-6 * w**2 + 1e-4 * w + rng.normal(0, 0.01, w.size)
+    current = 0.5 + 2e-9 * w**3 + rng.normal(0, 0.05, w.size)
+    torque = 3e-8 * w**2
+    thrust[::3] = np.nan  # a slower load cell: gaps are ignored, not filled
+    s = fit_static(rpm, thrust, current, torque)
+    _c0, c1, c2 = s.thrust_poly.convert().coef
+    assert c2 == pytest.approx(2.0e-6, rel=0.02) and c1 == pytest.approx(1e-4, abs=3e-5)
+    assert s.k_q == pytest.approx(3e-8, rel=1e-6)
+    assert s.moment_constant_m == pytest.approx(s.k_q / s.k_f)
+    f = np.array([1.0, 2.0, 4.0])
+    np.testing.assert_allclose(s.thrust_at(s.omega_for_thrust(f)), f, rtol=1e-9)
+    assert s.current_rms < 0.02
+    assert s.damping_at(800.0) == pytest.approx(3 * 2e-9 * 800**2, rel=0.05)
+
+
+def test_no_spin_is_a_log_error():
+    with pytest.raises(LogError, match="never turns"):
+        fit_static(np.zeros(10), np.zeros(10))
+
+
+def test_sim_sweep_gives_the_plants_thrust_constant(tmp_path):
+    rig = load_rig(default_rig_path())
+    out = run_sequence(rig, sweep(duration_s=6.0), tmp_path, open_rig,
+                       options=RunOptions(tick_s=0.02))
+    with open_rig(rig) as devices:
+        truth = devices.truth()
+    s = fit_static_run(read_run(out.run_dir))
+    assert s.k_f == pytest.approx(truth.params.thrust_k, rel=0.02)
+    # current rises with speed; its slope at hover is the D of Fig. C.5 (positive, small)
+    w_hover = s.omega_for_thrust(0.25 * 9.80665)
+    assert 0 < s.damping_at(float(w_hover)) < 0.05
+    assert math.isnan(s.moment_constant_m)  # the sim stand logs no torque
+
+
+def test_real_f40_static_curves(shared_data):
+    df, _ = import_rcbenchmark(shared_data / "esc_test/rcbenchmark_Log_2019-11-05_171350.csv")
+    s = fit_static(df["rpm"], df["thrust_n"], df["current_a"], df["torque_nm"], df["voltage_v"])
+    # thrust follows w^2 closely: the quadratic fits the plateaus to a few % of full thrust
+    assert s.thrust_rms < 0.02 * np.nanmax(df["thrust_n"])
+    pred = s.k_f * s.omega**2
+    ok = np.isfinite(s.thrust)
+    assert np.sqrt(np.mean((pred[ok] - s.thrust[ok]) ** 2)) < 0.05 * np.nanmax(s.thrust)
+    assert 0.005 < s.moment_constant_m < 0.03  # torque/thrust of a 7 in three-blade prop
+    assert s.omega_max / RPM_TO_RAD_S > 15000
