@@ -13,6 +13,7 @@ import dataclasses
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from bench.errors import RigError
@@ -37,6 +38,7 @@ __all__ = [
     "compile_plan",
     "format_plan",
     "hover_band_n",
+    "load_sequence",
     "step1",
     "step2",
     "sweep",
@@ -151,6 +153,8 @@ class Sequence:
 
     @staticmethod
     def from_dict(data: Mapping[str, Any], source: str = "<sequence>") -> Sequence:
+        if not isinstance(data.get("steps"), list) or not data["steps"]:
+            raise RigError(f"{source}: steps: expected a non-empty list of steps")
         steps = []
         for i, raw in enumerate(data.get("steps", [])):
             kind = raw.get("kind")
@@ -158,6 +162,13 @@ class Sequence:
             if cls is None:
                 raise RigError(f"{source}: steps[{i}].kind: expected one of "
                                f"{sorted(_STEP_TYPES)}, got {kind!r}")
+            for f in dataclasses.fields(cls):
+                value = raw.get(f.name)
+                if f.name in raw and "float" in str(f.type):
+                    ok = isinstance(value, int | float) and not isinstance(value, bool)
+                    if not ok and not (value is None and "None" in str(f.type)):
+                        raise RigError(f"{source}: steps[{i}].{f.name}: expected a number, "
+                                       f"got {value!r}")
             try:
                 steps.append(cls(**raw))
             except TypeError as exc:
@@ -172,6 +183,23 @@ class Sequence:
 
 
 # --- Paper C sequences ---------------------------------------------------------------------
+
+
+def load_sequence(path: Path) -> Sequence:
+    """A sequence from a JSON or TOML file (the ``to_dict`` layout: name, limits, steps)."""
+    import json
+    import tomllib
+
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+        data = tomllib.loads(text) if Path(path).suffix == ".toml" else json.loads(text)
+    except FileNotFoundError:
+        raise RigError(f"{path}: sequence file not found") from None
+    except (OSError, ValueError) as exc:
+        raise RigError(f"{path}: not a readable JSON/TOML sequence: {exc}") from None
+    if not isinstance(data, dict):
+        raise RigError(f"{path}: expected a table with name, limits and steps")
+    return Sequence.from_dict(data, str(path))
 
 
 def hover_band_n(

@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 from bench.commands import _bench_common as common
-from bench.sequences import step1, step2
+from bench.sequences import load_sequence, step1, step2
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -16,15 +17,20 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "commands through the rig's static thrust map; if the rig has none yet, "
                     "a sweep measures it first and stores it with the rig.")
     common.add_common_arguments(p)
-    p.add_argument("--sequence", choices=("step1", "step2"), default="step1")
+    p.add_argument("--sequence", default="step1", metavar="step1|step2|FILE",
+                   help="Paper C Step 1 (default) or Step 2, or a sequence file (.json/.toml "
+                        "with name, limits and steps, as stored in run.json)")
     p.add_argument("--repeats", type=int, default=20, help="number of up/down steps (20)")
     p.add_argument("--hold", type=float, default=0.5, help="seconds each level is held (0.5)")
     p.set_defaults(func=handler)
 
 
 def build(args: argparse.Namespace):
-    maker = step1 if args.sequence == "step1" else step2
-    seq = maker(repeats=args.repeats, hold_s=args.hold)
+    if args.sequence in ("step1", "step2"):
+        maker = step1 if args.sequence == "step1" else step2
+        seq = maker(repeats=args.repeats, hold_s=args.hold)
+    else:
+        seq = load_sequence(Path(args.sequence))
     return common.with_limits(seq, common.parse_limits(args.limit))
 
 
@@ -32,12 +38,12 @@ def handler(args: argparse.Namespace) -> int:
     rig = common.load_rig_from_args(args)
     seq = build(args)
     if args.dry_run:
-        if rig.thrust_map is None:
+        if rig.thrust_map is None and seq.needs_thrust_map:
             print("no static thrust map in the rig yet: a sweep would run first "
                   "(`rotorbench sweep --dry-run` shows it); thrust-step commands shown as (map)")
         common.print_dry_run(rig, seq)
         return 0
-    if rig.thrust_map is None:
+    if rig.thrust_map is None and seq.needs_thrust_map:
         from bench.commands.sweep import measure_map
 
         common.err_console().print(

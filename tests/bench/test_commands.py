@@ -85,3 +85,71 @@ def test_bad_rig_file_is_one_line_and_exit_2(tmp_path, capsys):
 def test_runs_on_an_empty_root(tmp_path, capsys):
     assert main(["runs", "--out", str(tmp_path)]) == 0
     assert "no runs recorded" in capsys.readouterr().out
+
+
+SEQUENCE_TOML = """
+name = "two-steps"
+description = "a hand-written recipe"
+limits = { current_a = 20.0 }
+
+[[steps]]
+kind = "arm"
+
+[[steps]]
+kind = "tare"
+duration_s = 0.5
+
+[[steps]]
+kind = "ramp"
+end_us = 1400.0
+duration_s = 1.0
+
+[[steps]]
+kind = "throttle_step"
+us = 1600.0
+hold_s = 0.5
+
+[[steps]]
+kind = "thrust_step"
+thrust_n = 2.0
+hold_s = 0.5
+
+[[steps]]
+kind = "disarm"
+"""
+
+
+def test_a_sequence_file_runs_and_is_stored(sim_rig_mapped_path, tmp_path, capsys):
+    path = tmp_path / "recipe.toml"
+    path.write_text(SEQUENCE_TOML)
+    assert main(["step", "--rig", str(sim_rig_mapped_path), "--sequence", str(path),
+                 "--dry-run"]) == 0
+    assert "two-steps" in capsys.readouterr().out
+    assert main(["step", "--rig", str(sim_rig_mapped_path), "--sequence", str(path),
+                 "--out", str(tmp_path / "runs")]) == 0
+    run_dir = next((tmp_path / "runs").glob("*-two-steps"))
+    import json
+
+    meta = json.loads((run_dir / "run.json").read_text())
+    assert meta["limits"]["current_a"] == 20.0 and meta["sequence"]["name"] == "two-steps"
+    samples = pd.read_parquet(run_dir / "samples.parquet")
+    assert samples["throttle_us"].max() == pytest.approx(1600.0)
+
+
+@pytest.mark.parametrize(("text", "match"), [
+    ("name = 'x'\n[[steps]]\nkind = 'fly'\n", r"steps\[0\]\.kind"),
+    ("name = 'x'\n[[steps]]\nkind = 'hold'\nduration_s = 'long'\n",
+     r"steps\[0\]\.duration_s: expected a number"),
+    ("name = 'x'\n", "steps: expected a non-empty list"),
+    ("name = 'x\n", "not a readable"),
+])
+def test_a_bad_sequence_file_is_one_line_naming_the_field(sim_rig_mapped_path, tmp_path,
+                                                          capsys, text, match):
+    import re
+
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    assert main(["step", "--rig", str(sim_rig_mapped_path), "--sequence", str(path),
+                 "--dry-run"]) == 2
+    err = capsys.readouterr().err
+    assert str(path) in err and re.search(match, err) and len(err.strip().splitlines()) == 1
