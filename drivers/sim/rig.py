@@ -160,7 +160,7 @@ class SimRig:
             self.clock.now_ns() - round(self.sensor_params.buffer_s * 1e9))
         acq.buffer.trim_before(max(n_floor, min(s.next_n for s in self.sensors.values())))
         traj = self.plant.traj
-        if traj.size > 2048:
+        if traj.size > 64:
             traj.trim_before((acq.buffer.end - 1) * self.sample_clock.dt_ns * 1e-9)
 
     def truth(self) -> PlantTruth:

@@ -61,25 +61,22 @@ class SensorParams:
         return replace(cls(), **overrides)
 
 
-def _splitmix64(x: np.ndarray) -> np.ndarray:
-    """Counter-based hash (SplitMix64 finaliser): uint64 index -> uniform uint64 bits."""
-    with np.errstate(over="ignore"):
-        z = x + np.uint64(0x9E3779B97F4A7C15)
-        z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
-        z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
-        return z ^ (z >> np.uint64(31))
-
-
 class SampleClock:
     """The DAQ's sample clock: index n -> nominal time n / fs plus jitter.
 
-    The jitter of sample n is a hash of (seed, n): reproducible whatever the read slicing.
+    The jitter of sample n is entry ``n mod 2**18`` of a table drawn once from the seed
+    (it repeats every 10.5 s at 25 kHz): the same whatever the read slicing, and a slice
+    of the table rather than a random draw per read.
     """
+
+    TABLE = 1 << 18
 
     def __init__(self, params: SensorParams, seed: int) -> None:
         self.params = params
         self.dt_ns = round(1e9 / params.sample_rate_hz)
-        self._key = np.uint64(int(seed) & 0xFFFFFFFFFFFFFFFF)
+        half = math.sqrt(3.0) * params.jitter_s  # uniform with rms jitter_s
+        rng = np.random.default_rng(seed)
+        self._jitter = rng.uniform(-half, half, self.TABLE)
 
     def index_end(self, now_ns: int) -> int:
         """One past the last sample index taken at or before ``now_ns``."""
@@ -91,10 +88,10 @@ class SampleClock:
     def stamps(self, n0: int, n1: int, nominal: np.ndarray) -> np.ndarray:
         if not self.params.noise or self.params.jitter_s <= 0:
             return nominal
-        bits = _splitmix64(np.arange(n0, n1, dtype=np.uint64) ^ self._key)
-        u = (bits >> np.uint64(11)).astype(np.float64) * (1.0 / 2**53)  # uniform [0, 1)
-        half = math.sqrt(3.0) * self.params.jitter_s
-        return nominal + (2.0 * u - 1.0) * half
+        a = n0 % self.TABLE
+        if a + (n1 - n0) <= self.TABLE:
+            return nominal + self._jitter[a : a + n1 - n0]
+        return nominal + np.take(self._jitter, np.arange(n0, n1), mode="wrap")
 
 
 class ColumnBuffer:
@@ -162,6 +159,7 @@ class Acquisition:
             [p.voltage_noise_v * p.voltage_mv_per_v * 1e-3],
         ])
         self._lsb = 2.0 * p.adc_range_v / 2**p.adc_bits
+        self._out_scale = np.array([[p.current_mv_per_a * 1e-3], [p.voltage_mv_per_v * 1e-3]])
         self._count = 0  # magnet edges seen so far
         self._last_edge = -math.inf
         self._period = math.inf
@@ -189,17 +187,17 @@ class Acquisition:
         plant = self.rig.plant
         traj = plant.traj
         traj.flush()
-        tt = traj.column("t")
-        omega = np.interp(t, tt, traj.column("omega"))
+        state = traj.interpolate(t, ("omega", "i_bus", "v_bus"))
+        omega = state[0]
         force = plant.params.thrust_k * omega * omega  # (E.1)
         felt, self._zi = signal.lfilter(self.cell_b, self.cell_a, force, zi=self._zi)
         out = rows[BRIDGE_V : VOLTAGE_OUT_V + 1]
         np.multiply(felt, p.load_cell_v_per_n, out=out[0])
         out[0] += p.load_cell_offset_v
-        np.multiply(np.interp(t, tt, traj.column("i_bus")), p.current_mv_per_a * 1e-3, out=out[1])
-        np.multiply(np.interp(t, tt, traj.column("v_bus")), p.voltage_mv_per_v * 1e-3, out=out[2])
+        np.multiply(state[1:], self._out_scale, out=out[1:])
         if p.noise:  # one draw per sample for all channels: independent of read slicing
-            out += self.rng.standard_normal((t.size, 3)).T * self._noise_sigma
+            noise = self.rng.standard_normal((t.size, 3), dtype=np.float32).T
+            out += noise * self._noise_sigma
         # AttoPilot outputs swing 0-3.3 V only (unidirectional); then the ADC
         pos = out[1:]
         np.minimum(np.maximum(pos, 0.0, out=pos), p.sensor_out_max_v, out=pos)
@@ -229,28 +227,32 @@ class Acquisition:
         p = self.params
         traj = self.rig.plant.traj
         pitch = 2.0 * math.pi / p.magnets
-        theta_end = float(np.interp(t[-1], traj.column("t"), traj.column("theta")))
+        theta_end = float(traj.interpolate(t[-1:], ("theta",))[0, 0])
         count_end = math.floor(theta_end / pitch)
         if count_end > self._count:
             angles = np.arange(self._count + 1, count_end + 1) * pitch
             tick = 1.0 / p.counter_hz
             t_edge = np.round(self._crossing_times(angles) / tick) * tick
             edges = np.concatenate(([self._last_edge], t_edge))
-            periods = np.concatenate(([self._period], np.diff(edges)))
-            which = np.searchsorted(t_edge, t, side="right")  # latest edge at/before t
-            period = periods[which]
-            last = edges[which]
+            gaps = np.diff(edges)
+            periods = np.concatenate(([self._period], gaps))
+            # each sample holds the latest edge at or before it: runs between edges
+            runs = np.diff(np.concatenate(([0], np.searchsorted(t, t_edge), [t.size])))
+            period = np.repeat(periods, runs)
             self._count = count_end
             self._last_edge = float(t_edge[-1])
             self._period = float(periods[-1])
+            quiet = max(float(gaps.max()), t[-1] - self._last_edge) <= p.rpm_timeout_s
+            last = None if quiet else np.repeat(edges, runs)
         else:
             period = np.full(t.size, self._period)
             last = np.full(t.size, self._last_edge)
-        stale = t - last > p.rpm_timeout_s  # no edge for a while: the counter reads "stopped"
-        if stale.any():
-            period[stale] = math.inf
-            if stale[-1]:
-                self._period = math.inf
+        if last is not None:  # no edge for a while: the counter reads "stopped"
+            stale = t - last > p.rpm_timeout_s
+            if stale.any():
+                period[stale] = math.inf
+                if stale[-1]:
+                    self._period = math.inf
         return period
 
 
