@@ -1,0 +1,238 @@
+"""VESC on CAN as the bench ESC and as a telemetry sensor (speed, current, voltage, temperature).
+
+``VescEsc`` fills ``drivers.contracts.Esc``: a pulse width (1000..2000 µs, the bench's
+common throttle scale) maps linearly to a duty cycle 0..1 sent as ``SET_DUTY``; idle and
+disarm send ``SET_CURRENT 0`` (no torque, the motor coasts). The VESC releases the motor
+when commands stop for 1 s (protocols.md §3.2), so a keep-alive thread repeats the last
+command every ``keepalive_s`` — but only while the host itself keeps commanding: if the
+host has not called ``set_pulse_us`` for ``host_timeout_s`` (a stalled host), the thread
+sends ``SET_CURRENT 0`` and stops refreshing, and the motor stops.
+
+``VescTelemetry`` fills ``drivers.contracts.Sensor`` from the status broadcasts
+(STATUS 1, 4, 5), which are off by default on a VESC: enable them in the VESC app config
+(``can_status_msgs_r1``, e.g. the FOC wizard's STATUS 1-4 plus STATUS 5). Each STATUS 1
+makes one row; the other fields hold their latest value (NaN until first seen).
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from drivers.backends.can_link import CanLink
+from drivers.codecs import vesc_can as vc
+from drivers.codecs.can_log import CanFrame
+from drivers.contracts import Block, ChannelInfo, Clock, DeviceInfo, MonotonicClock
+from drivers.errors import DeviceError
+
+
+@dataclass(frozen=True)
+class VescEscSettings:
+    """How the bench drives one VESC."""
+
+    controller_id: int
+    min_us: float = 1000.0
+    max_us: float = 2000.0
+    keepalive_s: float = 0.1  # resend period, well inside the VESC's 1 s timeout (§3.2)
+    host_timeout_s: float = 0.5  # host silent this long -> stop refreshing (motor stops)
+
+    def duty(self, pulse_us: float) -> float:
+        """Pulse width -> duty cycle, linear between ``min_us`` and ``max_us``."""
+        return min(1.0, max(0.0, (pulse_us - self.min_us) / (self.max_us - self.min_us)))
+
+
+class VescEsc:
+    """The bench ESC on a VESC (``drivers.contracts.Esc``)."""
+
+    def __init__(self, link: CanLink, settings: VescEscSettings, url: str = "can://vesc") -> None:
+        if settings.keepalive_s >= vc.COMMAND_TIMEOUT_S:
+            raise DeviceError(f"{url}: keepalive_s must be below the VESC's "
+                              f"{vc.COMMAND_TIMEOUT_S} s command timeout")
+        self.link = link
+        self.settings = settings
+        self.url = url
+        self._lock = threading.Lock()
+        self._armed = False
+        self._pulse_us = settings.min_us
+        self._last_host_t = time.monotonic()
+        self._stalled = False
+        self._error: DeviceError | None = None
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._keepalive, name=f"vesc-keepalive-{url}",
+                                        daemon=True)
+        self._thread.start()
+
+    def describe(self) -> DeviceInfo:
+        s = self.settings
+        return DeviceInfo(
+            kind="esc", model="VESC (CAN)", url=self.url,
+            channels=(ChannelInfo("throttle_us", "us", 1.0 / s.keepalive_s, s.min_us, s.max_us),),
+            extra={"controller_id": s.controller_id, "keepalive_s": s.keepalive_s,
+                   "host_timeout_s": s.host_timeout_s, "command": "SET_DUTY (linear)"})
+
+    def _command(self) -> CanFrame:
+        duty = self.settings.duty(self._pulse_us) if self._armed else 0.0
+        cid = self.settings.controller_id
+        if duty <= 0.0:
+            return vc.encode(vc.SetCurrent(cid, 0.0))
+        return vc.encode(vc.SetDuty(cid, duty))
+
+    def _send_now(self) -> None:
+        self.link.send(self._command())
+
+    def arm(self) -> None:
+        with self._lock:
+            self._raise_pending()
+            self._armed = True
+            self._pulse_us = self.settings.min_us
+            self._touch()
+            self._send_now()
+
+    def set_pulse_us(self, pulse_us: float) -> None:
+        pulse = float(pulse_us)
+        if not math.isfinite(pulse):
+            raise DeviceError(f"{self.url}: pulse width must be finite, got {pulse_us!r}")
+        s = self.settings
+        with self._lock:
+            self._raise_pending()
+            self._pulse_us = min(s.max_us, max(s.min_us, pulse))
+            self._touch()
+            if self._armed:
+                self._send_now()
+
+    def disarm(self) -> None:
+        """Idle + disarm (``SET_CURRENT 0``). Never raises: the VESC's own timeout is the
+        fallback when the bus is gone."""
+        with self._lock:
+            self._armed = False
+            self._pulse_us = self.settings.min_us
+            try:
+                self._send_now()
+            except DeviceError:
+                pass
+
+    def close(self) -> None:
+        self.disarm()
+        self._stop.set()
+        if self._thread is not threading.current_thread():
+            self._thread.join(timeout=1.0)
+
+    def _touch(self) -> None:
+        self._last_host_t = time.monotonic()
+        self._stalled = False
+
+    def _raise_pending(self) -> None:
+        if self._error is not None:
+            err, self._error = self._error, None
+            raise err
+
+    def _keepalive(self) -> None:
+        while not self._stop.wait(self.settings.keepalive_s):
+            with self._lock:
+                if not self._armed:
+                    continue
+                host_silent = time.monotonic() - self._last_host_t > self.settings.host_timeout_s
+                if host_silent and self._stalled:
+                    continue  # already released; the VESC's own timeout keeps it off
+                try:
+                    if host_silent:
+                        self.link.send(vc.encode(vc.SetCurrent(self.settings.controller_id, 0.0)))
+                        self._stalled = True
+                    else:
+                        self._send_now()
+                except DeviceError as exc:
+                    self._error = exc
+
+    @property
+    def host_stalled(self) -> bool:
+        """True once the keep-alive has released the motor because the host went silent."""
+        return self._stalled
+
+
+TELEMETRY_CHANNELS = ("rpm", "current_a", "voltage_v", "motor_current_a", "duty", "temp_fet_c",
+                      "temp_motor_c")
+
+
+class VescTelemetry:
+    """Speed, input current, voltage and temperatures of one VESC (``Sensor``).
+
+    ``rpm`` is mechanical (electrical rpm / ``pole_pairs``); ``current_a`` is the input
+    (supply) current of STATUS 4, ``motor_current_a`` the motor current of STATUS 1.
+    ``read_block`` raises ``DeviceError`` when no STATUS 1 arrived for ``stale_s``.
+    """
+
+    def __init__(self, link: CanLink, controller_id: int, pole_pairs: int, *,
+                 clock: Clock | None = None, stale_s: float = 0.5, rate_hz: float = 50.0,
+                 url: str = "can://vesc") -> None:
+        if pole_pairs < 1:
+            raise DeviceError(f"{url}: pole_pairs must be >= 1, got {pole_pairs}")
+        self.link = link
+        self.controller_id = controller_id
+        self.pole_pairs = pole_pairs
+        self.clock = clock or MonotonicClock()
+        self.stale_s = stale_s
+        self.rate_hz = rate_hz  # §3.2 default can_status_rate_1 = 50 Hz
+        self.url = url
+        self.decoder = vc.VescDecoder(controller_ids={controller_id})
+        self._lock = threading.Lock()
+        self._latest = dict.fromkeys(TELEMETRY_CHANNELS, math.nan)
+        self._rows: list[tuple[float, ...]] = []
+        self._opened = self.clock.now()
+        self._last_status: float | None = None
+        self._closed = False
+        link.subscribe(self._on_frame)
+
+    def describe(self) -> DeviceInfo:
+        units = {"rpm": "rpm", "current_a": "A", "voltage_v": "V", "motor_current_a": "A",
+                 "duty": "1", "temp_fet_c": "degC", "temp_motor_c": "degC"}
+        return DeviceInfo(kind="esc_telemetry", model="VESC status broadcasts", url=self.url,
+                          channels=tuple(ChannelInfo(n, units[n], self.rate_hz)
+                                         for n in TELEMETRY_CHANNELS),
+                          extra={"controller_id": self.controller_id,
+                                 "pole_pairs": self.pole_pairs})
+
+    def _on_frame(self, frame: CanFrame) -> None:
+        for msg in self.decoder.feed(frame):
+            now = self.clock.now()
+            with self._lock:
+                lat = self._latest
+                if isinstance(msg, vc.Status1):
+                    lat["rpm"] = vc.mech_rpm(msg.erpm, self.pole_pairs)
+                    lat["motor_current_a"] = msg.current_a
+                    lat["duty"] = msg.duty
+                    self._rows.append((now, *(lat[n] for n in TELEMETRY_CHANNELS)))
+                    self._last_status = now
+                elif isinstance(msg, vc.Status4):
+                    lat["temp_fet_c"] = msg.temp_fet_c
+                    lat["temp_motor_c"] = msg.temp_motor_c
+                    lat["current_a"] = msg.current_in_a
+                elif isinstance(msg, vc.Status5):
+                    lat["voltage_v"] = msg.voltage_in_v
+
+    def read_block(self) -> Block:
+        if self._closed:
+            raise DeviceError(f"{self.url}: telemetry is closed")
+        now = self.clock.now()
+        with self._lock:
+            rows, self._rows = self._rows, []
+            last = self._last_status
+        if last is None and now - self._opened > self.stale_s:
+            raise DeviceError(f"{self.url}: no STATUS broadcast from VESC "
+                              f"{self.controller_id} within {self.stale_s} s (enable "
+                              "STATUS 1/4/5 in can_status_msgs_r1)")
+        if last is not None and now - last > self.stale_s:
+            raise DeviceError(f"{self.url}: VESC {self.controller_id} silent for "
+                              f"{now - last:.3f} s (disconnected?)")
+        if not rows:
+            return Block.empty(TELEMETRY_CHANNELS)
+        arr = np.array(rows, dtype=float)
+        return Block(arr[:, 0], {n: arr[:, k + 1] for k, n in enumerate(TELEMETRY_CHANNELS)})
+
+    def close(self) -> None:
+        if not self._closed:
+            self._closed = True
+            self.link.unsubscribe(self._on_frame)

@@ -1,0 +1,131 @@
+"""A simulated VESC on a CAN bus: takes the real commands, broadcasts the real statuses.
+
+Behaviour from protocols.md §3.2: commands SET_DUTY / SET_CURRENT / SET_CURRENT_BRAKE /
+SET_RPM addressed to its controller id; the motor is released when no command arrived
+for ``timeout_s`` (firmware default 1 s); STATUS 1, 4 and 5 broadcast at ``status_rate_hz``
+(the firmware default rate is 50 Hz, the default mask is empty — here they are on).
+The motor itself is the ``model`` callable: ``model(t_s, command) -> VescState``.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from drivers.backends.can_link import CanLink
+from drivers.codecs import vesc_can as vc
+from drivers.codecs.can_log import CanFrame
+from drivers.errors import DeviceError
+
+
+@dataclass(frozen=True)
+class VescCommand:
+    """The command in force: ``kind`` is duty, current, brake, rpm or release."""
+
+    kind: str = "release"
+    value: float = 0.0
+
+
+@dataclass(frozen=True)
+class VescState:
+    """What the motor model reports; becomes the status broadcasts."""
+
+    erpm: float
+    motor_current_a: float
+    duty: float
+    input_current_a: float
+    voltage_in_v: float
+    temp_fet_c: float
+    temp_motor_c: float
+    tachometer: int = 0
+
+
+VescModel = Callable[[float, VescCommand], VescState]
+
+
+class SimVescDevice:
+    """One simulated VESC on ``link``; ``start()`` begins broadcasting, ``stop()`` ends."""
+
+    def __init__(self, link: CanLink, controller_id: int, model: VescModel, *,
+                 status_rate_hz: float = 50.0, timeout_s: float = vc.COMMAND_TIMEOUT_S) -> None:
+        self.link = link
+        self.controller_id = controller_id
+        self.model = model
+        self.period_s = 1.0 / status_rate_hz
+        self.timeout_s = timeout_s
+        self.command = VescCommand()
+        self.commands_seen: list[VescCommand] = []
+        self.timeouts = 0
+        self._last_cmd_t = -float("inf")
+        self._t0 = time.monotonic()
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._silent = threading.Event()
+        self._thread = threading.Thread(target=self._run, name=f"sim-vesc-{controller_id}",
+                                        daemon=True)
+        link.subscribe(self._on_frame)
+
+    def start(self) -> SimVescDevice:
+        self._thread.start()
+        return self
+
+    def stop(self) -> None:
+        self._stop.set()
+        self.link.unsubscribe(self._on_frame)
+        if self._thread.is_alive():
+            self._thread.join(timeout=1.0)
+
+    def disconnect(self) -> None:
+        """Fault: the VESC vanishes from the bus (no statuses, commands ignored)."""
+        self._silent.set()
+
+    def reconnect(self) -> None:
+        self._silent.clear()
+
+    def _on_frame(self, frame: CanFrame) -> None:
+        if self._silent.is_set():
+            return
+        msg = vc.decode(frame)
+        if msg is None or getattr(msg, "controller_id", None) != self.controller_id:
+            return
+        cmd = None
+        if isinstance(msg, vc.SetDuty):
+            cmd = VescCommand("duty", msg.duty)
+        elif isinstance(msg, vc.SetCurrent):
+            cmd = VescCommand("current", msg.current_a)
+        elif isinstance(msg, vc.SetCurrentBrake):
+            cmd = VescCommand("brake", msg.current_a)
+        elif isinstance(msg, vc.SetRpm):
+            cmd = VescCommand("rpm", msg.erpm)
+        if cmd is not None:
+            with self._lock:
+                self.command = cmd
+                self.commands_seen.append(cmd)
+                self._last_cmd_t = time.monotonic()
+
+    def _run(self) -> None:
+        next_t = time.monotonic()
+        while not self._stop.is_set():
+            next_t += self.period_s
+            now = time.monotonic()
+            with self._lock:
+                if self.command.kind != "release" and now - self._last_cmd_t > self.timeout_s:
+                    self.command = VescCommand()  # §3.2 timeout: motor released
+                    self.timeouts += 1
+                cmd = self.command
+            state = self.model(now - self._t0, cmd)
+            if not self._silent.is_set():
+                self._broadcast(state)
+            self._stop.wait(max(0.0, next_t - time.monotonic()))
+
+    def _broadcast(self, s: VescState) -> None:
+        cid = self.controller_id
+        for msg in (vc.Status1(cid, round(s.erpm), s.motor_current_a, s.duty),
+                    vc.Status4(cid, s.temp_fet_c, s.temp_motor_c, s.input_current_a, 0.0),
+                    vc.Status5(cid, s.tachometer, s.voltage_in_v)):
+            try:
+                self.link.send(vc.encode(msg))
+            except (DeviceError, ValueError):  # a full bus or an out-of-range model value
+                return
