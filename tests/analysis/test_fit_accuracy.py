@@ -19,20 +19,24 @@ import dataclasses
 import pytest
 
 from analysis.run_record import read_run
+from analysis.static_curves import TABLE_C2
 from analysis.step_response import fit_run
+from analysis.validation import validate_run
+from bench.cli import main
 from bench.rig import default_rig_path, load_rig
 from bench.runner import RunOptions
-from bench.sequences import G0, hover_band_n, step1
+from bench.sequences import G0, hover_band_n, step1, step2
 from bench.session import run_sequence
 from drivers.factory import open_rig
 
 HOVER_N = 0.25 * G0  # Paper C: 250 g per rotor of the 1 kg quadcopter
 
 
-def _run(tmp, mode: str, noise: bool, band: tuple[float, float], repeats: int = 4):
+def _run(tmp, mode: str, noise: bool, band: tuple[float, float], repeats: int = 4,
+         seq=step1):
     rig = load_rig(default_rig_path()).with_esc_mode(mode)
     rig = dataclasses.replace(rig, sim=dataclasses.replace(rig.sim, noise=noise))
-    seq = step1(repeats=repeats, hold_s=0.6, settle_s=0.5, band_n=band)
+    seq = seq(repeats=repeats, hold_s=0.6, settle_s=0.5, band_n=band)
     out = run_sequence(rig, seq, tmp, open_rig, options=RunOptions(tick_s=0.02))
     with open_rig(rig) as devices:
         truth = devices.truth()
@@ -49,6 +53,8 @@ def runs(tmp_path_factory):
             band = (HOVER_N * (1 - rel), HOVER_N * (1 + rel))
             out[(mode, noise)] = _run(tmp, mode, noise, band)
         out[(mode, "step1")] = _run(tmp, mode, True, hover_band_n(), repeats=5)
+    for mode in ("complementary", "diode"):
+        out[(mode, "step2")] = _run(tmp, mode, True, hover_band_n(), repeats=2, seq=step2)
     return out
 
 
@@ -113,3 +119,33 @@ def test_step1_reproduces_the_table_c1_pattern(runs):
     assert stock.up.latency.value > diode.up.latency.value + 0.005
     # rise/fall asymmetry: complementary smallest (Table C.1 RMS 11 vs 96 and 279)
     assert comp.rise_fall_rms < stock.rise_fall_rms < diode.rise_fall_rms
+
+
+def test_step2_validation_first_order_fits_complementary_best(runs):
+    # Paper C section 5.1: the complementary ESC is almost exactly first order; the diode
+    # scheme's falling response is not (Fig. C.17 vs C.18)
+    err = {}
+    for mode in ("complementary", "diode"):
+        fit = fit_run(runs[(mode, "step1")][0])
+        v = validate_run(runs[(mode, "step2")][0], fit)
+        assert v.rising_starts.size == 2 and v.falling_starts.size == 2
+        err[mode] = v.rms_first_order_pct
+    assert err["complementary"] < 2.0
+    assert err["diode"] > 1.5 * err["complementary"]
+
+
+def test_report_command_writes_tables_and_figures(runs, tmp_path, capsys):
+    s1 = runs[("complementary", "step1")][0].path
+    s2 = runs[("complementary", "step2")][0].path
+    out = tmp_path / "rep"
+    assert main(["report", str(s1), str(s2), "--out", str(out)]) == 0
+    names = {p.name for p in out.iterdir()}
+    assert {"table_c1.csv", "steps.png", "validation.csv", "report.json"} <= names
+    assert any(n.startswith("validation_") and n.endswith(".png") for n in names)
+    table = (out / "table_c1.csv").read_text(encoding="utf-8").splitlines()
+    assert table[1].startswith("complementary,") and table[2].startswith("From Parameters,")
+    # "From Parameters" of the default rig's hardware: (C.3) with Table C.2 (32 ms)
+    assert float(table[2].split(",")[2]) == pytest.approx(32.3, abs=0.1)
+    assert TABLE_C2.kv_rpm_v == 920.0
+    assert "Table C.1" in capsys.readouterr().out
+    assert not any(p.name.startswith(".") for p in tmp_path.iterdir())

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from analysis.errors import LogError
+from analysis.flight_time import flight_time_min, hover_current_a
 from analysis.importers import import_rcbenchmark
 from analysis.run_record import read_run
 from analysis.static_curves import (
@@ -96,3 +97,19 @@ def test_real_f40_static_curves(shared_data):
     assert np.sqrt(np.mean((pred[ok] - s.thrust[ok]) ** 2)) < 0.05 * np.nanmax(s.thrust)
     assert 0.005 < s.moment_constant_m < 0.03  # torque/thrust of a 7 in three-blade prop
     assert s.omega_max / RPM_TO_RAD_S > 15000
+
+
+def test_flight_time_from_measured_current():
+    # Paper E section 4: capacity (Ah) / (measured current x number of actuators)
+    assert flight_time_min(4000, 2.0, 4) == pytest.approx(30.0)
+    # a bench supply of 16 V against an 11.1 V battery: equal power, more current
+    assert flight_time_min(4000, 2.0, 4, 16.0, 11.1) == pytest.approx(30.0 * 11.1 / 16.0)
+    with pytest.raises(ValueError):
+        flight_time_min(4000, 0.0, 4)
+    rpm = np.repeat(np.linspace(2000, 12000, 30), 5)
+    w = rpm * RPM_TO_RAD_S
+    s = fit_static(rpm, 2e-6 * w**2, 0.2 + 1e-8 * w**3)
+    w_h = math.sqrt(2.0 / 2e-6)
+    assert hover_current_a(s, 2.0) == pytest.approx(0.2 + 1e-8 * w_h**3, rel=1e-3)
+    with pytest.raises(LogError, match="outside the measured thrust range"):
+        hover_current_a(s, 100.0)

@@ -1,0 +1,168 @@
+"""``rotorbench report RUN [RUN ...] [--out DIR]``: Table C.1, static curves, Step 2
+validation and their figures for a set of runs.
+
+Step runs are fitted (Table C.1, Fig. C.9-C.12), sweeps and imported stand logs give the
+static curves (Fig. C.13-C.14), and Step 2 runs are simulated with the fitted models of
+the Step 1 run of the same ESC mode (Fig. C.16-C.19). The folder is built beside ``DIR``
+and renamed into place when complete.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import shutil
+from pathlib import Path
+from typing import Any
+
+from rich.console import Console
+
+from bench.errors import RigError
+
+G0 = 9.80665
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "report", help="tables (Table C.1, static curves, Step 2 validation) and figures",
+        description="Fits every step run (Table C.1), the static curves of every sweep or "
+                    "imported log (Fig. C.13-C.14) and simulates the fitted models on every "
+                    "Step 2 run (Fig. C.16-C.19); writes PNG figures and CSV tables.")
+    p.add_argument("runs", type=Path, nargs="+", metavar="RUN", help="run folders")
+    p.add_argument("--out", type=Path, default=None,
+                   help="output folder (default: ./report-<first run id>)")
+    p.add_argument("--kv", type=float, default=None, help="motor K_V (rpm/V) for (C.3)")
+    p.add_argument("--r-ohm", type=float, default=None, help="winding resistance (ohm)")
+    p.add_argument("--j-kg-m2", type=float, default=None, help="inertia motor + propeller")
+    p.set_defaults(func=handler)
+
+
+def _motor(args: argparse.Namespace, records: list[Any]):
+    from analysis.static_curves import TABLE_C2, MotorParams
+
+    given = (args.kv, args.r_ohm, args.j_kg_m2)
+    if all(v is not None for v in given):
+        return MotorParams(args.kv, args.r_ohm, args.j_kg_m2)
+    if any(v is not None for v in given):
+        raise RigError("--kv, --r-ohm and --j-kg-m2 go together")
+    # Paper C's hardware (the default sim rig): Table C.2's datasheet/measured inputs
+    if any(r.components.get("motor") == "dji-2212-920kv" for r in records):
+        return TABLE_C2
+    return None
+
+
+def build(args: argparse.Namespace, out: Path, console: Console) -> dict[str, Any]:
+    from analysis.errors import LogError
+    from analysis.figures import plot_static, plot_steps, plot_validation
+    from analysis.report import Table, table_c1, write_csv
+    from analysis.run_record import read_run
+    from analysis.static_curves import fit_static_run, from_parameters
+    from analysis.step_response import fit_run
+    from analysis.validation import validate_run
+
+    records = [read_run(p) for p in args.runs]
+    motor = _motor(args, records)
+    fits, statics, step2s, notes = [], [], [], []
+    for rec in records:
+        kind = str(rec.meta.get("kind", ""))
+        label = str(rec.components.get("esc_mode") or rec.id)
+        if kind in ("sweep", "import"):
+            try:
+                statics.append((rec, fit_static_run(rec)))
+            except LogError as exc:
+                notes.append(f"{rec.id}: no static curves ({exc})")
+        elif kind == "step2":
+            step2s.append((rec, label))
+        else:
+            try:
+                fits.append((rec, label, fit_run(rec)))
+            except LogError as exc:
+                notes.append(f"{rec.id}: no step fit ({exc})")
+    summary: dict[str, Any] = {"runs": [str(r.path) for r in records], "notes": notes}
+
+    tau_par = None
+    if motor is not None:
+        d = motor.d_a_s_rad
+        for _, s in statics:  # D of Fig. C.5: slope of the measured current at hover
+            w = float(s.omega_for_thrust(0.25 * G0)) if s.thrust_poly is not None else math.nan
+            if math.isfinite(w) and s.current_poly is not None:
+                d = s.damping_at(w)
+                break
+        if math.isfinite(d):
+            tau_par = from_parameters(motor, d)[0]
+            summary["from_parameters"] = {"tau_ms": tau_par * 1e3, "damping_a_s_rad": d}
+    if fits:
+        tc1 = table_c1([(lbl, f) for _, lbl, f in fits], tau_par)
+        console.print(tc1.to_rich())
+        write_csv(tc1, out / "table_c1.csv")
+        plot_steps([(lbl, f) for _, lbl, f in fits], out / "steps.png")
+        summary["fits"] = {f"{lbl} ({rec.id})": {k: v for k, v in f.summary().items()
+                                                 if k != "edges"} for rec, lbl, f in fits}
+    if statics:
+        rows = []
+        for rec, s in statics:
+            plot_static(s, out / f"static_{rec.id}.png", title=f"Static curves: {rec.id}")
+            sm = s.summary()
+            rows.append((rec.id, sm["k_f_n_s2"], sm["moment_constant_m"], sm["rpm_max"],
+                         sm["thrust_rms_n"], sm["current_rms_a"]))
+            summary.setdefault("static", {})[rec.id] = sm
+        ts = Table("Static curves (Fig. C.13-C.14)",
+                   ("run", "k_f [N s2]", "torque/thrust [m]", "rpm max", "thrust rms [N]",
+                    "current rms [A]"), tuple(rows))
+        console.print(ts.to_rich())
+        write_csv(ts, out / "static_curves.csv")
+    if step2s:
+        rows = []
+        static = next((s for _, s in statics if s.current_poly is not None
+                       and s.thrust_poly is not None), None)
+        for rec, label in step2s:
+            fit = next((f for _, lbl, f in fits if lbl == label), None)
+            if fit is None:
+                notes.append(f"{rec.id}: no Step 1 fit of ESC mode {label} to validate")
+                continue
+            v = validate_run(rec, fit, static, motor)
+            plot_validation(v, out / f"validation_{rec.id}.png",
+                            title=f"Step 2, {label}: RMS error first order "
+                                  f"{v.rms_first_order_pct:.1f} %, nonlinear load "
+                                  f"{v.rms_nonlinear_pct:.1f} % of the band")
+            rows.append((label, v.rms_first_order / G0 * 1e3, v.rms_first_order_pct,
+                         v.rms_nonlinear / G0 * 1e3, v.rms_nonlinear_pct))
+        if rows:
+            tv = Table("Step 2 validation (Paper C section 5)",
+                       ("ESC", "first order [g]", "[% band]", "nonlinear load [g]",
+                        "[% band]"), tuple(rows))
+            console.print(tv.to_rich())
+            write_csv(tv, out / "validation.csv")
+            summary["validation"] = [dict(zip(tv.columns, r, strict=True)) for r in rows]
+    for n in notes:
+        console.print(f"note: {n}")
+    return summary
+
+
+def handler(args: argparse.Namespace) -> int:
+    from analysis.run_record import read_run
+
+    out = args.out or Path(f"report-{read_run(args.runs[0]).id}")
+    tmp = out.with_name(f".{out.name}.tmp")
+    if tmp.exists():
+        shutil.rmtree(tmp)
+    tmp.mkdir(parents=True)
+    console = Console(width=shutil.get_terminal_size((160, 24)).columns)
+    try:
+        summary = build(args, tmp, console)
+        with open(tmp / "report.json", "w", encoding="utf-8") as fh:
+            json.dump(summary, fh, indent=2, default=float)
+        old = out.with_name(f".{out.name}.old")
+        if out.exists():
+            os.replace(out, old)
+        os.replace(tmp, out)
+        shutil.rmtree(old, ignore_errors=True)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    files = sorted(p.name for p in out.iterdir())
+    console.print(f"{out}: {', '.join(files)}")
+    return 0
+
