@@ -9,7 +9,9 @@ first, then records the exit status (``success``, ``abort`` or ``fail``) and the
 
 from __future__ import annotations
 
+import contextlib
 import math
+import signal
 import threading
 import time
 from collections.abc import Callable, Mapping
@@ -152,15 +154,17 @@ class Runner:
         except BaseException as exc:
             status, reason, pending = "fail", f"{type(exc).__name__}: {exc}", exc
         finally:
-            # Safety first: idle + disarm before anything else can fail.
-            errors = self.esc.safe_stop()
-            self.watchdog.stop()
-            if self.watchdog.tripped and status == "success":
-                status, reason = "abort", self.watchdog.reason
-            errors += self.watchdog.errors
-            self.result = RunResult(status, reason, trip, self._now_rel(), self.rows, errors,
-                                    pending)
-            self._finish_record(trip, errors)
+            # Safety first: idle + disarm before anything else can fail. A second Ctrl-C
+            # (or SIGTERM) is held until the ESC is safe and the record is written.
+            with _signals_deferred():
+                errors = self.esc.safe_stop()
+                self.watchdog.stop()
+                if self.watchdog.tripped and status == "success":
+                    status, reason = "abort", self.watchdog.reason
+                errors += self.watchdog.errors
+                self.result = RunResult(status, reason, trip, self._now_rel(), self.rows,
+                                        errors, pending)
+                self._finish_record(trip, errors)
         if pending is not None:
             raise pending
         return self.result
@@ -312,3 +316,22 @@ class Runner:
                 safe_stop_errors=errors,
                 duration_s=res.t_end_s,
             )
+
+
+@contextlib.contextmanager
+def _signals_deferred():
+    """Hold SIGINT/SIGTERM while the ESC is made safe (main thread only), then re-deliver."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    got: list[int] = []
+    previous = {}
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        previous[sig] = signal.signal(sig, lambda num, _frame: got.append(num))
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        for num in got:
+            signal.raise_signal(num)

@@ -236,3 +236,26 @@ def test_bad_tick_is_refused():
         RunOptions(tick_s=0.0)
     with pytest.raises(RigError, match="--tick"):
         RunOptions(tick_s=0.5)  # slower than the ESC failsafe wants its heartbeat
+
+
+def test_a_second_ctrl_c_during_the_safe_stop_does_not_cut_it_short(fakes, tmp_path):
+    import signal
+
+    rig = fakes.FakeRig()
+    rig.faults.interrupt_at_s = rig.clock.t + 3.3  # first Ctrl-C: ends the run
+    original = rig.esc.set_pulse_us
+    fired = []
+
+    def set_pulse(us):
+        if us == 1000.0 and not fired and rig.clock.t >= 103.3:  # the safe stop's idle
+            fired.append(True)
+            signal.raise_signal(signal.SIGINT)  # second Ctrl-C, while stopping
+        original(us)
+
+    rig.esc.set_pulse_us = set_pulse
+    runner, _ = make_runner(rig, tmp_path)
+    with pytest.raises(KeyboardInterrupt):
+        runner.run()
+    assert fired
+    assert_safe(rig)
+    assert run_json(tmp_path)["status"] == "abort"
