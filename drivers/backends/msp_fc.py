@@ -1,0 +1,188 @@
+"""A flight controller over MSP (serial): the IMU under test and a motor-test ESC.
+
+``MspClient`` does request/response on one port (protocols.md §1: strictly request/
+response, no documented deadline; 100 ms is the reference's suggested client timeout
+[U]). ``MspImu`` polls RAW_IMU and ATTITUDE on a thread and hands the rows out as a
+``Sensor``; ``MspMotorEsc`` drives one motor through MSP_SET_MOTOR as an ``Esc``.
+
+Safety, from §1.7: Betaflight applies SET_MOTOR values **only while disarmed** (the
+configurator motor test), and the motors then really spin; no FC-side timeout for motor
+test values is documented, so a stalled host is caught only by the host's own watchdog
+— ``MspMotorEsc.close()``/``disarm()`` always send every motor to 1000.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from typing import Any
+
+import numpy as np
+
+from drivers.backends.serial_link import Deadline, read_some, write_all
+from drivers.codecs import msp
+from drivers.contracts import Block, ChannelInfo, Clock, DeviceInfo, MonotonicClock
+from drivers.errors import DeviceError
+
+DEFAULT_TIMEOUT_S = 0.1  # §1.9 timing note: ~100 ms at 115200 baud [U]
+
+
+class MspClient:
+    """Request/response over one serial port, shared by the IMU poller and the ESC."""
+
+    def __init__(self, port: Any, name: str = "msp", *, timeout_s: float = DEFAULT_TIMEOUT_S,
+                 version: int = 1, max_payload: int = 512) -> None:
+        self.port = port
+        self.name = name
+        self.timeout_s = timeout_s
+        self.version = version
+        self.decoder = msp.MspDecoder(max_payload, typed=True)
+        self.lock = threading.RLock()
+
+    def request(self, message: msp.MspMessage) -> msp.MspMessage:
+        """Send a request (or SET command) and return the FC's reply to that command."""
+        cmd = message.cmd if isinstance(message, msp.Request) else message.CMD
+        with self.lock:
+            write_all(self.port, msp.encode_message(message, self.version), self.name)
+            deadline = Deadline(self.timeout_s)
+            while True:
+                for reply in self.decoder.feed(read_some(self.port, self.name)):
+                    if getattr(reply, "cmd", getattr(reply, "CMD", None)) != cmd:
+                        continue  # a late reply to an earlier request
+                    if isinstance(reply, msp.ErrorReply):
+                        raise DeviceError(f"{self.name}: FC refused MSP command {cmd}")
+                    if isinstance(reply, (msp.Request, msp.SetMotor)):
+                        continue  # our own request echoed (loopback)
+                    return reply
+                if deadline.expired:
+                    raise DeviceError(f"{self.name}: no reply to MSP command {cmd} within "
+                                      f"{self.timeout_s * 1e3:.0f} ms")
+
+    def identify(self) -> tuple[str, msp.ApiVersion]:
+        variant = self.request(msp.Request(msp.MSP_FC_VARIANT))
+        api = self.request(msp.Request(msp.MSP_API_VERSION))
+        if not isinstance(variant, msp.FcVariant) or not isinstance(api, msp.ApiVersion):
+            raise DeviceError(f"{self.name}: unexpected identification replies")
+        return variant.name, api
+
+
+IMU_CHANNELS = ("acc_x_m_s2", "acc_y_m_s2", "acc_z_m_s2", "gyro_x_rad_s", "gyro_y_rad_s",
+                "gyro_z_rad_s", "roll_rad", "pitch_rad", "yaw_rad")
+
+
+class MspImu:
+    """The FC's IMU and attitude, polled at ``rate_hz`` on a thread (``Sensor``)."""
+
+    def __init__(self, client: MspClient, *, rate_hz: float = 100.0, acc_1g: float | None = None,
+                 clock: Clock | None = None, url: str = "serial://msp") -> None:
+        self.client = client
+        self.rate_hz = rate_hz
+        self.clock = clock or MonotonicClock()
+        self.url = url
+        self.variant, self.api = client.identify()
+        self.acc_1g = acc_1g
+        try:  # fail at open, not in the poller, when the scaling is unknown
+            msp.imu_si(msp.RawImu((0, 0, 0), (0, 0, 0), (0, 0, 0)), self.variant, acc_1g)
+        except ValueError as exc:
+            raise DeviceError(f"{url}: {exc}") from None
+        self._rows: list[tuple[float, ...]] = []
+        self._error: DeviceError | None = None
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._poll, name=f"msp-imu-{url}", daemon=True)
+        self._thread.start()
+
+    def describe(self) -> DeviceInfo:
+        units = ["m/s^2"] * 3 + ["rad/s"] * 3 + ["rad"] * 3
+        return DeviceInfo(kind="imu", model=f"flight controller ({self.variant}, MSP API "
+                          f"{self.api.api_major}.{self.api.api_minor})", url=self.url,
+                          channels=tuple(ChannelInfo(n, u, self.rate_hz)
+                                         for n, u in zip(IMU_CHANNELS, units, strict=True)))
+
+    def _poll(self) -> None:
+        period = 1.0 / self.rate_hz
+        while not self._stop.wait(period):
+            try:
+                raw = self.client.request(msp.Request(msp.MSP_RAW_IMU))
+                att = self.client.request(msp.Request(msp.MSP_ATTITUDE))
+            except DeviceError as exc:
+                with self._lock:
+                    self._error = exc
+                return
+            if not isinstance(raw, msp.RawImu) or not isinstance(att, msp.Attitude):
+                continue
+            acc, gyro = msp.imu_si(raw, self.variant, self.acc_1g)
+            with self._lock:
+                self._rows.append((self.clock.now(), *acc, *gyro, att.roll_rad, att.pitch_rad,
+                                   att.yaw_rad))
+
+    def read_block(self) -> Block:
+        with self._lock:
+            rows, self._rows = self._rows, []
+            err = self._error
+        if err is not None:
+            raise err
+        if not rows:
+            return Block.empty(IMU_CHANNELS)
+        arr = np.array(rows, dtype=float)
+        return Block(arr[:, 0], {n: arr[:, k + 1] for k, n in enumerate(IMU_CHANNELS)})
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout=1.0)
+
+
+class MspMotorEsc:
+    """One motor of the FC driven by MSP_SET_MOTOR (motor test, FC disarmed) as an ``Esc``.
+
+    The FC must stay *disarmed* for the values to apply (§1.7); protocols.md does not say
+    which status flag bit means armed, so ``arm()`` only enables sending.
+    """
+
+    def __init__(self, client: MspClient, motor_index: int, *, min_us: float = 1000.0,
+                 max_us: float = 2000.0, url: str = "serial://msp") -> None:
+        if not 0 <= motor_index < msp.MOTOR_SLOTS:
+            raise DeviceError(f"{url}: motor index must be 0..{msp.MOTOR_SLOTS - 1}")
+        self.client = client
+        self.motor_index = motor_index
+        self.min_us = max(min_us, msp.MOTOR_MIN_US)
+        self.max_us = min(max_us, msp.MOTOR_MAX_US)
+        self.url = url
+        self._armed = False
+
+    def describe(self) -> DeviceInfo:
+        return DeviceInfo(kind="esc", model="flight controller motor test (MSP_SET_MOTOR)",
+                          url=self.url,
+                          channels=(ChannelInfo("throttle_us", "us", 0.0, self.min_us,
+                                                self.max_us),),
+                          extra={"motor_index": self.motor_index})
+
+    def _send(self, pulse_us: float) -> None:
+        values = [msp.MOTOR_MIN_US] * msp.MOTOR_SLOTS
+        values[self.motor_index] = round(pulse_us)
+        reply = self.client.request(msp.SetMotor(tuple(values)))
+        if not isinstance(reply, msp.Ack):
+            raise DeviceError(f"{self.url}: SET_MOTOR not acknowledged ({reply!r})")
+
+    def arm(self) -> None:
+        self._send(msp.MOTOR_MIN_US)
+        self._armed = True
+
+    def set_pulse_us(self, pulse_us: float) -> None:
+        pulse = float(pulse_us)
+        if not math.isfinite(pulse):
+            raise DeviceError(f"{self.url}: pulse width must be finite, got {pulse_us!r}")
+        if self._armed:
+            self._send(min(self.max_us, max(self.min_us, pulse)))
+
+    def disarm(self) -> None:
+        """Every motor to 1000 (stop). Never raises."""
+        self._armed = False
+        try:
+            self._send(msp.MOTOR_MIN_US)
+        except DeviceError:
+            pass
+
+    def close(self) -> None:
+        self.disarm()

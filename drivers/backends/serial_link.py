@@ -1,0 +1,51 @@
+"""The one module that imports pyserial: open a port by URL, read with deadlines.
+
+Drivers receive a ``serial.SerialBase`` (a real port, ``loop://``, ``spy://``, a pty
+path) and use ``read_some`` / ``write_all`` so that timeouts and disconnects become
+``DeviceError``s naming the port.
+"""
+
+from __future__ import annotations
+
+import time
+
+import serial
+
+from drivers.errors import DeviceError
+
+
+def open_port(url: str, baudrate: int, *, timeout_s: float = 0.01) -> serial.SerialBase:
+    """``serial_for_url`` with errors turned into ``DeviceError`` (the port name in it)."""
+    try:
+        return serial.serial_for_url(url, baudrate=baudrate, timeout=timeout_s,
+                                     write_timeout=1.0)
+    except (serial.SerialException, ValueError, OSError) as exc:
+        raise DeviceError(f"serial {url}: cannot open ({exc})") from None
+
+
+def read_some(port: serial.SerialBase, name: str) -> bytes:
+    """Whatever arrived (waits at most the port's read timeout); '' when nothing did."""
+    try:
+        n = port.in_waiting
+        return port.read(n if n > 0 else 1)
+    except (serial.SerialException, OSError, TypeError) as exc:
+        raise DeviceError(f"{name}: serial read failed, device gone? ({exc})") from None
+
+
+def write_all(port: serial.SerialBase, data: bytes, name: str) -> None:
+    try:
+        port.write(data)
+        port.flush()
+    except (serial.SerialException, OSError) as exc:
+        raise DeviceError(f"{name}: serial write failed, device gone? ({exc})") from None
+
+
+class Deadline:
+    """A monotonic deadline for request/response loops."""
+
+    def __init__(self, seconds: float) -> None:
+        self.end = time.monotonic() + seconds
+
+    @property
+    def expired(self) -> bool:
+        return time.monotonic() >= self.end

@@ -1,0 +1,96 @@
+"""A simulated Betaflight-like flight controller answering MSP on a pseudo-terminal.
+
+Answers (protocols.md §1): API_VERSION, FC_VARIANT ("BTFL"), STATUS, RAW_IMU (acc in
+counts with ``acc_1g``, gyro in whole deg/s, §1.4), ATTITUDE (0.1° roll/pitch, whole-degree
+yaw, §1.5), MOTOR, SET_MOTOR (ack; values apply only while disarmed, and a payload
+shorter than ``motor_count`` motors is refused, §1.7); anything else gets an error reply.
+The IMU values come from ``imu(t_s) -> (acc_m_s2, gyro_rad_s, (roll, pitch, yaw) rad)``.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections.abc import Callable
+
+from drivers.codecs import msp
+from drivers.wire_sim.pty_port import PtyDevice
+
+Vec3 = tuple[float, float, float]
+ImuModel = Callable[[float], tuple[Vec3, Vec3, Vec3]]
+
+
+def _i16(x: float) -> int:
+    return max(-(2**15), min(2**15 - 1, round(x)))
+
+
+class SimFlightController:
+    """MSP responder; ``armed`` switches SET_MOTOR off like the real firmware."""
+
+    def __init__(self, imu: ImuModel, *, acc_1g: int = 2048, motor_count: int = 4,
+                 api: tuple[int, int] = (1, 46)) -> None:
+        self.imu = imu
+        self.acc_1g = acc_1g
+        self.motor_count = motor_count
+        self.api = api  # what this simulator reports; not a claim about a real firmware
+        self.armed = False
+        self.motor_disarmed = [msp.MOTOR_MIN_US] * motor_count
+        self.requests: list[msp.MspMessage] = []
+        self._decoder = msp.MspDecoder(typed=True)
+        self._t0 = time.monotonic()
+        self._lock = threading.Lock()
+        self.port = PtyDevice(self.handle)
+
+    @property
+    def path(self) -> str:
+        return self.port.path
+
+    def start(self) -> SimFlightController:
+        self.port.start()
+        return self
+
+    def stop(self) -> None:
+        self.port.stop()
+
+    def motors(self) -> list[int]:
+        """What the motors get now: motor-test values only while disarmed (§1.7)."""
+        with self._lock:
+            return list(self.motor_disarmed) if not self.armed else \
+                [msp.MOTOR_MIN_US] * self.motor_count
+
+    def handle(self, data: bytes) -> bytes:
+        out = bytearray()
+        for m in self._decoder.feed(data):
+            self.requests.append(m)
+            out += self._reply(m)
+        return bytes(out)
+
+    def _reply(self, m: msp.MspMessage) -> bytes:
+        enc = msp.encode_message
+        if isinstance(m, msp.SetMotor):
+            if len(m.values_us) < self.motor_count:
+                return enc(msp.ErrorReply(msp.MSP_SET_MOTOR))
+            with self._lock:
+                self.motor_disarmed = list(m.values_us[: self.motor_count])
+            return enc(msp.Ack(msp.MSP_SET_MOTOR))
+        if not isinstance(m, msp.Request):
+            return b""
+        cmd = m.cmd
+        if cmd == msp.MSP_API_VERSION:
+            return enc(msp.ApiVersion(0, *self.api))
+        if cmd == msp.MSP_FC_VARIANT:
+            return enc(msp.FcVariant("BTFL"))
+        if cmd == msp.MSP_STATUS:
+            return enc(msp.FcStatus(125, 0, 0b100001, 0, 0))  # acc + gyro present (§1.8)
+        if cmd == msp.MSP_MOTOR:
+            vals = self.motors() + [0] * (msp.MOTOR_SLOTS - self.motor_count)
+            return enc(msp.Motor(tuple(vals)))
+        if cmd in (msp.MSP_RAW_IMU, msp.MSP_ATTITUDE):
+            acc, gyro, att = self.imu(time.monotonic() - self._t0)
+            if cmd == msp.MSP_ATTITUDE:
+                return enc(msp.Attitude(*att))
+            counts = tuple(_i16(a / msp.STANDARD_GRAVITY * self.acc_1g) for a in acc)
+            dps = tuple(_i16(math.degrees(g)) for g in gyro)
+            return enc(msp.RawImu(counts, dps, (0, 0, 0)))  # type: ignore[arg-type]
+        return enc(msp.ErrorReply(cmd))
