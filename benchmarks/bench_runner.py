@@ -8,6 +8,7 @@ numbers; nothing here is asserted.
 
 from __future__ import annotations
 
+import os
 import statistics
 import sys
 import tempfile
@@ -96,6 +97,8 @@ def main() -> int:
                 best, med = min(w), statistics.median(w)
                 print(f"{tick:>7.2f} {what:<28} {best:>7.3f} {med:>8.3f} {duration / best:>10.1f}")
         print(f"rows per run: {rows} ({rows / t_end:.0f} rows/s of rig time)")
+        print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f} at the end")
+
     return 0
 
 

@@ -12,6 +12,7 @@ numbers only.
 from __future__ import annotations
 
 import argparse
+import os
 import resource
 import shutil
 import sys
@@ -107,6 +108,7 @@ def main(argv: list[str]) -> int:
     print(f"memory: tracemalloc peak {peak_traced / 1e6:.1f} MB; process peak RSS "
           f"{resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB; RSS by minute: "
           + ", ".join(f"{m:.0f}:{r:.0f}" for m, r in rss) + " MB")
+    print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f} at the end")
     return 0 if pushed == on_disk and gaps == 0 else 1
 
 
