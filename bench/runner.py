@@ -272,7 +272,7 @@ class Runner:
             if col not in rows:
                 rows[col] = np.full(t.shape, np.nan)
         idx = np.searchsorted(self._cmd_t, t, side="right") - 1
-        idx = np.clip(idx, 0, None)
+        idx = np.maximum(idx, 0)
         rows["throttle_us"] = self._cmd_us[idx]
         rows["thrust_setpoint_n"] = self._cmd_sp[idx]
         rows["step"] = self._cmd_seg[idx].astype(np.int32)
