@@ -80,6 +80,64 @@ def time_plant_only(rig, duration: float, tick: float) -> float:
     return wall
 
 
+class _NullClock:
+    t = 0.0
+
+    def now(self) -> float:
+        return self.t
+
+    def sleep(self, dt: float) -> None:
+        self.t += dt
+
+
+class _NullEsc:
+    def arm(self) -> None: ...
+
+    def set_pulse_us(self, us: float) -> None: ...
+
+    def disarm(self) -> None: ...
+
+
+class _BlockSource:
+    """A sensor that hands out ready 25 kHz blocks at no cost beyond making the arrays."""
+
+    def __init__(self, clock: _NullClock, names: tuple[str, ...]) -> None:
+        self.clock, self.names, self.last = clock, names, 0.0
+
+    def describe(self):
+        from drivers.contracts import ChannelInfo, DeviceInfo
+
+        return DeviceInfo("null", "null", "null://",
+                          tuple(ChannelInfo(n, "", 25_000.0) for n in self.names))
+
+    def read_block(self):
+        from drivers.contracts import Block
+
+        n = round((self.clock.t - self.last) * 25_000.0)
+        t = self.last + np.arange(1, n + 1) / 25_000.0
+        self.last = self.clock.t
+        return Block(t, {k: np.ones(n) for k in self.names})
+
+
+def time_runner_alone(rig, tick: float) -> float:
+    """The runner's own cost per run: the same plan on devices that cost nothing."""
+
+    class Devices:
+        clock = _NullClock()
+        esc = _NullEsc()
+
+    dev = Devices()
+    dev.sensors = {"load_cell": _BlockSource(dev.clock, ("thrust_n",)),
+                   "power": _BlockSource(dev.clock, ("current_a", "voltage_v")),
+                   "rpm": _BlockSource(dev.clock, ("rpm",))}
+    seq = step1(repeats=20)
+    runner = Runner(dev, plan_for(rig, seq), esc_range_of(rig), {"thrust_n": 100.0}, None,
+                    RunOptions(tick_s=tick))
+    t0 = time.perf_counter()
+    assert runner.run().status == "success"
+    return time.perf_counter() - t0
+
+
 def main() -> int:
     with tempfile.TemporaryDirectory() as d:
         tmp = Path(d)
@@ -92,8 +150,9 @@ def main() -> int:
             walls, t_end, rows = time_recorded(rig, tmp, tick)
             plain = time_unrecorded(rig, tick)
             plant = time_plant_only(rig, duration, tick)
+            alone = [time_runner_alone(rig, tick) for _ in range(REPEATS)]
             for what, w in (("runner + recorder (full)", walls), ("runner, no recorder", plain),
-                            ("sim devices only", [plant])):
+                            ("sim devices only", [plant]), ("runner on null devices", alone)):
                 best, med = min(w), statistics.median(w)
                 print(f"{tick:>7.2f} {what:<28} {best:>7.3f} {med:>8.3f} {duration / best:>10.1f}")
         print(f"rows per run: {rows} ({rows / t_end:.0f} rows/s of rig time)")
