@@ -1,0 +1,136 @@
+"""MicroStrain 3DM-GX3-25 reference IMU over serial, in continuous mode (``Sensor``).
+
+Open: stop any running stream (``FA 75 B4``), drop stale input, ask for continuous
+``packet`` replies (``C4 C1 29 <cmd>``) and wait for the 8-byte ack that echoes the
+command (protocols.md §2.2, as the ROS driver checks). A reader thread then decodes the
+stream; each packet becomes one row. ``t_s`` is the rig clock at reception; the device's
+own timer (62 500 ticks/s, unwrapped) is kept as ``device_t_s`` for precise spacing.
+``close()`` stops the stream.
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import fields
+from typing import Any
+
+import numpy as np
+
+from drivers.backends.serial_link import Deadline, read_some, write_all
+from drivers.codecs import gx3
+from drivers.contracts import Block, ChannelInfo, Clock, DeviceInfo, MonotonicClock
+from drivers.errors import DeviceError
+
+# message field -> column names (SI units in the names)
+_COLUMNS = {
+    "acc_m_s2": ("acc_x_m_s2", "acc_y_m_s2", "acc_z_m_s2"),
+    "rate_rad_s": ("gyro_x_rad_s", "gyro_y_rad_s", "gyro_z_rad_s"),
+    "mag_gauss": ("mag_x_gauss", "mag_y_gauss", "mag_z_gauss"),
+    "roll_rad": ("roll_rad",),
+    "pitch_rad": ("pitch_rad",),
+    "yaw_rad": ("yaw_rad",),
+}
+PACKETS = {gx3.ACCEL_RATE: gx3.AccelRate, gx3.ACCEL_RATE_MAG: gx3.AccelRateMag,
+           gx3.EULER: gx3.Euler, gx3.EULER_RATES: gx3.EulerRates}
+
+
+def columns_for(packet: int) -> tuple[str, ...]:
+    cls = PACKETS[packet]
+    return tuple(c for f in fields(cls) if f.name in _COLUMNS for c in _COLUMNS[f.name])
+
+
+class Gx3Imu:
+    """The reference IMU streaming ``packet`` (default 0xC2 acceleration & rate)."""
+
+    def __init__(self, port: Any, *, packet: int = gx3.ACCEL_RATE, clock: Clock | None = None,
+                 stale_s: float = 0.2, open_timeout_s: float = 1.0,
+                 url: str = "serial://gx3") -> None:
+        if packet not in PACKETS:
+            raise DeviceError(f"{url}: packet 0x{packet:02X} not supported "
+                              f"(use one of {[hex(p) for p in PACKETS]})")
+        self.port = port
+        self.packet = packet
+        self.clock = clock or MonotonicClock()
+        self.stale_s = stale_s
+        self.url = url
+        self.columns = columns_for(packet)
+        self.decoder = gx3.Gx3Decoder()
+        self._unwrap = gx3.TimerUnwrapper()
+        self._rows: list[tuple[float, ...]] = []
+        self._error: DeviceError | None = None
+        self._last = self.clock.now()
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._start_stream(open_timeout_s)
+        self._thread = threading.Thread(target=self._read, name=f"gx3-{url}", daemon=True)
+        self._thread.start()
+
+    def _start_stream(self, timeout_s: float) -> None:
+        write_all(self.port, gx3.stop_continuous(), self.url)
+        self.port.reset_input_buffer()
+        write_all(self.port, gx3.set_continuous(self.packet), self.url)
+        deadline = Deadline(timeout_s)
+        while not deadline.expired:
+            for m in self.decoder.feed(read_some(self.port, self.url)):
+                if isinstance(m, gx3.ContinuousAck) and m.cmd == self.packet:
+                    return
+        raise DeviceError(f"{self.url}: no continuous-mode ack (C4 .. {self.packet:02X}) within "
+                          f"{timeout_s} s; is it a 3DM-GX3 with single-byte firmware (< 2.0)?")
+
+    def describe(self) -> DeviceInfo:
+        unit = {"m_s2": "m/s^2", "rad_s": "rad/s", "gauss": "gauss", "rad": "rad"}
+        chans = tuple(ChannelInfo(c, next(u for k, u in unit.items() if c.endswith(k)), 0.0)
+                      for c in self.columns)
+        return DeviceInfo(kind="imu", model="MicroStrain 3DM-GX3-25", url=self.url,
+                          channels=(*chans, ChannelInfo("device_t_s", "s", 0.0)),
+                          extra={"packet": f"0x{self.packet:02X}", "stats": self.decoder.stats})
+
+    def _row(self, m: Any, now: float) -> tuple[float, ...]:
+        vals: list[float] = []
+        for f in fields(m):
+            if f.name in _COLUMNS:
+                v = getattr(m, f.name)
+                vals.extend(v if isinstance(v, tuple) else (v,))
+        return (now, *vals, self._unwrap.seconds(m.timer_ticks))
+
+    def _read(self) -> None:
+        cls = PACKETS[self.packet]
+        while not self._stop.is_set():
+            try:
+                data = read_some(self.port, self.url)
+            except DeviceError as exc:
+                with self._lock:
+                    self._error = exc
+                return
+            if not data:
+                continue
+            now = self.clock.now()
+            rows = [self._row(m, now) for m in self.decoder.feed(data) if isinstance(m, cls)]
+            if rows:
+                with self._lock:
+                    self._rows += rows
+                    self._last = now
+
+    def read_block(self) -> Block:
+        now = self.clock.now()
+        with self._lock:
+            rows, self._rows = self._rows, []
+            err, last = self._error, self._last
+        if err is not None:
+            raise err
+        if now - last > self.stale_s:
+            raise DeviceError(f"{self.url}: no packet for {now - last:.3f} s (disconnected?)")
+        names = (*self.columns, "device_t_s")
+        if not rows:
+            return Block.empty(names)
+        arr = np.array(rows, dtype=float)
+        return Block(arr[:, 0], {n: arr[:, k + 1] for k, n in enumerate(names)})
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout=1.0)
+        try:
+            write_all(self.port, gx3.stop_continuous(), self.url)
+        except DeviceError:
+            pass
