@@ -1,0 +1,60 @@
+"""Line-printing load-cell backend end to end against a simulated board on a pty."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+pytest.importorskip("serial")
+
+from drivers.backends.loadcell_serial import LineLoadCell
+from drivers.backends.serial_link import open_port
+from drivers.codecs.loadcell_lines import TESTSTAND_V2, LineLayout
+from drivers.contracts import Sensor
+from drivers.errors import DeviceError
+from drivers.wire_sim.loadcell_board import SimLoadcellBoard
+
+HEADER = "Thrust(g),mSteps,Throttle(uS),Time(uS),mPRMs,Volts,Amps"  # protocols.md §8.2
+
+
+def model(t):
+    return {"thrust_n": 4.0, "steps": 0, "throttle_us": 1500, "t_s": round(t, 6), "rpm": 9000,
+            "voltage_v": 12.3, "current_a": 7.5}
+
+
+def test_teststand_lines_to_si_blocks():
+    board = SimLoadcellBoard(TESTSTAND_V2, model, header=HEADER).start()
+    port = open_port(board.path, 921_600)
+    port.write(b"\n")  # any key: the firmware starts printing
+    dev = LineLoadCell(port, TESTSTAND_V2, stale_s=0.3)
+    assert isinstance(dev, Sensor)
+    time.sleep(0.15)
+    b = dev.read_block()
+    assert len(b) > 5
+    # printed in grams on the wire (the §8.2 format), back in newtons
+    assert b.values["thrust_n"][-1] == pytest.approx(4.0)
+    assert b.values["current_a"][-1] == pytest.approx(7.5)
+    assert dev.decoder.stats.skipped_lines == 2  # greeting and header
+    board.port.disconnect()
+    time.sleep(0.4)
+    with pytest.raises(DeviceError, match="no data line"):
+        dev.read_block()
+    dev.close()
+    port.close()
+    board.stop()
+
+
+def test_custom_layout_from_config():
+    layout = LineLayout.from_config({"separator": " ", "fields": [
+        {"name": "t_board_s", "scale": 1e-3}, {"name": "thrust_n", "scale": 1e-3}]})
+    board = SimLoadcellBoard(layout, lambda t: {"t_board_s": t, "thrust_n": 1.234}).start()
+    port = open_port(board.path, 115_200)
+    port.write(b"x")
+    dev = LineLoadCell(port, layout)
+    time.sleep(0.1)
+    b = dev.read_block()
+    assert b.values["thrust_n"][-1] == pytest.approx(1.234)
+    dev.close()
+    port.close()
+    board.stop()
