@@ -76,14 +76,16 @@ def plot_static(static: StaticCurves, path: Path, title: str = "") -> Path:
     a1.set_xlabel("speed [rad/s]")
     a1.set_ylabel("thrust [N]")
     a1.grid(alpha=0.3)
-    a1.legend(fontsize=8)
+    if static.thrust_poly is not None:
+        a1.legend(fontsize=8)
     if static.current_poly is not None:
         a2.plot(w, static.current, "o", ms=3, label="measured")
         a2.plot(ww, static.current_at(ww), "-", label="fitted (C.14)")
     a2.set_xlabel("speed [rad/s]")
     a2.set_ylabel("current [A]")
     a2.grid(alpha=0.3)
-    a2.legend(fontsize=8)
+    if static.current_poly is not None:
+        a2.legend(fontsize=8)
     sec = a1.secondary_xaxis("top", functions=(lambda x: x / RPM_TO_RAD_S,
                                                lambda x: x * RPM_TO_RAD_S))
     sec.set_xlabel("rpm")

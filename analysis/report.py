@@ -46,7 +46,9 @@ def _fmt(v: Any) -> str:
     if isinstance(v, float):
         if v != 0 and abs(v) < 0.01:
             return f"{v:.3g}"
-        return f"{v:.1f}" if abs(v) >= 100 else f"{v:.2f}"
+        if abs(v) >= 100:
+            return f"{v:.1f}"
+        return f"{v:.2f}" if abs(v) >= 1 or v == 0 else f"{v:.3g}"
     return str(v)
 
 

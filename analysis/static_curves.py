@@ -83,8 +83,13 @@ def from_parameters(p: MotorParams, d_a_s_rad: float | None = None) -> tuple[flo
 
 
 def binned_medians(x: np.ndarray, ys: dict[str, np.ndarray], bins: int = 60,
-                   min_count: int = 3) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    """Median of x and of each y in ``bins`` equal-width bins of x (NaNs ignored per y)."""
+                   min_count: int = 3, min_frac: float = 0.2
+                   ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Median of x and of each y in ``bins`` equal-width bins of x (NaNs ignored per y).
+
+    Bins holding fewer than ``min_frac`` of the median count of the occupied bins are
+    dropped: in a log of held levels they are the transitions between the plateaus
+    (acceleration currents, lagging thrust), in a slow sweep every bin is alike."""
     x = np.asarray(x, float)
     ok = np.isfinite(x)
     lo, hi = (float(np.min(x[ok])), float(np.max(x[ok]))) if ok.any() else (0.0, 0.0)
@@ -98,9 +103,11 @@ def binned_medians(x: np.ndarray, ys: dict[str, np.ndarray], bins: int = 60,
     ends = np.searchsorted(ks, np.arange(bins), side="right")
     xm = np.full(bins, np.nan)
     out = {name: np.full(bins, np.nan) for name in ys}
+    counts = ends - starts
+    floor = max(min_count, min_frac * float(np.median(counts[counts > 0])))
     for b in range(bins):  # one median per bin (at most ``bins`` calls)
         sel = order[starts[b]:ends[b]]
-        if sel.size < min_count:
+        if sel.size < floor:
             continue
         xm[b] = np.median(x[sel])
         for name, y in ys.items():

@@ -56,7 +56,7 @@ def build(args: argparse.Namespace) -> dict[str, Any]:
         thrust_curve_from_runs,
     )
     from analysis.run_record import read_run
-    from analysis.static_curves import fit_static_run
+    from analysis.static_curves import RPM_TO_RAD_S, command_curve, fit_static_run
     from analysis.step_response import fit_run
 
     record = read_run(args.run)
@@ -73,13 +73,17 @@ def build(args: argparse.Namespace) -> dict[str, Any]:
             fit = fit_run(read_run(args.step_run), signal="rpm")
             tau_up = fit.up.tau.value if fit.up else None
             tau_dn = fit.down.tau.value if fit.down else None
+        omega_max = static.omega_max
         try:
             act = actuator_of(record)[0]
             full = bool(np.nanmax(act) >= 0.99)
+            if "rpm" in record.samples.columns:  # steady top speed of RUN itself
+                _, rpm = command_curve(act, record.column("rpm"))
+                omega_max = float(np.max(rpm)) * RPM_TO_RAD_S
         except LogError:  # no command column: the top speed is just the highest seen
             full = False
         out = gazebo_params(static.k_f, static.moment_constant_m, tau_up, tau_dn,
-                            static.omega_max, full)
+                            omega_max, full)
     out["target"] = args.target
     out["run"] = str(record.path)
     return out
