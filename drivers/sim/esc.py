@@ -57,6 +57,27 @@ class EscModel(EscFrameSource):
         self.failsafe = False
         self.failsafe_count = 0
         self.duty_filtered = 0.0
+        self._duty_cmd = 0.0
+
+    def steady_frames(self, k: int, limit: int) -> int:
+        """How many frames from ``k`` on (at most ``limit``) latch the same duty as frame
+        ``k`` did, given the commands sent so far. Call right after ``latch(k)``."""
+        if self.armed and self.duty_filtered != self._duty_cmd:
+            return 1  # the stock filter is still moving
+        end = k + limit
+        last_ns = self.last_ns
+        watch = self.armed and not self.failsafe
+        for t_e, kind, value in self.events:
+            latch_k = -(-t_e // self.frame_ns)  # first frame that latches this command
+            if watch and (last_ns + self.timeout_ns) // self.frame_ns + 1 < latch_k:
+                break  # the failsafe fires before this command arrives
+            if kind != "pulse" or value != self.pulse_us or self.failsafe:
+                end = min(end, latch_k)  # this command changes the duty
+                break
+            last_ns = t_e  # a refresh of the same pulse changes nothing but the timeout
+        if watch:  # first frame past the failsafe timeout
+            end = min(end, (last_ns + self.timeout_ns) // self.frame_ns + 1)
+        return max(1, end - k)
 
     def push(self, t_ns: int, kind: str, value: float = 0.0) -> None:
         """A command leaves the host at ``t_ns`` ("pulse", "arm" or "disarm")."""
@@ -87,6 +108,9 @@ class EscModel(EscFrameSource):
         pulse = self.settings.idle_us if timed_out else self.pulse_us
         duty = self.settings.duty(pulse)
         self.duty_filtered += self.alpha * (duty - self.duty_filtered)
+        if abs(self.duty_filtered - duty) < 1e-9:
+            self.duty_filtered = duty  # the filter has settled
+        self._duty_cmd = duty
         if duty <= 0.0 and self.duty_filtered < 1e-3:
             self.duty_filtered = 0.0
             return -1.0  # zero throttle: firmware switches the bridge off

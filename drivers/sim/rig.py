@@ -156,12 +156,12 @@ class SimRig:
         """Forget acquired samples every sensor has read, and plant history before the
         acquisition's end (the acquisition never looks back)."""
         acq = self.acquisition
+        if acq.buffer.end - acq.buffer.first < 8192:
+            return  # amortised: a few hundred ms of samples are cheap to keep
         n_floor = self.sample_clock.index_end(
             self.clock.now_ns() - round(self.sensor_params.buffer_s * 1e9))
         acq.buffer.trim_before(max(n_floor, min(s.next_n for s in self.sensors.values())))
-        traj = self.plant.traj
-        if traj.size > 64:
-            traj.trim_before((acq.buffer.end - 1) * self.sample_clock.dt_ns * 1e-9)
+        self.plant.traj.trim_before((acq.buffer.end - 1) * self.sample_clock.dt_ns * 1e-9)
 
     def truth(self) -> PlantTruth:
         self.plant.advance_to(self.clock.now_ns())

@@ -158,8 +158,8 @@ class Acquisition:
             [p.current_noise_a * p.current_mv_per_a * 1e-3],
             [p.voltage_noise_v * p.voltage_mv_per_v * 1e-3],
         ])
+        self._noise_sigma_row = self._noise_sigma.T.copy()
         self._lsb = 2.0 * p.adc_range_v / 2**p.adc_bits
-        self._out_scale = np.array([[p.current_mv_per_a * 1e-3], [p.voltage_mv_per_v * 1e-3]])
         self._count = 0  # magnet edges seen so far
         self._last_edge = -math.inf
         self._period = math.inf
@@ -187,22 +187,28 @@ class Acquisition:
         plant = self.rig.plant
         traj = plant.traj
         traj.flush()
-        state = traj.interpolate(t, ("omega", "i_bus", "v_bus"))
+        state = traj.interpolate(t, ("omega", "i_bus"))
         omega = state[0]
         force = plant.params.thrust_k * omega * omega  # (E.1)
         felt, self._zi = signal.lfilter(self.cell_b, self.cell_a, force, zi=self._zi)
         out = rows[BRIDGE_V : VOLTAGE_OUT_V + 1]
         np.multiply(felt, p.load_cell_v_per_n, out=out[0])
         out[0] += p.load_cell_offset_v
-        np.multiply(state[1:], self._out_scale, out=out[1:])
+        pp = plant.params
+        np.multiply(state[1], p.current_mv_per_a * 1e-3, out=out[1])
+        # the bus voltage is linear in the bus current: V = V_0 - R_s I
+        np.multiply(state[1], -pp.supply_r_ohm * p.voltage_mv_per_v * 1e-3, out=out[2])
+        out[2] += pp.supply_v * p.voltage_mv_per_v * 1e-3
         if p.noise:  # one draw per sample for all channels: independent of read slicing
-            noise = self.rng.standard_normal((t.size, 3), dtype=np.float32).T
-            out += noise * self._noise_sigma
+            noise = self.rng.standard_normal((t.size, 3))
+            noise *= self._noise_sigma_row
+            out += noise.T
         # AttoPilot outputs swing 0-3.3 V only (unidirectional); then the ADC
-        pos = out[1:]
-        np.minimum(np.maximum(pos, 0.0, out=pos), p.sensor_out_max_v, out=pos)
         lsb = self._lsb
-        np.minimum(np.maximum(out, -p.adc_range_v, out=out), p.adc_range_v - lsb, out=out)
+        top = min(p.sensor_out_max_v, p.adc_range_v - lsb)
+        pos, bridge = out[1:], out[0]
+        np.minimum(np.maximum(pos, 0.0, out=pos), top, out=pos)
+        np.minimum(np.maximum(bridge, -p.adc_range_v, out=bridge), p.adc_range_v - lsb, out=bridge)
         np.multiply(np.rint(out * (1.0 / lsb), out=out), lsb, out=out)
 
     def _crossing_times(self, angles: np.ndarray) -> np.ndarray:
@@ -227,7 +233,7 @@ class Acquisition:
         p = self.params
         traj = self.rig.plant.traj
         pitch = 2.0 * math.pi / p.magnets
-        theta_end = float(traj.interpolate(t[-1:], ("theta",))[0, 0])
+        theta_end = float(np.interp(t[-1], traj.column("t"), traj.column("theta")))
         count_end = math.floor(theta_end / pitch)
         if count_end > self._count:
             angles = np.arange(self._count + 1, count_end + 1) * pitch

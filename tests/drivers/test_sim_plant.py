@@ -126,3 +126,23 @@ def test_frame_rate_extremes_still_integrate_accurately(rate):
     settle(rig, 1650, 1.5)
     tr = rig.truth()
     assert tr.omega_rad_s == pytest.approx(steady_omega(tr.params, tr.duty), rel=1e-3)
+
+
+@pytest.mark.parametrize("scheme", list(EscScheme))
+def test_vectorised_spans_equal_frame_by_frame_integration(scheme, monkeypatch):
+    """Holding a duty, the plant solves many frames at once; that must change nothing."""
+    def trace(rig: SimRig) -> np.ndarray:
+        rig.esc.arm()
+        out = []
+        for pulse in (1600, 1750, 1530, 1000, 1650):
+            for _ in range(40):
+                rig.esc.set_pulse_us(pulse)
+                rig.clock.sleep(0.02)
+                out.append(rig.truth().omega_rad_s)
+        return np.array(out)
+
+    fast = trace(SimRig(sensor_params=QUIET, esc_mode=scheme))
+    slow_rig = SimRig(sensor_params=QUIET, esc_mode=scheme)
+    monkeypatch.setattr(slow_rig.esc_model, "steady_frames", lambda k, limit: 1)
+    slow = trace(slow_rig)
+    np.testing.assert_allclose(fast, slow, rtol=1e-9, atol=1e-9)
