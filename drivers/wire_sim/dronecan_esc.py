@@ -1,0 +1,98 @@
+"""A simulated DroneCAN ESC node: takes RawCommand, publishes esc.Status and NodeStatus.
+
+Behaviour from protocols.md §4: RawCommand ``cmd[esc_index]`` (int14, 0 = stop) drives
+the ``model(t_s, raw) -> EscStatus``; Status goes out every ``status_period_s`` as a
+three-frame transfer, NodeStatus once a second. With no RawCommand for ``timeout_s`` the
+command falls back to 0 (the real timeout is ESC firmware specific; this is the sim's).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+
+from drivers.backends.can_link import CanLink
+from drivers.codecs import dronecan as dc
+from drivers.codecs.can_log import CanFrame
+from drivers.errors import DeviceError
+
+EscModel = Callable[[float, int], dc.EscStatus]
+
+
+class SimDroneCanEsc:
+    def __init__(self, link: CanLink, node_id: int, esc_index: int, model: EscModel, *,
+                 status_period_s: float = 0.01, timeout_s: float = 0.5) -> None:
+        self.link = link
+        self.node_id = node_id
+        self.esc_index = esc_index
+        self.model = model
+        self.period_s = status_period_s
+        self.timeout_s = timeout_s
+        self.raw = 0
+        self.commands_seen: list[tuple[int, ...]] = []
+        self.host_node_status = 0
+        self.timeouts = 0
+        self.decoder = dc.DroneCanDecoder()
+        self._last_cmd = -float("inf")
+        self._tid = {dc.STATUS_DTID: 0, dc.NODE_STATUS_DTID: 0}
+        self._t0 = time.monotonic()
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._silent = threading.Event()
+        self._thread = threading.Thread(target=self._run, name=f"sim-dronecan-{node_id}",
+                                        daemon=True)
+        link.subscribe(self._on_frame)
+
+    def start(self) -> SimDroneCanEsc:
+        self._thread.start()
+        return self
+
+    def stop(self) -> None:
+        self._stop.set()
+        self.link.unsubscribe(self._on_frame)
+        if self._thread.is_alive():
+            self._thread.join(timeout=1.0)
+
+    def disconnect(self) -> None:
+        self._silent.set()
+
+    def _on_frame(self, frame: CanFrame) -> None:
+        if self._silent.is_set():
+            return
+        with self._lock:
+            for rx in self.decoder.feed(frame):
+                m = rx.message
+                if isinstance(m, dc.NodeStatus):
+                    self.host_node_status += 1
+                if isinstance(m, dc.RawCommand):
+                    self.commands_seen.append(m.cmd)
+                    if self.esc_index < len(m.cmd):
+                        self.raw = m.cmd[self.esc_index]
+                        self._last_cmd = time.monotonic()
+
+    def _publish(self, msg: dc.DroneCanMessage) -> None:
+        tid = self._tid[msg.DTID]
+        self._tid[msg.DTID] = (tid + 1) & 0x1F
+        for f in dc.encode(msg, self.node_id, tid):
+            self.link.send(f)
+
+    def _run(self) -> None:
+        next_t, next_ns = time.monotonic(), time.monotonic()
+        while not self._stop.is_set():
+            now = time.monotonic()
+            with self._lock:
+                if self.raw and now - self._last_cmd > self.timeout_s:
+                    self.raw = 0
+                    self.timeouts += 1
+                raw = self.raw
+            if not self._silent.is_set():
+                try:
+                    self._publish(self.model(now - self._t0, raw))
+                    if now >= next_ns:
+                        next_ns += 1.0
+                        self._publish(dc.NodeStatus(int(now - self._t0), 0, 0, 0, 0))
+                except (DeviceError, ValueError):
+                    pass
+            next_t += self.period_s
+            self._stop.wait(max(0.0, next_t - time.monotonic()))
