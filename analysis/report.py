@@ -19,7 +19,8 @@ from rich.table import Table as RichTable
 
 from analysis.step_response import StepResponse
 
-__all__ = ["Table", "table_c1", "table_e11", "table_e13", "table_e14", "write_csv"]
+__all__ = ["Table", "table_c1", "table_e11", "table_e12", "table_e13", "table_e14",
+           "write_csv"]
 
 G0 = 9.80665
 
@@ -109,6 +110,14 @@ def table_e11(rows: Sequence[tuple[str, float, float]]) -> Table:
     """Table E.11: measured 63 % rise times (ms), acceleration T_a and deceleration T_d."""
     return Table("Table E.11: measured rise times (63 %)", ("design", "T_a [ms]", "T_d [ms]"),
                  tuple((lbl, _ms(a), _ms(d)) for lbl, a, d in rows))
+
+
+def table_e12(rows: Sequence[tuple[str, float, float, float]]) -> Table:
+    """Table E.12: simulated 63 % rise time T and its difference to the mean of the
+    measured T_a and T_d; rows are (design, T_sim, T_a, T_d) in seconds."""
+    return Table("Table E.12: simulated rise times (63 %)",
+                 ("design", "T [ms]", "dT [ms]"),
+                 tuple((lbl, _ms(sim), _ms(sim - 0.5 * (a + d))) for lbl, sim, a, d in rows))
 
 
 def table_e13(rows: Sequence[tuple[str, float, float, float]]) -> Table:

@@ -152,3 +152,20 @@ def test_run_folder_reader_and_errors(tmp_path):
     with pytest.raises(LogError, match="no 't_s' column"):
         read_run(not_t)
     assert LogError.exit_code == 2
+
+
+def test_paper_e_tables_and_csv(tmp_path):
+    from analysis.report import table_e11, table_e12, table_e13, table_e14, write_csv
+
+    # Table E.11/E.12/E.13 arithmetic on the thesis' Test Case I, 4 actuators:
+    # T_a 172, T_d 200 -> mean 186; simulated 144 -> dT -42; model 161 -> dT 25
+    e11 = table_e11([("I-4", 0.172, 0.200)])
+    assert e11.rows[0] == ("I-4", pytest.approx(172.0), pytest.approx(200.0))
+    assert table_e12([("I-4", 0.144, 0.172, 0.200)]).rows[0][2] == pytest.approx(-42.0)
+    assert table_e13([("I-4", 0.172, 0.200, 0.161)]).rows[0][1:] == (
+        pytest.approx(186.0), pytest.approx(161.0), pytest.approx(25.0))
+    e14 = table_e14([("I-4", 66.6, 62.5)])
+    write_csv(e14, tmp_path / "e14.csv")
+    assert (tmp_path / "e14.csv").read_text(encoding="utf-8").splitlines() == [
+        "design,T_e [min],T_o [min]", "I-4,66.6,62.5"]
+    assert "Table E.14" in str(e14.to_rich().title)
