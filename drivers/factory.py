@@ -72,6 +72,10 @@ def _later(url: str, role: str) -> DeviceError:
 
 def _sim_faults(device: Any, options: Mapping[str, Any], role: str) -> None:
     """Faults scheduled in a rig file: ``options.faults = [{kind = "dropout", at_s = 2}]``."""
+    unknown = sorted(set(options) - {"faults"})
+    if unknown:
+        raise DeviceError(f"{role}: simulated devices take only the option 'faults', "
+                          f"got {', '.join(map(repr, unknown))}")
     for spec in options.get("faults", []):
         spec = dict(spec)
         try:
@@ -119,6 +123,7 @@ def open_rig(rig: Any, *, seed: int | None = None) -> OpenRig:
             from drivers.replay import ReplaySensor
 
             sensors[role] = ReplaySensor.from_url(dev.url, sim.clock)
-        _sim_faults(sensors[role], dev.options, role)
+        if schemes[role] == "sim":
+            _sim_faults(sensors[role], dev.options, role)
     _sim_faults(sim.esc, devices["esc"].options, "esc")
     return OpenRig(clock=sim.clock, esc=sim.esc, sensors=sensors, sim=sim)

@@ -146,7 +146,7 @@ class Acquisition:
     def __init__(self, rig: SimRig, seed: np.random.SeedSequence) -> None:
         self.rig = rig
         p = self.params = rig.sensor_params
-        self.rng = np.random.default_rng(seed)
+        self.rng = np.random.Generator(np.random.SFC64(seed))  # fast bit generator
         self.buffer = ColumnBuffer(5)
         wn = 2.0 * math.pi * p.load_cell_fn_hz
         b, a = signal.bilinear([wn * wn], [1.0, 2.0 * p.load_cell_zeta * wn, wn * wn],

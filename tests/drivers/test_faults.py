@@ -133,3 +133,6 @@ def test_faults_scheduled_in_the_rig_file(quiet_rig):
                                         {"faults": [{"kind": "melted"}]})
     with pytest.raises(DeviceError, match="load_cell: bad fault spec"):
         open_rig(replace(quiet_rig, devices=devices))
+    devices["load_cell"] = DeviceConfig(lc.url, lc.channel, lc.calibration, {"baud": 9600})
+    with pytest.raises(DeviceError, match=r"load_cell: simulated devices take only .* 'baud'"):
+        open_rig(replace(quiet_rig, devices=devices))
