@@ -259,3 +259,10 @@ def test_a_second_ctrl_c_during_the_safe_stop_does_not_cut_it_short(fakes, tmp_p
     assert fired
     assert_safe(rig)
     assert run_json(tmp_path)["status"] == "abort"
+
+
+def test_temperature_limit_trips_when_a_sensor_reports_it():
+    sup = SafetySupervisor({**LIMITS, "temperature_c": 80.0})
+    block = Block(np.array([0.0, 0.1]), {"temperature_c": np.array([79.0, 81.0])})
+    trip = sup.check({"thermo": block})
+    assert trip.limit == "temperature_c" and trip.t_s == 0.1 and trip.sensor == "thermo"
