@@ -1,0 +1,70 @@
+"""Constants store: fitted constants of sim runs, keyed by the run's components, read back
+as the optimizer's measured overrides."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from bench.cli import main
+from bench.commands.constants import load_measured
+from bench.constants_store import ConstantsStore
+from bench.errors import RigError
+from bench.rig import default_rig_path, load_rig
+from bench.runner import RunOptions
+from bench.sequences import hover_band_n, step1, sweep
+from bench.session import run_sequence
+from drivers.factory import open_rig
+
+
+def test_store_fits_and_overrides(tmp_path, capsys):
+    rig = load_rig(default_rig_path())
+    opts = RunOptions(tick_s=0.02)
+    sw = run_sequence(rig, sweep(duration_s=6.0), tmp_path, open_rig, options=opts).run_dir
+    runs = {}
+    for mode in ("complementary", "diode"):
+        r = rig.with_esc_mode(mode)
+        runs[mode] = run_sequence(r, step1(repeats=3, band_n=hover_band_n()), tmp_path,
+                                  open_rig, options=opts).run_dir
+    assert main(["constants", "--out", str(tmp_path), "--add", str(sw), str(runs["diode"]),
+                 str(runs["complementary"])]) == 0
+    out = capsys.readouterr().out
+    assert "stored static constants" in out and "measured constants" in out
+    rows = ConstantsStore(tmp_path).rows()
+    assert sorted((r.key.esc_mode, r.kind) for r in rows) == [
+        ("complementary", "static"), ("complementary", "step"), ("diode", "step")]
+    assert all(r.key.motor == "dji-2212-920kv" and r.key.propeller == "8x4.5" for r in rows)
+    step = next(r for r in rows if r.kind == "step" and r.key.esc_mode == "diode")
+    assert step.run_id == runs["diode"].name and step.data["tau_down_s"] > step.data["tau_up_s"]
+    # storing a newer fit of the same kind replaces the row
+    assert main(["constants", "--out", str(tmp_path), "--add", str(runs["diode"])]) == 0
+    assert len(ConstantsStore(tmp_path).rows()) == 3
+
+    measured = {m.esc_mode: m for m in load_measured(tmp_path)}
+    comp, diode = measured["complementary"], measured["diode"]
+    assert comp.time_constant_s == pytest.approx(
+        0.5 * sum(next(r for r in rows if r.kind == "step" and r.key.esc_mode ==
+                       "complementary").data[k] for k in ("tau_up_s", "tau_down_s")))
+    assert diode.time_constant_s > comp.time_constant_s
+    assert comp.has_current and diode.has_current  # the diode mode borrows the sweep
+    i, inside = comp.current_at(np.array([2.45]), np.array([comp.supply_voltage_v]))
+    assert inside[0] and 1.0 < i[0] < 4.0
+    assert "static: " in diode.source and "step: " in diode.source
+    assert load_measured(tmp_path, catalog="thesis-e") == []
+
+
+def test_runs_without_components_are_refused(tmp_path, capsys):
+    run = tmp_path / "imp"
+    run.mkdir()
+    (run / "run.json").write_text(json.dumps({"kind": "sweep", "components": {}}),
+                                  encoding="utf-8")
+    import pandas as pd
+
+    pd.DataFrame({"t_s": [0.0, 1.0], "rpm": [0.0, 1.0]}).to_parquet(run / "samples.parquet")
+    assert main(["constants", "--out", str(tmp_path), "--add", str(run)]) == 2
+    assert "components lack" in capsys.readouterr().err
+    with pytest.raises(ValueError):
+        ConstantsStore(tmp_path).put(None, "other", "x", "y", {})  # type: ignore[arg-type]
+    assert RigError.exit_code == 2
