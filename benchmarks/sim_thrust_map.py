@@ -4,12 +4,15 @@ Paper C section 4.4: thrust against command from slow, settled holds. This is wh
 ``rotorbench sweep`` does on any rig; this script makes the default rig's side file
 (``fixtures/rigs/sim.thrust_map.csv``) reproducible without the bench CLI:
 
-    .venv/bin/python benchmarks/sim_thrust_map.py [RIG.toml]
+    .venv/bin/python benchmarks/sim_thrust_map.py [RIG.toml] [--hold SECONDS]
+
+Hold each level for several rotor time constants (the default 0.8 s suits the 30 ms rotor
+of sim.toml; sim-thesis-e.toml's 14 in rotor, tau ~130 ms, was measured with --hold 2).
 """
 
 from __future__ import annotations
 
-import sys
+import argparse
 
 import numpy as np
 
@@ -40,8 +43,12 @@ def measure(rig_path: str, step_us: float = 25.0, hold_s: float = 0.8) -> tuple[
 
 
 def main() -> int:
-    path = sys.argv[1] if len(sys.argv) > 1 else str(default_rig_path())
-    cmds, thrust = measure(path)
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("rig", nargs="?", default=str(default_rig_path()))
+    ap.add_argument("--hold", type=float, default=0.8, help="seconds per level")
+    args = ap.parse_args()
+    path = args.rig
+    cmds, thrust = measure(path, hold_s=args.hold)
     rig = save_thrust_map(load_rig(path), cmds, np.round(thrust, 4))
     for c, f in zip(cmds, thrust, strict=True):
         print(f"{c:7.1f} us  {f:7.3f} N")

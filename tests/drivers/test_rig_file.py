@@ -149,3 +149,15 @@ def test_hardware_backends_arrive_later(tmp_path, url):
     assert not rig.is_simulated
     with pytest.raises(DeviceError, match=r"load_cell: .* backend .* arrives .* later issue"):
         open_rig(rig)
+
+
+def test_thesis_e_rig_uses_catalog_ids_and_its_thrust_map_holds():
+    rig = load_rig(default_rig_path().with_name("sim-thesis-e.toml"))
+    assert (rig.components.catalog, rig.components.motor, rig.components.propeller,
+            rig.components.battery) == ("thesis-e", "M3", "P4", "B3")
+    with open_rig(rig) as r:
+        truth = r.truth()
+        assert truth.params.diameter_m == 0.3556 and truth.params.r_ohm == 0.123
+        for thrust in (3.0, 6.0, 9.0):
+            pulse = rig.thrust_map.command_for(thrust)
+            assert truth.steady_thrust_n(pulse) == pytest.approx(thrust, rel=0.02)
