@@ -219,25 +219,6 @@ class Trajectory:
         tt = self.column("t")
         return {n: np.interp(t, tt, self.column(n)) for n in names}
 
-    def interpolate(self, t: np.ndarray, names: tuple[str, ...]) -> np.ndarray:
-        """Rows of linearly interpolated columns at increasing times ``t``; one index
-        search for all columns (held constant outside the stored range)."""
-        self.flush()
-        tt = self.column("t")
-        cols = [self.column(n) for n in names]  # views, no copies
-        if tt.size < 2:
-            return np.array([np.full(t.size, c[0]) for c in cols])
-        k = np.searchsorted(tt, t, side="right") - 1
-        np.minimum(np.maximum(k, 0, out=k), tt.size - 2, out=k)
-        t0 = tt[k]
-        w = (t - t0) / (tt[k + 1] - t0)
-        np.minimum(np.maximum(w, 0.0, out=w), 1.0, out=w)
-        out = np.empty((len(cols), t.size))
-        for row, c in zip(out, cols, strict=True):
-            x0 = c[k]
-            np.add(x0, (c[k + 1] - x0) * w, out=row)
-        return out
-
 
 class Plant:
     """Rotor speed (and optionally winding current) driven frame by frame by an ESC model.

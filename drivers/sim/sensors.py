@@ -187,17 +187,18 @@ class Acquisition:
         plant = self.rig.plant
         traj = plant.traj
         traj.flush()
-        state = traj.interpolate(t, ("omega", "i_bus"))
-        omega = state[0]
+        t_tr = traj.column("t")
+        omega = np.interp(t, t_tr, traj.column("omega"))
+        i_bus = np.interp(t, t_tr, traj.column("i_bus"))
         force = plant.params.thrust_k * omega * omega  # (E.1)
         felt, self._zi = signal.lfilter(self.cell_b, self.cell_a, force, zi=self._zi)
         out = rows[BRIDGE_V : VOLTAGE_OUT_V + 1]
         np.multiply(felt, p.load_cell_v_per_n, out=out[0])
         out[0] += p.load_cell_offset_v
         pp = plant.params
-        np.multiply(state[1], p.current_mv_per_a * 1e-3, out=out[1])
+        np.multiply(i_bus, p.current_mv_per_a * 1e-3, out=out[1])
         # the bus voltage is linear in the bus current: V = V_0 - R_s I
-        np.multiply(state[1], -pp.supply_r_ohm * p.voltage_mv_per_v * 1e-3, out=out[2])
+        np.multiply(i_bus, -pp.supply_r_ohm * p.voltage_mv_per_v * 1e-3, out=out[2])
         out[2] += pp.supply_v * p.voltage_mv_per_v * 1e-3
         if p.noise:  # one draw per sample for all channels: independent of read slicing
             noise = self.rng.standard_normal((t.size, 3))
