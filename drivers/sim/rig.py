@@ -12,6 +12,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from drivers.contracts import Fault
+from drivers.sim.acquisition import Acquisition, SampleClock
 from drivers.sim.clock import SimClock
 from drivers.sim.esc import EscModel, EscSettings, SimEsc
 from drivers.sim.faults import FaultSwitches
@@ -24,8 +25,6 @@ from drivers.sim.plant import (
     steady_omega,
 )
 from drivers.sim.sensors import (
-    Acquisition,
-    SampleClock,
     SensorParams,
     SimLoadCell,
     SimPowerSensor,

@@ -1,26 +1,22 @@
 """Simulated sensors: load cell, AttoPilot current/voltage sensor and hall RPM counter.
 
-Like the thesis' cRIO (Paper C section 2.2) one acquisition samples every channel on one
-sample clock (25 kHz by default): the load-cell bridge and the two AttoPilot outputs as
-ADC volts, and the hall period counter. The sensor drivers slice their channels out of
-that shared acquisition and convert volts to units with their rig-file calibration, so the
-columns line up sample for sample. Each ``read_block`` returns every sample up to the
-current simulated time since the previous read. Everything is vectorised over the block:
-interpolation of the plant trajectory, ``scipy.signal.lfilter`` with carried state for the
-load cell's mechanics, noise, quantisation, the counter's edge times.
+The sensor drivers slice their channels out of the rig's shared acquisition
+(``drivers.sim.acquisition``: every channel on one 25 kHz sample clock, like the thesis'
+cRIO) and convert volts and counter periods to units with their rig-file calibration, so
+the columns line up sample for sample. Each ``read_block`` returns every sample up to the
+current simulated time since the previous read.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, fields, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy import signal
 
 from drivers.contracts import Block, ChannelInfo, DeviceInfo, Fault
 from drivers.errors import DeviceError
+from drivers.sim.acquisition import BRIDGE_V, CURRENT_OUT_V, HALL_PERIOD_S, T_S, VOLTAGE_OUT_V
 from drivers.sim.faults import FaultSwitches
 
 if TYPE_CHECKING:
@@ -59,208 +55,6 @@ class SensorParams:
             if name not in known:
                 raise KeyError(name)
         return replace(cls(), **overrides)
-
-
-class SampleClock:
-    """The DAQ's sample clock: index n -> nominal time n / fs plus jitter.
-
-    The jitter of sample n is entry ``n mod 2**18`` of a table drawn once from the seed
-    (it repeats every 10.5 s at 25 kHz): the same whatever the read slicing, and a slice
-    of the table rather than a random draw per read.
-    """
-
-    TABLE = 1 << 18
-
-    def __init__(self, params: SensorParams, seed: int) -> None:
-        self.params = params
-        self.dt_ns = round(1e9 / params.sample_rate_hz)
-        half = math.sqrt(3.0) * params.jitter_s  # uniform with rms jitter_s
-        rng = np.random.default_rng(seed)
-        self._jitter = rng.uniform(-half, half, self.TABLE)
-
-    def index_end(self, now_ns: int) -> int:
-        """One past the last sample index taken at or before ``now_ns``."""
-        return max(0, now_ns // self.dt_ns + 1)
-
-    def nominal(self, n0: int, n1: int) -> np.ndarray:
-        return np.arange(n0, n1, dtype=np.float64) * (self.dt_ns * 1e-9)
-
-    def stamps(self, n0: int, n1: int, nominal: np.ndarray) -> np.ndarray:
-        if not self.params.noise or self.params.jitter_s <= 0:
-            return nominal
-        a = n0 % self.TABLE
-        if a + (n1 - n0) <= self.TABLE:
-            return nominal + self._jitter[a : a + n1 - n0]
-        return nominal + np.take(self._jitter, np.arange(n0, n1), mode="wrap")
-
-
-class ColumnBuffer:
-    """Rows indexed by sample number, appended at the end and trimmed from the front."""
-
-    def __init__(self, width: int, capacity: int = 1 << 15) -> None:
-        self._buf = np.empty((width, capacity))
-        self.first = 0  # sample index of column 0 of the live part
-        self._start = 0
-        self._end = 0
-
-    @property
-    def end(self) -> int:
-        """One past the last sample index held."""
-        return self.first + self._end - self._start
-
-    def restart(self, n: int) -> None:
-        """Forget everything; the next append starts at sample index ``n``."""
-        self.first, self._start, self._end = n, 0, 0
-
-    def append(self, rows: np.ndarray) -> None:
-        k = rows.shape[1]
-        if self._end + k > self._buf.shape[1]:
-            live = self._end - self._start
-            cap = self._buf.shape[1]
-            if live + k > cap // 2:
-                cap = max(2 * cap, 2 * (live + k))
-            buf = np.empty((self._buf.shape[0], cap))
-            buf[:, :live] = self._buf[:, self._start : self._end]
-            self._buf, self._start, self._end = buf, 0, live
-        self._buf[:, self._end : self._end + k] = rows
-        self._end += k
-
-    def window(self, n0: int, n1: int) -> np.ndarray:
-        a = self._start + n0 - self.first
-        return self._buf[:, a : a + n1 - n0]
-
-    def trim_before(self, n: int) -> None:
-        if n > self.first:
-            cut = min(n - self.first, self._end - self._start)
-            self._start += cut
-            self.first += cut
-
-
-# rows of the shared acquisition
-T_S, BRIDGE_V, CURRENT_OUT_V, VOLTAGE_OUT_V, HALL_PERIOD_S = range(5)
-
-
-class Acquisition:
-    """The DAQ task: every channel of the rig sampled at once on the sample clock."""
-
-    def __init__(self, rig: SimRig, seed: np.random.SeedSequence) -> None:
-        self.rig = rig
-        p = self.params = rig.sensor_params
-        self.rng = np.random.Generator(np.random.SFC64(seed))  # fast bit generator
-        self.buffer = ColumnBuffer(5)
-        wn = 2.0 * math.pi * p.load_cell_fn_hz
-        b, a = signal.bilinear([wn * wn], [1.0, 2.0 * p.load_cell_zeta * wn, wn * wn],
-                               fs=p.sample_rate_hz)
-        self.cell_b, self.cell_a = b, a
-        self._zi = np.zeros(max(len(a), len(b)) - 1)
-        self._noise_sigma = np.array([
-            [p.load_cell_noise_n * p.load_cell_v_per_n],
-            [p.current_noise_a * p.current_mv_per_a * 1e-3],
-            [p.voltage_noise_v * p.voltage_mv_per_v * 1e-3],
-        ])
-        self._noise_sigma_row = self._noise_sigma.T.copy()
-        self._lsb = 2.0 * p.adc_range_v / 2**p.adc_bits
-        self._count = 0  # magnet edges seen so far
-        self._last_edge = -math.inf
-        self._period = math.inf
-
-    def acquire_to(self, n1: int, now_ns: int, n_floor: int) -> None:
-        """Sample every channel up to (not including) index ``n1``."""
-        buf = self.buffer
-        n0 = buf.end
-        if n0 < n_floor:  # older samples would have been overwritten in the DAQ's ring
-            buf.restart(n_floor)
-            n0 = n_floor
-        if n1 <= n0:
-            return
-        self.rig.plant.advance_to(now_ns)
-        clock = self.rig.sample_clock
-        t = clock.nominal(n0, n1)
-        rows = np.empty((5, n1 - n0))
-        rows[T_S] = clock.stamps(n0, n1, t)
-        self._analog(t, rows)
-        rows[HALL_PERIOD_S] = self._counter(t)
-        buf.append(rows)
-
-    def _analog(self, t: np.ndarray, rows: np.ndarray) -> None:
-        p = self.params
-        plant = self.rig.plant
-        traj = plant.traj
-        traj.flush()
-        t_tr = traj.column("t")
-        omega = np.interp(t, t_tr, traj.column("omega"))
-        i_bus = np.interp(t, t_tr, traj.column("i_bus"))
-        force = plant.params.thrust_k * omega * omega  # (E.1)
-        felt, self._zi = signal.lfilter(self.cell_b, self.cell_a, force, zi=self._zi)
-        out = rows[BRIDGE_V : VOLTAGE_OUT_V + 1]
-        np.multiply(felt, p.load_cell_v_per_n, out=out[0])
-        out[0] += p.load_cell_offset_v
-        pp = plant.params
-        np.multiply(i_bus, p.current_mv_per_a * 1e-3, out=out[1])
-        # the bus voltage is linear in the bus current: V = V_0 - R_s I
-        np.multiply(i_bus, -pp.supply_r_ohm * p.voltage_mv_per_v * 1e-3, out=out[2])
-        out[2] += pp.supply_v * p.voltage_mv_per_v * 1e-3
-        if p.noise:  # one draw per sample for all channels: independent of read slicing
-            noise = self.rng.standard_normal((t.size, 3))
-            noise *= self._noise_sigma_row
-            out += noise.T
-        # AttoPilot outputs swing 0-3.3 V only (unidirectional); then the ADC
-        lsb = self._lsb
-        top = min(p.sensor_out_max_v, p.adc_range_v - lsb)
-        pos, bridge = out[1:], out[0]
-        np.minimum(np.maximum(pos, 0.0, out=pos), top, out=pos)
-        np.minimum(np.maximum(bridge, -p.adc_range_v, out=bridge), p.adc_range_v - lsb, out=bridge)
-        np.multiply(np.rint(out * (1.0 / lsb), out=out), lsb, out=out)
-
-    def _crossing_times(self, angles: np.ndarray) -> np.ndarray:
-        """When the rotor reaches each angle: omega is linear between integration points
-        (the plant integrates theta with the trapezoid rule), so theta is quadratic there."""
-        traj = self.rig.plant.traj
-        t_tr, th_tr, w_tr = traj.column("t"), traj.column("theta"), traj.column("omega")
-        k = np.searchsorted(th_tr, angles, side="left") - 1
-        np.minimum(np.maximum(k, 0, out=k), t_tr.size - 2, out=k)
-        t0 = t_tr[k]
-        h = t_tr[k + 1] - t0
-        w0 = w_tr[k]
-        a = (w_tr[k + 1] - w0) / (2.0 * h)
-        d_th = angles - th_tr[k]
-        denom = w0 + np.sqrt(np.maximum(w0 * w0 + 4.0 * a * d_th, 0.0))
-        tau = 2.0 * d_th / np.maximum(denom, 1e-12)  # the rotor is turning at every edge
-        return t0 + np.minimum(np.maximum(tau, 0.0, out=tau), h, out=tau)
-
-    def _counter(self, t: np.ndarray) -> np.ndarray:
-        """Hall sensor + FPGA period counter: at each magnet edge the counter latches the
-        time since the previous edge (in counter ticks); the DAQ reads the latest latch."""
-        p = self.params
-        traj = self.rig.plant.traj
-        pitch = 2.0 * math.pi / p.magnets
-        theta_end = float(np.interp(t[-1], traj.column("t"), traj.column("theta")))
-        count_end = math.floor(theta_end / pitch)
-        if count_end > self._count:
-            angles = np.arange(self._count + 1, count_end + 1) * pitch
-            tick = 1.0 / p.counter_hz
-            t_edge = np.round(self._crossing_times(angles) / tick) * tick
-            edges = np.concatenate(([self._last_edge], t_edge))
-            gaps = np.diff(edges)
-            periods = np.concatenate(([self._period], gaps))
-            # each sample holds the latest edge at or before it: runs between edges
-            runs = np.diff(np.concatenate(([0], np.searchsorted(t, t_edge), [t.size])))
-            period = np.repeat(periods, runs)
-            self._count = count_end
-            self._last_edge = float(t_edge[-1])
-            self._period = float(periods[-1])
-            quiet = max(float(gaps.max()), t[-1] - self._last_edge) <= p.rpm_timeout_s
-            last = None if quiet else np.repeat(edges, runs)
-        else:
-            period = np.full(t.size, self._period)
-            last = np.full(t.size, self._last_edge)
-        if last is not None:  # no edge for a while: the counter reads "stopped"
-            stale = t - last > p.rpm_timeout_s
-            if stale.any():
-                period[stale] = math.inf
-                if stale[-1]:
-                    self._period = math.inf
-        return period
 
 
 class SimSensor:
