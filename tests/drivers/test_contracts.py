@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from drivers.contracts import Block, DeviceInfo, Esc, Sensor
+from drivers.contracts import Block, DeviceInfo, Esc, MonotonicClock, Sensor
 from drivers.errors import DeviceError
 from drivers.factory import open_rig
 from drivers.replay import ReplaySensor
@@ -134,3 +134,17 @@ def test_esc_rejects_non_finite_and_clamps_range(esc_rig):
     assert esc.last_pulse_us == 2000
     esc.set_pulse_us(500)
     assert esc.last_pulse_us == 1000
+
+
+CLOCKS = {"sim": SimClock, "monotonic": MonotonicClock}
+
+
+@pytest.mark.parametrize("name", sorted(CLOCKS))
+def test_clock_moves_forward_by_at_least_the_sleep(name):
+    clock = CLOCKS[name]()
+    t0 = clock.now()
+    clock.sleep(0.002)
+    t1 = clock.now()
+    assert t1 - t0 >= 0.002 - 1e-9
+    clock.sleep(0.0)
+    assert clock.now() >= t1
