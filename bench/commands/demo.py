@@ -1,0 +1,262 @@
+"""``rotorbench demo``: the whole loop on the simulated rig, from runs to designs.
+
+For every motor and propeller of the ``thesis-e`` catalog (Paper E, Tables E.5-E.7) the
+default sim rig gets that actuator's parameters (K_V, R_a, inertia, diameter, C_t, C_p,
+the battery's in-flight voltage), runs a slow sweep (static curves and the thrust map),
+Paper C's Step 1 and Step 2 around its own hover thrust; one combination also runs in the
+three ESC modes. Every run is fitted and its constants stored; then Paper E's three test
+cases are optimized with the datasheet model and with the measured constants, and the
+tables (Table C.1, E.8-E.10-like selections, E.11, E.13, E.14) and figures are written.
+The output folder is built beside its final name and renamed into place at the end.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import os
+import shutil
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+G0 = 9.80665
+CASES = (("I", 0.0, "flight_time_min", "max"), ("II", 1.5, "flight_time_min", "max"),
+         ("III", 0.0, "time_constant_ms", "min"))  # Paper E section 4
+ACTUATORS = (4, 6, 8)
+MODES = ("complementary", "diode", "stock")
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "demo", help="run the whole loop on the simulated rig (runs, fits, constants, designs)",
+        description="Sweeps and Step 1 / Step 2 runs for every motor x propeller of the "
+                    "thesis-e catalog on the simulated rig, the three ESC modes on one "
+                    "combination, fits, a constants store, and Paper E's three test cases "
+                    "optimized with and without the measured constants.")
+    p.add_argument("--out", type=Path, default=Path("demo-out"),
+                   help="output folder (default ./demo-out; replaced if it exists)")
+    p.add_argument("--repeats", type=int, default=3, help="Step 1 repeats per combination")
+    p.add_argument("--seed", type=int, default=1, help="seed of the simulated rig")
+    p.add_argument("--combos", type=int, default=None,
+                   help="only the first N motor x propeller combinations (quick look)")
+    p.set_defaults(func=handler)
+
+
+def _catalog():
+    from optimizer.catalog import load_catalog
+
+    root = Path(__file__).resolve().parents[2] / "fixtures" / "catalogs" / "thesis-e"
+    return load_catalog(root)
+
+
+def combo_rig(base: Any, catalog: Any, i: int, j: int, mode: str, seed: int) -> Any:
+    """The default sim rig with propeller ``i`` on motor ``j`` of the catalog."""
+    from bench.rig import Limits
+    from optimizer.model import battery_voltage_v, motor_inertia_kgm2, propeller_inertia_kgm2
+
+    prop = catalog.propellers.iloc[i]
+    mot = catalog.motors.iloc[j]
+    kt = 1.0 / float(mot["kv_rad_s_per_v"])  # (2.37) in SI
+    plant = {
+        "kt_nm_a": kt, "ke_v_s_rad": kt, "r_ohm": float(mot["resistance_ohm"]),
+        "j_kg_m2": float(propeller_inertia_kgm2(catalog)[i] + motor_inertia_kgm2(catalog)[j]),
+        "diameter_m": float(prop["diameter_m"]), "ct": float(prop["ct"]),
+        "cp": float(prop["cp"]), "supply_v": float(np.max(battery_voltage_v(catalog))),
+    }
+    comp = dataclasses.replace(base.components, catalog="thesis-e",
+                               motor=catalog.motor_ids[j], propeller=catalog.propeller_ids[i],
+                               esc="sim-f30a", esc_mode=mode, battery="3s-in-flight-12v")
+    limits = Limits(thrust_n=80.0, current_a=80.0, rpm=20000.0, voltage_min_v=6.0,
+                    voltage_max_v=20.0, temperature_c=80.0, source="demo rig")
+    sim = dataclasses.replace(base.sim, plant=plant, esc_mode=mode, seed=seed)
+    return dataclasses.replace(base, components=comp, limits=limits, sim=sim, thrust_map=None,
+                               name=f"sim-{catalog.propeller_ids[i]}-{catalog.motor_ids[j]}")
+
+
+def _pick(grid: Any, metric: str, sense: str) -> tuple[int, int, int] | None:
+    values = np.where(grid.feasible(), grid.metrics[metric], np.nan)
+    if not np.isfinite(values).any():
+        return None
+    flat = np.nanargmax(values) if sense == "max" else np.nanargmin(values)
+    return tuple(int(v) for v in np.unravel_index(flat, values.shape))  # type: ignore[return-value]
+
+
+def handler(args: argparse.Namespace) -> int:
+    from analysis.figures import plot_static, plot_steps, plot_validation
+    from analysis.flight_time import flight_time_min, hover_current_a
+    from analysis.report import Table, table_c1, table_e11, table_e13, table_e14, write_csv
+    from analysis.run_record import read_run
+    from analysis.static_curves import fit_static_run
+    from analysis.step_response import fit_run
+    from analysis.validation import validate_run
+    from bench.commands.constants import fit_for_store, load_measured
+    from bench.constants_store import ConstantsStore
+    from bench.rig import default_rig_path, load_rig
+    from bench.runner import RunOptions
+    from bench.sequences import step1, step2, sweep
+    from bench.session import run_sequence
+    from bench.thrust_map import fit_sweep_run
+    from drivers.factory import open_rig
+    from optimizer.model import evaluate_grid
+
+    wall0 = time.monotonic()
+    console = Console(width=shutil.get_terminal_size((160, 24)).columns)
+    out = Path(args.out)
+    tmp = out.with_name(f".{out.name}.tmp")
+    if tmp.exists():
+        shutil.rmtree(tmp)
+    runs_root, figs, tabs = tmp / "runs", tmp / "figures", tmp / "tables"
+    for d in (runs_root, figs, tabs):
+        d.mkdir(parents=True)
+    catalog = _catalog()
+    base = load_rig(default_rig_path())
+    opts = RunOptions(tick_s=0.02)
+    combos = [(i, j) for i in range(len(catalog.propeller_ids))
+              for j in range(len(catalog.motor_ids))][: args.combos]
+    mode_combo = (0, 0)  # Test Case III's actuator (P1, M1) also runs the other modes
+    n_tasks = 3 * len(combos) + 2 * (len(MODES) - 1)
+    progress = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                        TimeElapsedColumn(), console=Console(stderr=True))
+    task = progress.add_task("demo", total=n_tasks)
+    store = ConstantsStore(runs_root)
+    fits: dict[tuple[int, int, str], Any] = {}
+    statics: dict[tuple[int, int], Any] = {}
+    step2_runs: dict[tuple[int, int, str], Path] = {}
+
+    def run(rig: Any, seq: Any, label: str) -> Path:
+        progress.update(task, description=label)
+        outcome = run_sequence(rig, seq, runs_root, open_rig, options=opts)
+        if outcome.result.status != "success":
+            raise RuntimeError(f"{label}: {outcome.result.status}: {outcome.result.reason}")
+        progress.advance(task)
+        return outcome.run_dir
+
+    try:
+        with progress:
+            for i, j in combos:
+                name = f"{catalog.propeller_ids[i]}-{catalog.motor_ids[j]}"
+                modes = MODES if (i, j) == mode_combo else MODES[:1]
+                rig = combo_rig(base, catalog, i, j, MODES[0], args.seed)
+                sw = run(rig, sweep(1050.0, 2000.0, 8.0), f"{name} sweep")
+                tm = fit_sweep_run(sw).thrust_map
+                statics[(i, j)] = fit_static_run(read_run(sw))
+                for key, kind, rid, data in [fit_for_store(sw)]:
+                    store.put(key, kind, rid, str(sw), data)
+                hover = 0.35 * float(tm.thrust_n[-1])
+                band = (0.7 * hover, 1.3 * hover)  # hover +-30 %, as Paper C's Step 1
+                for mode in modes:
+                    r = combo_rig(base, catalog, i, j, mode, args.seed)
+                    r = r.with_thrust_map(tm.command_us.tolist(), tm.thrust_n.tolist())
+                    s1 = run(r, step1(repeats=args.repeats, hold_s=1.0, settle_s=1.0,
+                                      band_n=band), f"{name} {mode} step1")
+                    fits[(i, j, mode)] = fit_run(read_run(s1))
+                    key, kind, rid, data = fit_for_store(s1)
+                    store.put(key, kind, rid, str(s1), data)
+                    step2_runs[(i, j, mode)] = run(
+                        r, step2(repeats=2, hold_s=1.0, settle_s=1.0, band_n=band),
+                        f"{name} {mode} step2")
+        summary = _tables_and_figures(
+            console, catalog, fits, statics, step2_runs, load_measured(runs_root, "thesis-e"),
+            evaluate_grid, mode_combo, figs, tabs,
+            dict(plot_static=plot_static, plot_steps=plot_steps, plot_validation=plot_validation,
+                 table_c1=table_c1, table_e11=table_e11, table_e13=table_e13,
+                 table_e14=table_e14, write_csv=write_csv, Table=Table, read_run=read_run,
+                 validate_run=validate_run, hover_current_a=hover_current_a,
+                 flight_time_min=flight_time_min))
+        summary["wall_time_s"] = time.monotonic() - wall0
+        with open(tmp / "demo.json", "w", encoding="utf-8") as fh:
+            json.dump(summary, fh, indent=2, default=str)
+        old = out.with_name(f".{out.name}.old")
+        if out.exists():
+            os.replace(out, old)
+        os.replace(tmp, out)
+        shutil.rmtree(old, ignore_errors=True)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    console.print(f"{out}: runs, constants.sqlite, figures/ and tables/ written in "
+                  f"{time.monotonic() - wall0:.1f} s")
+    return 0
+
+
+def _tables_and_figures(console, catalog, fits, statics, step2_runs, measured, evaluate_grid,
+                        mode_combo, figs, tabs, f) -> dict[str, Any]:
+    summary: dict[str, Any] = {}
+    i0, j0 = mode_combo
+    name0 = f"{catalog.propeller_ids[i0]}-{catalog.motor_ids[j0]}"
+    # Table C.1 and Fig. C.9-C.12, C.16-C.19 on the three-mode combination
+    c1 = [(m, fits[(i0, j0, m)]) for m in MODES if (i0, j0, m) in fits]
+    t = f["table_c1"](c1)
+    t = dataclasses.replace(t, title=f"Table C.1 on {name0}: first order system with delay")
+    console.print(t.to_rich())
+    f["write_csv"](t, tabs / "table_c1.csv")
+    f["plot_steps"](c1, figs / "steps_three_modes.png", title=f"Step 1 on {name0}")
+    static0 = statics[(i0, j0)]
+    f["plot_static"](static0, figs / f"static_{name0}.png", title=f"Static curves: {name0}")
+    for m in MODES:
+        if (i0, j0, m) in step2_runs:
+            v = f["validate_run"](f["read_run"](step2_runs[(i0, j0, m)]), fits[(i0, j0, m)])
+            f["plot_validation"](v, figs / f"validation_{m}.png",
+                                 title=f"Step 2, {m}: RMS error first order "
+                                       f"{v.rms_first_order_pct:.1f} % of the band")
+    # designs with the datasheet model and with measured constants (Tables E.8-E.10)
+    sel_rows, e11, e13, e14 = [], [], [], []
+    for case, payload, metric, sense in CASES:
+        for n in ACTUATORS:
+            picks = {}
+            for label, over in (("model", None), ("measured", measured)):
+                grid = evaluate_grid(catalog, n, payload, overrides=over, esc_mode=MODES[0])
+                k = _pick(grid, metric, sense)
+                picks[label] = (grid, k)
+                if k is None:
+                    sel_rows.append((f"{case}-{n}", label, "infeasible", None, None, ""))
+                    continue
+                pi, mj, bk = k
+                src = ", ".join(name for name, mask in sorted(grid.measured.items())
+                                if bool(mask[k])) or "datasheet"
+                sel_rows.append((f"{case}-{n}", label,
+                                 f"{grid.propeller_ids[pi]} {grid.motor_ids[mj]} "
+                                 f"{grid.battery_ids[bk]}",
+                                 float(grid.metrics["time_constant_ms"][k]),
+                                 float(grid.metrics["flight_time_min"][k]), src))
+            grid, k = picks["model"]
+            if k is None:
+                continue
+            pi, mj, bk = k
+            fit = fits.get((pi, mj, MODES[0]))
+            if fit is not None:
+                e11.append((f"{case}-{n}", fit.up.t63.value, fit.down.t63.value))
+                e13.append((f"{case}-{n}", fit.up.tau.value, fit.down.tau.value,
+                            float(grid.metrics["time_constant_ms"][k]) * 1e-3))
+            st = statics.get((pi, mj))
+            hover = float(grid.extras["hover_thrust_n"][k])
+            if st is not None:
+                try:
+                    cur = f["hover_current_a"](st, hover)
+                    cap = float(catalog.batteries["capacity_ah"].iloc[bk]) * 1e3
+                    e14.append((f"{case}-{n}", f["flight_time_min"](cap, cur, n),
+                                float(grid.metrics["flight_time_min"][k])))
+                except Exception as exc:  # hover thrust beyond the sweep: say so
+                    e14.append((f"{case}-{n}", None,
+                                float(grid.metrics["flight_time_min"][k])))
+                    summary.setdefault("notes", []).append(f"{case}-{n}: {exc}")
+    ts = f["Table"]("Paper E test cases: datasheet model vs measured constants",
+                    ("case-N", "constants", "design (P M B)", "tau [ms]", "flight [min]",
+                     "measured metrics"), tuple(sel_rows))
+    for tab, fname in ((ts, "designs.csv"), (f["table_e11"](e11), "table_e11.csv"),
+                       (f["table_e13"](e13), "table_e13.csv"),
+                       (f["table_e14"](e14), "table_e14.csv")):
+        console.print(tab.to_rich())
+        f["write_csv"](tab, tabs / fname)
+    summary["designs"] = [dict(zip(ts.columns, r, strict=True)) for r in sel_rows]
+    summary["table_c1"] = {m: {k: v for k, v in fit.summary().items() if k != "edges"}
+                           for m, fit in c1}
+    for note in summary.get("notes", []):
+        console.print(f"note: {note}")
+    return summary

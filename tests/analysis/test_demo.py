@@ -1,0 +1,31 @@
+"""The demo end to end on one motor x propeller combination (the full demo runs all 12)."""
+
+from __future__ import annotations
+
+import json
+
+from bench.cli import main
+from bench.constants_store import ConstantsStore
+
+
+def test_demo_one_combination(tmp_path, capsys):
+    out = tmp_path / "demo"
+    assert main(["demo", "--out", str(out), "--combos", "1", "--repeats", "2"]) == 0
+    printed = capsys.readouterr().out
+    assert "Table C.1 on P1-M1" in printed and "Paper E test cases" in printed
+    assert {p.name for p in (out / "tables").iterdir()} == {
+        "table_c1.csv", "designs.csv", "table_e11.csv", "table_e13.csv", "table_e14.csv"}
+    figs = {p.name for p in (out / "figures").iterdir()}
+    assert {"steps_three_modes.png", "static_P1-M1.png", "validation_diode.png"} <= figs
+    rows = ConstantsStore(out / "runs").rows()
+    assert sorted((r.key.esc_mode, r.kind) for r in rows) == [
+        ("complementary", "static"), ("complementary", "step"), ("diode", "step"),
+        ("stock", "step")]
+    summary = json.loads((out / "demo.json").read_text(encoding="utf-8"))
+    tc1 = summary["table_c1"]
+    # the Table C.1 pattern on this actuator too: diode and stock fall much slower
+    for mode in ("diode", "stock"):
+        assert tc1[mode]["tau_down_ms"] > 1.5 * tc1["complementary"]["tau_down_ms"]
+    measured = [d for d in summary["designs"] if d["constants"] == "measured"]
+    assert len(measured) == 9 and any(d["measured metrics"] != "datasheet" for d in measured)
+    assert not any(p.name.startswith(".") for p in tmp_path.iterdir())
