@@ -161,3 +161,13 @@ def test_thesis_e_rig_uses_catalog_ids_and_its_thrust_map_holds():
         for thrust in (3.0, 6.0, 9.0):
             pulse = rig.thrust_map.command_for(thrust)
             assert truth.steady_thrust_n(pulse) == pytest.approx(thrust, rel=0.02)
+
+
+def test_bad_thrust_map_file_names_file_and_row(tmp_path):
+    path = write_rig(tmp_path, DEFAULT_TEXT)
+    (tmp_path / "sim.thrust_map.csv").write_text("command_us,thrust_n\n1000,0\n1500,heavy\n")
+    with pytest.raises(RigError, match=r"sim.thrust_map.csv: row 3: expected numbers"):
+        load_rig(path)
+    (tmp_path / "sim.thrust_map.csv").write_text("cmd,force\n1000,0\n")
+    with pytest.raises(RigError, match=r"sim.thrust_map.csv: thrust map needs columns"):
+        load_rig(path)
