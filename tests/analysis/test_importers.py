@@ -105,3 +105,31 @@ def test_import_command_writes_a_run_folder(shared_data, tmp_path, capsys):
     err = capsys.readouterr().err
     assert "already exists" in err and "not an ESC32" in err and "RUNCOL=FILECOL" in err
     assert not (tmp_path / "x").exists() and not (tmp_path / "y").exists()
+
+
+def test_imported_csv_steps_fit_end_to_end(tmp_path, capsys):
+    import json
+
+    # a stand at 1 kHz: 1200 <-> 1400 us steps, delay 15 ms, tau 40 ms, no mapping needed
+    t = np.arange(0, 4.0, 0.001)
+    u = np.where((t // 0.5) % 2 == 1, 1400.0, 1200.0)
+    y = np.full(t.size, 2.0)
+    for k in range(1, 8):
+        t0 = 0.5 * k
+        sel = t >= t0
+        a, b = (2.0, 3.0) if k % 2 == 1 else (3.0, 2.0)
+        s = np.clip(t[sel] - t0 - 0.015, 0, None)
+        y[sel] = a + (b - a) * (1 - np.exp(-s / 0.040))
+    src = tmp_path / "stand.csv"
+    np.savetxt(src, np.c_[t, u, y], delimiter=",", header="t_s,throttle_us,thrust_n",
+               comments="", fmt="%.6f")
+    run = tmp_path / "run"
+    assert main(["import", str(src), "--format", "csv", "--out", str(run)]) == 0
+    capsys.readouterr()
+    assert main(["fit", str(run), "--json"]) == 0
+    fit = json.loads(capsys.readouterr().out)
+    assert fit["tau_up_ms"] == pytest.approx(40.0, rel=0.02)
+    assert fit["tau_down_ms"] == pytest.approx(40.0, rel=0.02)
+    assert fit["latency_ms"] == pytest.approx(15.0, abs=1.0)
+    assert fit["gain_unit"] == "N/us" and fit["gain"] == pytest.approx(1 / 200, rel=0.01)
+    assert fit["repeats_up"] == 4 and fit["repeats_down"] == 3
