@@ -182,6 +182,8 @@ def import_rcbenchmark(path: str | Path) -> tuple[pd.DataFrame, dict[str, Any]]:
             continue  # an empty column (e.g. no ESC signal logged)
         cols[target] = values
         used[target] = header
+    if "rpm" not in cols and "rpm_optical" in cols:  # a stand with the optical probe only
+        cols["rpm"], used["rpm"] = cols.pop("rpm_optical"), used.pop("rpm_optical")
     if "rpm" in cols and "rpm_optical" in cols:
         if not np.any(cols["rpm"] > 0) and np.any(cols["rpm_optical"] > 0):
             cols["rpm"], cols["rpm_optical"] = cols["rpm_optical"], cols["rpm"]

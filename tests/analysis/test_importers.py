@@ -133,3 +133,25 @@ def test_imported_csv_steps_fit_end_to_end(tmp_path, capsys):
     assert fit["latency_ms"] == pytest.approx(15.0, abs=1.0)
     assert fit["gain_unit"] == "N/us" and fit["gain"] == pytest.approx(1 / 200, rel=0.01)
     assert fit["repeats_up"] == 4 and fit["repeats_down"] == 3
+
+
+def test_rcbenchmark_header_variants(tmp_path):
+    # 2021 (HeinzGerhard) headers: thrust already in newtons, "ESC (µs)", optical speed
+    a = tmp_path / "a.csv"
+    a.write_text("Time (s),ESC (µs),Servo (µs),Torque (N·m),Thrust (N),Voltage (V),"
+                 "Current (A),Motor Optical Speed (RPM),App message,\n"
+                 "0,1000,,0.0,0.0,16,0.1,0,,\n0.1,1500,,0.05,4.0,15.8,8.0,9000,,\n",
+                 encoding="utf-8")
+    df, meta = import_rcbenchmark(a)
+    assert df["throttle_us"].tolist() == [1000.0, 1500.0]
+    assert df["thrust_n"].tolist() == [0.0, 4.0]
+    assert df["rpm"].tolist() == [0.0, 9000.0] and meta["columns"]["rpm"].startswith("Motor Opt")
+    # control-board logs: a protocol line first, speeds in rad/s, thrust in gf
+    b = tmp_path / "b.csv"
+    b.write_text("Control protocol: Standard PWM at 50Hz\n"
+                 "Time (s),ESC signal (µs),Thrust (gf),Motor Electrical Speed (rad/s)\n"
+                 "0,1100,100,0\n0.02,1200,200,100\n", encoding="utf-8")
+    df, meta = import_rcbenchmark(b)
+    assert meta["control_protocol"] == "Control protocol: Standard PWM at 50Hz"
+    np.testing.assert_allclose(df["thrust_n"], [0.980665, 1.96133])
+    np.testing.assert_allclose(df["rpm"], [0.0, 100 * 60 / (2 * np.pi)])
