@@ -26,9 +26,9 @@ class SimClock:
         return self._t_ns
 
     def sleep(self, seconds: float) -> None:
-        if seconds != seconds or seconds < 0:  # NaN or negative
+        if seconds != seconds:  # NaN
             raise DeviceError(f"sim clock: cannot sleep {seconds!r} s")
-        self._t_ns += round(seconds * 1e9)
+        self._t_ns += max(0, round(seconds * 1e9))  # like a real clock: <= 0 returns at once
         for listener in self._listeners:
             listener(self._t_ns)
 

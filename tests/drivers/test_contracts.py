@@ -148,3 +148,12 @@ def test_clock_moves_forward_by_at_least_the_sleep(name):
     assert t1 - t0 >= 0.002 - 1e-9
     clock.sleep(0.0)
     assert clock.now() >= t1
+
+
+@pytest.mark.parametrize("name", sorted(CLOCKS))
+def test_clock_sleep_of_zero_or_less_returns_at_once(name):
+    clock = CLOCKS[name]()
+    t0 = clock.now()
+    clock.sleep(-1e-12)
+    clock.sleep(-0.5)
+    assert clock.now() - t0 < 0.1
