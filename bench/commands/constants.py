@@ -58,7 +58,7 @@ def fit_for_store(run: Path) -> tuple[ActuatorKey, str, str, dict[str, Any]]:
                 "hover_current_a": [c for _, c in inside]}
         return key, "static", rec.id, data
     if kind in ("step1", "step"):
-        f = fit_run(rec)
+        f = fit_run(rec, window_s=2.0)  # the whole hold (slow coasting modes settle late)
         if f.up is None or f.down is None:
             raise RigError(f"{rec.path}: needs rising and falling edges")
         data = {"latency_s": 0.5 * (f.up.latency.value + f.down.latency.value),

@@ -120,7 +120,7 @@ def handler(args: argparse.Namespace) -> int:
     combos = [(i, j) for i in range(len(catalog.propeller_ids))
               for j in range(len(catalog.motor_ids))][: args.combos]
     mode_combo = (0, 0)  # Test Case III's actuator (P1, M1) also runs the other modes
-    n_tasks = 3 * len(combos) + 2 * (len(MODES) - 1)
+    n_tasks = 3 * len(combos) + 3 * (len(MODES) - 1)
     progress = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                         TimeElapsedColumn(), console=Console(stderr=True))
     task = progress.add_task("demo", total=n_tasks)
@@ -142,20 +142,21 @@ def handler(args: argparse.Namespace) -> int:
             for i, j in combos:
                 name = f"{catalog.propeller_ids[i]}-{catalog.motor_ids[j]}"
                 modes = MODES if (i, j) == mode_combo else MODES[:1]
-                rig = combo_rig(base, catalog, i, j, MODES[0], args.seed)
-                sw = run(rig, sweep(1050.0, 2000.0, 8.0), f"{name} sweep")
-                tm = fit_sweep_run(sw).thrust_map
-                statics[(i, j)] = fit_static_run(read_run(sw))
-                for key, kind, rid, data in [fit_for_store(sw)]:
-                    store.put(key, kind, rid, str(sw), data)
-                hover = 0.35 * float(tm.thrust_n[-1])
-                band = (0.7 * hover, 1.3 * hover)  # hover +-30 %, as Paper C's Step 1
                 for mode in modes:
-                    r = combo_rig(base, catalog, i, j, mode, args.seed)
-                    r = r.with_thrust_map(tm.command_us.tolist(), tm.thrust_n.tolist())
+                    # each ESC mode gets its own sweep: the static map depends on the scheme
+                    rig = combo_rig(base, catalog, i, j, mode, args.seed)
+                    sw = run(rig, sweep(1050.0, 2000.0, 8.0), f"{name} {mode} sweep")
+                    tm = fit_sweep_run(sw).thrust_map
+                    if mode == MODES[0]:
+                        statics[(i, j)] = fit_static_run(read_run(sw))
+                    key, kind, rid, data = fit_for_store(sw)
+                    store.put(key, kind, rid, str(sw), data)
+                    hover = 0.35 * float(tm.thrust_n[-1])
+                    band = (0.7 * hover, 1.3 * hover)  # hover +-30 %, as Paper C's Step 1
+                    r = rig.with_thrust_map(tm.command_us.tolist(), tm.thrust_n.tolist())
                     s1 = run(r, step1(repeats=args.repeats, hold_s=1.0, settle_s=1.0,
                                       band_n=band), f"{name} {mode} step1")
-                    fits[(i, j, mode)] = fit_run(read_run(s1))
+                    fits[(i, j, mode)] = fit_run(read_run(s1), window_s=2.0)
                     key, kind, rid, data = fit_for_store(s1)
                     store.put(key, kind, rid, str(s1), data)
                     step2_runs[(i, j, mode)] = run(
