@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import os
 from pathlib import Path
 
 from hypothesis import given, settings
@@ -13,7 +14,8 @@ from drivers.codecs.can_log import CanFrame, read_lines
 from drivers.codecs.checksums import crc16_ccitt_false
 
 T = Path(__file__).resolve().parents[2] / "fixtures" / "transcripts" / "dronecan"
-FUZZ = settings(max_examples=300, deadline=None)
+# ROTORBENCH_FUZZ_EXAMPLES=5000 for a deeper run than the default 300 per property
+FUZZ = settings(max_examples=int(os.environ.get("ROTORBENCH_FUZZ_EXAMPLES", "300")), deadline=None)
 H = bytes.fromhex
 
 STATUS = d.EscStatus(5, 16.0, 12.5, 300.0, 12000, 42, 2)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib.util
+import os
 import sys
 from pathlib import Path
 
@@ -27,7 +28,8 @@ def _props():
 
 props = _props()
 T = props.FIXTURES / "gcs"
-FUZZ = settings(max_examples=300, deadline=None)
+# ROTORBENCH_FUZZ_EXAMPLES=5000 for a deeper run than the default 300 per property
+FUZZ = settings(max_examples=int(os.environ.get("ROTORBENCH_FUZZ_EXAMPLES", "300")), deadline=None)
 
 
 def test_spec_command_syntax():

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib.util
+import os
 import struct
 import sys
 from pathlib import Path
@@ -30,7 +31,8 @@ props = _props()
 T = props.FIXTURES / "gx3"
 H = bytes.fromhex
 G = gx3.STANDARD_GRAVITY
-FUZZ = settings(max_examples=300, deadline=None)
+# ROTORBENCH_FUZZ_EXAMPLES=5000 for a deeper run than the default 300 per property
+FUZZ = settings(max_examples=int(os.environ.get("ROTORBENCH_FUZZ_EXAMPLES", "300")), deadline=None)
 
 C2 = "C2 00 00 00 00 00 00 00 00 BF 80 00 00 3C 23 D7 0A 00 00 00 00 00 00 00 00 00 00 F4 24 04 59"
 CE = "CE 3D CC CC CD BD 4C CC CD 3F C0 00 00 00 01 E8 48 08 42"

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import importlib.util
 import math
+import os
 import sys
 from pathlib import Path
 
@@ -30,7 +31,8 @@ def _props():
 props = _props()
 T = props.FIXTURES / "msp"
 H = bytes.fromhex
-FUZZ = settings(max_examples=300, deadline=None)
+# ROTORBENCH_FUZZ_EXAMPLES=5000 for a deeper run than the default 300 per property
+FUZZ = settings(max_examples=int(os.environ.get("ROTORBENCH_FUZZ_EXAMPLES", "300")), deadline=None)
 
 # protocols.md §1.9, message -> exact bytes
 SPEC_FRAMES = [

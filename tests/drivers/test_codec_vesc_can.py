@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+import os
 from pathlib import Path
 
 import pytest
@@ -13,7 +14,8 @@ from drivers.codecs import vesc_can as v
 from drivers.codecs.can_log import CanFrame, CanLogError, format_line, parse_line, read_lines
 
 T = Path(__file__).resolve().parents[2] / "fixtures" / "transcripts" / "vesc"
-FUZZ = settings(max_examples=300, deadline=None)
+# ROTORBENCH_FUZZ_EXAMPLES=5000 for a deeper run than the default 300 per property
+FUZZ = settings(max_examples=int(os.environ.get("ROTORBENCH_FUZZ_EXAMPLES", "300")), deadline=None)
 
 # protocols.md §3.2 "CAN examples (computed)", controller id 1
 SPEC = [
