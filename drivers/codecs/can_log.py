@@ -10,7 +10,8 @@ which is ``candump -L``):
   (ids of more than 3 hex digits are extended, as in python-can's ``CanutilsLogReader``);
 * the default ``candump`` screen form: ``  can0  00000901   [8]  00 00 2E E0 00 69 00 FA``.
 
-Empty lines and lines starting with ``#`` are ignored.
+Empty lines and lines starting with ``#`` are ignored, and so are remote (RTR) frames, CAN FD
+frames (``##``) and error frames (id with ``CAN_ERR_FLAG``), which the bench protocols never use.
 """
 
 from __future__ import annotations
@@ -66,6 +67,8 @@ class CanLogError(DeviceError):
     """A candump-style log line could not be read; names the file and line."""
 
 
+CAN_ERR_FLAG = 0x20000000  # SocketCAN error-frame flag in candump ids (python-can canutils)
+_REMOTE_OR_FD = re.compile(r"^(?:\([0-9.]+\)\s+)?\S+\s+[0-9A-Fa-f]{1,8}#(?:#|[Rr])")
 _LOG_L = re.compile(r"^\((?P<ts>[0-9.]+)\)\s+(?P<ch>\S+)\s+(?P<id>[0-9A-Fa-f]{1,8})#"
                     r"(?P<data>[0-9A-Fa-f]*)(?:\s+[RrTt])?$")
 _LOG_SCREEN = re.compile(r"^(?:\((?P<ts>[0-9.]+)\)\s+)?(?P<ch>\S+)\s+(?P<id>[0-9A-Fa-f]{1,8})\s+"
@@ -77,6 +80,8 @@ def parse_line(line: str, *, source: str = "<log>", lineno: int = 0) -> CanFrame
     text = line.strip()
     if not text or text.startswith("#"):
         return None
+    if _REMOTE_OR_FD.match(text):
+        return None  # remote (RTR) and CAN FD frames carry no classic-CAN payload here
     m = _LOG_L.match(text)
     if m is not None:
         data_hex = m["data"]
@@ -96,6 +101,8 @@ def parse_line(line: str, *, source: str = "<log>", lineno: int = 0) -> CanFrame
     if len(data) > 8:
         raise CanLogError(f"{source}:{lineno}: {len(data)} data bytes, classic CAN allows 8")
     ident = m["id"]
+    if len(ident) == 8 and int(ident, 16) & CAN_ERR_FLAG:
+        return None  # an error frame (SocketCAN CAN_ERR_FLAG), not traffic
     try:
         return CanFrame(int(ident, 16), data, is_extended_id=len(ident) > 3,
                         timestamp=float(m["ts"]) if m["ts"] else 0.0, channel=m["ch"])

@@ -84,6 +84,18 @@ def test_good_line(line):
     assert parse_line(line) == CanFrame(0x901, b"\x00\x00", True, 1.0, "can0")
 
 
+@pytest.mark.parametrize("line", [
+    "(1.0) can0 123#R",  # remote frame
+    "(1.0) can0 00000901#R2",
+    "(1.0) can0 123##1001122",  # CAN FD
+    "(1.0) can0 20000080#0000000000000000",  # error frame
+    "# a comment",
+    "   ",
+])
+def test_lines_without_classic_payload_are_skipped(line):
+    assert parse_line(line) is None
+
+
 @pytest.mark.parametrize(("line", "why"), [
     ("(1.0) can0 00000901#000", "odd number"),
     ("(1.0) can0 00000901#000000000000000000", "classic CAN"),
