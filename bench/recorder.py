@@ -86,12 +86,13 @@ class RunRecorder:
     """Writes one run folder; ``append`` columns as they come, ``finish`` once at the end."""
 
     def __init__(self, run_dir: Path, meta: Mapping[str, Any], chunk_s: float = 1.0,
-                 compression: str = "lz4") -> None:
+                 compression: str = "lz4", base_columns: tuple[str, ...] = BASE_COLUMNS) -> None:
         if not 0 < chunk_s <= 1.0:
             raise ValueError("chunk_s must be in (0, 1] s: a crash may lose at most one second")
         self.run_dir = Path(run_dir)
         self.chunk_s = chunk_s
         self.compression = compression
+        self.base_columns = tuple(base_columns)  # required in every batch, written first
         self.meta: dict[str, Any] = dict(meta)
         self._buf: list[dict[str, np.ndarray]] = []
         self._buf_t0 = math.nan
@@ -128,10 +129,11 @@ class RunRecorder:
         if n == 0:
             return
         if self._columns is None:
-            missing = [c for c in BASE_COLUMNS if c not in columns]
+            base = self.base_columns
+            missing = [c for c in base if c not in columns]
             if missing:
                 raise ValueError(f"samples need the columns {missing}")
-            self._columns = (*BASE_COLUMNS, *[c for c in columns if c not in BASE_COLUMNS])
+            self._columns = (*base, *[c for c in columns if c not in base])
         batch = {c: np.asarray(columns[c]) for c in self._columns}
         if math.isnan(self._buf_t0):
             self._buf_t0 = float(t[0])

@@ -1,11 +1,14 @@
-"""``rotorbench calibrate``: IMU calibration on a hexapod (Paper A) from a log, and apply.
+"""``rotorbench calibrate``: IMU calibration on a hexapod (Paper A): on the rig, from a log,
+and apply.
 
+    rotorbench calibrate [--rig FILE] [--out cal.json] [--quick] [--runs DIR] [--dry-run]
     rotorbench calibrate --simulate-log sim.parquet          # write a simulated log
     rotorbench calibrate --from-log sim.parquet --out cal.json [--figures DIR]
     rotorbench calibrate apply --cal cal.json LOG --out corrected.parquet
 
-Running the motions on the hexapod itself needs the hexapod driver and sequences, which
-arrive in a later change; until then the command says so and exits 2.
+On the rig (default: the simulated IMU bench ``fixtures/rigs/sim-imu.toml``) every Paper A
+stage runs as its own recorded run (``bench.calibration_session``); the stages' samples are
+joined into one calibration log next to the runs and calibrated like ``--from-log``.
 """
 
 from __future__ import annotations
@@ -57,9 +60,23 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         "hexapod, Paper A protocol) and print its true parameters")
     p.add_argument("--short", action="store_true",
                    help="with --simulate-log: shortened protocol (fast, same stages)")
-    p.add_argument("--seed", type=int, default=0, help="with --simulate-log: random seed")
+    p.add_argument("--seed", type=int, default=None,
+                   help="random seed (--simulate-log: default 0; rig: the rig file's seed)")
     p.add_argument("--rig", type=Path, metavar="FILE",
-                   help="rig file (running on the hexapod bench: not available yet)")
+                   help="IMU-bench rig file ([rig] kind = \"imu\"); default: the simulated "
+                        "bench fixtures/rigs/sim-imu.toml")
+    p.add_argument("--quick", action="store_true",
+                   help="on the rig: shortened stages (3000-sample hold, 0.02 Hz rotation, "
+                        "20 s lever-arm and 30 s verification motions)")
+    p.add_argument("--runs", type=Path, default=Path("runs"), metavar="DIR",
+                   help="on the rig: root of the run folders and runs.sqlite (default ./runs)")
+    p.add_argument("--dry-run", action="store_true",
+                   help="on the rig: print every stage's steps, times and motion peaks; "
+                        "touch no device")
+    p.add_argument("--tick", type=float, default=0.05,
+                   help="on the rig: read period in seconds (default 0.05)")
+    p.add_argument("--realtime", action="store_true",
+                   help="on the rig: pace a simulated rig to the wall clock")
     sub = p.add_subparsers(dest="calibrate_action", metavar="ACTION")
     a = sub.add_parser("apply", help="correct an IMU log with a calibration JSON")
     a.add_argument("--cal", type=Path, required=True, metavar="cal.json")
@@ -75,35 +92,45 @@ def handler(args: argparse.Namespace) -> int:
     if args.simulate_log is not None:
         return _simulate(args)
     if args.from_log is None:
-        print("rotorbench: error: running the calibration motions on the hexapod bench "
-              "arrives with the hexapod driver and sequences (not in this version); "
-              "use --from-log FILE, or --simulate-log OUT to make a simulated log",
-              file=sys.stderr)
-        return 2
+        from bench.commands._calibrate_rig import run_on_rig
+
+        return run_on_rig(args)
+    _check_out(args)
     df = load_calibration_log(args.from_log)
+    mounting = tuple(args.mounting_deg) if args.mounting_deg else None
+    cal = calibrate_frame(df, mounting, math.radians(args.gyro_range_dps),
+                          args.acc_range_g * 9.80665, args.max_lag)
+    print_calibration(cal, Console())
+    finish(cal, df, args, args.out, str(args.from_log))
+    return 0
+
+
+def _check_out(args: argparse.Namespace) -> None:
+    if args.out is not None and not args.out.parent.is_dir():
+        raise LogError(f"{args.out}: folder {args.out.parent} does not exist")
+
+
+def calibrate_frame(df, mounting: tuple[float, float, float] | None, gyro_range_rad_s: float,
+                    acc_range_m_s2: float, max_lag_s: float) -> Calibration:
+    """Paper A's stages on a validated log; warnings are kept in ``cal.warnings``."""
     with warnings.catch_warnings():  # warnings are kept in cal.warnings and printed below
         warnings.simplefilter("ignore")
-        cal = calibrate(
-            df,
-            measured_mounting_deg=tuple(args.mounting_deg) if args.mounting_deg else None,
-            gyro_range_rad_s=math.radians(args.gyro_range_dps),
-            acc_range_m_s2=args.acc_range_g * 9.80665,
-            max_lag_s=args.max_lag,
-        )
-    _print(cal, Console())
+        return calibrate(df, measured_mounting_deg=mounting, gyro_range_rad_s=gyro_range_rad_s,
+                         acc_range_m_s2=acc_range_m_s2, max_lag_s=max_lag_s)
+
+
+def finish(cal: Calibration, df, args: argparse.Namespace, out: Path | None, source: str) -> None:
+    """Figures (``--figures``) and the calibration JSON (atomic)."""
     if args.figures is not None:
         from analysis.imu_figures import verification_figures
 
         if cal.verification_rms is None:
-            raise LogError(f"{args.from_log}: --figures needs a 'verify' phase in the log")
+            raise LogError(f"{source}: --figures needs a 'verify' phase in the log")
         for path in verification_figures(cal, df, args.figures):
             print(f"wrote {path}", file=sys.stderr)
-    if args.out is not None:
-        if not args.out.parent.is_dir():
-            raise LogError(f"{args.out}: folder {args.out.parent} does not exist")
-        save_calibration(cal, args.out)
-        print(f"wrote {args.out}", file=sys.stderr)
-    return 0
+    if out is not None:
+        save_calibration(cal, out)
+        print(f"wrote {out}", file=sys.stderr)
 
 
 def _apply(args: argparse.Namespace) -> int:
@@ -126,47 +153,48 @@ def _simulate(args: argparse.Namespace) -> int:
     if not args.simulate_log.parent.is_dir():
         raise LogError(f"{args.simulate_log}: folder {args.simulate_log.parent} does not exist")
     m = ADIS16400
+    seed = 0 if args.seed is None else args.seed
     cols = simulate_calibration_log(m, paper_a_protocol(m.rate_hz, short=args.short),
-                                    seed=args.seed)
+                                    seed=seed)
     write_calibration_log(args.simulate_log, cols)
     console = Console()
     console.print(f"wrote {args.simulate_log}: {len(cols['t_s'])} rows at {m.rate_hz:g} Hz "
-                  f"(seed {args.seed})")
+                  f"(seed {seed})")
     t = Table(title="true parameters of the simulated IMU")
     t.add_column("parameter")
     t.add_column("value")
-    t.add_row("mounting φ, θ, ψ (deg)", _vec(m.mounting_deg, "{:.2f}"))
-    t.add_row("lever arm R (m)", _vec(m.lever_arm_m, "{:.3f}"))
-    t.add_row("gyro bias (rad/s)", _vec(m.gyro_bias_rad_s, "{:.4f}"))
+    t.add_row("mounting φ, θ, ψ (deg)", vec(m.mounting_deg, "{:.2f}"))
+    t.add_row("lever arm R (m)", vec(m.lever_arm_m, "{:.3f}"))
+    t.add_row("gyro bias (rad/s)", vec(m.gyro_bias_rad_s, "{:.4f}"))
     t.add_row("clock offset (ms)", f"{m.clock_offset_s * 1e3:.2f}")
-    t.add_row("K_ω", _mat(m.k_gyro()))
-    t.add_row("K_a", _mat(m.k_acc()))
+    t.add_row("K_ω", mat(m.k_gyro()))
+    t.add_row("K_a", mat(m.k_acc()))
     console.print(t)
     return 0
 
 
-def _vec(v, fmt: str) -> str:
+def vec(v, fmt: str) -> str:
     return "[" + ", ".join(fmt.format(float(x)) for x in v) + "]"
 
 
-def _mat(k) -> str:
-    return "\n".join(_vec(row, "{:+.4f}") for row in np.asarray(k))
+def mat(k) -> str:
+    return "\n".join(vec(row, "{:+.4f}") for row in np.asarray(k))
 
 
-def _print(cal: Calibration, console: Console) -> None:
+def print_calibration(cal: Calibration, console: Console) -> None:
     s = Table(title="IMU calibration (Paper A)")
     s.add_column("quantity")
     s.add_column("value")
     bias = ", ".join(f"{b:+.5f} ± {e:.5f}" for b, e in
                      zip(cal.gyro_bias_rad_s, cal.gyro_bias_stderr_rad_s, strict=True))
     s.add_row("gyro bias (A.12), rad/s", bias)
-    s.add_row("accelerometer bias, m/s²", _vec(cal.acc_bias_m_s2, "{:+.4f}"))
+    s.add_row("accelerometer bias, m/s²", vec(cal.acc_bias_m_s2, "{:+.4f}"))
     s.add_row("time offset hexapod→IMU", f"{cal.time_offset_s * 1e3:.2f} ms")
     s.add_row(f"K_ω (A.13), cond {cal.conditioning.get('gyro', float('nan')):.2f}",
-              _mat(cal.k_gyro))
+              mat(cal.k_gyro))
     s.add_row(f"K_a (A.14), cond {cal.conditioning.get('acc', float('nan')):.2f}",
-              _mat(cal.k_acc))
-    s.add_row("lever arm R, m", _vec(cal.lever_arm_m, "{:+.4f}"))
+              mat(cal.k_acc))
+    s.add_row("lever arm R, m", vec(cal.lever_arm_m, "{:+.4f}"))
     console.print(s)
 
     d = Table(title="K split into rotation, scale, non-orthogonality (A.15-A.16)",
@@ -179,8 +207,8 @@ def _print(cal: Calibration, console: Console) -> None:
         if not p:
             continue
         vs = p.get("rotation_vs_measured_deg")
-        d.add_row(name, _vec(p["euler_deg"], "{:.3f}"), _vec(p["scale"], "{:.4f}"),
-                  _vec(p["nonorthogonality_deg"], "{:+.3f}"), "-" if vs is None else f"{vs:.3f}")
+        d.add_row(name, vec(p["euler_deg"], "{:.3f}"), vec(p["scale"], "{:.4f}"),
+                  vec(p["nonorthogonality_deg"], "{:+.3f}"), "-" if vs is None else f"{vs:.3f}")
     console.print(d)
 
     est = cal.lever_arm_estimates

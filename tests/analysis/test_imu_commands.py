@@ -58,10 +58,15 @@ def test_attitude_with_reference_prints_rms(tmp_path: Path,
     assert "roll" in out and "pitch" in out and "°" in out
 
 
-def test_calibrate_without_log_says_what_is_missing(capsys: pytest.CaptureFixture) -> None:
-    assert main(["calibrate"]) == 2
+def test_calibrate_on_a_propulsion_rig_says_what_is_missing(
+        capsys: pytest.CaptureFixture) -> None:
+    # Without --from-log the command runs on the IMU bench (tests/bench/test_calibration_*);
+    # a propulsion rig file is refused with one line naming the file and the field.
+    from bench.rig import default_rig_path
+
+    assert main(["calibrate", "--rig", str(default_rig_path())]) == 2
     err = capsys.readouterr().err
-    assert "hexapod driver" in err and "--from-log" in err
+    assert "kind" in err and "IMU-bench rig" in err and "sim.toml" in err
 
 
 @pytest.mark.parametrize("argv", [

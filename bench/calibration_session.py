@@ -1,0 +1,181 @@
+"""A whole IMU calibration on the bench: every Paper A stage as its own recorded run.
+
+``run_calibration`` opens the IMU bench once (the IMU keeps its clock across stages, as on
+a real bench), runs each stage's sequence through :class:`~bench.hexapod_runner.HexapodRunner`
+into its own run folder (indexed in ``runs.sqlite`` like every other run), stops at the
+first stage that does not succeed, and closes the devices (hexapod stopped) whatever
+happened. ``collect_log`` joins the stages' samples on the rig clock into one calibration
+log in the format of :mod:`analysis.imu_log`, which :mod:`analysis.imu_calibration` reads.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import threading
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from bench.calibration_sequences import (
+    CalibrationSequence,
+    HexapodPlan,
+    HexapodSegment,
+    compile_plan,
+    paper_a_sequences,
+)
+from bench.errors import RigError
+from bench.hexapod_runner import RECORD_BASE, HexapodRunner, HexapodRunOptions, ImuBenchLike
+from bench.recorder import RunRecorder, new_run_id
+from bench.run_index import RunIndex
+from bench.runner import RunResult
+
+__all__ = ["CalibrationRun", "StageOutcome", "collect_log", "plans_for", "run_calibration",
+           "run_stage"]
+
+
+@dataclass(frozen=True)
+class StageOutcome:
+    result: RunResult
+    run_dir: Path
+    plan: HexapodPlan
+
+
+@dataclass
+class CalibrationRun:
+    """The stages run so far; ``complete`` when every stage succeeded."""
+
+    stages: list[StageOutcome] = field(default_factory=list)
+    planned: int = 0
+    truth: dict[str, Any] | None = None
+
+    @property
+    def complete(self) -> bool:
+        return (len(self.stages) == self.planned
+                and all(s.result.status == "success" for s in self.stages))
+
+
+def plans_for(rig: Any, sequences: Sequence[CalibrationSequence]) -> list[HexapodPlan]:
+    """Compile every stage against the rig's hexapod limits and pivot (no device touched)."""
+    limits = rig.hexapod.hexapod_limits()
+    return [compile_plan(s, limits, tuple(rig.hexapod.pivot_m)) for s in sequences]
+
+
+def _rig_summary(rig: Any) -> dict[str, Any]:
+    return {"name": rig.name, "path": str(rig.path), "kind": "imu",
+            "devices": {r: {"url": d.url} for r, d in rig.devices.items()},
+            "hexapod": dataclasses.asdict(rig.hexapod), "imu": dataclasses.asdict(rig.imu)}
+
+
+def run_stage(bench: ImuBenchLike, rig: Any, plan: HexapodPlan, out_root: Path, *,
+              options: HexapodRunOptions | None = None,
+              on_progress: Callable[[float, float, HexapodSegment], None] | None = None,
+              on_rows: Callable[[Mapping[str, np.ndarray]], None] | None = None,
+              stop_event: threading.Event | None = None,
+              extra_meta: Mapping[str, Any] | None = None) -> StageOutcome:
+    """Run one stage into its own run folder; errors propagate after the safe stop."""
+    options = options or HexapodRunOptions(trajectory_rate_hz=rig.hexapod.trajectory_rate_hz)
+    seq = plan.sequence
+    out_root = Path(out_root)
+    index = RunIndex(out_root)
+    run_dir = out_root / new_run_id(seq.name)
+    meta = {
+        "kind": seq.name,
+        "rig": _rig_summary(rig),
+        "sequence": json.loads(json.dumps(seq.to_dict(), default=str)),
+        "plan": {"duration_s": plan.duration_s,
+                 "segments": [{"index": s.index, "kind": s.kind, "label": s.label,
+                               "phase": s.phase, "t_start_s": s.t_start_s,
+                               "duration_s": s.duration_s, "peaks": dict(s.peaks)}
+                              for s in plan.segments]},
+        "limits": plan.limits.as_dict(),
+        "rig_limits": dict(rig.hexapod.limits),
+        "options": dataclasses.asdict(options),
+        "seed": rig.sim.seed if rig.is_simulated else None,
+        "log_format": "analysis.imu_log calibration log (t_s, phase, ref_*, imu_*)",
+        **dict(extra_meta or {}),
+    }
+    recorder = RunRecorder(run_dir, meta, base_columns=RECORD_BASE)
+    index.upsert(recorder.meta, run_dir)
+    try:
+        runner = HexapodRunner(bench, plan, recorder, options, on_rows=on_rows,
+                               on_progress=on_progress, stop_event=stop_event)
+        result = runner.run()
+    finally:
+        if not recorder.closed:  # the runner could not even be built
+            recorder.finish("fail", "runner did not start")
+        index.upsert(recorder.meta, run_dir)
+    return StageOutcome(result, run_dir, plan)
+
+
+def run_calibration(rig: Any, out_root: Path, *, quick: bool = False, seed: int | None = None,
+                    options: HexapodRunOptions | None = None,
+                    sequences: Sequence[CalibrationSequence] | None = None,
+                    on_stage: Callable[[int, HexapodPlan], None] | None = None,
+                    on_progress: Callable[[float, float, HexapodSegment], None] | None = None,
+                    stop_event: threading.Event | None = None,
+                    open_bench: Callable[..., Any] | None = None,
+                    extra_meta: Mapping[str, Any] | None = None) -> CalibrationRun:
+    """Run every stage (Paper A by default) on the rig; see module docstring."""
+    if open_bench is None:
+        from drivers.imu_factory import open_imu_rig as open_bench
+    rate = rig.imu.value("rate_hz")
+    seqs = list(sequences) if sequences is not None else paper_a_sequences(rate, quick)
+    plans = plans_for(rig, seqs)  # every stage checked before anything moves
+    out = CalibrationRun(planned=len(plans))
+    bench = open_bench(rig, seed=seed)
+    try:
+        sim = getattr(bench, "sim", None)
+        if sim is not None:
+            truth = sim.truth()
+            pivot = np.asarray(rig.hexapod.pivot_m, float)
+            truth["pivot_m"] = pivot.tolist()  # R as the calibration sees it: from the pivot
+            truth["lever_arm_from_pivot_m"] = (np.asarray(truth["lever_arm_m"])
+                                               + np.asarray(truth["cg_m"]) - pivot).tolist()
+            out.truth = truth
+        meta = {**dict(extra_meta or {}),
+                **({"sim_truth": out.truth} if out.truth is not None else {})}
+        for i, plan in enumerate(plans):
+            if on_stage is not None:
+                on_stage(i, plan)
+            stage = run_stage(bench, rig, plan, out_root, options=options,
+                              on_progress=on_progress, stop_event=stop_event,
+                              extra_meta={**meta, "stage": i + 1, "stages": len(plans)})
+            out.stages.append(stage)
+            if stage.result.status != "success":
+                break
+    finally:
+        bench.close()
+    return out
+
+
+def collect_log(run_dirs: Sequence[Path], path: Path) -> Path:
+    """Join the stages' samples on the rig clock into one calibration log (atomic write).
+
+    Each run's ``t_s`` is relative to its start; adding the run's ``rig_t0_s`` (run.json)
+    puts all stages on the one continuous clock of the bench.
+    """
+    from analysis.imu_log import write_table
+
+    frames = []
+    for run_dir in run_dirs:
+        run_dir = Path(run_dir)
+        try:
+            meta = json.loads((run_dir / "run.json").read_text(encoding="utf-8"))
+            df = pd.read_parquet(run_dir / meta.get("samples", "samples.parquet"))
+        except (OSError, ValueError) as exc:
+            raise RigError(f"{run_dir}: cannot read the run's samples: {exc}") from None
+        if "rig_t0_s" not in meta:
+            raise RigError(f"{run_dir}/run.json: field rig_t0_s: missing (not a hexapod run?)")
+        df = df.sort_values("t_s", kind="stable")
+        df["t_s"] = df["t_s"].to_numpy(float) + float(meta["rig_t0_s"])
+        df["phase"] = df["phase"].astype(str)
+        frames.append(df.drop(columns=["step"], errors="ignore"))
+    if not frames:
+        raise RigError("no stage runs to collect")
+    log = pd.concat(frames, ignore_index=True)
+    return write_table(log, path)

@@ -1,0 +1,386 @@
+"""The hexapod runner: carries out a compiled calibration plan on an open IMU bench, safely.
+
+The same loop as :mod:`bench.runner` with a hexapod in place of the ESC: on every tick of
+the rig clock it reads the IMU under test, the reference IMU and the hexapod's log, checks
+every logged hexapod sample against the limits, records, and checks in with the host
+watchdog. Whatever ends the run (the plan's end, a limit trip, the watchdog, an operator
+stop, Ctrl-C, a device error or a bug) the ``finally`` stops the hexapod first, then
+records the exit status and reason. Rows are the IMU's samples (its own stamps, relative
+to the run start); the hexapod's body-frame truth and pose, and the reference IMU, are
+linearly interpolated onto them from their faster logs, so a row is written once the
+hexapod log covers it. The stamps are not corrected: the hexapod-IMU time offset is for
+the analysis to estimate.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+import numpy as np
+
+from bench.calibration_sequences import HexapodPlan, HexapodSegment
+from bench.errors import RigError
+from bench.recorder import RunRecorder
+from bench.runner import OperatorStop, RunResult, _signals_deferred
+from bench.safety import LimitTrip, Trip
+from bench.watchdog import HostWatchdog, WatchdogTrip
+from drivers.contracts import Block, Clock, Sensor
+from drivers.errors import DeviceError
+from drivers.hexapod_contracts import (
+    ACCELERATION_CHANNELS,
+    BODY_CHANNELS,
+    IMU_CHANNELS,
+    POSE_CHANNELS,
+    REFERENCE_IMU_CHANNELS,
+    VELOCITY_CHANNELS,
+    Hexapod,
+    HexapodLimits,
+    Trajectory,
+)
+
+__all__ = ["RECORD_BASE", "GuardedHexapod", "HexapodRunOptions", "HexapodRunner",
+           "HexapodSupervisor", "ImuBenchLike"]
+
+RECORD_BASE = ("t_s", "phase", "step")
+_EPS = 1e-9
+
+
+class ImuBenchLike(Protocol):
+    """What the runner needs of ``drivers.imu_factory.OpenImuRig``."""
+
+    clock: Clock
+    hexapod: Hexapod
+    imu: Sensor
+    reference_imu: Sensor | None
+
+
+@dataclass(frozen=True)
+class HexapodRunOptions:
+    """Loop settings: ``tick_s`` the read period (rig clock); ``realtime`` paces a simulated
+    rig to the wall clock; ``stale_s``: a device silent this long ends the run."""
+
+    tick_s: float = 0.05
+    watchdog_timeout_s: float = 1.0
+    realtime: bool = False
+    stale_s: float = 0.5
+    trajectory_rate_hz: float = 200.0
+    limit_margin: float = 0.02  # logged samples may exceed a limit by this share (spline)
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.tick_s <= 0.1:
+            raise RigError(f"--tick {self.tick_s}: expected 0 < tick <= 0.1 s")
+        if self.stale_s <= self.tick_s:
+            raise RigError(f"stale_s {self.stale_s} must exceed the tick {self.tick_s}")
+
+
+class GuardedHexapod:
+    """Hexapod commands shared by the runner and the watchdog; a kill latches."""
+
+    def __init__(self, hexapod: Hexapod) -> None:
+        self.hexapod = hexapod
+        self._lock = threading.Lock()
+        self.killed_reason: str | None = None
+
+    def _guarded(self, fn: Callable[[], None]) -> None:
+        with self._lock:
+            if self.killed_reason is not None:
+                raise WatchdogTrip(self.killed_reason)
+            fn()
+
+    def set_pivot(self, pivot_m: tuple[float, float, float]) -> None:
+        self._guarded(lambda: self.hexapod.set_pivot(pivot_m))
+
+    def run(self, trajectory: Trajectory) -> None:
+        def go() -> None:
+            self.hexapod.upload(trajectory)
+            self.hexapod.start()
+
+        self._guarded(go)
+
+    def safe_stop(self, lock_timeout_s: float = -1) -> list[str]:
+        """Stop the hexapod (even if a command holds the lock too long); returns errors."""
+        locked = self._lock.acquire(timeout=lock_timeout_s)
+        try:
+            self.hexapod.stop()
+            return []
+        except Exception as exc:  # the safe stop reports, never raises
+            return [f"{type(exc).__name__}: {exc}"]
+        finally:
+            if locked:
+                self._lock.release()
+
+    def kill(self, reason: str) -> list[str]:
+        self.killed_reason = reason
+        return self.safe_stop(lock_timeout_s=0.1)
+
+
+class HexapodSupervisor:
+    """Checks every logged hexapod sample against the effective limits."""
+
+    _CHANNELS = (
+        ("position_m", POSE_CHANNELS[:3]), ("angle_rad", POSE_CHANNELS[3:]),
+        ("velocity_m_s", VELOCITY_CHANNELS[:3]), ("acceleration_m_s2", ACCELERATION_CHANNELS[:3]),
+        ("rate_rad_s", BODY_CHANNELS[:3]), ("angular_acceleration_rad_s2", BODY_CHANNELS[3:6]),
+    )
+
+    def __init__(self, limits: HexapodLimits, margin: float = 0.02) -> None:
+        self.limits = limits.as_dict()
+        self.margin = margin
+        self.trip: Trip | None = None
+
+    def check(self, block: Block) -> Trip | None:
+        if len(block) == 0:
+            return None
+        best: Trip | None = None
+        for name, channels in self._CHANNELS:
+            limit = self.limits[name] * (1.0 + self.margin)
+            for ch in channels:
+                v = np.asarray(block.values[ch], dtype=float)
+                bad = ~(np.abs(v) <= limit)  # NaN counts as a violation: blind
+                if not bad.any():
+                    continue
+                i = int(np.argmax(bad))
+                t = float(block.t_s[i])
+                if best is None or t < best.t_s:
+                    sample = {"t_s": t, **{c: float(block.values[c][i]) for c in block.values}}
+                    best = Trip(name, ch, "hexapod", t, float(v[i]), self.limits[name], sample)
+        if best is not None and self.trip is None:
+            self.trip = best
+        return best
+
+
+class _Merger:
+    """IMU rows with the hexapod's log and the reference IMU interpolated onto them."""
+
+    def __init__(self, plan: HexapodPlan, with_reference: bool) -> None:
+        self.plan = plan
+        self.with_reference = with_reference
+        self.imu_t = np.empty(0)
+        self.imu = {c: np.empty(0) for c in IMU_CHANNELS}
+        self.hex_cols = (*BODY_CHANNELS, *POSE_CHANNELS)
+        self.hex_t = np.empty(0)
+        self.hex = {c: np.empty(0) for c in self.hex_cols}
+        self.ref_t = np.empty(0)
+        self.ref = {c: np.empty(0) for c in REFERENCE_IMU_CHANNELS}
+        self.dropped = 0
+
+    @staticmethod
+    def _add(t: np.ndarray, cols: dict[str, np.ndarray], block: Block
+             ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        if len(block) == 0:
+            return t, cols
+        return (np.concatenate([t, block.t_s]),
+                {c: np.concatenate([v, np.asarray(block.values[c], float)])
+                 for c, v in cols.items()})
+
+    def push(self, imu: Block, hexlog: Block, ref: Block | None) -> dict[str, np.ndarray]:
+        self.imu_t, self.imu = self._add(self.imu_t, self.imu, imu)
+        self.hex_t, self.hex = self._add(self.hex_t, self.hex, hexlog)
+        if ref is not None:
+            self.ref_t, self.ref = self._add(self.ref_t, self.ref, ref)
+        return self._emit()
+
+    def _emit(self) -> dict[str, np.ndarray]:
+        if self.hex_t.size < 2 or self.imu_t.size == 0:
+            return {}
+        early = self.imu_t < self.hex_t[0]  # before the log began: cannot be interpolated
+        ready = (self.imu_t <= self.hex_t[-1]) & ~early
+        self.dropped += int(early.sum())
+        n_done = int(np.count_nonzero(early | ready))
+        if not ready.any():
+            self._consume(n_done)
+            return {}
+        t = self.imu_t[ready]
+        rows: dict[str, np.ndarray] = {"t_s": t, "phase": self.plan.phase_at(t),
+                                       "step": self.plan.step_at(t)}
+        for c in self.hex_cols:
+            rows[c] = np.interp(t, self.hex_t, self.hex[c])
+        for c in IMU_CHANNELS:
+            rows[c] = self.imu[c][ready]
+        if self.with_reference:
+            for c in REFERENCE_IMU_CHANNELS:
+                rows[c] = (np.interp(t, self.ref_t, self.ref[c], left=np.nan, right=np.nan)
+                           if self.ref_t.size >= 2 else np.full(t.shape, np.nan))
+        self._consume(n_done)
+        return rows
+
+    def _consume(self, n: int) -> None:
+        self.imu_t = self.imu_t[n:]
+        self.imu = {c: v[n:] for c, v in self.imu.items()}
+        # keep the log from just before the oldest pending IMU sample (or the last two)
+        t_keep = self.imu_t[0] if self.imu_t.size else self.hex_t[-1]
+        for attr_t, attr in (("hex_t", "hex"), ("ref_t", "ref")):
+            tt = getattr(self, attr_t)
+            if tt.size < 3:
+                continue
+            k = max(0, min(int(np.searchsorted(tt, t_keep)) - 2, tt.size - 2))
+            setattr(self, attr_t, tt[k:])
+            setattr(self, attr, {c: v[k:] for c, v in getattr(self, attr).items()})
+
+
+class HexapodRunner:
+    """Runs one plan on one open IMU bench; use once."""
+
+    def __init__(self, rig: ImuBenchLike, plan: HexapodPlan,
+                 recorder: RunRecorder | None = None,
+                 options: HexapodRunOptions | None = None,
+                 on_rows: Callable[[Mapping[str, np.ndarray]], None] | None = None,
+                 on_progress: Callable[[float, float, HexapodSegment], None] | None = None,
+                 stop_event: threading.Event | None = None) -> None:
+        self.rig = rig
+        self.plan = plan
+        self.recorder = recorder
+        self.options = options or HexapodRunOptions()
+        self.on_rows, self.on_progress = on_rows, on_progress
+        self.stop_event = stop_event or threading.Event()
+        self.hexapod = GuardedHexapod(rig.hexapod)
+        self.watchdog = HostWatchdog(self.hexapod, self.options.watchdog_timeout_s)  # type: ignore[arg-type]
+        self.supervisor = HexapodSupervisor(plan.limits, self.options.limit_margin)
+        self.merger = _Merger(plan, rig.reference_imu is not None)
+        self.result: RunResult | None = None
+        self.rows = 0
+        self._t0 = 0.0
+        self._wall0 = 0.0
+        self._segment: HexapodSegment | None = None
+        self._heard: dict[str, float] = {}
+
+    def run(self) -> RunResult:
+        """Carry out the plan. Trips and operator stops return status abort; device errors,
+        Ctrl-C and bugs are re-raised after the hexapod is stopped and the run recorded."""
+        status, reason, trip = "fail", "run did not start", None
+        pending: BaseException | None = None
+        try:
+            self._drain()
+            self._t0 = self.rig.clock.now()
+            self._wall0 = time.monotonic()
+            self._event("run_start", detail={"rig_t0_s": self._t0,
+                                             "plan_duration_s": self.plan.duration_s})
+            self.watchdog.start()
+            for seg in self.plan.segments:
+                self._run_segment(seg)
+            status, reason = "success", "sequence complete"
+        except LimitTrip as exc:
+            trip = exc.trip
+            status, reason = "abort", trip.message
+        except WatchdogTrip as exc:
+            status, reason = "abort", str(exc)
+        except OperatorStop as exc:
+            status, reason = "abort", f"stopped by operator: {exc}" if str(exc) else \
+                "stopped by operator"
+        except KeyboardInterrupt as exc:
+            status, reason, pending = "abort", "interrupted by operator (Ctrl-C or SIGTERM)", exc
+        except DeviceError as exc:
+            status, reason, pending = "fail", f"device error: {exc}", exc
+        except BaseException as exc:
+            status, reason, pending = "fail", f"{type(exc).__name__}: {exc}", exc
+        finally:
+            with _signals_deferred():
+                errors = self.hexapod.safe_stop()  # hexapod stopped before anything else
+                self.watchdog.stop()
+                if self.watchdog.tripped and status == "success":
+                    status, reason = "abort", self.watchdog.reason
+                errors += self.watchdog.errors
+                self.result = RunResult(status, reason, trip, self._now_rel(), self.rows,
+                                        errors, pending)
+                self._finish_record(trip, errors)
+        if pending is not None:
+            raise pending
+        return self.result
+
+    def request_stop(self) -> None:
+        self.stop_event.set()
+
+    # -- loop ---------------------------------------------------------------------------
+    def _run_segment(self, seg: HexapodSegment) -> None:
+        self._segment = seg
+        self._event("step_start", seg.index, seg.label,
+                    {"kind": seg.kind, "phase": seg.phase, "duration_s": seg.duration_s,
+                     **({"peaks": dict(seg.peaks)} if seg.peaks else {})})
+        if seg.kind == "set_pivot" and seg.pivot_m is not None:
+            self.hexapod.set_pivot(seg.pivot_m)
+        elif seg.kind == "move" and seg.motion is not None:
+            traj = Trajectory.from_motion(seg.motion, self.options.trajectory_rate_hz)
+            self.hexapod.run(traj)
+        end = seg.t_end_s
+        tick = self.options.tick_s
+        while True:
+            now = self._now_rel()
+            if now >= end - _EPS:
+                break
+            deadline = min((math.floor((now + _EPS) / tick) + 1) * tick, end)
+            self.rig.clock.sleep(deadline - now)
+            self._acquire()
+
+    def _drain(self) -> None:
+        self.rig.imu.read_block()
+        self.rig.hexapod.read_log()
+        if self.rig.reference_imu is not None:
+            self.rig.reference_imu.read_block()
+
+    def _read(self, role: str, read: Callable[[], Block], now: float) -> Block:
+        b = read()
+        if len(b):
+            self._heard[role] = now
+        elif now - self._heard.get(role, 0.0) > self.options.stale_s:
+            raise DeviceError(f"{role}: no samples for {now - self._heard.get(role, 0.0):.2f} s "
+                              f"(limit {self.options.stale_s:g} s)")
+        return Block(b.t_s - self._t0, b.values)
+
+    def _acquire(self) -> None:
+        now = self._now_rel()
+        hexlog = self._read("hexapod", self.rig.hexapod.read_log, now)
+        imu = self._read("imu", self.rig.imu.read_block, now)
+        ref = (self._read("reference_imu", self.rig.reference_imu.read_block, now)
+               if self.rig.reference_imu is not None else None)
+        trip = self.supervisor.check(hexlog)  # every logged sample, before anything else
+        rows = self.merger.push(imu, hexlog, ref)
+        n = len(rows.get("t_s", ()))
+        if n:
+            if self.recorder is not None:
+                self.recorder.append(rows)
+            if self.on_rows is not None:
+                self.on_rows(rows)
+            self.rows += n
+        if trip is not None:
+            self._event("trip", self._segment.index if self._segment else None, trip.limit,
+                        trip.to_dict())
+            raise LimitTrip(trip)
+        self.watchdog.kick()
+        if self.stop_event.is_set():
+            self._event("operator_stop", label="stop requested")
+            raise OperatorStop("stop requested")
+        now = self._now_rel()
+        if self.options.realtime:
+            ahead = (self._wall0 + now) - time.monotonic()
+            if ahead > 0:
+                time.sleep(ahead)
+        if self.on_progress is not None and self._segment is not None:
+            self.on_progress(now, self.plan.duration_s, self._segment)
+
+    # -- record -------------------------------------------------------------------------
+    def _now_rel(self) -> float:
+        return self.rig.clock.now() - self._t0
+
+    def _event(self, kind: str, step: int | None = None, label: str = "",
+               detail: Mapping[str, Any] | None = None) -> None:
+        if self.recorder is not None:
+            self.recorder.event(self._now_rel(), kind, step, label, detail)
+
+    def _finish_record(self, trip: Trip | None, errors: list[str]) -> None:
+        res = self.result
+        assert res is not None
+        if self.recorder is None:
+            return
+        try:
+            self._event("safe_stop", label="hexapod stop",
+                        detail={"errors": errors} if errors else None)
+            self._event("run_end", label=res.status, detail={"reason": res.reason})
+        finally:
+            self.recorder.finish(res.status, res.reason, trip=trip.to_dict() if trip else None,
+                                 safe_stop_errors=errors, duration_s=res.t_end_s,
+                                 rig_t0_s=self._t0, rows_dropped=self.merger.dropped)
