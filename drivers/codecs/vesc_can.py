@@ -151,6 +151,17 @@ class Status5:
 
 
 @dataclass(frozen=True)
+class Status6:
+    """§3.2 STATUS_6: int16 ADC1, ADC2, ADC3 (V) and PPM, each ·1000."""
+
+    controller_id: int
+    adc1_v: float
+    adc2_v: float
+    adc3_v: float
+    ppm: float
+
+
+@dataclass(frozen=True)
 class Unknown:
     """A VESC-shaped frame of a packet id this codec does not interpret."""
 
@@ -160,7 +171,7 @@ class Unknown:
 
 
 VescMessage = (SetDuty | SetCurrent | SetCurrentBrake | SetRpm | Status1 | Status2 | Status3
-               | Status4 | Status5 | Unknown)
+               | Status4 | Status5 | Status6 | Unknown)
 
 # (packet id, struct format, scale per field) for the fixed-layout messages; scales §3.2.
 _LAYOUT: dict[type, tuple[int, str, tuple[float, ...]]] = {
@@ -171,6 +182,7 @@ _LAYOUT: dict[type, tuple[int, str, tuple[float, ...]]] = {
     Status2: (STATUS_2, ">ii", (1e4, 1e4)),
     Status3: (STATUS_3, ">ii", (1e4, 1e4)),
     Status4: (STATUS_4, ">hhhh", (10.0, 10.0, 10.0, 50.0)),
+    Status6: (STATUS_6, ">hhhh", (1e3, 1e3, 1e3, 1e3)),
 }
 _BY_ID = {pid: (cls, fmt, scales) for cls, (pid, fmt, scales) in _LAYOUT.items()}
 

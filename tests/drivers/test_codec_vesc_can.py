@@ -137,6 +137,8 @@ messages = st.one_of(
     st.builds(lambda c, a, b, d, e: v.Status4(c, a / 10, b / 10, d / 10, e / 50),
               ctrl, i16, i16, i16, i16),
     st.builds(lambda c, t, u: v.Status5(c, t, u / 10), ctrl, i32, i16),
+    st.builds(lambda c, a, b, d, e: v.Status6(c, a / 1e3, b / 1e3, d / 1e3, e / 1e3),
+              ctrl, i16, i16, i16, i16),
 )
 
 
