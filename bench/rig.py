@@ -4,15 +4,19 @@
 problem raises ``bench.errors.RigError`` naming the file, the field and what was expected.
 The static thrust map measured by a sweep (Paper C section 4.4) lives in a CSV side file
 the rig file references (``[thrust_map] file = ...``); ``save_thrust_map`` writes it
-atomically so the step sequences can turn thrust setpoints into ESC commands.
+atomically so the step sequences can turn thrust setpoints into ESC commands. Shipped
+(or read-only) rigs are never rewritten: the map goes into a copy of the rig under the
+run output folder (``map_goes_to_copy``, ``save_thrust_map(..., dest_dir=...)``).
 """
 
 from __future__ import annotations
 
 import csv
 import io
+import json
 import math
 import os
+import re
 import tempfile
 import tomllib
 from collections.abc import Mapping, Sequence
@@ -36,6 +40,37 @@ PULSE_RANGE_US = (1000.0, 2000.0)
 def default_rig_path() -> Path:
     """The simulated rig every command uses when no ``--rig`` is given."""
     return REPO / "fixtures" / "rigs" / "sim.toml"
+
+
+def is_shipped_rig(path: str | os.PathLike[str]) -> bool:
+    """True for a rig file inside the package's own ``fixtures/rigs`` folder.
+
+    Shipped rigs are read-only references: a sweep stores a copy of them (with its map)
+    under the output folder instead of rewriting tracked or installed files.
+    """
+    return Path(path).resolve().is_relative_to(default_rig_path().parent.resolve())
+
+
+def _writable(path: Path) -> bool:
+    return os.access(path, os.W_OK)
+
+
+def map_goes_to_copy(rig: RigConfig) -> bool:
+    """True if a new thrust map may not be written beside ``rig``'s file.
+
+    That is a shipped rig, or one whose folder (or file, or existing map file) is not
+    writable; ``save_thrust_map(..., dest_dir=...)`` then stores a copy of the rig instead.
+    """
+    if is_shipped_rig(rig.path):
+        return True
+    target = rig.thrust_map_path or rig.path.with_name(f"{rig.path.stem}.thrust_map.csv")
+    needed = [target.parent] + [p for p in (rig.path, target) if p.exists()]
+    return not all(_writable(p) for p in needed)
+
+
+def rig_copy_path(rig_path: str | os.PathLike[str], out: str | os.PathLike[str]) -> Path:
+    """Where a sweep stores its copy of a read-only rig: ``<out>/rigs/<rig file name>``."""
+    return Path(out) / "rigs" / Path(rig_path).name
 
 
 # --- the config objects -------------------------------------------------------------------
@@ -457,21 +492,68 @@ def _atomic_write(path: Path, text: str) -> None:
         raise
 
 
+def _copy_text(rig: RigConfig, map_name: str) -> str:
+    """The rig file's text with ``[thrust_map] file`` naming ``map_name`` beside the copy.
+
+    Everything else is copied verbatim: catalogs resolve against the package, not the
+    rig file, so the thrust map is the only path that depends on where the file lies.
+    """
+    raw = rig.path.read_text(encoding="utf-8")
+    data = _read_toml(rig.path)
+    if "thrust_map" not in data:
+        return raw.rstrip("\n") + f"\n\n[thrust_map]\nfile = {json.dumps(map_name)}\n"
+    lines = raw.splitlines(keepends=True)
+    header = re.compile(r"^\s*\[\s*thrust_map\s*\]\s*(#.*)?$")
+    start = next((i for i, line in enumerate(lines) if header.match(line.rstrip("\r\n"))), None)
+    if start is None:
+        raise RigError(f"{rig.path}: [thrust_map]: expected a '[thrust_map]' header line")
+    for i in range(start + 1, len(lines)):
+        if lines[i].lstrip().startswith("["):
+            break
+        if re.match(r"^\s*file\s*=", lines[i]):
+            lines[i] = f"file = {json.dumps(map_name)}\n"
+            return "".join(lines)
+    raise RigError(f"{rig.path}: [thrust_map] file: expected a 'file = ...' line")
+
+
+def _write_map_csv(target: Path, command_us: Sequence[float],
+                   thrust_n: Sequence[float]) -> ThrustMap:
+    tm = _make_thrust_map(target, command_us, thrust_n, target)
+    lines = ["command_us,thrust_n"] + [f"{c:.6g},{f:.6g}" for c, f in
+                                       zip(tm.command_us, tm.thrust_n, strict=True)]
+    _atomic_write(target, "\n".join(lines) + "\n")
+    return tm
+
+
 def save_thrust_map(rig: RigConfig, command_us: Sequence[float], thrust_n: Sequence[float],
-                    path: str | os.PathLike[str] | None = None) -> RigConfig:
+                    path: str | os.PathLike[str] | None = None,
+                    dest_dir: str | os.PathLike[str] | None = None) -> RigConfig:
     """Write the measured thrust map as CSV next to the rig file, atomically.
 
     ``path`` defaults to the file the rig names in ``[thrust_map]``, else
     ``<rig stem>.thrust_map.csv``; if the rig file does not reference it yet, a
     ``[thrust_map]`` table is appended to the rig file (also atomically).
-    Returns the rig with the new map.
+    With ``dest_dir`` the rig file is left alone: it is copied to ``dest_dir/<name>``
+    (its ``[thrust_map] file`` pointing at the map beside the copy) and the map is
+    written next to the copy (``path`` is then ignored).
+    Returns the rig with the new map (for ``dest_dir``: the copy, loaded back).
     """
+    if dest_dir is not None:
+        copy = Path(dest_dir).resolve() / rig.path.name
+        if copy == rig.path:
+            raise RigError(f"{rig.path}: cannot copy the rig onto itself")
+        source = rig.thrust_map_path or rig.path.with_name(f"{rig.path.stem}.thrust_map.csv")
+        map_path = copy.with_name(source.name)
+        text = _copy_text(rig, map_path.name)
+        _write_map_csv(map_path, command_us, thrust_n)
+        _atomic_write(copy, text)
+        saved = load_rig(copy)
+        if saved.thrust_map_path != map_path or saved.thrust_map is None:
+            raise RigError(f"{copy}: [thrust_map] file does not name {map_path}")
+        return replace(saved, components=rig.components, sim=rig.sim)
     target = Path(path).resolve() if path else (
         rig.thrust_map_path or rig.path.with_name(f"{rig.path.stem}.thrust_map.csv"))
-    tm = _make_thrust_map(target, command_us, thrust_n, target)
-    lines = ["command_us,thrust_n"] + [f"{c:.6g},{f:.6g}" for c, f in
-                                       zip(tm.command_us, tm.thrust_n, strict=True)]
-    _atomic_write(target, "\n".join(lines) + "\n")
+    tm = _write_map_csv(target, command_us, thrust_n)
     if rig.thrust_map_path != target:
         raw = rig.path.read_text(encoding="utf-8")
         if "thrust_map" in _read_toml(rig.path):

@@ -49,10 +49,21 @@ def add_common_arguments(p: argparse.ArgumentParser) -> None:
                         "sample, the reaction comes within one tick (default 0.02)")
 
 
-def load_rig_from_args(args: argparse.Namespace) -> Any:
-    from bench.rig import default_rig_path, load_rig
+def load_rig_from_args(args: argparse.Namespace, prefer_out_copy: bool = False) -> Any:
+    """The rig of ``--rig`` (default: the sim rig), with ``--esc-mode`` applied.
+
+    ``prefer_out_copy``: for a read-only rig (shipped, or not writable) use the copy an
+    earlier sweep stored under ``<out>/rigs/`` with its measured map, if there is one.
+    """
+    from bench.rig import default_rig_path, load_rig, map_goes_to_copy, rig_copy_path
 
     rig = load_rig(args.rig or default_rig_path())
+    if prefer_out_copy and map_goes_to_copy(rig):
+        copy = rig_copy_path(rig.path, args.out)
+        if copy.is_file():
+            print(f"rig file: {copy} (the copy of read-only {rig.path} that holds the "
+                  "map a sweep measured)")
+            rig = load_rig(copy)
     if args.esc_mode:
         rig = rig.with_esc_mode(args.esc_mode)
     return rig

@@ -15,7 +15,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description="Thrust steps between hover -30 %% and +30 %% (175 g and 325 g per rotor "
                     "of the 1 kg quadcopter, Paper C section 4). Setpoints become ESC "
                     "commands through the rig's static thrust map; if the rig has none yet, "
-                    "a sweep measures it first and stores it with the rig.")
+                    "a sweep measures it first and stores it with the rig (for a shipped or "
+                    "read-only rig: in a copy under OUT/rigs/, used by later runs with the "
+                    "same --out).")
     common.add_common_arguments(p)
     p.add_argument("--sequence", default="step1", metavar="step1|step2|FILE",
                    help="Paper C Step 1 (default) or Step 2, or a sequence file (.json/.toml "
@@ -35,7 +37,7 @@ def build(args: argparse.Namespace):
 
 
 def handler(args: argparse.Namespace) -> int:
-    rig = common.load_rig_from_args(args)
+    rig = common.load_rig_from_args(args, prefer_out_copy=True)
     seq = build(args)
     if args.dry_run:
         if rig.thrust_map is None and seq.needs_thrust_map:
