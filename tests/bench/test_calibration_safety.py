@@ -181,3 +181,39 @@ def test_calibration_session_stops_at_a_failed_stage_and_closes(tmp_path: Path) 
     assert run.stages[0].result.status == "abort"
     (b,) = opened
     assert b.hexapod.closed and not b.hexapod.is_moving()
+
+
+def test_sigint_on_the_command_stops_records_and_exits_130(tmp_path: Path) -> None:
+    """Ctrl-C on `rotorbench calibrate` (realtime, so it is still moving): the stage run is
+    recorded as aborted with its safe stop, no calibration is written, exit code 130."""
+    import os
+    import signal
+    import subprocess
+    import sys
+
+    repo = Path(__file__).resolve().parents[2]
+    env = {**os.environ, "PYTHONPATH": str(repo)}
+    runs = tmp_path / "runs"
+    child = subprocess.Popen(
+        [sys.executable, "-m", "bench.cli", "calibrate", "--quick", "--realtime", "--runs",
+         str(runs), "--out", str(tmp_path / "cal.json")],
+        env=env, cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    try:
+        deadline = time.monotonic() + 30.0
+        while time.monotonic() < deadline and not list(runs.glob("*/samples.parquet/part-*")):
+            time.sleep(0.05)
+            assert child.poll() is None, "the calibration ended before it could be stopped"
+        child.send_signal(signal.SIGINT)
+        _, err = child.communicate(timeout=20)
+    finally:
+        if child.poll() is None:
+            child.kill()
+    assert child.returncode == 130, err.decode()
+    (run_dir,) = [p for p in runs.iterdir() if p.is_dir()]
+    meta = json.loads((run_dir / "run.json").read_text())
+    assert meta["status"] == "abort" and "Ctrl-C" in meta["reason"]
+    assert meta["safe_stop_errors"] == []
+    with open(run_dir / "events.csv", newline="") as fh:
+        kinds = [e["kind"] for e in csv.DictReader(fh)]
+    assert kinds[-2:] == ["safe_stop", "run_end"]
+    assert not (tmp_path / "cal.json").exists()
