@@ -2,9 +2,18 @@
 
 ``open_rig(rig)`` takes a validated rig config (``bench.rig.RigConfig``, used duck-typed so
 ``drivers`` does not import ``bench``) and returns an ``OpenRig``: clock, ESC, sensors by role.
-``sim://<role>`` devices come from one shared ``drivers.sim.rig.SimRig``; ``replay://`` sensors
-read a recorded block list; ``serial://``, ``can://``, ``nidaq://`` and ``tcp://`` backends
-arrive with the hardware drivers of a later issue and raise ``DeviceError`` until then.
+
+- ``sim://<role>`` devices come from one shared ``drivers.sim.rig.SimRig`` on its own fast
+  simulated clock; ``replay://`` sensors read a recorded block list;
+- ``serial://``, ``can://`` and ``nidaq://`` devices are real backends
+  (``drivers.backends``, imported lazily by ``drivers.device_openers``) on the host's
+  monotonic clock; ``tcp://`` is the PI GCS hexapod of the IMU bench (``open_hexapod``);
+- the host ``sim`` in those URLs (``serial://sim/msp``, ``serial://sim/loadcell``,
+  ``can://sim/bench``) starts the wire-level simulated device (``drivers.wire_sim``) on a
+  pty or python-can's virtual bus, driven by the rig's ``[sim]`` plant in real time
+  (``drivers.wire_rig``), and points the real backend at it.
+
+Problems raise ``DeviceError`` naming the rig file, the device table and the field.
 """
 
 from __future__ import annotations
@@ -14,33 +23,43 @@ from dataclasses import dataclass, field
 from typing import Any
 from urllib.parse import urlsplit
 
-from drivers.contracts import Clock, Esc, Fault, Sensor
+from drivers.contracts import Clock, Esc, Fault, MonotonicClock, Sensor
+from drivers.device_options import DeviceUrl, parse_device
 from drivers.errors import DeviceError
 from drivers.sim.esc import EscSettings
 from drivers.sim.plant import PlantParams
 from drivers.sim.rig import PlantTruth, SimRig
 from drivers.sim.sensors import SensorParams
 
+__all__ = [
+    "SENSOR_ROLES",
+    "OpenRig",
+    "build_sim_rig",
+    "device_specs",
+    "open_hexapod",
+    "open_rig",
+]
+
 SENSOR_ROLES = ("load_cell", "power", "rpm")
-LATER_SCHEMES = {
-    "serial": "serial devices (pyserial)",
-    "can": "CAN devices (python-can)",
-    "nidaq": "NI-DAQmx devices",
-    "tcp": "TCP devices",
-}
+ROLES = ("esc", *SENSOR_ROLES)
+HARDWARE_SCHEMES = ("serial", "can", "nidaq")
 
 
 @dataclass
 class OpenRig:
-    """Opened devices of one rig. ``truth()`` gives the plant truth on simulated rigs."""
+    """Opened devices of one rig. ``truth()`` gives the plant truth on simulated rigs
+    (and on rigs of wire-level simulated devices, whose plant runs on the wall clock)."""
 
     clock: Clock
     esc: Esc
     sensors: dict[str, Sensor]
     sim: SimRig | None = None
     _closers: list[Callable[[], None]] = field(default_factory=list, repr=False)
+    wire: Any = None  # drivers.wire_rig.WireSims on rigs of wire-level simulated devices
 
     def truth(self) -> PlantTruth | None:
+        if self.wire is not None:
+            return self.wire.plant.truth()
         return self.sim.truth() if self.sim is not None else None
 
     def close(self) -> None:
@@ -48,26 +67,23 @@ class OpenRig:
         try:
             self.esc.disarm()
         finally:
-            for close in [self.esc.close, *(s.close for s in self.sensors.values()),
-                          *self._closers]:
-                close()
+            closers = [self.esc.close, *(s.close for s in self.sensors.values()),
+                       *self._closers]
+            self._closers = []
+            errors = []
+            for close in closers:
+                try:
+                    close()
+                except Exception as exc:  # every device gets closed
+                    errors.append(exc)
+            if errors:
+                raise errors[0]
 
     def __enter__(self) -> OpenRig:
         return self
 
     def __exit__(self, *exc: object) -> None:
         self.close()
-
-
-def _later(url: str, role: str) -> DeviceError:
-    scheme = urlsplit(url).scheme
-    what = LATER_SCHEMES.get(scheme)
-    if what is None:
-        return DeviceError(f"{role}: {url!r}: unknown device URL scheme {scheme!r}")
-    return DeviceError(
-        f"{role}: {url!r}: the {scheme}:// backend ({what}) arrives with the hardware "
-        "drivers in a later issue; use sim:// devices for now"
-    )
 
 
 def _sim_faults(device: Any, options: Mapping[str, Any], role: str) -> None:
@@ -85,15 +101,13 @@ def _sim_faults(device: Any, options: Mapping[str, Any], role: str) -> None:
             raise DeviceError(f"{role}: bad fault spec {spec!r}: {exc}") from None
 
 
-def open_rig(rig: Any, *, seed: int | None = None) -> OpenRig:
-    """Open every device the rig config names; sim rigs share one seeded plant."""
-    devices = rig.devices
-    schemes = {role: urlsplit(dev.url).scheme for role, dev in devices.items()}
-    for role, scheme in schemes.items():
-        if scheme not in ("sim", "replay"):
-            raise _later(devices[role].url, role)
-    if schemes.get("esc") != "sim":
-        raise DeviceError(f"esc: {devices['esc'].url!r}: an ESC can only be simulated for now")
+def build_sim_rig(rig: Any, *, seed: int | None = None, urls: dict[str, str] | None = None,
+                  calibrations: bool = False) -> SimRig:
+    """The seeded simulated rig of a rig file's ``[sim]`` and ``[esc]`` tables.
+
+    ``calibrations``: take the sensors' calibration tables from the rig's devices (the
+    ``sim://`` rig); wire-level peers report calibrated values like their firmware.
+    """
     try:
         params = PlantParams.with_overrides(dict(rig.sim.plant))
         sensor_params = SensorParams.with_overrides(
@@ -103,27 +117,110 @@ def open_rig(rig: Any, *, seed: int | None = None) -> OpenRig:
     e = rig.esc
     esc_settings = EscSettings(e.frame_rate_hz, e.min_us, e.max_us, e.idle_us, e.arm_us,
                                e.timeout_s)
-    sim = SimRig(
+    devices = rig.devices
+    cal = {role: dict(devices[role].calibration) if calibrations else {}
+           for role in SENSOR_ROLES}
+    return SimRig(
         params=params,
         sensor_params=sensor_params,
         esc_settings=esc_settings,
         esc_mode=rig.sim.esc_mode,
         seed=int(rig.sim.seed if seed is None else seed),
-        urls={role: dev.url for role, dev in devices.items() if schemes[role] == "sim"},
-        load_cell_cal=dict(devices["load_cell"].calibration),
-        power_cal=dict(devices["power"].calibration),
-        rpm_cal=dict(devices["rpm"].calibration),
+        urls=urls,
+        load_cell_cal=cal["load_cell"],
+        power_cal=cal["power"],
+        rpm_cal=cal["rpm"],
     )
+
+
+def device_specs(rig: Any) -> dict[str, DeviceUrl]:
+    """Every device of the rig with its URL split and options merged (see device_options)."""
+    return {role: parse_device(rig.path, role, dev) for role, dev in rig.devices.items()}
+
+
+def open_rig(rig: Any, *, seed: int | None = None) -> OpenRig:
+    """Open every device the rig config names; see the module docstring."""
+    devices = rig.devices
+    schemes = {role: urlsplit(dev.url).scheme for role, dev in devices.items()}
+    for role, scheme in schemes.items():
+        if scheme not in ("sim", "replay", "tcp", *HARDWARE_SCHEMES):
+            raise DeviceError(f"{rig.path}: [devices.{role}] url {devices[role].url!r}: "
+                              f"unknown device URL scheme {scheme!r}")
+    if any(s in HARDWARE_SCHEMES or s == "tcp" for s in schemes.values()):
+        return _open_hardware_rig(rig, seed)
+    if schemes.get("esc") != "sim":
+        raise DeviceError(f"{rig.path}: [devices.esc] url {devices['esc'].url!r}: a replay "
+                          "cannot drive a motor; use sim://esc or a hardware ESC")
+    sim = build_sim_rig(rig, seed=seed, calibrations=True,
+                        urls={r: d.url for r, d in devices.items() if schemes[r] == "sim"})
     sensors: dict[str, Sensor] = {}
     for role in SENSOR_ROLES:
         dev = devices[role]
         if schemes[role] == "sim":
             sensors[role] = sim.sensors[role]
+            _sim_faults(sensors[role], dev.options, role)
         else:
             from drivers.replay import ReplaySensor
 
             sensors[role] = ReplaySensor.from_url(dev.url, sim.clock)
-        if schemes[role] == "sim":
-            _sim_faults(sensors[role], dev.options, role)
     _sim_faults(sim.esc, devices["esc"].options, "esc")
     return OpenRig(clock=sim.clock, esc=sim.esc, sensors=sensors, sim=sim)
+
+
+def _open_hardware_rig(rig: Any, seed: int | None) -> OpenRig:
+    from drivers.device_openers import DeviceOpener
+
+    specs = device_specs(rig)
+    for spec in specs.values():
+        if spec.scheme == "sim":
+            raise spec.fail("", "sim:// devices run on the simulated clock and cannot be "
+                                "mixed with hardware; use the wire-level simulated devices "
+                                "(serial://sim/..., can://sim/...) instead")
+    clock = MonotonicClock()
+    opener = DeviceOpener(rig, clock, seed)
+    opener.plan_nidaq(list(specs.values()))
+    esc: Esc | None = None
+    sensors: dict[str, Sensor] = {}
+    try:
+        esc = opener.open_esc(specs["esc"])
+        for role in SENSOR_ROLES:
+            spec = specs[role]
+            if spec.scheme == "replay":
+                from drivers.replay import ReplaySensor
+
+                sensors[role] = ReplaySensor.from_url(spec.url, clock)
+            else:
+                sensors[role] = opener.open_sensor(spec)
+    except BaseException:
+        for dev in [*sensors.values(), *([esc] if esc is not None else [])]:
+            try:
+                dev.close()
+            except Exception:  # already failing: close the rest
+                pass
+        try:
+            opener.close()
+        except Exception:
+            pass
+        raise
+    return OpenRig(clock=clock, esc=esc, sensors=sensors, _closers=[opener.close],
+                   wire=opener.wire)
+
+
+def open_hexapod(url: str, *, where: str = "hexapod", timeout_s: float = 2.0) -> Any:
+    """``tcp://host[:50000]`` -> a connected PI GCS client (``drivers.backends.pi_hexapod``).
+
+    It moves, stops and reads the platform; it does not fill
+    ``drivers.hexapod_contracts.Hexapod`` yet (no wave-table upload: see docs/devices.md).
+    """
+    parts = urlsplit(url)
+    if parts.scheme != "tcp" or not parts.hostname:
+        raise DeviceError(f"{where}: {url!r}: expected tcp://<host>[:port]")
+    from drivers.backends import pi_hexapod
+    from drivers.codecs.gcs import PORT
+
+    sock = pi_hexapod.open_tcp(parts.hostname, parts.port or PORT, timeout_s)
+    try:
+        return pi_hexapod.PiHexapod(sock, url=url)
+    except BaseException:
+        sock.close()
+        raise

@@ -1,0 +1,42 @@
+"""``rotorbench check --rig FILE``: connect to every device of a rig and report what answers."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from rich.console import Console
+from rich.table import Table
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "check", help="connect to every device of a rig file and report what answers",
+        description="Opens each device of the rig on its own and waits for a sign of life "
+                    "(samples from sensors; identification or bus traffic from the ESC). "
+                    "Nothing is armed or moved. One line per device; exit 0 when all "
+                    "answer, 2 otherwise.")
+    p.add_argument("--rig", type=Path, default=None,
+                   help="rig file (TOML); default: the simulated rig fixtures/rigs/sim.toml")
+    p.add_argument("--timeout", type=float, default=2.0,
+                   help="seconds to wait for each device (default 2)")
+    p.add_argument("--json", action="store_true", help="print JSON lines instead of a table")
+    p.set_defaults(func=handler)
+
+
+def handler(args: argparse.Namespace) -> int:
+    from bench.rig import default_rig_path, load_rig
+    from drivers.rig_check import check_rig
+
+    rig = load_rig(args.rig or default_rig_path())
+    reports = check_rig(rig, timeout_s=args.timeout)
+    if args.json:
+        for r in reports:
+            print(json.dumps({"role": r.role, "url": r.url, "ok": r.ok, "detail": r.detail}))
+    else:
+        table = Table(box=None, show_header=False, pad_edge=False)
+        for r in reports:
+            table.add_row(r.role, r.url, "[green]ok[/]" if r.ok else "[red]FAIL[/]", r.detail)
+        Console(width=200, soft_wrap=True).print(table)
+    return 0 if all(r.ok for r in reports) else 2

@@ -1,0 +1,254 @@
+"""The simulated rig's plant run on the wall clock, feeding wire-level simulated devices.
+
+A rig file whose device URLs name the host ``sim`` (``serial://sim/msp``,
+``serial://sim/loadcell``, ``can://sim/<channel>``) gets real backends talking to the
+``drivers.wire_sim`` peers over a pty or python-can's ``virtual`` bus. The peers take
+their physics from one :class:`WirePlant`: the same seeded ``drivers.sim.rig.SimRig`` the
+plain simulated rig uses (plant, ESC firmware model, load cell, current sensor, hall
+counter), whose simulated clock is pulled along with ``time.monotonic``. Commands that
+reach a peer go into the ESC firmware model at their arrival time, so the wire's latency
+and the frame phase show up in the response exactly as on a bench.
+
+Peers: a flight controller (MSP motor test) whose motor output feeds the ESC model; a
+load-cell board printing one line per ``period_s`` with the mean of the load-cell (and
+power-sensor) samples since its previous line (the boxcar of an integrating ADC) and the
+latest hall-counter speed; a VESC and a DroneCAN ESC whose commands set the duty and whose
+status broadcasts carry the plant's speed, currents and voltage.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from drivers.errors import DeviceError
+from drivers.sim.rig import PlantTruth, SimRig
+
+__all__ = ["ESC_TEMPERATURE_C", "WirePlant", "WireSims"]
+
+ESC_TEMPERATURE_C = 25.0  # the plant has no thermal model: telemetry reports ambient
+
+
+class WirePlant:
+    """A ``SimRig`` whose clock follows the wall clock; thread-safe entry points for peers.
+
+    The ESC power stage is armed from power-up (it sees the controller's idle output) and
+    gets the commanded pulse refreshed every ``refresh_s`` by a small thread, as the PWM
+    line from a flight controller or the VESC's own control loop would; the failsafe of
+    the wire protocols (VESC and DroneCAN command timeouts, a stalled host) is the peers'
+    and the backends' business, as on real hardware.
+    """
+
+    def __init__(self, sim: SimRig, *, step_s: float = 0.002, refresh_s: float = 0.05) -> None:
+        self.sim = sim
+        self.settings = sim.esc_settings
+        self._lock = threading.RLock()
+        self._t0 = time.monotonic()
+        self.pulse_us = self.settings.idle_us
+        self.refresh_ns = round(refresh_s * 1e9)
+        self._last_push_ns = 0
+        self.changes: list[tuple[float, float]] = []  # (monotonic s, pulse us) per change
+        self._means: dict[str, float] = {}
+        sim.esc_model.push(0, "arm")
+        self._stop = threading.Event()
+        self._step_s = step_s
+        self._thread = threading.Thread(target=self._run, name="wire-plant", daemon=True)
+        self._thread.start()
+
+    # -- time -----------------------------------------------------------------------------
+    def _advance(self) -> int:
+        """Bring the simulated clock up to the wall clock; returns now in ns."""
+        clock = self.sim.clock
+        now = round((time.monotonic() - self._t0) * 1e9)
+        if now > clock.now_ns():
+            clock.sleep((now - clock.now_ns()) * 1e-9)
+        return clock.now_ns()
+
+    def _run(self) -> None:
+        while not self._stop.wait(self._step_s):
+            with self._lock:
+                t = self._advance()
+                if t - self._last_push_ns >= self.refresh_ns:
+                    self.sim.esc_model.push(t, "pulse", self.pulse_us)
+                    self._last_push_ns = t
+
+    # -- commands ------------------------------------------------------------------------
+    def command_pulse(self, pulse_us: float) -> None:
+        """The power stage gets ``pulse_us`` from now on (clamped to the ESC range)."""
+        s = self.settings
+        pulse = min(s.max_us, max(s.min_us, float(pulse_us))) if math.isfinite(pulse_us) \
+            else s.idle_us
+        with self._lock:
+            t = self._advance()
+            self.sim.esc_model.push(t, "pulse", pulse)
+            self._last_push_ns = t
+            if pulse != self.pulse_us:
+                self.changes.append((time.monotonic(), pulse))
+            self.pulse_us = pulse
+
+    def command_fraction(self, fraction: float) -> None:
+        """A duty-type command 0..1 (VESC duty, DroneCAN raw / 8191) on the same scale."""
+        s = self.settings
+        f = min(1.0, max(0.0, fraction)) if math.isfinite(fraction) else 0.0
+        self.command_pulse(s.min_us + f * (s.max_us - s.min_us))
+
+    def idle_since(self) -> float | None:
+        """Monotonic time of the last change to idle (None if not idle now)."""
+        with self._lock:
+            if self.pulse_us > self.settings.idle_us:
+                return None
+            for t, pulse in reversed(self.changes):
+                if pulse <= self.settings.idle_us:
+                    return t
+            return None
+
+    # -- measurements --------------------------------------------------------------------
+    def truth(self) -> PlantTruth:
+        with self._lock:
+            self._advance()
+            return self.sim.truth()
+
+    def sensor_means(self) -> dict[str, float]:
+        """Mean load-cell thrust, bus current and voltage since the previous call, and the
+        latest hall-counter speed, from the simulated rig's own sensor models."""
+        with self._lock:
+            self._advance()
+            out = dict(self._means)
+            for sensor in self.sim.sensors.values():
+                block = sensor.read_block()
+                if len(block) == 0:
+                    continue
+                for name, v in block.values.items():
+                    out[name] = float(v[-1]) if name == "rpm" else float(np.mean(v))
+            self._means = out
+        return out
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._thread.is_alive() and self._thread is not threading.current_thread():
+            self._thread.join(timeout=1.0)
+
+
+@dataclass
+class WireSims:
+    """The peers started for one opened rig, and how to stop them (last, after the host)."""
+
+    plant: WirePlant
+    peers: dict[str, object] = field(default_factory=dict)
+    _stops: list[Callable[[], None]] = field(default_factory=list)
+
+    def add(self, key: str, peer: object, stop: Callable[[], None]) -> None:
+        self.peers[key] = peer
+        self._stops.append(stop)
+
+    def close(self) -> None:
+        errors = []
+        for stop in reversed(self._stops):
+            try:
+                stop()
+            except Exception as exc:  # every peer gets stopped
+                errors.append(exc)
+        self._stops.clear()
+        self.plant.close()
+        if errors:
+            raise DeviceError(f"stopping the simulated wire devices: {errors[0]}")
+
+
+# -- peers -----------------------------------------------------------------------------------
+def _still_imu(_t: float):
+    """A level, resting flight controller: gravity on z, no rotation."""
+    from drivers.codecs.msp import STANDARD_GRAVITY
+
+    return (0.0, 0.0, STANDARD_GRAVITY), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)
+
+
+def start_msp_fc(plant: WirePlant, motor_index: int):
+    """A flight controller on a pty whose motor-test output drives the plant's ESC."""
+    from drivers.codecs import msp
+    from drivers.wire_sim.msp_fc import SimFlightController
+
+    class PlantFlightController(SimFlightController):
+        def _reply(self, m: msp.MspMessage) -> bytes:
+            out = super()._reply(m)
+            if isinstance(m, msp.SetMotor):
+                motors = self.motors()
+                if motor_index < len(motors):
+                    plant.command_pulse(motors[motor_index])
+            return out
+
+    return PlantFlightController(_still_imu).start()
+
+
+def start_loadcell_board(plant: WirePlant, layout, period_s: float):
+    """A line-printing board on a pty reporting the plant's sensors (see module doc)."""
+    from drivers.wire_sim.loadcell_board import SimLoadcellBoard
+
+    names = {f.name for f in layout.fields if f is not None}
+
+    def model(t: float) -> dict[str, float]:
+        m = plant.sensor_means()
+        values = {n: 0.0 for n in names}
+        values.update({k: v for k, v in m.items() if k in names and math.isfinite(v)})
+        if "throttle_us" in names:
+            values["throttle_us"] = plant.pulse_us
+        if "t_s" in names:
+            values["t_s"] = t
+        return values
+
+    return SimLoadcellBoard(layout, model, period_s=period_s).start()
+
+
+def start_vesc(plant: WirePlant, link, controller_id: int, pole_pairs: int,
+               status_rate_hz: float):
+    """A VESC on the bus; duty commands drive the plant, statuses report its state."""
+    from drivers.codecs.can_log import CanFrame
+    from drivers.wire_sim.vesc import SimVescDevice, VescCommand, VescState
+
+    def fraction(cmd: VescCommand) -> float:
+        return cmd.value if cmd.kind == "duty" else 0.0  # current 0 / release: coast
+
+    def model(_t: float, cmd: VescCommand) -> VescState:
+        plant.command_fraction(fraction(cmd))  # the firmware's own timeout reaches the motor
+        tr = plant.truth()
+        return VescState(erpm=tr.rpm * pole_pairs, motor_current_a=tr.current_winding_a,
+                         duty=max(tr.duty, 0.0), input_current_a=tr.current_bus_a,
+                         voltage_in_v=tr.voltage_bus_v, temp_fet_c=ESC_TEMPERATURE_C,
+                         temp_motor_c=ESC_TEMPERATURE_C)
+
+    class PlantVesc(SimVescDevice):
+        def _on_frame(self, frame: CanFrame) -> None:
+            before = len(self.commands_seen)
+            super()._on_frame(frame)
+            if len(self.commands_seen) > before:  # a command for us: applied on arrival
+                plant.command_fraction(fraction(self.command))
+
+    return PlantVesc(link, controller_id, model, status_rate_hz=status_rate_hz).start()
+
+
+def start_dronecan_esc(plant: WirePlant, link, node_id: int, esc_index: int,
+                       status_period_s: float):
+    """A DroneCAN ESC node; RawCommand drives the plant, esc.Status reports its state."""
+    from drivers.codecs import dronecan as dc
+    from drivers.codecs.can_log import CanFrame
+    from drivers.wire_sim.dronecan_esc import SimDroneCanEsc
+
+    def model(_t: float, raw: int) -> dc.EscStatus:
+        plant.command_fraction(max(raw, 0) / dc.RAW_MAX)
+        tr = plant.truth()
+        return dc.EscStatus(0, tr.voltage_bus_v, tr.current_bus_a,
+                            ESC_TEMPERATURE_C + 273.15, round(tr.rpm), 0, esc_index)
+
+    class PlantDroneCanEsc(SimDroneCanEsc):
+        def _on_frame(self, frame: CanFrame) -> None:
+            before = len(self.commands_seen)
+            super()._on_frame(frame)
+            if len(self.commands_seen) > before:
+                plant.command_fraction(max(self.raw, 0) / dc.RAW_MAX)
+
+    return PlantDroneCanEsc(link, node_id, esc_index, model,
+                            status_period_s=status_period_s).start()
