@@ -67,6 +67,18 @@ def test_normal_end_stops_the_hexapod_and_records_success(bench, tmp_path: Path)
     assert meta["rows"] == out.result.rows > 2000
     assert [e["kind"] for e in events][-2:] == ["safe_stop", "run_end"]
     assert "rig_t0_s" in meta and meta["limits"]["rate_rad_s"] == RIG.hexapod.limits["rate_rad_s"]
+    # rows: the IMU's stamps with the hexapod's truth interpolated onto them
+    import pandas as pd
+
+    df = pd.read_parquet(out.run_dir / "samples.parquet")
+    assert np.allclose(np.diff(df["t_s"]), 0.01)
+    truth = bench.hexapod.state_at(df["t_s"].to_numpy() + meta["rig_t0_s"])
+    for i, a in enumerate("xyz"):
+        assert np.abs(df[f"ref_omega_{a}_rad_s"] - truth.omega_b_rad_s[:, i]).max() < 1e-4
+        assert np.abs(df[f"ref_acc_{a}_m_s2"] - truth.specific_force_b_m_s2[:, i]).max() < 1e-3
+    q = df[["ref_qw", "ref_qx", "ref_qy", "ref_qz"]].to_numpy()
+    assert np.allclose(np.linalg.norm(q, axis=1), 1.0, atol=1e-3)
+    assert set(df["phase"]) == {"gyro"}
 
 
 def test_limit_trip_aborts_and_stops(bench, tmp_path: Path) -> None:

@@ -230,3 +230,22 @@ def test_non_sim_urls_name_what_the_backend_lacks(tmp_path) -> None:
     path.write_text(text, encoding="utf-8")
     with pytest.raises(DeviceError, match=r"hexapod.*trajectory upload"):
         open_imu_rig(load_imu_rig(path))
+
+
+def test_rig_file_faults_reach_the_simulated_devices(tmp_path) -> None:
+    text = default_imu_rig_path().read_text(encoding="utf-8").replace(
+        '[devices.imu]\nurl = "sim://imu"',
+        '[devices.imu]\nurl = "sim://imu"\noptions = {faults = [{kind = "disconnect", '
+        'at_s = 0.2}]}')
+    path = tmp_path / "faulty.toml"
+    path.write_text(text, encoding="utf-8")
+    with open_imu_rig(load_imu_rig(path)) as rig:
+        rig.clock.sleep(0.1)
+        rig.imu.read_block()
+        rig.clock.sleep(0.2)
+        with pytest.raises(DeviceError, match="disconnected"):
+            rig.imu.read_block()
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text.replace('"disconnect"', '"melt"'), encoding="utf-8")
+    with pytest.raises(DeviceError, match="imu: bad fault spec"):
+        open_imu_rig(load_imu_rig(bad))
