@@ -102,6 +102,12 @@ class GuardedHexapod:
 
         self._guarded(go)
 
+    def read_log(self) -> Block:
+        """The log read holds the lock too (one conversation with the controller at a time);
+        a kill waits at most 0.1 s for it, then stops anyway."""
+        with self._lock:
+            return self.hexapod.read_log()
+
     def safe_stop(self, lock_timeout_s: float = -1) -> list[str]:
         """Stop the hexapod (even if a command holds the lock too long); returns errors."""
         locked = self._lock.acquire(timeout=lock_timeout_s)
@@ -333,7 +339,7 @@ class HexapodRunner:
 
     def _acquire(self) -> None:
         now = self._now_rel()
-        hexlog = self._read("hexapod", self.rig.hexapod.read_log, now)
+        hexlog = self._read("hexapod", self.hexapod.read_log, now)
         imu = self._read("imu", self.rig.imu.read_block, now)
         ref = (self._read("reference_imu", self.rig.reference_imu.read_block, now)
                if self.rig.reference_imu is not None else None)
