@@ -6,9 +6,6 @@ import argparse
 import json
 from pathlib import Path
 
-from rich.console import Console
-from rich.table import Table
-
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
@@ -34,9 +31,8 @@ def handler(args: argparse.Namespace) -> int:
     if args.json:
         for r in reports:
             print(json.dumps({"role": r.role, "url": r.url, "ok": r.ok, "detail": r.detail}))
-    else:
-        table = Table(box=None, show_header=False, pad_edge=False)
+    else:  # one line per device, never wrapped (grep-able)
+        width = max(len(r.url) for r in reports)
         for r in reports:
-            table.add_row(r.role, r.url, "[green]ok[/]" if r.ok else "[red]FAIL[/]", r.detail)
-        Console(width=200, soft_wrap=True).print(table)
+            print(f"{r.role:<10} {r.url:<{width}}  {'ok' if r.ok else 'FAIL':<4}  {r.detail}")
     return 0 if all(r.ok for r in reports) else 2
