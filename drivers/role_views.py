@@ -78,7 +78,8 @@ class RoleView:
 
     def describe(self) -> DeviceInfo:
         info = self.shared.device.describe()
-        chans = tuple(c for c in info.channels if c.name in self.names)
+        by_name = {c.name: c for c in info.channels}
+        chans = tuple(by_name[n] for n in self.names)
         return replace(info, kind=self.role, channels=chans,
                        extra={**info.extra, "shared_by_roles": True})
 

@@ -154,6 +154,7 @@ class WireSims:
             except Exception as exc:  # every peer gets stopped
                 errors.append(exc)
         self._stops.clear()
+        self.peers.clear()
         self.plant.close()
         if errors:
             raise DeviceError(f"stopping the simulated wire devices: {errors[0]}")

@@ -202,3 +202,27 @@ def test_check_exits_2_naming_the_device_that_does_not_answer(tmp_path, capsys):
     first, *rest = out.splitlines()
     assert first.startswith("esc") and "FAIL" in first and "no-such-port" in first
     assert len(rest) == 3 and all(" ok " in line for line in rest)
+
+
+# -- rotorbench devices ----------------------------------------------------------------------
+def test_devices_lists_ports_and_can_channels_as_rig_urls(monkeypatch, capsys):
+    import drivers.discovery as disc
+
+    monkeypatch.setattr(disc, "serial_ports", lambda: (
+        [disc.SerialPort("/dev/ttyACM0", "STM32 Virtual ComPort (Betaflight)", "USB 0483:5740")],
+        ""))
+    monkeypatch.setattr(disc, "can_configs", lambda timeout_s=5.0: (
+        [disc.CanConfig("socketcan", "can0")], ""))
+    assert main(["devices"]) == 0
+    out = capsys.readouterr().out
+    assert "serial:///dev/ttyACM0" in out and "Betaflight" in out
+    assert "can://socketcan/can0" in out
+    assert main(["devices", "--json"]) == 0
+    lines = [json.loads(x) for x in capsys.readouterr().out.splitlines()]
+    assert [x["url"] for x in lines] == ["serial:///dev/ttyACM0", "can://socketcan/can0"]
+
+
+def test_devices_on_this_host_never_fails(capsys):
+    assert main(["devices", "--no-can", "--json"]) == 0
+    for line in capsys.readouterr().out.splitlines():
+        assert json.loads(line)["url"].startswith("serial://")
