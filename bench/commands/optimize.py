@@ -1,0 +1,214 @@
+"""``rotorbench optimize``: pick actuators, propeller, motor and battery from a catalog.
+
+Prints a table shaped like Table E.8 of the thesis (rows = quantities, one column
+per actuator count, the best column marked) or, with ``--json``, one JSON object
+with a ``designs`` list and a ``best`` entry. Exit status: 0 when at least one
+actuator count has a feasible design (infeasible columns carry a reason), 3 when
+none has (the output still explains why), 2 for bad input.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+from pathlib import Path
+from typing import Any
+
+from optimizer.errors import CatalogError, RequestError
+from optimizer.objectives import OBJECTIVE_NAMES, Objective, parse_weights, single, weighted
+
+#: Exit status when no requested actuator count has a feasible design.
+EXIT_NO_FEASIBLE = 3
+
+#: Table rows: (label, key, format).
+ROWS: tuple[tuple[str, str, str], ...] = (
+    ("Propeller chosen", "propeller", "s"),
+    ("Motor chosen", "motor", "s"),
+    ("Battery chosen", "battery", "s"),
+    ("Time constant (ms)", "time_constant_ms", ".0f"),
+    ("Flight time (min)", "flight_time_min", ".1f"),
+    ("Price", "price", ".2f"),
+    ("Total mass (kg)", "total_mass_kg", ".3f"),
+    ("Hover speed (rpm)", "hover_rpm", ".0f"),
+    ("Propeller power (W)", "propeller_power_w", ".1f"),
+    ("Battery current (A)", "current_a", ".2f"),
+    ("Roll inertia (kg m^2)", "roll_inertia_kgm2", ".4f"),
+    ("Pitch inertia (kg m^2)", "pitch_inertia_kgm2", ".4f"),
+)
+
+
+def default_catalog() -> Path:
+    """fixtures/catalogs/thesis-e of the source tree (or $ROTORBENCH_CATALOG)."""
+    env = os.environ.get("ROTORBENCH_CATALOG")
+    if env:
+        return Path(env)
+    return Path(__file__).resolve().parents[2] / "fixtures" / "catalogs" / "thesis-e"
+
+
+def load(path: Path | None) -> Any:
+    """Load a catalog; a missing default catalog is a clear error, not a traceback."""
+    from optimizer.catalog import load_catalog
+
+    folder = path if path is not None else default_catalog()
+    if path is None and not folder.is_dir():
+        raise CatalogError(
+            f"{folder}: default catalog not found (installed without the source tree?); "
+            "pass --catalog DIR or set ROTORBENCH_CATALOG"
+        )
+    return load_catalog(folder)
+
+
+def add_catalog_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--catalog",
+        type=Path,
+        default=None,
+        help="catalog folder (default: fixtures/catalogs/thesis-e)",
+    )
+    p.add_argument("--payload-kg", type=float, default=0.0, help="payload mass (default 0)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "optimize",
+        help="select actuator count, propeller, motor and battery (exact MILP)",
+        description="Select the number of actuators, the propeller, the motor and the "
+        "battery from a catalog (Papers D and E). Every design is evaluated exactly; "
+        "the MILP only chooses. Exit 0 if some actuator count is feasible, 3 if none.",
+    )
+    add_catalog_args(p)
+    p.add_argument(
+        "--objective",
+        choices=(*OBJECTIVE_NAMES, "weighted"),
+        default="flight-time",
+        help="what to optimise (default flight-time); 'weighted' needs --weights",
+    )
+    p.add_argument(
+        "--weights",
+        default=None,
+        help="weighted sum, e.g. flight-time=0.5,price=0.5 (also time-constant, power, "
+        "roll-inertia, pitch-inertia, mass)",
+    )
+    p.add_argument(
+        "--normalize",
+        choices=("range", "none"),
+        default="range",
+        help="weighted sums: scale each metric by its range over feasible designs (default) "
+        "or add SI values as Paper D does (none)",
+    )
+    p.add_argument("--actuators", type=int, nargs="+", default=[4, 6, 8], metavar="N")
+    p.add_argument("--min-flight-time-min", type=float, default=None, metavar="T")
+    p.add_argument("--max-time-constant-ms", type=float, default=None, metavar="T")
+    p.add_argument(
+        "--method",
+        choices=("milp", "exact", "thesis"),
+        default="milp",
+        help="milp: exact MILP (default); exact: enumeration; thesis: Paper E's "
+        "linearised MILP (designs then evaluated exactly)",
+    )
+    p.set_defaults(func=handler)
+
+
+def build_objective(args: argparse.Namespace) -> Objective:
+    if args.objective == "weighted":
+        if not args.weights:
+            raise RequestError("--objective weighted needs --weights, e.g. flight-time=1,price=1")
+        return weighted(parse_weights(args.weights), args.normalize)
+    if args.weights:
+        raise RequestError("--weights only applies to --objective weighted")
+    return single(args.objective)
+
+
+def handler(args: argparse.Namespace) -> int:
+    from optimizer.selection import Requirements, optimize
+
+    objective = build_objective(args)
+    catalog = load(args.catalog)
+    for n in args.actuators:
+        if n < 3:
+            raise RequestError(f"--actuators: expected counts >= 3, got {n}")
+    requirements = Requirements(
+        payload_kg=args.payload_kg,
+        min_flight_time_min=args.min_flight_time_min,
+        max_time_constant_ms=args.max_time_constant_ms,
+    )
+    result = optimize(catalog, objective, tuple(args.actuators), requirements, args.method)
+    if args.json:
+        print(json.dumps(result.to_dict(), indent=2, default=_json_default))
+    else:
+        print_table(result)
+    return 0 if result.any_feasible else EXIT_NO_FEASIBLE
+
+
+def _json_default(obj: Any) -> Any:
+    if hasattr(obj, "item"):
+        return obj.item()
+    if isinstance(obj, tuple | set):
+        return list(obj)
+    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
+
+
+def _fmt(value: Any, fmt: str) -> str:
+    if value is None:
+        return "-"
+    if fmt == "s":
+        return str(value)
+    if isinstance(value, float) and not math.isfinite(value):
+        return "-"
+    return format(value, fmt)
+
+
+def print_table(result: Any, title: str | None = None, console: Any = None) -> None:
+    """Rich table like Table E.8: one column per actuator count, best marked."""
+    from rich.console import Console
+    from rich.table import Table
+
+    console = console or Console(soft_wrap=False)
+    req = result.requirements
+    bits = [f"objective {result.objective.name}", f"payload {req.payload_kg:g} kg"]
+    if req.min_flight_time_min is not None:
+        bits.append(f"flight time >= {req.min_flight_time_min:g} min")
+    if req.max_time_constant_ms is not None:
+        bits.append(f"time constant <= {req.max_time_constant_ms:g} ms")
+    bits.append(f"method {result.method}")
+    table = Table(title=title or ", ".join(bits), title_justify="left")
+    table.add_column("Number of actuators", style="bold", no_wrap=True)
+    best = result.best
+    for d in result.designs:
+        mark = " * best" if best is not None and d is best else ""
+        table.add_column(f"{d.actuators}{mark}", justify="right", max_width=48)
+    for label, key, fmt in ROWS:
+        cells = []
+        for d in result.designs:
+            if not d.feasible:
+                cells.append("infeasible" if key == "propeller" else "-")
+            else:
+                value = getattr(d, key) if fmt == "s" else d.metrics.get(key)
+                cells.append(_fmt(value, fmt))
+        table.add_row(label, *cells)
+    table.add_row("Solve time (s)", *(f"{d.solve_time_s:.4f}" for d in result.designs))
+    table.add_row("Status", *(_status(d) for d in result.designs))
+    if any(not d.feasible for d in result.designs):
+        table.add_row("Reason", *(d.reason or "" for d in result.designs))
+    console.print(table)
+    if best is None:
+        console.print("No feasible design for any actuator count.", style="bold red")
+    else:
+        console.print(
+            f"Best: {best.actuators} actuators, propeller {best.propeller}, motor "
+            f"{best.motor}, battery {best.battery}"
+        )
+    if result.source:
+        console.print(f"Catalog: {result.source}", style="dim")
+
+
+def _status(d: Any) -> str:
+    status = d.status
+    if d.mip_gap is not None:
+        status += f" (gap {d.mip_gap:.0%})"
+    if d.n_tied > 1:
+        status += f", {d.n_tied} tied"
+    return status
