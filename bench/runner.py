@@ -187,7 +187,9 @@ class Runner:
             self.esc.safe_stop()
             self._log_command(seg.us_end, seg)
         else:
-            self._command(seg.command_at(seg.t_start_s), seg, force=True)
+            # a zero-length segment (checkpoint) owns no rows: on a real-time rig a row
+            # could land between its log entry and the next segment's command
+            self._command(seg.command_at(seg.t_start_s), seg, force=seg.duration_s > 0)
         end = seg.t_end_s
         tick = self.options.tick_s
         while True:
