@@ -1,0 +1,82 @@
+"""SizingLab importer: the shared CSVs become a valid catalog the optimizer can use."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from optimizer.catalog import load_catalog
+from optimizer.errors import CatalogError
+from optimizer.objectives import single
+from optimizer.selection import Requirements, optimize
+from optimizer.sizinglab import (
+    PROP_MASS_COEF_G,
+    PROP_MASS_EXPONENT,
+    import_sizinglab,
+    import_to_folder,
+    motor_inertia_kgm2,
+)
+
+
+@pytest.fixture
+def sizinglab(shared_data):
+    folder = shared_data / "sizinglab"
+    if not folder.is_dir():
+        pytest.skip("no sizinglab folder in the shared data")
+    return folder
+
+
+def test_import_sizes_and_static_coefficients(sizinglab) -> None:
+    catalog = import_sizinglab(sizinglab)
+    props, motors, batteries = catalog.propellers, catalog.motors, catalog.batteries
+    assert len(props) == 13  # distinct (pitch ratio, diameter) of the APC MR family
+    assert len(motors) == 204
+    assert 131 <= len(batteries) <= 131 + 187
+    assert len(set(catalog.motor_ids)) == 204 and len(set(catalog.battery_ids)) == len(batteries)
+    p10 = props[props["id"] == "APC-10x4.5MR"].iloc[0]
+    # mean of the nine static rows (J = 0) of BETA 0.45, 10 in in Propeller_Data.csv
+    assert p10["ct"] == pytest.approx(0.11284, abs=2e-5)
+    assert p10["cp"] == pytest.approx(0.04409, abs=2e-5)
+    assert p10["diameter_m"] == pytest.approx(0.254)
+    assert p10["mass_kg"] * 1000 == pytest.approx(PROP_MASS_COEF_G * 10**PROP_MASS_EXPONENT, 1e-3)
+    assert np.all(batteries["price"] > 0) and np.all(motors["price"] > 0)
+
+
+def test_assumed_motor_inertia_matches_table_e5_scale() -> None:
+    # the 111 g 4108 motor of Table E.5: hollow rotor gives ~6.5e-6 kg m^2
+    assert 4e-6 < float(motor_inertia_kgm2(np.array([111.0]))[0]) < 1.2e-5
+
+
+def test_optimize_over_sizinglab_milp_equals_enumeration(sizinglab) -> None:
+    catalog = import_sizinglab(sizinglab)
+    req = Requirements(payload_kg=1.0, min_flight_time_min=10.0)
+    for objective in ("flight-time", "price"):
+        a = optimize(catalog, single(objective), (4, 6), req, "milp")
+        b = optimize(catalog, single(objective), (4, 6), req, "exact")
+        assert [(d.propeller, d.motor, d.battery) for d in a.designs] == [
+            (d.propeller, d.motor, d.battery) for d in b.designs
+        ]
+        assert a.best is not None and a.best.metrics["flight_time_min"] >= 10.0
+
+
+def test_write_folder_round_trip(sizinglab, tmp_path) -> None:
+    out = import_to_folder(sizinglab, tmp_path / "sl")
+    again = load_catalog(out)
+    assert again.motor_ids == import_sizinglab(sizinglab).motor_ids
+    with pytest.raises(CatalogError, match="already exists"):
+        import_to_folder(sizinglab, out)
+
+
+def test_bad_folder_and_bad_file(tmp_path, sizinglab) -> None:
+    with pytest.raises(CatalogError, match="not found"):
+        import_sizinglab(tmp_path / "missing")
+    for name in ("Propeller_Data.csv", "Batteries_Data.csv", "Batteries_Data_2.csv"):
+        (tmp_path / name).write_bytes((sizinglab / name).read_bytes())
+    text = (sizinglab / "Motors_Data.csv").read_text(encoding="utf-8", errors="replace")
+    lines = text.splitlines()
+    cols = lines[1].split(";")
+    cols[5] = "n/a"  # R_ohm of the first motor
+    lines[1] = ";".join(cols)
+    (tmp_path / "Motors_Data.csv").write_text("\n".join(lines) + "\n", encoding="utf-8")
+    with pytest.raises(CatalogError, match=r"Motors_Data.csv: line 2, column R_ohm"):
+        import_sizinglab(tmp_path)
