@@ -109,7 +109,49 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="milp: exact MILP (default); exact: enumeration; thesis: Paper E's "
         "linearised MILP (designs then evaluated exactly)",
     )
+    p.add_argument(
+        "--paper-e-cases",
+        action="store_true",
+        help="run Paper E's test cases I-III (max flight time without and with 1.5 kg "
+        "payload, min time constant) and print the three tables (Tables E.8-E.10)",
+    )
     p.set_defaults(func=handler)
+
+
+#: Paper E section 4: (case, title, objective, payload kg).
+PAPER_E_CASES: tuple[tuple[str, str, str, float], ...] = (
+    ("I", "Test Case I: longest flight time, no payload (Table E.8)", "flight-time", 0.0),
+    ("II", "Test Case II: longest flight time, 1.5 kg payload (Table E.9)", "flight-time", 1.5),
+    ("III", "Test Case III: fastest motor response, no payload (Table E.10)", "time-constant", 0.0),
+)
+
+
+def run_paper_e_cases(args: argparse.Namespace, catalog: Any) -> int:
+    """The three test cases of Paper E with a progress bar on stderr."""
+    from rich.console import Console
+    from rich.progress import Progress
+
+    from optimizer.selection import Requirements, optimize
+
+    results = []
+    with Progress(console=Console(stderr=True), transient=True) as progress:
+        task = progress.add_task("Paper E test cases", total=len(PAPER_E_CASES))
+        for case, title, objective, payload in PAPER_E_CASES:
+            req = Requirements(
+                payload_kg=payload,
+                min_flight_time_min=args.min_flight_time_min,
+                max_time_constant_ms=args.max_time_constant_ms,
+            )
+            res = optimize(catalog, single(objective), tuple(args.actuators), req, args.method)
+            results.append((case, title, res))
+            progress.advance(task)
+    if args.json:
+        cases = [{"case": c, "title": t, **r.to_dict()} for c, t, r in results]
+        print(json.dumps({"cases": cases}, indent=2, default=_json_default))
+    else:
+        for _, title, res in results:
+            print_table(res, title=title)
+    return 0 if all(r.any_feasible for _, _, r in results) else EXIT_NO_FEASIBLE
 
 
 def build_objective(args: argparse.Namespace) -> Objective:
@@ -125,11 +167,13 @@ def build_objective(args: argparse.Namespace) -> Objective:
 def handler(args: argparse.Namespace) -> int:
     from optimizer.selection import Requirements, optimize
 
-    objective = build_objective(args)
-    catalog = load(args.catalog)
     for n in args.actuators:
         if n < 3:
             raise RequestError(f"--actuators: expected counts >= 3, got {n}")
+    if args.paper_e_cases:
+        return run_paper_e_cases(args, load(args.catalog))
+    objective = build_objective(args)
+    catalog = load(args.catalog)
     requirements = Requirements(
         payload_kg=args.payload_kg,
         min_flight_time_min=args.min_flight_time_min,

@@ -129,3 +129,33 @@ def test_bad_catalog_subprocess_no_traceback(tmp_path, fixtures_dir) -> None:
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr
     assert "motors.csv" in proc.stderr and "resistance_ohm" in proc.stderr
+
+
+def test_paper_e_cases(capsys) -> None:
+    code = main(["optimize", "--paper-e-cases", "--json"])
+    out = json.loads(capsys.readouterr().out)
+    assert code == 0
+    assert [c["case"] for c in out["cases"]] == ["I", "II", "III"]
+    assert [c["payload_kg"] for c in out["cases"]] == [0.0, 1.5, 0.0]
+    assert [c["objective"] for c in out["cases"]] == ["flight-time", "flight-time", "time-constant"]
+    # Test Case I: the thesis' flight times 62.5 / 60.0 / 55.5 min (Table E.8)
+    flights = [d["flight_time_min"] for d in out["cases"][0]["designs"]]
+    assert flights == pytest.approx([62.5, 60.0, 55.5], abs=0.1)
+    assert main(["optimize", "--paper-e-cases"]) == 0
+    text = capsys.readouterr().out
+    assert "Test Case III" in text and "Table E.10" in text
+
+
+def test_import_sizinglab_command(capsys, shared_data, tmp_path) -> None:
+    source = shared_data / "sizinglab"
+    if not source.is_dir():
+        pytest.skip("no sizinglab data")
+    out = tmp_path / "sl"
+    assert main(["import-sizinglab", "--source", str(source), "--out", str(out)]) == 0
+    assert "204 motors" in capsys.readouterr().out
+    assert main(["import-sizinglab", "--source", str(source), "--out", str(out)]) == 2
+    assert (
+        main(["import-sizinglab", "--source", str(tmp_path / "none"), "--out", str(tmp_path / "x")])
+        == 2
+    )
+    assert not (tmp_path / "x").exists()
