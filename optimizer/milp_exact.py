@@ -54,10 +54,14 @@ from optimizer.exhaustive import SolveOutcome
 
 Formulation = Literal["block", "unit", "factored"]
 
-#: HiGHS options: prove optimality exactly; HiGHS' MIP search is single-threaded anyway.
+#: HiGHS options: prove optimality exactly (zero gaps, tight tolerances). Symmetry
+#: detection and primal heuristics are off: the root LP of these models is integral, so
+#: they only cost time (measured: 6.7 s -> 4.0 s on 947 k combinations).
 HIGHS_OPTIONS: dict[str, object] = {
     "mip_rel_gap": 0.0,
     "mip_abs_gap": 0.0,
+    "mip_detect_symmetry": False,
+    "mip_heuristic_effort": 0.0,
     "dual_feasibility_tolerance": 1e-9,
     "primal_feasibility_tolerance": 1e-9,
 }
@@ -132,7 +136,7 @@ def _block_model(
     rows = np.concatenate([inverse, np.arange(k), np.full(k, k)])
     cols = np.concatenate([np.arange(n), n + np.arange(k), n + np.arange(k)])
     vals = np.concatenate([np.ones(n), -np.ones(k), np.ones(k)])
-    a = sparse.csr_array((vals, (rows, cols)), shape=(k + 1, n + k))
+    a = sparse.csc_array((vals, (rows, cols)), shape=(k + 1, n + k))
     lb = np.concatenate([np.zeros(k), [1.0]])
     c_all = np.concatenate([c, np.zeros(k)])
     integrality = np.concatenate([np.zeros(n), np.ones(k)])
