@@ -209,8 +209,9 @@ def _open_hardware_rig(rig: Any, seed: int | None) -> OpenRig:
 def open_hexapod(url: str, *, where: str = "hexapod", timeout_s: float = 2.0) -> Any:
     """``tcp://host[:50000]`` -> a connected PI GCS client (``drivers.backends.pi_hexapod``).
 
-    It moves, stops and reads the platform; it does not fill
-    ``drivers.hexapod_contracts.Hexapod`` yet (no wave-table upload: see docs/devices.md).
+    The hexapod is an IMU-bench device (``drivers.imu_factory``); this entry point serves
+    scripts and checks. The wave-table upload syntax is not in protocols.md: see
+    docs/devices.md before running trajectories on a real controller.
     """
     parts = urlsplit(url)
     if parts.scheme != "tcp" or not parts.hostname:

@@ -125,3 +125,21 @@ def test_check_names_the_failing_device(tmp_path, capsys):
     assert main(["check", "--rig", str(rig), "--timeout", "0.5"]) == 2
     out = capsys.readouterr().out.splitlines()
     assert out[0].startswith("esc") and "FAIL" in out[0] and "options.bogus" in out[0]
+
+
+def test_open_hexapod_over_tcp_and_bad_urls():
+    from drivers.factory import open_hexapod
+    from drivers.wire_sim.pi_hexapod import SimPiController
+
+    with pytest.raises(DeviceError, match=r"hexapod: 'serial://x': expected tcp://<host>"):
+        open_hexapod("serial://x")
+    sim = SimPiController().start()
+    try:
+        host, port = sim.address
+        hexapod = open_hexapod(f"tcp://{host}:{port}")
+        try:
+            assert "C-887" in str(hexapod.identification)
+        finally:
+            hexapod.close()
+    finally:
+        sim.stop()
