@@ -13,9 +13,10 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.interpolate import CubicSpline
 
 __all__ = ["GRAVITY_M_S2", "HexapodState", "body_frame_state", "body_rates", "euler_to_matrix",
-           "motion_peaks"]
+           "follower_spline", "motion_peaks", "spline_peaks"]
 
 GRAVITY_M_S2 = 9.80665
 Array = NDArray[np.float64]
@@ -91,3 +92,19 @@ def motion_peaks(pose: Array, vel: Array, acc: Array, state: HexapodState) -> di
         "rate_rad_s": peak(state.omega_b_rad_s),
         "angular_acceleration_rad_s2": peak(state.alpha_b_rad_s2),
     }
+
+
+def follower_spline(t_s: ArrayLike, poses: ArrayLike) -> CubicSpline:
+    """The path a platform runs through sampled ``(n, 6)`` poses: the clamped cubic spline
+    (at rest at both ends), as the simulated hexapod follows it."""
+    return CubicSpline(np.asarray(t_s, float), np.asarray(poses, float), axis=0,
+                       bc_type="clamped")
+
+
+def spline_peaks(spline: CubicSpline, duration_s: float, n_points: int,
+                 gravity: float = GRAVITY_M_S2) -> dict[str, float]:
+    """``motion_peaks`` of a follower spline checked densely at ``n_points`` points; what
+    every hexapod (simulated or real backend) checks before it accepts a trajectory."""
+    u = np.linspace(0.0, duration_s, max(2, int(n_points)))
+    pose, vel, acc = spline(u), spline(u, 1), spline(u, 2)
+    return motion_peaks(pose, vel, acc, body_frame_state(u, pose, vel, acc, gravity))

@@ -32,7 +32,13 @@ from drivers.hexapod_contracts import (
     Trajectory,
     limit_violations,
 )
-from drivers.hexapod_kinematics import GRAVITY_M_S2, HexapodState, body_frame_state, motion_peaks
+from drivers.hexapod_kinematics import (
+    GRAVITY_M_S2,
+    HexapodState,
+    body_frame_state,
+    follower_spline,
+    spline_peaks,
+)
 from drivers.sim.clock import SimClock
 from drivers.sim.faults import FaultSwitches
 
@@ -157,7 +163,7 @@ class SimHexapodDevice:
 
     def upload(self, trajectory: Trajectory) -> None:
         self._check("upload")
-        spline = CubicSpline(trajectory.t_s, trajectory.poses, axis=0, bc_type="clamped")
+        spline = follower_spline(trajectory.t_s, trajectory.poses)
         now = self.clock.now()
         here, _, _ = self.kinematics_at(np.array([now]))
         jump = float(np.abs(trajectory.poses[0] - here[0]).max())
@@ -165,9 +171,8 @@ class SimHexapodDevice:
             raise DeviceError(f"sim hexapod: trajectory {trajectory.name!r} starts {jump:.4g} "
                               "(m or rad) away from the present pose; refused")
         # Dense check (4 points per uploaded sample) of the spline the platform will follow.
-        u = np.linspace(0.0, trajectory.duration_s, 4 * len(trajectory.poses))
-        pose, vel, acc = spline(u), spline(u, 1), spline(u, 2)
-        peaks = motion_peaks(pose, vel, acc, body_frame_state(u, pose, vel, acc, self.gravity))
+        peaks = spline_peaks(spline, trajectory.duration_s, 4 * len(trajectory.poses),
+                             self.gravity)
         bad = limit_violations(peaks, self._limits)
         if bad:
             text = "; ".join(f"{n} = {v:.4g} above the limit {lim:.4g}" for n, v, lim in bad)

@@ -27,7 +27,7 @@ def test_identify_and_units_at_the_boundary(hexapod):
     assert dev.identification.model == "C-887"
     assert to_wire({"X": 0.001, "U": math.radians(2.0)}) == pytest.approx({"X": 1.0, "U": 2.0})
     assert from_wire({"Z": 5.0, "W": 90.0}) == pytest.approx({"Z": 0.005, "W": math.pi / 2})
-    assert dev.describe().channels[0].name == "x_m"
+    assert dev.describe().channels[0].name == "hex_x_m"  # the Hexapod contract's log channels
 
 
 def test_move_wait_and_position(hexapod):

@@ -228,7 +228,7 @@ def test_non_sim_urls_name_what_the_backend_lacks(tmp_path) -> None:
         'url = "sim://hexapod"', 'url = "tcp://192.168.0.10:50000"')
     path = tmp_path / "real.toml"
     path.write_text(text, encoding="utf-8")
-    with pytest.raises(DeviceError, match=r"hexapod.*trajectory upload"):
+    with pytest.raises(DeviceError, match=r"hexapod.*real IMU under test.*tcp://sim"):
         open_imu_rig(load_imu_rig(path))
 
 
