@@ -230,6 +230,26 @@ def formulation_table(console: Console, seed: int, shape: tuple[int, int, int]) 
     console.print(table)
 
 
+def scaling_table(console: Console, seed: int) -> None:
+    """How the unit and block formulations grow with the number of combinations."""
+    rng = np.random.default_rng(seed)
+    table = Table(title="Formulation scaling on random costs (40 batteries)", title_justify="left")
+    for col in ("combinations", "block s", "unit s", "same optimum"):
+        table.add_column(col, justify="right")
+    for n in (5_000, 10_000, 20_000):
+        cost = rng.normal(50.0, 10.0, (n // 40, 1, 40))
+        ok = np.ones(cost.shape, bool)
+        a = milp_exact.solve(cost, ok, formulation="block")
+        b = milp_exact.solve(cost, ok, formulation="unit")
+        table.add_row(
+            f"{n:,}",
+            f"{a.solve_time_s:.2f}",
+            f"{b.solve_time_s:.2f}",
+            "yes" if a.value == b.value else "NO",
+        )
+    console.print(table)
+
+
 def sizinglab_table(console: Console) -> None:
     from optimizer.sizinglab import DEFAULT_FOLDER, import_sizinglab
 
@@ -299,6 +319,7 @@ def main() -> int:
     large = (60, 50, 20) if args.quick else (200, 150, 40)
     large_table(console, args.seed, large, 1.0)
     formulation_table(console, args.seed, (30, 25, 12))
+    scaling_table(console, args.seed)
     sizinglab_table(console)
     return 0
 
