@@ -472,7 +472,10 @@ def _result(
             **common,
         )
     tied = tied_set(cost, ok, outcome.value)
-    if tied.size == 0 or outcome.index not in set(tied.tolist()):
+    if outcome.status != "optimal":
+        # time limit with an incumbent: report it as found, not as proven optimal
+        tied = np.array([outcome.index])
+    elif tied.size == 0 or outcome.index not in set(tied.tolist()):
         raise RuntimeError(
             f"{method} returned a design {outcome.index} outside the optimal set "
             f"(value {outcome.value}); solver status {outcome.status}"

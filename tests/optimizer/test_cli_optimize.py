@@ -159,3 +159,14 @@ def test_import_sizinglab_command(capsys, shared_data, tmp_path) -> None:
         == 2
     )
     assert not (tmp_path / "x").exists()
+
+
+def test_method_thesis_is_evaluated_exactly(capsys) -> None:
+    code, out = run_json(capsys, "optimize", "--method", "thesis", "--actuators", "4")
+    assert code == 0
+    entry = out["designs"][0]
+    assert entry["method"] == "thesis" and entry["feasible"]
+    assert "linearised" in entry and entry["shortfall_vs_exact"] is not None
+    # Test Case I, 4 actuators: the thesis formulation reaches the exact flight time optimum
+    _, exact = run_json(capsys, "optimize", "--method", "exact", "--actuators", "4")
+    assert entry["flight_time_min"] == pytest.approx(exact["designs"][0]["flight_time_min"])

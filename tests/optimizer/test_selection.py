@@ -4,11 +4,19 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from optimizer.errors import RequestError
 from optimizer.grid import METRIC_KEYS, Check, DesignGrid
 from optimizer.objectives import parse_weights, single, weighted
-from optimizer.selection import Requirements, break_ties, select_from_grids, tied_set
+from optimizer.selection import (
+    TIE_ORDER,
+    Requirements,
+    break_ties,
+    select_from_grids,
+    tied_set,
+)
 
 
 def make_grid(n: int = 4, shape=(2, 2, 2), checks=(), **metrics: np.ndarray) -> DesignGrid:
@@ -176,3 +184,50 @@ def test_nan_metrics_are_never_chosen() -> None:
     ft = np.array([np.nan, 5, 1, 1, 1, 1, 1, 1.0])
     res = select_from_grids([make_grid(flight_time_min=ft)], single("flight-time"), method="milp")
     assert np.ravel_multi_index(res.designs[0].index, (2, 2, 2)) == 1
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    seed=st.integers(0, 2**31 - 1),
+    counts=st.lists(st.sampled_from([4, 6, 8]), min_size=1, max_size=3, unique=True),
+    objective=st.sampled_from(["flight-time", "price", "time-constant", "weighted"]),
+)
+def test_property_milp_and_enumeration_pick_the_same_designs(seed, counts, objective) -> None:
+    """Coarse random metrics (many ties, dominated twins): identical picks, never dominated."""
+    rng = np.random.default_rng(seed)
+    grids = []
+    for n in counts:
+        metrics = {k: rng.integers(1, 4, (3, 3, 2)).astype(float) for k in METRIC_KEYS}
+        limit = Check("current", "A", rng.integers(0, 10, (3, 3, 2)).astype(float), np.asarray(7.0))
+        grids.append(make_grid(n, (3, 3, 2), [limit], **metrics))
+    obj = weighted({"flight-time": 1, "price": 1}) if objective == "weighted" else single(objective)
+    a = select_from_grids(grids, obj, method="milp")
+    b = select_from_grids(grids, obj, method="exact")
+    assert [d.index for d in a.designs] == [d.index for d in b.designs]
+    assert (a.best is None) == (b.best is None)
+    for grid, d in zip(grids, a.designs, strict=True):
+        if not d.feasible:
+            continue
+        ok = grid.feasible()
+        cost = obj.cost(grid, None if objective != "weighted" else _ranges(grids, obj))
+        assert cost[d.index] == cost[ok].min()
+        # no feasible design is at least as good in the objective and every tie metric
+        # and strictly better in one
+        better_or_equal = ok & (cost <= cost[d.index])
+        strictly = np.zeros(grid.shape, bool)
+        for metric, sense in TIE_ORDER:
+            v = grid.metrics[metric]
+            mine = v[d.index]
+            if sense == "max":
+                better_or_equal &= v >= mine
+                strictly |= v > mine
+            else:
+                better_or_equal &= v <= mine
+                strictly |= v < mine
+        assert not np.any(better_or_equal & (strictly | (cost < cost[d.index])))
+
+
+def _ranges(grids, obj):
+    from optimizer.objectives import metric_ranges
+
+    return metric_ranges(grids, [g.feasible() for g in grids], obj.metrics)
