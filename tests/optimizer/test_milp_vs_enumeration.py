@@ -127,3 +127,19 @@ def test_property_milp_finds_the_enumerated_optimum(shape, seed, levels, formula
         assert m.value == e.value
         assert m.status == "optimal"
         assert feasible.ravel()[m.index]
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_objective_cutoff_is_exact_on_large_arrays(seed: int) -> None:
+    """Above 2 x CUTOFF_SAMPLE combinations the two-phase solve finds the same optimum."""
+    rng = np.random.default_rng(seed)
+    shape = (40, 30, 25)  # 30,000 combinations
+    cost = rng.integers(0, 500, shape).astype(float)
+    feasible = rng.random(shape) < 0.8
+    e = exhaustive.solve(cost, feasible)
+    with_cutoff = milp_exact.solve(cost, feasible)
+    without = milp_exact.solve(cost, feasible, cutoff=False)
+    assert "cutoff" in with_cutoff.detail and "cutoff" not in without.detail
+    assert with_cutoff.value == without.value == e.value
+    assert with_cutoff.status == "optimal" and with_cutoff.mip_gap == 0.0
+    assert with_cutoff.n_candidates == int(feasible.sum())
