@@ -494,6 +494,7 @@ class PiHexapod:
                 raise DeviceError(f"{self.url}: start refused while a trajectory runs")
             self._uploaded = None
             t0 = self.clock.now()
+            self._finish_run(t0)  # the recorder restarts with WGO: read the last run first
             self._pending.append(self._rest_block(t0, self._upload_pose, inclusive=False))
             self.command(self.dialect.wave_go(1))
             n = math.floor(traj.duration_s / self.log_period_s + 1e-9) + 1
@@ -520,6 +521,17 @@ class PiHexapod:
                       for c in HEXAPOD_LOG_CHANNELS}
             self._last_t = float(t[keep][-1])
             return Block(t[keep], values)
+
+    def _finish_run(self, now: float) -> None:
+        """Read what is left of the previous run's log into the pending samples."""
+        if self._run is not None:
+            self._pending.append(self._read_run(now))
+        run = self._run
+        if run is not None:  # points the recorder did not give: the log ends before them
+            run.n_total = run.read
+            if run.read > run.emitted:
+                self._pending.append(self._read_run(now))
+            self._run = None
 
     def _rest_block(self, until: float, pose: Array | None, *, inclusive: bool) -> Block:
         """Samples at rest on the log grid up to ``until`` (pose from ``POS?`` if None)."""

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import csv
 import json
-import time
 from pathlib import Path
 
 import numpy as np
@@ -129,9 +128,9 @@ def test_controller_dropping_the_connection_fails_the_run_and_stops(tmp_path: Pa
 
 
 def test_silent_controller_fails_the_run_and_the_stop_still_goes_out(tmp_path: Path) -> None:
-    with _bench(tmp_path, "timeout_s = 0.3") as bench:
+    with _bench(tmp_path, "timeout_s = 0.5") as bench:
         _at(bench, 3.0, bench.wire.disconnect)
-        with pytest.raises(DeviceError, match=r"no reply within 0\.3 s"):
+        with pytest.raises(DeviceError, match=r"no reply within 0\.5 s"):
             _run(bench, tmp_path)
         meta, events, df = _record(tmp_path)
         assert meta["status"] == "fail"
@@ -141,10 +140,8 @@ def test_silent_controller_fails_the_run_and_the_stop_still_goes_out(tmp_path: P
 
 def test_watchdog_stops_while_the_main_conversation_hangs(tmp_path: Path) -> None:
     with _bench(tmp_path) as bench:
-        stalled = []
-        _at(bench, 3.0, lambda: (bench.wire.stall(1.0, connection=0),
-                                 stalled.append(time.monotonic())))
-        out = _run(bench, tmp_path, HexapodRunOptions(tick_s=0.1, watchdog_timeout_s=0.2))
+        _at(bench, 3.0, lambda: bench.wire.stall(1.5, connection=0))
+        out = _run(bench, tmp_path, HexapodRunOptions(tick_s=0.1, watchdog_timeout_s=0.5))
         meta, events, df = _record(tmp_path)
         assert out.result.status == "abort" and "watchdog" in meta["reason"]
         _assert_stopped_mid_motion(bench, meta, events, df)

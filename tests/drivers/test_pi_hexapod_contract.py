@@ -109,6 +109,20 @@ def test_follows_the_trajectory_and_logs_the_body_frame_truth(bench) -> None:
     assert np.allclose(log["hex_vx_m_s"][at_rest], 0.0)
 
 
+def test_back_to_back_runs_keep_one_gapless_log(bench) -> None:
+    """A second start restarts the recorder: what was left of the first run is read first."""
+    hx = bench.hexapod
+    motion = lever_arm_motion("z", duration_s=2.0)
+    for _ in range(2):
+        hx.upload(Trajectory.from_motion(motion, 200.0))
+        hx.start()
+        bench.clock.sleep(motion.duration_s + 0.2)  # no log read in between
+    log = hx.read_log()
+    assert np.allclose(np.diff(log.t_s), 1e-3) and log.t_s[-1] == pytest.approx(4.4)
+    truth = bench.sim.hexapod.state_at(log.t_s)
+    assert np.abs(log.values["ref_omega_z_rad_s"] - truth.omega_b_rad_s[:, 2]).max() < 1e-3
+
+
 def test_upload_speaks_wave_tables_and_the_data_recorder(bench) -> None:
     wire = bench.wire
     hx = bench.hexapod
@@ -204,9 +218,12 @@ def test_stop_from_another_thread_while_a_reply_is_pending(bench) -> None:
     hx.start()
     bench.clock.sleep(2.0)
     wire.stall(1.5, connection=0)  # the main connection's next reply comes 1.5 s late
+    asked = wire.by_connection[0].count("#9")
     waiting = threading.Thread(target=hx.is_moving)
     waiting.start()
-    time.sleep(0.1)
+    end = time.monotonic() + 5.0
+    while wire.by_connection[0].count("#9") == asked and time.monotonic() < end:
+        time.sleep(0.005)  # until the controller has the question (and the reply is late)
     t0 = time.monotonic()
     hx.stop()
     took = time.monotonic() - t0
