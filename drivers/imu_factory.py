@@ -34,7 +34,6 @@ _NOT_YET = {
     "imu": "no IMU-under-test backend is wired to the IMU bench yet",
     "reference_imu": "no reference-IMU backend is wired to the IMU bench yet",
 }
-_TCP_OPTIONS = ("timeout_s", "start_tolerance")  # besides the GcsDialect fields
 
 
 @dataclass
@@ -94,7 +93,12 @@ def _faults(device: Any, options: Mapping[str, Any], role: str) -> None:
 def _open_pi_hexapod(rig: Any, url: str, options: Mapping[str, Any], clock: Clock,
                      default_timeout_s: float) -> Hexapod:
     """The PI GCS backend on ``url`` (tcp://host:port), set up from the rig file."""
-    from drivers.backends.pi_hexapod import GcsDialect, PiHexapod, open_tcp
+    from drivers.backends.pi_hexapod import (
+        DEFAULT_DERIVATIVE_WINDOW,
+        GcsDialect,
+        PiHexapod,
+        open_tcp,
+    )
     from drivers.codecs.gcs import PORT
 
     parts = urlsplit(url)
@@ -103,8 +107,12 @@ def _open_pi_hexapod(rig: Any, url: str, options: Mapping[str, Any], clock: Cloc
     try:
         timeout_s = float(opts.pop("timeout_s", default_timeout_s))
         tolerance = float(opts.pop("start_tolerance", 1e-6))
+        window = int(opts.pop("derivative_window", DEFAULT_DERIVATIVE_WINDOW))
     except (TypeError, ValueError) as exc:
         raise DeviceError(f"{where}: {exc}") from None
+    if window > 3 and window % 2 == 0:
+        raise DeviceError(f"{where}: derivative_window {window}: expected an odd number of "
+                          "points (or 3 for plain differences)")
     dialect = GcsDialect.from_options(opts, where)
     host, port = parts.hostname or "", parts.port or PORT
 
@@ -116,7 +124,7 @@ def _open_pi_hexapod(rig: Any, url: str, options: Mapping[str, Any], clock: Cloc
         return PiHexapod(sock, url=url, timeout_s=timeout_s, connect=connect,
                          limits=rig.hexapod.hexapod_limits(), clock=clock,
                          log_rate_hz=rig.hexapod.log_rate_hz, dialect=dialect,
-                         start_tolerance=tolerance)
+                         start_tolerance=tolerance, derivative_window=window)
     except BaseException:
         sock.close()
         raise
