@@ -395,6 +395,8 @@ class SimPiController:
                 code = exc.code
             except DeviceError:  # a fault of the simulated plant: the command failed
                 code = 17
+            except (ValueError, IndexError, KeyError):  # arguments of the wrong shape
+                code = 1
             self._fail(code)
             return gcs.encode_reply(["0"]) if cmd.name.endswith("?") else None
 

@@ -16,6 +16,7 @@ import pytest
 
 from bench.imu_rig import load_imu_rig
 from drivers.backends.pi_hexapod import GcsDialect, PiHexapod
+from drivers.codecs import gcs
 from drivers.contracts import DeviceInfo
 from drivers.errors import DeviceError
 from drivers.hexapod_contracts import (
@@ -282,14 +283,22 @@ def test_a_dropped_connection_fails_loudly_and_stop_reconnects(bench) -> None:
     assert len(wire.by_connection) == 3 and "#24" in wire.by_connection[2]
 
 
-def test_stop_raises_only_when_nothing_can_carry_it(bench) -> None:
-    bench.wire.disconnect()  # silent controller: every reply is lost
+def test_stop_raises_only_when_nothing_can_carry_it(tmp_path: Path) -> None:
+    with open_imu_rig(load_imu_rig(_rig_with(tmp_path, "timeout_s = 0.3"))) as b:
+        b.wire.disconnect()  # silent controller: every reply is lost
+        t0 = time.monotonic()
+        with pytest.raises(DeviceError, match="stop not confirmed"):
+            b.hexapod.stop()
+        assert time.monotonic() - t0 < 3.0  # main, stop and a new connection: 0.3 s each
+
+
+def test_the_simulated_controller_survives_malformed_commands(bench) -> None:
     hx = bench.hexapod
-    hx.timeout_s = 0.2
-    for link in (hx._main, hx._stop_link):
-        link.timeout_s = 0.2
-    with pytest.raises(DeviceError, match="stop not confirmed"):
-        hx.stop()
+    for line in (b"WTR 1\n", b"WSL 1 x\n", b"DRC 1 X\n", b"WAV 1 X PNT 1 3 0 0\n",
+                 b"WGO 7 1\n", b"DRR? 1 10 9\n"):
+        with pytest.raises(DeviceError, match=r"GCS error (1|17|26) "):
+            hx.query(line) if b"?" in line else hx.command(line)
+    assert "C-887" in gcs.parse_idn(hx.query(gcs.idn())).model  # still answering
 
 
 def test_dialect_options_are_checked() -> None:
