@@ -5,6 +5,16 @@ combination, should replace the datasheet estimates. A bench run of one propelle
 motor (optionally with a given ESC mode) yields a ``MeasuredActuator``: its 63 % time
 constant and its current at a set of thrusts. ``optimizer.model.evaluate_grid`` uses them
 for every design built from that pair and marks those cells as measured.
+
+Extrapolation rule (no measured number is ever extended beyond what was measured):
+- the current is interpolated linearly between measured (thrust, current) points only;
+  a hover thrust outside ``[hover_thrust_n[0], hover_thrust_n[-1]]`` keeps the modelled
+  current (E.67) and the cell is *not* marked measured (``design_sources`` says why);
+- a hover thrust above the measured top thrust ``max_thrust_n`` makes the design
+  infeasible through the grid check "measured max thrust" (the rotor was seen not to
+  reach it), for batteries whose voltage is at most ``TOP_THRUST_VOLTAGE_MARGIN`` above
+  the bench supply voltage (a higher voltage could spin the rotor faster: not checked);
+- the time constant is one measured number per actuator, used for every battery.
 """
 
 from __future__ import annotations
@@ -16,6 +26,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from optimizer.errors import RequestError
+
+#: The measured top thrust bounds batteries up to this fraction above the bench voltage.
+TOP_THRUST_VOLTAGE_MARGIN = 0.05
 
 
 @dataclass(frozen=True)
@@ -29,6 +42,10 @@ class MeasuredActuator:
     measured range keep the modelled current (no extrapolation).
     ``supply_voltage_v``: bench supply voltage; if given, the current is rescaled to the
     in-flight battery voltage at equal electrical power.
+    ``max_thrust_n``: the highest thrust the sweep reached (default: the last current
+    point); the grid's "measured max thrust" check compares the hover thrust with it.
+    ``time_constant_source`` / ``current_source``: the run each number came from (shown
+    in the optimizer's per-design ``sources``); ``source`` describes both.
     """
 
     propeller_id: str
@@ -39,6 +56,9 @@ class MeasuredActuator:
     hover_current_a: Sequence[float] = ()
     supply_voltage_v: float | None = None
     source: str = ""
+    max_thrust_n: float | None = None
+    time_constant_source: str = ""
+    current_source: str = ""
 
     def __post_init__(self) -> None:
         label = f"measured actuator ({self.propeller_id}, {self.motor_id}, {self.esc_mode})"
@@ -63,6 +83,34 @@ class MeasuredActuator:
         v = self.supply_voltage_v
         if v is not None and not (math.isfinite(v) and v > 0):
             raise RequestError(f"{label}: supply_voltage_v must be > 0, got {v!r}")
+        top = self.max_thrust_n
+        if top is not None:
+            if not (math.isfinite(top) and top > 0):
+                raise RequestError(f"{label}: max_thrust_n must be > 0, got {top!r}")
+            if thrust.size and top < thrust[-1]:
+                raise RequestError(
+                    f"{label}: max_thrust_n {top:g} N is below the highest current point "
+                    f"{thrust[-1]:g} N"
+                )
+
+    @property
+    def top_thrust_n(self) -> float | None:
+        """The measured top thrust (``max_thrust_n``, else the last current point)."""
+        if self.max_thrust_n is not None:
+            return float(self.max_thrust_n)
+        return float(self.hover_thrust_n[-1]) if self.has_current else None
+
+    def top_thrust_applies(self, voltage_v: np.ndarray) -> np.ndarray:
+        """Where the measured top thrust bounds a design with battery voltage ``voltage_v``."""
+        voltage_v = np.asarray(voltage_v, float)
+        if self.supply_voltage_v is None:
+            return np.ones(voltage_v.shape, bool)
+        return voltage_v <= self.supply_voltage_v * (1.0 + TOP_THRUST_VOLTAGE_MARGIN)
+
+    def run_of(self, quantity: str) -> str:
+        """The run a quantity ('time_constant' or 'current') was measured in."""
+        own = self.time_constant_source if quantity == "time_constant" else self.current_source
+        return own or self.source or "(run not recorded)"
 
     @property
     def has_current(self) -> bool:

@@ -39,10 +39,13 @@ class ModelGrid(DesignGrid):
     ``measured[key]`` is a boolean (P, M, B) mask for each metric that has at least one
     measured cell; metrics not in the mapping are modelled everywhere. ``extras`` holds
     intermediate quantities (hover thrust, voltage, frame mass, ...) for reports.
+    ``overrides`` maps (propeller index, motor index) to the ``MeasuredActuator`` used
+    there (``design_sources`` names its runs).
     """
 
     measured: dict[str, np.ndarray] = field(default_factory=dict)
     extras: dict[str, np.ndarray] = field(default_factory=dict)
+    overrides: dict[tuple[int, int], MeasuredActuator] = field(default_factory=dict)
 
 
 def _check_request(n_actuators: Any, payload_kg: Any) -> tuple[int, float]:
@@ -146,9 +149,10 @@ def evaluate_grid(
     actuator_current = np.broadcast_to(actuator_current, shape)
 
     measured: dict[str, np.ndarray] = {}
+    by_index: dict[tuple[int, int], MeasuredActuator] = {}
     chosen = select_overrides(overrides, esc_mode)
     if chosen:
-        tau, actuator_current, measured = _apply_overrides(
+        tau, actuator_current, measured, by_index = _apply_overrides(
             catalog,
             chosen,
             tau,
@@ -190,6 +194,10 @@ def evaluate_grid(
         Check("motor current", "A", full(actuator_current), m_("max_current_a")),
         Check("battery current", "A", metrics["current_a"], b_("max_current_a")),
     ]
+    top = _measured_top_thrust(by_index, shape, np.broadcast_to(voltage, shape))
+    if top is not None:
+        # the sweep saw this actuator top out below the hover thrust: it cannot hover
+        checks.append(Check("measured max thrust", "N", full(hover_thrust), top))
     extras = {
         "hover_thrust_n": full(hover_thrust),
         "voltage_v": full(voltage),
@@ -227,7 +235,23 @@ def evaluate_grid(
         notes=notes,
         measured=measured,
         extras=extras,
+        overrides=by_index,
     )
+
+
+def _measured_top_thrust(
+    by_index: dict[tuple[int, int], MeasuredActuator],
+    shape: tuple[int, int, int],
+    voltage: np.ndarray,
+) -> np.ndarray | None:
+    """Limit array of the "measured max thrust" check: the sweep's top thrust where it
+    applies (see ``optimizer.measured``), +inf (no limit) elsewhere; None if no sweep."""
+    limit = np.full(shape, np.inf)
+    for (i, j), item in by_index.items():
+        top = item.top_thrust_n
+        if top is not None:
+            limit[i, j, :] = np.where(item.top_thrust_applies(voltage[i, j, :]), top, np.inf)
+    return limit if np.isfinite(limit).any() else None
 
 
 def _apply_overrides(
@@ -237,13 +261,16 @@ def _apply_overrides(
     actuator_current: np.ndarray,
     hover_thrust: np.ndarray,
     voltage: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+) -> tuple[
+    np.ndarray, np.ndarray, dict[str, np.ndarray], dict[tuple[int, int], MeasuredActuator]
+]:
     p_index = {pid: i for i, pid in enumerate(catalog.propeller_ids)}
     m_index = {mid: i for i, mid in enumerate(catalog.motor_ids)}
     tau = tau.copy()
     actuator_current = actuator_current.copy()
     tau_mask = np.zeros(tau.shape, bool)
     cur_mask = np.zeros(tau.shape, bool)
+    by_index: dict[tuple[int, int], MeasuredActuator] = {}
     for (pid, mid), item in chosen.items():
         if pid not in p_index:
             raise RequestError(
@@ -252,11 +279,13 @@ def _apply_overrides(
         if mid not in m_index:
             raise RequestError(f"overrides: unknown motor id {mid!r} in catalog {catalog.source}")
         i, j = p_index[pid], m_index[mid]
+        by_index[(i, j)] = item
         if item.time_constant_s is not None:
             tau[i, j, :] = item.time_constant_s
             tau_mask[i, j, :] = True
         if item.has_current:
             value, inside = item.current_at(hover_thrust[i, j, :], voltage[i, j, :])
+            # no extrapolation: outside the measured thrusts the model's current stays
             actuator_current[i, j, :] = np.where(inside, value, actuator_current[i, j, :])
             cur_mask[i, j, :] = inside
     measured: dict[str, np.ndarray] = {}
@@ -265,7 +294,7 @@ def _apply_overrides(
     if cur_mask.any():
         for key in ("current_a", "power_w", "flight_time_min"):
             measured[key] = cur_mask
-    return tau, actuator_current, measured
+    return tau, actuator_current, measured, by_index
 
 
 def _index(ids: tuple[str, ...], wanted: str, kind: str, catalog: Catalog) -> int:
@@ -329,6 +358,8 @@ def design_record(grid: DesignGrid, i: int, j: int, k: int) -> dict[str, Any]:
     for check in grid.checks:
         value = float(np.broadcast_to(check.value, grid.shape)[i, j, k])
         limit = float(np.broadcast_to(check.limit, grid.shape)[i, j, k])
+        if math.isinf(limit):
+            continue  # no limit for this design (e.g. no measured sweep of its actuator)
         margin = float(np.broadcast_to(check.margin(), grid.shape)[i, j, k])
         ok = bool(margin >= -1e-9 * max(1.0, abs(limit)))
         checks.append(
@@ -350,7 +381,62 @@ def design_record(grid: DesignGrid, i: int, j: int, k: int) -> dict[str, Any]:
     record["checks"] = checks
     measured = getattr(grid, "measured", {})
     record["measured"] = sorted(key for key, mask in measured.items() if mask[i, j, k])
+    if isinstance(grid, ModelGrid) and grid.overrides:
+        record["sources"] = design_sources(grid, i, j, k)
     return record
+
+
+#: What the model uses where nothing is measured (equation numbers of Paper E).
+MODEL_SOURCES: dict[str, str] = {
+    "time_constant_ms": "model (E.35)",
+    "current_a": "model (E.67-E.69)",
+    "power_w": "model (E.60-E.63)",
+    "flight_time_min": "model (E.67-E.74)",
+}
+
+
+def design_sources(grid: ModelGrid, i: int, j: int, k: int) -> dict[str, str]:
+    """Which numbers of design (i, j, k) are measured (and in which run) or modelled.
+
+    Keys: the metrics of ``MODEL_SOURCES`` and ``max_thrust`` (whether the measured top
+    thrust was checked). A current outside the measured thrusts says so: the model's
+    value is used there, never an extrapolation.
+    """
+    out = dict(MODEL_SOURCES)
+    item = grid.overrides.get((i, j))
+    if item is None:
+        out["max_thrust"] = "not measured"
+        return out
+    tau_mask = grid.measured.get("time_constant_ms")
+    if tau_mask is not None and tau_mask[i, j, k]:
+        out["time_constant_ms"] = f"measured: run {item.run_of('time_constant')}"
+    if not item.has_current:
+        out["max_thrust"] = "not measured"
+        return out
+    run = item.run_of("current")
+    cur_mask = grid.measured.get("current_a")
+    if cur_mask is not None and cur_mask[i, j, k]:
+        for key in ("current_a", "power_w", "flight_time_min"):
+            out[key] = f"measured: run {run}"
+    else:
+        hover = float(grid.extras["hover_thrust_n"][i, j, k])
+        lo, hi = float(item.hover_thrust_n[0]), float(item.hover_thrust_n[-1])
+        where = "below" if hover < lo else "above"
+        why = (
+            f"; hover thrust {hover:.3g} N {where} the measured {lo:.3g}-{hi:.3g} N of run "
+            f"{run} (not extrapolated)"
+        )
+        for key in ("current_a", "power_w", "flight_time_min"):
+            out[key] += why
+    top = item.top_thrust_n
+    volt = float(grid.extras["voltage_v"][i, j, k])
+    if top is not None and bool(item.top_thrust_applies(np.asarray([volt]))[0]):
+        out["max_thrust"] = f"measured: run {run} ({top:.3g} N)"
+    else:
+        out["max_thrust"] = (
+            f"not checked: battery {volt:.3g} V above the bench's {item.supply_voltage_v:.3g} V"
+        )
+    return out
 
 
 # Earlier names, kept for modules that imported them.

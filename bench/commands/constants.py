@@ -20,7 +20,7 @@ from rich.table import Table
 from bench.constants_store import ActuatorKey, ConstantsStore
 from bench.errors import RigError
 
-HOVER_POINTS = 12  # thrusts at which the supply current is stored
+HOVER_POINTS = 24  # thrusts at which the supply current is stored
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -51,11 +51,16 @@ def fit_for_store(run: Path) -> tuple[ActuatorKey, str, str, dict[str, Any]]:
         if s.thrust_poly is None or s.current_poly is None:
             raise RigError(f"{rec.path}: the sweep has no thrust or current to store")
         thr = s.thrust[np.isfinite(s.thrust)]
-        grid = np.linspace(float(thr.min()), float(thr.max()), HOVER_POINTS)
+        # the thrust curve over the measured speeds: its top is the measured top thrust,
+        # and every stored point lies inside the measured range (no extrapolation)
+        lo = max(float(thr.min()), float(s.thrust_at(s.omega[0])))
+        hi = min(float(thr.max()), float(s.thrust_at(s.omega[-1]))) * (1.0 - 1e-9)
+        grid = np.linspace(lo, hi, HOVER_POINTS)
         inside = [(float(t), hover_current_a(s, float(t))) for t in grid
                   if s.omega[0] <= float(s.omega_for_thrust(t)) <= s.omega[-1]]
         data = {**s.summary(), "hover_thrust_n": [t for t, _ in inside],
-                "hover_current_a": [c for _, c in inside]}
+                "hover_current_a": [c for _, c in inside],
+                "thrust_max_n": inside[-1][0] if inside else None}
         return key, "static", rec.id, data
     if kind in ("step1", "step"):
         f = fit_run(rec, window_s=2.0)  # the whole hold (slow coasting modes settle late)
@@ -104,7 +109,10 @@ def load_measured(root: Path, catalog: str | None = None) -> list[Any]:
             propeller_id=prop, motor_id=motor, esc_mode=mode, time_constant_s=tau,
             hover_thrust_n=tuple(thrust), hover_current_a=tuple(current),
             supply_voltage_v=(static.data.get("voltage_v") if static is not None else None),
-            source=sources))
+            max_thrust_n=(static.data.get("thrust_max_n") if static is not None and thrust
+                          else None),
+            source=sources, time_constant_source=step.run_id if step is not None else "",
+            current_source=static.run_id if static is not None else ""))
     return out
 
 

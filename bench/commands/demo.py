@@ -7,7 +7,10 @@ Paper C's Step 1 and Step 2 around its own hover thrust; one combination also ru
 three ESC modes. Every run is fitted and its constants stored; then Paper E's three test
 cases are optimized with the datasheet model and with the measured constants, and the
 tables (Table C.1, E.8-E.10-like selections, E.11, E.13, E.14) and figures are written.
-The output folder is built beside its final name and renamed into place at the end.
+The designs come from the real optimizer (``optimizer.selection.optimize``, exact MILP,
+the CLI's tie rules). The output folder is built beside its final name and renamed into
+place at the end; an existing ``--out`` is only replaced when it holds the marker file a
+previous demo wrote (anything else, e.g. ``--out .``, is refused with exit status 2).
 """
 
 from __future__ import annotations
@@ -17,6 +20,7 @@ import dataclasses
 import json
 import os
 import shutil
+import tempfile
 import time
 from pathlib import Path
 from typing import Any
@@ -25,10 +29,16 @@ import numpy as np
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
+from bench.commands.optimize import PAPER_E_CASES
+from bench.errors import RigError
+
 G0 = 9.80665
-CASES = (("I", 0.0, "flight_time_min", "max"), ("II", 1.5, "flight_time_min", "max"),
-         ("III", 0.0, "time_constant_ms", "min"))  # Paper E section 4
 ACTUATORS = (4, 6, 8)
+#: Written into every demo output; only a folder holding it may be replaced.
+MARKER = ".rotorbench-demo"
+MARKER_TEXT = "rotorbench demo output; `rotorbench demo --out` may replace this folder\n"
+#: Metric keys whose source the designs table reports.
+SOURCE_KEYS = ("time_constant_ms", "current_a", "power_w", "flight_time_min")
 MODES = ("complementary", "diode", "stock")
 
 
@@ -40,7 +50,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "combination, fits, a constants store, and Paper E's three test cases "
                     "optimized with and without the measured constants.")
     p.add_argument("--out", type=Path, default=Path("demo-out"),
-                   help="output folder (default ./demo-out; replaced if it exists)")
+                   help="output folder (default ./demo-out); an existing one is replaced only "
+                        f"if a previous demo wrote it (it holds {MARKER}), else refused")
     p.add_argument("--repeats", type=int, default=3, help="Step 1 repeats per combination")
     p.add_argument("--seed", type=int, default=1, help="seed of the simulated rig")
     p.add_argument("--combos", type=int, default=None,
@@ -79,12 +90,41 @@ def combo_rig(base: Any, catalog: Any, i: int, j: int, mode: str, seed: int) -> 
                                name=f"sim-{catalog.propeller_ids[i]}-{catalog.motor_ids[j]}")
 
 
-def _pick(grid: Any, metric: str, sense: str) -> tuple[int, int, int] | None:
-    values = np.where(grid.feasible(), grid.metrics[metric], np.nan)
-    if not np.isfinite(values).any():
-        return None
-    flat = np.nanargmax(values) if sense == "max" else np.nanargmin(values)
-    return tuple(int(v) for v in np.unravel_index(flat, values.shape))  # type: ignore[return-value]
+def _optimize_cases(catalog: Any, measured: Any, progress: Any, task: Any) -> list[Any]:
+    """Paper E's test cases by the real optimizer (exact MILP, the CLI's tie rules), with
+    the datasheet model and with the measured constants where the store has them."""
+    from bench.commands.optimize import solve
+    from optimizer.objectives import single
+    from optimizer.selection import Requirements
+
+    cases = []
+    for case, title, objective, payload in PAPER_E_CASES:
+        req = Requirements(payload_kg=payload)
+        pair = {}
+        for label, over in (("model", None), ("measured", measured)):
+            progress.update(task, description=f"optimize case {case} ({label})")
+            pair[label] = solve(catalog, single(objective), ACTUATORS, req, "milp", over)
+            progress.advance(task)
+        cases.append((case, title, pair))
+    return cases
+
+
+def check_out(out: Path) -> Path:
+    """The absolute output folder, refused (exit 2) unless it is new or a previous demo's."""
+    out = Path(os.path.abspath(out))
+    if out.parent == out:
+        raise RigError(f"--out {out}: refusing the file-system root")
+    cwd = Path(os.path.abspath(os.getcwd()))
+    if not out.exists() and not out.is_symlink():
+        return out
+    if out.is_symlink() or not out.is_dir():
+        raise RigError(f"--out {out}: exists and is not a folder; choose a new folder")
+    if not (out / MARKER).is_file():
+        raise RigError(f"--out {out}: exists and was not written by `rotorbench demo` (no "
+                       f"{MARKER} in it); refusing to replace it, choose a new folder")
+    if cwd == out or out in cwd.parents:
+        raise RigError(f"--out {out}: is the current folder or contains it; run from elsewhere")
+    return out
 
 
 def handler(args: argparse.Namespace) -> int:
@@ -95,6 +135,7 @@ def handler(args: argparse.Namespace) -> int:
     from analysis.static_curves import fit_static_run
     from analysis.step_response import fit_run
     from analysis.validation import validate_run
+    from bench.commands._measured import MeasuredSet
     from bench.commands.constants import fit_for_store, load_measured
     from bench.constants_store import ConstantsStore
     from bench.rig import default_rig_path, load_rig
@@ -103,14 +144,16 @@ def handler(args: argparse.Namespace) -> int:
     from bench.session import run_sequence
     from bench.thrust_map import fit_sweep_run
     from drivers.factory import open_rig
-    from optimizer.model import evaluate_grid
 
     wall0 = time.monotonic()
     console = Console(width=shutil.get_terminal_size((160, 24)).columns)
-    out = Path(args.out)
-    tmp = out.with_name(f".{out.name}.tmp")
-    if tmp.exists():
-        shutil.rmtree(tmp)
+    if args.combos is not None and args.combos < 1:
+        raise RigError(f"--combos: expected a count >= 1, got {args.combos}")
+    if args.repeats < 1:
+        raise RigError(f"--repeats: expected a count >= 1, got {args.repeats}")
+    out = check_out(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent))
     runs_root, figs, tabs = tmp / "runs", tmp / "figures", tmp / "tables"
     for d in (runs_root, figs, tabs):
         d.mkdir(parents=True)
@@ -120,7 +163,7 @@ def handler(args: argparse.Namespace) -> int:
     combos = [(i, j) for i in range(len(catalog.propeller_ids))
               for j in range(len(catalog.motor_ids))][: args.combos]
     mode_combo = (0, 0)  # Test Case III's actuator (P1, M1) also runs the other modes
-    n_tasks = 3 * len(combos) + 3 * (len(MODES) - 1)
+    n_tasks = 3 * len(combos) + 3 * (len(MODES) - 1) + 2 * len(PAPER_E_CASES)
     progress = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                         TimeElapsedColumn(), console=Console(stderr=True))
     task = progress.add_task("demo", total=n_tasks)
@@ -162,9 +205,10 @@ def handler(args: argparse.Namespace) -> int:
                     step2_runs[(i, j, mode)] = run(
                         r, step2(repeats=2, hold_s=1.0, settle_s=1.0, band_n=band),
                         f"{name} {mode} step2")
+            measured = MeasuredSet(runs_root, MODES[0], load_measured(runs_root, "thesis-e"))
+            cases = _optimize_cases(catalog, measured, progress, task)
         summary = _tables_and_figures(
-            console, catalog, fits, statics, step2_runs, load_measured(runs_root, "thesis-e"),
-            evaluate_grid, mode_combo, figs, tabs,
+            console, catalog, fits, statics, step2_runs, measured, cases, mode_combo, figs, tabs,
             dict(plot_static=plot_static, plot_steps=plot_steps, plot_validation=plot_validation,
                  table_c1=table_c1, table_e11=table_e11, table_e13=table_e13,
                  table_e14=table_e14, write_csv=write_csv, Table=Table, read_run=read_run,
@@ -173,11 +217,15 @@ def handler(args: argparse.Namespace) -> int:
         summary["wall_time_s"] = time.monotonic() - wall0
         with open(tmp / "demo.json", "w", encoding="utf-8") as fh:
             json.dump(summary, fh, indent=2, default=str)
-        old = out.with_name(f".{out.name}.old")
+        (tmp / MARKER).write_text(MARKER_TEXT, encoding="utf-8")
+        old = None
         if out.exists():
-            os.replace(out, old)
+            check_out(out)  # still a previous demo's output
+            old = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".old", dir=out.parent))
+            os.replace(out, old)  # onto the empty placeholder
         os.replace(tmp, out)
-        shutil.rmtree(old, ignore_errors=True)
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
@@ -186,7 +234,52 @@ def handler(args: argparse.Namespace) -> int:
     return 0
 
 
-def _tables_and_figures(console, catalog, fits, statics, step2_runs, measured, evaluate_grid,
+def _measured_vs_model(catalog: Any, measured: Any) -> Any:
+    """Measured against datasheet-model constants of every measured actuator, at 35 % of
+    its measured top thrust (the centre of its Step 1 band). The sim's copper and supply
+    losses show up here; the demo prints this rather than hiding the gap."""
+    from analysis.report import Table
+    from optimizer import physics
+    from optimizer.model import battery_voltage_v, motor_inertia_kgm2, propeller_inertia_kgm2
+
+    c = catalog.constants
+    rho = c.air_density_kg_m3
+    volt = float(np.max(battery_voltage_v(catalog)))
+    jp, jm = propeller_inertia_kgm2(catalog), motor_inertia_kgm2(catalog)
+    rows = []
+    for item in measured.overrides:
+        if item.esc_mode != measured.esc_mode or item.top_thrust_n is None:
+            continue
+        i = catalog.propeller_ids.index(item.propeller_id)
+        j = catalog.motor_ids.index(item.motor_id)
+        prop, mot = catalog.propellers.iloc[i], catalog.motors.iloc[j]
+        d, ct, cp = (float(prop[k]) for k in ("diameter_m", "ct", "cp"))
+        kt = physics.torque_constant(float(mot["kv_rad_s_per_v"]))
+        r = float(mot["resistance_ohm"])
+        t_ref = 0.35 * item.top_thrust_n
+        n = physics.hover_speed_rev_s(t_ref, ct, rho, d)  # (E.20)
+        tau_model = physics.time_constant_s(
+            r, jp[i] + jm[j], kt, physics.propeller_damping(cp, rho, n, d))  # (E.35)
+        cur_model = physics.propeller_power_w(cp, rho, n, d) / volt  # (E.67)
+        cur, inside = item.current_at(np.array([t_ref]), np.array([volt]))
+        top_model = physics.thrust_n(ct, rho, physics.full_throttle_speed_rad_s(
+            volt, kt, r, cp, rho, d) / physics.TWO_PI, d)
+        tau = item.time_constant_s
+        rows.append((f"{item.propeller_id}-{item.motor_id}", t_ref,
+                     None if tau is None else tau * 1e3, float(tau_model) * 1e3,
+                     None if tau is None else 100.0 * (tau / float(tau_model) - 1.0),
+                     float(cur[0]) if inside[0] else None, float(cur_model),
+                     100.0 * (float(cur[0]) / float(cur_model) - 1.0) if inside[0] else None,
+                     item.top_thrust_n, float(top_model)))
+    return Table(f"Measured vs datasheet model ({measured.esc_mode} ESC, {volt:g} V)",
+                 ("actuator", "at thrust [N]", "tau meas [ms]", "tau model [ms]", "tau diff %",
+                  "I meas [A]", "I model [A]", "I diff %", "top thrust meas [N]",
+                  "top thrust model [N]"), tuple(rows),
+                 note="the sim's motors have copper and supply losses the model (E.67) "
+                      "leaves out: measured currents are higher, flight times shorter")
+
+
+def _tables_and_figures(console, catalog, fits, statics, step2_runs, measured, cases,
                         mode_combo, figs, tabs, f) -> dict[str, Any]:
     summary: dict[str, Any] = {}
     i0, j0 = mode_combo
@@ -206,56 +299,66 @@ def _tables_and_figures(console, catalog, fits, statics, step2_runs, measured, e
             f["plot_validation"](v, figs / f"validation_{m}.png",
                                  title=f"Step 2, {m}: RMS error first order "
                                        f"{v.rms_first_order_pct:.1f} % of the band")
-    # designs with the datasheet model and with measured constants (Tables E.8-E.10)
+    # Tables E.8-E.10: the optimizer's designs, datasheet model and measured constants
+    from bench.commands.optimize import print_table
+
     sel_rows, e11, e13, e14 = [], [], [], []
-    for case, payload, metric, sense in CASES:
-        for n in ACTUATORS:
-            picks = {}
-            for label, over in (("model", None), ("measured", measured)):
-                grid = evaluate_grid(catalog, n, payload, overrides=over, esc_mode=MODES[0])
-                k = _pick(grid, metric, sense)
-                picks[label] = (grid, k)
-                if k is None:
-                    sel_rows.append((f"{case}-{n}", label, "infeasible", None, None, ""))
+    for case, title, pair in cases:
+        print_table(pair["model"], title=f"{title}: datasheet model", console=console)
+        print_table(pair["measured"], console=console,
+                    title=f"{title}: measured constants ({measured.esc_mode} ESC) where stored")
+        for label in ("model", "measured"):
+            for d in pair[label].designs:
+                best = " *" if d is pair[label].best else ""
+                if not d.feasible:
+                    sel_rows.append((f"{case}-{d.actuators}{best}", label, "infeasible", None,
+                                     None, d.reason or ""))
                     continue
-                pi, mj, bk = k
-                src = ", ".join(name for name, mask in sorted(grid.measured.items())
-                                if bool(mask[k])) or "datasheet"
-                sel_rows.append((f"{case}-{n}", label,
-                                 f"{grid.propeller_ids[pi]} {grid.motor_ids[mj]} "
-                                 f"{grid.battery_ids[bk]}",
-                                 float(grid.metrics["time_constant_ms"][k]),
-                                 float(grid.metrics["flight_time_min"][k]), src))
-            grid, k = picks["model"]
-            if k is None:
+                src = d.extra.get("sources") or {}
+                sel_rows.append((f"{case}-{d.actuators}{best}", label,
+                                 f"{d.propeller} {d.motor} {d.battery}",
+                                 d.metrics["time_constant_ms"], d.metrics["flight_time_min"],
+                                 ", ".join(k for k in SOURCE_KEYS
+                                           if str(src.get(k, "")).startswith("measured"))
+                                 or "datasheet"))
+        for d in pair["model"].designs:
+            if not d.feasible:
                 continue
-            pi, mj, bk = k
+            tag = f"{case}-{d.actuators}"
+            pi, mj, bk = d.index
             fit = fits.get((pi, mj, MODES[0]))
             if fit is not None:
-                e11.append((f"{case}-{n}", fit.up.t63.value, fit.down.t63.value))
-                e13.append((f"{case}-{n}", fit.up.tau.value, fit.down.tau.value,
-                            float(grid.metrics["time_constant_ms"][k]) * 1e-3))
+                e11.append((tag, fit.up.t63.value, fit.down.t63.value))
+                e13.append((tag, fit.up.tau.value, fit.down.tau.value,
+                            d.metrics["time_constant_ms"] * 1e-3))
             st = statics.get((pi, mj))
-            hover = float(grid.extras["hover_thrust_n"][k])
-            if st is not None:
-                try:
-                    cur = f["hover_current_a"](st, hover)
-                    cap = float(catalog.batteries["capacity_ah"].iloc[bk]) * 1e3
-                    e14.append((f"{case}-{n}", f["flight_time_min"](cap, cur, n),
-                                float(grid.metrics["flight_time_min"][k])))
-                except Exception as exc:  # hover thrust beyond the sweep: say so
-                    e14.append((f"{case}-{n}", None,
-                                float(grid.metrics["flight_time_min"][k])))
-                    summary.setdefault("notes", []).append(f"{case}-{n}: {exc}")
-    ts = f["Table"]("Paper E test cases: datasheet model vs measured constants",
+            if st is None:
+                continue
+            hover = d.metrics["total_mass_kg"] * catalog.constants.gravity_m_s2 / d.actuators
+            try:
+                cur = f["hover_current_a"](st, hover)
+                cap = float(catalog.batteries["capacity_ah"].iloc[bk]) * 1e3
+                e14.append((tag, f["flight_time_min"](cap, cur, d.actuators),
+                            d.metrics["flight_time_min"]))
+            except Exception as exc:  # hover thrust beyond the sweep: say so
+                e14.append((tag, None, d.metrics["flight_time_min"]))
+                summary.setdefault("notes", []).append(f"{tag}: {exc}")
+    ts = f["Table"]("Paper E test cases: datasheet model vs measured constants "
+                    "(optimizer.selection, milp; * best count)",
                     ("case-N", "constants", "design (P M B)", "tau [ms]", "flight [min]",
                      "measured metrics"), tuple(sel_rows))
+    cmp_table = _measured_vs_model(catalog, measured)
     for tab, fname in ((ts, "designs.csv"), (f["table_e11"](e11), "table_e11.csv"),
                        (f["table_e13"](e13), "table_e13.csv"),
-                       (f["table_e14"](e14), "table_e14.csv")):
+                       (f["table_e14"](e14), "table_e14.csv"),
+                       (cmp_table, "measured_vs_model.csv")):
         console.print(tab.to_rich())
         f["write_csv"](tab, tabs / fname)
     summary["designs"] = [dict(zip(ts.columns, r, strict=True)) for r in sel_rows]
+    summary["cases"] = [{"case": c, "title": t, "constants": label, **pair[label].to_dict()}
+                        for c, t, pair in cases for label in ("model", "measured")]
+    summary["measured_vs_model"] = [dict(zip(cmp_table.columns, r, strict=True))
+                                    for r in cmp_table.rows]
     summary["table_c1"] = {m: {k: v for k, v in fit.summary().items() if k != "edges"}
                            for m, fit in c1}
     for note in summary.get("notes", []):

@@ -16,11 +16,15 @@ import os
 from pathlib import Path
 from typing import Any
 
+from bench.commands._measured import add_measured_args, is_measured, load_measured_set
 from optimizer.errors import CatalogError, RequestError
 from optimizer.objectives import OBJECTIVE_NAMES, Objective, parse_weights, single, weighted
 
 #: Exit status when no requested actuator count has a feasible design.
 EXIT_NO_FEASIBLE = 3
+
+#: Marks a table cell whose number was measured on the bench (--measured).
+MEASURED_MARK = "(m)"
 
 #: Table rows: (label, key, format).
 ROWS: tuple[tuple[str, str, str], ...] = (
@@ -115,6 +119,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="run Paper E's test cases I-III (max flight time without and with 1.5 kg "
         "payload, min time constant) and print the three tables (Tables E.8-E.10)",
     )
+    add_measured_args(p)
     p.set_defaults(func=handler)
 
 
@@ -131,8 +136,9 @@ def run_paper_e_cases(args: argparse.Namespace, catalog: Any) -> int:
     from rich.console import Console
     from rich.progress import Progress
 
-    from optimizer.selection import Requirements, optimize
+    from optimizer.selection import Requirements
 
+    measured = _measured(args, catalog)
     results = []
     with Progress(console=Console(stderr=True), transient=True) as progress:
         task = progress.add_task("Paper E test cases", total=len(PAPER_E_CASES))
@@ -142,16 +148,45 @@ def run_paper_e_cases(args: argparse.Namespace, catalog: Any) -> int:
                 min_flight_time_min=args.min_flight_time_min,
                 max_time_constant_ms=args.max_time_constant_ms,
             )
-            res = optimize(catalog, single(objective), tuple(args.actuators), req, args.method)
+            res = solve(catalog, single(objective), tuple(args.actuators), req, args.method,
+                        measured)
             results.append((case, title, res))
             progress.advance(task)
     if args.json:
         cases = [{"case": c, "title": t, **r.to_dict()} for c, t, r in results]
-        print(json.dumps({"cases": cases}, indent=2, default=_json_default))
+        doc: dict[str, Any] = {"cases": cases}
+        if measured is not None:
+            doc["measured"] = measured.describe()
+        print(json.dumps(doc, indent=2, default=_json_default))
     else:
         for _, title, res in results:
             print_table(res, title=title)
     return 0 if all(r.any_feasible for _, _, r in results) else EXIT_NO_FEASIBLE
+
+
+def _measured(args: argparse.Namespace, catalog: Any) -> Any:
+    if getattr(args, "measured", None) is None:
+        if getattr(args, "esc_mode", None) is not None:
+            raise RequestError("--esc-mode only applies with --measured")
+        return None
+    return load_measured_set(args.measured, catalog, args.esc_mode)
+
+
+def solve(catalog: Any, objective: Objective, actuators: tuple[int, ...], requirements: Any,
+          method: str, measured: Any = None) -> Any:
+    """``optimizer.selection.optimize``, with the measured overrides when given (then every
+    design carries ``sources``)."""
+    from optimizer.selection import optimize
+
+    if measured is None:
+        return optimize(catalog, objective, actuators, requirements, method)
+    if method == "thesis":
+        raise RequestError("--measured works with --method milp or exact (the thesis "
+                           "formulation linearises the datasheet model)")
+    result = optimize(catalog, objective, actuators, requirements, method,
+                      build_grid=measured.build_grid)
+    measured.annotate(result)
+    return result
 
 
 def build_objective(args: argparse.Namespace) -> Objective:
@@ -165,7 +200,7 @@ def build_objective(args: argparse.Namespace) -> Objective:
 
 
 def handler(args: argparse.Namespace) -> int:
-    from optimizer.selection import Requirements, optimize
+    from optimizer.selection import Requirements
 
     for n in args.actuators:
         if n < 3:
@@ -179,9 +214,14 @@ def handler(args: argparse.Namespace) -> int:
         min_flight_time_min=args.min_flight_time_min,
         max_time_constant_ms=args.max_time_constant_ms,
     )
-    result = optimize(catalog, objective, tuple(args.actuators), requirements, args.method)
+    measured = _measured(args, catalog)
+    result = solve(catalog, objective, tuple(args.actuators), requirements, args.method,
+                   measured)
     if args.json:
-        print(json.dumps(result.to_dict(), indent=2, default=_json_default))
+        doc = result.to_dict()
+        if measured is not None:
+            doc["measured"] = measured.describe()
+        print(json.dumps(doc, indent=2, default=_json_default))
     else:
         print_table(result)
     return 0 if result.any_feasible else EXIT_NO_FEASIBLE
@@ -224,6 +264,7 @@ def print_table(result: Any, title: str | None = None, console: Any = None) -> N
     for d in result.designs:
         mark = " * best" if best is not None and d is best else ""
         table.add_column(f"{d.actuators}{mark}", justify="right", max_width=48)
+    any_measured = False
     for label, key, fmt in ROWS:
         cells = []
         for d in result.designs:
@@ -231,7 +272,10 @@ def print_table(result: Any, title: str | None = None, console: Any = None) -> N
                 cells.append("infeasible" if key == "propeller" else "-")
             else:
                 value = getattr(d, key) if fmt == "s" else d.metrics.get(key)
-                cells.append(_fmt(value, fmt))
+                cell = _fmt(value, fmt)
+                if is_measured(d.extra.get("sources"), key):
+                    cell, any_measured = f"{cell} {MEASURED_MARK}", True
+                cells.append(cell)
         table.add_row(label, *cells)
     table.add_row("Solve time (s)", *(f"{d.solve_time_s:.4f}" for d in result.designs))
     table.add_row("Status", *(_status(d) for d in result.designs))
@@ -245,6 +289,9 @@ def print_table(result: Any, title: str | None = None, console: Any = None) -> N
             f"Best: {best.actuators} actuators, propeller {best.propeller}, motor "
             f"{best.motor}, battery {best.battery}"
         )
+    if any_measured:
+        console.print(f"{MEASURED_MARK} measured on the bench (runs in --json 'sources'); "
+                      "other numbers from the datasheet model", style="dim")
     if result.source:
         console.print(f"Catalog: {result.source}", style="dim")
 

@@ -14,7 +14,8 @@ def test_demo_one_combination(tmp_path, capsys):
     printed = capsys.readouterr().out
     assert "Table C.1 on P1-M1" in printed and "Paper E test cases" in printed
     assert {p.name for p in (out / "tables").iterdir()} == {
-        "table_c1.csv", "designs.csv", "table_e11.csv", "table_e13.csv", "table_e14.csv"}
+        "table_c1.csv", "designs.csv", "table_e11.csv", "table_e13.csv", "table_e14.csv",
+        "measured_vs_model.csv"}
     figs = {p.name for p in (out / "figures").iterdir()}
     assert {"steps_three_modes.png", "static_P1-M1.png", "validation_diode.png"} <= figs
     rows = ConstantsStore(out / "runs").rows()
