@@ -245,6 +245,7 @@ class DeviceOpener:
 
             layout, name = self._layout(spec)
             stale_s = spec.number("stale_s", 0.5, lo=0.02, hi=60.0)
+            stamps = spec.text("timestamps", "host", choices=("host", "device"))
             start_text = spec.raw("start", "\n")
             if not isinstance(start_text, str):
                 raise spec.fail("start", f"expected a string, got {start_text!r}")
@@ -262,6 +263,10 @@ class DeviceOpener:
             dev = lc.LineLoadCell(port, layout, clock=self.clock, stale_s=stale_s, url=spec.url)
             if start_text:
                 backend("serial_link", spec).write_all(port, start_text.encode(), spec.url)
+            if stamps == "device":  # the board's own t_s column, mapped to the host clock
+                from drivers.device_time import DeviceTimeSensor
+
+                return DeviceTimeSensor(dev, "t_s")
             return dev
 
         key = ("serial", spec.host, spec.path)

@@ -44,7 +44,7 @@ class WirePlant:
     and the backends' business, as on real hardware.
     """
 
-    def __init__(self, sim: SimRig, *, step_s: float = 0.002, refresh_s: float = 0.05) -> None:
+    def __init__(self, sim: SimRig, *, step_s: float = 0.01, refresh_s: float = 0.05) -> None:
         self.sim = sim
         self.settings = sim.esc_settings
         self._lock = threading.RLock()
@@ -54,6 +54,7 @@ class WirePlant:
         self._last_push_ns = 0
         self.changes: list[tuple[float, float]] = []  # (monotonic s, pulse us) per change
         self._means: dict[str, float] = {}
+        self._last_read_ns = 0
         sim.esc_model.push(0, "arm")
         self._stop = threading.Event()
         self._step_s = step_s
@@ -76,6 +77,8 @@ class WirePlant:
                 if t - self._last_push_ns >= self.refresh_ns:
                     self.sim.esc_model.push(t, "pulse", self.pulse_us)
                     self._last_push_ns = t
+                if t - self._last_read_ns > 500_000_000:
+                    self.sensor_means()  # no board reads the sensors: keep the history short
 
     # -- commands ------------------------------------------------------------------------
     def command_pulse(self, pulse_us: float) -> None:
@@ -118,6 +121,7 @@ class WirePlant:
         latest hall-counter speed, from the simulated rig's own sensor models."""
         with self._lock:
             self._advance()
+            self._last_read_ns = self.sim.clock.now_ns()
             out = dict(self._means)
             for sensor in self.sim.sensors.values():
                 block = sensor.read_block()
