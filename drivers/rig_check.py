@@ -89,7 +89,10 @@ def check_rig(rig: Any, timeout_s: float = 2.0) -> list[DeviceReport]:
                     opened.append(esc)
                     detail = opener.probe_esc(role, timeout_s)
                 elif spec.scheme == "replay":
-                    detail = "replay (a recording, nothing to connect to)"
+                    from drivers.replay import ReplaySensor
+
+                    rep = ReplaySensor.from_url(spec.url, clock)
+                    detail = f"recording of {rep.t_s.size} samples ({', '.join(rep.values)})"
                 else:
                     sensor = opener.open_sensor(spec)
                     opened.append(sensor)
