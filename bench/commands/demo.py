@@ -159,7 +159,9 @@ def handler(args: argparse.Namespace) -> int:
         d.mkdir(parents=True)
     catalog = _catalog()
     base = load_rig(default_rig_path())
-    opts = RunOptions(tick_s=0.02)
+    # simulated rig only: the plant advances per tick, not with the wall clock, so a host
+    # busy with other jobs (2 cores) must not end a run as a "stalled" command loop
+    opts = RunOptions(tick_s=0.02, watchdog_timeout_s=2.0)
     combos = [(i, j) for i in range(len(catalog.propeller_ids))
               for j in range(len(catalog.motor_ids))][: args.combos]
     mode_combo = (0, 0)  # Test Case III's actuator (P1, M1) also runs the other modes

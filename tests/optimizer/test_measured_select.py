@@ -217,3 +217,15 @@ def test_cli_measured_bad_input_exits_2(tmp_path, capsys, fixtures_dir):
                               "r", {"tau_up_s": 0.03, "tau_down_s": 0.03})
     assert main(["optimize", "--catalog", cat, "--measured", str(other)]) == 2
     assert "no constants stored for catalog 'thesis-e'" in capsys.readouterr().err
+
+
+def test_cli_paper_e_cases_with_measured_constants(tmp_path, capsys, fixtures_dir):
+    cat = str(fixtures_dir / "catalogs" / "thesis-e")
+    _store(tmp_path)
+    assert main(["optimize", "--catalog", cat, "--paper-e-cases", "--actuators", "4",
+                 "--measured", str(tmp_path), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["measured"]["actuators_measured"] == 2
+    case3 = next(c for c in out["cases"] if c["case"] == "III")
+    assert case3["best"]["propeller"] == "P2"  # the measured 20 ms actuator
+    assert all(set(c["best"]["sources"]) == SOURCE_KEYS for c in out["cases"])
