@@ -138,7 +138,11 @@ class DeviceOpener:
             raise spec.fail("", f"unknown device URL scheme {spec.scheme!r}")
         try:
             dev = fn(spec)
-            spec.check_used()
+            try:
+                spec.check_used()
+            except DeviceError:
+                dev.close()  # opened before the typo was found: do not leak its threads
+                raise
             return dev
         except DeviceError as exc:
             msg = str(exc)
