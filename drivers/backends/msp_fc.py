@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 import threading
+import time
 from typing import Any
 
 import numpy as np
@@ -74,9 +75,11 @@ class MspImu:
     """The FC's IMU and attitude, polled at ``rate_hz`` on a thread (``Sensor``)."""
 
     def __init__(self, client: MspClient, *, rate_hz: float = 100.0, acc_1g: float | None = None,
-                 clock: Clock | None = None, url: str = "serial://msp") -> None:
+                 clock: Clock | None = None, url: str = "serial://msp",
+                 attitude: bool = True) -> None:
         self.client = client
         self.rate_hz = rate_hz
+        self.attitude = attitude  # False: RAW_IMU only (roll/pitch/yaw NaN), twice the rate
         self.clock = clock or MonotonicClock()
         self.url = url
         self.variant, self.api = client.identify()
@@ -100,11 +103,19 @@ class MspImu:
                                          for n, u in zip(IMU_CHANNELS, units, strict=True)))
 
     def _poll(self) -> None:
+        """Polls on a fixed schedule (a slow reply delays one poll, not all later ones)."""
         period = 1.0 / self.rate_hz
-        while not self._stop.wait(period):
+        nan = msp.Attitude(math.nan, math.nan, math.nan)
+        due = time.monotonic()
+        while not self._stop.wait(max(0.0, due - time.monotonic())):
+            due = max(due + period, time.monotonic() - period)
+            # the FC answers with its latest sample, taken about when the request arrives:
+            # the send time is the host time least disturbed by the reply's read latency
+            stamp = self.clock.now()
             try:
                 raw = self.client.request(msp.Request(msp.MSP_RAW_IMU))
-                att = self.client.request(msp.Request(msp.MSP_ATTITUDE))
+                att = self.client.request(msp.Request(msp.MSP_ATTITUDE)) if self.attitude \
+                    else nan
             except DeviceError as exc:
                 with self._lock:
                     self._error = exc
@@ -113,7 +124,7 @@ class MspImu:
                 continue
             acc, gyro = msp.imu_si(raw, self.variant, self.acc_1g)
             with self._lock:
-                self._rows.append((self.clock.now(), *acc, *gyro, att.roll_rad, att.pitch_rad,
+                self._rows.append((stamp, *acc, *gyro, att.roll_rad, att.pitch_rad,
                                    att.yaw_rad))
 
     def read_block(self) -> Block:

@@ -42,10 +42,11 @@ class SimImuRig:
 
     def __init__(self, model: ImuModel, limits: HexapodLimits, *, seed: int = 0,
                  log_rate_hz: float = 1000.0, cg_m: tuple[float, float, float] = (0, 0, 0),
-                 reference: Mapping[str, float] | None = None) -> None:
+                 reference: Mapping[str, float] | None = None,
+                 clock: SimClock | None = None) -> None:
         self.seed = int(seed)
         streams = np.random.SeedSequence(self.seed).spawn(3)
-        self.clock = SimClock()
+        self.clock = clock if clock is not None else SimClock()  # wire rigs: a paced clock
         self.model = model
         self.cg_m = tuple(float(v) for v in cg_m)
         self.hexapod = SimHexapodDevice(self.clock, limits, log_rate_hz=log_rate_hz,
