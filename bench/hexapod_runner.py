@@ -4,33 +4,30 @@ The same loop as :mod:`bench.runner` with a hexapod in place of the ESC: on ever
 the rig clock it reads the IMU under test, the reference IMU and the hexapod's log, checks
 every logged hexapod sample against the limits, records, and checks in with the host
 watchdog. Whatever ends the run (the plan's end, a limit trip, the watchdog, an operator
-stop, Ctrl-C, a device error or a bug) the ``finally`` stops the hexapod first, then
-records the exit status and reason. Rows are the IMU's samples (its own stamps, relative
-to the run start); the hexapod's body-frame truth and pose, and the reference IMU, are
-linearly interpolated onto them from their faster logs, so a row is written once the
-hexapod log covers it. The stamps are not corrected: the hexapod-IMU time offset is for
-the analysis to estimate.
+stop, Ctrl-C, a device error or a bug) the ``finally`` of
+:class:`bench.run_loop.SafeRunLoop` stops the hexapod first, then records the exit status
+and reason. Rows are the IMU's samples (its own stamps, relative to the run start); the
+hexapod's body-frame truth and pose, and the reference IMU, are linearly interpolated onto
+them from their faster logs, so a row is written once the hexapod log covers it. The
+stamps are not corrected: the hexapod-IMU time offset is for the analysis to estimate.
 """
 
 from __future__ import annotations
 
-import math
 import threading
-import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Protocol
 
 import numpy as np
 
 from bench.calibration_sequences import HexapodPlan, HexapodSegment
 from bench.errors import RigError
 from bench.recorder import RunRecorder
-from bench.runner import OperatorStop, RunResult, _signals_deferred
-from bench.safety import LimitTrip, Trip
+from bench.run_loop import SafeRunLoop
+from bench.safety import Trip
 from bench.watchdog import HostWatchdog, WatchdogTrip
 from drivers.contracts import Block, Clock, Sensor
-from drivers.errors import DeviceError
 from drivers.hexapod_contracts import (
     ACCELERATION_CHANNELS,
     BODY_CHANNELS,
@@ -47,7 +44,6 @@ __all__ = ["RECORD_BASE", "GuardedHexapod", "HexapodRunOptions", "HexapodRunner"
            "HexapodSupervisor", "ImuBenchLike"]
 
 RECORD_BASE = ("t_s", "phase", "step")
-_EPS = 1e-9
 
 
 class ImuBenchLike(Protocol):
@@ -229,8 +225,13 @@ class _Merger:
             setattr(self, attr, {c: v[k:] for c, v in getattr(self, attr).items()})
 
 
-class HexapodRunner:
+class HexapodRunner(SafeRunLoop):
     """Runs one plan on one open IMU bench; use once."""
+
+    safe_stop_label = "hexapod stop"
+    rig: ImuBenchLike
+    plan: HexapodPlan
+    options: HexapodRunOptions
 
     def __init__(self, rig: ImuBenchLike, plan: HexapodPlan,
                  recorder: RunRecorder | None = None,
@@ -238,68 +239,12 @@ class HexapodRunner:
                  on_rows: Callable[[Mapping[str, np.ndarray]], None] | None = None,
                  on_progress: Callable[[float, float, HexapodSegment], None] | None = None,
                  stop_event: threading.Event | None = None) -> None:
-        self.rig = rig
-        self.plan = plan
-        self.recorder = recorder
-        self.options = options or HexapodRunOptions()
-        self.on_rows, self.on_progress = on_rows, on_progress
-        self.stop_event = stop_event or threading.Event()
+        super().__init__(rig, plan, recorder, options or HexapodRunOptions(), on_rows,
+                         on_progress, stop_event)
         self.hexapod = GuardedHexapod(rig.hexapod)
         self.watchdog = HostWatchdog(self.hexapod, self.options.watchdog_timeout_s)  # type: ignore[arg-type]
         self.supervisor = HexapodSupervisor(plan.limits, self.options.limit_margin)
         self.merger = _Merger(plan, rig.reference_imu is not None)
-        self.result: RunResult | None = None
-        self.rows = 0
-        self._t0 = 0.0
-        self._wall0 = 0.0
-        self._segment: HexapodSegment | None = None
-        self._heard: dict[str, float] = {}
-
-    def run(self) -> RunResult:
-        """Carry out the plan. Trips and operator stops return status abort; device errors,
-        Ctrl-C and bugs are re-raised after the hexapod is stopped and the run recorded."""
-        status, reason, trip = "fail", "run did not start", None
-        pending: BaseException | None = None
-        try:
-            self._drain()
-            self._t0 = self.rig.clock.now()
-            self._wall0 = time.monotonic()
-            self._event("run_start", detail={"rig_t0_s": self._t0,
-                                             "plan_duration_s": self.plan.duration_s})
-            self.watchdog.start()
-            for seg in self.plan.segments:
-                self._run_segment(seg)
-            status, reason = "success", "sequence complete"
-        except LimitTrip as exc:
-            trip = exc.trip
-            status, reason = "abort", trip.message
-        except WatchdogTrip as exc:
-            status, reason = "abort", str(exc)
-        except OperatorStop as exc:
-            status, reason = "abort", f"stopped by operator: {exc}" if str(exc) else \
-                "stopped by operator"
-        except KeyboardInterrupt as exc:
-            status, reason, pending = "abort", "interrupted by operator (Ctrl-C or SIGTERM)", exc
-        except DeviceError as exc:
-            status, reason, pending = "fail", f"device error: {exc}", exc
-        except BaseException as exc:
-            status, reason, pending = "fail", f"{type(exc).__name__}: {exc}", exc
-        finally:
-            with _signals_deferred():
-                errors = self.hexapod.safe_stop()  # hexapod stopped before anything else
-                self.watchdog.stop()
-                if self.watchdog.tripped and status == "success":
-                    status, reason = "abort", self.watchdog.reason
-                errors += self.watchdog.errors
-                self.result = RunResult(status, reason, trip, self._now_rel(), self.rows,
-                                        errors, pending)
-                self._finish_record(trip, errors)
-        if pending is not None:
-            raise pending
-        return self.result
-
-    def request_stop(self) -> None:
-        self.stop_event.set()
 
     # -- loop ---------------------------------------------------------------------------
     def _run_segment(self, seg: HexapodSegment) -> None:
@@ -312,30 +257,13 @@ class HexapodRunner:
         elif seg.kind == "move" and seg.motion is not None:
             traj = Trajectory.from_motion(seg.motion, self.options.trajectory_rate_hz)
             self.hexapod.run(traj)
-        end = seg.t_end_s
-        tick = self.options.tick_s
-        while True:
-            now = self._now_rel()
-            if now >= end - _EPS:
-                break
-            deadline = min((math.floor((now + _EPS) / tick) + 1) * tick, end)
-            self.rig.clock.sleep(deadline - now)
-            self._acquire()
+        self._tick_until(seg.t_end_s)
 
     def _drain(self) -> None:
         self.rig.imu.read_block()
         self.rig.hexapod.read_log()
         if self.rig.reference_imu is not None:
             self.rig.reference_imu.read_block()
-
-    def _read(self, role: str, read: Callable[[], Block], now: float) -> Block:
-        b = read()
-        if len(b):
-            self._heard[role] = now
-        elif now - self._heard.get(role, 0.0) > self.options.stale_s:
-            raise DeviceError(f"{role}: no samples for {now - self._heard.get(role, 0.0):.2f} s "
-                              f"(limit {self.options.stale_s:g} s)")
-        return Block(b.t_s - self._t0, b.values)
 
     def _acquire(self) -> None:
         now = self._now_rel()
@@ -345,48 +273,10 @@ class HexapodRunner:
                if self.rig.reference_imu is not None else None)
         trip = self.supervisor.check(hexlog)  # every logged sample, before anything else
         rows = self.merger.push(imu, hexlog, ref)
-        n = len(rows.get("t_s", ()))
-        if n:
-            if self.recorder is not None:
-                self.recorder.append(rows)
-            if self.on_rows is not None:
-                self.on_rows(rows)
-            self.rows += n
-        if trip is not None:
-            self._event("trip", self._segment.index if self._segment else None, trip.limit,
-                        trip.to_dict())
-            raise LimitTrip(trip)
-        self.watchdog.kick()
-        if self.stop_event.is_set():
-            self._event("operator_stop", label="stop requested")
-            raise OperatorStop("stop requested")
-        now = self._now_rel()
-        if self.options.realtime:
-            ahead = (self._wall0 + now) - time.monotonic()
-            if ahead > 0:
-                time.sleep(ahead)
-        if self.on_progress is not None and self._segment is not None:
-            self.on_progress(now, self.plan.duration_s, self._segment)
+        self._deliver(rows, trip)
 
-    # -- record -------------------------------------------------------------------------
-    def _now_rel(self) -> float:
-        return self.rig.clock.now() - self._t0
+    def _safe_stop(self) -> list[str]:
+        return self.hexapod.safe_stop()
 
-    def _event(self, kind: str, step: int | None = None, label: str = "",
-               detail: Mapping[str, Any] | None = None) -> None:
-        if self.recorder is not None:
-            self.recorder.event(self._now_rel(), kind, step, label, detail)
-
-    def _finish_record(self, trip: Trip | None, errors: list[str]) -> None:
-        res = self.result
-        assert res is not None
-        if self.recorder is None:
-            return
-        try:
-            self._event("safe_stop", label="hexapod stop",
-                        detail={"errors": errors} if errors else None)
-            self._event("run_end", label=res.status, detail={"reason": res.reason})
-        finally:
-            self.recorder.finish(res.status, res.reason, trip=trip.to_dict() if trip else None,
-                                 safe_stop_errors=errors, duration_s=res.t_end_s,
-                                 rig_t0_s=self._t0, rows_dropped=self.merger.dropped)
+    def _finish_fields(self) -> dict[str, float]:
+        return {"rig_t0_s": self._t0, "rows_dropped": self.merger.dropped}

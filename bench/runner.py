@@ -3,29 +3,28 @@
 One command loop on the rig clock: set the command, sleep to the next tick, read every
 sensor, check the limits on every sample, record, check in with the host watchdog.
 Whatever ends the run (the plan's end, a limit trip, the watchdog, an operator stop,
-Ctrl-C, a device error or a bug) the ``finally`` puts the ESC at idle and disarms it
-first, then records the exit status (``success``, ``abort`` or ``fail``) and the reason.
+Ctrl-C, a device error or a bug) the ``finally`` of :class:`bench.run_loop.SafeRunLoop`
+puts the ESC at idle and disarms it first, then records the exit status (``success``,
+``abort`` or ``fail``) and the reason.
 """
 
 from __future__ import annotations
 
-import contextlib
 import math
-import signal
 import threading
-import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
-from typing import Any, Protocol
+from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
 from bench.alignment import BlockAligner
 from bench.errors import RigError
 from bench.recorder import BASE_COLUMNS, RunRecorder
-from bench.safety import LimitTrip, SafetySupervisor, Trip
+from bench.run_loop import OperatorStop, RunResult, SafeRunLoop
+from bench.safety import SafetySupervisor
 from bench.sequences import EscRange, Plan, Segment
-from bench.watchdog import GuardedEsc, HostWatchdog, WatchdogTrip
+from bench.watchdog import GuardedEsc, HostWatchdog
 from drivers.contracts import Block, Clock, Esc, Sensor
 from drivers.errors import DeviceError
 
@@ -38,10 +37,6 @@ class OpenRigLike(Protocol):
     clock: Clock
     esc: Esc
     sensors: Mapping[str, Sensor]
-
-
-class OperatorStop(Exception):
-    """The operator asked to stop (stop button, closed live window)."""
 
 
 @dataclass(frozen=True)
@@ -64,22 +59,14 @@ class RunOptions:
             raise RigError(f"stale_s {self.stale_s} must exceed the tick {self.tick_s}")
 
 
-@dataclass
-class RunResult:
-    status: str  # success | abort | fail
-    reason: str
-    trip: Trip | None = None
-    t_end_s: float = 0.0
-    rows: int = 0
-    safe_stop_errors: list[str] = field(default_factory=list)
-    error: BaseException | None = None
-
-
-_EPS = 1e-9
-
-
-class Runner:
+class Runner(SafeRunLoop):
     """Runs one plan on one open rig; use once."""
+
+    safe_stop_label = "idle + disarm"
+    stale_hint = "; limits cannot be checked without data"
+    rig: OpenRigLike
+    plan: Plan
+    options: RunOptions
 
     def __init__(
         self,
@@ -93,84 +80,22 @@ class Runner:
         on_progress: Callable[[float, float, Segment], None] | None = None,
         stop_event: threading.Event | None = None,
     ) -> None:
-        self.rig = rig
-        self.plan = plan
+        super().__init__(rig, plan, recorder, options or RunOptions(), on_rows, on_progress,
+                         stop_event)
         self.esc_range = esc_range
-        self.options = options or RunOptions()
         self.supervisor = SafetySupervisor(limits)
-        self.recorder = recorder
-        self.on_rows = on_rows
-        self.on_progress = on_progress
-        self.stop_event = stop_event or threading.Event()
         self.esc = GuardedEsc(rig.esc, esc_range.min_us, esc_range.max_us, esc_range.idle_us)
         self.watchdog = HostWatchdog(self.esc, self.options.watchdog_timeout_s)
         channels = {role: tuple(c.name for c in s.describe().channels)
                     for role, s in rig.sensors.items()}
         self.aligner = BlockAligner(channels, self.options.base_sensor)
         self.tare_offset_n = 0.0
-        self.result: RunResult | None = None
-        self._t0 = 0.0
-        self._wall0 = 0.0
         self._cmd_t = np.zeros(1)
         self._cmd_us = np.array([esc_range.idle_us])
         self._cmd_sp = np.array([math.nan])
         self._cmd_seg = np.array([-1])
         self._tare_sum = 0.0
         self._tare_n = 0
-        self._segment: Segment | None = None
-        self._heard: dict[str, float] = {}
-        self.rows = 0
-
-    # -- public -------------------------------------------------------------------------
-
-    def run(self) -> RunResult:
-        """Carry out the plan. Trips and operator stops return a result with status abort;
-        device errors, Ctrl-C and bugs are re-raised after the safe stop and the record."""
-        status, reason, trip = "fail", "run did not start", None
-        pending: BaseException | None = None
-        clock = self.rig.clock
-        try:
-            self._drain()
-            self._t0 = clock.now()
-            self._wall0 = time.monotonic()
-            self._event("run_start", detail={"rig_t0_s": self._t0,
-                                             "plan_duration_s": self.plan.duration_s})
-            self.watchdog.start()
-            for seg in self.plan.segments:
-                self._run_segment(seg)
-            status, reason = "success", "sequence complete"
-        except LimitTrip as exc:
-            trip = exc.trip
-            status, reason = "abort", trip.message
-        except WatchdogTrip as exc:
-            status, reason = "abort", str(exc)
-        except OperatorStop as exc:
-            status, reason = "abort", f"stopped by operator: {exc}" if str(exc) else \
-                "stopped by operator"
-        except KeyboardInterrupt as exc:
-            status, reason, pending = "abort", "interrupted by operator (Ctrl-C or SIGTERM)", exc
-        except DeviceError as exc:
-            status, reason, pending = "fail", f"device error: {exc}", exc
-        except BaseException as exc:
-            status, reason, pending = "fail", f"{type(exc).__name__}: {exc}", exc
-        finally:
-            # Safety first: idle + disarm before anything else can fail. A second Ctrl-C
-            # (or SIGTERM) is held until the ESC is safe and the record is written.
-            with _signals_deferred():
-                errors = self.esc.safe_stop()
-                self.watchdog.stop()
-                if self.watchdog.tripped and status == "success":
-                    status, reason = "abort", self.watchdog.reason
-                errors += self.watchdog.errors
-                self.result = RunResult(status, reason, trip, self._now_rel(), self.rows,
-                                        errors, pending)
-                self._finish_record(trip, errors)
-        if pending is not None:
-            raise pending
-        return self.result
-
-    def request_stop(self) -> None:
-        self.stop_event.set()
 
     # -- loop ---------------------------------------------------------------------------
 
@@ -190,16 +115,7 @@ class Runner:
             # a zero-length segment (checkpoint) owns no rows: on a real-time rig a row
             # could land between its log entry and the next segment's command
             self._command(seg.command_at(seg.t_start_s), seg, force=seg.duration_s > 0)
-        end = seg.t_end_s
-        tick = self.options.tick_s
-        while True:
-            now = self._now_rel()
-            if now >= end - _EPS:
-                break
-            deadline = min((math.floor((now + _EPS) / tick) + 1) * tick, end)
-            self._command(seg.command_at(now), seg)
-            self.rig.clock.sleep(deadline - now)
-            self._acquire()
+        self._tick_until(seg.t_end_s, lambda now: self._command(seg.command_at(now), seg))
         if seg.kind == "tare":
             if self._tare_n == 0:
                 raise DeviceError("tare: the load cell gave no samples during the tare window")
@@ -229,14 +145,7 @@ class Runner:
         blocks: dict[str, Block] = {}
         now = self._now_rel()
         for role, sensor in self.rig.sensors.items():
-            b = sensor.read_block()
-            blocks[role] = Block(b.t_s - self._t0, b.values)
-            if len(b):
-                self._heard[role] = now
-            elif now - self._heard.get(role, 0.0) > self.options.stale_s:
-                raise DeviceError(f"{role}: no samples for {now - self._heard.get(role, 0.0):.2f}"
-                                  f" s (limit {self.options.stale_s:g} s); limits cannot be "
-                                  "checked without data")
+            blocks[role] = self._read(role, sensor.read_block, now)
         rows = self.aligner.push(blocks)
         n = len(rows["t_s"])
         if n:
@@ -246,27 +155,13 @@ class Runner:
                                     - self.tare_offset_n}) if "thrust_n" in b.values else b
                    for r, b in blocks.items()}
         trip = self.supervisor.check(checked)
-        if n:
-            if self.recorder is not None:
-                self.recorder.append(rows)
-            if self.on_rows is not None:
-                self.on_rows(rows)
-            self.rows += n
-        if trip is not None:
-            self._event("trip", self._segment.index if self._segment else None, trip.limit,
-                        trip.to_dict())
-            raise LimitTrip(trip)
-        self.watchdog.kick()
-        if self.stop_event.is_set():
-            self._event("operator_stop", label="stop requested")
-            raise OperatorStop("stop requested")
-        now = self._now_rel()
-        if self.options.realtime:
-            ahead = (self._wall0 + now) - time.monotonic()
-            if ahead > 0:
-                time.sleep(ahead)
-        if self.on_progress is not None and self._segment is not None:
-            self.on_progress(now, self.plan.duration_s, self._segment)
+        self._deliver(rows, trip)
+
+    def _safe_stop(self) -> list[str]:
+        return self.esc.safe_stop()
+
+    def _finish_fields(self) -> dict[str, float]:
+        return {"tare_offset_n": self.tare_offset_n}
 
     def _complete_rows(self, rows: dict[str, np.ndarray]) -> None:
         t = rows["t_s"]
@@ -290,50 +185,3 @@ class Runner:
         if keep > 0:
             self._cmd_t, self._cmd_us = self._cmd_t[keep:], self._cmd_us[keep:]
             self._cmd_sp, self._cmd_seg = self._cmd_sp[keep:], self._cmd_seg[keep:]
-
-    # -- record -------------------------------------------------------------------------
-
-    def _now_rel(self) -> float:
-        return self.rig.clock.now() - self._t0
-
-    def _event(self, kind: str, step: int | None = None, label: str = "",
-               detail: Mapping[str, Any] | None = None) -> None:
-        if self.recorder is not None:
-            self.recorder.event(self._now_rel(), kind, step, label, detail)
-
-    def _finish_record(self, trip: Trip | None, errors: list[str]) -> None:
-        res = self.result
-        assert res is not None
-        if self.recorder is None:
-            return
-        try:
-            self._event("safe_stop", label="idle + disarm",
-                        detail={"errors": errors} if errors else None)
-            self._event("run_end", label=res.status, detail={"reason": res.reason})
-        finally:
-            self.recorder.finish(
-                res.status, res.reason,
-                trip=trip.to_dict() if trip else None,
-                tare_offset_n=self.tare_offset_n,
-                safe_stop_errors=errors,
-                duration_s=res.t_end_s,
-            )
-
-
-@contextlib.contextmanager
-def _signals_deferred():
-    """Hold SIGINT/SIGTERM while the ESC is made safe (main thread only), then re-deliver."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    got: list[int] = []
-    previous = {}
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        previous[sig] = signal.signal(sig, lambda num, _frame: got.append(num))
-    try:
-        yield
-    finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
-        for num in got:
-            signal.raise_signal(num)

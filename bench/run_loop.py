@@ -1,0 +1,271 @@
+"""What both runners share: the always-safe end of a run, the tick loop and the record glue.
+
+:class:`SafeRunLoop` carries a compiled plan's segments out on the rig clock. Whatever ends
+the run (the plan's end, a limit trip, the watchdog, an operator stop, Ctrl-C, a device
+error or a bug) its ``finally`` makes the actuators safe first (the subclass's
+:meth:`SafeRunLoop._safe_stop`: ESC idle + disarmed, hexapod stopped) with a second Ctrl-C
+or SIGTERM held until that is done and the record written, then stops the watchdog and
+records the exit status (``success``, ``abort`` or ``fail``) and the reason.
+:class:`bench.runner.Runner` (ESC) and :class:`bench.hexapod_runner.HexapodRunner` (hexapod)
+fill in the devices: what to drain, what one segment does, how to read and check a tick.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import signal
+import threading
+import time
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+
+from bench.recorder import RunRecorder
+from bench.safety import LimitTrip, Trip
+from bench.watchdog import HostWatchdog, WatchdogTrip
+from drivers.contracts import Block, Clock
+from drivers.errors import DeviceError
+
+__all__ = ["EPS", "OperatorStop", "RunResult", "SafeRunLoop", "signals_deferred"]
+
+EPS = 1e-9
+
+
+class OperatorStop(Exception):
+    """The operator asked to stop (stop button, closed live window)."""
+
+
+@dataclass
+class RunResult:
+    status: str  # success | abort | fail
+    reason: str
+    trip: Trip | None = None
+    t_end_s: float = 0.0
+    rows: int = 0
+    safe_stop_errors: list[str] = field(default_factory=list)
+    error: BaseException | None = None
+
+
+class _Clocked(Protocol):
+    @property
+    def clock(self) -> Clock: ...
+
+
+class _Plan(Protocol):
+    @property
+    def duration_s(self) -> float: ...
+
+    @property
+    def segments(self) -> Sequence[Any]: ...
+
+
+class _LoopOptions(Protocol):
+    @property
+    def tick_s(self) -> float: ...
+
+    @property
+    def realtime(self) -> bool: ...
+
+    @property
+    def stale_s(self) -> float: ...
+
+
+class SafeRunLoop:
+    """Base of the runners; use once. A subclass builds ``self.watchdog`` (on its guarded
+    actuator) after calling ``__init__`` and implements ``_drain``, ``_run_segment``,
+    ``_acquire`` and ``_safe_stop``."""
+
+    safe_stop_label = "safe stop"  # the label of the ``safe_stop`` event
+    stale_hint = ""  # appended to the error of a silent device
+    watchdog: HostWatchdog
+
+    def __init__(self, rig: _Clocked, plan: _Plan, recorder: RunRecorder | None,
+                 options: _LoopOptions,
+                 on_rows: Callable[[Mapping[str, np.ndarray]], None] | None,
+                 on_progress: Callable[[float, float, Any], None] | None,
+                 stop_event: threading.Event | None) -> None:
+        self.rig = rig
+        self.plan = plan
+        self.recorder = recorder
+        self.options = options
+        self.on_rows = on_rows
+        self.on_progress = on_progress
+        self.stop_event = stop_event or threading.Event()
+        self.result: RunResult | None = None
+        self.rows = 0
+        self._t0 = 0.0
+        self._wall0 = 0.0
+        self._segment: Any = None
+        self._heard: dict[str, float] = {}
+
+    # -- what a subclass fills in -------------------------------------------------------
+
+    def _drain(self) -> None:
+        """Discard what the sensors buffered before the run."""
+        raise NotImplementedError
+
+    def _run_segment(self, seg: Any) -> None:
+        raise NotImplementedError
+
+    def _acquire(self) -> None:
+        """Read every device once, check the limits, then :meth:`_deliver` the rows."""
+        raise NotImplementedError
+
+    def _safe_stop(self) -> list[str]:
+        """Make the actuators safe; never raises, returns the errors."""
+        raise NotImplementedError
+
+    def _finish_fields(self) -> dict[str, Any]:
+        """Extra fields for run.json at the end of the run."""
+        return {}
+
+    # -- public -------------------------------------------------------------------------
+
+    def run(self) -> RunResult:
+        """Carry out the plan. Trips and operator stops return a result with status abort;
+        device errors, Ctrl-C and bugs are re-raised after the safe stop and the record."""
+        status, reason, trip = "fail", "run did not start", None
+        pending: BaseException | None = None
+        try:
+            self._drain()
+            self._t0 = self.rig.clock.now()
+            self._wall0 = time.monotonic()
+            self._event("run_start", detail={"rig_t0_s": self._t0,
+                                             "plan_duration_s": self.plan.duration_s})
+            self.watchdog.start()
+            for seg in self.plan.segments:
+                self._run_segment(seg)
+            status, reason = "success", "sequence complete"
+        except LimitTrip as exc:
+            trip = exc.trip
+            status, reason = "abort", trip.message
+        except WatchdogTrip as exc:
+            status, reason = "abort", str(exc)
+        except OperatorStop as exc:
+            status, reason = "abort", f"stopped by operator: {exc}" if str(exc) else \
+                "stopped by operator"
+        except KeyboardInterrupt as exc:
+            status, reason, pending = "abort", "interrupted by operator (Ctrl-C or SIGTERM)", exc
+        except DeviceError as exc:
+            status, reason, pending = "fail", f"device error: {exc}", exc
+        except BaseException as exc:
+            status, reason, pending = "fail", f"{type(exc).__name__}: {exc}", exc
+        finally:
+            # Safety first: actuators safe before anything else can fail. A second Ctrl-C
+            # (or SIGTERM) is held until they are safe and the record is written.
+            with signals_deferred():
+                errors = self._safe_stop()
+                self.watchdog.stop()
+                if self.watchdog.tripped and status == "success":
+                    status, reason = "abort", self.watchdog.reason
+                errors += self.watchdog.errors
+                self.result = RunResult(status, reason, trip, self._now_rel(), self.rows,
+                                        errors, pending)
+                self._finish_record(trip, errors)
+        if pending is not None:
+            raise pending
+        return self.result
+
+    def request_stop(self) -> None:
+        self.stop_event.set()
+
+    # -- loop ---------------------------------------------------------------------------
+
+    def _tick_until(self, end: float, each_tick: Callable[[float], None] | None = None) -> None:
+        """Acquire on every tick of the rig clock until ``end`` (s since the start);
+        ``each_tick(now)`` runs before each sleep (the ESC command heartbeat)."""
+        tick = self.options.tick_s
+        while True:
+            now = self._now_rel()
+            if now >= end - EPS:
+                break
+            deadline = min((math.floor((now + EPS) / tick) + 1) * tick, end)
+            if each_tick is not None:
+                each_tick(now)
+            self.rig.clock.sleep(deadline - now)
+            self._acquire()
+
+    def _read(self, role: str, read: Callable[[], Block], now: float) -> Block:
+        """One block from a device, stamped relative to the run start; a device silent for
+        longer than ``stale_s`` ends the run."""
+        b = read()
+        if len(b):
+            self._heard[role] = now
+        elif now - self._heard.get(role, 0.0) > self.options.stale_s:
+            raise DeviceError(f"{role}: no samples for {now - self._heard.get(role, 0.0):.2f} s "
+                              f"(limit {self.options.stale_s:g} s){self.stale_hint}")
+        return Block(b.t_s - self._t0, b.values)
+
+    def _deliver(self, rows: Mapping[str, np.ndarray], trip: Trip | None) -> None:
+        """The rest of a tick once the limits were checked: record and show the rows, end
+        the run on a trip, check in with the watchdog, honour a stop request, pace a
+        real-time run and report progress."""
+        n = len(rows.get("t_s", ()))
+        if n:
+            if self.recorder is not None:
+                self.recorder.append(rows)
+            if self.on_rows is not None:
+                self.on_rows(rows)
+            self.rows += n
+        if trip is not None:
+            self._event("trip", self._segment.index if self._segment else None, trip.limit,
+                        trip.to_dict())
+            raise LimitTrip(trip)
+        self.watchdog.kick()
+        if self.stop_event.is_set():
+            self._event("operator_stop", label="stop requested")
+            raise OperatorStop("stop requested")
+        now = self._now_rel()
+        if self.options.realtime:
+            ahead = (self._wall0 + now) - time.monotonic()
+            if ahead > 0:
+                time.sleep(ahead)
+        if self.on_progress is not None and self._segment is not None:
+            self.on_progress(now, self.plan.duration_s, self._segment)
+
+    # -- record -------------------------------------------------------------------------
+
+    def _now_rel(self) -> float:
+        return self.rig.clock.now() - self._t0
+
+    def _event(self, kind: str, step: int | None = None, label: str = "",
+               detail: Mapping[str, Any] | None = None) -> None:
+        if self.recorder is not None:
+            self.recorder.event(self._now_rel(), kind, step, label, detail)
+
+    def _finish_record(self, trip: Trip | None, errors: list[str]) -> None:
+        res = self.result
+        assert res is not None
+        if self.recorder is None:
+            return
+        try:
+            self._event("safe_stop", label=self.safe_stop_label,
+                        detail={"errors": errors} if errors else None)
+            self._event("run_end", label=res.status, detail={"reason": res.reason})
+        finally:
+            self.recorder.finish(res.status, res.reason, trip=trip.to_dict() if trip else None,
+                                 safe_stop_errors=errors, duration_s=res.t_end_s,
+                                 **self._finish_fields())
+
+
+@contextlib.contextmanager
+def signals_deferred() -> Iterator[None]:
+    """Hold SIGINT/SIGTERM while the actuators are made safe (main thread only), then
+    re-deliver them."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    got: list[int] = []
+    previous = {}
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        previous[sig] = signal.signal(sig, lambda num, _frame: got.append(num))
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        for num in got:
+            signal.raise_signal(num)
