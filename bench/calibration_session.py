@@ -30,9 +30,8 @@ from bench.calibration_sequences import (
 )
 from bench.errors import RigError
 from bench.hexapod_runner import RECORD_BASE, HexapodRunner, HexapodRunOptions, ImuBenchLike
-from bench.recorder import RunRecorder, new_run_id
-from bench.run_index import RunIndex
-from bench.runner import RunResult
+from bench.indexed_run import indexed_run
+from bench.run_loop import RunResult
 
 __all__ = ["CalibrationRun", "StageOutcome", "collect_log", "plans_for", "run_calibration",
            "run_stage"]
@@ -80,9 +79,6 @@ def run_stage(bench: ImuBenchLike, rig: Any, plan: HexapodPlan, out_root: Path, 
     """Run one stage into its own run folder; errors propagate after the safe stop."""
     options = options or HexapodRunOptions(trajectory_rate_hz=rig.hexapod.trajectory_rate_hz)
     seq = plan.sequence
-    out_root = Path(out_root)
-    index = RunIndex(out_root)
-    run_dir = out_root / new_run_id(seq.name)
     meta = {
         "kind": seq.name,
         "rig": _rig_summary(rig),
@@ -99,17 +95,11 @@ def run_stage(bench: ImuBenchLike, rig: Any, plan: HexapodPlan, out_root: Path, 
         "log_format": "analysis.imu_log calibration log (t_s, phase, ref_*, imu_*)",
         **dict(extra_meta or {}),
     }
-    recorder = RunRecorder(run_dir, meta, base_columns=RECORD_BASE)
-    index.upsert(recorder.meta, run_dir)
-    try:
+    with indexed_run(out_root, seq.name, meta, base_columns=RECORD_BASE) as recorder:
         runner = HexapodRunner(bench, plan, recorder, options, on_rows=on_rows,
                                on_progress=on_progress, stop_event=stop_event)
         result = runner.run()
-    finally:
-        if not recorder.closed:  # the runner could not even be built
-            recorder.finish("fail", "runner did not start")
-        index.upsert(recorder.meta, run_dir)
-    return StageOutcome(result, run_dir, plan)
+    return StageOutcome(result, recorder.run_dir, plan)
 
 
 def run_calibration(rig: Any, out_root: Path, *, quick: bool = False, seed: int | None = None,

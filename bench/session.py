@@ -16,8 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from bench.recorder import RunRecorder, new_run_id
-from bench.run_index import RunIndex
+from bench.indexed_run import indexed_run
 from bench.runner import OpenRigLike, Runner, RunOptions, RunResult
 from bench.safety import effective_limits, limits_dict
 from bench.sequences import EscRange, Plan, Segment, Sequence, compile_plan
@@ -103,9 +102,6 @@ def run_sequence(
     options = options or RunOptions()
     plan = plan_for(rig, seq)
     limits = effective_limits(rig.limits, seq.limits, source=f"sequence {seq.name!r}")
-    out_root = Path(out_root)
-    index = RunIndex(out_root)
-    run_dir = out_root / new_run_id(seq.name)
     meta = {
         "kind": seq.name,
         "rig": rig_summary(rig),
@@ -120,9 +116,7 @@ def run_sequence(
         "seed": seed if seed is not None else getattr(getattr(rig, "sim", None), "seed", None),
         **dict(extra_meta or {}),
     }
-    recorder = RunRecorder(run_dir, meta)
-    index.upsert(recorder.meta, run_dir)
-    try:
+    with indexed_run(out_root, seq.name, meta) as recorder:
         try:
             devices = open_rig(rig, seed=seed)
         except BaseException as exc:
@@ -139,8 +133,4 @@ def run_sequence(
             result = runner.run()
         finally:
             devices.close()
-    finally:
-        if not recorder.closed:  # the runner could not even be built
-            recorder.finish("fail", "runner did not start")
-        index.upsert(recorder.meta, run_dir)
-    return RunOutcome(result, run_dir, plan)
+    return RunOutcome(result, recorder.run_dir, plan)
