@@ -8,7 +8,6 @@ command falls back to 0 (the real timeout is ESC firmware specific; this is the 
 
 from __future__ import annotations
 
-import threading
 import time
 from collections.abc import Callable
 
@@ -16,18 +15,17 @@ from drivers.backends.can_link import CanLink
 from drivers.codecs import dronecan as dc
 from drivers.codecs.can_log import CanFrame
 from drivers.errors import DeviceError
+from drivers.wire_sim.can_node import SimCanNode
 
 EscModel = Callable[[float, int], dc.EscStatus]
 
 
-class SimDroneCanEsc:
+class SimDroneCanEsc(SimCanNode):
     def __init__(self, link: CanLink, node_id: int, esc_index: int, model: EscModel, *,
                  status_period_s: float = 0.01, timeout_s: float = 0.5) -> None:
-        self.link = link
         self.node_id = node_id
         self.esc_index = esc_index
         self.model = model
-        self.period_s = status_period_s
         self.timeout_s = timeout_s
         self.raw = 0
         self.commands_seen: list[tuple[int, ...]] = []
@@ -36,26 +34,8 @@ class SimDroneCanEsc:
         self.decoder = dc.DroneCanDecoder()
         self._last_cmd = -float("inf")
         self._tid = {dc.STATUS_DTID: 0, dc.NODE_STATUS_DTID: 0}
-        self._t0 = time.monotonic()
-        self._lock = threading.Lock()
-        self._stop = threading.Event()
-        self._silent = threading.Event()
-        self._thread = threading.Thread(target=self._run, name=f"sim-dronecan-{node_id}",
-                                        daemon=True)
-        link.subscribe(self._on_frame)
-
-    def start(self) -> SimDroneCanEsc:
-        self._thread.start()
-        return self
-
-    def stop(self) -> None:
-        self._stop.set()
-        self.link.unsubscribe(self._on_frame)
-        if self._thread.is_alive():
-            self._thread.join(timeout=1.0)
-
-    def disconnect(self) -> None:
-        self._silent.set()
+        self._next_ns: float | None = None  # NodeStatus: at the first tick, then 1 Hz
+        super().__init__(link, status_period_s, f"sim-dronecan-{node_id}")
 
     def _on_frame(self, frame: CanFrame) -> None:
         if self._silent.is_set():
@@ -77,22 +57,19 @@ class SimDroneCanEsc:
         for f in dc.encode(msg, self.node_id, tid):
             self.link.send(f)
 
-    def _run(self) -> None:
-        next_t, next_ns = time.monotonic(), time.monotonic()
-        while not self._stop.is_set():
-            now = time.monotonic()
-            with self._lock:
-                if self.raw and now - self._last_cmd > self.timeout_s:
-                    self.raw = 0
-                    self.timeouts += 1
-                raw = self.raw
-            if not self._silent.is_set():
-                try:
-                    self._publish(self.model(now - self._t0, raw))
-                    if now >= next_ns:
-                        next_ns += 1.0
-                        self._publish(dc.NodeStatus(int(now - self._t0), 0, 0, 0, 0))
-                except (DeviceError, ValueError):
-                    pass
-            next_t += self.period_s
-            self._stop.wait(max(0.0, next_t - time.monotonic()))
+    def _tick(self, now: float) -> None:
+        if self._next_ns is None:
+            self._next_ns = now
+        with self._lock:
+            if self.raw and now - self._last_cmd > self.timeout_s:
+                self.raw = 0
+                self.timeouts += 1
+            raw = self.raw
+        if not self._silent.is_set():
+            try:
+                self._publish(self.model(now - self._t0, raw))
+                if now >= self._next_ns:
+                    self._next_ns += 1.0
+                    self._publish(dc.NodeStatus(int(now - self._t0), 0, 0, 0, 0))
+            except (DeviceError, ValueError):
+                pass

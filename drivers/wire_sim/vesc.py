@@ -9,7 +9,6 @@ The motor itself is the ``model`` callable: ``model(t_s, command) -> VescState``
 
 from __future__ import annotations
 
-import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -18,6 +17,7 @@ from drivers.backends.can_link import CanLink
 from drivers.codecs import vesc_can as vc
 from drivers.codecs.can_log import CanFrame
 from drivers.errors import DeviceError
+from drivers.wire_sim.can_node import SimCanNode
 
 
 @dataclass(frozen=True)
@@ -45,44 +45,19 @@ class VescState:
 VescModel = Callable[[float, VescCommand], VescState]
 
 
-class SimVescDevice:
+class SimVescDevice(SimCanNode):
     """One simulated VESC on ``link``; ``start()`` begins broadcasting, ``stop()`` ends."""
 
     def __init__(self, link: CanLink, controller_id: int, model: VescModel, *,
                  status_rate_hz: float = 50.0, timeout_s: float = vc.COMMAND_TIMEOUT_S) -> None:
-        self.link = link
         self.controller_id = controller_id
         self.model = model
-        self.period_s = 1.0 / status_rate_hz
         self.timeout_s = timeout_s
         self.command = VescCommand()
         self.commands_seen: list[VescCommand] = []
         self.timeouts = 0
         self._last_cmd_t = -float("inf")
-        self._t0 = time.monotonic()
-        self._lock = threading.Lock()
-        self._stop = threading.Event()
-        self._silent = threading.Event()
-        self._thread = threading.Thread(target=self._run, name=f"sim-vesc-{controller_id}",
-                                        daemon=True)
-        link.subscribe(self._on_frame)
-
-    def start(self) -> SimVescDevice:
-        self._thread.start()
-        return self
-
-    def stop(self) -> None:
-        self._stop.set()
-        self.link.unsubscribe(self._on_frame)
-        if self._thread.is_alive():
-            self._thread.join(timeout=1.0)
-
-    def disconnect(self) -> None:
-        """Fault: the VESC vanishes from the bus (no statuses, commands ignored)."""
-        self._silent.set()
-
-    def reconnect(self) -> None:
-        self._silent.clear()
+        super().__init__(link, 1.0 / status_rate_hz, f"sim-vesc-{controller_id}")
 
     def _on_frame(self, frame: CanFrame) -> None:
         if self._silent.is_set():
@@ -105,20 +80,15 @@ class SimVescDevice:
                 self.commands_seen.append(cmd)
                 self._last_cmd_t = time.monotonic()
 
-    def _run(self) -> None:
-        next_t = time.monotonic()
-        while not self._stop.is_set():
-            next_t += self.period_s
-            now = time.monotonic()
-            with self._lock:
-                if self.command.kind != "release" and now - self._last_cmd_t > self.timeout_s:
-                    self.command = VescCommand()  # §3.2 timeout: motor released
-                    self.timeouts += 1
-                cmd = self.command
-            state = self.model(now - self._t0, cmd)
-            if not self._silent.is_set():
-                self._broadcast(state)
-            self._stop.wait(max(0.0, next_t - time.monotonic()))
+    def _tick(self, now: float) -> None:
+        with self._lock:
+            if self.command.kind != "release" and now - self._last_cmd_t > self.timeout_s:
+                self.command = VescCommand()  # §3.2 timeout: motor released
+                self.timeouts += 1
+            cmd = self.command
+        state = self.model(now - self._t0, cmd)
+        if not self._silent.is_set():
+            self._broadcast(state)
 
     def _broadcast(self, s: VescState) -> None:
         cid = self.controller_id
