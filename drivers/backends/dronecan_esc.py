@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from drivers.backends.can_esc_guard import HostGuardedCanEsc
 from drivers.backends.can_link import CanLink
 from drivers.codecs import dronecan as dc
 from drivers.codecs.can_log import CanFrame
@@ -45,7 +46,7 @@ class DroneCanEscSettings:
         return dc.raw_from_fraction(frac)
 
 
-class DroneCanEsc:
+class DroneCanEsc(HostGuardedCanEsc):
     """One ESC slot of the RawCommand array (``drivers.contracts.Esc``)."""
 
     def __init__(self, link: CanLink, settings: DroneCanEscSettings,
@@ -54,20 +55,12 @@ class DroneCanEsc:
             raise DeviceError(f"{url}: esc_index must be 0..{dc.RAW_MAX_ESCS - 1}")
         self.link = link
         self.settings = settings
-        self.url = url
-        self._lock = threading.Lock()
-        self._armed = False
         self._raw = 0
         self._tid = {dc.RAW_COMMAND_DTID: 0, dc.NODE_STATUS_DTID: 0}
         self._t_open = time.monotonic()
-        self._last_host_t = time.monotonic()
         self._last_node_status = -math.inf
-        self._stalled = False
-        self._error: DeviceError | None = None
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name=f"dronecan-esc-{url}",
-                                        daemon=True)
-        self._thread.start()
+        super().__init__(url, settings.period_s, settings.host_timeout_s,
+                         f"dronecan-esc-{url}")
 
     def describe(self) -> DeviceInfo:
         s = self.settings
@@ -87,70 +80,22 @@ class DroneCanEsc:
         cmd[self.settings.esc_index] = raw
         self._broadcast(dc.RawCommand(tuple(cmd)))
 
-    def arm(self) -> None:
-        with self._lock:
-            self._raise_pending()
-            self._armed, self._raw = True, 0
-            self._touch()
-            self._send_command(0)
+    def _hold(self, pulse_us: float) -> None:
+        self._raw = self.settings.raw(pulse_us)
 
-    def set_pulse_us(self, pulse_us: float) -> None:
-        pulse = float(pulse_us)
-        if not math.isfinite(pulse):
-            raise DeviceError(f"{self.url}: pulse width must be finite, got {pulse_us!r}")
-        with self._lock:
-            self._raise_pending()
-            self._raw = self.settings.raw(pulse)
-            self._touch()
-            if self._armed:
-                self._send_command(self._raw)
+    def _hold_idle(self) -> None:
+        self._raw = 0
 
-    def disarm(self) -> None:
-        """All-zero command (stop); never raises."""
-        with self._lock:
-            self._armed, self._raw = False, 0
-            try:
-                self._send_command(0)
-            except DeviceError:
-                pass
+    def _send_held(self) -> None:
+        self._send_command(self._raw)
 
-    def close(self) -> None:
-        self.disarm()
-        self._stop.set()
-        if self._thread is not threading.current_thread():
-            self._thread.join(timeout=1.0)
+    def _send_stop(self) -> None:
+        self._send_command(0)
 
-    @property
-    def host_stalled(self) -> bool:
-        return self._stalled
-
-    def _touch(self) -> None:
-        self._last_host_t = time.monotonic()
-        self._stalled = False
-
-    def _raise_pending(self) -> None:
-        if self._error is not None:
-            err, self._error = self._error, None
-            raise err
-
-    def _run(self) -> None:
-        while not self._stop.wait(self.settings.period_s):
-            now = time.monotonic()
-            with self._lock:
-                try:
-                    if now - self._last_node_status >= 1.0:
-                        self._last_node_status = now
-                        self._broadcast(dc.NodeStatus(int(now - self._t_open), 0, 0, 0, 0))
-                    if not self._armed:
-                        continue
-                    if now - self._last_host_t > self.settings.host_timeout_s:
-                        if not self._stalled:
-                            self._send_command(0)
-                            self._stalled = True
-                        continue
-                    self._send_command(self._raw)
-                except DeviceError as exc:
-                    self._error = exc
+    def _each_period(self, now: float) -> None:
+        if now - self._last_node_status >= 1.0:  # the host's NodeStatus, 1 Hz (§4.1)
+            self._last_node_status = now
+            self._broadcast(dc.NodeStatus(int(now - self._t_open), 0, 0, 0, 0))
 
 
 TELEMETRY_CHANNELS = ("rpm", "current_a", "voltage_v", "temp_esc_c", "error_count")

@@ -18,11 +18,11 @@ from __future__ import annotations
 
 import math
 import threading
-import time
 from dataclasses import dataclass
 
 import numpy as np
 
+from drivers.backends.can_esc_guard import HostGuardedCanEsc
 from drivers.backends.can_link import CanLink
 from drivers.codecs import vesc_can as vc
 from drivers.codecs.can_log import CanFrame
@@ -45,7 +45,7 @@ class VescEscSettings:
         return min(1.0, max(0.0, (pulse_us - self.min_us) / (self.max_us - self.min_us)))
 
 
-class VescEsc:
+class VescEsc(HostGuardedCanEsc):
     """The bench ESC on a VESC (``drivers.contracts.Esc``)."""
 
     def __init__(self, link: CanLink, settings: VescEscSettings, url: str = "can://vesc") -> None:
@@ -54,17 +54,9 @@ class VescEsc:
                               f"{vc.COMMAND_TIMEOUT_S} s command timeout")
         self.link = link
         self.settings = settings
-        self.url = url
-        self._lock = threading.Lock()
-        self._armed = False
         self._pulse_us = settings.min_us
-        self._last_host_t = time.monotonic()
-        self._stalled = False
-        self._error: DeviceError | None = None
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._keepalive, name=f"vesc-keepalive-{url}",
-                                        daemon=True)
-        self._thread.start()
+        super().__init__(url, settings.keepalive_s, settings.host_timeout_s,
+                         f"vesc-keepalive-{url}")
 
     def describe(self) -> DeviceInfo:
         s = self.settings
@@ -81,76 +73,18 @@ class VescEsc:
             return vc.encode(vc.SetCurrent(cid, 0.0))
         return vc.encode(vc.SetDuty(cid, duty))
 
-    def _send_now(self) -> None:
+    def _hold(self, pulse_us: float) -> None:
+        s = self.settings
+        self._pulse_us = min(s.max_us, max(s.min_us, pulse_us))
+
+    def _hold_idle(self) -> None:
+        self._pulse_us = self.settings.min_us
+
+    def _send_held(self) -> None:
         self.link.send(self._command())
 
-    def arm(self) -> None:
-        with self._lock:
-            self._raise_pending()
-            self._armed = True
-            self._pulse_us = self.settings.min_us
-            self._touch()
-            self._send_now()
-
-    def set_pulse_us(self, pulse_us: float) -> None:
-        pulse = float(pulse_us)
-        if not math.isfinite(pulse):
-            raise DeviceError(f"{self.url}: pulse width must be finite, got {pulse_us!r}")
-        s = self.settings
-        with self._lock:
-            self._raise_pending()
-            self._pulse_us = min(s.max_us, max(s.min_us, pulse))
-            self._touch()
-            if self._armed:
-                self._send_now()
-
-    def disarm(self) -> None:
-        """Idle + disarm (``SET_CURRENT 0``). Never raises: the VESC's own timeout is the
-        fallback when the bus is gone."""
-        with self._lock:
-            self._armed = False
-            self._pulse_us = self.settings.min_us
-            try:
-                self._send_now()
-            except DeviceError:
-                pass
-
-    def close(self) -> None:
-        self.disarm()
-        self._stop.set()
-        if self._thread is not threading.current_thread():
-            self._thread.join(timeout=1.0)
-
-    def _touch(self) -> None:
-        self._last_host_t = time.monotonic()
-        self._stalled = False
-
-    def _raise_pending(self) -> None:
-        if self._error is not None:
-            err, self._error = self._error, None
-            raise err
-
-    def _keepalive(self) -> None:
-        while not self._stop.wait(self.settings.keepalive_s):
-            with self._lock:
-                if not self._armed:
-                    continue
-                host_silent = time.monotonic() - self._last_host_t > self.settings.host_timeout_s
-                if host_silent and self._stalled:
-                    continue  # already released; the VESC's own timeout keeps it off
-                try:
-                    if host_silent:
-                        self.link.send(vc.encode(vc.SetCurrent(self.settings.controller_id, 0.0)))
-                        self._stalled = True
-                    else:
-                        self._send_now()
-                except DeviceError as exc:
-                    self._error = exc
-
-    @property
-    def host_stalled(self) -> bool:
-        """True once the keep-alive has released the motor because the host went silent."""
-        return self._stalled
+    def _send_stop(self) -> None:
+        self.link.send(vc.encode(vc.SetCurrent(self.settings.controller_id, 0.0)))
 
 
 TELEMETRY_CHANNELS = ("rpm", "current_a", "voltage_v", "motor_current_a", "duty", "temp_fet_c",
