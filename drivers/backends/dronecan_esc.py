@@ -18,10 +18,9 @@ import threading
 import time
 from dataclasses import dataclass
 
-import numpy as np
-
 from drivers.backends.can_esc_guard import HostGuardedCanEsc
 from drivers.backends.can_link import CanLink
+from drivers.backends.row_stream import block_from_rows
 from drivers.codecs import dronecan as dc
 from drivers.codecs.can_log import CanFrame
 from drivers.contracts import Block, ChannelInfo, Clock, DeviceInfo, MonotonicClock
@@ -144,10 +143,7 @@ class DroneCanEscTelemetry:
         if now - ref > self.stale_s:
             raise DeviceError(f"{self.url}: no esc.Status for ESC {self.esc_index} for "
                               f"{now - ref:.3f} s")
-        if not rows:
-            return Block.empty(TELEMETRY_CHANNELS)
-        arr = np.array(rows, dtype=float)
-        return Block(arr[:, 0], {n: arr[:, k + 1] for k, n in enumerate(TELEMETRY_CHANNELS)})
+        return block_from_rows(rows, TELEMETRY_CHANNELS)
 
     def close(self) -> None:
         self.link.unsubscribe(self._on_frame)

@@ -10,15 +10,13 @@ own timer (62 500 ticks/s, unwrapped) is kept as ``device_t_s`` for precise spac
 
 from __future__ import annotations
 
-import threading
 from dataclasses import fields
 from typing import Any
 
-import numpy as np
-
+from drivers.backends.row_stream import SerialStreamSensor
 from drivers.backends.serial_link import Deadline, read_some, write_all
 from drivers.codecs import gx3
-from drivers.contracts import Block, ChannelInfo, Clock, DeviceInfo, MonotonicClock
+from drivers.contracts import ChannelInfo, Clock, DeviceInfo
 from drivers.errors import DeviceError
 
 # message field -> column names (SI units in the names)
@@ -39,7 +37,7 @@ def columns_for(packet: int) -> tuple[str, ...]:
     return tuple(c for f in fields(cls) if f.name in _COLUMNS for c in _COLUMNS[f.name])
 
 
-class Gx3Imu:
+class Gx3Imu(SerialStreamSensor):
     """The reference IMU streaming ``packet`` (default 0xC2 acceleration & rate)."""
 
     def __init__(self, port: Any, *, packet: int = gx3.ACCEL_RATE, clock: Clock | None = None,
@@ -48,22 +46,14 @@ class Gx3Imu:
         if packet not in PACKETS:
             raise DeviceError(f"{url}: packet 0x{packet:02X} not supported "
                               f"(use one of {[hex(p) for p in PACKETS]})")
-        self.port = port
+        super().__init__(port, clock=clock, stale_s=stale_s, url=url)
         self.packet = packet
-        self.clock = clock or MonotonicClock()
-        self.stale_s = stale_s
-        self.url = url
         self.columns = columns_for(packet)
+        self.names = (*self.columns, "device_t_s")
         self.decoder = gx3.Gx3Decoder()
         self._unwrap = gx3.TimerUnwrapper()
-        self._rows: list[tuple[float, ...]] = []
-        self._error: DeviceError | None = None
-        self._last = self.clock.now()
-        self._lock = threading.Lock()
-        self._stop = threading.Event()
         self._start_stream(open_timeout_s)
-        self._thread = threading.Thread(target=self._read, name=f"gx3-{url}", daemon=True)
-        self._thread.start()
+        self._start_reader(f"gx3-{url}")
 
     def _start_stream(self, timeout_s: float) -> None:
         write_all(self.port, gx3.stop_continuous(), self.url)
@@ -93,43 +83,15 @@ class Gx3Imu:
                 vals.extend(v if isinstance(v, tuple) else (v,))
         return (now, *vals, self._unwrap.seconds(m.timer_ticks))
 
-    def _read(self) -> None:
+    def _decode(self, data: bytes, now: float) -> list[tuple[float, ...]]:
         cls = PACKETS[self.packet]
-        while not self._stop.is_set():
-            try:
-                data = read_some(self.port, self.url)
-            except DeviceError as exc:
-                with self._lock:
-                    self._error = exc
-                return
-            if not data:
-                continue
-            now = self.clock.now()
-            rows = [self._row(m, now) for m in self.decoder.feed(data) if isinstance(m, cls)]
-            if rows:
-                with self._lock:
-                    self._rows += rows
-                    self._last = now
+        return [self._row(m, now) for m in self.decoder.feed(data) if isinstance(m, cls)]
 
-    def read_block(self) -> Block:
-        now = self.clock.now()
-        with self._lock:
-            rows, self._rows = self._rows, []
-            err, last = self._error, self._last
-        if err is not None:
-            raise err
-        if now - last > self.stale_s:
-            raise DeviceError(f"{self.url}: no packet for {now - last:.3f} s (disconnected?)")
-        names = (*self.columns, "device_t_s")
-        if not rows:
-            return Block.empty(names)
-        arr = np.array(rows, dtype=float)
-        return Block(arr[:, 0], {n: arr[:, k + 1] for k, n in enumerate(names)})
+    def _silence(self, silent_s: float) -> str:
+        return f"{self.url}: no packet for {silent_s:.3f} s (disconnected?)"
 
     def close(self) -> None:
-        self._stop.set()
-        if self._thread.is_alive():
-            self._thread.join(timeout=1.0)
+        super().close()
         try:
             write_all(self.port, gx3.stop_continuous(), self.url)
         except DeviceError:

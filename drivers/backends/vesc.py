@@ -20,10 +20,9 @@ import math
 import threading
 from dataclasses import dataclass
 
-import numpy as np
-
 from drivers.backends.can_esc_guard import HostGuardedCanEsc
 from drivers.backends.can_link import CanLink
+from drivers.backends.row_stream import block_from_rows
 from drivers.codecs import vesc_can as vc
 from drivers.codecs.can_log import CanFrame
 from drivers.contracts import Block, ChannelInfo, Clock, DeviceInfo, MonotonicClock
@@ -161,10 +160,7 @@ class VescTelemetry:
         if last is not None and now - last > self.stale_s:
             raise DeviceError(f"{self.url}: VESC {self.controller_id} silent for "
                               f"{now - last:.3f} s (disconnected?)")
-        if not rows:
-            return Block.empty(TELEMETRY_CHANNELS)
-        arr = np.array(rows, dtype=float)
-        return Block(arr[:, 0], {n: arr[:, k + 1] for k, n in enumerate(TELEMETRY_CHANNELS)})
+        return block_from_rows(rows, TELEMETRY_CHANNELS)
 
     def close(self) -> None:
         if not self._closed:
