@@ -47,13 +47,14 @@ from drivers.contracts import Block, ChannelInfo, DeviceInfo
 from drivers.errors import DeviceError
 from drivers.hexapod_contracts import IMU_CHANNELS, REFERENCE_IMU_CHANNELS
 from drivers.sim.clock import SimClock
-from drivers.sim.imu import SimImu
+from drivers.sim.imu import ImuModel, SimImu
 from drivers.sim.imu_rig import SimImuRig
 
 __all__ = ["BTFL_ACC_1G", "Gx3Reference", "HeldUploads", "MspImuSensor", "PacedClock",
            "start_gx3_peer", "start_msp_peer"]
 
 BTFL_ACC_1G = 2048  # §1.4: Betaflight MPU6000/6050-class driver acc_1G (512 * 4), ±16 g
+_MAX_BURST = 16  # GX3 packets written per wakeup of the simulated device at most
 _MSP_GYRO = ("gyro_x_rad_s", "gyro_y_rad_s", "gyro_z_rad_s")
 _MSP_ACC = ("acc_x_m_s2", "acc_y_m_s2", "acc_z_m_s2")
 
@@ -111,8 +112,9 @@ class HeldUploads:
     the upload (hundreds of GCS commands) takes wall time, which ``time_scale`` would
     multiply into seconds of bench time and the motion would run late against the plan.
     The plain and ``tcp://sim`` benches upload in zero simulated time; this keeps the
-    serial wire bench the same. (On a real bench the upload's wall time is real: see
-    docs/imu.md.)
+    serial wire bench the same (the hold lasts until the controller has answered a query
+    after ``WGO``, so the motion starts at the held instant). On a real bench the upload's
+    wall time is real: see docs/hexapod-tcp.md.
     """
 
     def __init__(self, hexapod: Any, clock: PacedClock) -> None:
@@ -126,6 +128,7 @@ class HeldUploads:
     def start(self) -> None:
         with self._clock.hold():
             self._hexapod.start()
+            self._hexapod.is_moving()  # a reply after WGO: the controller has started it
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self._hexapod, name)
@@ -214,6 +217,20 @@ class Gx3Reference:
 
 
 # -- simulated peers ---------------------------------------------------------------------------
+class _FixedModel(ImuModel):
+    """An :class:`ImuModel` whose forward matrices are computed once (one sample a call)."""
+
+    def forward_gyro(self) -> Any:
+        if "_fg" not in self.__dict__:
+            self.__dict__["_fg"] = ImuModel.forward_gyro(self)
+        return self.__dict__["_fg"]
+
+    def forward_acc(self) -> Any:
+        if "_fa" not in self.__dict__:
+            self.__dict__["_fa"] = ImuModel.forward_acc(self)
+        return self.__dict__["_fa"]
+
+
 class _PlantImu:
     """The IMU under test's model on the plant, one sample at a time (thread-safe)."""
 
@@ -225,7 +242,9 @@ class _PlantImu:
     def _model(self) -> SimImu:
         lever = tuple(self.sim.imu.lever_arm_from_pivot().tolist())
         if self._sensor is None or self._sensor.model.lever_arm_m != lever:
-            model = dataclasses.replace(self.sim.model, lever_arm_m=lever)
+            fields = {f.name: getattr(self.sim.model, f.name)
+                      for f in dataclasses.fields(self.sim.model)}
+            model = _FixedModel(**{**fields, "lever_arm_m": lever})
             self._sensor = SimImu(model, self.sim.imu.rng)
         return self._sensor
 
@@ -289,11 +308,14 @@ def start_gx3_peer(sim: SimImuRig, clock: SimClock) -> Any:
             if self.stream_cmd is None:
                 return b""
             out = bytearray()
-            while self.stream_cmd is not None and clock.now() >= self._next:
+            for _ in range(_MAX_BURST):  # a starved thread writes what it has, then goes on
+                if self.stream_cmd is None or clock.now() < self._next:
+                    break
                 out += self._packet(self.stream_cmd, self._next)  # on the device's grid
                 self._next += self.period_s
             return bytes(out)
 
     peer = PlantGx3(lambda t: sample(clock.now()), period_s=period)
-    peer.port.tick_s = min(0.005, period / getattr(clock, "time_scale", 1.0) / 2)
+    # wake every 2 ms of wall time at most (fewer wakeups: less GIL traffic for the host)
+    peer.port.tick_s = min(0.002, period / getattr(clock, "time_scale", 1.0) / 2)
     return peer.start()

@@ -64,7 +64,11 @@ class PtyDevice:
         self._stop.set()
         if self._thread.is_alive():
             self._thread.join(timeout=1.0)
-        for fd in (self.master, self._slave):
+        # once only: a second stop must not close fd numbers the process has reused since
+        fds, self.master, self._slave = (self.master, self._slave), -1, -1
+        for fd in fds:
+            if fd < 0:
+                continue
             try:
                 os.close(fd)
             except OSError:
