@@ -38,22 +38,14 @@ from drivers.codecs import gcs
 from drivers.contracts import Block, ChannelInfo, Clock, DeviceInfo, MonotonicClock
 from drivers.errors import DeviceError
 from drivers.hexapod_contracts import (
-    ACCELERATION_CHANNELS,
-    BODY_CHANNELS,
     HEXAPOD_LOG_CHANNELS,
-    POSE_CHANNELS,
-    VELOCITY_CHANNELS,
-    HexapodLimitError,
     HexapodLimits,
     Trajectory,
-    limit_violations,
 )
 from drivers.hexapod_kinematics import (
     GRAVITY_M_S2,
-    body_frame_state,
-    follower_spline,
-    spline_peaks,
 )
+from drivers.hexapod_log import checked_spline, log_block
 
 __all__ = ["DEFAULT_TIMEOUT_S", "GcsDialect", "PiHexapod", "from_wire", "open_tcp", "to_wire"]
 
@@ -516,13 +508,7 @@ class PiHexapod:
         """Check the trajectory (limits, present pose), then write the wave tables and set
         up generators and recorder; nothing moves until ``start``."""
         name = trajectory.name
-        spline = follower_spline(trajectory.t_s, trajectory.poses)
-        peaks = spline_peaks(spline, trajectory.duration_s, 4 * len(trajectory.poses),
-                             self.gravity)
-        bad = limit_violations(peaks, self._limits)
-        if bad:
-            text = "; ".join(f"{n} = {v:.4g} above the limit {lim:.4g}" for n, v, lim in bad)
-            raise HexapodLimitError(f"{self.url}: trajectory {name!r} refused: {text}")
+        checked_spline(trajectory, self._limits, self.gravity, self.url)
         d = self.dialect
         cycles = d.cycles_per_point(trajectory.rate_hz, f"trajectory {name!r} rate")
         with self._lock:
@@ -640,14 +626,7 @@ class PiHexapod:
         return self._block(t, p, vel, acc)
 
     def _block(self, t: Array, pose: Array, vel: Array, acc: Array) -> Block:
-        s = body_frame_state(t, pose, vel, acc, self.gravity)
-        values: dict[str, Array] = {}
-        for names, data in ((POSE_CHANNELS, pose), (VELOCITY_CHANNELS, vel),
-                            (ACCELERATION_CHANNELS, acc)):
-            values.update({n: data[:, j] for j, n in enumerate(names)})
-        body = np.hstack([s.omega_b_rad_s, s.alpha_b_rad_s2, s.specific_force_b_m_s2])
-        values.update({n: body[:, j] for j, n in enumerate(BODY_CHANNELS)})
-        return Block(np.asarray(t, float), values)
+        return log_block(t, pose, vel, acc, self.gravity)
 
     # ------------------------------------------------------------------ stop
     def stop(self) -> None:

@@ -22,23 +22,16 @@ from scipy.interpolate import CubicSpline
 from drivers.contracts import Block, ChannelInfo, DeviceInfo, Fault
 from drivers.errors import DeviceError
 from drivers.hexapod_contracts import (
-    ACCELERATION_CHANNELS,
-    BODY_CHANNELS,
     HEXAPOD_LOG_CHANNELS,
-    POSE_CHANNELS,
-    VELOCITY_CHANNELS,
-    HexapodLimitError,
     HexapodLimits,
     Trajectory,
-    limit_violations,
 )
 from drivers.hexapod_kinematics import (
     GRAVITY_M_S2,
     HexapodState,
     body_frame_state,
-    follower_spline,
-    spline_peaks,
 )
+from drivers.hexapod_log import checked_spline, log_block
 from drivers.sim.clock import SimClock
 from drivers.sim.faults import FaultSwitches
 
@@ -163,21 +156,13 @@ class SimHexapodDevice:
 
     def upload(self, trajectory: Trajectory) -> None:
         self._check("upload")
-        spline = follower_spline(trajectory.t_s, trajectory.poses)
         now = self.clock.now()
         here, _, _ = self.kinematics_at(np.array([now]))
         jump = float(np.abs(trajectory.poses[0] - here[0]).max())
         if jump > _START_TOLERANCE:
             raise DeviceError(f"sim hexapod: trajectory {trajectory.name!r} starts {jump:.4g} "
                               "(m or rad) away from the present pose; refused")
-        # Dense check (4 points per uploaded sample) of the spline the platform will follow.
-        peaks = spline_peaks(spline, trajectory.duration_s, 4 * len(trajectory.poses),
-                             self.gravity)
-        bad = limit_violations(peaks, self._limits)
-        if bad:
-            text = "; ".join(f"{n} = {v:.4g} above the limit {lim:.4g}" for n, v, lim in bad)
-            raise HexapodLimitError(f"sim hexapod: trajectory {trajectory.name!r} refused: "
-                                    f"{text}")
+        spline = checked_spline(trajectory, self._limits, self.gravity, "sim hexapod")
         self._uploaded = (trajectory, spline)
 
     def start(self) -> None:
@@ -199,15 +184,8 @@ class SimHexapodDevice:
         t = np.arange(self._next_k, k_end + 1) / self.log_rate_hz
         self._next_k = k_end + 1
         pose, vel, acc = self.kinematics_at(t)
-        s = body_frame_state(t, pose, vel, acc, self.gravity)
-        values: dict[str, Array] = {}
-        for names, data in ((POSE_CHANNELS, pose), (VELOCITY_CHANNELS, vel),
-                            (ACCELERATION_CHANNELS, acc)):
-            values.update({n: data[:, i] for i, n in enumerate(names)})
-        body = np.hstack([s.omega_b_rad_s, s.alpha_b_rad_s2, s.specific_force_b_m_s2])
-        values.update({n: body[:, i] for i, n in enumerate(BODY_CHANNELS)})
         full = dict.fromkeys(HEXAPOD_LOG_CHANNELS, 1e3)  # a spike: far beyond any limit
-        return self.faults.apply(Block(t, values), full)
+        return self.faults.apply(log_block(t, pose, vel, acc, self.gravity), full)
 
     def stop(self) -> None:
         """Freeze the platform where it is (an abrupt #24-style stop); never refused."""
