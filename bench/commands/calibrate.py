@@ -144,7 +144,7 @@ def _apply(args: argparse.Namespace) -> int:
 
 
 def _simulate(args: argparse.Namespace) -> int:
-    from drivers.sim.hexapod_motions import paper_a_protocol
+    from drivers.hexapod_motions import paper_a_protocol
     from drivers.sim.imu import ADIS16400
     from drivers.sim.imu_calibration_log import simulate_calibration_log, write_calibration_log
 

@@ -11,8 +11,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from drivers.hexapod_motions import DOF, Motion
 from drivers.sim.hexapod import SimHexapod
-from drivers.sim.hexapod_motions import DOF, Motion
 from drivers.sim.imu import ImuModel, SimImu
 
 __all__ = ["CALIBRATED_IMU", "paper_b_motion", "simulate_attitude_log"]

@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from drivers.hexapod_motions import Phase, paper_a_protocol
 from drivers.sim.hexapod import SimHexapod
-from drivers.sim.hexapod_motions import Phase, paper_a_protocol
 from drivers.sim.imu import ADIS16400, ImuModel, SimImu
 
 __all__ = ["LOG_COLUMNS", "simulate_calibration_log", "write_calibration_log"]
