@@ -104,15 +104,28 @@ def _unit_factor(header: str, target: str, source: str) -> float:
     return found[1]
 
 
+def _check_file(path: Path) -> None:
+    """A missing path or a folder is the user's input error, not a crash."""
+    if not path.exists():
+        raise LogError(f"{path}: file not found")
+    if not path.is_file():
+        raise LogError(f"{path}: not a file (expected a CSV log)")
+
+
 def _read_csv(path: Path, **kwargs: Any) -> pd.DataFrame:
+    _check_file(path)
     try:
-        return pd.read_csv(path, encoding="utf-8-sig", **kwargs)
-    except FileNotFoundError:
-        raise LogError(f"{path}: file not found") from None
+        df = pd.read_csv(path, encoding="utf-8-sig", **kwargs)
     except (UnicodeDecodeError, pd.errors.ParserError, csv.Error) as exc:
-        raise LogError(f"{path}: not a readable CSV ({exc})") from None
+        reason = " ".join(str(exc).split())  # pandas' messages span lines; one line here
+        raise LogError(f"{path}: not a readable CSV ({reason})") from None
     except pd.errors.EmptyDataError:
         raise LogError(f"{path}: empty file") from None
+    except OSError as exc:
+        raise LogError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    if df.empty:
+        raise LogError(f"{path}: no data rows (only a header)")
+    return df
 
 
 def _numeric(df: pd.DataFrame, header: str, path: Path) -> np.ndarray:
@@ -164,6 +177,7 @@ def import_rcbenchmark(path: str | Path) -> tuple[pd.DataFrame, dict[str, Any]]:
     becomes ``rpm``.
     """
     path = Path(path)
+    _check_file(path)
     first = path.read_bytes()[:200].decode("utf-8-sig", errors="replace").splitlines()
     skip = 1 if first and first[0].lower().startswith("control protocol") else 0
     df = _read_csv(path, skiprows=skip)

@@ -1,0 +1,49 @@
+"""Bad input through the CLI: one line on stderr naming the file, exit code 2, nothing
+half-written. Each test is the regression test of a fix found by running the commands."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from bench.cli import main
+
+
+def run_bad(capsys: pytest.CaptureFixture[str], *argv: str) -> str:
+    """Run the CLI in-process; assert the user-error contract; return the stderr line."""
+    code = main(list(argv))
+    err = capsys.readouterr().err.strip()
+    assert code == 2, err
+    assert len(err.splitlines()) == 1, err
+    assert err.startswith("rotorbench: error: "), err
+    return err
+
+
+# --- rotorbench import ---------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("fmt", ["rcbenchmark", "esc32", "csv"])
+def test_import_missing_file_or_folder(tmp_path: Path, capsys, fmt: str) -> None:
+    missing = tmp_path / "nope.csv"
+    err = run_bad(capsys, "import", str(missing), "--format", fmt, "--out", str(tmp_path / "o"))
+    assert "nope.csv: file not found" in err
+    err = run_bad(capsys, "import", str(tmp_path), "--format", fmt, "--out",
+                  str(tmp_path / "o"))
+    assert f"{tmp_path}: not a file" in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_import_ragged_csv_is_one_line(tmp_path: Path, capsys) -> None:
+    f = tmp_path / "ragged.csv"
+    f.write_text("t_s,thrust_n\n0,1\n0.1\n0.2,1,5\n")
+    err = run_bad(capsys, "import", str(f), "--format", "csv", "--out", str(tmp_path / "o"))
+    assert "ragged.csv: not a readable CSV" in err and "line 4" in err
+
+
+def test_import_header_only(tmp_path: Path, capsys) -> None:
+    f = tmp_path / "hdr.csv"
+    f.write_text("t_s,thrust_n\n")
+    err = run_bad(capsys, "import", str(f), "--format", "csv", "--out", str(tmp_path / "o"))
+    assert "hdr.csv: no data rows" in err
+    assert not (tmp_path / "o").exists()
