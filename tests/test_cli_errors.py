@@ -47,3 +47,31 @@ def test_import_header_only(tmp_path: Path, capsys) -> None:
     err = run_bad(capsys, "import", str(f), "--format", "csv", "--out", str(tmp_path / "o"))
     assert "hdr.csv: no data rows" in err
     assert not (tmp_path / "o").exists()
+
+
+def test_import_map_twice_is_refused(tmp_path: Path, capsys) -> None:
+    f = tmp_path / "log.csv"
+    f.write_text("a,b\n0,1\n0.1,2\n")
+    err = run_bad(capsys, "import", str(f), "--format", "csv", "--map", "t_s=a",
+                  "--map", "t_s=b", "--out", str(tmp_path / "o"))
+    assert "t_s is mapped twice" in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_import_out_below_a_file(tmp_path: Path, capsys) -> None:
+    f = tmp_path / "log.csv"
+    f.write_text("t_s,thrust_n\n0,1\n0.1,2\n")
+    err = run_bad(capsys, "import", str(f), "--format", "csv", "--out", str(f / "run"))
+    assert "cannot create its folder" in err
+
+
+def test_import_long_time_gap_writes_few_parts(tmp_path: Path, capsys) -> None:
+    """A log whose clock jumps by 1e12 s imports (parts only where there are rows)."""
+    import pandas as pd
+
+    f = tmp_path / "gap.csv"
+    f.write_text("t_s,thrust_n\n0,1\n0.5,1.5\n1e12,2\n")
+    assert main(["import", str(f), "--format", "csv", "--out", str(tmp_path / "o")]) == 0
+    df = pd.read_parquet(tmp_path / "o" / "samples.parquet")
+    assert df["t_s"].tolist() == [0.0, 0.5, 1e12]
+    assert len(list((tmp_path / "o" / "samples.parquet").glob("*.parquet"))) == 2

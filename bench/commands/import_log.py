@@ -42,6 +42,9 @@ def parse_mapping(items: list[str]) -> dict[str, str]:
         run_col, sep, file_col = item.partition("=")
         if not sep or not run_col or not file_col:
             raise RigError(f"--map {item!r}: expected RUNCOL=FILECOL")
+        if run_col.strip() in out:
+            raise RigError(f"--map {item!r}: {run_col.strip()} is mapped twice "
+                           f"(first to {out[run_col.strip()]!r})")
         out[run_col.strip()] = file_col.strip()
     return out
 
@@ -56,7 +59,11 @@ def write_run(out: Path, samples, meta: dict) -> Path:
     tmp = out.with_name(f".{out.name}.importing")
     if tmp.exists():
         shutil.rmtree(tmp)
-    out.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise RigError(f"--out {out}: cannot create its folder {out.parent} "
+                       f"({exc.strerror or exc})") from None
     n = len(samples)
     cols = {c: samples[c].to_numpy(dtype=float) for c in samples.columns}
     for c in BASE_COLUMNS:  # the recorder's schema: absent channels are NaN
@@ -65,7 +72,8 @@ def write_run(out: Path, samples, meta: dict) -> Path:
         rec = RunRecorder(tmp, {"id": out.name, **meta})
         # append in slices so the recorder writes its usual <= 1 s parts
         t = cols["t_s"]
-        cuts = np.searchsorted(t, t[0] + np.arange(1, int(t[-1] - t[0]) + 1))
+        # a cut where the whole second since the start changes: O(rows), whatever the gaps
+        cuts = np.flatnonzero(np.diff(np.floor(t - t[0]))) + 1
         bounds = [0, *cuts.tolist(), n]
         for a, b in itertools.pairwise(bounds):
             if b > a:
