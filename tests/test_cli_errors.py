@@ -75,3 +75,42 @@ def test_import_long_time_gap_writes_few_parts(tmp_path: Path, capsys) -> None:
     df = pd.read_parquet(tmp_path / "o" / "samples.parquet")
     assert df["t_s"].tolist() == [0.0, 0.5, 1e12]
     assert len(list((tmp_path / "o" / "samples.parquet").glob("*.parquet"))) == 2
+
+
+# --- rotorbench report ---------------------------------------------------------------------
+
+
+def _imported_run(tmp_path: Path) -> Path:
+    f = tmp_path / "stand.csv"
+    rows = "\n".join(f"{i * 0.1:.1f},{1000 + 10 * i},{0.01 * i * i}" for i in range(40))
+    f.write_text("t_s,throttle_us,thrust_n\n" + rows + "\n")
+    run = tmp_path / "run"
+    assert main(["import", str(f), "--format", "csv", "--out", str(run)]) == 0
+    return run
+
+
+@pytest.mark.parametrize("kind", ["file", "folder"])
+def test_report_never_replaces_what_is_not_a_report(tmp_path: Path, capsys, kind: str) -> None:
+    """`report --out runs` used to move the whole run root away and delete it."""
+    run = _imported_run(tmp_path)
+    target = tmp_path / "precious"
+    if kind == "file":
+        target.write_text("keep me")
+    else:
+        target.mkdir()
+        (target / "data.txt").write_text("keep me")
+    capsys.readouterr()
+    err = run_bad(capsys, "report", str(run), "--out", str(target))
+    assert "precious: exists and is not a report folder" in err
+    kept = target if kind == "file" else target / "data.txt"
+    assert kept.read_text() == "keep me"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["precious", "run", "stand.csv"]
+
+
+def test_report_replaces_an_earlier_report(tmp_path: Path, capsys) -> None:
+    run = _imported_run(tmp_path)
+    out = tmp_path / "rep"
+    assert main(["report", str(run), "--out", str(out)]) == 0
+    (out / "stale.txt").write_text("old")
+    assert main(["report", str(run), "--out", str(out)]) == 0
+    assert (out / "report.json").is_file() and not (out / "stale.txt").exists()

@@ -145,6 +145,11 @@ def handler(args: argparse.Namespace) -> int:
     from analysis.run_record import read_run
 
     out = args.out or Path(f"report-{read_run(args.runs[0]).id}")
+    if out.exists() and not (out.is_dir() and (out / "report.json").is_file()):
+        # only an earlier report (it holds report.json) is replaced: never a run root,
+        # a run folder or a user's file
+        raise RigError(f"--out {out}: exists and is not a report folder (no report.json in "
+                       "it); refusing to replace it, choose a new folder")
     tmp = out.with_name(f".{out.name}.tmp")
     if tmp.exists():
         shutil.rmtree(tmp)
@@ -155,6 +160,7 @@ def handler(args: argparse.Namespace) -> int:
         with open(tmp / "report.json", "w", encoding="utf-8") as fh:
             json.dump(summary, fh, indent=2, default=float)
         old = out.with_name(f".{out.name}.old")
+        shutil.rmtree(old, ignore_errors=True)  # left by an interrupted earlier report
         if out.exists():
             os.replace(out, old)
         os.replace(tmp, out)
