@@ -91,9 +91,18 @@ class ConstantsStore:
         self.path = self.root / STORE_NAME
 
     def _connect(self) -> sqlite3.Connection:
-        self.root.mkdir(parents=True, exist_ok=True)
-        con = sqlite3.connect(self.path, timeout=10.0)
-        con.execute(_SCHEMA)
+        try:
+            self.root.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise RigError(f"{self.root}: cannot create the constants folder "
+                           f"({exc.strerror or exc})") from None
+        try:
+            con = sqlite3.connect(self.path, timeout=10.0)
+            con.execute(_SCHEMA)
+        except sqlite3.DatabaseError as exc:
+            raise RigError(f"{self.path}: not a readable constants store ({exc}); move it "
+                           "away and store the runs again with `rotorbench constants "
+                           "--add RUN`") from None
         return con
 
     def put(self, key: ActuatorKey, kind: str, run_id: str, run_path: str,

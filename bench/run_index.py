@@ -58,9 +58,18 @@ class RunIndex:
     def __init__(self, root: Path) -> None:
         self.root = Path(root)
         self.path = self.root / INDEX_NAME
-        self.root.mkdir(parents=True, exist_ok=True)
-        with self._connect() as con:
-            con.execute(_SCHEMA)
+        try:
+            self.root.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise RigError(f"--out {self.root}: cannot create the run folder "
+                           f"({exc.strerror or exc})") from None
+        try:
+            with self._connect() as con:
+                con.execute(_SCHEMA)
+        except sqlite3.DatabaseError as exc:
+            raise RigError(f"{self.path}: not a readable run index ({exc}); move it away "
+                           "and run `rotorbench runs --rebuild` to index the run folders "
+                           "again") from None
 
     def _connect(self) -> sqlite3.Connection:
         try:

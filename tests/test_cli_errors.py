@@ -114,3 +114,26 @@ def test_report_replaces_an_earlier_report(tmp_path: Path, capsys) -> None:
     (out / "stale.txt").write_text("old")
     assert main(["report", str(run), "--out", str(out)]) == 0
     assert (out / "report.json").is_file() and not (out / "stale.txt").exists()
+
+
+# --- the SQLite stores beside the runs -----------------------------------------------------
+
+
+def test_corrupt_run_index_and_constants_store(tmp_path: Path, capsys) -> None:
+    (tmp_path / "runs.sqlite").write_bytes(b"\xac\x00 not a database" * 40)
+    (tmp_path / "constants.sqlite").write_bytes(b"\xac\x00 not a database" * 40)
+    for argv in (["runs", "--out", str(tmp_path)], ["runs", "--out", str(tmp_path), "--rebuild"]):
+        err = run_bad(capsys, *argv)
+        assert "runs.sqlite: not a readable run index" in err
+    err = run_bad(capsys, "constants", "--out", str(tmp_path))
+    assert "constants.sqlite: not a readable constants store" in err
+    err = run_bad(capsys, "optimize", "--measured", str(tmp_path))
+    assert "constants.sqlite: not a readable constants store" in err
+
+
+def test_step_out_is_a_file(tmp_path: Path, capsys) -> None:
+    f = tmp_path / "notes.txt"
+    f.write_text("keep me")
+    err = run_bad(capsys, "step", "--repeats", "1", "--out", str(f))
+    assert "notes.txt: cannot create the run folder" in err
+    assert f.read_text() == "keep me"

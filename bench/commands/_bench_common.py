@@ -121,7 +121,7 @@ def execute(rig: Any, seq: Sequence, args: argparse.Namespace,
                             on_rows=on_rows, on_progress=on_progress, stop_event=stop,
                             extra_meta=meta)
 
-    with progress, _sigterm_as_interrupt(stop, bool(args.live)):
+    with progress, _sigterm_as_interrupt(stop, bool(args.live)), erase_on_user_error(progress):
         if args.live:
             from bench.live import run_with_live_view
 
@@ -130,6 +130,18 @@ def execute(rig: Any, seq: Sequence, args: argparse.Namespace,
             outcome = work(None)
         progress.update(task, completed=outcome.result.t_end_s)
     return outcome
+
+
+@contextlib.contextmanager
+def erase_on_user_error(progress: Progress):
+    """A user error (an exception with ``exit_code``) leaves only its one line on stderr:
+    the progress bar is made transient, so it is erased (terminal) or never printed."""
+    try:
+        yield
+    except Exception as exc:
+        if getattr(exc, "exit_code", None) is not None:
+            progress.live.transient = True
+        raise
 
 
 @contextlib.contextmanager
