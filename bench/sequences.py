@@ -157,6 +157,9 @@ class Sequence:
             raise RigError(f"{source}: steps: expected a non-empty list of steps")
         steps = []
         for i, raw in enumerate(data.get("steps", [])):
+            if not isinstance(raw, Mapping):
+                raise RigError(f"{source}: steps[{i}]: expected a table with a kind, "
+                               f"got {raw!r}")
             kind = raw.get("kind")
             cls = _STEP_TYPES.get(kind)
             if cls is None:
@@ -176,10 +179,29 @@ class Sequence:
         return Sequence(
             name=str(data.get("name", "custom")),
             steps=tuple(steps),
-            limits={k: float(v) for k, v in dict(data.get("limits", {})).items()},
+            limits=_limits_from(data.get("limits", {}), source),
             description=str(data.get("description", "")),
             needs_thrust_map=any(isinstance(s, ThrustStep) for s in steps),
         )
+
+
+def _limits_from(raw: Any, source: str) -> dict[str, float]:
+    """A sequence file's ``limits`` table: known names, finite numbers (whether they
+    tighten the rig's limits is checked against the rig, ``safety.effective_limits``)."""
+    from bench.safety import LIMIT_FIELDS
+
+    if not isinstance(raw, Mapping):
+        raise RigError(f"{source}: limits: expected a table of NAME = number, got {raw!r}")
+    out = {}
+    for key, value in raw.items():
+        if key not in LIMIT_FIELDS:
+            raise RigError(f"{source}: limits.{key}: unknown limit; expected one of "
+                           f"{', '.join(LIMIT_FIELDS)}")
+        ok = isinstance(value, int | float) and not isinstance(value, bool)
+        if not ok or not math.isfinite(value):
+            raise RigError(f"{source}: limits.{key}: expected a finite number, got {value!r}")
+        out[key] = float(value)
+    return out
 
 
 # --- Paper C sequences ---------------------------------------------------------------------

@@ -137,3 +137,58 @@ def test_step_out_is_a_file(tmp_path: Path, capsys) -> None:
     err = run_bad(capsys, "step", "--repeats", "1", "--out", str(f))
     assert "notes.txt: cannot create the run folder" in err
     assert f.read_text() == "keep me"
+
+
+# --- sequences and limits ------------------------------------------------------------------
+
+_RECIPE = """name = "two-steps"
+limits = {limits}
+[[steps]]
+kind = "arm"
+[[steps]]
+kind = "ramp"
+end_us = 1400.0
+duration_s = 1.0
+[[steps]]
+kind = "disarm"
+"""
+
+
+@pytest.mark.parametrize(("limits", "expected"), [
+    ('{ current_a = "x" }', "limits.current_a: expected a finite number, got 'x'"),
+    ("{ warp = 2.0 }", "limits.warp: unknown limit"),
+    ("5", "limits: expected a table"),
+    ("{ current_a = nan }", "limits.current_a: expected a finite number"),
+])
+def test_sequence_file_limits_are_checked_on_load(tmp_path: Path, capsys, limits: str,
+                                                  expected: str) -> None:
+    seq = tmp_path / "recipe.toml"
+    seq.write_text(_RECIPE.format(limits=limits))
+    err = run_bad(capsys, "step", "--sequence", str(seq), "--dry-run")
+    assert f"{seq}: {expected}" in err
+
+
+def test_sequence_step_that_is_not_a_table(tmp_path: Path, capsys) -> None:
+    seq = tmp_path / "recipe.json"
+    seq.write_text('{"name": "x", "steps": [1, 2]}')
+    err = run_bad(capsys, "step", "--sequence", str(seq), "--dry-run")
+    assert "recipe.json: steps[0]: expected a table" in err
+
+
+@pytest.mark.parametrize("dry", [True, False])
+def test_looser_limits_are_refused_before_anything_runs(tmp_path: Path, capsys,
+                                                        dry: bool) -> None:
+    seq = tmp_path / "recipe.toml"
+    seq.write_text(_RECIPE.format(limits="{ current_a = 200.0 }"))
+    out = tmp_path / "runs"
+    extra = ["--dry-run"] if dry else ["--out", str(out)]
+    err = run_bad(capsys, "step", "--sequence", str(seq), *extra)
+    assert "current_a: a sequence may only tighten limits" in err
+    err = run_bad(capsys, "step", "--limit", "thrust_n=30", *extra)
+    assert "thrust_n: a sequence may only tighten limits" in err
+    assert not out.exists()
+
+
+def test_limit_option_must_be_finite(capsys) -> None:
+    err = run_bad(capsys, "step", "--limit", "thrust_n=nan", "--dry-run")
+    assert "--limit 'thrust_n=nan': expected a finite number" in err

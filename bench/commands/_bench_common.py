@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import math
 import signal
 import sys
 import threading
@@ -16,7 +17,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 from bench.errors import RigError
 from bench.runner import RunOptions
-from bench.safety import LIMIT_FIELDS
+from bench.safety import LIMIT_FIELDS, effective_limits
 from bench.sequences import Segment, Sequence, format_plan
 from bench.session import RunOutcome, plan_for, run_sequence
 
@@ -80,7 +81,15 @@ def parse_limits(items: list[str]) -> dict[str, float]:
             out[name] = float(value)
         except ValueError:
             raise RigError(f"--limit {item!r}: {value!r} is not a number") from None
+        if not math.isfinite(out[name]):
+            raise RigError(f"--limit {item!r}: expected a finite number")
     return out
+
+
+def check_limits(rig: Any, seq: Sequence) -> None:
+    """Refuse a sequence (or --limit) that would loosen the rig's limits before anything
+    is shown or opened: the dry run says what the run would say."""
+    effective_limits(rig.limits, seq.limits, source=f"sequence {seq.name!r}")
 
 
 def with_limits(seq: Sequence, extra: Mapping[str, float]) -> Sequence:
@@ -92,6 +101,7 @@ def with_limits(seq: Sequence, extra: Mapping[str, float]) -> Sequence:
 
 
 def print_dry_run(rig: Any, seq: Sequence) -> None:
+    check_limits(rig, seq)
     plan = plan_for(rig, seq, dry_run=True)
     print(f"rig {rig.name} ({rig.path}); ESC {rig.esc.idle_us:g} us idle, "
           f"{rig.esc.min_us:g}-{rig.esc.max_us:g} us at {rig.esc.frame_rate_hz:g} Hz")
@@ -103,6 +113,7 @@ def execute(rig: Any, seq: Sequence, args: argparse.Namespace,
     """Run one sequence with a progress bar on stderr (and the live view if asked)."""
     from drivers.factory import open_rig
 
+    check_limits(rig, seq)
     options = RunOptions(tick_s=args.tick, realtime=bool(args.realtime or args.live))
     stop = threading.Event()
     total = plan_for(rig, seq).duration_s

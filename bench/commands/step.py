@@ -39,6 +39,7 @@ def build(args: argparse.Namespace):
 def handler(args: argparse.Namespace) -> int:
     rig = common.load_rig_from_args(args, prefer_out_copy=True)
     seq = build(args)
+    common.check_limits(rig, seq)  # before a sweep for a missing map could start
     if args.dry_run:
         if rig.thrust_map is None and seq.needs_thrust_map:
             print("no static thrust map in the rig yet: a sweep would run first "
