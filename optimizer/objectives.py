@@ -166,6 +166,8 @@ def parse_weights(text: str) -> dict[str, float]:
         name, sep, value = part.partition("=")
         if not sep:
             raise RequestError(f"bad weight {part!r}; expected NAME=NUMBER, e.g. price=0.5")
+        if name.strip() in weights:
+            raise RequestError(f"bad weight {part!r}: {name.strip()} is weighted twice")
         try:
             weights[name.strip()] = float(value)
         except ValueError:

@@ -192,3 +192,12 @@ def test_looser_limits_are_refused_before_anything_runs(tmp_path: Path, capsys,
 def test_limit_option_must_be_finite(capsys) -> None:
     err = run_bad(capsys, "step", "--limit", "thrust_n=nan", "--dry-run")
     assert "--limit 'thrust_n=nan': expected a finite number" in err
+
+
+# --- optimize ------------------------------------------------------------------------------
+
+
+def test_weights_naming_a_metric_twice(capsys) -> None:
+    err = run_bad(capsys, "optimize", "--objective", "weighted", "--weights",
+                  "price=1,price=2")
+    assert "bad weight 'price=2': price is weighted twice" in err
