@@ -201,3 +201,17 @@ def test_weights_naming_a_metric_twice(capsys) -> None:
     err = run_bad(capsys, "optimize", "--objective", "weighted", "--weights",
                   "price=1,price=2")
     assert "bad weight 'price=2': price is weighted twice" in err
+
+
+# --- calibrate -----------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("flag", ["--gyro-range-dps", "--acc-range-g", "--max-lag"])
+def test_calibrate_ranges_must_be_positive(tmp_path: Path, capsys, flag: str) -> None:
+    """--gyro-range-dps 0 ended in a ZeroDivisionError after the whole calibration."""
+    log = tmp_path / "log.csv"
+    log.write_text("t_s\n0\n")
+    err = run_bad(capsys, "calibrate", "--from-log", str(log), "--out",
+                  str(tmp_path / "cal.json"), flag, "0")
+    assert f"{flag}: expected a number > 0, got 0" in err
+    assert not (tmp_path / "cal.json").exists()

@@ -108,6 +108,10 @@ def handler(args: argparse.Namespace) -> int:
 def _check_out(args: argparse.Namespace) -> None:
     if args.out is not None and not args.out.parent.is_dir():
         raise LogError(f"{args.out}: folder {args.out.parent} does not exist")
+    for flag, value in (("--gyro-range-dps", args.gyro_range_dps),
+                        ("--acc-range-g", args.acc_range_g), ("--max-lag", args.max_lag)):
+        if not (math.isfinite(value) and value > 0):
+            raise LogError(f"{flag}: expected a number > 0, got {value:g}")
 
 
 def calibrate_frame(df, mounting: tuple[float, float, float] | None, gyro_range_rad_s: float,
