@@ -22,7 +22,8 @@ from pathlib import Path
 from typing import Any
 
 from bench.errors import RigError
-from bench.rig import REPO, URL_SCHEMES, DeviceConfig, _read_toml, _Table
+from bench.rig import REPO, URL_SCHEMES, DeviceConfig
+from bench.rig_table import RigTable, read_rig_toml
 from drivers.hexapod_contracts import HexapodLimits
 from drivers.sim.imu import ImuModel
 
@@ -102,14 +103,14 @@ class ImuRigConfig:
 def is_imu_rig(path: str | os.PathLike[str]) -> bool:
     """True when the file's ``[rig] kind`` is ``"imu"`` (unreadable files: False)."""
     try:
-        data = _read_toml(Path(path))
+        data = read_rig_toml(Path(path))
     except RigError:
         return False
     rig = data.get("rig")
     return isinstance(rig, dict) and rig.get("kind") == "imu"
 
 
-def _vector(t: _Table, key: str, default: tuple[float, ...] | None = None
+def _vector(t: RigTable, key: str, default: tuple[float, ...] | None = None
             ) -> tuple[float, float, float] | None:
     if key not in t.data:
         return default  # type: ignore[return-value]
@@ -121,7 +122,7 @@ def _vector(t: _Table, key: str, default: tuple[float, ...] | None = None
     return tuple(float(x) for x in v)  # type: ignore[return-value]
 
 
-def _model_fields(t: _Table, names: tuple[str, ...]) -> dict[str, Any]:
+def _model_fields(t: RigTable, names: tuple[str, ...]) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for name in names:
         if name not in t.data:
@@ -136,7 +137,7 @@ def _model_fields(t: _Table, names: tuple[str, ...]) -> dict[str, Any]:
     return out
 
 
-def _device(top: _Table, role: str) -> DeviceConfig:
+def _device(top: RigTable, role: str) -> DeviceConfig:
     t = top.table(role)
     assert t is not None
     t.only("url", "options")
@@ -155,7 +156,7 @@ def _device(top: _Table, role: str) -> DeviceConfig:
 def load_imu_rig(path: str | os.PathLike[str]) -> ImuRigConfig:
     """Read and validate an IMU-bench rig file; raises ``RigError`` naming file and field."""
     path = Path(path).resolve()
-    top = _Table(path, "", _read_toml(path))
+    top = RigTable(path, "", read_rig_toml(path))
     top.only("rig", "devices", "hexapod", "imu", "reference_imu", "sim")
     rig = top.table("rig")
     assert rig is not None
@@ -170,7 +171,7 @@ def load_imu_rig(path: str | os.PathLike[str]) -> ImuRigConfig:
             devs.fail(role, f"missing device; an IMU bench needs {', '.join(REQUIRED_ROLES)}")
     devices = {role: _device(devs, role) for role in ROLES if role in devs.data}
 
-    hx = top.table("hexapod", required=False) or _Table(path, "hexapod", {})
+    hx = top.table("hexapod", required=False) or RigTable(path, "hexapod", {})
     hx.only(*HexapodLimits.names(), "pivot_m", "log_rate_hz", "trajectory_rate_hz")
     limits = {n: hx.number(n, getattr(HexapodLimits(), n), lo=0.0) for n in HexapodLimits.names()}
     for n, v in limits.items():
@@ -184,23 +185,23 @@ def load_imu_rig(path: str | os.PathLike[str]) -> ImuRigConfig:
                                      unit="Hz"),  # type: ignore[arg-type]
     )
 
-    it = top.table("imu", required=False) or _Table(path, "imu", {})
+    it = top.table("imu", required=False) or RigTable(path, "imu", {})
     it.only("model", *IMU_DATASHEET, "measured_mounting_deg")
     imu = ImuSettings(it.text("model", "ADIS16400"), _model_fields(it, IMU_DATASHEET),
                       _vector(it, "measured_mounting_deg"))
 
-    rt = top.table("reference_imu", required=False) or _Table(path, "reference_imu", {})
+    rt = top.table("reference_imu", required=False) or RigTable(path, "reference_imu", {})
     rt.only(*REFERENCE_KEYS)
     reference = {k: rt.number(k, lo=0.0, hi=1e6) for k in REFERENCE_KEYS if k in rt.data}
     if reference.get("rate_hz", 1.0) <= 0:
         rt.fail("rate_hz", "expected a positive rate")
 
-    st = top.table("sim", required=False) or _Table(path, "sim", {})
+    st = top.table("sim", required=False) or RigTable(path, "sim", {})
     st.only("seed", "noise", "cg_m", "imu")
     seed = st.number("seed", 0.0, lo=0.0, hi=2**63)
     if seed != int(seed):  # type: ignore[arg-type]
         st.fail("seed", f"expected a whole number, got {seed}")
-    sim_imu = st.table("imu", required=False) or _Table(path, "sim.imu", {})
+    sim_imu = st.table("imu", required=False) or RigTable(path, "sim.imu", {})
     sim_imu.only(*IMU_SIM_ERRORS)
     sim = ImuSimConfig(int(seed), st.flag("noise", True), _vector(st, "cg_m"),  # type: ignore[arg-type]
                        _model_fields(sim_imu, IMU_SIM_ERRORS))

@@ -18,7 +18,6 @@ import math
 import os
 import re
 import tempfile
-import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
@@ -28,6 +27,7 @@ from urllib.parse import urlsplit
 import numpy as np
 
 from bench.errors import RigError
+from bench.rig_table import RigTable, read_rig_toml
 
 REPO = Path(__file__).resolve().parents[1]
 ROLES = ("esc", "load_cell", "power", "rpm")
@@ -231,76 +231,7 @@ class RigConfig:
 
 
 # --- loading --------------------------------------------------------------------------------
-class _Table:
-    """A TOML table with its location, for error messages that name file and field."""
-
-    def __init__(self, path: Path, where: str, data: Any) -> None:
-        self.path, self.where = path, where
-        if not isinstance(data, dict):
-            self.fail("", f"expected a table, got {type(data).__name__}")
-        self.data: dict[str, Any] = data
-
-    def fail(self, key: str, msg: str) -> RigError:
-        """Raise the RigError for ``key`` of this table (return type eases type checking)."""
-        where = f"[{self.where}] " if self.where else ""
-        raise RigError(f"{self.path}: {where}{key}: {msg}".replace(" : ", ": "))
-
-    def only(self, *allowed: str) -> None:
-        for key in self.data:
-            if key not in allowed:
-                self.fail(key, f"unknown key; expected one of {', '.join(allowed)}")
-
-    def table(self, key: str, required: bool = True) -> _Table | None:
-        if key not in self.data:
-            if required:
-                self.fail(key, "missing table")
-            return None
-        return _Table(self.path, f"{self.where}.{key}" if self.where else key, self.data[key])
-
-    def text(self, key: str, default: str | None = None) -> str:
-        if key not in self.data:
-            if default is None:
-                self.fail(key, "missing; expected a string")
-            return default  # type: ignore[return-value]
-        value = self.data[key]
-        if not isinstance(value, str) or not value.strip():
-            self.fail(key, f"expected a non-empty string, got {value!r}")
-        return value
-
-    def number(self, key: str, default: float | None = None, *, required: bool = False,
-               lo: float = -math.inf, hi: float = math.inf, unit: str = "") -> float | None:
-        if key not in self.data:
-            if required:
-                self.fail(key, f"missing; expected a number{' in ' + unit if unit else ''}")
-            return default
-        value = self.data[key]
-        is_number = isinstance(value, int | float) and not isinstance(value, bool)
-        if not is_number or not math.isfinite(value):
-            self.fail(key, f"expected a number, got {value!r}")
-        if not lo <= value <= hi:
-            self.fail(key, f"{value} {unit}".rstrip() + f" outside {lo:g}-{hi:g} {unit}".rstrip())
-        return float(value)
-
-    def flag(self, key: str, default: bool) -> bool:
-        value = self.data.get(key, default)
-        if not isinstance(value, bool):
-            self.fail(key, f"expected true or false, got {value!r}")
-        return value
-
-
-def _read_toml(path: Path) -> dict[str, Any]:
-    try:
-        with path.open("rb") as fh:
-            return tomllib.load(fh)
-    except FileNotFoundError:
-        raise RigError(f"{path}: rig file not found") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise RigError(f"{path}: not valid TOML: {exc}") from None
-    except OSError as exc:
-        raise RigError(f"{path}: cannot read rig file: {exc}") from None
-
-
-def _device(top: _Table, role: str) -> DeviceConfig:
+def _device(top: RigTable, role: str) -> DeviceConfig:
     t = top.table(role)
     assert t is not None
     t.only("url", "channel", "calibration", "options")
@@ -321,7 +252,7 @@ def _device(top: _Table, role: str) -> DeviceConfig:
     return DeviceConfig(url, channel, calibration, dict(opts.data) if opts else {})
 
 
-def _limits(path: Path, t: _Table) -> Limits:
+def _limits(path: Path, t: RigTable) -> Limits:
     t.only(*(f.name for f in fields(Limits) if f.name != "source"))
     vals = {
         "thrust_n": t.number("thrust_n", required=True, lo=0.0, unit="N"),
@@ -337,7 +268,7 @@ def _limits(path: Path, t: _Table) -> Limits:
     return Limits(**vals, source=str(path))  # type: ignore[arg-type]
 
 
-def _esc(t: _Table | None) -> EscConfig:
+def _esc(t: RigTable | None) -> EscConfig:
     if t is None:
         return EscConfig()
     t.only(*(f.name for f in fields(EscConfig)))
@@ -361,7 +292,7 @@ def _esc(t: _Table | None) -> EscConfig:
     return cfg
 
 
-def _sim(t: _Table | None, esc_mode: str) -> SimConfig:
+def _sim(t: RigTable | None, esc_mode: str) -> SimConfig:
     from drivers.sim.plant import PlantParams
     from drivers.sim.sensors import SensorParams
 
@@ -392,7 +323,7 @@ def _sim(t: _Table | None, esc_mode: str) -> SimConfig:
                      overrides["plant"], overrides["sensors"])
 
 
-def _components(path: Path, t: _Table) -> Components:
+def _components(path: Path, t: RigTable) -> Components:
     keys = [f.name for f in fields(Components)]
     t.only(*keys)
     comp = Components(**{k: t.text(k) for k in keys})
@@ -448,7 +379,7 @@ def _read_thrust_map(path: Path) -> ThrustMap:
 def load_rig(path: str | os.PathLike[str]) -> RigConfig:
     """Read and validate a rig file; raises ``RigError`` naming file and field."""
     path = Path(path).resolve()
-    top = _Table(path, "", _read_toml(path))
+    top = RigTable(path, "", read_rig_toml(path))
     top.only("rig", "devices", "limits", "components", "esc", "sim", "thrust_map")
     rig = top.table("rig")
     assert rig is not None
@@ -499,7 +430,7 @@ def _copy_text(rig: RigConfig, map_name: str) -> str:
     rig file, so the thrust map is the only path that depends on where the file lies.
     """
     raw = rig.path.read_text(encoding="utf-8")
-    data = _read_toml(rig.path)
+    data = read_rig_toml(rig.path)
     if "thrust_map" not in data:
         return raw.rstrip("\n") + f"\n\n[thrust_map]\nfile = {json.dumps(map_name)}\n"
     lines = raw.splitlines(keepends=True)
@@ -556,7 +487,7 @@ def save_thrust_map(rig: RigConfig, command_us: Sequence[float], thrust_n: Seque
     tm = _write_map_csv(target, command_us, thrust_n)
     if rig.thrust_map_path != target:
         raw = rig.path.read_text(encoding="utf-8")
-        if "thrust_map" in _read_toml(rig.path):
+        if "thrust_map" in read_rig_toml(rig.path):
             raise RigError(f"{rig.path}: [thrust_map] names {rig.thrust_map_path}; "
                            f"refusing to repoint it to {target}")
         rel = os.path.relpath(target, rig.path.parent)
