@@ -215,3 +215,21 @@ def test_calibrate_ranges_must_be_positive(tmp_path: Path, capsys, flag: str) ->
                   str(tmp_path / "cal.json"), flag, "0")
     assert f"{flag}: expected a number > 0, got 0" in err
     assert not (tmp_path / "cal.json").exists()
+
+
+# --- default outputs stay out of the repository's status ----------------------------------
+
+
+def test_default_outputs_are_git_ignored(tmp_path: Path) -> None:
+    """Run from a checkout, the commands' default outputs (./runs, ./demo-out of `make demo`,
+    ./report-<run id>) must not show up as untracked files."""
+    import shutil
+    import subprocess
+
+    repo = Path(__file__).resolve().parents[1]
+    if shutil.which("git") is None or not (repo / ".git").exists():
+        pytest.skip("not a git checkout")
+    paths = ["runs/x/run.json", "demo-out/tables/x.csv", "report-20260101T000000Z-step1/x.png"]
+    proc = subprocess.run(["git", "-C", str(repo), "check-ignore", "--no-index", *paths],
+                          capture_output=True, text=True, check=False)
+    assert sorted(proc.stdout.split()) == sorted(paths), proc.stderr
