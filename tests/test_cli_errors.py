@@ -233,3 +233,28 @@ def test_default_outputs_are_git_ignored(tmp_path: Path) -> None:
     proc = subprocess.run(["git", "-C", str(repo), "check-ignore", "--no-index", *paths],
                           capture_output=True, text=True, check=False)
     assert sorted(proc.stdout.split()) == sorted(paths), proc.stderr
+
+
+# --- attitude ------------------------------------------------------------------------------
+
+
+def _imu_log(path: Path) -> Path:
+    rows = "\n".join(f"{i * 0.01:.2f},0,0,0,0,0,9.81" for i in range(50))
+    path.write_text("t_s,gyro_x_rad_s,gyro_y_rad_s,gyro_z_rad_s,acc_x_m_s2,acc_y_m_s2,"
+                    "acc_z_m_s2\n" + rows + "\n")
+    return path
+
+
+def test_attitude_negative_bias_seconds(tmp_path: Path, capsys) -> None:
+    log = _imu_log(tmp_path / "imu.csv")
+    err = run_bad(capsys, "attitude", str(log), "--bias-seconds", "-1")
+    assert "--bias-seconds: expected a number of seconds >= 0, got -1" in err
+
+
+def test_attitude_without_reference_says_how_to_get_the_estimate(tmp_path: Path,
+                                                                 capsys) -> None:
+    """Without a reference quaternion and without --out the command printed only a header."""
+    log = _imu_log(tmp_path / "imu.csv")
+    assert main(["attitude", str(log)]) == 0
+    out = " ".join(capsys.readouterr().out.split())
+    assert "no reference attitude in the log" in out and "--out FILE" in out

@@ -50,6 +50,9 @@ def handler(args: argparse.Namespace) -> int:
         raise LogError(f"--gain: P_err must be in [0, 1], got {args.gain}")
     if not 0.0 <= args.acc_lowpass < 1.0:
         raise LogError(f"--acc-lowpass: G_a must be in [0, 1), got {args.acc_lowpass}")
+    if not (math.isfinite(args.bias_seconds) and args.bias_seconds >= 0):
+        raise LogError(f"--bias-seconds: expected a number of seconds >= 0, "
+                       f"got {args.bias_seconds:g}")
     df = load_attitude_log(args.log)
     t = df["t_s"].to_numpy()
     gyro = df[list(GYRO_COLUMNS)].to_numpy()
@@ -76,6 +79,9 @@ def handler(args: argparse.Namespace) -> int:
         table.add_row(*(f"{math.degrees(v):.3f}°" for v in
                         (e.roll_rms, e.pitch_rms, e.inclination_rms)), str(e.samples))
         console.print(table)
+    elif args.out is None:
+        console.print("no reference attitude in the log (ref_qw..ref_qz) to compare with; "
+                      "--out FILE writes the estimate")
     if args.out is not None:
         rpy = quat.to_euler(q)
         u = quat.controller_input(q)
