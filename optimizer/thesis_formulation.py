@@ -39,6 +39,7 @@ import numpy as np
 
 from optimizer.catalog import Catalog
 from optimizer.errors import RequestError
+from optimizer.grid import METRIC_KEYS
 from optimizer.model import (
     design_record,
     evaluate_grid,
@@ -126,20 +127,6 @@ def _exact_value(terms: tuple[tuple[str, float], ...], get: Any) -> Any:
     if len(terms) == 1 and terms[0][1] == 1.0:
         return get(_EXACT_METRIC[terms[0][0]][0])
     return sum(w * get(_WEIGHTED_SI[n][0]) * _WEIGHTED_SI[n][1] for n, w in terms)
-
-
-_LINEARISED_KEYS = (
-    "flight_time_min",
-    "time_constant_ms",
-    "price",
-    "total_mass_kg",
-    "hover_rpm",
-    "propeller_power_w",
-    "power_w",
-    "current_a",
-    "roll_inertia_kgm2",
-    "pitch_inertia_kgm2",
-)
 
 
 @dataclass(frozen=True)
@@ -244,7 +231,7 @@ class ThesisResult:
             "battery": self.battery,
             "objective_value": self.objective_value,
             "linearised": self.linearised,
-            "exact": {k: self.exact[k] for k in _LINEARISED_KEYS if k in self.exact},
+            "exact": {k: self.exact[k] for k in METRIC_KEYS if k in self.exact},
             "relative_error": self.errors,
             "n_vars": self.n_vars,
             "n_binary": self.n_binary,
