@@ -437,6 +437,26 @@ def _feasible(grid: DesignGrid, checks: Sequence[Check]) -> np.ndarray:
     return ok
 
 
+def _design_at(grid: DesignGrid, index: tuple[int, int, int]) -> dict[str, Any]:
+    """The ``DesignResult`` fields that name design ``index`` of ``grid`` and its metrics."""
+    i, j, k = index
+    metrics = {
+        key: float(np.broadcast_to(np.asarray(grid.metrics[key], float), grid.shape)[i, j, k])
+        for key in METRIC_KEYS
+        if key in grid.metrics
+    }
+    return dict(index=(i, j, k), propeller=grid.propeller_ids[i], motor=grid.motor_ids[j],
+                battery=grid.battery_ids[k], metrics=metrics)
+
+
+def _no_design(grid: DesignGrid, checks: Sequence[Check], cost: np.ndarray,
+               reason_prefix: str = "") -> dict[str, Any]:
+    """The ``DesignResult`` fields of an actuator count without a feasible design."""
+    reason, detail = explain_infeasible(grid, checks, cost)
+    return dict(feasible=False, index=None, propeller=None, motor=None, battery=None,
+                metrics={}, cost=math.nan, reason=reason_prefix + reason, closest=detail)
+
+
 def _result(
     grid: DesignGrid,
     checks: Sequence[Check],
@@ -457,20 +477,7 @@ def _result(
         mip_gap=outcome.mip_gap,
     )
     if outcome.index is None:
-        reason, detail = explain_infeasible(grid, checks, cost)
-        return DesignResult(
-            feasible=False,
-            index=None,
-            propeller=None,
-            motor=None,
-            battery=None,
-            metrics={},
-            cost=math.nan,
-            status=outcome.status,
-            reason=reason,
-            closest=detail,
-            **common,
-        )
+        return DesignResult(**_no_design(grid, checks, cost), status=outcome.status, **common)
     tied = tied_set(cost, ok, outcome.value)
     if outcome.status != "optimal":
         # time limit with an incumbent: report it as found, not as proven optimal
@@ -482,18 +489,9 @@ def _result(
         )
     chosen = break_ties(grid, tied, objective)
     i, j, k = (int(x) for x in np.unravel_index(chosen, grid.shape))
-    metrics = {
-        key: float(np.broadcast_to(np.asarray(grid.metrics[key], float), grid.shape)[i, j, k])
-        for key in METRIC_KEYS
-        if key in grid.metrics
-    }
     return DesignResult(
         feasible=True,
-        index=(i, j, k),
-        propeller=grid.propeller_ids[i],
-        motor=grid.motor_ids[j],
-        battery=grid.battery_ids[k],
-        metrics=metrics,
+        **_design_at(grid, (i, j, k)),
         cost=float(np.asarray(cost).ravel()[chosen]),
         status=outcome.status,
         n_tied=int(tied.size),
@@ -596,54 +594,32 @@ def _select_thesis(
             **options,
         )
         wall = time.perf_counter() - start
+        common = dict(
+            actuators=grid.n_actuators,
+            solve_time_s=res.solve_time_s,
+            grid_time_s=gtime,
+            method="thesis",
+            status=res.status,
+            n_candidates=int(ok.sum()),
+            n_designs=int(np.prod(grid.shape)),
+            mip_gap=res.mip_gap,
+        )
         if res.index is None:
-            reason, detail = explain_infeasible(grid, checks, cost)
             designs.append(
                 DesignResult(
-                    actuators=grid.n_actuators,
-                    feasible=False,
-                    index=None,
-                    propeller=None,
-                    motor=None,
-                    battery=None,
-                    metrics={},
-                    cost=math.nan,
-                    solve_time_s=res.solve_time_s,
-                    grid_time_s=gtime,
-                    method="thesis",
-                    status=res.status,
-                    n_candidates=int(ok.sum()),
-                    n_designs=int(np.prod(grid.shape)),
-                    mip_gap=res.mip_gap,
-                    reason=f"thesis formulation: {reason}",
-                    closest=detail,
+                    **_no_design(grid, checks, cost, "thesis formulation: "),
+                    **common,
                     extra={"thesis_wall_time_s": wall},
                 )
             )
             continue
         i, j, k = res.index
-        metrics = {
-            key: float(np.asarray(grid.metrics[key])[i, j, k])
-            for key in METRIC_KEYS
-            if key in grid.metrics
-        }
         designs.append(
             DesignResult(
-                actuators=grid.n_actuators,
                 feasible=bool(ok[i, j, k]),
-                index=(i, j, k),
-                propeller=grid.propeller_ids[i],
-                motor=grid.motor_ids[j],
-                battery=grid.battery_ids[k],
-                metrics=metrics,
+                **_design_at(grid, (i, j, k)),
                 cost=float(cost[i, j, k]),
-                solve_time_s=res.solve_time_s,
-                grid_time_s=gtime,
-                method="thesis",
-                status=res.status,
-                n_candidates=int(ok.sum()),
-                n_designs=int(np.prod(grid.shape)),
-                mip_gap=res.mip_gap,
+                **common,
                 reason=None if ok[i, j, k] else "thesis choice violates an exact check",
                 extra={
                     "linearised": dict(res.linearised),
