@@ -13,11 +13,11 @@ from bench.cli import main
 def run_bad(capsys: pytest.CaptureFixture[str], *argv: str) -> str:
     """Run the CLI in-process; assert the user-error contract; return the stderr line."""
     code = main(list(argv))
-    err = capsys.readouterr().err.strip()
-    assert code == 2, err
-    assert len(err.splitlines()) == 1, err
-    assert err.startswith("rotorbench: error: "), err
-    return err
+    raw = capsys.readouterr().err
+    assert code == 2, raw
+    assert raw.count("\n") == 1 and raw.endswith("\n"), repr(raw)  # one line, no blank
+    assert raw.startswith("rotorbench: error: "), repr(raw)
+    return raw.strip()
 
 
 # --- rotorbench import ---------------------------------------------------------------------

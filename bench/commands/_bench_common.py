@@ -152,6 +152,8 @@ def erase_on_user_error(progress: Progress):
     except Exception as exc:
         if getattr(exc, "exit_code", None) is not None:
             progress.live.transient = True
+            if not progress.console.is_interactive:  # a file or pipe: not even a blank line
+                progress.console.quiet = True
         raise
 
 
