@@ -165,6 +165,11 @@ class Sequence:
             if cls is None:
                 raise RigError(f"{source}: steps[{i}].kind: expected one of "
                                f"{sorted(_STEP_TYPES)}, got {kind!r}")
+            known = [f.name for f in dataclasses.fields(cls) if f.name != "kind"]
+            for key in raw:
+                if key != "kind" and key not in known:
+                    raise RigError(f"{source}: steps[{i}].{key}: unknown key for a {kind} "
+                                   f"step; expected {', '.join(known) or 'none'}")
             for f in dataclasses.fields(cls):
                 value = raw.get(f.name)
                 if f.name in raw and "float" in str(f.type):
@@ -259,6 +264,7 @@ def step1(
     """
     low, high = band_n or hover_band_n()
     _check_repeats(repeats)
+    _check_hold(hold_s)
     steps: list[Step] = _spin_up(low, settle_s)
     for i in range(repeats):
         steps += [Checkpoint(f"repeat {i + 1}"), ThrustStep(high, hold_s), ThrustStep(low, hold_s)]
@@ -290,6 +296,7 @@ def step2(
     """
     low, high = band_n or hover_band_n()
     _check_repeats(repeats)
+    _check_hold(hold_s)
     span = high - low
     steps: list[Step] = _spin_up(low, settle_s)
     for i in range(repeats):
@@ -321,6 +328,9 @@ def sweep(start_us: float = 1100.0, end_us: float = 1900.0, duration_s: float = 
     """
     if not end_us > start_us:
         raise RigError(f"sweep: end_us ({end_us}) must be above start_us ({start_us})")
+    if not (math.isfinite(duration_s) and duration_s > 0):
+        # a zero-length ramp would be a full-range throttle step, not a sweep
+        raise RigError(f"sweep: duration must be a time > 0 s, got {duration_s:g}")
     steps: tuple[Step, ...] = (
         Arm(),
         Tare(0.5),
@@ -343,6 +353,11 @@ def sweep(start_us: float = 1100.0, end_us: float = 1900.0, duration_s: float = 
 def _check_repeats(repeats: int) -> None:
     if repeats < 1:
         raise RigError(f"--repeats: expected a positive integer, got {repeats}")
+
+
+def _check_hold(hold_s: float) -> None:
+    if not (math.isfinite(hold_s) and hold_s > 0):
+        raise RigError(f"--hold: expected a time > 0 s per level, got {hold_s:g}")
 
 
 # --- compiled plan -------------------------------------------------------------------------

@@ -258,3 +258,19 @@ def test_attitude_without_reference_says_how_to_get_the_estimate(tmp_path: Path,
     assert main(["attitude", str(log)]) == 0
     out = " ".join(capsys.readouterr().out.split())
     assert "no reference attitude in the log" in out and "--out FILE" in out
+
+
+def test_step_table_with_an_unknown_key(tmp_path: Path, capsys) -> None:
+    seq = tmp_path / "recipe.toml"
+    text = _RECIPE.format(limits="{}").replace("end_us = 1400.0", "end_us = 1400.0\nwobble = 1")
+    seq.write_text(text)
+    err = run_bad(capsys, "step", "--sequence", str(seq), "--dry-run")
+    assert "recipe.toml: steps[1].wobble: unknown key for a ramp step; expected end_us" in err
+
+
+@pytest.mark.parametrize("argv", [["sweep", "--duration", "0"], ["sweep", "--duration", "nan"],
+                                  ["step", "--hold", "0"]])
+def test_zero_length_ramp_or_hold_is_refused(argv: list[str], capsys) -> None:
+    """`sweep --duration 0` planned a 1100 -> 1900 us step as a 'sweep'."""
+    err = run_bad(capsys, *argv, "--dry-run")
+    assert "expected a time > 0 s" in err or "must be a time > 0 s" in err
