@@ -274,3 +274,16 @@ def test_zero_length_ramp_or_hold_is_refused(argv: list[str], capsys) -> None:
     """`sweep --duration 0` planned a 1100 -> 1900 us step as a 'sweep'."""
     err = run_bad(capsys, *argv, "--dry-run")
     assert "expected a time > 0 s" in err or "must be a time > 0 s" in err
+
+
+@pytest.mark.parametrize(("content", "expected"), [
+    (b'[rig]\nkind = "imu"\nname = = 1\n', "not valid TOML: Invalid value (at line 3"),
+    (b"\xac\x00\xff garbage", "not valid TOML: 'utf-8' codec can't decode"),
+])
+def test_calibrate_broken_rig_file_is_reported_as_broken(tmp_path: Path, capsys,
+                                                         content: bytes, expected: str) -> None:
+    """A syntax error was reported as 'not an IMU-bench rig', garbage bytes as a traceback."""
+    rig = tmp_path / "imu.toml"
+    rig.write_bytes(content)
+    err = run_bad(capsys, "calibrate", "--rig", str(rig), "--dry-run")
+    assert f"{rig}: {expected}" in err

@@ -13,6 +13,7 @@ import argparse
 import math
 import sys
 import threading
+import tomllib
 
 import numpy as np
 from rich.console import Console
@@ -41,12 +42,24 @@ __all__ = ["run_on_rig"]
 
 def _load(args: argparse.Namespace):
     path = args.rig or default_imu_rig_path()
+    if path.is_file():
+        _check_toml(path)  # a broken file is reported as broken, not as the wrong kind
     if path.is_file() and not is_imu_rig(path):
         raise RigError(f"{path}: [rig] kind: not an IMU-bench rig; `rotorbench calibrate` "
                        "needs a rig file with [rig] kind = \"imu\" (see fixtures/rigs/"
                        "sim-imu.toml)")
     rig = load_imu_rig(path)
     return rig.with_seed(args.seed) if args.seed is not None else rig
+
+
+def _check_toml(path) -> None:
+    try:
+        with path.open("rb") as fh:
+            tomllib.load(fh)
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise RigError(f"{path}: not valid TOML: {exc}") from None
+    except OSError as exc:
+        raise RigError(f"{path}: cannot read rig file: {exc.strerror or exc}") from None
 
 
 def run_on_rig(args: argparse.Namespace) -> int:
