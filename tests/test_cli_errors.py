@@ -287,3 +287,12 @@ def test_calibrate_broken_rig_file_is_reported_as_broken(tmp_path: Path, capsys,
     rig.write_bytes(content)
     err = run_bad(capsys, "calibrate", "--rig", str(rig), "--dry-run")
     assert f"{rig}: {expected}" in err
+
+
+def test_calibrate_runs_folder_is_a_file(tmp_path: Path, capsys) -> None:
+    f = tmp_path / "notes.txt"
+    f.write_text("keep me")
+    err = run_bad(capsys, "calibrate", "--quick", "--runs", str(f), "--out",
+                  str(tmp_path / "cal.json"))
+    assert "--runs" in err and "notes.txt: cannot create the run folder" in err
+    assert f.read_text() == "keep me" and not (tmp_path / "cal.json").exists()

@@ -24,7 +24,7 @@ from analysis.imu_calibration import Calibration
 from analysis.imu_log import load_calibration_log
 from bench.calibration_sequences import HexapodPlan, HexapodSegment, format_plan, paper_a_sequences
 from bench.calibration_session import CalibrationRun, collect_log, plans_for, run_calibration
-from bench.commands._bench_common import _sigterm_as_interrupt, err_console
+from bench.commands._bench_common import _sigterm_as_interrupt, erase_on_user_error, err_console
 from bench.commands.calibrate import (
     _check_out,
     calibrate_frame,
@@ -78,7 +78,11 @@ def run_on_rig(args: argparse.Namespace) -> int:
     _check_out(args)
     session = new_run_id("calibration")
     out = args.out or args.runs / f"{session}.json"
-    args.runs.mkdir(parents=True, exist_ok=True)
+    try:
+        args.runs.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise RigError(f"--runs {args.runs}: cannot create the run folder "
+                       f"({exc.strerror or exc})") from None
     run = _run_with_progress(rig, plans, args, options, session)
     console = Console()
     _print_stages(run, console)
@@ -125,7 +129,7 @@ def _run_with_progress(rig, plans: list[HexapodPlan], args: argparse.Namespace,
 
     meta = {"command_line": ["rotorbench", *sys.argv[1:]], "calibration_session": session,
             "quick": bool(args.quick)}
-    with progress, _sigterm_as_interrupt(stop, False):
+    with progress, _sigterm_as_interrupt(stop, False), erase_on_user_error(progress):
         return run_calibration(rig, args.runs, quick=args.quick, options=options,
                                sequences=[p.sequence for p in plans], on_stage=on_stage,
                                on_progress=on_progress, stop_event=stop, extra_meta=meta)
