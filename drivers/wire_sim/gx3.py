@@ -13,6 +13,7 @@ from collections.abc import Callable
 
 from drivers.codecs import gx3
 from drivers.wire_sim.pty_port import PtyDevice
+from drivers.wire_sim.pty_sim import PtySimulator
 
 Vec3 = tuple[float, float, float]
 ImuModel = Callable[[float], tuple[Vec3, Vec3, Vec3]]
@@ -22,7 +23,7 @@ _REQUEST_LENGTH = {gx3.SET_CONTINUOUS: 4, gx3.STOP_CONTINUOUS: 3, gx3.DEVICE_RES
                    gx3.CAPTURE_GYRO_BIAS: 5, gx3.DEVICE_ID: 2}
 
 
-class SimGx3:
+class SimGx3(PtySimulator):
     """Simulated IMU; ``stream_cmd`` is the packet in continuous mode (or None)."""
 
     def __init__(self, imu: ImuModel, *, period_s: float = 0.01) -> None:
@@ -34,17 +35,6 @@ class SimGx3:
         self._t0 = time.monotonic()
         self._next = 0.0
         self.port = PtyDevice(self.handle, tick=self.tick, tick_s=period_s / 4)
-
-    @property
-    def path(self) -> str:
-        return self.port.path
-
-    def start(self) -> SimGx3:
-        self.port.start()
-        return self
-
-    def stop(self) -> None:
-        self.port.stop()
 
     def _packet(self, cmd: int) -> bytes:
         t = time.monotonic() - self._t0

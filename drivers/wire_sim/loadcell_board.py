@@ -12,9 +12,10 @@ from collections.abc import Callable, Mapping
 
 from drivers.codecs.loadcell_lines import LineLayout
 from drivers.wire_sim.pty_port import PtyDevice
+from drivers.wire_sim.pty_sim import PtySimulator
 
 
-class SimLoadcellBoard:
+class SimLoadcellBoard(PtySimulator):
     def __init__(self, layout: LineLayout, model: Callable[[float], Mapping[str, float]], *,
                  period_s: float = 0.004, header: str = "", eol: str = "\r\n") -> None:
         self.layout = layout
@@ -26,17 +27,6 @@ class SimLoadcellBoard:
         self._t0 = time.monotonic()
         self._next = 0.0
         self.port = PtyDevice(self.handle, tick=self.tick, tick_s=period_s / 4)
-
-    @property
-    def path(self) -> str:
-        return self.port.path
-
-    def start(self) -> SimLoadcellBoard:
-        self.port.start()
-        return self
-
-    def stop(self) -> None:
-        self.port.stop()
 
     def handle(self, data: bytes) -> bytes:
         if self.started:

@@ -16,6 +16,7 @@ from collections.abc import Callable
 
 from drivers.codecs import msp
 from drivers.wire_sim.pty_port import PtyDevice
+from drivers.wire_sim.pty_sim import PtySimulator
 
 Vec3 = tuple[float, float, float]
 ImuModel = Callable[[float], tuple[Vec3, Vec3, Vec3]]
@@ -25,7 +26,7 @@ def _i16(x: float) -> int:
     return max(-(2**15), min(2**15 - 1, round(x)))
 
 
-class SimFlightController:
+class SimFlightController(PtySimulator):
     """MSP responder; ``armed`` switches SET_MOTOR off like the real firmware."""
 
     def __init__(self, imu: ImuModel, *, acc_1g: int = 2048, motor_count: int = 4,
@@ -41,17 +42,6 @@ class SimFlightController:
         self._t0 = time.monotonic()
         self._lock = threading.Lock()
         self.port = PtyDevice(self.handle)
-
-    @property
-    def path(self) -> str:
-        return self.port.path
-
-    def start(self) -> SimFlightController:
-        self.port.start()
-        return self
-
-    def stop(self) -> None:
-        self.port.stop()
 
     def motors(self) -> list[int]:
         """What the motors get now: motor-test values only while disarmed (§1.7)."""
