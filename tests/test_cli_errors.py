@@ -296,3 +296,15 @@ def test_calibrate_runs_folder_is_a_file(tmp_path: Path, capsys) -> None:
                   str(tmp_path / "cal.json"))
     assert "--runs" in err and "notes.txt: cannot create the run folder" in err
     assert f.read_text() == "keep me" and not (tmp_path / "cal.json").exists()
+
+
+# --- export, fit, report, check options ----------------------------------------------------
+
+
+@pytest.mark.parametrize("value", ["-1", "0", "nan"])
+def test_export_hover_thrust_must_be_positive(tmp_path: Path, capsys, value: str) -> None:
+    """--hover-thrust -1 printed MOT_THST_HOVER,-0.0842 (with exit code 0)."""
+    run = _imported_run(tmp_path)
+    capsys.readouterr()
+    err = run_bad(capsys, "export", "ardupilot", str(run), f"--hover-thrust={value}")
+    assert "--hover-thrust: expected a thrust per motor > 0 N" in err

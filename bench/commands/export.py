@@ -39,6 +39,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def _hover(args: argparse.Namespace) -> float | None:
     if args.hover_thrust is not None:
+        if not (np.isfinite(args.hover_thrust) and args.hover_thrust > 0):
+            raise RigError(f"--hover-thrust: expected a thrust per motor > 0 N, "
+                           f"got {args.hover_thrust:g}")
         return float(args.hover_thrust)
     if args.auw_kg is not None or args.motors is not None:
         if args.auw_kg is None or not args.motors or args.motors < 1 or args.auw_kg <= 0:
@@ -59,11 +62,12 @@ def build(args: argparse.Namespace) -> dict[str, Any]:
     from analysis.static_curves import RPM_TO_RAD_S, command_curve, fit_static_run
     from analysis.step_response import fit_run
 
+    hover = _hover(args)  # options first: a bad one is named before any fit
     record = read_run(args.run)
     thrust_record = read_run(args.thrust_run) if args.thrust_run else None
     if args.target in ("ardupilot", "px4"):
         curve = thrust_curve_from_runs(record, thrust_record)
-        out = ardupilot_params(curve, _hover(args)) if args.target == "ardupilot" \
+        out = ardupilot_params(curve, hover) if args.target == "ardupilot" \
             else px4_params(curve)
         out["command_axis"] = actuator_of(record)[1]
     else:
