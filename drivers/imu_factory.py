@@ -208,7 +208,7 @@ def _serial_imu(rig: Any, role: str, clock: Clock, sim: SimImuRig | None,
                 acc_1g = BTFL_ACC_1G  # documented default; INAV's 1 g is always 512
             dev: Sensor = MspImuSensor(msp_fc.MspImu(
                 client, rate_hz=rate_hz * time_scale, acc_1g=acc_1g, clock=clock,
-                url=spec.url, attitude=False))
+                url=spec.url, attitude=False), rate_hz)
         else:
             from drivers.backends.gx3_imu import Gx3Imu
             from drivers.codecs import gx3

@@ -65,21 +65,54 @@ class PacedClock(SimClock):
     The simulated devices read it (a :class:`SimClock`); ``sleep`` waits on the wall
     clock. It has no listeners: the IMU bench's plant is evaluated at the times asked.
     ``hold()`` stops simulated time while the host uploads a trajectory (see
-    :class:`HeldUploads`).
+    :class:`HeldUploads`). When nobody has read the clock for more than ``max_gap_s`` of
+    wall time (the simulated devices read it every few milliseconds, so the whole process
+    was starved by a loaded machine), only ``max_gap_s`` counts: the simulated world
+    pauses with the computer that simulates it instead of jumping ahead of its devices.
     """
 
-    def __init__(self, time_scale: float = 1.0) -> None:
+    def __init__(self, time_scale: float = 1.0, *, max_gap_s: float = 0.02,
+                 max_pause_s: float = 0.3) -> None:
         super().__init__()
         if not (math.isfinite(time_scale) and time_scale > 0):
             raise DeviceError(f"time_scale {time_scale!r}: expected a positive number")
         self.time_scale = float(time_scale)
-        self._state: tuple[float, int | None] = (time.monotonic(), None)  # (wall0, held ns)
+        self.max_gap_s = float(max_gap_s)
+        self._lock = threading.Lock()
+        self._wall0 = self._last_wall = time.monotonic()
+        self._held: int | None = None
+        self.max_pause_s = float(max_pause_s)
+        self.paused_s = 0.0  # wall time not counted (starved process), for the record
+        self._alive: dict[str, float] = {}
+        self._pause_run = 0.0
+
+    def alive(self, name: str) -> None:
+        """A simulated device ``name`` served its host just now (see :meth:`now_ns`)."""
+        self._alive[name] = time.monotonic()
 
     def now_ns(self) -> int:
-        wall0, held = self._state  # one read: consistent across threads
-        if held is not None:
-            return held
-        return round((time.monotonic() - wall0) * self.time_scale * 1e9)
+        """Bench time. It does not advance through wall time nobody read it in (a starved
+        process), nor while a simulated device that reports :meth:`alive` has been quiet
+        for over ``max_gap_s`` (its thread, or the host thread it serves, is starved),
+        for at most ``max_pause_s`` of wall time in a row: a device that really went
+        silent still goes stale on the bench clock soon after."""
+        with self._lock:
+            if self._held is not None:
+                return self._held
+            wall = time.monotonic()
+            gap = wall - self._last_wall
+            quiet = wall - min(self._alive.values(), default=wall)
+            if quiet > self.max_gap_s and self._pause_run < self.max_pause_s:
+                lost = min(gap, self.max_pause_s - self._pause_run)
+                self._pause_run += lost
+            else:
+                lost = max(0.0, gap - self.max_gap_s)
+                if quiet <= self.max_gap_s:
+                    self._pause_run = 0.0
+            self._wall0 += lost
+            self.paused_s += lost
+            self._last_wall = wall
+            return round((wall - self._wall0) * self.time_scale * 1e9)
 
     def now(self) -> float:
         return self.now_ns() * 1e-9
@@ -87,8 +120,9 @@ class PacedClock(SimClock):
     def sleep(self, seconds: float) -> None:
         if seconds != seconds:  # NaN
             raise DeviceError(f"paced clock: cannot sleep {seconds!r} s")
-        if seconds > 0:
-            time.sleep(seconds / self.time_scale)
+        end = self.now() + seconds
+        while (left := end - self.now()) > 0:  # wall slices: a starved pause is made up
+            time.sleep(min(left / self.time_scale, self.max_gap_s / 2))
 
     def on_advance(self, listener: Any) -> None:
         raise DeviceError("paced clock: the plant runs on the wall clock; no listeners")
@@ -96,13 +130,17 @@ class PacedClock(SimClock):
     @contextlib.contextmanager
     def hold(self) -> Iterator[None]:
         """Simulated time stands still inside the block, then goes on from where it was."""
-        wall = time.monotonic()
         held = self.now_ns()
-        self._state = (self._state[0], held)
+        with self._lock:
+            self._held = held
         try:
             yield
         finally:
-            self._state = (self._state[0] + time.monotonic() - wall, None)
+            with self._lock:
+                wall = time.monotonic()
+                self._wall0 = wall - held * 1e-9 / self.time_scale
+                self._last_wall = wall
+                self._held = None
 
 
 class HeldUploads:
@@ -138,13 +176,14 @@ class HeldUploads:
 class MspImuSensor:
     """An :class:`drivers.backends.msp_fc.MspImu` as the IMU under test (``IMU_CHANNELS``)."""
 
-    def __init__(self, imu: Any) -> None:
+    def __init__(self, imu: Any, rate_hz: float | None = None) -> None:
         self.imu = imu
+        self.rate_hz = imu.rate_hz if rate_hz is None else rate_hz  # of the rig clock
         self._last_t = -math.inf
 
     def describe(self) -> DeviceInfo:
         info = self.imu.describe()
-        rate = self.imu.rate_hz
+        rate = self.rate_hz
         chans = tuple(ChannelInfo(c, "rad/s" if "gyro" in c else "m/s^2", rate)
                       for c in IMU_CHANNELS)
         return DeviceInfo("imu", info.model, info.url, chans,
@@ -249,6 +288,9 @@ class _PlantImu:
         return self._sensor
 
     def __call__(self, _wall_t: float) -> tuple[Any, Any, Any]:
+        alive = getattr(self.clock, "alive", None)
+        if alive is not None:
+            alive("msp")
         with self.lock:
             t = self.clock.now() - self.sim.model.clock_offset_s  # the FC's sensor latency
             truth = self.sim.hexapod.state_at(np.array([t]))
@@ -276,6 +318,7 @@ def start_gx3_peer(sim: SimImuRig, clock: SimClock) -> Any:
 
     ref = sim.reference_imu
     period = 1.0 / ref.rate_hz
+    alive = getattr(clock, "alive", None)
     lock = threading.Lock()
 
     def sample(t: float) -> tuple[Any, Any, Any]:
@@ -307,6 +350,8 @@ def start_gx3_peer(sim: SimImuRig, clock: SimClock) -> Any:
             """Every packet due on the plant clock (a late wakeup sends the backlog)."""
             if self.stream_cmd is None:
                 return b""
+            if alive is not None:
+                alive("gx3")
             out = bytearray()
             for _ in range(_MAX_BURST):  # a starved thread writes what it has, then goes on
                 if self.stream_cmd is None or clock.now() < self._next:

@@ -63,6 +63,7 @@ def bench():
 def test_the_wire_rig_opens_the_real_backends(bench) -> None:
     assert isinstance(bench.imu, MspImuSensor) and isinstance(bench.reference_imu, Gx3Reference)
     assert "BTFL" in bench.imu.describe().model
+    assert {c.rate_hz for c in bench.imu.describe().channels} == {100.0}  # bench time
     assert bench.reference_imu.describe().model == "MicroStrain 3DM-GX3-25"
     assert set(bench.peers) == {"imu", "reference_imu"}
     assert isinstance(bench.clock, PacedClock) and bench.clock.time_scale == 6.0
@@ -117,6 +118,10 @@ def test_paced_clock_runs_at_its_scale_and_holds() -> None:
         time.sleep(0.05)
         assert clock.now() == held
     assert clock.now() - held < 0.1  # goes on from where it stood
+    t1 = clock.now()
+    time.sleep(0.2)  # nobody reads the clock: a starved process
+    assert clock.now() - t1 == pytest.approx(4.0 * clock.max_gap_s, abs=0.02)
+    assert clock.paused_s > 0.15
     with pytest.raises(DeviceError):
         PacedClock(0.0)
 
