@@ -308,3 +308,18 @@ def test_export_hover_thrust_must_be_positive(tmp_path: Path, capsys, value: str
     capsys.readouterr()
     err = run_bad(capsys, "export", "ardupilot", str(run), f"--hover-thrust={value}")
     assert "--hover-thrust: expected a thrust per motor > 0 N" in err
+
+
+@pytest.mark.parametrize("value", ["0", "-1", "nan"])
+def test_fit_window_must_be_positive(tmp_path: Path, capsys, value: str) -> None:
+    """--window nan ended in 'cannot convert float NaN to integer'."""
+    run = _imported_run(tmp_path)
+    capsys.readouterr()
+    err = run_bad(capsys, "fit", str(run), f"--window={value}")
+    assert "--window: expected seconds > 0 after each edge" in err
+
+
+@pytest.mark.parametrize("value", ["0", "-1", "nan"])
+def test_check_timeout_must_be_positive(capsys, value: str) -> None:
+    err = run_bad(capsys, "check", f"--timeout={value}")
+    assert "--timeout: expected seconds > 0 per device" in err

@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 from pathlib import Path
+
+from bench.errors import RigError
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -26,6 +29,8 @@ def handler(args: argparse.Namespace) -> int:
     from bench.rig import default_rig_path, load_rig
     from drivers.rig_check import check_rig
 
+    if not (math.isfinite(args.timeout) and args.timeout > 0):
+        raise RigError(f"--timeout: expected seconds > 0 per device, got {args.timeout:g}")
     rig = load_rig(args.rig or default_rig_path())
     reports = check_rig(rig, timeout_s=args.timeout)
     if args.json:

@@ -4,10 +4,13 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import shutil
 from pathlib import Path
 
 from rich.console import Console
+
+from bench.errors import RigError
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -33,6 +36,8 @@ def handler(args: argparse.Namespace) -> int:
     from analysis.run_record import read_run
     from analysis.step_response import fit_run
 
+    if not (math.isfinite(args.window) and args.window > 0):
+        raise RigError(f"--window: expected seconds > 0 after each edge, got {args.window:g}")
     record = read_run(args.run)
     fit = fit_run(record, signal=args.signal, window_s=args.window,
                   second_order=args.second_order)
