@@ -1,4 +1,4 @@
-"""Fixtures for the driver tests: rig configs and the step-fit helper module."""
+"""Fixtures for the driver tests: rig configs, the step-fit and codec-check helpers."""
 
 from __future__ import annotations
 
@@ -12,12 +12,21 @@ import pytest
 from bench.rig import RigConfig, default_rig_path, load_rig
 
 _NAME = "rotorbench_tests_drivers_stepfit"
-if _NAME not in sys.modules:
-    _spec = importlib.util.spec_from_file_location(_NAME, Path(__file__).with_name("stepfit.py"))
-    assert _spec is not None and _spec.loader is not None
-    _mod = importlib.util.module_from_spec(_spec)
-    sys.modules[_NAME] = _mod
-    _spec.loader.exec_module(_mod)
+
+
+def _load_helper(name: str, filename: str) -> None:
+    """Load a helper module of this folder by path (tests use importlib mode)."""
+    if name in sys.modules:
+        return
+    spec = importlib.util.spec_from_file_location(name, Path(__file__).with_name(filename))
+    assert spec is not None and spec.loader is not None
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[name] = mod
+    spec.loader.exec_module(mod)
+
+
+_load_helper(_NAME, "stepfit.py")
+_load_helper("rotorbench_tests_codec_props", "codec_props.py")  # the codec fuzz tests' checks
 
 
 @pytest.fixture

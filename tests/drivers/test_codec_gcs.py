@@ -2,10 +2,8 @@
 
 from __future__ import annotations
 
-import importlib.util
 import os
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,19 +12,7 @@ from hypothesis import strategies as st
 
 from drivers.codecs import gcs
 
-
-def _props():
-    name = "rotorbench_tests_codec_props"
-    if name not in sys.modules:
-        path = Path(__file__).with_name("codec_props.py")
-        spec = importlib.util.spec_from_file_location(name, path)
-        mod = importlib.util.module_from_spec(spec)
-        sys.modules[name] = mod
-        spec.loader.exec_module(mod)
-    return sys.modules[name]
-
-
-props = _props()
+props = sys.modules["rotorbench_tests_codec_props"]  # codec_props.py, loaded by conftest.py
 T = props.FIXTURES / "gcs"
 # ROTORBENCH_FUZZ_EXAMPLES=5000 for a deeper run than the default 300 per property
 FUZZ = settings(max_examples=int(os.environ.get("ROTORBENCH_FUZZ_EXAMPLES", "300")), deadline=None)

@@ -2,11 +2,9 @@
 
 from __future__ import annotations
 
-import importlib.util
 import os
 import struct
 import sys
-from pathlib import Path
 
 import pytest
 from hypothesis import given, settings
@@ -15,19 +13,7 @@ from hypothesis import strategies as st
 from drivers.codecs import gx3
 from drivers.codecs.transcript import parse_hex_dump
 
-
-def _props():
-    name = "rotorbench_tests_codec_props"
-    if name not in sys.modules:
-        path = Path(__file__).with_name("codec_props.py")
-        spec = importlib.util.spec_from_file_location(name, path)
-        mod = importlib.util.module_from_spec(spec)
-        sys.modules[name] = mod
-        spec.loader.exec_module(mod)
-    return sys.modules[name]
-
-
-props = _props()
+props = sys.modules["rotorbench_tests_codec_props"]  # codec_props.py, loaded by conftest.py
 T = props.FIXTURES / "gx3"
 H = bytes.fromhex
 G = gx3.STANDARD_GRAVITY

@@ -2,11 +2,9 @@
 
 from __future__ import annotations
 
-import importlib.util
 import math
 import os
 import sys
-from pathlib import Path
 
 import pytest
 from hypothesis import given, settings
@@ -16,19 +14,7 @@ from drivers.codecs import msp
 from drivers.codecs.checksums import crc8_dvb_s2
 from drivers.codecs.transcript import parse_hex_dump
 
-
-def _props():
-    name = "rotorbench_tests_codec_props"
-    if name not in sys.modules:
-        path = Path(__file__).with_name("codec_props.py")
-        spec = importlib.util.spec_from_file_location(name, path)
-        mod = importlib.util.module_from_spec(spec)
-        sys.modules[name] = mod
-        spec.loader.exec_module(mod)
-    return sys.modules[name]
-
-
-props = _props()
+props = sys.modules["rotorbench_tests_codec_props"]  # codec_props.py, loaded by conftest.py
 T = props.FIXTURES / "msp"
 H = bytes.fromhex
 # ROTORBENCH_FUZZ_EXAMPLES=5000 for a deeper run than the default 300 per property
