@@ -323,3 +323,17 @@ def test_fit_window_must_be_positive(tmp_path: Path, capsys, value: str) -> None
 def test_check_timeout_must_be_positive(capsys, value: str) -> None:
     err = run_bad(capsys, "check", f"--timeout={value}")
     assert "--timeout: expected seconds > 0 per device" in err
+
+
+@pytest.mark.parametrize("bad", [("--kv", "nan"), ("--r-ohm", "0"), ("--j-kg-m2", "-1")])
+def test_report_motor_parameters_must_be_positive(tmp_path: Path, capsys,
+                                                  bad: tuple[str, str]) -> None:
+    """--kv nan ended in a ValueError traceback."""
+    run = _imported_run(tmp_path)
+    capsys.readouterr()
+    given = {"--kv": "920", "--r-ohm": "0.1", "--j-kg-m2": "1e-5"} | {bad[0]: bad[1]}
+    argv = [x for kv in given.items() for x in kv]
+    err = run_bad(capsys, "report", str(run), *argv, "--out", str(tmp_path / "rep"))
+    assert f"{bad[0]}: expected a number > 0, got {bad[1]}" in err
+    assert not (tmp_path / "rep").exists()
+    assert not (tmp_path / ".rep.tmp").exists()

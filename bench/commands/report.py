@@ -44,6 +44,9 @@ def _motor(args: argparse.Namespace, records: list[Any]):
 
     given = (args.kv, args.r_ohm, args.j_kg_m2)
     if all(v is not None for v in given):
+        for flag, value in zip(("--kv", "--r-ohm", "--j-kg-m2"), given, strict=True):
+            if not (math.isfinite(value) and value > 0):
+                raise RigError(f"{flag}: expected a number > 0, got {value:g}")
         return MotorParams(args.kv, args.r_ohm, args.j_kg_m2)
     if any(v is not None for v in given):
         raise RigError("--kv, --r-ohm and --j-kg-m2 go together")
