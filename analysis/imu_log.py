@@ -176,6 +176,8 @@ def write_table(df: pd.DataFrame, path: str | Path) -> Path:
         raise LogError(f"{path}: output must end in .csv or .parquet")
     if not path.parent.is_dir():
         raise LogError(f"{path}: folder {path.parent} does not exist")
+    if path.is_dir():
+        raise LogError(f"{path}: is a folder; expected the name of the file to write")
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     os.close(fd)
     try:

@@ -337,3 +337,21 @@ def test_report_motor_parameters_must_be_positive(tmp_path: Path, capsys,
     assert f"{bad[0]}: expected a number > 0, got {bad[1]}" in err
     assert not (tmp_path / "rep").exists()
     assert not (tmp_path / ".rep.tmp").exists()
+
+
+def test_output_named_like_an_existing_folder(tmp_path: Path, capsys) -> None:
+    """A folder where the output file should go ended in IsADirectoryError at the rename."""
+    log = _imu_log(tmp_path / "imu.csv")
+    (tmp_path / "est.parquet").mkdir()
+    (tmp_path / "cal.json").mkdir()
+    err = run_bad(capsys, "attitude", str(log), "--out", str(tmp_path / "est.parquet"))
+    assert "est.parquet: is a folder" in err
+    err = run_bad(capsys, "calibrate", "--simulate-log", str(tmp_path / "est.parquet"),
+                  "--short")
+    assert "est.parquet: is a folder" in err
+    err = run_bad(capsys, "calibrate", "--from-log", str(log), "--out",
+                  str(tmp_path / "cal.json"))
+    assert "cal.json: is a folder" in err
+    err = run_bad(capsys, "calibrate", "--from-log", str(log), "--figures", str(log))
+    assert "--figures" in err and "imu.csv: is a file; expected a folder" in err
+    assert not list(tmp_path.glob(".*"))  # no temp file left behind

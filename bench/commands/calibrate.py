@@ -108,6 +108,10 @@ def handler(args: argparse.Namespace) -> int:
 def _check_out(args: argparse.Namespace) -> None:
     if args.out is not None and not args.out.parent.is_dir():
         raise LogError(f"{args.out}: folder {args.out.parent} does not exist")
+    if args.out is not None and args.out.is_dir():
+        raise LogError(f"{args.out}: is a folder; expected the name of the JSON to write")
+    if args.figures is not None and args.figures.exists() and not args.figures.is_dir():
+        raise LogError(f"--figures {args.figures}: is a file; expected a folder")
     for flag, value in (("--gyro-range-dps", args.gyro_range_dps),
                         ("--acc-range-g", args.acc_range_g), ("--max-lag", args.max_lag)):
         if not (math.isfinite(value) and value > 0):
@@ -156,6 +160,8 @@ def _simulate(args: argparse.Namespace) -> int:
         raise LogError(f"{args.simulate_log}: simulated log must end in .csv or .parquet")
     if not args.simulate_log.parent.is_dir():
         raise LogError(f"{args.simulate_log}: folder {args.simulate_log.parent} does not exist")
+    if args.simulate_log.is_dir():
+        raise LogError(f"{args.simulate_log}: is a folder; expected the name of the log")
     m = ADIS16400
     seed = 0 if args.seed is None else args.seed
     cols = simulate_calibration_log(m, paper_a_protocol(m.rate_hz, short=args.short),
