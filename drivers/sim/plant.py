@@ -333,23 +333,16 @@ class Plant:
                         or (v_drive - ke * omega) / r_tot < current(omega) - 1e-12
                     ):
                         omega_new = -1.0
-                if omega_new >= 0.0:
-                    i_w = current(omega_new)
-                    theta += 0.5 * h * (omega + omega_new)
-                    omega = omega_new
-                    self.omega, self.theta, self.i_w, self.duty = omega, theta, i_w, d
-                    self.i_bus = self._bus_current(d, i_w, omega) + p.esc_quiescent_a
-                    self.v_bus = p.supply_v - p.supply_r_ohm * self.i_bus
-                    self._append(t0 + m * h)
-                    continue
-                # RK4 on J domega/dt = K_T i - T(omega), i = (d V - K_E omega) / R  (E.4-E.7)
-                k1 = f(omega)
-                k2 = f(omega + 0.5 * h * k1)
-                k3 = f(omega + 0.5 * h * k2)
-                k4 = f(omega + h * k3)
-                omega_new = omega + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
                 if omega_new < 0.0:
-                    omega_new = 0.0  # friction stops the rotor; it never turns backwards
+                    # RK4 on J domega/dt = K_T i - T(omega), i = (d V - K_E omega) / R
+                    # (E.4-E.7)
+                    k1 = f(omega)
+                    k2 = f(omega + 0.5 * h * k1)
+                    k3 = f(omega + 0.5 * h * k2)
+                    k4 = f(omega + h * k3)
+                    omega_new = omega + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+                    if omega_new < 0.0:
+                        omega_new = 0.0  # friction stops the rotor; it never turns backwards
                 i_w = current(omega_new)
             theta += 0.5 * h * (omega + omega_new)
             omega = omega_new
