@@ -30,6 +30,7 @@ _CHECKS: dict[str, tuple[tuple[str, str], ...]] = {
     "temperature_c": (("temperature_c", "above"),),
 }
 LIMIT_FIELDS = ("thrust_n", "current_a", "rpm", "voltage_min_v", "voltage_max_v", "temperature_c")
+_LOWEST_LIMIT = {"temperature_c": -50.0}  # every other limit is >= 0 (as in a rig file)
 _LOWER_BOUNDS = {"voltage_min_v"}  # tightening raises these; every other limit is lowered
 
 
@@ -92,6 +93,10 @@ def effective_limits(rig_limits: Any, sequence_limits: Mapping[str, float],
                            f"{', '.join(LIMIT_FIELDS)}")
         if not math.isfinite(float(value)):
             raise RigError(f"{source}: limits.{key}: expected a finite number, got {value!r}")
+        lowest = _LOWEST_LIMIT.get(key, 0.0)  # the rig file's own lower bounds
+        if float(value) < lowest:
+            raise RigError(f"{source}: limits.{key}: {float(value):g} is below {lowest:g}; "
+                           "a limit is a physical bound, not an offset")
     merged = dict(base)
     tightened = getattr(rig_limits, "tightened", None)
     if callable(tightened) and sequence_limits:

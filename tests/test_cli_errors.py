@@ -355,3 +355,11 @@ def test_output_named_like_an_existing_folder(tmp_path: Path, capsys) -> None:
     err = run_bad(capsys, "calibrate", "--from-log", str(log), "--figures", str(log))
     assert "--figures" in err and "imu.csv: is a file; expected a folder" in err
     assert not list(tmp_path.glob(".*"))  # no temp file left behind
+
+
+def test_negative_limit_is_refused_before_the_run(tmp_path: Path, capsys) -> None:
+    """--limit thrust_n=-1 'tightened' the rig and tripped at t = 0 with a recorded run."""
+    out = tmp_path / "runs"
+    err = run_bad(capsys, "step", "--limit", "thrust_n=-1", "--out", str(out))
+    assert "limits.thrust_n: -1 is below 0" in err
+    assert not out.exists()
