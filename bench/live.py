@@ -9,12 +9,16 @@ pyqtgraph and a Qt binding are the optional ``live`` extra, imported only here.
 
 from __future__ import annotations
 
+import os
 import signal
+import sys
 import threading
 from collections.abc import Callable, Mapping
 from typing import Any, TypeVar
 
 import numpy as np
+
+from bench.errors import RigError
 
 __all__ = ["LIVE_CHANNELS", "LiveView", "RingBuffer", "run_with_live_view"]
 
@@ -130,6 +134,16 @@ class LiveView:
         self.win.close()
 
 
+def check_display() -> None:
+    """Without a display Qt aborts the whole process (SIGABRT, several lines of Qt text):
+    say so in one line before anything is opened."""
+    if not sys.platform.startswith("linux") or os.environ.get("QT_QPA_PLATFORM"):
+        return
+    if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        raise RigError("--live needs a display: neither DISPLAY nor WAYLAND_DISPLAY is set "
+                       "(run without --live, or set QT_QPA_PLATFORM=offscreen)")
+
+
 def run_with_live_view(work: Callable[[Callable[[Mapping[str, np.ndarray]], None]], T],
                        stop_event: threading.Event, rate_hint_hz: float = 25_000.0,
                        window_s: float = 10.0, close_when_done: bool = False,
@@ -139,6 +153,7 @@ def run_with_live_view(work: Callable[[Callable[[Mapping[str, np.ndarray]], None
     Closing the window or Ctrl-C sets ``stop_event`` (the runner stops safely); the
     function returns ``work``'s result or re-raises its exception.
     """
+    check_display()
     names = ("t_s", *[c for c, _, _ in LIVE_CHANNELS], "thrust_setpoint_n")
     ring = RingBuffer(names, int(rate_hint_hz * window_s))
     view = LiveView(ring, window_s=window_s, interval_ms=interval_ms)

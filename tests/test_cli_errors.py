@@ -363,3 +363,17 @@ def test_negative_limit_is_refused_before_the_run(tmp_path: Path, capsys) -> Non
     err = run_bad(capsys, "step", "--limit", "thrust_n=-1", "--out", str(out))
     assert "limits.thrust_n: -1 is below 0" in err
     assert not out.exists()
+
+
+def test_live_without_a_display(tmp_path: Path, capsys, monkeypatch) -> None:
+    """Qt aborted the process (exit 134, Qt's text) when no display was there."""
+    import sys
+
+    if not sys.platform.startswith("linux"):
+        pytest.skip("the display check is for Linux")
+    for var in ("DISPLAY", "WAYLAND_DISPLAY", "QT_QPA_PLATFORM"):
+        monkeypatch.delenv(var, raising=False)
+    out = tmp_path / "runs"
+    err = run_bad(capsys, "step", "--live", "--repeats", "1", "--out", str(out))
+    assert "--live needs a display" in err
+    assert not out.exists()
