@@ -360,7 +360,7 @@ def _make_thrust_map(where: Path | str, command_us: Sequence[float], thrust_n: S
 def _read_thrust_map(path: Path) -> ThrustMap:
     try:
         text = path.read_text(encoding="utf-8")
-    except OSError as exc:
+    except (OSError, UnicodeDecodeError) as exc:
         raise RigError(f"{path}: cannot read thrust map: {exc}") from None
     rows = list(csv.DictReader(io.StringIO(text)))
     if not rows or not {"command_us", "thrust_n"} <= set(rows[0]):
@@ -380,6 +380,11 @@ def load_rig(path: str | os.PathLike[str]) -> RigConfig:
     """Read and validate a rig file; raises ``RigError`` naming file and field."""
     path = Path(path).resolve()
     top = RigTable(path, "", read_rig_toml(path))
+    head = top.data.get("rig")
+    if isinstance(head, dict) and head.get("kind") == "imu":
+        raise RigError(f"{path}: [rig] kind = \"imu\": an IMU-bench rig (hexapod and IMUs); "
+                       "this command needs a propulsion rig (esc, load_cell, power, rpm), e.g. "
+                       "fixtures/rigs/sim.toml; the IMU bench runs with `rotorbench calibrate`")
     top.only("rig", "devices", "limits", "components", "esc", "sim", "thrust_map")
     rig = top.table("rig")
     assert rig is not None

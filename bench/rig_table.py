@@ -81,7 +81,7 @@ def read_rig_toml(path: Path) -> dict[str, Any]:
             return tomllib.load(fh)
     except FileNotFoundError:
         raise RigError(f"{path}: rig file not found") from None
-    except tomllib.TOMLDecodeError as exc:
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:  # bytes that are not text
         raise RigError(f"{path}: not valid TOML: {exc}") from None
     except OSError as exc:
         raise RigError(f"{path}: cannot read rig file: {exc}") from None

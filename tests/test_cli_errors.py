@@ -377,3 +377,32 @@ def test_live_without_a_display(tmp_path: Path, capsys, monkeypatch) -> None:
     err = run_bad(capsys, "step", "--live", "--repeats", "1", "--out", str(out))
     assert "--live needs a display" in err
     assert not out.exists()
+
+
+# --- rig files -----------------------------------------------------------------------------
+
+
+def test_rig_file_or_thrust_map_with_garbage_bytes(tmp_path: Path, capsys,
+                                                   fixtures_dir: Path) -> None:
+    """Bytes that are not UTF-8 ended in a UnicodeDecodeError traceback."""
+    garbage = b"\xac\x00\xff\xfe garbage"
+    rig = tmp_path / "rig.toml"
+    rig.write_bytes(garbage)
+    for argv in (["step", "--dry-run"], ["check"]):
+        err = run_bad(capsys, *argv, "--rig", str(rig))
+        assert f"{rig}: not valid TOML: 'utf-8' codec can't decode" in err
+    text = (fixtures_dir / "rigs" / "sim.toml").read_text()
+    rig.write_text(text)
+    (tmp_path / "sim.thrust_map.csv").write_bytes(garbage)
+    err = run_bad(capsys, "step", "--dry-run", "--rig", str(rig))
+    assert "sim.thrust_map.csv: cannot read thrust map" in err
+
+
+@pytest.mark.parametrize("command", ["step", "sweep", "check"])
+def test_imu_rig_given_to_a_propulsion_command(capsys, fixtures_dir: Path,
+                                               command: str) -> None:
+    """It said 'hexapod: unknown key; expected one of rig, devices, ...'."""
+    rig = fixtures_dir / "rigs" / "sim-imu.toml"
+    extra = ["--dry-run"] if command != "check" else []
+    err = run_bad(capsys, command, "--rig", str(rig), *extra)
+    assert 'kind = "imu": an IMU-bench rig' in err and "rotorbench calibrate" in err
