@@ -177,6 +177,12 @@ class Sequence:
                     if not ok and not (value is None and "None" in str(f.type)):
                         raise RigError(f"{source}: steps[{i}].{f.name}: expected a number, "
                                        f"got {value!r}")
+                    if ok and not math.isfinite(value):
+                        raise RigError(f"{source}: steps[{i}].{f.name}: expected a finite "
+                                       f"number, got {value!r}")
+                    if ok and f.name.endswith("_s") and value < 0:
+                        raise RigError(f"{source}: steps[{i}].{f.name}: expected a time "
+                                       f">= 0 s, got {value!r}")
             try:
                 steps.append(cls(**raw))
             except TypeError as exc:

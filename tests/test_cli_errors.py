@@ -406,3 +406,18 @@ def test_imu_rig_given_to_a_propulsion_command(capsys, fixtures_dir: Path,
     extra = ["--dry-run"] if command != "check" else []
     err = run_bad(capsys, command, "--rig", str(rig), *extra)
     assert 'kind = "imu": an IMU-bench rig' in err and "rotorbench calibrate" in err
+
+
+@pytest.mark.parametrize(("value", "expected"), [
+    ("-1.0", "steps[1].duration_s: expected a time >= 0 s, got -1.0"),
+    ("inf", "steps[1].duration_s: expected a finite number, got inf"),
+    ("nan", "steps[1].duration_s: expected a finite number, got nan"),
+])
+def test_sequence_step_times_name_the_file(tmp_path: Path, capsys, value: str,
+                                           expected: str) -> None:
+    """These were reported as "sequence 'two-steps': steps[1]: ..." without the file."""
+    seq = tmp_path / "recipe.toml"
+    seq.write_text(_RECIPE.format(limits="{}").replace("duration_s = 1.0",
+                                                       f"duration_s = {value}"))
+    err = run_bad(capsys, "step", "--sequence", str(seq), "--dry-run")
+    assert f"{seq}: {expected}" in err
