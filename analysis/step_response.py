@@ -21,6 +21,7 @@ mean of 20 repeats), and compares the two directions by the RMS of their differe
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -444,10 +445,13 @@ def fit_step_response(
     groups: list[DirectionFit] = []
     for (direction, _, _), idx in keys.items():
         rows = [_bin_window(t, y, edges[i].t_s, pre_s, post_s, bin_s) for i in idx]
-        tb = np.nanmean(np.stack([r[0] for r in rows]), axis=0)
         cnt_all = np.stack([r[2] for r in rows])
         y_all = np.stack([r[1] for r in rows])
-        with np.errstate(invalid="ignore"):
+        # bins no edge filled (a slow or multi-rate signal) stay NaN: numpy's "Mean of
+        # empty slice" warning about them is expected, not news for the user
+        with np.errstate(invalid="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            tb = np.nanmean(np.stack([r[0] for r in rows]), axis=0)
             y_mean = np.nanmean(y_all, axis=0) if len(rows) > 1 else y_all[0]
         cnt = cnt_all.sum(axis=0)
         steps = np.array([edges[i].step for i in idx])
