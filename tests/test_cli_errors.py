@@ -447,3 +447,16 @@ def test_fit_multi_rate_run_prints_no_numpy_warning(tmp_path: Path, capsys) -> N
     assert main(["import", str(f), "--format", "csv", "--out", str(tmp_path / "run")]) == 0
     assert main(["fit", str(tmp_path / "run"), "--json"]) == 0
     assert "Warning" not in capsys.readouterr().err
+
+
+def test_check_rig_mixing_sim_and_hardware(tmp_path: Path, capsys, fixtures_dir: Path) -> None:
+    """check listed each sim device as FAIL 'unknown device URL scheme 'sim''; step said
+    what is wrong. Both now say it in one line."""
+    text = (fixtures_dir / "rigs" / "sim.toml").read_text()
+    rig = tmp_path / "mixed.toml"
+    rig.write_text(text.replace('url = "sim://power"', 'url = "nidaq://Dev1/ai1,ai2"'))
+    (tmp_path / "sim.thrust_map.csv").write_text(
+        (fixtures_dir / "rigs" / "sim.thrust_map.csv").read_text())
+    for argv in (["check"], ["step", "--repeats", "1", "--out", str(tmp_path / "runs")]):
+        err = run_bad(capsys, *argv, "--rig", str(rig))
+        assert "[devices.esc] url 'sim://esc': sim:// devices run on the simulated clock" in err
