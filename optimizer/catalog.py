@@ -153,9 +153,13 @@ def _convert(
     missing = [c.name for c in required if c.name not in frame.columns]
     if missing:
         need = ", ".join(c.name for c in required)
+        header = str(frame.columns[0])
+        hint = ""
+        if len(frame.columns) == 1 and any(sep in header for sep in ";\t|"):
+            hint = "; the header is one field: columns must be separated by commas"
         raise CatalogError(
             f"{table.label}: missing column {', '.join(repr(m) for m in missing)} "
-            f"(required: {need})"
+            f"(required: {need}){hint}"
         )
     if len(frame) == 0:
         raise CatalogError(f"{table.label}: no data rows")

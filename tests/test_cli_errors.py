@@ -460,3 +460,16 @@ def test_check_rig_mixing_sim_and_hardware(tmp_path: Path, capsys, fixtures_dir:
     for argv in (["check"], ["step", "--repeats", "1", "--out", str(tmp_path / "runs")]):
         err = run_bad(capsys, *argv, "--rig", str(rig))
         assert "[devices.esc] url 'sim://esc': sim:// devices run on the simulated clock" in err
+
+
+def test_catalog_with_semicolons_says_so(tmp_path: Path, capsys, fixtures_dir: Path) -> None:
+    """A spreadsheet export with ';' listed every column as missing and nothing else."""
+    import shutil
+
+    cat = tmp_path / "cat"
+    shutil.copytree(fixtures_dir / "catalogs" / "thesis-e", cat)
+    motors = cat / "motors.csv"
+    motors.write_text(motors.read_text().replace(",", ";"))
+    err = run_bad(capsys, "optimize", "--catalog", str(cat))
+    assert "motors.csv: missing column 'id'" in err
+    assert "the header is one field: columns must be separated by commas" in err
