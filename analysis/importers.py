@@ -123,6 +123,9 @@ def _read_csv(path: Path, **kwargs: Any) -> pd.DataFrame:
         raise LogError(f"{path}: empty file") from None
     except OSError as exc:
         raise LogError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    if len(df.columns) == 1 and any(c in str(df.columns[0]) for c in ";\t"):
+        raise LogError(f"{path}: the header is one field ({str(df.columns[0])[:40]!r}...): "
+                       "columns must be separated by commas")
     if df.empty:
         raise LogError(f"{path}: no data rows (only a header)")
     return df

@@ -59,8 +59,12 @@ def read_table(path: str | Path) -> pd.DataFrame:
             df = pd.read_csv(path, dtype={"phase": str})
         else:
             df = pd.read_parquet(path)
-    except Exception as exc:  # the reader's own message, with the file name
-        raise LogError(f"{path}: cannot be read as {suffix[1:]}: {exc}") from exc
+    except Exception as exc:  # the reader's own message (on one line), with the file name
+        reason = " ".join(str(exc).split())
+        raise LogError(f"{path}: cannot be read as {suffix[1:]}: {reason}") from exc
+    if suffix == ".csv" and len(df.columns) == 1 and any(c in str(df.columns[0]) for c in ";\t"):
+        raise LogError(f"{path}: the header is one field ({str(df.columns[0])[:40]!r}...): "
+                       "columns must be separated by commas")
     df.attrs["path"] = str(path)
     return df
 

@@ -473,3 +473,17 @@ def test_catalog_with_semicolons_says_so(tmp_path: Path, capsys, fixtures_dir: P
     err = run_bad(capsys, "optimize", "--catalog", str(cat))
     assert "motors.csv: missing column 'id'" in err
     assert "the header is one field: columns must be separated by commas" in err
+
+
+def test_logs_with_semicolons_or_ragged_rows(tmp_path: Path, capsys) -> None:
+    """A ';'-separated log said only 'no time column'; a ragged row gave two lines."""
+    semi = tmp_path / "semi.csv"
+    semi.write_text("t_s;thrust_n\n0;1\n0.1;2\n")
+    err = run_bad(capsys, "import", str(semi), "--format", "csv", "--out", str(tmp_path / "o"))
+    assert "semi.csv: the header is one field" in err and "separated by commas" in err
+    err = run_bad(capsys, "attitude", str(semi))
+    assert "semi.csv: the header is one field" in err
+    ragged = tmp_path / "ragged.csv"
+    ragged.write_text("t_s,gyro_x_rad_s\n0,1\n0.1\n0.2,1,5\n")
+    err = run_bad(capsys, "attitude", str(ragged))
+    assert "ragged.csv: cannot be read as csv" in err and "line 4" in err
