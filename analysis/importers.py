@@ -138,7 +138,12 @@ def _numeric(df: pd.DataFrame, header: str, path: Path) -> np.ndarray:
         row = int(np.flatnonzero(bad.to_numpy())[0])
         raise LogError(f"{path}: row {row + 2}, column {header!r}: expected a number, got "
                        f"{df[header].iloc[row]!r}")
-    return col.to_numpy(dtype=float)
+    values = col.to_numpy(dtype=float)
+    if np.isinf(values).any():
+        row = int(np.flatnonzero(np.isinf(values))[0])
+        raise LogError(f"{path}: row {row + 2}, column {header!r}: expected a finite number, "
+                       f"got {df[header].iloc[row]!r}")
+    return values
 
 
 def _frame(columns: Mapping[str, np.ndarray], path: Path) -> pd.DataFrame:

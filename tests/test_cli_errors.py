@@ -487,3 +487,11 @@ def test_logs_with_semicolons_or_ragged_rows(tmp_path: Path, capsys) -> None:
     ragged.write_text("t_s,gyro_x_rad_s\n0,1\n0.1\n0.2,1,5\n")
     err = run_bad(capsys, "attitude", str(ragged))
     assert "ragged.csv: cannot be read as csv" in err and "line 4" in err
+
+
+def test_import_infinite_value(tmp_path: Path, capsys) -> None:
+    f = tmp_path / "inf.csv"
+    f.write_text("t_s,thrust_n\n0,1\n0.1,inf\n")
+    err = run_bad(capsys, "import", str(f), "--format", "csv", "--out", str(tmp_path / "o"))
+    assert "inf.csv: row 3, column 'thrust_n': expected a finite number" in err
+    assert not (tmp_path / "o").exists()
