@@ -208,14 +208,14 @@ def _serial_imu(rig: Any, role: str, clock: Clock, sim: SimImuRig | None,
                 acc_1g = BTFL_ACC_1G  # documented default; INAV's 1 g is always 512
             dev: Sensor = MspImuSensor(msp_fc.MspImu(
                 client, rate_hz=rate_hz * time_scale, acc_1g=acc_1g, clock=clock,
-                url=spec.url, attitude=False), rate_hz)
+                url=spec.url, attitude=False), rate_hz, port=port, peer=peer)
         else:
             from drivers.backends.gx3_imu import Gx3Imu
             from drivers.codecs import gx3
 
             dev = Gx3Reference(Gx3Imu(port, packet=gx3.EULER_RATES, clock=clock,
                                       stale_s=stale_s * time_scale, open_timeout_s=open_timeout_s,
-                                      url=spec.url), window_s=window_s)
+                                      url=spec.url), window_s=window_s, port=port, peer=peer)
     except BaseException as exc:
         if port is not None:
             port.close()
@@ -224,17 +224,6 @@ def _serial_imu(rig: Any, role: str, clock: Clock, sim: SimImuRig | None,
         if isinstance(exc, DeviceError) and not str(exc).startswith(str(rig.path)):
             raise DeviceError(f"{spec.where} {spec.url!r}: {exc}") from None
         raise
-    close = dev.close
-
-    def close_all() -> None:
-        try:
-            close()
-        finally:
-            port.close()
-
-    dev.close = close_all  # type: ignore[method-assign]
-    if peer is not None:
-        dev.peer = peer  # type: ignore[attr-defined]
     return dev
 
 

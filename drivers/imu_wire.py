@@ -176,9 +176,11 @@ class HeldUploads:
 class MspImuSensor:
     """An :class:`drivers.backends.msp_fc.MspImu` as the IMU under test (``IMU_CHANNELS``)."""
 
-    def __init__(self, imu: Any, rate_hz: float | None = None) -> None:
+    def __init__(self, imu: Any, rate_hz: float | None = None, *, port: Any = None,
+                 peer: Any = None) -> None:
         self.imu = imu
         self.rate_hz = imu.rate_hz if rate_hz is None else rate_hz  # of the rig clock
+        self.port, self.peer = port, peer  # closed with the sensor; the simulated FC
         self._last_t = -math.inf
 
     def describe(self) -> DeviceInfo:
@@ -203,18 +205,24 @@ class MspImuSensor:
                                for c, s in zip(IMU_CHANNELS, src, strict=True)})
 
     def close(self) -> None:
-        self.imu.close()
+        try:
+            self.imu.close()
+        finally:
+            if self.port is not None:
+                self.port.close()
 
 
 class Gx3Reference:
     """A :class:`drivers.backends.gx3_imu.Gx3Imu` streaming 0xCF as the reference IMU
     (``REFERENCE_IMU_CHANNELS``), stamped from the device timer (see module doc)."""
 
-    def __init__(self, gx3_imu: Any, *, window_s: float = 5.0) -> None:
+    def __init__(self, gx3_imu: Any, *, window_s: float = 5.0, port: Any = None,
+                 peer: Any = None) -> None:
         if gx3_imu.packet != gx3.EULER_RATES:
             raise DeviceError(f"{gx3_imu.url}: the reference IMU needs packet 0xCF "
                               "(Euler angles and rates)")
         self.dev = gx3_imu
+        self.port, self.peer = port, peer  # closed with the sensor; the simulated GX3
         self.window_s = float(window_s)
         self._offsets: deque[tuple[float, float]] = deque()  # (arrival, min offset)
         self._last_t = -math.inf
@@ -252,7 +260,11 @@ class Gx3Reference:
         return Block(t, out)
 
     def close(self) -> None:
-        self.dev.close()
+        try:
+            self.dev.close()
+        finally:
+            if self.port is not None:
+                self.port.close()
 
 
 # -- simulated peers ---------------------------------------------------------------------------
