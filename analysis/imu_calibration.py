@@ -121,12 +121,13 @@ def _blocks(mask: NDArray[np.bool_]) -> list[slice]:
     return [slice(int(s), int(e)) for s, e in zip(idx[::2], idx[1::2], strict=True)]
 
 
-def _segments(t: Array, gap_factor: float = 1.5) -> list[slice]:
-    """Split a time vector at gaps larger than ``gap_factor`` median sample periods."""
+def _segments(t: Array, gap_factor: float = 1.5, min_gap_s: float = 0.0) -> list[slice]:
+    """Split a time vector at gaps larger than ``gap_factor`` median sample periods (and
+    than ``min_gap_s``)."""
     if len(t) < 2:
         return [slice(0, len(t))]
     dt = np.diff(t)
-    cuts = np.flatnonzero(dt > gap_factor * np.median(dt)) + 1
+    cuts = np.flatnonzero(dt > max(gap_factor * np.median(dt), min_gap_s)) + 1
     edges = np.r_[0, cuts, len(t)]
     return [slice(int(a), int(b)) for a, b in itertools.pairwise(edges)]
 
@@ -136,19 +137,29 @@ def angular_acceleration(t: Array, omega: Array, window_s: float = 0.15) -> Arra
 
     A plain difference of a 100 Hz ADIS16400 gyro has ~0.9 rad/s² of noise, which through
     a 0.4 m lever arm alone exceeds Table A.2; the local quadratic fit keeps it ~0.02.
+
+    Savitzky-Golay assumes one sample period. Rows of a host-stamped serial IMU (MSP
+    polled) are unevenly spaced and some are missing: such a segment is resampled onto its
+    own uniform grid (its mean period, linear interpolation), differentiated there, and
+    the derivative interpolated back onto the stamps. Segments break only at gaps longer
+    than half the window (shorter ones are bridged by the grid).
     """
     out = np.empty_like(omega)
-    for seg in _segments(t):
+    for seg in _segments(t, min_gap_s=0.5 * window_s):
         ts, ws = t[seg], omega[seg]
         if len(ts) < 3:
             out[seg] = 0.0
             continue
-        dt = float(np.median(np.diff(ts)))
+        dt = float(ts[-1] - ts[0]) / (len(ts) - 1)  # mean period
+        even = bool(np.all(np.abs(np.diff(ts) - dt) <= 1e-3 * dt))
+        grid = ts if even else np.linspace(ts[0], ts[-1], len(ts))
+        wg = ws if even else np.column_stack([np.interp(grid, ts, c) for c in ws.T])
         win = max(5, round(window_s / dt) | 1)
-        if win > len(ts):
-            out[seg] = np.gradient(ws, ts, axis=0)
+        if win > len(grid):
+            d = np.gradient(wg, grid, axis=0)
         else:
-            out[seg] = savgol_filter(ws, win, 2, deriv=1, delta=dt, axis=0)
+            d = savgol_filter(wg, win, 2, deriv=1, delta=dt, axis=0)
+        out[seg] = d if even else np.column_stack([np.interp(ts, grid, c) for c in d.T])
     return out
 
 
