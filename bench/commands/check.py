@@ -16,9 +16,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description="Opens each device of the rig on its own and waits for a sign of life "
                     "(samples from sensors; identification or bus traffic from the ESC). "
                     "Nothing is armed or moved. One line per device; exit 0 when all "
-                    "answer, 2 otherwise.")
+                    "answer, 2 otherwise. An IMU-bench rig ([rig] kind = \"imu\") is "
+                    "checked through the IMU factory: the hexapod identifies itself and is "
+                    "stopped, the IMUs must deliver samples.")
     p.add_argument("--rig", type=Path, default=None,
-                   help="rig file (TOML); default: the simulated rig fixtures/rigs/sim.toml")
+                   help="rig file (TOML), propulsion or IMU bench; default: the simulated rig "
+                        "fixtures/rigs/sim.toml")
     p.add_argument("--timeout", type=float, default=2.0,
                    help="seconds to wait for each device (default 2)")
     p.add_argument("--json", action="store_true", help="print JSON lines instead of a table")
@@ -26,18 +29,26 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def handler(args: argparse.Namespace) -> int:
+    from bench.imu_rig import is_imu_rig, load_imu_rig
     from bench.rig import default_rig_path, load_rig
-    from drivers.rig_check import check_rig
 
     if not (math.isfinite(args.timeout) and args.timeout > 0):
         raise RigError(f"--timeout: expected seconds > 0 per device, got {args.timeout:g}")
-    rig = load_rig(args.rig or default_rig_path())
-    reports = check_rig(rig, timeout_s=args.timeout)
+    path = args.rig or default_rig_path()
+    if is_imu_rig(path):
+        from drivers.imu_rig_check import check_imu_rig
+
+        reports = check_imu_rig(load_imu_rig(path), timeout_s=args.timeout)
+    else:
+        from drivers.rig_check import check_rig
+
+        reports = check_rig(load_rig(path), timeout_s=args.timeout)
     if args.json:
         for r in reports:
             print(json.dumps({"role": r.role, "url": r.url, "ok": r.ok, "detail": r.detail}))
     else:  # one line per device, never wrapped (grep-able)
         width = max(len(r.url) for r in reports)
+        rw = max(10, *(len(r.role) for r in reports))
         for r in reports:
-            print(f"{r.role:<10} {r.url:<{width}}  {'ok' if r.ok else 'FAIL':<4}  {r.detail}")
+            print(f"{r.role:<{rw}} {r.url:<{width}}  {'ok' if r.ok else 'FAIL':<4}  {r.detail}")
     return 0 if all(r.ok for r in reports) else 2
