@@ -10,6 +10,13 @@ and reason. Rows are the IMU's samples (its own stamps, relative to the run star
 hexapod's body-frame truth and pose, and the reference IMU, are linearly interpolated onto
 them from their faster logs, so a row is written once the hexapod log covers it. The
 stamps are not corrected: the hexapod-IMU time offset is for the analysis to estimate.
+
+A move's time base is the moment the hexapod is told to start it, after the upload: on a
+real controller the upload (hundreds of GCS commands) takes wall time, and the run's
+schedule falls behind the plan by that much (``schedule_lag_s`` in run.json); the rows'
+``phase``/``step`` follow the realised schedule. Before an upload or a pivot change and
+at the end of every move the runner waits (still reading and checking) until the hexapod
+reports it has stopped; one still moving ``motion_end_timeout_s`` later ends the run.
 """
 
 from __future__ import annotations
@@ -28,6 +35,7 @@ from bench.run_loop import SafeRunLoop
 from bench.safety import Trip
 from bench.watchdog import HostWatchdog, WatchdogTrip
 from drivers.contracts import Block, Clock, Sensor
+from drivers.errors import DeviceError
 from drivers.hexapod_contracts import (
     ACCELERATION_CHANNELS,
     BODY_CHANNELS,
@@ -66,12 +74,15 @@ class HexapodRunOptions:
     stale_s: float = 0.5
     trajectory_rate_hz: float = 200.0
     limit_margin: float = 0.02  # logged samples may exceed a limit by this share (spline)
+    motion_end_timeout_s: float = 5.0  # a motion still running this long after its end
 
     def __post_init__(self) -> None:
         if not 0.0 < self.tick_s <= 0.1:
             raise RigError(f"--tick {self.tick_s}: expected 0 < tick <= 0.1 s")
         if self.stale_s <= self.tick_s:
             raise RigError(f"stale_s {self.stale_s} must exceed the tick {self.tick_s}")
+        if not self.motion_end_timeout_s > 0:
+            raise RigError(f"motion_end_timeout_s {self.motion_end_timeout_s}: expected > 0 s")
 
 
 class GuardedHexapod:
@@ -91,12 +102,17 @@ class GuardedHexapod:
     def set_pivot(self, pivot_m: tuple[float, float, float]) -> None:
         self._guarded(lambda: self.hexapod.set_pivot(pivot_m))
 
-    def run(self, trajectory: Trajectory) -> None:
-        def go() -> None:
-            self.hexapod.upload(trajectory)
-            self.hexapod.start()
+    def upload(self, trajectory: Trajectory) -> None:
+        self._guarded(lambda: self.hexapod.upload(trajectory))
 
-        self._guarded(go)
+    def start(self) -> None:
+        self._guarded(self.hexapod.start)
+
+    def is_moving(self) -> bool:
+        with self._lock:
+            if self.killed_reason is not None:
+                raise WatchdogTrip(self.killed_reason)
+            return bool(self.hexapod.is_moving())
 
     def read_log(self) -> Block:
         """The log read holds the lock too (one conversation with the controller at a time);
@@ -162,6 +178,9 @@ class _Merger:
     def __init__(self, plan: HexapodPlan, with_reference: bool) -> None:
         self.plan = plan
         self.with_reference = with_reference
+        # the realised start (s since the run start) of every timed segment begun so far
+        self.starts: list[float] = []
+        self.segments: list[HexapodSegment] = []
         self.imu_t = np.empty(0)
         self.imu = {c: np.empty(0) for c in IMU_CHANNELS}
         self.hex_cols = (*BODY_CHANNELS, *POSE_CHANNELS)
@@ -170,6 +189,20 @@ class _Merger:
         self.ref_t = np.empty(0)
         self.ref = {c: np.empty(0) for c in REFERENCE_IMU_CHANNELS}
         self.dropped = 0
+
+    def begin(self, seg: HexapodSegment, t_start_s: float) -> None:
+        """``seg`` (one that takes time) is in force from ``t_start_s`` on."""
+        self.starts.append(t_start_s)
+        self.segments.append(seg)
+
+    def _labels(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Phase label and step index of the segment in force at each time."""
+        if not self.segments:
+            return self.plan.phase_at(t), self.plan.step_at(t)
+        i = np.clip(np.searchsorted(np.asarray(self.starts), t, side="right") - 1, 0,
+                    len(self.segments) - 1)
+        return (np.array([s.phase for s in self.segments], dtype=object)[i],
+                np.array([s.index for s in self.segments], dtype=np.int32)[i])
 
     @staticmethod
     def _add(t: np.ndarray, cols: dict[str, np.ndarray], block: Block
@@ -198,8 +231,8 @@ class _Merger:
             self._consume(n_done)
             return {}
         t = self.imu_t[ready]
-        rows: dict[str, np.ndarray] = {"t_s": t, "phase": self.plan.phase_at(t),
-                                       "step": self.plan.step_at(t)}
+        phase, step = self._labels(t)
+        rows: dict[str, np.ndarray] = {"t_s": t, "phase": phase, "step": step}
         for c in self.hex_cols:
             rows[c] = np.interp(t, self.hex_t, self.hex[c])
         for c in IMU_CHANNELS:
@@ -245,6 +278,7 @@ class HexapodRunner(SafeRunLoop):
         self.watchdog = HostWatchdog(self.hexapod, self.options.watchdog_timeout_s)  # type: ignore[arg-type]
         self.supervisor = HexapodSupervisor(plan.limits, self.options.limit_margin)
         self.merger = _Merger(plan, rig.reference_imu is not None)
+        self._lag = 0.0  # how far the realised schedule runs behind the plan (s)
 
     # -- loop ---------------------------------------------------------------------------
     def _run_segment(self, seg: HexapodSegment) -> None:
@@ -253,11 +287,45 @@ class HexapodRunner(SafeRunLoop):
                     {"kind": seg.kind, "phase": seg.phase, "duration_s": seg.duration_s,
                      **({"peaks": dict(seg.peaks)} if seg.peaks else {})})
         if seg.kind == "set_pivot" and seg.pivot_m is not None:
+            self._await_rest(seg)  # the controller refuses a pivot change while moving
             self.hexapod.set_pivot(seg.pivot_m)
         elif seg.kind == "move" and seg.motion is not None:
+            self._await_rest(seg)  # ... and an upload
             traj = Trajectory.from_motion(seg.motion, self.options.trajectory_rate_hz)
-            self.hexapod.run(traj)
-        self._tick_until(seg.t_end_s)
+            self.hexapod.upload(traj)
+            self._catch_up(seg.t_start_s)  # the time base: the start command, after upload
+            self.hexapod.start()
+            self._event("motion_start", seg.index, seg.label,
+                        {"plan_t_s": seg.t_start_s, "schedule_lag_s": self._lag})
+        if seg.duration_s > 0:
+            self.merger.begin(seg, seg.t_start_s + self._lag)
+        self._tick_until(seg.t_end_s + self._lag)
+        if seg.kind == "move":
+            self._await_rest(seg)
+
+    def _catch_up(self, plan_t_s: float) -> None:
+        """Move the schedule's time base to now if the run is behind ``plan_t_s``."""
+        late = self._now_rel() - (plan_t_s + self._lag)
+        if late > 1e-6:  # not clock rounding
+            self._lag += late
+
+    def _await_rest(self, seg: HexapodSegment) -> None:
+        """Keep reading (and checking) until the hexapod reports no motion; one still moving
+        ``motion_end_timeout_s`` later ends the run (device error, hexapod stopped)."""
+        t_wait = self._now_rel()
+        while self.hexapod.is_moving():
+            now = self._now_rel()
+            if now - t_wait > self.options.motion_end_timeout_s:
+                raise DeviceError(
+                    f"hexapod still moving {now - t_wait:.2f} s after it should have stopped "
+                    f"(step {seg.index} {seg.label!r}; limit motion_end_timeout_s = "
+                    f"{self.options.motion_end_timeout_s:g} s)")
+            self._tick_until(now + self.options.tick_s)
+        if seg.kind == "move" and self._now_rel() > t_wait:
+            self._catch_up(seg.t_end_s)
+
+    def _progress_time(self, now: float) -> float:
+        return now - self._lag
 
     def _drain(self) -> None:
         self.rig.imu.read_block()
@@ -279,4 +347,5 @@ class HexapodRunner(SafeRunLoop):
         return self.hexapod.safe_stop()
 
     def _finish_fields(self) -> dict[str, float]:
-        return {"rig_t0_s": self._t0, "rows_dropped": self.merger.dropped}
+        return {"rig_t0_s": self._t0, "rows_dropped": self.merger.dropped,
+                "schedule_lag_s": self._lag}

@@ -146,11 +146,11 @@ class PacedClock(SimClock):
 class HeldUploads:
     """A hexapod whose trajectory upload and start take no simulated time.
 
-    The runner starts a segment's clock before it uploads the trajectory; over a wire
-    the upload (hundreds of GCS commands) takes wall time, which ``time_scale`` would
-    multiply into seconds of bench time and the motion would run late against the plan.
-    The plain and ``tcp://sim`` benches upload in zero simulated time; this keeps the
-    serial wire bench the same (the hold lasts until the controller has answered a query
+    Over a wire the upload (hundreds of GCS commands) takes wall time, which
+    ``time_scale`` would multiply into seconds of bench time; the runner would follow
+    (its time base starts at the start command) but the run would drift from the plain
+    bench's timing. The plain and ``tcp://sim`` benches upload in zero simulated time;
+    this keeps the serial wire bench the same (the hold lasts until the controller has answered a query
     after ``WGO``, so the motion starts at the held instant). On a real bench the upload's
     wall time is real: see docs/hexapod-tcp.md.
     """
