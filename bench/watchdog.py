@@ -85,6 +85,7 @@ class HostWatchdog:
         self.poll_s = poll_s if poll_s is not None else min(timeout_s / 5.0, 0.05)
         self._last = time.monotonic()
         self._stop = threading.Event()
+        self._trip_lock = threading.Lock()
         self._thread: threading.Thread | None = None
         self.tripped_at: float | None = None
         self.stall_s: float = 0.0
@@ -95,7 +96,13 @@ class HostWatchdog:
         return self.tripped_at is not None
 
     def kick(self) -> None:
-        self._last = time.monotonic()
+        now = time.monotonic()
+        stalled = now - self._last
+        self._last = now
+        if not self.tripped and self._thread is not None and stalled > self.timeout_s:
+            # the whole process was frozen (suspend, SIGSTOP, swap): the watching thread
+            # froze too, and the loop may wake first; it sees the stall itself
+            self._trip(stalled)
         if self.tripped:
             raise WatchdogTrip(self.reason)
 
@@ -120,10 +127,16 @@ class HostWatchdog:
         while not self._stop.wait(self.poll_s):
             stalled = time.monotonic() - self._last
             if stalled > self.timeout_s:
-                self.stall_s = stalled
-                self.tripped_at = time.monotonic()
-                self.errors = self.esc.kill(self.reason)
+                self._trip(stalled)
                 return
+
+    def _trip(self, stalled: float) -> None:
+        with self._trip_lock:  # the thread and a waking loop may both see the stall
+            if self.tripped:
+                return
+            self.stall_s = stalled
+            self.tripped_at = time.monotonic()
+            self.errors = self.esc.kill(self.reason)
 
     def __enter__(self) -> HostWatchdog:
         return self.start()
