@@ -495,3 +495,17 @@ def test_import_infinite_value(tmp_path: Path, capsys) -> None:
     err = run_bad(capsys, "import", str(f), "--format", "csv", "--out", str(tmp_path / "o"))
     assert "inf.csv: row 3, column 'thrust_n': expected a finite number" in err
     assert not (tmp_path / "o").exists()
+
+
+def test_catalog_by_shipped_name_and_bad_environment(tmp_path: Path, capsys,
+                                                     monkeypatch) -> None:
+    """`--catalog thesis-d` (the README names the shipped catalogs) was 'not a catalog
+    folder' outside the source tree; a wrong ROTORBENCH_CATALOG blamed the install."""
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.delenv("ROTORBENCH_CATALOG", raising=False)
+    assert main(["evaluate", "--catalog", "thesis-d", "--actuators", "4", "--propeller", "P1",
+                 "--motor", "M1", "--battery", "B1", "--json"]) == 0
+    assert "thesis-d" in capsys.readouterr().out
+    monkeypatch.setenv("ROTORBENCH_CATALOG", "nosuch")
+    err = run_bad(capsys, "optimize")
+    assert "ROTORBENCH_CATALOG=nosuch: not a catalog folder or a shipped catalog name" in err

@@ -43,20 +43,33 @@ ROWS: tuple[tuple[str, str, str], ...] = (
 )
 
 
+SHIPPED_CATALOGS = Path(__file__).resolve().parents[2] / "fixtures" / "catalogs"
+
+
 def default_catalog() -> Path:
     """fixtures/catalogs/thesis-e of the source tree (or $ROTORBENCH_CATALOG)."""
     env = os.environ.get("ROTORBENCH_CATALOG")
     if env:
-        return Path(env)
-    return Path(__file__).resolve().parents[2] / "fixtures" / "catalogs" / "thesis-e"
+        return _shipped_name(Path(env))
+    return SHIPPED_CATALOGS / "thesis-e"
+
+
+def _shipped_name(path: Path) -> Path:
+    """A bare name that is no folder here but a shipped catalog (``thesis-d``) means it."""
+    if not path.exists() and len(path.parts) == 1 and (SHIPPED_CATALOGS / path.name).is_dir():
+        return SHIPPED_CATALOGS / path.name
+    return path
 
 
 def load(path: Path | None) -> Any:
     """Load a catalog; a missing default catalog is a clear error, not a traceback."""
     from optimizer.catalog import load_catalog
 
-    folder = path if path is not None else default_catalog()
+    folder = _shipped_name(path) if path is not None else default_catalog()
     if path is None and not folder.is_dir():
+        if os.environ.get("ROTORBENCH_CATALOG"):
+            raise CatalogError(f"ROTORBENCH_CATALOG={os.environ['ROTORBENCH_CATALOG']}: not a "
+                               "catalog folder or a shipped catalog name")
         raise CatalogError(
             f"{folder}: default catalog not found (installed without the source tree?); "
             "pass --catalog DIR or set ROTORBENCH_CATALOG"
@@ -69,7 +82,8 @@ def add_catalog_args(p: argparse.ArgumentParser) -> None:
         "--catalog",
         type=Path,
         default=None,
-        help="catalog folder (default: fixtures/catalogs/thesis-e)",
+        help="catalog folder, or the name of a shipped one (thesis-e, thesis-d; "
+             "default: fixtures/catalogs/thesis-e)",
     )
     p.add_argument("--payload-kg", type=float, default=0.0, help="payload mass (default 0)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
