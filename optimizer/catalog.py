@@ -343,6 +343,10 @@ def load_catalog(path: str | Path) -> Catalog:
         raise CatalogError(
             f"{folder}: not a catalog folder (expected a directory with {', '.join(FILES)})"
         )
+    if (folder / "robot.toml").is_file() and not (folder / FILES[0]).is_file():
+        raise CatalogError(f"{folder}: the section 2.4.1 mobile-robot example (robot.toml), not "
+                           "a multirotor catalog: it is solved by optimizer.robot.solve_robot "
+                           "(docs/thesis-formulation.md)")
     tables = [_read_csv(folder / name) for name in FILES]
     constants = load_constants(folder / "catalog.toml")
     return Catalog._build(*tables, constants, str(folder))

@@ -509,3 +509,9 @@ def test_catalog_by_shipped_name_and_bad_environment(tmp_path: Path, capsys,
     monkeypatch.setenv("ROTORBENCH_CATALOG", "nosuch")
     err = run_bad(capsys, "optimize")
     assert "ROTORBENCH_CATALOG=nosuch: not a catalog folder or a shipped catalog name" in err
+
+
+def test_robot_example_given_as_a_catalog(capsys, fixtures_dir: Path) -> None:
+    """It said only 'missing file propellers.csv'."""
+    err = run_bad(capsys, "optimize", "--catalog", str(fixtures_dir / "catalogs" / "thesis-robot"))
+    assert "mobile-robot example (robot.toml), not a multirotor catalog" in err
