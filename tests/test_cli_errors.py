@@ -515,3 +515,9 @@ def test_robot_example_given_as_a_catalog(capsys, fixtures_dir: Path) -> None:
     """It said only 'missing file propellers.csv'."""
     err = run_bad(capsys, "optimize", "--catalog", str(fixtures_dir / "catalogs" / "thesis-robot"))
     assert "mobile-robot example (robot.toml), not a multirotor catalog" in err
+
+
+@pytest.mark.parametrize("value", ["-1", "0", "nan"])
+def test_devices_can_timeout_must_be_positive(capsys, value: str) -> None:
+    err = run_bad(capsys, "devices", f"--can-timeout={value}")
+    assert "--can-timeout: expected seconds > 0" in err

@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 
 from rich.console import Console
 from rich.table import Table
+
+from bench.errors import RigError
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -25,6 +28,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def handler(args: argparse.Namespace) -> int:
     from drivers.discovery import can_configs, serial_ports
 
+    if not (math.isfinite(args.can_timeout) and args.can_timeout > 0):
+        raise RigError(f"--can-timeout: expected seconds > 0, got {args.can_timeout:g}")
     ports, port_note = serial_ports()
     cans, can_note = ([], "skipped (--no-can)") if args.no_can else \
         can_configs(timeout_s=args.can_timeout)
