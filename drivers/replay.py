@@ -53,9 +53,16 @@ class ReplaySensor:
         path = Path(urlsplit(url).path)
         try:
             with np.load(path) as data:
+                if not hasattr(data, "files"):  # a bare .npy array, not named columns
+                    raise ValueError("a single array, not named columns")
                 arrays = {k: data[k] for k in data.files}
+        except FileNotFoundError:
+            raise DeviceError(f"{url}: replay file {path} not found") from None
         except (OSError, ValueError) as exc:
-            raise DeviceError(f"{url}: cannot read replay file {path}: {exc}") from None
+            # np.load's message for bytes it does not know is about pickles: not useful here
+            reason = "not a NumPy .npz file" if "pickle" in str(exc) else str(exc)
+            raise DeviceError(f"{url}: cannot read replay file {path}: {reason} (expected an "
+                              ".npz recording with t_s and value columns)") from None
         if "t_s" not in arrays:
             raise DeviceError(f"{url}: replay file {path} has no t_s column")
         t = arrays.pop("t_s")

@@ -521,3 +521,20 @@ def test_robot_example_given_as_a_catalog(capsys, fixtures_dir: Path) -> None:
 def test_devices_can_timeout_must_be_positive(capsys, value: str) -> None:
     err = run_bad(capsys, "devices", f"--can-timeout={value}")
     assert "--can-timeout: expected seconds > 0" in err
+
+
+def test_replay_file_that_is_not_a_recording(tmp_path: Path, capsys, fixtures_dir: Path) -> None:
+    """Garbage bytes said 'This file contains pickled (object) data ... allow_pickle='."""
+    text = (fixtures_dir / "rigs" / "sim.toml").read_text()
+    rec = tmp_path / "rec.npz"
+    rec.write_bytes(b"\xac\x00 garbage" * 20)
+    rig = tmp_path / "replay.toml"
+    rig.write_text(text.replace('url = "sim://load_cell"', f'url = "replay://{rec}"'))
+    (tmp_path / "sim.thrust_map.csv").write_text(
+        (fixtures_dir / "rigs" / "sim.thrust_map.csv").read_text())
+    err = run_bad(capsys, "check", "--rig", str(rig))
+    assert "rec.npz: not a NumPy .npz file (expected an .npz recording" in err
+    assert "pickle" not in err
+    rec.unlink()
+    err = run_bad(capsys, "check", "--rig", str(rig))
+    assert "rec.npz not found" in err
