@@ -150,9 +150,9 @@ class HeldUploads:
     ``time_scale`` would multiply into seconds of bench time; the runner would follow
     (its time base starts at the start command) but the run would drift from the plain
     bench's timing. The plain and ``tcp://sim`` benches upload in zero simulated time;
-    this keeps the serial wire bench the same (the hold lasts until the controller has answered a query
-    after ``WGO``, so the motion starts at the held instant). On a real bench the upload's
-    wall time is real: see docs/hexapod-tcp.md.
+    this keeps the serial wire bench the same (the hold lasts until the controller has
+    answered a query after ``WGO``, so the motion starts at the held instant). On a real
+    bench the upload's wall time is real: see docs/hexapod-tcp.md.
     """
 
     def __init__(self, hexapod: Any, clock: PacedClock) -> None:
