@@ -71,7 +71,7 @@ ROTOR_GEOMETRY = (
     _col("rotor_wall_m", rule=">0"),
     _col("rotor_density_kg_m3", rule=">0"),
 )
-MOTOR_OPTIONAL = (_col("inertia_kgm2"), *ROTOR_GEOMETRY)
+MOTOR_OPTIONAL = (_col("inertia_kgm2"), _col("no_load_current_a"), *ROTOR_GEOMETRY)
 BATTERY_REQUIRED = (
     ID,
     NAME,
@@ -213,8 +213,9 @@ def _finish_motors(table: _Table, motors: pd.DataFrame) -> pd.DataFrame:
     for c in ROTOR_GEOMETRY:
         if c.name not in motors.columns:
             motors[c.name] = np.nan
-    if "inertia_kgm2" not in motors.columns:
-        motors["inertia_kgm2"] = np.nan
+    for name in ("inertia_kgm2", "no_load_current_a"):
+        if name not in motors.columns:
+            motors[name] = np.nan
     geom = motors[[c.name for c in ROTOR_GEOMETRY]].to_numpy()
     partial = np.isnan(geom).any(axis=1) & ~np.isnan(geom).all(axis=1)
     if partial.any():
@@ -273,8 +274,9 @@ class Catalog:
 
     Frames: ``propellers`` (id, name, mass_kg, diameter_m, ct, cp, price, pitch_m,
     inertia_kgm2), ``motors`` (id, name, kv_rad_s_per_v, resistance_ohm, mass_kg,
-    max_current_a, max_power_w, price, inertia_kgm2, rotor_*), ``batteries`` (id, name,
-    mass_kg, capacity_ah, cells, price, max_current_a, c_rating, nominal_voltage_v).
+    max_current_a, max_power_w, price, inertia_kgm2, no_load_current_a, rotor_*),
+    ``batteries`` (id, name, mass_kg, capacity_ah, cells, price, max_current_a, c_rating,
+    nominal_voltage_v).
     Optional values not given are NaN; extra columns are kept as text.
     """
 

@@ -19,6 +19,7 @@ from optimizer.errors import CatalogError
 #: Allowed values of the string-valued keys.
 BATTERY_VOLTAGE_CHOICES = ("in_flight", "nominal")
 ARM_LENGTH_CHOICES = ("radius", "diagonal")
+MOTOR_CURRENT_CHOICES = ("winding", "battery")
 
 
 @dataclass(frozen=True)
@@ -56,6 +57,11 @@ class ModelConstants:
     #: If set, a design must reach this max-thrust / weight ratio at full battery voltage
     #: (steady state of eqs. (E.4)-(E.7)); None disables the check (the thesis has none).
     min_thrust_to_weight: float | None = None
+    #: Which current the motor's ``max_current_a`` limits. "winding": the torque current
+    #: I_w = Q / K_t + I_0 at hover, Q = W / omega (E.3), is checked ("motor winding
+    #: current") besides the thesis' per-actuator battery current x18 / N (E.67,
+    #: "motor current"); "battery": only the thesis' check (Papers D and E as printed).
+    motor_current: str = "winding"
 
     def with_updates(self, **changes: Any) -> ModelConstants:
         """A copy with some constants replaced (validated like catalog.toml)."""
@@ -65,7 +71,11 @@ class ModelConstants:
         return {f.name: getattr(self, f.name) for f in fields(self)}
 
 
-_CHOICES = {"battery_voltage": BATTERY_VOLTAGE_CHOICES, "arm_length": ARM_LENGTH_CHOICES}
+_CHOICES = {
+    "battery_voltage": BATTERY_VOLTAGE_CHOICES,
+    "arm_length": ARM_LENGTH_CHOICES,
+    "motor_current": MOTOR_CURRENT_CHOICES,
+}
 _KNOWN = {f.name for f in fields(ModelConstants)}
 #: Free-text keys allowed in catalog.toml (documentation only).
 _TEXT_KEYS = {"name", "description", "source"}

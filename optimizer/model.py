@@ -11,6 +11,9 @@ Metric definitions (all at hover, the operating point of Paper E's flight time):
   "min power" objective minimises. Table E.2 literally minimises x17; for a fixed actuator
   count (each thesis MILP has a fixed N) both pick the same design.
 - ``current_a``: battery current, x18 (E.67-E.69).
+- ``extras["motor_current_a"]``: winding current per motor, Q / K_t + I_0 with the
+  hover torque Q = W / omega (E.3), (E.5)-(E.7); checked against the motor's
+  ``max_current_a`` ("motor winding current") unless ``motor_current = "battery"``.
 - ``flight_time_min``: 60 B_Ah / x18 (E.72-E.74 inverted).
 - ``time_constant_ms``: (E.35) at the design's hover speed.
 - ``total_mass_kg``: take-off mass incl. payload, x1 + m_L (E.17, E.19).
@@ -142,6 +145,9 @@ def evaluate_grid(
     n_rev_s = physics.hover_speed_rev_s(hover_thrust, ct, rho, diameter)  # (E.20)
     prop_power = physics.propeller_power_w(cp, rho, n_rev_s, diameter)  # (E.60)-(E.63)
     actuator_current = prop_power / voltage  # (E.67): x18 / N_a per actuator
+    torque = physics.hover_torque_nm(prop_power, n_rev_s)  # (E.3) Q = W / omega
+    no_load = np.nan_to_num(m_("no_load_current_a"), nan=0.0)  # I_0, 0 where not given
+    winding_current = physics.winding_current_a(torque, kt, no_load)  # (E.5)-(E.7)
     damping = physics.propeller_damping(cp, rho, n_rev_s, diameter)  # (E.34)
     tau = physics.time_constant_s(resistance, j_total, kt, damping)  # (E.35)
     shape = (len(props), len(mots), len(bats))
@@ -189,8 +195,15 @@ def evaluate_grid(
         "pitch_inertia_kgm2": full(pitch),
     }
 
-    checks = [
-        Check("motor power", "W", metrics["propeller_power_w"], m_("max_power_w")),
+    winding_current = full(winding_current)
+    # Motor power: the thesis compares the propeller (shaft) power with max_power_w
+    # (Paper D section 2.4); kept, see docs/optimizer.md "Motor limits".
+    checks = [Check("motor power", "W", metrics["propeller_power_w"], m_("max_power_w"))]
+    if c.motor_current == "winding":
+        # the motor's current rating limits its winding current I_w = Q / K_t + I_0
+        checks.append(Check("motor winding current", "A", winding_current, m_("max_current_a")))
+    checks += [
+        # (E.67) x18 / N: the thesis' motor current check (battery side, per actuator)
         Check("motor current", "A", full(actuator_current), m_("max_current_a")),
         Check("battery current", "A", metrics["current_a"], b_("max_current_a")),
     ]
@@ -203,6 +216,8 @@ def evaluate_grid(
         "voltage_v": full(voltage),
         "frame_mass_kg": full(frame),
         "arm_length_m": full(arm),
+        "hover_torque_nm": full(torque),
+        "motor_current_a": winding_current,
     }
     if c.min_thrust_to_weight is not None:
         omega_max = physics.full_throttle_speed_rad_s(voltage, kt, resistance, cp, rho, diameter)
@@ -217,6 +232,7 @@ def evaluate_grid(
         "source": catalog.source,
         "battery_voltage": c.battery_voltage,
         "arm_length": c.arm_length,
+        "motor_current": c.motor_current,
         "power_w": "total hover power of all propellers (N x17, Table E.2 'min power')",
         "total_mass_kg": "take-off mass including payload",
     }
@@ -353,6 +369,9 @@ def design_record(grid: DesignGrid, i: int, j: int, k: int) -> dict[str, Any]:
     }
     for key in METRIC_KEYS:
         record[key] = float(grid.metrics[key][i, j, k])
+    extras = getattr(grid, "extras", {})
+    if "motor_current_a" in extras:
+        record["motor_current_a"] = float(extras["motor_current_a"][i, j, k])
     checks = []
     violated = []
     for check in grid.checks:

@@ -58,6 +58,23 @@ def torque_constant(kv_rad_s_per_v):
     return 1.0 / np.asarray(kv_rad_s_per_v, float)
 
 
+def hover_torque_nm(power_w, n_rev_s):
+    """(E.3) shaft torque Q = W / omega, omega = 2 pi n."""
+    return power_w / (TWO_PI * np.asarray(n_rev_s, float))
+
+
+def winding_current_a(torque_nm, kt, no_load_current_a=0.0):
+    """Motor winding (torque) current I_w = Q / K_t + I_0.
+
+    (E.5)-(E.7): the motor torque is K_t I; the no-load current I_0 (friction and iron
+    losses, datasheet "Io") flows on top of the current that makes the shaft torque.
+    Unlike the battery-side x18 / N of (E.67), I_w grows as K_t falls: a high-K_v motor
+    turning a large propeller slowly draws far more winding current than it takes from
+    the battery.
+    """
+    return torque_nm / kt + no_load_current_a
+
+
 def time_constant_s(resistance_ohm, inertia_kgm2, kt, damping):
     """(E.8), (E.35): t_r = J R_a / (K_t^2 + D_omega R_a)."""
     return resistance_ohm * inertia_kgm2 / (kt**2 + damping * resistance_ohm)

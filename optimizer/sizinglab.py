@@ -11,13 +11,20 @@ as in (E.1)-(E.2); pitch = BETA x D. Not in the data:
   * mass: m = 0.0641 g x D_in^2.26, a power law fitted to the APC propellers of
     Table D.2 (8-14 in, 7.1-25 g; within 4 % of each);
   * price: 0.5 $ per inch of diameter (thesis-e: 4.7-7.8 $ for 10-14 in).
-Motors (``Motors_Data.csv``): Kv, R, mass, Imax as given. Not in the data:
+Motors (``Motors_Data.csv``): Kv, R, mass, no-load current ``Io_A`` (->
+``no_load_current_a``, part of the winding current Q / K_t + I_0) as given.
+  * max current: the continuous winding current, min(``Imax_A``, ``Tnom_Nm``
+    x Kv + ``Io_A``), i.e. the current of the nominal (continuous) torque.
+    Hover is continuous operation. For KDE rows this is ``Imax_A``, for
+    Scorpion 0.98-1 of it, for AXI 0.55-0.94, for maxon rows 0.02-0.64
+    (their ``Imax_A`` is far above the nominal current: 46.8 A against 2.4 A
+    for the 3070 Kv EC 13 50 W).
+Not in the data:
   * max power: the continuous mechanical power at the rated voltage,
     ``Tnom_Nm`` x Kv x ``Voltage`` (nominal torque at no-load speed; 9.2 W for
-    the "EC 10, 8 Watt" maxon motor). Rated voltage x ``Imax_A`` would be 8 x
-    too lenient for small high-Kv motors, because the model's current
-    (E.67) is propeller power / battery voltage and never sees the torque
-    constant;
+    the "EC 10, 8 Watt" maxon motor), compared with the propeller (shaft)
+    power like the thesis' limit. Rated voltage x ``Imax_A`` would be 8 x too
+    lenient for small high-Kv motors;
   * price: 15 $ + 0.15 $/g (thesis-e: 31.36 $ for 111 g);
   * rotor inertia: J_m = 0.15 m r^2, the motor taken as a cylinder of length =
     diameter at an effective density of 1500 kg/m^3 (gives 47 mm for the 111 g
@@ -67,7 +74,17 @@ CONSTANTS = {
 }
 
 _PROP_COLS = ("BETA", "J_adv-ratio", "Ct", "Cp", "DIAMETER_IN")
-_MOTOR_COLS = ("TYPE", "Model", "Kv_rpm_v", "R_ohm", "Mass_g", "Imax_A", "Voltage", "Tnom_Nm")
+_MOTOR_COLS = (
+    "TYPE",
+    "Model",
+    "Kv_rpm_v",
+    "R_ohm",
+    "Mass_g",
+    "Imax_A",
+    "Io_A",
+    "Voltage",
+    "Tnom_Nm",
+)
 _BATT_COLS = ("Voltage_V", "Capacity_mAh", "Discharge_Rate_C", "Weight_g")
 
 
@@ -143,6 +160,10 @@ def motor_inertia_kgm2(mass_g: np.ndarray) -> np.ndarray:
 def motors_frame(folder: Path) -> pd.DataFrame:
     data = _read(folder / "Motors_Data.csv", _MOTOR_COLS)
     mass = data["Mass_g"].to_numpy(float)
+    kv_rad = data["Kv_rpm_v"].to_numpy(float) * (2.0 * math.pi / 60.0)
+    no_load = data["Io_A"].to_numpy(float)
+    # continuous winding current: nominal torque / K_t + I_0, K_t = 1 / K_v (E.5)-(E.7)
+    continuous = data["Tnom_Nm"].to_numpy(float) * kv_rad + no_load
     return pd.DataFrame(
         {
             "id": _unique([_slug(m) for m in data["Model"]]),
@@ -150,7 +171,8 @@ def motors_frame(folder: Path) -> pd.DataFrame:
             "kv_rpm_per_v": data["Kv_rpm_v"].to_numpy(float),
             "resistance_ohm": data["R_ohm"].to_numpy(float),
             "mass_g": mass,
-            "max_current_a": data["Imax_A"].to_numpy(float),
+            "max_current_a": np.round(np.minimum(data["Imax_A"].to_numpy(float), continuous), 3),
+            "no_load_current_a": no_load,
             "max_power_w": np.round(
                 data["Tnom_Nm"].to_numpy(float)
                 * data["Kv_rpm_v"].to_numpy(float)
