@@ -376,6 +376,19 @@ def _read_thrust_map(path: Path) -> ThrustMap:
     return _make_thrust_map(path, cmd, thr, path)
 
 
+def _check_devices(path: Path, devices: Mapping[str, DeviceConfig]) -> None:
+    """Calibrations and options as the device openers will take them, checked now: a bad
+    one must stop the command before a run folder exists, naming file, table and key."""
+    from drivers.errors import DeviceError
+    from drivers.factory import validate_device
+
+    for role, dev in devices.items():
+        try:
+            validate_device(path, role, dev)
+        except DeviceError as exc:
+            raise RigError(str(exc)) from None
+
+
 def load_rig(path: str | os.PathLike[str]) -> RigConfig:
     """Read and validate a rig file; raises ``RigError`` naming file and field."""
     path = Path(path).resolve()
@@ -397,6 +410,7 @@ def load_rig(path: str | os.PathLike[str]) -> RigConfig:
         if role not in devices_t.data:
             devices_t.fail(role, f"missing device; a rig needs {', '.join(ROLES)}")
     devices = {role: _device(devices_t, role) for role in ROLES}
+    _check_devices(path, devices)
     limits = _limits(path, top.table("limits"))  # type: ignore[arg-type]
     components = _components(path, top.table("components"))  # type: ignore[arg-type]
     esc = _esc(top.table("esc", required=False))

@@ -23,13 +23,16 @@ from dataclasses import dataclass, field
 from typing import Any
 from urllib.parse import urlsplit
 
+import numpy as np
+
 from drivers.contracts import Clock, Esc, Fault, MonotonicClock, Sensor
 from drivers.device_options import DeviceUrl, parse_device
 from drivers.errors import DeviceError
 from drivers.sim.esc import EscSettings
+from drivers.sim.faults import FaultSwitches
 from drivers.sim.plant import PlantParams
-from drivers.sim.rig import PlantTruth, SimRig
-from drivers.sim.sensors import SensorParams
+from drivers.sim.rig import ESC_FAULTS, PlantTruth, SimRig
+from drivers.sim.sensors import SensorParams, SimSensor, check_calibration
 
 __all__ = [
     "SENSOR_ROLES",
@@ -38,6 +41,7 @@ __all__ = [
     "device_specs",
     "open_hexapod",
     "open_rig",
+    "validate_device",
 ]
 
 SENSOR_ROLES = ("load_cell", "power", "rpm")
@@ -86,19 +90,49 @@ class OpenRig:
         self.close()
 
 
-def _sim_faults(device: Any, options: Mapping[str, Any], role: str) -> None:
-    """Faults scheduled in a rig file: ``options.faults = [{kind = "dropout", at_s = 2}]``."""
+def _sim_faults(device: Any, options: Mapping[str, Any], role: str, table: str = "") -> None:
+    """Faults scheduled in a rig file: ``options.faults = [{kind = "dropout", at_s = 2}]``.
+
+    ``table`` (``<rig file>: [devices.<role>]``) makes the messages name file and key.
+    """
     unknown = sorted(set(options) - {"faults"})
     if unknown:
-        raise DeviceError(f"{role}: simulated devices take only the option 'faults', "
+        where = f"{table} options.{unknown[0]}" if table else role
+        raise DeviceError(f"{where}: simulated devices take only the option 'faults', "
                           f"got {', '.join(map(repr, unknown))}")
-    for spec in options.get("faults", []):
-        spec = dict(spec)
+    faults = options.get("faults", [])
+    if not isinstance(faults, list | tuple):
+        raise DeviceError(f"{table or role} options.faults: expected a list of tables, "
+                          f"got {faults!r}")
+    for spec in faults:
         try:
-            kind = Fault(spec.pop("kind"))
-            device.inject(kind, **spec)
+            kwargs = dict(spec)
+            kind = Fault(kwargs.pop("kind"))
+            device.inject(kind, **kwargs)
         except (KeyError, ValueError, TypeError) as exc:
-            raise DeviceError(f"{role}: bad fault spec {spec!r}: {exc}") from None
+            where = f"{table} options.faults" if table else role
+            raise DeviceError(f"{where}: bad fault spec {spec!r}: {exc}") from None
+
+
+def validate_device(rig_path: Any, role: str, dev: Any) -> None:
+    """Check a device's calibration and options as its opener will use them, before any
+    device opens or run folder exists (``bench.rig.load_rig`` calls this).
+
+    Covers ``sim://`` devices (calibration keys and values, ``options.faults``) and the
+    calibration of ``nidaq://`` sensors (same keys and values; a missing key is reported
+    when the NI opener needs it). Raises ``DeviceError`` naming the rig file,
+    ``[devices.<role>]`` and the key.
+    """
+    scheme = urlsplit(str(dev.url)).scheme
+    table = f"{rig_path}: [devices.{role}]"
+    calibration = dict(getattr(dev, "calibration", {}) or {})
+    if scheme == "sim":
+        check_calibration(role, calibration, table)
+        allowed = ESC_FAULTS if role == "esc" else SimSensor.allowed_faults
+        probe = FaultSwitches(str(dev.url), np.random.default_rng(0), allowed)
+        _sim_faults(probe, dict(getattr(dev, "options", {}) or {}), role, table)
+    elif scheme == "nidaq" and role in SENSOR_ROLES:
+        check_calibration(role, calibration, table)
 
 
 def build_sim_rig(rig: Any, *, seed: int | None = None, urls: dict[str, str] | None = None,

@@ -29,7 +29,10 @@ from drivers.sim.sensors import (
     SimLoadCell,
     SimPowerSensor,
     SimRpmSensor,
+    check_calibration,
 )
+
+ESC_FAULTS = (Fault.TIMEOUT, Fault.DISCONNECT)  # the faults the simulated ESC can show
 
 
 @dataclass(frozen=True)
@@ -140,8 +143,10 @@ class SimRig:
         self.acquisition = Acquisition(self, seeds[5])
         self.clock.on_advance(self.plant.advance_to)
         self.esc = SimEsc(urls["esc"], self.esc_model, self.clock,
-                          FaultSwitches(urls["esc"], rngs[1], (Fault.TIMEOUT, Fault.DISCONNECT)))
+                          FaultSwitches(urls["esc"], rngs[1], ESC_FAULTS))
         sp = self.sensor_params
+        for role, cal in (("load_cell", load_cell_cal), ("power", power_cal), ("rpm", rpm_cal)):
+            check_calibration(role, cal or {}, f"{urls[role]}:")
         lc = {"scale_n_per_v": 1.0 / sp.load_cell_v_per_n, "offset_v": 0.0, **(load_cell_cal or {})}
         pw = {"current_mv_per_a": sp.current_mv_per_a, "voltage_mv_per_v": sp.voltage_mv_per_v,
               "current_offset_mv": 0.0, **(power_cal or {})}

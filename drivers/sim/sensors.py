@@ -9,6 +9,8 @@ current simulated time since the previous read.
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, fields, replace
 from typing import TYPE_CHECKING
 
@@ -55,6 +57,57 @@ class SensorParams:
             if name not in known:
                 raise KeyError(name)
         return replace(cls(), **overrides)
+
+
+def _positive(v: float) -> bool:
+    return math.isfinite(v) and v > 0.0
+
+
+def _finite(v: float) -> bool:
+    return math.isfinite(v)
+
+
+def _whole_at_least_one(v: float) -> bool:
+    return math.isfinite(v) and v >= 1 and v == int(v)
+
+
+# The rig-file calibration keys of each role: key -> (test, what is expected). A scale of 0
+# or below would hide thrust and current from the limits, so scales must be positive.
+CALIBRATION_KEYS: dict[str, dict[str, tuple[Callable[[float], bool], str]]] = {
+    "esc": {},
+    "load_cell": {"scale_n_per_v": (_positive, "a number of N/V > 0"),
+                  "offset_v": (_finite, "a number of V")},
+    "power": {"current_mv_per_a": (_positive, "a number of mV/A > 0"),
+              "voltage_mv_per_v": (_positive, "a number of mV/V > 0"),
+              "current_offset_mv": (_finite, "a number of mV")},
+    "rpm": {"magnets": (_whole_at_least_one, "a whole number of magnets >= 1")},
+}
+
+
+def check_calibration(role: str, calibration: Mapping[str, float], where: str,
+                      required: tuple[str, ...] = ()) -> None:
+    """Refuse a calibration the sensor of ``role`` cannot use, before any device opens.
+
+    Raises ``DeviceError`` as ``<where> calibration.<key>: <problem>``; unknown keys are
+    refused (a typo must not fall back to a default). The NI-DAQ backend converts with
+    the same keys, so its opener checks them here too (with ``required``).
+    """
+    known = CALIBRATION_KEYS.get(role, {})
+    for key in sorted(calibration):
+        if key not in known:
+            expected = f"expected one of {', '.join(known)}" if known else \
+                f"the {role} takes no calibration"
+            raise DeviceError(f"{where} calibration.{key}: unknown key; {expected}")
+        value = calibration[key]
+        ok, what = known[key]
+        number = isinstance(value, int | float) and not isinstance(value, bool)
+        if not number or not ok(value):
+            got = f"{value:g}" if number else repr(value)
+            raise DeviceError(f"{where} calibration.{key}: expected {what}, got {got}")
+    for key in required:
+        if key not in calibration:
+            raise DeviceError(f"{where} calibration.{key}: missing; expected "
+                              f"{known[key][1]}")
 
 
 class SimSensor:
