@@ -94,9 +94,10 @@ class RunRecorder:
         self.compression = compression
         self.base_columns = tuple(base_columns)  # required in every batch, written first
         self.meta: dict[str, Any] = dict(meta)
-        self._buf: list[dict[str, np.ndarray]] = []
-        self._buf_t0 = math.nan
-        self._buf_t1 = math.nan
+        # Rows wait in one preallocated array per column (grown by doubling, reused for
+        # every part): no per-batch lists, no concatenation, one table per part.
+        self._buf: dict[str, np.ndarray] = {}
+        self._n = 0
         self._schema: pa.Schema | None = None
         self._columns: tuple[str, ...] | None = None
         self.parts = 0
@@ -134,41 +135,46 @@ class RunRecorder:
             if missing:
                 raise ValueError(f"samples need the columns {missing}")
             self._columns = (*base, *[c for c in columns if c not in base])
-        batch = {c: np.asarray(columns[c]) for c in self._columns}
-        if math.isnan(self._buf_t0):
-            self._buf_t0 = float(t[0])
-        self._buf.append(batch)
-        self._buf_t1 = float(t[-1])
-        while self._buf_t1 - self._buf_t0 >= self.chunk_s:
-            self._flush_until(self._buf_t0 + self.chunk_s)
+            self._buf = {c: np.empty(max(4 * n, 1024), np.asarray(columns[c]).dtype)
+                         for c in self._columns}
+        end = self._n + n
+        if end > len(self._buf["t_s"]):
+            size = max(end, 2 * len(self._buf["t_s"]))
+            for c, old in self._buf.items():
+                grown = np.empty(size, old.dtype)
+                grown[:self._n] = old[:self._n]
+                self._buf[c] = grown
+        for c, buf in self._buf.items():
+            # same_kind: a float batch never silently truncates into an integer column
+            np.copyto(buf[self._n:end], columns[c], casting="same_kind")
+        self._n = end
+        tb = self._buf["t_s"]
+        while self._n and tb[self._n - 1] - tb[0] >= self.chunk_s:
+            self._flush_until(tb[0] + self.chunk_s)
 
     def flush(self) -> None:
         """Write everything buffered (used at the end of a run)."""
         self._flush_until(math.inf)
 
     def _flush_until(self, t_cut: float) -> None:
-        if not self._buf:
+        n = self._n
+        if not n:
             return
-        cols = {c: np.concatenate([b[c] for b in self._buf]) for c in self._columns or ()}
-        cut = int(np.searchsorted(cols["t_s"], t_cut, side="left"))
+        cut = int(np.searchsorted(self._buf["t_s"][:n], t_cut, side="left"))
         if cut == 0:  # a single sample at the cut; never loop forever
             cut = 1
-        self._write_part({c: v[:cut] for c, v in cols.items()})
-        rest = {c: v[cut:] for c, v in cols.items()}
-        if len(rest["t_s"]):
-            self._buf = [rest]
-            self._buf_t0 = float(rest["t_s"][0])
-            self._buf_t1 = float(rest["t_s"][-1])
-        else:
-            self._buf = []
-            self._buf_t0 = self._buf_t1 = math.nan
+        self._write_part({c: v[:cut] for c, v in self._buf.items()})
+        for v in self._buf.values():  # the rest moves to the front (less than one batch)
+            v[:n - cut] = v[cut:n].copy()
+        self._n = n - cut
 
     def _write_part(self, cols: Mapping[str, np.ndarray]) -> None:
-        table = pa.table(dict(cols))
         if self._schema is None:
+            table = pa.table(dict(cols))
             self._schema = table.schema
-        else:
-            table = table.cast(self._schema)
+        else:  # the buffers keep their dtypes, so every part has the first one's schema
+            table = pa.Table.from_arrays([pa.array(v) for v in cols.values()],
+                                         schema=self._schema)
         name = f"part-{self.parts:06d}.parquet"
         final = self.run_dir / SAMPLES_DIR / name
         tmp = final.with_name(f".{name}.tmp")
