@@ -87,7 +87,7 @@ class BlockAligner:
         for role, held in self._held.items():
             block = blocks.get(role)
             if (block is not None and held.t.size == 0 and t.size and len(block) == t.size
-                    and np.array_equal(block.t_s, t)):
+                    and bool((block.t_s == t).all())):
                 # Same sample clock as the base (one DAQ): the columns line up as they are.
                 for n in held.names:
                     v = np.asarray(block.values[n], float)

@@ -30,6 +30,8 @@ from drivers.errors import DeviceError
 
 __all__ = ["OpenRigLike", "OperatorStop", "RunOptions", "RunResult", "Runner"]
 
+_COMMAND_COLUMNS = ("throttle_us", "thrust_setpoint_n")  # filled from the command history
+
 
 class OpenRigLike(Protocol):
     """What the runner needs of ``drivers.factory.OpenRig``."""
@@ -93,7 +95,7 @@ class Runner(SafeRunLoop):
         self._cmd_t = np.zeros(1)
         self._cmd_us = np.array([esc_range.idle_us])
         self._cmd_sp = np.array([math.nan])
-        self._cmd_seg = np.array([-1])
+        self._cmd_seg = np.array([-1], dtype=np.int32)
         self._tare_sum = 0.0
         self._tare_n = 0
 
@@ -135,7 +137,7 @@ class Runner(SafeRunLoop):
         self._cmd_t = np.append(self._cmd_t, self._now_rel())
         self._cmd_us = np.append(self._cmd_us, us)
         self._cmd_sp = np.append(self._cmd_sp, seg.setpoint_n)
-        self._cmd_seg = np.append(self._cmd_seg, seg.index)
+        self._cmd_seg = np.append(self._cmd_seg, np.int32(seg.index))
 
     def _drain(self) -> None:
         for sensor in self.rig.sensors.values():
@@ -166,13 +168,13 @@ class Runner(SafeRunLoop):
     def _complete_rows(self, rows: dict[str, np.ndarray]) -> None:
         t = rows["t_s"]
         for col in BASE_COLUMNS:  # a rig without some sensor still gives every column
-            if col not in rows:
+            if col not in rows and col not in _COMMAND_COLUMNS:
                 rows[col] = np.full(t.shape, np.nan)
         idx = np.searchsorted(self._cmd_t, t, side="right") - 1
-        idx = np.maximum(idx, 0)
+        np.maximum(idx, 0, out=idx)
         rows["throttle_us"] = self._cmd_us[idx]
         rows["thrust_setpoint_n"] = self._cmd_sp[idx]
-        rows["step"] = self._cmd_seg[idx].astype(np.int32)
+        rows["step"] = self._cmd_seg[idx]  # int32 history
         if "thrust_n" in rows:
             raw = rows["thrust_n"]  # the tare offset is in run.json and the events
             rows["thrust_n"] = raw - self.tare_offset_n

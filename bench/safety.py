@@ -121,30 +121,42 @@ class SafetySupervisor:
     def __init__(self, limits: Mapping[str, float]) -> None:
         self.limits = dict(limits)
         self.trip: Trip | None = None
+        # channel -> the (limit name, test, value) that apply, resolved once for the run,
+        # and whether any of them needs the block's minimum
+        self._checks: dict[str, tuple[tuple[tuple[str, str, float], ...], bool]] = {}
+        for channel, tests in _CHECKS.items():
+            active = tuple((name, test, self.limits[name]) for name, test in tests
+                           if name in self.limits)
+            if active:
+                self._checks[channel] = (active, any(t != "above" for _, t, _ in active))
 
     def check(self, blocks: Mapping[str, Block]) -> Trip | None:
         """Return the earliest violation in these blocks (and latch it), or None."""
         best: Trip | None = None
+        checks = self._checks
         for role, block in blocks.items():
             if len(block) == 0:
                 continue
             for channel, values in block.values.items():
-                for limit_name, test in _CHECKS.get(channel, ()):
-                    limit = self.limits.get(limit_name)
-                    if limit is None:
-                        continue
-                    v = np.asarray(values, dtype=float)
-                    # NaN-skipping reductions first: the usual block has no violation at all
+                entry = checks.get(channel)
+                if entry is None:
+                    continue
+                tests, needs_lo = entry
+                v = np.asarray(values, dtype=float)
+                # NaN-skipping reductions first: the usual block has no violation at all
+                hi = np.fmax.reduce(v)
+                lo = np.fmin.reduce(v) if needs_lo else hi
+                for limit_name, test, limit in tests:
                     if test == "abs_above":
-                        if not (np.fmax.reduce(v) > limit or np.fmin.reduce(v) < -limit):
+                        if not (hi > limit or lo < -limit):
                             continue
                         bad = np.abs(v) > limit
                     elif test == "above":
-                        if not np.fmax.reduce(v) > limit:
+                        if not hi > limit:
                             continue
                         bad = v > limit
                     else:
-                        if not np.fmin.reduce(v) < limit:
+                        if not lo < limit:
                             continue
                         bad = v < limit
                     i = int(np.argmax(bad))
