@@ -16,6 +16,7 @@ from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 from bench.errors import RigError
+from bench.indexed_run import RunInterrupted
 from bench.runner import RunOptions
 from bench.safety import LIMIT_FIELDS, effective_limits
 from bench.sequences import Segment, Sequence, format_plan
@@ -132,15 +133,28 @@ def execute(rig: Any, seq: Sequence, args: argparse.Namespace,
                             on_rows=on_rows, on_progress=on_progress, stop_event=stop,
                             extra_meta=meta)
 
-    with progress, _sigterm_as_interrupt(stop, bool(args.live)), erase_on_user_error(progress):
-        if args.live:
-            from bench.live import run_with_live_view
+    with say_where_an_interrupted_run_went("run", "ESC idle and disarmed"):
+        with progress, _sigterm_as_interrupt(stop, bool(args.live)), \
+                erase_on_user_error(progress):
+            if args.live:
+                from bench.live import run_with_live_view
 
-            outcome = run_with_live_view(work, stop)
-        else:
-            outcome = work(None)
-        progress.update(task, completed=outcome.result.t_end_s)
+                outcome = run_with_live_view(work, stop)
+            else:
+                outcome = work(None)
+            progress.update(task, completed=outcome.result.t_end_s)
     return outcome
+
+
+@contextlib.contextmanager
+def say_where_an_interrupted_run_went(what: str, safe: str):
+    """Ctrl-C / SIGTERM: one line on stderr naming the run folder and its recorded status
+    (after the progress bar has stopped), then the interrupt goes on (exit 130)."""
+    try:
+        yield
+    except RunInterrupted as exc:
+        print(f"rotorbench: {exc.summary(what, safe)}", file=sys.stderr, flush=True)
+        raise
 
 
 @contextlib.contextmanager
@@ -167,7 +181,7 @@ def _sigterm_as_interrupt(stop: threading.Event, live: bool):
     def on_term(*_: object) -> None:
         stop.set()
         if not live:  # the runner is on this thread: interrupt it now
-            raise KeyboardInterrupt
+            raise KeyboardInterrupt("SIGTERM")
 
     previous = signal.signal(signal.SIGTERM, on_term)
     try:

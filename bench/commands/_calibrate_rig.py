@@ -24,7 +24,12 @@ from analysis.imu_calibration import Calibration
 from analysis.imu_log import load_calibration_log
 from bench.calibration_sequences import HexapodPlan, HexapodSegment, format_plan, paper_a_sequences
 from bench.calibration_session import CalibrationRun, collect_log, plans_for, run_calibration
-from bench.commands._bench_common import _sigterm_as_interrupt, erase_on_user_error, err_console
+from bench.commands._bench_common import (
+    _sigterm_as_interrupt,
+    erase_on_user_error,
+    err_console,
+    say_where_an_interrupted_run_went,
+)
 from bench.commands.calibrate import (
     _check_out,
     calibrate_frame,
@@ -129,7 +134,8 @@ def _run_with_progress(rig, plans: list[HexapodPlan], args: argparse.Namespace,
 
     meta = {"command_line": ["rotorbench", *sys.argv[1:]], "calibration_session": session,
             "quick": bool(args.quick)}
-    with progress, _sigterm_as_interrupt(stop, False), erase_on_user_error(progress):
+    with say_where_an_interrupted_run_went("calibration stage", "hexapod stopped"), \
+            progress, _sigterm_as_interrupt(stop, False), erase_on_user_error(progress):
         return run_calibration(rig, args.runs, quick=args.quick, options=options,
                                sequences=[p.sequence for p in plans], on_stage=on_stage,
                                on_progress=on_progress, stop_event=stop, extra_meta=meta)
