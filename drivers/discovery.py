@@ -1,7 +1,8 @@
 """What the host can see: serial ports (pyserial) and CAN interfaces (python-can).
 
-For ``rotorbench devices``. Both libraries are optional and imported here lazily; a
-missing library or an interface whose probe fails is reported, never raised. python-can's
+For ``rotorbench devices``. The vendor libraries stay in their one backend module each
+(``backends.serial_link``, ``backends.can_link``), imported here lazily; a missing library
+or an interface whose probe fails is reported, never raised. python-can's
 ``detect_available_configs`` asks each interface in turn (some load vendor DLLs), so it
 runs on a thread with a deadline and only over the interfaces named.
 """
@@ -44,21 +45,21 @@ class CanConfig:
 def serial_ports() -> tuple[list[SerialPort], str]:
     """Serial ports and a note ('' or why none could be listed)."""
     try:
-        from serial.tools import list_ports
+        from drivers.backends import serial_link
     except ImportError as exc:
         return [], f"pyserial not installed ({exc})"
     try:
-        ports = sorted(list_ports.comports(), key=lambda p: p.device)
+        ports = serial_link.list_ports()
     except Exception as exc:  # a platform backend failing must not end the listing
         return [], f"listing serial ports failed: {exc}"
-    return [SerialPort(p.device, p.description or "", p.hwid or "") for p in ports], ""
+    return [SerialPort(*port) for port in ports], ""
 
 
 def can_configs(interfaces: tuple[str, ...] = CAN_INTERFACES,
                 timeout_s: float = 5.0) -> tuple[list[CanConfig], str]:
     """CAN interfaces/channels python-can detects, and a note ('' or what went wrong)."""
     try:
-        import can
+        from drivers.backends import can_link
     except ImportError as exc:
         return [], f"python-can not installed ({exc})"
     found: list[CanConfig] = []
@@ -77,13 +78,11 @@ def can_configs(interfaces: tuple[str, ...] = CAN_INTERFACES,
     def _detect() -> None:
         for name in interfaces:
             try:
-                configs = can.detect_available_configs(interfaces=[name])
+                configs = can_link.detect_configs(name)
             except Exception as exc:  # one broken interface must not hide the others
                 notes.append(f"{name}: {exc}")
                 continue
-            for cfg in configs:
-                found.append(CanConfig(str(cfg.get("interface", name)),
-                                       str(cfg.get("channel", ""))))
+            found.extend(CanConfig(interface, channel) for interface, channel in configs)
 
     worker = threading.Thread(target=detect, name="can-detect", daemon=True)
     worker.start()

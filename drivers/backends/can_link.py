@@ -19,6 +19,12 @@ from drivers.errors import DeviceError
 Subscriber = Callable[[CanFrame], None]
 
 
+def detect_configs(interface: str) -> list[tuple[str, str]]:
+    """(interface, channel) pairs python-can detects on one interface."""
+    configs = can.detect_available_configs(interfaces=[interface])
+    return [(str(c.get("interface", interface)), str(c.get("channel", ""))) for c in configs]
+
+
 def open_bus(interface: str, channel: str, **kwargs: object) -> can.BusABC:
     """``can.Bus`` with errors turned into ``DeviceError`` naming interface and channel."""
     try:

@@ -14,6 +14,14 @@ import serial
 from drivers.errors import DeviceError
 
 
+def list_ports() -> list[tuple[str, str, str]]:
+    """(device, description, hwid) of every serial port pyserial sees, sorted by device."""
+    from serial.tools import list_ports as pyserial_list_ports
+
+    ports = sorted(pyserial_list_ports.comports(), key=lambda p: p.device)
+    return [(p.device, p.description or "", p.hwid or "") for p in ports]
+
+
 def open_port(url: str, baudrate: int, *, timeout_s: float = 0.01) -> serial.SerialBase:
     """``serial_for_url`` with errors turned into ``DeviceError`` (the port name in it)."""
     try:
