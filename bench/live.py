@@ -1,26 +1,37 @@
 """Live view of a run: rolling plots of command, thrust, current and speed.
 
-The runner (in a worker thread) pushes each tick's rows into a :class:`RingBuffer`; a
-``QTimer`` in the GUI thread takes a snapshot of the last seconds and redraws. The GUI
-never reads run files and the worker never touches Qt. Closing the window asks the run
-to stop (an operator action, recorded); the runner still ends with the ESC safe.
-pyqtgraph and a Qt binding are the optional ``live`` extra, imported only here.
+The window lives in a process of its own. The run loop (in the calling process, on its own
+thread) pushes each tick's rows into a :class:`RingBuffer` in shared memory; the window process
+takes a snapshot of the last seconds on a ``QTimer`` and redraws. Nothing but that memory and a
+pipe joins the two, so a crash of Qt, of the binding or of the plotting library ends the window,
+never the run: the run loop sees the window gone at its next tick and stops the run safely (ESC
+idle and disarmed), recording why. This is not hypothetical: PySide6 6.12.0 releases ``None``
+once too often in every void ``QPainter`` call, and on Python 3.11 (where ``None`` is not
+immortal) the process aborts with ``none_dealloc`` after a few thousand redraws
+(docs/live.md). :func:`binding_fault` detects such a binding before a run starts.
+
+Closing the window asks the run to stop (an operator action, recorded). pyqtgraph and a Qt
+binding are the optional ``live`` extra, imported only in the window process.
 """
 
 from __future__ import annotations
 
+import multiprocessing as mp
 import os
 import signal
 import sys
 import threading
+import time
 from collections.abc import Callable, Mapping
 from typing import Any, TypeVar
 
 import numpy as np
 
 from bench.errors import RigError
+from bench.run_loop import OperatorStop
 
-__all__ = ["LIVE_CHANNELS", "LiveView", "RingBuffer", "run_with_live_view"]
+__all__ = ["LIVE_CHANNELS", "LiveView", "RingBuffer", "WindowLost", "binding_fault",
+           "run_with_live_view"]
 
 T = TypeVar("T")
 
@@ -31,24 +42,44 @@ LIVE_CHANNELS = (
     ("current_a", "current", "A"),
     ("rpm", "speed", "rpm"),
 )
+LIVE_EXTRA = "rotorbench[live]"
 
 
 class RingBuffer:
-    """Fixed-size numpy ring of the newest rows; one writer, any number of readers."""
+    """Fixed-size numpy ring of the newest rows; one writer, any number of readers.
 
-    def __init__(self, names: tuple[str, ...], capacity: int) -> None:
+    ``buffer`` (optional) is the memory to use, e.g. a ``multiprocessing`` ``RawArray`` of
+    :meth:`cells` doubles shared with another process (``fresh`` says whether to clear it);
+    ``lock`` is any context-manager lock (a ``multiprocessing`` lock across processes). Cell 0
+    holds the number of rows pushed so far, so a reader in another process knows it too.
+    """
+
+    def __init__(self, names: tuple[str, ...], capacity: int, buffer: Any = None,
+                 lock: Any = None, fresh: bool = True) -> None:
         if capacity < 1:
             raise ValueError("capacity must be positive")
         self.names = tuple(names)
         self.capacity = int(capacity)
-        self._data = np.full((len(self.names), self.capacity), np.nan)
-        self._total = 0
-        self._lock = threading.Lock()
+        cells = self.cells(len(self.names), self.capacity)
+        memory = np.frombuffer(buffer, dtype=float) if buffer is not None else np.empty(cells)
+        if memory.size != cells:
+            raise ValueError(f"ring memory holds {memory.size} cells, needs {cells}")
+        self._count = memory[:1]
+        self._data = memory[1:].reshape(len(self.names), self.capacity)
+        self._lock = lock if lock is not None else threading.Lock()
+        if fresh:
+            self._count[0] = 0.0
+            self._data[:] = np.nan
+
+    @staticmethod
+    def cells(n_names: int, capacity: int) -> int:
+        """Doubles of memory a ring of ``n_names`` columns and ``capacity`` rows needs."""
+        return 1 + n_names * capacity
 
     @property
     def total(self) -> int:
         """Rows pushed since the start (not only those kept)."""
-        return self._total
+        return int(self._count[0])
 
     def push(self, columns: Mapping[str, np.ndarray]) -> None:
         n = len(columns["t_s"])
@@ -60,18 +91,20 @@ class RingBuffer:
             block = block[:, -self.capacity:]
         m = block.shape[1]
         with self._lock:
-            start = (self._total + (n - m)) % self.capacity
+            total = int(self._count[0])
+            start = (total + (n - m)) % self.capacity
             first = min(m, self.capacity - start)
             self._data[:, start:start + first] = block[:, :first]
             if first < m:
                 self._data[:, :m - first] = block[:, first:]
-            self._total += n
+            self._count[0] = total + n
 
     def snapshot(self) -> dict[str, np.ndarray]:
         """A copy of the kept rows, oldest first (two slices, no full-buffer roll)."""
         with self._lock:
-            kept = min(self._total, self.capacity)
-            end = self._total % self.capacity
+            total = int(self._count[0])
+            kept = min(total, self.capacity)
+            end = total % self.capacity
             if kept < self.capacity:
                 data = self._data[:, :kept].copy()
             else:
@@ -144,60 +177,235 @@ def check_display() -> None:
                        "(run without --live, or set QT_QPA_PLATFORM=offscreen)")
 
 
-def run_with_live_view(work: Callable[[Callable[[Mapping[str, np.ndarray]], None]], T],
-                       stop_event: threading.Event, rate_hint_hz: float = 25_000.0,
-                       window_s: float = 10.0, close_when_done: bool = False,
-                       interval_ms: int = 50) -> T:
-    """Run ``work(on_rows)`` in a worker thread while a live window shows its rows.
+def none_refs_per_call(call: Callable[[], object], calls: int = 2000) -> float:
+    """How ``None``'s reference count changes per call of ``call``: 0 for a sound binding,
+    about -1 for one that returns ``None`` without taking a reference (on Python >= 3.12
+    ``None`` is immortal, its count never moves and such a bug is harmless)."""
+    for _ in range(50):  # warm-up: caches and first-call allocations
+        call()
+    before = sys.getrefcount(None)
+    for _ in range(calls):
+        call()
+    return (sys.getrefcount(None) - before) / calls
 
-    Closing the window or Ctrl-C sets ``stop_event`` (the runner stops safely); the
-    function returns ``work``'s result or re-raises its exception.
+
+def binding_fault() -> str | None:
+    """Why the installed Qt binding cannot draw for a whole run, or None if it can.
+
+    Draws lines with a ``QPainter`` on an image (as pyqtgraph does every frame) and watches
+    ``None``'s reference count: a binding that releases ``None`` once too often per call
+    (PySide6 6.12.0) would abort the process after a few thousand redraws.
     """
-    check_display()
-    names = ("t_s", *[c for c, _, _ in LIVE_CHANNELS], "thrust_setpoint_n")
-    ring = RingBuffer(names, int(rate_hint_hz * window_s))
-    view = LiveView(ring, window_s=window_s, interval_ms=interval_ms)
-    outcome: dict[str, Any] = {}
+    import pyqtgraph as pg
+    from pyqtgraph.Qt import QT_LIB, QtCore, QtGui
 
-    def target() -> None:
-        try:
-            outcome["value"] = work(ring.push)
-        except BaseException as exc:
-            outcome["error"] = exc
+    pg.mkQApp("rotorbench")
+    image = QtGui.QImage(64, 64, QtGui.QImage.Format.Format_ARGB32)
+    painter = QtGui.QPainter(image)
+    pen = QtGui.QPen()
+    a, b = QtCore.QPointF(0.0, 0.0), QtCore.QPointF(10.0, 10.0)
 
-    worker = threading.Thread(target=target, name="rotorbench-run", daemon=True)
-    app = view.app
-    app.setQuitOnLastWindowClosed(True)
-    app.lastWindowClosed.connect(stop_event.set)
+    def draw() -> None:
+        painter.setPen(pen)
+        painter.drawLine(a, b)
+
+    try:
+        drift = none_refs_per_call(draw)
+    finally:
+        painter.end()
+    if drift > -0.5:
+        return None
+    version = getattr(QtCore, "__version__", None) or QtCore.qVersion()
+    return (f"the Qt binding {QT_LIB} {version} on Python {sys.version.split()[0]} releases "
+            f"None {-drift:.1f} times too often per QPainter call (the window would abort after "
+            f"a few thousand redraws); install the tested versions: pip install '{LIVE_EXTRA}'")
+
+
+def _qt_binding_missing() -> str | None:
+    try:
+        import pyqtgraph  # noqa: F401
+    except ImportError as exc:
+        return f"--live needs the live extra ({exc}); install it: pip install '{LIVE_EXTRA}'"
+    return None
+
+
+class WindowLost(OperatorStop):
+    """The live window went away during a run: closed by the operator, or crashed."""
+
+    def reason(self) -> str:
+        return str(self)
+
+
+def _window_main(names: tuple[str, ...], capacity: int, memory: Any, lock: Any, conn: Any,
+                 window_s: float, interval_ms: int, title: str, close_when_done: bool) -> None:
+    """The window process: show the ring until the operator closes the window (or the run
+    is over and ``close_when_done``, or the run's process is gone)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is for the run's process
+    problem = _qt_binding_missing() or binding_fault()
+    if problem is not None:
+        conn.send(("error", problem))
+        return
     from pyqtgraph.Qt import QtCore
 
-    def poll() -> None:
-        if not worker.is_alive():
-            view.refresh()
-            status = getattr(getattr(outcome.get("value"), "result", None), "status", None)
-            view.win.setWindowTitle(f"rotorbench live - finished ({status or 'error'})")
-            if close_when_done or stop_event.is_set():  # stopped by Ctrl-C / SIGTERM
-                app.quit()
-            done_timer.stop()
+    ring = RingBuffer(names, capacity, buffer=memory, lock=lock, fresh=False)
+    view = LiveView(ring, window_s=window_s, interval_ms=interval_ms, title=title)
+    app = view.app
+    app.setQuitOnLastWindowClosed(True)
+    parent = mp.parent_process()
+    started = time.monotonic()
 
-    done_timer = QtCore.QTimer()
-    done_timer.timeout.connect(poll)
-    previous = None
-    if threading.current_thread() is threading.main_thread():
-        def on_sigint(*_: object) -> None:
-            stop_event.set()
-        previous = signal.signal(signal.SIGINT, on_sigint)
+    def poll() -> None:
+        while conn.poll():
+            kind, *rest = conn.recv()
+            if kind == "finished":
+                view.refresh()
+                view.win.setWindowTitle(f"{title} - finished ({rest[0]})")
+                if close_when_done:
+                    app.quit()
+            elif kind == "quit":
+                app.quit()
+        if parent is not None and not parent.is_alive():
+            app.quit()
+
+    messages = QtCore.QTimer()
+    messages.timeout.connect(poll)
+    view.show()
+    messages.start(50)
+    conn.send(("ready", title))
+    app.exec()
+    view.close()
+    conn.send(("frames", view.refreshes, time.monotonic() - started))
+
+
+class _Window:
+    """The parent's handle on the window process."""
+
+    def __init__(self, names: tuple[str, ...], capacity: int, window_s: float,
+                 interval_ms: int, title: str, close_when_done: bool) -> None:
+        ctx = mp.get_context("spawn")  # never fork a process that may hold Qt or device state
+        memory = ctx.RawArray("d", RingBuffer.cells(len(names), capacity))
+        lock = ctx.Lock()
+        self.ring = RingBuffer(names, capacity, buffer=memory, lock=lock)
+        self.conn, child = ctx.Pipe()
+        self.proc = ctx.Process(target=_window_main, name="rotorbench-live", daemon=True,
+                                args=(names, capacity, memory, lock, child, window_s,
+                                      interval_ms, title, close_when_done))
+        self.proc.start()
+        child.close()
+        self.frames: tuple[int, float] | None = None
+
+    def wait_ready(self, timeout_s: float) -> None:
+        """Block until the window shows, or raise :class:`RigError` with the reason."""
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            if self.conn.poll(0.05):
+                kind, *rest = self._recv()
+                if kind == "ready":
+                    return
+                if kind == "error":
+                    self.proc.join(5)
+                    raise RigError(f"--live: {rest[0]}")
+            elif self.proc.exitcode is not None:
+                raise RigError(f"--live: the live window could not start "
+                               f"({_exit_text(self.proc.exitcode)})")
+        self.close()
+        raise RigError(f"--live: the live window did not open within {timeout_s:g} s")
+
+    def check(self) -> None:
+        """Called on every tick of the run: raise :class:`WindowLost` once the window is gone."""
+        code = self.proc.exitcode
+        if code is None:
+            return
+        if code == 0:
+            raise WindowLost("stopped by operator: live window closed")
+        raise WindowLost(f"live window crashed ({_exit_text(code)}); the run was stopped safely")
+
+    def finished(self, status: str) -> None:
+        self._send(("finished", status))
+
+    def wait_closed(self) -> None:
+        """After the run: wait for the operator to close the window (Ctrl-C closes it)."""
+        try:
+            while self.proc.is_alive():
+                self.proc.join(0.2)
+        except KeyboardInterrupt:
+            pass
+        self.close()
+
+    def close(self) -> None:
+        if self.proc.is_alive():
+            self._send(("quit",))
+            self.proc.join(3)
+        if self.proc.is_alive():
+            self.proc.terminate()
+            self.proc.join(3)
+        self._drain()
+        self.conn.close()
+
+    def _send(self, message: tuple) -> None:
+        try:
+            self.conn.send(message)
+        except (BrokenPipeError, OSError):
+            pass  # the window is gone already
+
+    def _recv(self) -> tuple:
+        message = self.conn.recv()
+        if message[0] == "frames":
+            self.frames = (message[1], message[2])
+        return message
+
+    def _drain(self) -> None:
+        try:
+            while self.conn.poll():
+                self._recv()
+        except (EOFError, OSError):
+            pass
+
+
+def _exit_text(code: int) -> str:
+    if code < 0:
+        try:
+            return f"signal {signal.Signals(-code).name}"
+        except ValueError:
+            return f"signal {-code}"
+    return f"exit code {code}"
+
+
+def run_with_live_view(work: Callable[[Callable[[Mapping[str, np.ndarray]], None]], T],
+                       rate_hint_hz: float = 25_000.0,
+                       window_s: float = 10.0, close_when_done: bool = False,
+                       interval_ms: int = 50, ready_timeout_s: float = 60.0,
+                       stats: dict[str, Any] | None = None) -> T:
+    """Run ``work(on_rows)`` here while a live window in its own process shows its rows.
+
+    The window opens (and its binding is checked) before ``work`` starts; a window that
+    cannot open is a :class:`RigError` and nothing runs. Closing the window or its crash
+    ends the run safely at the next tick (:class:`WindowLost`); Ctrl-C and SIGTERM act on
+    the run as without ``--live``. After the run the window stays open with the final
+    rows until the operator closes it (at once with ``close_when_done``). ``stats``, if
+    given, receives the window's ``frames`` and ``seconds`` and its ``exitcode``.
+    """
+    check_display()
+    problem = _qt_binding_missing()
+    if problem is not None:
+        raise RigError(problem)
+    names = ("t_s", *[c for c, _, _ in LIVE_CHANNELS], "thrust_setpoint_n")
+    window = _Window(names, int(rate_hint_hz * window_s), window_s, interval_ms,
+                     "rotorbench live", close_when_done)
     try:
-        view.show()
-        worker.start()
-        done_timer.start(50)
-        app.exec()
+        window.wait_ready(ready_timeout_s)
+
+        def on_rows(rows: Mapping[str, np.ndarray]) -> None:
+            window.ring.push(rows)
+            window.check()
+
+        value = work(on_rows)
+        status = getattr(getattr(value, "result", value), "status", None)
+        window.finished(str(status or "done"))
+        window.wait_closed()
     finally:
-        stop_event.set()  # window closed before the end: stop the run safely
-        worker.join()
-        view.close()
-        if previous is not None:
-            signal.signal(signal.SIGINT, previous)
-    if "error" in outcome:
-        raise outcome["error"]
-    return outcome["value"]
+        window.close()
+        if stats is not None:
+            frames, seconds = window.frames or (0, 0.0)
+            stats.update(frames=frames, seconds=seconds, exitcode=window.proc.exitcode)
+    return value

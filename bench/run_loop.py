@@ -37,6 +37,10 @@ EPS = 1e-9
 class OperatorStop(Exception):
     """The operator asked to stop (stop button, closed live window)."""
 
+    def reason(self) -> str:
+        """The run's recorded reason."""
+        return f"stopped by operator: {self}" if str(self) else "stopped by operator"
+
 
 @dataclass
 class RunResult:
@@ -150,8 +154,7 @@ class SafeRunLoop:
         except WatchdogTrip as exc:
             status, reason = "abort", str(exc)
         except OperatorStop as exc:
-            status, reason = "abort", f"stopped by operator: {exc}" if str(exc) else \
-                "stopped by operator"
+            status, reason = "abort", exc.reason()
         except KeyboardInterrupt as exc:
             status, reason, pending = "abort", "interrupted by operator (Ctrl-C or SIGTERM)", exc
         except DeviceError as exc:

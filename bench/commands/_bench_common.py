@@ -134,12 +134,12 @@ def execute(rig: Any, seq: Sequence, args: argparse.Namespace,
                             extra_meta=meta)
 
     with say_where_an_interrupted_run_went("run", "ESC idle and disarmed"):
-        with progress, _sigterm_as_interrupt(stop, bool(args.live)), \
+        with progress, _sigterm_as_interrupt(stop), \
                 erase_on_user_error(progress):
             if args.live:
                 from bench.live import run_with_live_view
 
-                outcome = run_with_live_view(work, stop)
+                outcome = run_with_live_view(work)
             else:
                 outcome = work(None)
             progress.update(task, completed=outcome.result.t_end_s)
@@ -172,7 +172,7 @@ def erase_on_user_error(progress: Progress):
 
 
 @contextlib.contextmanager
-def _sigterm_as_interrupt(stop: threading.Event, live: bool):
+def _sigterm_as_interrupt(stop: threading.Event):
     """``kill PID`` (SIGTERM) ends a run like Ctrl-C: safe stop, record, exit 130."""
     if threading.current_thread() is not threading.main_thread():
         yield
@@ -180,8 +180,7 @@ def _sigterm_as_interrupt(stop: threading.Event, live: bool):
 
     def on_term(*_: object) -> None:
         stop.set()
-        if not live:  # the runner is on this thread: interrupt it now
-            raise KeyboardInterrupt("SIGTERM")
+        raise KeyboardInterrupt("SIGTERM")  # the runner is on this thread: interrupt it now
 
     previous = signal.signal(signal.SIGTERM, on_term)
     try:

@@ -1,9 +1,15 @@
-"""The live view, offscreen: ring buffer, timer-driven redraws, a run shown live."""
+"""The live view, offscreen: ring buffer, timer-driven redraws, a run shown live in a window
+process of its own, and the run stopped safely when that window closes or crashes."""
 
 from __future__ import annotations
 
+import ctypes
+import multiprocessing as mp
 import os
+import signal
+import sys
 import threading
+import time
 
 import numpy as np
 import pytest
@@ -11,7 +17,15 @@ import pytest
 os.environ["QT_QPA_PLATFORM"] = "offscreen"
 pytest.importorskip("pyqtgraph")
 
-from bench.live import LiveView, RingBuffer, run_with_live_view
+from bench.live import (
+    LiveView,
+    RingBuffer,
+    WindowLost,
+    _Window,
+    binding_fault,
+    none_refs_per_call,
+    run_with_live_view,
+)
 
 
 def cols(t):
@@ -53,15 +67,25 @@ def test_live_view_redraws_from_the_ring_on_its_timer():
     view.close()
 
 
-def test_a_run_is_shown_live_and_the_window_closes(fakes, tmp_path):
-    from bench.recorder import RunRecorder
-    from bench.runner import Runner
+def _step_plan(repeats):
     from bench.sequences import EscRange, compile_plan, step1
 
     esc = EscRange(1000.0, 1050.0, 2000.0)
+    return esc, compile_plan(step1(repeats=repeats), esc,
+                             lambda f: 1050.0 + (f / 1e-7) ** 0.5 / 12.0)
+
+
+def _runner(fakes, tmp_path, repeats, spy):
+    from bench.recorder import RunRecorder
+    from bench.runner import Runner
+
+    esc, plan = _step_plan(repeats)
     rig = fakes.FakeRig()
-    plan = compile_plan(step1(repeats=2), esc, lambda f: 1050.0 + (f / 1e-7) ** 0.5 / 12.0)
-    stop = threading.Event()
+    return rig, Runner(rig, plan, esc, {"thrust_n": 10.0}, RunRecorder(tmp_path / "r", {}),
+                       on_rows=spy)
+
+
+def test_a_run_is_shown_live_and_the_window_closes(fakes, tmp_path):
     seen = {}
 
     def work(on_rows):
@@ -69,11 +93,145 @@ def test_a_run_is_shown_live_and_the_window_closes(fakes, tmp_path):
             on_rows(rows)
             seen["n"] = seen.get("n", 0) + len(rows["t_s"])
 
-        runner = Runner(rig, plan, esc, {"thrust_n": 10.0},
-                        RunRecorder(tmp_path / "r", {}), on_rows=spy, stop_event=stop)
+        rig, runner = _runner(fakes, tmp_path, 2, spy)
+        seen["rig"] = rig
         return runner.run()
 
-    result = run_with_live_view(work, stop, rate_hint_hz=2500.0, close_when_done=True)
+    stats = {}
+    result = run_with_live_view(work, rate_hint_hz=2500.0, close_when_done=True, stats=stats)
     assert result.status == "success"
     assert seen["n"] == result.rows > 0
-    assert rig.esc.armed is False
+    assert seen["rig"].esc.armed is False
+    assert stats["exitcode"] == 0  # the window process ended on its own, cleanly
+
+
+def test_the_window_draws_through_a_whole_paced_run(fakes, tmp_path):
+    """Rows arrive at bench pace for several seconds while the window redraws every 10 ms:
+    a binding that corrupts the interpreter on drawing (PySide6 6.12.0 on Python 3.11) would
+    be refused before the run or abort the window process here."""
+
+    def work(on_rows):
+        def paced(rows):
+            on_rows(rows)
+            time.sleep(0.02)  # one 20 ms tick per tick: the run takes its real 3.7 s
+
+        _rig, runner = _runner(fakes, tmp_path, 3, paced)
+        return runner.run()
+
+    stats = {}
+    result = run_with_live_view(work, rate_hint_hz=2500.0, close_when_done=True,
+                                interval_ms=10, stats=stats)
+    assert result.status == "success"
+    assert stats["exitcode"] == 0
+    assert stats["frames"] > 50  # it really drew, many times, during the run
+
+
+def test_a_crashed_window_stops_the_run_with_the_esc_safe(fakes, tmp_path):
+    seen = {}
+
+    def work(on_rows):
+        def spy(rows):
+            seen["n"] = seen.get("n", 0) + len(rows["t_s"])
+            if seen["n"] > 2000 and "killed" not in seen:
+                (child,) = mp.active_children()
+                os.kill(child.pid, signal.SIGABRT)  # as Qt's none_dealloc abort does
+                seen["killed"] = True
+                while mp.active_children():  # reaped: its exit code is known
+                    time.sleep(0.01)
+            on_rows(rows)
+
+        rig, runner = _runner(fakes, tmp_path, 20, spy)
+        seen["rig"] = rig
+        return runner.run()
+
+    result = run_with_live_view(work, rate_hint_hz=2500.0)
+    assert result.status == "abort"
+    assert result.reason == "live window crashed (signal SIGABRT); the run was stopped safely"
+    esc = seen["rig"].esc
+    assert esc.armed is False and esc.pulse_us == 1000.0
+    assert esc.history[-1][1] == "disarm"
+
+
+def test_closing_the_window_is_an_operator_stop():
+    window = _Window(("t_s", "thrust_n"), 100, 1.0, 50, "test", False)
+    try:
+        window.wait_ready(60)
+        window.check()  # open: nothing to say
+        window._send(("quit",))  # what closing the last window does: the app quits, exit 0
+        window.proc.join(10)
+        with pytest.raises(WindowLost, match="stopped by operator: live window closed"):
+            window.check()
+    finally:
+        window.close()
+
+
+def test_the_installed_binding_draws_without_corrupting_none():
+    assert binding_fault() is None
+
+
+@pytest.mark.skipif(sys.version_info >= (3, 12), reason="None is immortal from Python 3.12")
+def test_a_binding_that_over_releases_none_is_detected():
+    decref, incref = ctypes.pythonapi.Py_DecRef, ctypes.pythonapi.Py_IncRef
+    decref.argtypes = incref.argtypes = [ctypes.py_object]
+    calls = 0
+
+    def leaky():  # what PySide6 6.12.0's void QPainter calls do to None
+        nonlocal calls
+        calls += 1
+        decref(None)
+
+    try:
+        assert none_refs_per_call(leaky, calls=500) == pytest.approx(-1.0, abs=0.1)
+    finally:
+        for _ in range(calls):
+            incref(None)
+    assert none_refs_per_call(lambda: None, calls=500) == pytest.approx(0.0, abs=0.1)
+
+
+def _window_processes(pid: int) -> list[int]:
+    """The children of ``pid`` that are spawned multiprocessing workers (not the resource
+    tracker that multiprocessing starts beside them)."""
+    kids: list[int] = []
+    for task in os.listdir(f"/proc/{pid}/task"):
+        with open(f"/proc/{pid}/task/{task}/children") as f:
+            for kid in f.read().split():
+                with open(f"/proc/{kid}/cmdline", "rb") as c:
+                    cmdline = c.read()
+                if b"spawn_main" in cmdline and b"resource_tracker" not in cmdline:
+                    kids.append(int(kid))
+    return kids
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_step_live_from_the_command_line_runs_to_the_end(tmp_path, fixtures_dir):
+    """`rotorbench step --live` as a user runs it: the run completes with the window open,
+    then the window is closed (here: its process ended) and the command exits 0."""
+    import json
+    import subprocess
+
+    env = {**os.environ, "QT_QPA_PLATFORM": "offscreen"}
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "bench.cli", "step", "--live", "--repeats", "2", "--rig",
+         str(fixtures_dir / "rigs" / "sim.toml"), "--out", str(tmp_path)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        deadline = time.monotonic() + 120
+        status = None
+        while time.monotonic() < deadline and proc.poll() is None:
+            runs = list(tmp_path.glob("*-step1/run.json"))
+            if runs:
+                status = json.loads(runs[0].read_text()).get("status")
+                if status not in (None, "running"):
+                    break
+            time.sleep(0.2)
+        assert status == "success", proc.stderr.read() if proc.poll() is not None else status
+        assert proc.poll() is None  # the finished run is still on screen
+        (window,) = _window_processes(proc.pid)
+        os.kill(window, signal.SIGTERM)  # the operator closes the window
+        out, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, err
+    assert "Fatal Python error" not in err
+    assert ": success: sequence complete" in out
