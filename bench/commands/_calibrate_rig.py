@@ -135,7 +135,7 @@ def _run_with_progress(rig, plans: list[HexapodPlan], args: argparse.Namespace,
     meta = {"command_line": ["rotorbench", *sys.argv[1:]], "calibration_session": session,
             "quick": bool(args.quick)}
     with say_where_an_interrupted_run_went("calibration stage", "hexapod stopped"), \
-            progress, _sigterm_as_interrupt(stop, False), erase_on_user_error(progress):
+            progress, _sigterm_as_interrupt(stop), erase_on_user_error(progress):
         return run_calibration(rig, args.runs, quick=args.quick, options=options,
                                sequences=[p.sequence for p in plans], on_stage=on_stage,
                                on_progress=on_progress, stop_event=stop, extra_meta=meta)

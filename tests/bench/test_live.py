@@ -113,9 +113,9 @@ def test_the_window_draws_through_a_whole_paced_run(fakes, tmp_path):
     def work(on_rows):
         def paced(rows):
             on_rows(rows)
-            time.sleep(0.02)  # one 20 ms tick per tick: the run takes its real 3.7 s
+            time.sleep(0.02)  # one 20 ms tick per tick: the run takes its real 6 s
 
-        _rig, runner = _runner(fakes, tmp_path, 3, paced)
+        _rig, runner = _runner(fakes, tmp_path, 5, paced)
         return runner.run()
 
     stats = {}
@@ -123,7 +123,7 @@ def test_the_window_draws_through_a_whole_paced_run(fakes, tmp_path):
                                 interval_ms=10, stats=stats)
     assert result.status == "success"
     assert stats["exitcode"] == 0
-    assert stats["frames"] > 50  # it really drew, many times, during the run
+    assert stats["frames"] > 20  # it really drew, many times (about 100 on an idle machine)
 
 
 def test_a_crashed_window_stops_the_run_with_the_esc_safe(fakes, tmp_path):
