@@ -37,7 +37,7 @@ from optimizer.errors import RequestError
 
 RATE_PHASE_MARGIN_DEG = 50.0
 ATTITUDE_PHASE_MARGIN_DEG = 65.0
-INTEGRAL_RATIO = 5.0  # integral corner a fifth of the rate crossover (~11 deg phase)
+INTEGRAL_RATIO = 10.0  # integral corner a tenth of the rate crossover (5.7 deg of phase)
 
 
 @dataclass(frozen=True)

@@ -35,8 +35,8 @@ from optimizer.flight.vehicle import Vehicle, euler_angles, hover_state, step
 DT_S = 1e-3  # 1 kHz control and integration rate
 STEP_TIME_S = 0.1
 GUST_S = 0.5
-GUST_FORCE_G = 0.3
-GUST_TORQUE_FRACTION = 0.3
+GUST_FORCE_G = 0.2
+GUST_TORQUE_FRACTION = 0.1
 GUST_BAND_DEG = 0.2
 
 
@@ -53,8 +53,8 @@ class Maneuver:
 MANEUVERS: dict[str, Maneuver] = {
     m.name: m
     for m in (
-        Maneuver("roll_step", "roll", math.radians(10.0), 2.0),
-        Maneuver("pitch_step", "pitch", math.radians(10.0), 2.0),
+        Maneuver("roll_step", "roll", math.radians(10.0), 3.0),
+        Maneuver("pitch_step", "pitch", math.radians(10.0), 3.0),
         Maneuver("yaw_step", "yaw", math.radians(30.0), 4.0),
         Maneuver("altitude_step", "altitude", 1.0, 4.0),
         Maneuver("gust", "gust", 0.0, 3.0),
@@ -132,6 +132,7 @@ def fly(vehicle: Vehicle, actuator: ActuatorModel, man: Maneuver, *,
     gust_f = GUST_FORCE_G * vehicle.mass_kg * g
     gust_m = GUST_TORQUE_FRACTION * vehicle.mass_kg * g / n * vehicle.arm_m
     k_gust = round(GUST_S / dt)
+    gusty = man.axis == "gust"
 
     s = hover_state()
     states: list[list[float]] = []
@@ -154,7 +155,7 @@ def fly(vehicle: Vehicle, actuator: ActuatorModel, man: Maneuver, *,
             m_y -= xs[i] * f
             m_z -= spins[i] * k_m * w2
         fx = fy = 0.0
-        if man.axis == "gust" and k_step <= k < k_step + k_gust:
+        if gusty and k_step <= k < k_step + k_gust:
             shape = 0.5 * (1.0 - math.cos(2.0 * math.pi * (k - k_step) / k_gust))
             fy = gust_f * shape
             m_x += gust_m * shape

@@ -189,12 +189,18 @@ def step(s: list[float], dt: float, thrust: float, mx: float, my: float, mz: flo
     translation exact for the acceleration at the step's start, Euler's equation (2.42)
     by the explicit midpoint rule, attitude (2.39) by the exact quaternion exponential of
     the mean body rate over the step."""
-    d = derivative(s, thrust, mx, my, mz, fx, fy, fz, inv_m, ixx, iyy, izz, g, cd)
-    ax, ay, az = d[3], d[4], d[5]
+    qw, qx, qy, qz = s[6], s[7], s[8], s[9]
+    vx, vy, vz = s[3], s[4], s[5]
+    # (2.40)-(2.41) as in ``derivative``
+    ax = (thrust * 2.0 * (qx * qz + qw * qy) + fx - cd * vx) * inv_m
+    ay = (thrust * 2.0 * (qy * qz - qw * qx) + fy - cd * vy) * inv_m
+    az = (thrust * (1.0 - 2.0 * (qx * qx + qy * qy)) + fz - cd * vz) * inv_m - g
     h = 0.5 * dt
     wx, wy, wz = s[10], s[11], s[12]
-    # midpoint rule for I omega_dot = M - omega x (I omega)
-    mxx, myy, mzz = wx + h * d[10], wy + h * d[11], wz + h * d[12]
+    # (2.42) by the midpoint rule
+    mxx = wx + h * (mx + (iyy - izz) * wy * wz) / ixx
+    myy = wy + h * (my + (izz - ixx) * wz * wx) / iyy
+    mzz = wz + h * (mz + (ixx - iyy) * wx * wy) / izz
     nx = wx + dt * (mx + (iyy - izz) * myy * mzz) / ixx
     ny = wy + dt * (my + (izz - ixx) * mzz * mxx) / iyy
     nz = wz + dt * (mz + (ixx - iyy) * mxx * myy) / izz
@@ -205,15 +211,14 @@ def step(s: list[float], dt: float, thrust: float, mx: float, my: float, mz: flo
     c = math.cos(half)
     k = math.sin(half) / rate if rate > 0.0 else 0.5 * dt
     rx, ry, rz = k * ox, k * oy, k * oz
-    qw, qx, qy, qz = s[6], s[7], s[8], s[9]
     pw = qw * c - qx * rx - qy * ry - qz * rz
     px = qw * rx + qx * c + qy * rz - qz * ry
     py = qw * ry - qx * rz + qy * c + qz * rx
     pz = qw * rz + qx * ry - qy * rx + qz * c
     norm = 1.0 / math.sqrt(pw * pw + px * px + py * py + pz * pz)
     hh = h * dt
-    return [s[0] + dt * s[3] + hh * ax, s[1] + dt * s[4] + hh * ay, s[2] + dt * s[5] + hh * az,
-            s[3] + dt * ax, s[4] + dt * ay, s[5] + dt * az,
+    return [s[0] + dt * vx + hh * ax, s[1] + dt * vy + hh * ay, s[2] + dt * vz + hh * az,
+            vx + dt * ax, vy + dt * ay, vz + dt * az,
             pw * norm, px * norm, py * norm, pz * norm, nx, ny, nz]
 
 
