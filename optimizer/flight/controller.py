@@ -110,20 +110,12 @@ def closed_loop(g: Gains) -> signal.TransferFunction:
 
 def phase_margins(g: Gains) -> dict[str, float]:
     """Phase margins (deg) of the rate and attitude loops at their crossovers (exact delay)."""
-    rate = _rate_loop(g.rate_crossover_rad_s, g.k_p, g.w_i, g.tau_s, g.delay_s)
-    t = rate / (1.0 + rate)
-    outer = g.k_a * _rate_loop_closed(g, g.attitude_crossover_rad_s) / \
-        (1j * g.attitude_crossover_rad_s)
-    return {
-        "rate_deg": math.degrees(float(np.angle(rate))) + 180.0,
-        "attitude_deg": math.degrees(float(np.angle(outer))) + 180.0,
-        "rate_closed_gain_at_attitude_crossover": float(abs(t)),
-    }
-
-
-def _rate_loop_closed(g: Gains, w: float) -> complex:
-    loop = _rate_loop(w, g.k_p, g.w_i, g.tau_s, g.delay_s)
-    return complex(loop / (1.0 + loop))
+    w_c, w_o = g.rate_crossover_rad_s, g.attitude_crossover_rad_s
+    rate = _rate_loop(w_c, g.k_p, g.w_i, g.tau_s, g.delay_s)
+    inner = _rate_loop(w_o, g.k_p, g.w_i, g.tau_s, g.delay_s)
+    outer = g.k_a * inner / (1.0 + inner) / (1j * w_o)
+    return {"rate": math.degrees(float(np.angle(rate))) + 180.0,
+            "attitude": math.degrees(float(np.angle(outer))) + 180.0}
 
 
 class CascadeController:
