@@ -53,11 +53,11 @@ class Maneuver:
 MANEUVERS: dict[str, Maneuver] = {
     m.name: m
     for m in (
-        Maneuver("roll_step", "roll", math.radians(10.0), 3.0),
-        Maneuver("pitch_step", "pitch", math.radians(10.0), 3.0),
+        Maneuver("roll_step", "roll", math.radians(10.0), 4.0),
+        Maneuver("pitch_step", "pitch", math.radians(10.0), 4.0),
         Maneuver("yaw_step", "yaw", math.radians(30.0), 4.0),
         Maneuver("altitude_step", "altitude", 1.0, 4.0),
-        Maneuver("gust", "gust", 0.0, 3.0),
+        Maneuver("gust", "gust", 0.0, 4.0),
     )
 }
 HOVER = Maneuver("hover", "hover", 0.0, 3.0)

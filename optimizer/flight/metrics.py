@@ -27,7 +27,9 @@ def step_metrics(t: np.ndarray, y: np.ndarray, t_step: float, start: float,
                  target: float) -> dict[str, float | None]:
     """Rise time (10-90 %), overshoot and settling time (2 % band) of y after ``t_step``.
 
-    Times in ms from the step command; overshoot in % of the step size.
+    Times in ms from the step command; overshoot and the error at the end in % of the
+    step size (settling is None when the response is outside the band at the end, e.g.
+    a limit cycle of the ESC's command quantisation).
     """
     after = t >= t_step
     tt, yy = t[after] - t_step, y[after]
@@ -46,6 +48,7 @@ def step_metrics(t: np.ndarray, y: np.ndarray, t_step: float, start: float,
         "rise_time_ms": _ms(rise),
         "overshoot_pct": overshoot,
         "settling_time_ms": _ms(settle),
+        "final_error_pct": abs(float(z[-1]) - 1.0) * 100.0,
     }
 
 

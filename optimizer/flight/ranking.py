@@ -36,6 +36,7 @@ class FlownDesign:
     saturation_pct: float
     tau_up_ms: float
     tau_down_ms: float
+    final_error_pct: float
     note: str = ""  # non-empty: left out of the ranking (e.g. cannot hover)
 
 
@@ -83,7 +84,7 @@ def roll_step(catalog: Any, grid: Any, index: tuple[int, int, int], **kwargs: An
         grid.propeller_ids[i], grid.motor_ids[j], grid.battery_ids[k],
         float(grid.metrics["time_constant_ms"][i, j, k]), fig["rise_time_ms"],
         fig["overshoot_pct"], fig["settling_time_ms"], fig["saturation_pct"],
-        actuator.tau_up_s * 1e3, actuator.tau_down_s * 1e3, note)
+        actuator.tau_up_s * 1e3, actuator.tau_down_s * 1e3, fig["final_error_pct"], note)
 
 
 def rank(catalog: Any, grid: Any, progress: Callable[[int, int], None] | None = None,
