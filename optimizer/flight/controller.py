@@ -9,6 +9,12 @@ integral part (small, see the rule) holds the attitude against a gust torque. Al
 hold uses the same cascade on height: z error -> climb-rate setpoint -> PI -> thrust
 m (g + a) / cos(tilt).
 
+Rate setpoints are limited so that the vehicle can still stop at the setpoint
+(square-root limit): |omega_sp| <= sqrt(2 a |angle error|) per axis, with a =
+``STOP_SHARE`` of the angular acceleration the mixer can give at hover
+(``mixer.authority`` / inertia). It only bites when the authority is small (yaw,
+designs hovering near full throttle); small steps stay linear.
+
 Gain rule (every design flies without hand tuning). Each axis, with the actuator's mean
 time constant tau and delay L (latency + half an ESC frame + half a tick), is
     acceleration / command = exp(-L s) / (tau s + 1),  rate = acceleration / s,
@@ -37,6 +43,7 @@ from optimizer.errors import RequestError
 
 RATE_PHASE_MARGIN_DEG = 50.0
 ATTITUDE_PHASE_MARGIN_DEG = 65.0
+STOP_SHARE = 0.5  # plan stops with half the available angular acceleration
 INTEGRAL_RATIO = 10.0  # integral corner a tenth of the rate crossover (5.7 deg of phase)
 
 
@@ -122,8 +129,13 @@ class CascadeController:
     """Attitude, rate and altitude loops of one vehicle, run once per tick (plain floats)."""
 
     def __init__(self, gains: Gains, inertia: tuple[float, float, float], mass: float,
-                 gravity: float, dt: float) -> None:
+                 gravity: float, dt: float,
+                 authority: tuple[float, float, float] | None = None) -> None:
         self.g = gains
+        big = math.inf
+        self.stop = tuple(2.0 * STOP_SHARE * m / i for m, i in zip(authority, inertia,
+                                                                  strict=True)) \
+            if authority is not None else (big, big, big)
         self.ixx, self.iyy, self.izz = inertia
         self.mass = mass
         self.gravity = gravity
@@ -143,8 +155,13 @@ class CascadeController:
         ex = dw * qx - dx * qw - dy * qz + dz * qy
         ey = dw * qy + dx * qz - dy * qw - dz * qx
         ez = dw * qz - dx * qy + dy * qx - dz * qw
-        k = -2.0 * g.k_a if ew >= 0.0 else 2.0 * g.k_a
-        er = (k * ex - s[10], k * ey - s[11], k * ez - s[12])
+        sign = -2.0 if ew >= 0.0 else 2.0  # 2 q_e1:3 ~ angle error (B.26)
+        sp = []
+        for e, a2 in zip((sign * ex, sign * ey, sign * ez), self.stop, strict=True):
+            w = g.k_a * e
+            cap = math.sqrt(a2 * abs(e))
+            sp.append(w if -cap <= w <= cap else math.copysign(cap, w))
+        er = (sp[0] - s[10], sp[1] - s[11], sp[2] - s[12])
         i_rate = self.i_rate
         if not hold:
             dt = self.dt

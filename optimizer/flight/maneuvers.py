@@ -29,7 +29,7 @@ from optimizer.errors import RequestError
 from optimizer.flight import metrics
 from optimizer.flight.actuators import ActuatorModel, RotorBank
 from optimizer.flight.controller import CascadeController, Gains, design_gains
-from optimizer.flight.mixer import Mixer, allocation_matrix
+from optimizer.flight.mixer import Mixer, allocation_matrix, authority
 from optimizer.flight.vehicle import Vehicle, euler_angles, hover_state, step
 
 DT_S = 1e-3  # 1 kHz control and integration rate
@@ -111,8 +111,10 @@ def fly(vehicle: Vehicle, actuator: ActuatorModel, man: Maneuver, *,
     w_hover = vehicle.hover_speed_rad_s
     start = 0.9 * w_hover if man.axis == "hover" else w_hover
     rotors = RotorBank(actuator, n, vehicle.omega_max_rad_s, dt, start)
+    hover_f = vehicle.mass_kg * vehicle.gravity_m_s2 / n
     ctrl = CascadeController(gains, vehicle.inertia_kgm2, vehicle.mass_kg,
-                             vehicle.gravity_m_s2, dt)
+                             vehicle.gravity_m_s2, dt,
+                             authority(alloc, mixer.f_min, mixer.f_max, hover_f))
     ixx, iyy, izz = vehicle.inertia_kgm2
     inv_m, g, cd = 1.0 / vehicle.mass_kg, vehicle.gravity_m_s2, vehicle.drag_n_s_m
     xs, ys, spins = x.tolist(), y.tolist(), spin.tolist()

@@ -40,6 +40,15 @@ def mixing_matrix(allocation: np.ndarray) -> np.ndarray:
     return np.linalg.pinv(allocation)
 
 
+def authority(allocation: np.ndarray, f_min: float, f_max: float,
+              f_hover: float) -> tuple[float, float, float]:
+    """Moment each axis can get at hover, thrust unchanged: every rotor moved by the
+    smaller hover margin Delta = min(f_max - f_hover, f_hover - f_min) in the direction of
+    its row of A, sum_i |A_ri| Delta (exact for the symmetric layouts here)."""
+    delta = max(0.0, min(f_max - f_hover, f_hover - f_min))
+    return tuple(float(np.abs(allocation[r]).sum() * delta) for r in range(3))
+
+
 class Mixer:
     """[M_x, M_y, M_z, T] -> N rotor thrusts within [f_min, f_max] by the saturation rule."""
 

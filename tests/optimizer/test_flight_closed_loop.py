@@ -129,7 +129,7 @@ def test_designs_fly_and_hover_at_evaluates_speed(catalog, grid, which, request)
     for name in ("roll_step", "pitch_step", "yaw_step", "altitude_step"):
         m = report["maneuvers"][name]
         assert m["rise_time_ms"] is not None, (name, m)
-    for name in ("roll_step", "pitch_step", "altitude_step"):  # yaw: see docs/flight.md
+    for name in ("roll_step", "pitch_step", "yaw_step", "altitude_step"):
         assert report["maneuvers"][name]["overshoot_pct"] < 25.0, name
     assert report["maneuvers"]["gust"]["peak_tilt_deg"] < 30.0
 
