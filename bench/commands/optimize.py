@@ -228,6 +228,8 @@ def handler(args: argparse.Namespace) -> int:
         if n < 3:
             raise RequestError(f"--actuators: expected counts >= 3, got {n}")
     if args.paper_e_cases:
+        if args.max_roll_rise_ms is not None:
+            raise RequestError("--max-roll-rise-ms does not apply to --paper-e-cases")
         return run_paper_e_cases(args, load(args.catalog))
     objective = build_objective(args)
     catalog = load(args.catalog)

@@ -101,6 +101,7 @@ def test_optimize_max_roll_rise(capsys) -> None:
     (["fly", *CASE_I, "--drag", "-1"], "--drag"),
     (["optimize", "--max-roll-rise-ms", "-1"], "--max-roll-rise-ms"),
     (["optimize", "--actuators", "3", "--max-roll-rise-ms", "100"], "4, 6 or 8"),
+    (["optimize", "--paper-e-cases", "--max-roll-rise-ms", "100"], "--paper-e-cases"),
 ])
 def test_bad_input_is_one_line_exit_2(capsys, argv, words) -> None:
     assert main(argv) == 2
