@@ -156,12 +156,19 @@ class CascadeController:
         ey = dw * qy + dx * qz - dy * qw - dz * qx
         ez = dw * qz - dx * qy + dy * qx - dz * qw
         sign = -2.0 if ew >= 0.0 else 2.0  # 2 q_e1:3 ~ angle error (B.26)
-        sp = []
-        for e, a2 in zip((sign * ex, sign * ey, sign * ez), self.stop, strict=True):
-            w = g.k_a * e
-            cap = math.sqrt(a2 * abs(e))
-            sp.append(w if -cap <= w <= cap else math.copysign(cap, w))
-        er = (sp[0] - s[10], sp[1] - s[11], sp[2] - s[12])
+        ka, (sx, sy, sz) = g.k_a, self.stop
+        ax, ay, az = sign * ex, sign * ey, sign * ez
+        wx, wy, wz = ka * ax, ka * ay, ka * az
+        cap = math.sqrt(sx * abs(ax))  # square-root limit, per axis
+        if abs(wx) > cap:
+            wx = math.copysign(cap, wx)
+        cap = math.sqrt(sy * abs(ay))
+        if abs(wy) > cap:
+            wy = math.copysign(cap, wy)
+        cap = math.sqrt(sz * abs(az))
+        if abs(wz) > cap:
+            wz = math.copysign(cap, wz)
+        er = (wx - s[10], wy - s[11], wz - s[12])
         i_rate = self.i_rate
         if not hold:
             dt = self.dt

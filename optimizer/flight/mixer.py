@@ -59,6 +59,7 @@ class Mixer:
         cols = self.matrix.tolist()
         self.roll_pitch = [(r[0], r[1]) for r in cols]
         self.yaw = [r[2] for r in cols]
+        self.coeffs = [(r[0], r[1], r[2]) for r in cols]
         share = self.matrix[:, 3]
         if not np.allclose(share, share[0]):
             raise ValueError("mixer: the saturation rule needs equal thrust shares")
@@ -69,6 +70,10 @@ class Mixer:
     def mix(self, mx: float, my: float, mz: float, thrust: float) -> tuple[list[float], bool]:
         """Rotor thrusts and whether the saturation rule changed the demand."""
         lo, hi = self.f_min, self.f_max
+        c = thrust * self.share
+        f = [mx * a + my * b + c + mz * y for a, b, y in self.coeffs]
+        if lo <= min(f) and max(f) <= hi:  # the usual case: nothing to give way
+            return f, False
         rp = [mx * a + my * b for a, b in self.roll_pitch]
         rp_lo, rp_hi = min(rp), max(rp)
         saturated = False
@@ -77,7 +82,6 @@ class Mixer:
             rp = [k * v for v in rp]
             rp_lo, rp_hi = k * rp_lo, k * rp_hi
             saturated = True
-        c = thrust * self.share
         c_fit = min(hi - rp_hi, max(lo - rp_lo, c))  # step 2: thrust gives way
         if c_fit != c:
             saturated = True
