@@ -57,7 +57,7 @@ MANEUVERS: dict[str, Maneuver] = {
         Maneuver("pitch_step", "pitch", math.radians(10.0), 4.0),
         Maneuver("yaw_step", "yaw", math.radians(30.0), 4.0),
         Maneuver("altitude_step", "altitude", 1.0, 4.0),
-        Maneuver("gust", "gust", 0.0, 4.0),
+        Maneuver("gust", "gust", 0.0, 8.0),
     )
 }
 HOVER = Maneuver("hover", "hover", 0.0, 3.0)
