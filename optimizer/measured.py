@@ -59,6 +59,13 @@ class MeasuredActuator:
     max_thrust_n: float | None = None
     time_constant_source: str = ""
     current_source: str = ""
+    # Flight model (optimizer.flight) extras, all optional: Paper C's separate rising and
+    # falling time constants and latency, and the static curves' k_f, k_m (F = k_f w^2).
+    tau_up_s: float | None = None
+    tau_down_s: float | None = None
+    latency_s: float | None = None
+    k_f_n_s2: float | None = None
+    k_m_nm_s2: float | None = None
 
     def __post_init__(self) -> None:
         label = f"measured actuator ({self.propeller_id}, {self.motor_id}, {self.esc_mode})"
@@ -80,6 +87,13 @@ class MeasuredActuator:
             raise RequestError(
                 f"{label}: thrusts must be finite and strictly ascending, currents finite >= 0"
             )
+        for name in ("tau_up_s", "tau_down_s", "k_f_n_s2", "k_m_nm_s2"):
+            x = getattr(self, name)
+            if x is not None and not (math.isfinite(x) and x > 0):
+                raise RequestError(f"{label}: {name} must be > 0, got {x!r}")
+        lat = self.latency_s
+        if lat is not None and not (math.isfinite(lat) and lat >= 0):
+            raise RequestError(f"{label}: latency_s must be >= 0, got {lat!r}")
         v = self.supply_voltage_v
         if v is not None and not (math.isfinite(v) and v > 0):
             raise RequestError(f"{label}: supply_voltage_v must be > 0, got {v!r}")

@@ -112,7 +112,30 @@ def load_measured(root: Path, catalog: str | None = None) -> list[Any]:
             max_thrust_n=(static.data.get("thrust_max_n") if static is not None and thrust
                           else None),
             source=sources, time_constant_source=step.run_id if step is not None else "",
-            current_source=static.run_id if static is not None else ""))
+            current_source=static.run_id if static is not None else "",
+            **_flight_extras(step, static)))
+    return out
+
+
+def _flight_extras(step: Any, static: Any) -> dict[str, float]:
+    """The flight model's optional constants (``MeasuredActuator`` tau_up_s ... k_m_nm_s2)
+    where the store has them as positive finite numbers."""
+    pairs = ()
+    if step is not None:
+        pairs += (("tau_up_s", step.data.get("tau_up_s")),
+                  ("tau_down_s", step.data.get("tau_down_s")),
+                  ("latency_s", step.data.get("latency_s")))
+    if static is not None:
+        pairs += (("k_f_n_s2", static.data.get("k_f_n_s2")),
+                  ("k_m_nm_s2", static.data.get("k_q_nm_s2")))
+    out = {}
+    for name, value in pairs:
+        try:
+            x = float(value)
+        except (TypeError, ValueError):
+            continue
+        if np.isfinite(x) and (x > 0 or (name == "latency_s" and x >= 0)):
+            out[name] = x
     return out
 
 

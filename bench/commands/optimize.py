@@ -133,6 +133,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="run Paper E's test cases I-III (max flight time without and with 1.5 kg "
         "payload, min time constant) and print the three tables (Tables E.8-E.10)",
     )
+    p.add_argument(
+        "--max-roll-rise-ms",
+        type=float,
+        default=None,
+        metavar="T",
+        help="keep only designs whose closed-loop 10 deg roll step rises (10-90 %%) within T "
+        "ms: the MILP's pick is flown, then the others in objective order (rotorbench fly)",
+    )
     add_measured_args(p)
     p.set_defaults(func=handler)
 
@@ -220,6 +228,8 @@ def handler(args: argparse.Namespace) -> int:
         if n < 3:
             raise RequestError(f"--actuators: expected counts >= 3, got {n}")
     if args.paper_e_cases:
+        if args.max_roll_rise_ms is not None:
+            raise RequestError("--max-roll-rise-ms does not apply to --paper-e-cases")
         return run_paper_e_cases(args, load(args.catalog))
     objective = build_objective(args)
     catalog = load(args.catalog)
@@ -231,6 +241,8 @@ def handler(args: argparse.Namespace) -> int:
     measured = _measured(args, catalog)
     result = solve(catalog, objective, tuple(args.actuators), requirements, args.method,
                    measured)
+    if args.max_roll_rise_ms is not None:
+        result = _fly_filter(args, catalog, objective, requirements, result, measured)
     if args.json:
         doc = result.to_dict()
         if measured is not None:
@@ -238,7 +250,26 @@ def handler(args: argparse.Namespace) -> int:
         print(json.dumps(doc, indent=2, default=_json_default))
     else:
         print_table(result)
+        for d in result.designs:
+            info = d.extra.get("flight")
+            if info and d.feasible:
+                print(f"{d.actuators} actuators: roll rise {info['roll_rise_ms']:.0f} ms <= "
+                      f"{info['max_roll_rise_ms']:g} ms (flew {info['flown']} design(s))")
     return 0 if result.any_feasible else EXIT_NO_FEASIBLE
+
+
+def _fly_filter(args: argparse.Namespace, catalog: Any, objective: Objective,
+                requirements: Any, result: Any, measured: Any) -> Any:
+    """--max-roll-rise-ms: fly the MILP's picks, then candidates (optimizer.flight.choice)."""
+    from optimizer.flight.choice import meet_roll_rise
+
+    if args.method == "thesis":
+        raise RequestError("--max-roll-rise-ms works with --method milp or exact")
+    result = meet_roll_rise(result, catalog, objective, requirements, args.max_roll_rise_ms,
+                            build_grid=None if measured is None else measured.build_grid)
+    if measured is not None:
+        measured.annotate(result)
+    return result
 
 
 def _json_default(obj: Any) -> Any:

@@ -1,0 +1,10 @@
+"""Fly a design: Paper B's multirotor model, mixer and cascade controller (issue 15).
+
+Modules, one job each: ``vehicle`` (rigid-body parameters from the optimizer's model and
+the 6-DOF equations of motion, thesis 2.39-2.43 / B.7-B.11), ``actuators`` (Paper C's
+first-order-plus-delay rotor), ``mixer`` (B.27 for any layout, saturation rule),
+``controller`` (quaternion attitude -> rate -> mixer cascade, altitude hold, gain rule),
+``maneuvers`` (the closed-loop simulation and the named maneuvers), ``metrics`` (rise,
+overshoot, settling) and ``ranking`` (time constant vs closed-loop rise time). Plain
+numbers in, plain numbers out: no device code.
+"""

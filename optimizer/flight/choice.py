@@ -1,0 +1,83 @@
+"""``optimize --max-roll-rise-ms T``: the best design whose closed-loop roll step rises
+within T.
+
+The MILP (or enumeration) picks first. Per actuator count its design is flown through
+``roll_step``; if it misses T, the other feasible designs are flown in objective order
+(cost, ties in catalog order) until one meets T. That one is the best design meeting
+T, proven by flight: every design with a better objective was flown and missed. The
+best actuator count is then chosen again among the survivors (``pick_best``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from optimizer.errors import RequestError
+from optimizer.flight.ranking import first_meeting
+from optimizer.flight.vehicle import FLIGHT_ACTUATORS
+from optimizer.objectives import Objective, metric_ranges
+from optimizer.selection import (
+    Requirements,
+    SelectionResult,
+    _design_at,
+    _feasible,
+    pick_best,
+)
+
+
+def meet_roll_rise(result: SelectionResult, catalog: Any, objective: Objective,
+                   requirements: Requirements, max_rise_ms: float,
+                   build_grid: Callable[[Any, int, float], Any] | None = None,
+                   **setup_kwargs: Any) -> SelectionResult:
+    """``result`` with every actuator count's design replaced by the best one that
+    meets the roll rise time (or made infeasible with the reason)."""
+    if not (math.isfinite(max_rise_ms) and max_rise_ms > 0):
+        raise RequestError(f"--max-roll-rise-ms: expected a time > 0 ms, got {max_rise_ms}")
+    for d in result.designs:
+        if d.actuators not in FLIGHT_ACTUATORS:
+            raise RequestError(f"--max-roll-rise-ms: the flight model flies N = 4, 6 or 8, "
+                               f"not {d.actuators}")
+    if build_grid is None:
+        from optimizer.model import evaluate_grid as build_grid
+    grids = {d.actuators: build_grid(catalog, d.actuators, requirements.payload_kg)
+             for d in result.designs}
+    oks = {n: _feasible(g, (*g.checks, *requirements.checks(g))) for n, g in grids.items()}
+    ranges = (metric_ranges(grids.values(), oks.values(), objective.metrics)
+              if objective.needs_ranges() else None)
+    designs = []
+    for d in result.designs:
+        if not d.feasible or d.index is None:
+            designs.append(d)
+            continue
+        grid = grids[d.actuators]
+        cost = objective.cost(grid, ranges)
+        ok = oks[d.actuators] & np.isfinite(cost)
+        flat = np.flatnonzero(ok.ravel())
+        order = flat[np.argsort(cost.ravel()[flat], kind="stable")]
+        candidates = [d.index] + [tuple(int(a) for a in np.unravel_index(f, grid.shape))
+                                  for f in order]
+        candidates = list(dict.fromkeys(candidates))  # the MILP's pick first, once
+        found, flown = first_meeting(candidates, catalog, grid, max_rise_ms, **setup_kwargs)
+        info = {"max_roll_rise_ms": max_rise_ms, "flown": len(flown),
+                "roll_rise_ms": flown[-1].rise_time_ms if found is not None else None}
+        if found is None:
+            fastest = min((r.rise_time_ms for r in flown if r.rise_time_ms is not None
+                           and not r.note), default=None)
+            best_txt = "none rose" if fastest is None else f"fastest {fastest:.0f} ms"
+            designs.append(dataclasses.replace(
+                d, feasible=False, index=None, propeller=None, motor=None, battery=None,
+                metrics={}, cost=math.nan, n_tied=0, extra={**d.extra, "flight": info},
+                reason=f"no feasible design rises in roll within {max_rise_ms:g} ms "
+                       f"(flew all {len(flown)}; {best_txt})"))
+            continue
+        i, j, k = found
+        designs.append(dataclasses.replace(
+            d, **_design_at(grid, (i, j, k)), cost=float(cost[i, j, k]),
+            n_tied=d.n_tied if found == d.index else 1,
+            extra={**d.extra, "flight": info}))
+    return dataclasses.replace(result, designs=designs, best=pick_best(designs))

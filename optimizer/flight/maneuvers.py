@@ -1,0 +1,204 @@
+"""Closed-loop flight: the named maneuvers and the 1 kHz simulation loop.
+
+Every maneuver starts level at rest in hover equilibrium (rotors at the hover speed,
+thrust = weight) and holds altitude 0 unless it commands height:
+
+- ``roll_step`` / ``pitch_step``: 10 deg attitude step at ``STEP_TIME_S``;
+- ``yaw_step``: 30 deg heading step;
+- ``altitude_step``: 1 m climb;
+- ``gust``: a 1 - cos gust of ``GUST_S`` seconds: a horizontal force of
+  ``GUST_FORCE_G`` x weight and a roll/pitch torque of ``GUST_TORQUE_FRACTION`` x one
+  rotor's hover thrust x arm; the figure is how far the attitude is pushed and when it is
+  back within 0.2 deg (2 % of the 10 deg step);
+- ``hover``: 3 s from rotors at 90 % of the model's hover speed: the settled rotor speed
+  is the closed loop's hover speed.
+
+One tick: controller (on the state) -> mixer -> speed commands -> rotors (quantise, ESC
+frame, latency, lag) -> thrusts and moments -> RK4 step of the rigid body.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from optimizer.errors import RequestError
+from optimizer.flight import metrics
+from optimizer.flight.actuators import ActuatorModel, RotorBank
+from optimizer.flight.controller import CascadeController, Gains, design_gains
+from optimizer.flight.mixer import Mixer, allocation_matrix, authority
+from optimizer.flight.vehicle import Vehicle, euler_angles, hover_state, step
+
+DT_S = 1e-3  # 1 kHz control and integration rate
+STEP_TIME_S = 0.1
+GUST_S = 0.5
+GUST_FORCE_G = 0.2
+GUST_TORQUE_FRACTION = 0.1
+GUST_BAND_DEG = 0.2
+
+
+@dataclass(frozen=True)
+class Maneuver:
+    """A setpoint or disturbance history: what is commanded, how much, for how long."""
+
+    name: str
+    axis: str  # roll, pitch, yaw, altitude, gust, hover
+    amplitude: float  # rad or m (gust: unused)
+    duration_s: float
+
+
+MANEUVERS: dict[str, Maneuver] = {
+    m.name: m
+    for m in (
+        Maneuver("roll_step", "roll", math.radians(10.0), 4.0),
+        Maneuver("pitch_step", "pitch", math.radians(10.0), 4.0),
+        Maneuver("yaw_step", "yaw", math.radians(30.0), 4.0),
+        Maneuver("altitude_step", "altitude", 1.0, 4.0),
+        Maneuver("gust", "gust", 0.0, 8.0),
+    )
+}
+HOVER = Maneuver("hover", "hover", 0.0, 3.0)
+
+
+def maneuver(name: str) -> Maneuver:
+    """The named maneuver; a wrong name lists the known ones."""
+    if name == "hover":
+        return HOVER
+    try:
+        return MANEUVERS[name]
+    except KeyError:
+        raise RequestError(f"--maneuver {name!r}: expected one of "
+                           f"{', '.join(MANEUVERS)}") from None
+
+
+@dataclass
+class Flight:
+    """The recorded flight (arrays over ticks) and its figures."""
+
+    maneuver: Maneuver
+    t: np.ndarray
+    euler: np.ndarray  # (T, 3) roll, pitch, yaw rad
+    position: np.ndarray  # (T, 3) m
+    omega: np.ndarray  # (T, N) rotor speeds rad/s
+    setpoint: np.ndarray  # (T,) the commanded quantity of the maneuver axis
+    saturated: np.ndarray  # (T,) bool, the mixer rule changed the demand
+    figures: dict[str, Any] = field(default_factory=dict)
+
+
+def _euler_quaternion(roll: float, pitch: float, yaw: float) -> tuple[float, ...]:
+    """(B.21) quaternion of roll, pitch, yaw (Z-Y-X rotation, scalar first)."""
+    cr, sr = math.cos(roll / 2), math.sin(roll / 2)
+    cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
+    cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
+    return (cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy,
+            cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy)
+
+
+def fly(vehicle: Vehicle, actuator: ActuatorModel, man: Maneuver, *,
+        gains: Gains | None = None, dt: float = DT_S, record: bool = True) -> Flight:
+    """Fly one maneuver; ``record=False`` keeps only the maneuver axis (faster sweeps)."""
+    if gains is None:
+        gains = design_gains(actuator.tau_mean_s, actuator.effective_delay_s(dt))
+    n = vehicle.n_rotors
+    k_f, k_m = vehicle.k_f, vehicle.k_m
+    x, y, spin = vehicle.rotor_positions()
+    alloc = allocation_matrix(x, y, spin, vehicle.torque_ratio_m)
+    idle = actuator.idle_fraction * vehicle.omega_max_rad_s
+    mixer = Mixer(alloc, k_f * idle * idle, k_f * vehicle.omega_max_rad_s ** 2)
+    w_hover = vehicle.hover_speed_rad_s
+    start = 0.9 * w_hover if man.axis == "hover" else w_hover
+    rotors = RotorBank(actuator, n, vehicle.omega_max_rad_s, dt, start)
+    hover_f = vehicle.mass_kg * vehicle.gravity_m_s2 / n
+    ctrl = CascadeController(gains, vehicle.inertia_kgm2, vehicle.mass_kg,
+                             vehicle.gravity_m_s2, dt,
+                             authority(alloc, mixer.f_min, mixer.f_max, hover_f))
+    ixx, iyy, izz = vehicle.inertia_kgm2
+    inv_m, g, cd = 1.0 / vehicle.mass_kg, vehicle.gravity_m_s2, vehicle.drag_n_s_m
+    xs, ys, spins = x.tolist(), y.tolist(), spin.tolist()
+    inv_kf = 1.0 / k_f
+
+    steps = round(man.duration_s / dt)
+    t_arr = np.arange(steps) * dt
+    sp = np.zeros(steps)
+    level = (1.0, 0.0, 0.0, 0.0)
+    command = {"roll": (man.amplitude, 0.0, 0.0), "pitch": (0.0, man.amplitude, 0.0),
+               "yaw": (0.0, 0.0, man.amplitude)}.get(man.axis)
+    q_step = _euler_quaternion(*command) if command else level
+    z_step = man.amplitude if man.axis == "altitude" else 0.0
+    k_step = round(STEP_TIME_S / dt)
+    if man.axis in ("roll", "pitch", "yaw", "altitude"):
+        sp[k_step:] = man.amplitude
+    gust_f = GUST_FORCE_G * vehicle.mass_kg * g
+    gust_m = GUST_TORQUE_FRACTION * vehicle.mass_kg * g / n * vehicle.arm_m
+    k_gust = round(GUST_S / dt)
+    gusty = man.axis == "gust"
+
+    s = hover_state()
+    states: list[list[float]] = []
+    speeds: list[tuple[float, ...]] = []
+    sat = np.zeros(steps, bool)
+    saturated = False
+    for k in range(steps):
+        qd, z_d = (q_step, z_step) if k >= k_step else (level, 0.0)
+        mx, my, mz, thrust = ctrl.update(s, qd, z_d, saturated)
+        forces, saturated = mixer.mix(mx, my, mz, thrust)
+        sat[k] = saturated
+        w = rotors.step([math.sqrt(f * inv_kf) if f > 0.0 else 0.0 for f in forces])
+        # (2.43)/(B.11): thrusts and drag torques of the rotor speeds
+        f_tot = m_x = m_y = m_z = 0.0
+        for i in range(n):
+            w2 = w[i] * w[i]
+            f = k_f * w2
+            f_tot += f
+            m_x += ys[i] * f
+            m_y -= xs[i] * f
+            m_z -= spins[i] * k_m * w2
+        fx = fy = 0.0
+        if gusty and k_step <= k < k_step + k_gust:
+            shape = 0.5 * (1.0 - math.cos(2.0 * math.pi * (k - k_step) / k_gust))
+            fy = gust_f * shape
+            m_x += gust_m * shape
+            m_y += gust_m * shape
+        s = step(s, dt, f_tot, m_x, m_y, m_z, fx, fy, 0.0, inv_m, ixx, iyy, izz, g, cd)
+        states.append(s)
+        if record:
+            speeds.append(tuple(w))
+    t_arr = t_arr + dt  # the state after each tick
+    traj = np.array(states)
+    omegas = np.array(speeds) if record else np.empty((0, n))
+    flight = Flight(man, t_arr, euler_angles(traj[:, 6:10]), traj[:, 0:3], omegas, sp, sat)
+    flight.figures = figures(flight, vehicle, actuator, rotors)
+    return flight
+
+
+def figures(f: Flight, vehicle: Vehicle, actuator: ActuatorModel,
+            rotors: RotorBank) -> dict[str, Any]:
+    """The maneuver's JSON figures (issue keys first)."""
+    man = f.maneuver
+    t_step = STEP_TIME_S
+    out: dict[str, Any] = {}
+    axis_col = {"roll": 0, "pitch": 1, "yaw": 2}
+    if man.axis in axis_col:
+        y = f.euler[:, axis_col[man.axis]]
+        out.update(metrics.step_metrics(f.t, y, t_step, 0.0, man.amplitude))
+    elif man.axis == "altitude":
+        out.update(metrics.step_metrics(f.t, f.position[:, 2], t_step, 0.0, man.amplitude))
+    elif man.axis == "gust":
+        tilt = np.hypot(f.euler[:, 0], f.euler[:, 1])
+        d = metrics.disturbance_metrics(f.t, tilt, t_step, math.radians(GUST_BAND_DEG))
+        out.update({"rise_time_ms": None, "overshoot_pct": None,
+                    "settling_time_ms": d["settling_time_ms"],
+                    "peak_tilt_deg": math.degrees(d["peak"])})
+    out["saturation_pct"] = 100.0 * float(np.mean(f.saturated))
+    if man.axis == "hover":
+        last = f.t >= f.t[-1] - 0.5
+        w = float(np.mean(f.omega[last])) if f.omega.size else math.nan
+        span = rotors.omega_max - rotors.omega_min
+        out = {"rpm": w * 60.0 / (2.0 * math.pi),
+               "throttle": (w - rotors.omega_min) / span,
+               "model_rpm": vehicle.hover_speed_rad_s * 60.0 / (2.0 * math.pi),
+               "altitude_error_m": float(abs(f.position[-1, 2]))}
+    return metrics.summary(out)

@@ -1,0 +1,132 @@
+"""Does the MILP's time constant rank designs the way closed-loop flight does?
+
+Every feasible design of one actuator count is flown through ``roll_step`` with its own
+gains (the gain rule); the rows pair the design's time constant (E.35, or measured) with
+its closed-loop 10-90 % roll rise time, and Spearman's rho (scipy.stats.spearmanr)
+measures how well the first orders the second. Also the filter behind
+``optimize --max-roll-rise-ms``: fly candidates in objective order until one meets it.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy.stats import spearmanr
+
+from optimizer.flight.design import feasible_indices, gains_for, setup
+from optimizer.flight.maneuvers import MANEUVERS, fly
+
+
+@dataclass(frozen=True)
+class FlownDesign:
+    """One design's time constant and its closed-loop roll step figures."""
+
+    propeller: str
+    motor: str
+    battery: str
+    time_constant_ms: float
+    rise_time_ms: float | None
+    overshoot_pct: float
+    settling_time_ms: float | None
+    saturation_pct: float
+    tau_up_ms: float
+    tau_down_ms: float
+    final_error_pct: float
+    note: str = ""  # non-empty: left out of the ranking (e.g. cannot hover)
+
+
+@dataclass
+class Ranking:
+    """The sweep's rows and how well time constant ranks rise time."""
+
+    actuators: int
+    rows: list[FlownDesign]
+    rho: float
+    p_value: float
+    seconds: float
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def n_ranked(self) -> int:
+        return sum(1 for r in self.rows if not r.note)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "actuators": self.actuators,
+            "designs": len(self.rows),
+            "ranked": self.n_ranked,
+            "spearman_rho": None if math.isnan(self.rho) else self.rho,
+            "p_value": None if math.isnan(self.p_value) else self.p_value,
+            "seconds": self.seconds,
+            "rows": [r.__dict__ for r in self.rows],
+            **self.extra,
+        }
+
+
+def roll_step(catalog: Any, grid: Any, index: tuple[int, int, int], **kwargs: Any
+              ) -> FlownDesign:
+    """Fly ``roll_step`` for one design of a grid (``kwargs`` go to ``design.setup``)."""
+    vehicle, actuator = setup(catalog, grid, index, **kwargs)
+    note = ""
+    if vehicle.hover_speed_rad_s > vehicle.omega_max_rad_s:
+        rpm = 60.0 / (2.0 * math.pi)
+        note = (f"cannot hover: needs {vehicle.hover_speed_rad_s * rpm:.0f} rpm, full "
+                f"throttle {vehicle.omega_max_rad_s * rpm:.0f} rpm")
+    f = fly(vehicle, actuator, MANEUVERS["roll_step"], gains=gains_for(actuator), record=False)
+    i, j, k = index
+    fig = f.figures
+    return FlownDesign(
+        grid.propeller_ids[i], grid.motor_ids[j], grid.battery_ids[k],
+        float(grid.metrics["time_constant_ms"][i, j, k]), fig["rise_time_ms"],
+        fig["overshoot_pct"], fig["settling_time_ms"], fig["saturation_pct"],
+        actuator.tau_up_s * 1e3, actuator.tau_down_s * 1e3, fig["final_error_pct"], note)
+
+
+def rank(catalog: Any, grid: Any, progress: Callable[[int, int], None] | None = None,
+         **kwargs: Any) -> Ranking:
+    """Fly every feasible design of ``grid``; Spearman rho of time constant vs rise time.
+
+    A design that never reaches 90 % of the step ranks last (rise time infinite); one
+    that cannot hover (hover speed above full throttle: the catalog may have no
+    thrust-to-weight check) is flown and listed but left out of rho."""
+    start = time.perf_counter()
+    indices = feasible_indices(grid)
+    rows = []
+    for n, idx in enumerate(indices):
+        rows.append(roll_step(catalog, grid, idx, **kwargs))
+        if progress is not None:
+            progress(n + 1, len(indices))
+    rho, p = spearman(rows)
+    return Ranking(grid.n_actuators, rows, rho, p, time.perf_counter() - start)
+
+
+def spearman(rows: Sequence[FlownDesign]) -> tuple[float, float]:
+    """Spearman's rho (and p) of time constant vs rise time over the rows without a note
+    (designs that hover); NaN for fewer than 3 such rows."""
+    rows = [r for r in rows if not r.note]
+    if len(rows) < 3:
+        return math.nan, math.nan
+    tau = np.array([r.time_constant_ms for r in rows])
+    rise = np.array([math.inf if r.rise_time_ms is None else r.rise_time_ms for r in rows])
+    res = spearmanr(tau, rise)
+    return float(res.statistic), float(res.pvalue)
+
+
+def first_meeting(candidates: Sequence[tuple[int, int, int]], catalog: Any, grid: Any,
+                  max_rise_ms: float, **kwargs: Any
+                  ) -> tuple[tuple[int, int, int] | None, list[FlownDesign]]:
+    """Fly ``candidates`` (best objective first) until one rises in roll within
+    ``max_rise_ms``: that one is the best design meeting it, since every better one was
+    flown and missed. Returns it (or None) and every design flown."""
+    flown = []
+    for idx in candidates:
+        row = roll_step(catalog, grid, idx, **kwargs)
+        flown.append(row)
+        if not row.note and row.rise_time_ms is not None and row.rise_time_ms <= max_rise_ms:
+            return idx, flown
+    return None, flown
