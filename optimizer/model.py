@@ -323,6 +323,22 @@ def _index(ids: tuple[str, ...], wanted: str, kind: str, catalog: Catalog) -> in
         ) from None
 
 
+def single_design_catalog(
+    catalog: Catalog, propeller_id: str, motor_id: str, battery_id: str
+) -> Catalog:
+    """The catalog of one propeller, motor and battery (ids checked, constants kept)."""
+    i = _index(catalog.propeller_ids, propeller_id, "propeller", catalog)
+    j = _index(catalog.motor_ids, motor_id, "motor", catalog)
+    k = _index(catalog.battery_ids, battery_id, "battery", catalog)
+    return Catalog(
+        catalog.propellers.iloc[[i]].reset_index(drop=True),
+        catalog.motors.iloc[[j]].reset_index(drop=True),
+        catalog.batteries.iloc[[k]].reset_index(drop=True),
+        catalog.constants,
+        catalog.source,
+    )
+
+
 def evaluate_design(
     catalog: Catalog,
     n_actuators: int,
@@ -335,16 +351,7 @@ def evaluate_design(
     esc_mode: str | None = None,
 ) -> dict[str, Any]:
     """One design's metrics, feasibility and violated checks (JSON-ready dict)."""
-    i = _index(catalog.propeller_ids, propeller_id, "propeller", catalog)
-    j = _index(catalog.motor_ids, motor_id, "motor", catalog)
-    k = _index(catalog.battery_ids, battery_id, "battery", catalog)
-    single = Catalog(
-        catalog.propellers.iloc[[i]].reset_index(drop=True),
-        catalog.motors.iloc[[j]].reset_index(drop=True),
-        catalog.batteries.iloc[[k]].reset_index(drop=True),
-        catalog.constants,
-        catalog.source,
-    )
+    single = single_design_catalog(catalog, propeller_id, motor_id, battery_id)
     grid = evaluate_grid(
         single, n_actuators, payload_kg, overrides=_relevant(overrides, single), esc_mode=esc_mode
     )
