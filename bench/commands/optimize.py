@@ -134,7 +134,49 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "payload, min time constant) and print the three tables (Tables E.8-E.10)",
     )
     add_measured_args(p)
+    add_rule_args(p)
     p.set_defaults(func=handler)
+
+
+def add_rule_args(p: argparse.ArgumentParser) -> None:
+    """``--flyable`` and its rule switches (optimizer.flyable)."""
+    from optimizer.flyable import RULE_NAMES, Rules
+
+    d = Rules()
+    g = p.add_argument_group("flyable-design rules (docs/sizing.md)")
+    g.add_argument("--flyable", action="store_true",
+                   help=f"apply the rules {', '.join(RULE_NAMES)} and report what each removes")
+    g.add_argument("--no-rule", action="append", default=[], choices=RULE_NAMES,
+                   metavar="NAME", help="switch one rule off (repeatable)")
+    g.add_argument("--tip-speed-max", type=float, default=d.tip_speed_m_s, metavar="M_S",
+                   help=f"rule tip-speed: full-throttle tip speed limit (default "
+                   f"{d.tip_speed_m_s:g} m/s)")
+    g.add_argument("--max-wheelbase-m", type=float, default=d.max_wheelbase_m, metavar="M",
+                   help=f"rule frame: motor-to-motor diagonal limit (default "
+                   f"{d.max_wheelbase_m:g} m)")
+    g.add_argument("--hover-throttle", type=float, nargs=2, default=d.hover_throttle_pct,
+                   metavar=("LO", "HI"), help="rule hover-throttle: band in percent "
+                   "(default 30 70)")
+    g.add_argument("--rule-max-time-constant-ms", type=float, default=d.max_time_constant_ms,
+                   metavar="MS", help=f"rule response: time-constant limit (default "
+                   f"{d.max_time_constant_ms:g} ms)")
+
+
+def rules_from_args(args: argparse.Namespace) -> Any:
+    """The ``Rules`` of ``--flyable`` (None without it)."""
+    from optimizer.flyable import RULE_NAMES, Rules
+
+    if not getattr(args, "flyable", False):
+        if getattr(args, "no_rule", None):
+            raise RequestError("--no-rule only applies with --flyable")
+        return None
+    return Rules(
+        enabled=tuple(r for r in RULE_NAMES if r not in args.no_rule),
+        tip_speed_m_s=args.tip_speed_max,
+        max_wheelbase_m=args.max_wheelbase_m,
+        hover_throttle_pct=tuple(args.hover_throttle),
+        max_time_constant_ms=args.rule_max_time_constant_ms,
+    ).validate()
 
 
 #: Paper E section 4: (case, title, objective, payload kg).
@@ -187,19 +229,26 @@ def _measured(args: argparse.Namespace, catalog: Any) -> Any:
 
 
 def solve(catalog: Any, objective: Objective, actuators: tuple[int, ...], requirements: Any,
-          method: str, measured: Any = None) -> Any:
+          method: str, measured: Any = None, rules: Any = None) -> Any:
     """``optimizer.selection.optimize``, with the measured overrides when given (then every
-    design carries ``sources``)."""
+    design carries ``sources``) and the flyable-design rules when given (then the result
+    carries ``rule_reports``)."""
     from optimizer.selection import optimize
 
-    if measured is None:
-        return optimize(catalog, objective, actuators, requirements, method)
-    if method == "thesis":
-        raise RequestError("--measured works with --method milp or exact (the thesis "
-                           "formulation linearises the datasheet model)")
-    result = optimize(catalog, objective, actuators, requirements, method,
-                      build_grid=measured.build_grid)
-    measured.annotate(result)
+    if method == "thesis" and (measured is not None or rules is not None):
+        raise RequestError("--measured and --flyable work with --method milp or exact (the "
+                           "thesis formulation linearises the datasheet model)")
+    build = None if measured is None else measured.build_grid
+    builder = None
+    if rules is not None:
+        from optimizer.flyable import FlyableBuilder
+
+        build = builder = FlyableBuilder(rules, build)
+    result = optimize(catalog, objective, actuators, requirements, method, build_grid=build)
+    if measured is not None:
+        measured.annotate(result)
+    if builder is not None:
+        result.rule_reports = [r.to_dict() for r in builder.reports]
     return result
 
 
@@ -229,16 +278,31 @@ def handler(args: argparse.Namespace) -> int:
         max_time_constant_ms=args.max_time_constant_ms,
     )
     measured = _measured(args, catalog)
+    rules = rules_from_args(args)
     result = solve(catalog, objective, tuple(args.actuators), requirements, args.method,
-                   measured)
+                   measured, rules)
     if args.json:
         doc = result.to_dict()
         if measured is not None:
             doc["measured"] = measured.describe()
+        if rules is not None:
+            doc["rules"] = {"enabled": list(rules.enabled), "removed": result.rule_reports}
         print(json.dumps(doc, indent=2, default=_json_default))
     else:
         print_table(result)
+        if rules is not None:
+            print_rule_reports(result.rule_reports)
     return 0 if result.any_feasible else EXIT_NO_FEASIBLE
+
+
+def print_rule_reports(reports: list[dict[str, Any]]) -> None:
+    """One line per actuator count: designs each rule removed (alone / in turn)."""
+    for r in reports:
+        parts = ", ".join(f"{k} {r['removed_alone'][k]}/{r['removed_in_turn'][k]}"
+                          for k in r["removed_alone"])
+        print(f"rules, {r['actuators']} actuators: {r['physically_feasible']} of "
+              f"{r['designs']} designs within the limits, {r['flyable']} flyable; removed "
+              f"(alone/in turn): {parts}")
 
 
 def _json_default(obj: Any) -> Any:
