@@ -79,13 +79,18 @@ def rule_of(check: Check) -> str | None:
     return None
 
 
-def rule_checks(catalog: Catalog, grid: DesignGrid, rules: Rules) -> tuple[Check, ...]:
+def rule_checks(
+    catalog: Catalog,
+    grid: DesignGrid,
+    rules: Rules,
+    coefficients: perf.Coefficients | None = None,
+) -> tuple[Check, ...]:
     """The enabled rules as checks on ``grid`` (built from ``catalog``)."""
     from optimizer.sheet import drive_of, pack_of
 
     rules = rules.validate()
     n = grid.n_actuators
-    drive = drive_of(catalog)
+    drive = drive_of(catalog, coefficients)
     pack = pack_of(catalog)
     v_b = pack["voltage_v"]
     top = perf.at_throttle(drive, 1.0, v_b)
@@ -172,6 +177,8 @@ class FlyableBuilder:
     rules: Rules
     base: Callable[[Any, int, float], DesignGrid] | None = None
     reports: list[RuleReport] = field(default_factory=list)
+    #: measured C_t(rpm), C_p(rpm) for the full-throttle and hover rule values
+    coefficients: perf.Coefficients | None = None
 
     def __call__(self, catalog: Catalog, n: int, payload: float) -> DesignGrid:
         if self.base is None:
@@ -180,6 +187,6 @@ class FlyableBuilder:
             grid = evaluate_grid(catalog, n, payload)
         else:
             grid = self.base(catalog, n, payload)
-        checks = (*grid.checks, *rule_checks(catalog, grid, self.rules))
+        checks = (*grid.checks, *rule_checks(catalog, grid, self.rules, self.coefficients))
         self.reports.append(report(grid, checks))
         return replace(grid, checks=checks)

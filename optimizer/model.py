@@ -33,6 +33,7 @@ from optimizer.catalog import Catalog
 from optimizer.errors import RequestError
 from optimizer.grid import METRIC_KEYS, Check, DesignGrid
 from optimizer.measured import MeasuredActuator, select_overrides
+from optimizer.performance import Coefficients, speed_for_thrust
 
 
 @dataclass(frozen=True)
@@ -106,11 +107,14 @@ def evaluate_grid(
     *,
     overrides: Iterable[MeasuredActuator] | None = None,
     esc_mode: str | None = None,
+    coefficients: Coefficients | None = None,
 ) -> ModelGrid:
     """All metrics and limit checks of every design with ``n_actuators`` actuators.
 
     ``overrides`` replace the modelled time constant and hover current of given
     (propeller, motor[, ``esc_mode``]) pairs; ``ModelGrid.measured`` says where.
+    ``coefficients`` (rpm -> C_t, C_p on the propeller axis, ``optimizer.propdata``)
+    replace the constant coefficients at hover (opt-in; the thesis uses constants).
     """
     n, payload = _check_request(n_actuators, payload_kg)
     c = catalog.constants
@@ -142,7 +146,9 @@ def evaluate_grid(
     # (E.16)-(E.17) total weight; (E.19) plus payload m_L.
     total_mass = n * actuator_mass + frame + m_batt + payload
     hover_thrust = total_mass * g / n  # (E.19)-(E.20), per propeller
-    n_rev_s = physics.hover_speed_rev_s(hover_thrust, ct, rho, diameter)  # (E.20)
+    ct_const, cp_const = ct, cp
+    # (E.20); with measured coefficients C_t(rpm), C_p(rpm) at the hover speed
+    n_rev_s, ct, cp = speed_for_thrust(hover_thrust, ct, cp, rho, diameter, coefficients)
     prop_power = physics.propeller_power_w(cp, rho, n_rev_s, diameter)  # (E.60)-(E.63)
     actuator_current = prop_power / voltage  # (E.67): x18 / N_a per actuator
     torque = physics.hover_torque_nm(prop_power, n_rev_s)  # (E.3) Q = W / omega
@@ -220,8 +226,10 @@ def evaluate_grid(
         "motor_current_a": winding_current,
     }
     if c.min_thrust_to_weight is not None:
-        omega_max = physics.full_throttle_speed_rad_s(voltage, kt, resistance, cp, rho, diameter)
-        max_thrust = physics.thrust_n(ct, rho, omega_max / physics.TWO_PI, diameter)
+        omega_max = physics.full_throttle_speed_rad_s(
+            voltage, kt, resistance, cp_const, rho, diameter
+        )
+        max_thrust = physics.thrust_n(ct_const, rho, omega_max / physics.TWO_PI, diameter)
         ratio = full(max_thrust / hover_thrust)
         extras["thrust_to_weight"] = ratio
         checks.append(

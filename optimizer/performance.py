@@ -52,6 +52,7 @@ class Drive:
     coefficients: Coefficients | None = None
 
     def coeffs(self, rpm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(C_t, C_p) at ``rpm`` (the constants without measured data)."""
         if self.coefficients is None:
             return np.asarray(self.ct, float), np.asarray(self.cp, float)
         return self.coefficients(np.asarray(rpm, float))
@@ -119,7 +120,7 @@ def _point(drive: Drive, omega: np.ndarray, ct, cp, v_batt) -> OperatingPoint:
 def at_throttle(drive: Drive, throttle, v_batt) -> OperatingPoint:
     """The drive at duty cycle ``throttle`` (0-1) on a battery of ``v_batt`` volts."""
     v_motor = np.asarray(throttle, float) * np.asarray(v_batt, float)
-    ct, cp = drive.coeffs(np.zeros(1))
+    ct, cp = np.asarray(drive.ct, float), np.asarray(drive.cp, float)
     omega = _speed_rad_s(drive, v_motor, cp)
     if drive.coefficients is not None:
         for _ in range(ITERATIONS):
@@ -129,16 +130,27 @@ def at_throttle(drive: Drive, throttle, v_batt) -> OperatingPoint:
     return _point(drive, omega, ct, cp, np.asarray(v_batt, float))
 
 
-def at_thrust(drive: Drive, thrust_n, v_batt, rho: float | None = None) -> OperatingPoint:
+def speed_for_thrust(
+    thrust_n, ct, cp, rho: float, diameter_m, coefficients: Coefficients | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(n [rev/s], C_t, C_p) delivering ``thrust_n``: (E.1) solved for n (E.20).
+
+    With ``coefficients`` (rpm -> C_t, C_p) by fixed-point iteration from the constants.
+    """
+    n = physics.hover_speed_rev_s(thrust_n, ct, rho, diameter_m)
+    if coefficients is None:
+        return n, np.asarray(ct, float), np.asarray(cp, float)
+    for _ in range(ITERATIONS):
+        ct, cp = coefficients(n * 60.0)
+        n = physics.hover_speed_rev_s(thrust_n, ct, rho, diameter_m)
+    ct, cp = coefficients(n * 60.0)
+    return n, ct, cp
+
+
+def at_thrust(drive: Drive, thrust_n, v_batt) -> OperatingPoint:
     """The drive delivering ``thrust_n`` (hover): speed from (E.1) solved for n (E.20)."""
-    rho = drive.rho if rho is None else rho
-    ct, cp = drive.coeffs(np.zeros(1))
-    n = physics.hover_speed_rev_s(thrust_n, ct, rho, drive.diameter_m)
-    if drive.coefficients is not None:
-        for _ in range(ITERATIONS):
-            ct, cp = drive.coeffs(n * 60.0)
-            n = physics.hover_speed_rev_s(thrust_n, ct, rho, drive.diameter_m)
-        ct, cp = drive.coeffs(n * 60.0)
+    n, ct, cp = speed_for_thrust(thrust_n, drive.ct, drive.cp, drive.rho, drive.diameter_m,
+                                 drive.coefficients)
     return _point(drive, n * physics.TWO_PI, ct, cp, np.asarray(v_batt, float))
 
 

@@ -135,6 +135,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     add_measured_args(p)
     add_rule_args(p)
+    p.add_argument("--prop-data", action="store_true",
+                   help="hover speed and power from the APC static C_t(rpm), C_p(rpm) where a "
+                   "catalog propeller matches (docs/sizing.md); constants elsewhere")
     p.set_defaults(func=handler)
 
 
@@ -228,8 +231,21 @@ def _measured(args: argparse.Namespace, catalog: Any) -> Any:
     return load_measured_set(args.measured, catalog, args.esc_mode)
 
 
+def prop_data_build(catalog: Any) -> tuple[Any, Any]:
+    """``--prop-data``: (build_grid with the APC C_t(rpm), C_p(rpm), match report)."""
+    from functools import partial
+
+    from optimizer.model import evaluate_grid
+    from optimizer.propdata import catalog_curves, data_folder, load_curves, match_report
+
+    table = catalog_curves(catalog, load_curves(data_folder()))
+    return (partial(evaluate_grid, coefficients=table.coefficients),
+            {**match_report(catalog, table), "coefficients": table.coefficients})
+
+
 def solve(catalog: Any, objective: Objective, actuators: tuple[int, ...], requirements: Any,
-          method: str, measured: Any = None, rules: Any = None) -> Any:
+          method: str, measured: Any = None, rules: Any = None,
+          prop_data: dict[str, Any] | None = None) -> Any:
     """``optimizer.selection.optimize``, with the measured overrides when given (then every
     design carries ``sources``) and the flyable-design rules when given (then the result
     carries ``rule_reports``)."""
@@ -238,12 +254,17 @@ def solve(catalog: Any, objective: Objective, actuators: tuple[int, ...], requir
     if method == "thesis" and (measured is not None or rules is not None):
         raise RequestError("--measured and --flyable work with --method milp or exact (the "
                            "thesis formulation linearises the datasheet model)")
+    if prop_data is not None and (measured is not None or method == "thesis"):
+        raise RequestError("--prop-data works with --method milp or exact, without --measured")
     build = None if measured is None else measured.build_grid
+    coefficients = None
+    if prop_data is not None:
+        build, coefficients = prop_data["build"], prop_data["coefficients"]
     builder = None
     if rules is not None:
         from optimizer.flyable import FlyableBuilder
 
-        build = builder = FlyableBuilder(rules, build)
+        build = builder = FlyableBuilder(rules, build, coefficients=coefficients)
     result = optimize(catalog, objective, actuators, requirements, method, build_grid=build)
     if measured is not None:
         measured.annotate(result)
@@ -279,17 +300,27 @@ def handler(args: argparse.Namespace) -> int:
     )
     measured = _measured(args, catalog)
     rules = rules_from_args(args)
+    prop_data = None
+    if args.prop_data:
+        build, info = prop_data_build(catalog)
+        prop_data = {"build": build, "coefficients": info.pop("coefficients"), "report": info}
     result = solve(catalog, objective, tuple(args.actuators), requirements, args.method,
-                   measured, rules)
+                   measured, rules, prop_data)
     if args.json:
         doc = result.to_dict()
         if measured is not None:
             doc["measured"] = measured.describe()
         if rules is not None:
             doc["rules"] = {"enabled": list(rules.enabled), "removed": result.rule_reports}
+        if prop_data is not None:
+            doc["propeller_data"] = prop_data["report"]
         print(json.dumps(doc, indent=2, default=_json_default))
     else:
         print_table(result)
+        if prop_data is not None:
+            rep = prop_data["report"]
+            print(f"propeller data (APC static): {len(rep['matched'])} matched, missed: "
+                  f"{', '.join(rep['missed']) or 'none'}")
         if rules is not None:
             print_rule_reports(result.rule_reports)
     return 0 if result.any_feasible else EXIT_NO_FEASIBLE
