@@ -135,6 +135,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     add_measured_args(p)
     add_rule_args(p)
+    p.add_argument("--series", default=None, metavar="S",
+                   help="choose cells in series too, e.g. 2-6 (the catalog's batteries read "
+                   "as cells, docs/sizing.md)")
+    p.add_argument("--parallel", default=None, metavar="P",
+                   help="with --series: parallel strings, e.g. 1-4 (default 1)")
     p.add_argument("--prop-data", action="store_true",
                    help="hover speed and power from the APC static C_t(rpm), C_p(rpm) where a "
                    "catalog propeller matches (docs/sizing.md); constants elsewhere")
@@ -304,8 +309,11 @@ def handler(args: argparse.Namespace) -> int:
     if args.prop_data:
         build, info = prop_data_build(catalog)
         prop_data = {"build": build, "coefficients": info.pop("coefficients"), "report": info}
-    result = solve(catalog, objective, tuple(args.actuators), requirements, args.method,
-                   measured, rules, prop_data)
+    if args.series is not None or args.parallel is not None:
+        result = solve_packs(args, catalog, objective, requirements, measured, rules, prop_data)
+    else:
+        result = solve(catalog, objective, tuple(args.actuators), requirements, args.method,
+                       measured, rules, prop_data)
     if args.json:
         doc = result.to_dict()
         if measured is not None:
@@ -324,6 +332,52 @@ def handler(args: argparse.Namespace) -> int:
         if rules is not None:
             print_rule_reports(result.rule_reports)
     return 0 if result.any_feasible else EXIT_NO_FEASIBLE
+
+
+def solve_packs(args: argparse.Namespace, catalog: Any, objective: Objective,
+                requirements: Any, measured: Any, rules: Any, prop_data: Any) -> Any:
+    """``--series/--parallel``: ``optimizer.packs.optimize_packs`` with the same options."""
+    from optimizer.packs import optimize_packs, parse_counts
+
+    if args.series is None:
+        raise RequestError("--parallel needs --series (e.g. --series 2-6 --parallel 1-4)")
+    if measured is not None:
+        raise RequestError("--series/--parallel do not combine with --measured (measured "
+                           "currents belong to the bench's supply voltage)")
+    series = parse_counts(args.series, "--series")
+    parallel = parse_counts(args.parallel or "1", "--parallel")
+    build, coefficients = None, None
+    if prop_data is not None:
+        build, coefficients = prop_data["build"], prop_data["coefficients"]
+    builder = None
+    if rules is not None:
+        from optimizer.flyable import FlyableBuilder
+
+        build = builder = FlyableBuilder(rules, build, coefficients=coefficients)
+    result = optimize_packs(catalog, objective, tuple(args.actuators), requirements,
+                            args.method, series, parallel, build_grid=build)
+    if builder is not None:
+        result.rule_reports = _sum_reports(builder.reports)
+    return result
+
+
+def _sum_reports(reports: list[Any]) -> list[dict[str, Any]]:
+    """Rule reports of the per-S grids added up per actuator count."""
+    out: dict[int, dict[str, Any]] = {}
+    for r in reports:
+        d = r.to_dict()
+        zero = {key: 0 for key in ("designs", "physically_feasible", "flyable")}
+        acc = out.setdefault(d["actuators"], {
+            **d, **zero,
+            "removed_alone": dict.fromkeys(d["removed_alone"], 0),
+            "removed_in_turn": dict.fromkeys(d["removed_in_turn"], 0),
+        })
+        for key in ("designs", "physically_feasible", "flyable"):
+            acc[key] += d[key]
+        for key in ("removed_alone", "removed_in_turn"):
+            for name, v in d[key].items():
+                acc[key][name] += v
+    return list(out.values())
 
 
 def print_rule_reports(reports: list[dict[str, Any]]) -> None:
