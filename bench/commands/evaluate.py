@@ -106,6 +106,7 @@ def evaluate(args: argparse.Namespace) -> dict[str, Any]:
     )
     single = single_design_catalog(catalog, pid, mid, bid)
     record.update(design_sheet(single, record, curve))
+    record["rules"] = flyable_rules(single, args.actuators, args.payload_kg)
     if args.prop_data:
         from optimizer.propdata import compare_for_design
 
@@ -121,6 +122,25 @@ def evaluate(args: argparse.Namespace) -> dict[str, Any]:
         record.pop("reason", None)
     record["catalog"] = catalog.source
     return record
+
+
+def flyable_rules(single: Any, n: int, payload_kg: float) -> list[dict[str, Any]]:
+    """The flyable-design rules (optimizer.flyable defaults) on this design, for reading:
+    ``feasible`` stays the catalog's limits; ``optimize --flyable`` enforces them."""
+    import numpy as np
+
+    from optimizer.flyable import Rules, rule_checks, rule_of
+    from optimizer.model import evaluate_grid
+
+    grid = evaluate_grid(single, n, payload_kg)
+    out = []
+    for c in rule_checks(single, grid, Rules()):
+        value = float(np.ravel(np.broadcast_to(c.value, grid.shape))[0])
+        limit = float(np.ravel(np.broadcast_to(c.limit, grid.shape))[0])
+        margin = float(np.ravel(np.broadcast_to(c.margin(), grid.shape))[0])
+        out.append({"rule": rule_of(c), "label": c.label.split(": ", 1)[1], "unit": c.unit,
+                    "value": value, "limit": limit, "sense": c.sense, "ok": margin >= 0})
+    return out
 
 
 def handler(args: argparse.Namespace) -> int:
@@ -193,6 +213,15 @@ def print_sheet(record: dict[str, Any]) -> None:
         sheet.add_row(f"{m['label']}{unit}",
                       f"{m['value']:.4g} {op} {m['limit']:.4g}{pct}  {verdict}")
     console.print(sheet)
+    rules = Table(title="Flyable-design rules (optimize --flyable enforces them)",
+                  title_justify="left")
+    for head in ("Rule", "Quantity", "Value", "Limit", ""):
+        rules.add_column(head, justify="left" if head in ("Rule", "Quantity") else "right")
+    for r in record.get("rules", []):
+        op = "<=" if r["sense"] == "<=" else ">="
+        rules.add_row(r["rule"], r["label"], f"{r['value']:.4g} {r['unit']}",
+                      f"{op} {r['limit']:.4g}", "ok" if r["ok"] else "FAILS")
+    console.print(rules)
 
     part = Table(title="Partial load (per actuator; current from the battery)",
                  title_justify="left")
