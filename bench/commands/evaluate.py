@@ -194,9 +194,8 @@ def print_sheet(record: dict[str, Any]) -> None:
         ("Full throttle: motor current (A)", f"{record['max_motor_current_a']:.2f}"),
         ("Full throttle: battery current (A)", f"{record['max_battery_current_a']:.1f}"),
         ("Full throttle: tip speed (m/s)", f"{record['tip_speed_max_m_s']:.0f}"),
-        ("Flight time, thesis (min)",
-         f"{bm['thesis_flight_time_min']:.1f}  ({bm['thesis_label']})"),
-        ("Flight time, battery model (min)", f"{bm['flight_time_min']:.1f}  ({bm['label']})"),
+        ("Flight time, thesis (min) [1]", f"{bm['thesis_flight_time_min']:.1f}"),
+        ("Flight time, battery model (min) [2]", f"{bm['flight_time_min']:.1f}"),
         ("Usable capacity (%)", f"{bm['usable_capacity_pct']:.0f}"),
         ("Pack voltage start -> end (V)",
          f"{bm['start_voltage_v']:.2f} -> {bm['end_voltage_v']:.2f}"),
@@ -213,6 +212,7 @@ def print_sheet(record: dict[str, Any]) -> None:
         sheet.add_row(f"{m['label']}{unit}",
                       f"{m['value']:.4g} {op} {m['limit']:.4g}{pct}  {verdict}")
     console.print(sheet)
+    console.print(f"[1] {bm['thesis_label']}\n[2] {bm['label']}", style="dim")
     rules = Table(title="Flyable-design rules (optimize --flyable enforces them)",
                   title_justify="left")
     for head in ("Rule", "Quantity", "Value", "Limit", ""):
