@@ -147,12 +147,10 @@ class RuleReport:
 
 def report(grid: DesignGrid, checks: Sequence[Check]) -> RuleReport:
     """Count what the rule checks in ``checks`` remove from ``grid``'s feasible designs."""
+    from optimizer.selection import _feasible
+
     def passes(cs: Sequence[Check]) -> np.ndarray:
-        ok = np.ones(grid.shape, bool)
-        for c in cs:
-            tol = 1e-9 * np.maximum(1.0, np.abs(np.asarray(c.limit, float)))
-            ok &= np.broadcast_to(c.margin() >= -tol, grid.shape)
-        return ok
+        return _feasible(grid, cs)  # the selection's own test, same tolerance
 
     base = passes([c for c in checks if rule_of(c) is None])
     names = list(dict.fromkeys(r for c in checks if (r := rule_of(c)) is not None))

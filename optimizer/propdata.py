@@ -23,10 +23,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pandas as pd
 
 from optimizer.catalog import Catalog
-from optimizer.errors import CatalogError
+from optimizer.sizinglab import _read as read_sizinglab_table
 
 FILE = "APC_STATIC-data-all-props.csv"
 RHO_APC = 1.225
@@ -62,16 +61,8 @@ class PropCurve:
 
 def load_curves(folder: str | Path) -> list[PropCurve]:
     """All propellers of the APC static file in ``folder`` with their coefficient curves."""
-    path = Path(folder) / FILE
-    if not path.is_file():
-        raise CatalogError(f"{path}: APC static data not found")
-    try:
-        data = pd.read_csv(path, sep=";")
-    except (pd.errors.ParserError, UnicodeDecodeError, pd.errors.EmptyDataError) as exc:
-        raise CatalogError(f"{path}: not a semicolon-separated table ({exc})") from None
-    missing = [c for c in _COLS if c not in data.columns]
-    if missing:
-        raise CatalogError(f"{path}: missing column(s) {', '.join(missing)}")
+    # the SizingLab reader: semicolons, needed columns, numbers checked (line and column)
+    data = read_sizinglab_table(Path(folder) / FILE, _COLS)
     data = data[data["THRUST(LBF)"] >= MIN_THRUST_LBF]
     data = data[data["TORQUE(IN.LBF)"] >= MIN_TORQUE_IN_LBF]
     out = []
