@@ -14,7 +14,7 @@ import pandas as pd
 
 from optimizer.catalog import Catalog
 from optimizer.constants import ModelConstants
-from optimizer.errors import RequestError
+from optimizer.errors import CatalogError, RequestError
 from optimizer.sizinglab import PROP_MASS_COEF_G, PROP_MASS_EXPONENT
 
 #: Stand-in for a limit the user did not give (A, W): large, finite, never binding.
@@ -75,10 +75,25 @@ def freeform_catalog(values: dict[str, Any], constants: ModelConstants | None = 
     if "c_rating" in rows["battery"]:
         del rows["battery"]["max_current_a"]  # from capacity x C rating
     consts = constants or ModelConstants(battery_voltage="nominal")
-    return Catalog.from_frames(
-        pd.DataFrame([prop]),
-        pd.DataFrame([rows["motor"]]),
-        pd.DataFrame([rows["battery"]]),
-        consts,
-        source="<free-form>",
-    )
+    try:
+        return Catalog.from_frames(
+            pd.DataFrame([prop]),
+            pd.DataFrame([rows["motor"]]),
+            pd.DataFrame([rows["battery"]]),
+            consts,
+            source="<free-form>",
+        )
+    except CatalogError as exc:
+        raise RequestError(_flag_message(str(exc))) from None
+
+
+_FILES = {"propeller": "propellers.csv", "motor": "motors.csv", "battery": "batteries.csv"}
+
+
+def _flag_message(message: str) -> str:
+    """A catalog cell error ("<free-form>/motors.csv: data row 1, column 'kv_rpm_per_v':
+    expected ...") said of the flag the value came from."""
+    for part, column, flag, _ in FIELDS:
+        if f"/{_FILES[part]}:" in message and f"column '{column}'" in message:
+            return f"{flag}: {message.rsplit(': ', 1)[-1]}"
+    return f"free-form design: {message}"

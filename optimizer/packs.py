@@ -151,6 +151,8 @@ def optimize_packs(
             grid = build_grid(sub, n, req.payload_kg)
             gtime = time.perf_counter() - start
             cut = _Cutoff(grid, objective, incumbent)
+            if not cut.any_left:
+                continue  # nothing at this S reaches the incumbent: no solve, no explanation
             res = select_from_grids([cut.grid], objective, req, method, grid_times=[gtime],
                                     source=catalog.source).designs[0]
             if res.feasible:
@@ -175,13 +177,14 @@ class _Cutoff:
 
         from optimizer.grid import Check
 
+        self.any_left = True
         if not math.isfinite(incumbent):
             self.grid = grid
             return
-        cost = objective.cost(grid)
+        cost = np.nan_to_num(objective.cost(grid), nan=np.inf)
         limit = incumbent + _tol(incumbent, abs(incumbent))
-        check = Check("cost cutoff (better design at another S)", "", np.nan_to_num(
-            cost, nan=np.inf), np.asarray(limit))
+        self.any_left = bool(np.any(cost <= limit))
+        check = Check("cost cutoff (better design at another S)", "", cost, np.asarray(limit))
         self.grid = replace(grid, checks=(*grid.checks, check))
 
 

@@ -117,6 +117,16 @@ def test_free_form_without_catalog_and_its_errors(capsys) -> None:
     code = main(["evaluate", "--actuators", "4", "--motor-kv", "920"])
     err = capsys.readouterr().err
     assert code == 2 and "--prop-diameter-m" in err and "Traceback" not in err
+    bad = ["evaluate", "--actuators", "4", "--prop-diameter-m", "0.254", "--prop-ct", "0.12",
+           "--prop-cp", "0.08", "--motor-kv", "-920", "--motor-resistance", "0.1",
+           "--motor-mass-g", "56", "--battery-cells", "3", "--battery-mah", "2200",
+           "--battery-mass-g", "180"]
+    assert main(bad) == 2
+    err = capsys.readouterr().err
+    assert err.strip().endswith("--motor-kv: expected a number > 0, got -920.0")
+    assert len(err.strip().splitlines()) == 1
+    assert main(["evaluate", "--actuators", "4", "--propeller", "P1", "--motor-kv", "9"]) == 2
+    assert "not both" in capsys.readouterr().err
 
 
 def test_text_sheet_and_plot(capsys, tmp_path) -> None:
