@@ -93,6 +93,8 @@ def design_sheet(
         "efficiency_g_per_w": _one(hover.efficiency_g_per_w),
         "hover_electric_power_w": n * _one(hover.power_w),
         "hover_battery_current_a": n * _one(hover.battery_current_a),
+        # per actuator, battery side, winding losses included (the thesis' x18 / N is not)
+        "hover_current_per_actuator_a": _one(hover.battery_current_a),
         "max_rpm": _one(top.rpm),
         "max_motor_current_a": _one(top.motor_current_a),
         "max_battery_current_a": n * _one(top.battery_current_a),

@@ -47,7 +47,9 @@ def test_case_i_current_at_hover_thrust(case_i) -> None:
     hover = case_i["total_mass_kg"] * 9.81 / 4
     current = np.interp(hover, [r["thrust_n"] for r in rows], [r["current_a"] for r in rows])
     # the drive model's own hover point (winding losses included)
-    assert current == pytest.approx(case_i["hover_battery_current_a"] / 4, rel=0.05)
+    assert current == pytest.approx(case_i["hover_current_per_actuator_a"], rel=0.05)
+    assert case_i["hover_current_per_actuator_a"] * 4 == pytest.approx(
+        case_i["hover_battery_current_a"])
     # against the thesis' per-actuator current x18 / N (E.67, shaft power / B_V): the
     # difference is the copper loss R I_w^2 of the winding current, nothing else
     thesis = case_i["current_a"] / 4
