@@ -74,7 +74,21 @@ def _catalog_and_ids(args: argparse.Namespace) -> tuple[Any, tuple[str, str, str
                if i is None]
     if missing:
         raise RequestError(f"evaluate: missing {', '.join(missing)} (or give free-form parts)")
-    return load(args.catalog), (args.propeller, args.motor, args.battery)
+    catalog = load(args.catalog)
+    return _with_pack(catalog, args.battery), (args.propeller, args.motor, args.battery)
+
+
+def _with_pack(catalog: Any, battery_id: str) -> Any:
+    """A pack id of ``optimize --series`` (``B1-4S3P``: 4S3P of B1's cell) names a pack
+    built from the catalog's cell; any other id is looked up as it is."""
+    import re
+
+    from optimizer.packs import with_packs
+
+    m = re.fullmatch(r"(.+)-(\d+)S(\d+)P", str(battery_id))
+    if battery_id in catalog.battery_ids or not m or m.group(1) not in catalog.battery_ids:
+        return catalog
+    return with_packs(catalog, (int(m.group(2)),), (int(m.group(3)),))
 
 
 def evaluate(args: argparse.Namespace) -> dict[str, Any]:

@@ -128,3 +128,17 @@ def test_counts_and_cli_errors(capsys) -> None:
     assert main(["optimize", "--series", "3-4", "--parallel", "1-2", "--actuators", "4"]) == 0
     out = capsys.readouterr().out
     assert "S1P" in out or "S2P" in out
+
+
+def test_evaluate_takes_a_pack_id(capsys) -> None:
+    import json
+
+    assert main(["evaluate", "--actuators", "4", "--propeller", "P4", "--motor", "M1",
+                 "--battery", "B1-3S2P", "--json"]) == 0
+    pack = json.loads(capsys.readouterr().out)
+    assert main(["evaluate", "--actuators", "4", "--propeller", "P4", "--motor", "M1",
+                 "--battery", "B2", "--json"]) == 0
+    b2 = json.loads(capsys.readouterr().out)
+    assert pack["battery"] == "B1-3S2P"
+    for key in ("flight_time_min", "total_mass_kg", "max_thrust_n", "hover_throttle_pct"):
+        assert pack[key] == pytest.approx(b2[key], rel=1e-12)
