@@ -84,3 +84,13 @@ def test_evaluate_prop_data(capsys, shared_data) -> None:
     cmp_ = doc["comparison"]
     assert {"hover_rpm", "propeller_power_w", "max_thrust_n"} <= set(cmp_)
     assert cmp_["hover_rpm"]["data"] != cmp_["hover_rpm"]["constant"]
+
+
+def test_optimize_prop_data_reports_matches(capsys, shared_data) -> None:
+    assert main(["optimize", "--prop-data", "--actuators", "4", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert len(doc["propeller_data"]["matched"]) == 4 and doc["propeller_data"]["missed"] == []
+    assert main(["optimize", "--actuators", "4", "--json"]) == 0
+    plain = json.loads(capsys.readouterr().out)
+    # measured coefficients change the hover speed of the chosen design
+    assert doc["best"]["hover_rpm"] != plain["best"]["hover_rpm"]
