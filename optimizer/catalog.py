@@ -81,7 +81,13 @@ BATTERY_REQUIRED = (
     _col("price"),
 )
 BATTERY_CURRENT = (_col("max_current_a"), _col("c_rating", rule=">0"))
-BATTERY_OPTIONAL = (*BATTERY_CURRENT, _col("nominal_voltage_v", rule=">0"))
+BATTERY_OPTIONAL = (
+    *BATTERY_CURRENT,
+    _col("nominal_voltage_v", rule=">0"),
+    # battery model (optimizer.battery): burst C rating and measured pack resistance
+    _col("burst_c_rating", rule=">0"),
+    _col("resistance_mohm", "resistance_ohm", 1e-3),
+)
 
 FILES = ("propellers.csv", "motors.csv", "batteries.csv")
 
@@ -239,7 +245,8 @@ def _finish_batteries(table: _Table, batteries: pd.DataFrame) -> pd.DataFrame:
         raise CatalogError(
             f"{table.label}: missing column 'max_current_a' or 'c_rating' (one is required)"
         )
-    for name in ("max_current_a", "c_rating", "nominal_voltage_v"):
+    for name in ("max_current_a", "c_rating", "nominal_voltage_v", "burst_c_rating",
+                 "resistance_ohm"):
         if name not in batteries.columns:
             batteries[name] = np.nan
     current = batteries["max_current_a"].to_numpy()

@@ -33,6 +33,7 @@ from optimizer.catalog import Catalog
 from optimizer.errors import RequestError
 from optimizer.grid import METRIC_KEYS, Check, DesignGrid
 from optimizer.measured import MeasuredActuator, select_overrides
+from optimizer.performance import Coefficients, speed_for_thrust
 
 
 @dataclass(frozen=True)
@@ -106,11 +107,14 @@ def evaluate_grid(
     *,
     overrides: Iterable[MeasuredActuator] | None = None,
     esc_mode: str | None = None,
+    coefficients: Coefficients | None = None,
 ) -> ModelGrid:
     """All metrics and limit checks of every design with ``n_actuators`` actuators.
 
     ``overrides`` replace the modelled time constant and hover current of given
     (propeller, motor[, ``esc_mode``]) pairs; ``ModelGrid.measured`` says where.
+    ``coefficients`` (rpm -> C_t, C_p on the propeller axis, ``optimizer.propdata``)
+    replace the constant coefficients at hover (opt-in; the thesis uses constants).
     """
     n, payload = _check_request(n_actuators, payload_kg)
     c = catalog.constants
@@ -142,7 +146,9 @@ def evaluate_grid(
     # (E.16)-(E.17) total weight; (E.19) plus payload m_L.
     total_mass = n * actuator_mass + frame + m_batt + payload
     hover_thrust = total_mass * g / n  # (E.19)-(E.20), per propeller
-    n_rev_s = physics.hover_speed_rev_s(hover_thrust, ct, rho, diameter)  # (E.20)
+    ct_const, cp_const = ct, cp
+    # (E.20); with measured coefficients C_t(rpm), C_p(rpm) at the hover speed
+    n_rev_s, ct, cp = speed_for_thrust(hover_thrust, ct, cp, rho, diameter, coefficients)
     prop_power = physics.propeller_power_w(cp, rho, n_rev_s, diameter)  # (E.60)-(E.63)
     actuator_current = prop_power / voltage  # (E.67): x18 / N_a per actuator
     torque = physics.hover_torque_nm(prop_power, n_rev_s)  # (E.3) Q = W / omega
@@ -220,8 +226,10 @@ def evaluate_grid(
         "motor_current_a": winding_current,
     }
     if c.min_thrust_to_weight is not None:
-        omega_max = physics.full_throttle_speed_rad_s(voltage, kt, resistance, cp, rho, diameter)
-        max_thrust = physics.thrust_n(ct, rho, omega_max / physics.TWO_PI, diameter)
+        omega_max = physics.full_throttle_speed_rad_s(
+            voltage, kt, resistance, cp_const, rho, diameter
+        )
+        max_thrust = physics.thrust_n(ct_const, rho, omega_max / physics.TWO_PI, diameter)
         ratio = full(max_thrust / hover_thrust)
         extras["thrust_to_weight"] = ratio
         checks.append(
@@ -323,6 +331,22 @@ def _index(ids: tuple[str, ...], wanted: str, kind: str, catalog: Catalog) -> in
         ) from None
 
 
+def single_design_catalog(
+    catalog: Catalog, propeller_id: str, motor_id: str, battery_id: str
+) -> Catalog:
+    """The catalog of one propeller, motor and battery (ids checked, constants kept)."""
+    i = _index(catalog.propeller_ids, propeller_id, "propeller", catalog)
+    j = _index(catalog.motor_ids, motor_id, "motor", catalog)
+    k = _index(catalog.battery_ids, battery_id, "battery", catalog)
+    return Catalog(
+        catalog.propellers.iloc[[i]].reset_index(drop=True),
+        catalog.motors.iloc[[j]].reset_index(drop=True),
+        catalog.batteries.iloc[[k]].reset_index(drop=True),
+        catalog.constants,
+        catalog.source,
+    )
+
+
 def evaluate_design(
     catalog: Catalog,
     n_actuators: int,
@@ -335,16 +359,7 @@ def evaluate_design(
     esc_mode: str | None = None,
 ) -> dict[str, Any]:
     """One design's metrics, feasibility and violated checks (JSON-ready dict)."""
-    i = _index(catalog.propeller_ids, propeller_id, "propeller", catalog)
-    j = _index(catalog.motor_ids, motor_id, "motor", catalog)
-    k = _index(catalog.battery_ids, battery_id, "battery", catalog)
-    single = Catalog(
-        catalog.propellers.iloc[[i]].reset_index(drop=True),
-        catalog.motors.iloc[[j]].reset_index(drop=True),
-        catalog.batteries.iloc[[k]].reset_index(drop=True),
-        catalog.constants,
-        catalog.source,
-    )
+    single = single_design_catalog(catalog, propeller_id, motor_id, battery_id)
     grid = evaluate_grid(
         single, n_actuators, payload_kg, overrides=_relevant(overrides, single), esc_mode=esc_mode
     )

@@ -35,6 +35,8 @@ Batteries (``Batteries_Data.csv`` and ``Batteries_Data_2.csv``, exact duplicates
 dropped): cells = round(V / 3.7), capacity, mass, continuous C rating
 (``Discharge_Rate_C``), nominal voltage as given. Not in the data:
   * price: 0.6 $/Wh (thesis-e: 25.5 $ for 44.4 Wh).
+Burst C rating (``Max_Burst_Discharge_Rate_C``) -> ``burst_c_rating`` (battery model and
+the ``c-rate`` rule, docs/sizing.md).
 Constants: nominal battery voltage, propeller prices in the total (E.18), and a
 thrust-to-weight requirement of 2 at full voltage (the raw lists include
 motors that cannot lift anything with these propellers).
@@ -86,6 +88,8 @@ _MOTOR_COLS = (
     "Tnom_Nm",
 )
 _BATT_COLS = ("Voltage_V", "Capacity_mAh", "Discharge_Rate_C", "Weight_g")
+#: burst C rating, the limit of the battery model's full-throttle check (docs/sizing.md)
+_BURST = "Max_Burst_Discharge_Rate_C"
 
 
 def _read(path: Path, needed: tuple[str, ...]) -> pd.DataFrame:
@@ -189,7 +193,7 @@ def motors_frame(folder: Path) -> pd.DataFrame:
 def batteries_frame(folder: Path) -> pd.DataFrame:
     parts = []
     for name, brand in (("Batteries_Data.csv", "TYPE"), ("Batteries_Data_2.csv", "Brand")):
-        data = _read(folder / name, (brand, *_BATT_COLS))
+        data = _read(folder / name, (brand, *_BATT_COLS, _BURST))
         parts.append(
             pd.DataFrame(
                 {
@@ -198,10 +202,13 @@ def batteries_frame(folder: Path) -> pd.DataFrame:
                     "capacity_mah": data["Capacity_mAh"],
                     "c_rating": data["Discharge_Rate_C"],
                     "mass_g": data["Weight_g"],
+                    "burst_c_rating": data[_BURST],
                 }
             )
         )
-    all_packs = pd.concat(parts, ignore_index=True).drop_duplicates().reset_index(drop=True)
+    same = ["brand", "voltage", "capacity_mah", "c_rating", "mass_g"]
+    all_packs = pd.concat(parts, ignore_index=True).drop_duplicates(subset=same)
+    all_packs = all_packs.reset_index(drop=True)
     cells = np.maximum(1, np.round(all_packs["voltage"].to_numpy(float) / CELL_NOMINAL_V))
     energy_wh = all_packs["capacity_mah"].to_numpy(float) / 1000.0 * all_packs["voltage"]
     names = [
@@ -219,6 +226,7 @@ def batteries_frame(folder: Path) -> pd.DataFrame:
             "cells": cells.astype(int),
             "price": np.round(BATTERY_PRICE_PER_WH * energy_wh, 2),
             "c_rating": all_packs["c_rating"].to_numpy(float),
+            "burst_c_rating": all_packs["burst_c_rating"].to_numpy(float),
             "nominal_voltage_v": all_packs["voltage"].to_numpy(float),
         }
     )

@@ -142,7 +142,57 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "ms: the MILP's pick is flown, then the others in objective order (rotorbench fly)",
     )
     add_measured_args(p)
+    add_rule_args(p)
+    p.add_argument("--series", default=None, metavar="S",
+                   help="choose cells in series too, e.g. 2-6 (the catalog's batteries read "
+                   "as cells, docs/sizing.md)")
+    p.add_argument("--parallel", default=None, metavar="P",
+                   help="with --series: parallel strings, e.g. 1-4 (default 1)")
+    p.add_argument("--prop-data", action="store_true",
+                   help="hover speed and power from the APC static C_t(rpm), C_p(rpm) where a "
+                   "catalog propeller matches (docs/sizing.md); constants elsewhere")
     p.set_defaults(func=handler)
+
+
+def add_rule_args(p: argparse.ArgumentParser) -> None:
+    """``--flyable`` and its rule switches (optimizer.flyable)."""
+    from optimizer.flyable import RULE_NAMES, Rules
+
+    d = Rules()
+    g = p.add_argument_group("flyable-design rules (docs/sizing.md)")
+    g.add_argument("--flyable", action="store_true",
+                   help=f"apply the rules {', '.join(RULE_NAMES)} and report what each removes")
+    g.add_argument("--no-rule", action="append", default=[], choices=RULE_NAMES,
+                   metavar="NAME", help="switch one rule off (repeatable)")
+    g.add_argument("--tip-speed-max", type=float, default=d.tip_speed_m_s, metavar="M_S",
+                   help=f"rule tip-speed: full-throttle tip speed limit (default "
+                   f"{d.tip_speed_m_s:g} m/s)")
+    g.add_argument("--max-wheelbase-m", type=float, default=d.max_wheelbase_m, metavar="M",
+                   help=f"rule frame: motor-to-motor diagonal limit (default "
+                   f"{d.max_wheelbase_m:g} m)")
+    g.add_argument("--hover-throttle", type=float, nargs=2, default=d.hover_throttle_pct,
+                   metavar=("LO", "HI"), help="rule hover-throttle: band in percent "
+                   "(default 30 70)")
+    g.add_argument("--rule-max-time-constant-ms", type=float, default=d.max_time_constant_ms,
+                   metavar="MS", help=f"rule response: time-constant limit (default "
+                   f"{d.max_time_constant_ms:g} ms)")
+
+
+def rules_from_args(args: argparse.Namespace) -> Any:
+    """The ``Rules`` of ``--flyable`` (None without it)."""
+    from optimizer.flyable import RULE_NAMES, Rules
+
+    if not getattr(args, "flyable", False):
+        if getattr(args, "no_rule", None):
+            raise RequestError("--no-rule only applies with --flyable")
+        return None
+    return Rules(
+        enabled=tuple(r for r in RULE_NAMES if r not in args.no_rule),
+        tip_speed_m_s=args.tip_speed_max,
+        max_wheelbase_m=args.max_wheelbase_m,
+        hover_throttle_pct=tuple(args.hover_throttle),
+        max_time_constant_ms=args.rule_max_time_constant_ms,
+    ).validate()
 
 
 #: Paper E section 4: (case, title, objective, payload kg).
@@ -194,20 +244,45 @@ def _measured(args: argparse.Namespace, catalog: Any) -> Any:
     return load_measured_set(args.measured, catalog, args.esc_mode)
 
 
+def prop_data_build(catalog: Any) -> tuple[Any, Any]:
+    """``--prop-data``: (build_grid with the APC C_t(rpm), C_p(rpm), match report)."""
+    from functools import partial
+
+    from optimizer.model import evaluate_grid
+    from optimizer.propdata import catalog_curves, data_folder, load_curves, match_report
+
+    table = catalog_curves(catalog, load_curves(data_folder()))
+    return (partial(evaluate_grid, coefficients=table.coefficients),
+            {**match_report(catalog, table), "coefficients": table.coefficients})
+
+
 def solve(catalog: Any, objective: Objective, actuators: tuple[int, ...], requirements: Any,
-          method: str, measured: Any = None) -> Any:
+          method: str, measured: Any = None, rules: Any = None,
+          prop_data: dict[str, Any] | None = None) -> Any:
     """``optimizer.selection.optimize``, with the measured overrides when given (then every
-    design carries ``sources``)."""
+    design carries ``sources``) and the flyable-design rules when given (then the result
+    carries ``rule_reports``)."""
     from optimizer.selection import optimize
 
-    if measured is None:
-        return optimize(catalog, objective, actuators, requirements, method)
-    if method == "thesis":
-        raise RequestError("--measured works with --method milp or exact (the thesis "
-                           "formulation linearises the datasheet model)")
-    result = optimize(catalog, objective, actuators, requirements, method,
-                      build_grid=measured.build_grid)
-    measured.annotate(result)
+    if method == "thesis" and (measured is not None or rules is not None):
+        raise RequestError("--measured and --flyable work with --method milp or exact (the "
+                           "thesis formulation linearises the datasheet model)")
+    if prop_data is not None and (measured is not None or method == "thesis"):
+        raise RequestError("--prop-data works with --method milp or exact, without --measured")
+    build = None if measured is None else measured.build_grid
+    coefficients = None
+    if prop_data is not None:
+        build, coefficients = prop_data["build"], prop_data["coefficients"]
+    builder = None
+    if rules is not None:
+        from optimizer.flyable import FlyableBuilder
+
+        build = builder = FlyableBuilder(rules, build, coefficients=coefficients)
+    result = optimize(catalog, objective, actuators, requirements, method, build_grid=build)
+    if measured is not None:
+        measured.annotate(result)
+    if builder is not None:
+        result.rule_reports = [r.to_dict() for r in builder.reports]
     return result
 
 
@@ -239,14 +314,30 @@ def handler(args: argparse.Namespace) -> int:
         max_time_constant_ms=args.max_time_constant_ms,
     )
     measured = _measured(args, catalog)
-    result = solve(catalog, objective, tuple(args.actuators), requirements, args.method,
-                   measured)
+    rules = rules_from_args(args)
+    prop_data = None
+    if args.prop_data:
+        build, info = prop_data_build(catalog)
+        prop_data = {"build": build, "coefficients": info.pop("coefficients"), "report": info}
+    if args.series is not None or args.parallel is not None:
+        result = solve_packs(args, catalog, objective, requirements, measured, rules, prop_data)
+    else:
+        result = solve(catalog, objective, tuple(args.actuators), requirements, args.method,
+                       measured, rules, prop_data)
     if args.max_roll_rise_ms is not None:
+        if rules is not None or prop_data is not None or args.series is not None:
+            raise RequestError("--max-roll-rise-ms does not combine with --flyable, --prop-data "
+                               "or --series/--parallel yet (the flown candidates come from the "
+                               "plain catalog model)")
         result = _fly_filter(args, catalog, objective, requirements, result, measured)
     if args.json:
         doc = result.to_dict()
         if measured is not None:
             doc["measured"] = measured.describe()
+        if rules is not None:
+            doc["rules"] = {"enabled": list(rules.enabled), "removed": result.rule_reports}
+        if prop_data is not None:
+            doc["propeller_data"] = prop_data["report"]
         print(json.dumps(doc, indent=2, default=_json_default))
     else:
         print_table(result)
@@ -255,6 +346,12 @@ def handler(args: argparse.Namespace) -> int:
             if info and d.feasible:
                 print(f"{d.actuators} actuators: roll rise {info['roll_rise_ms']:.0f} ms <= "
                       f"{info['max_roll_rise_ms']:g} ms (flew {info['flown']} design(s))")
+        if prop_data is not None:
+            rep = prop_data["report"]
+            print(f"propeller data (APC static): {len(rep['matched'])} matched, missed: "
+                  f"{', '.join(rep['missed']) or 'none'}")
+        if rules is not None:
+            print_rule_reports(result.rule_reports)
     return 0 if result.any_feasible else EXIT_NO_FEASIBLE
 
 
@@ -270,6 +367,62 @@ def _fly_filter(args: argparse.Namespace, catalog: Any, objective: Objective,
     if measured is not None:
         measured.annotate(result)
     return result
+
+
+def solve_packs(args: argparse.Namespace, catalog: Any, objective: Objective,
+                requirements: Any, measured: Any, rules: Any, prop_data: Any) -> Any:
+    """``--series/--parallel``: ``optimizer.packs.optimize_packs`` with the same options."""
+    from optimizer.packs import optimize_packs, parse_counts
+
+    if args.series is None:
+        raise RequestError("--parallel needs --series (e.g. --series 2-6 --parallel 1-4)")
+    if measured is not None:
+        raise RequestError("--series/--parallel do not combine with --measured (measured "
+                           "currents belong to the bench's supply voltage)")
+    series = parse_counts(args.series, "--series")
+    parallel = parse_counts(args.parallel or "1", "--parallel")
+    build, coefficients = None, None
+    if prop_data is not None:
+        build, coefficients = prop_data["build"], prop_data["coefficients"]
+    builder = None
+    if rules is not None:
+        from optimizer.flyable import FlyableBuilder
+
+        build = builder = FlyableBuilder(rules, build, coefficients=coefficients)
+    result = optimize_packs(catalog, objective, tuple(args.actuators), requirements,
+                            args.method, series, parallel, build_grid=build)
+    if builder is not None:
+        result.rule_reports = _sum_reports(builder.reports)
+    return result
+
+
+def _sum_reports(reports: list[Any]) -> list[dict[str, Any]]:
+    """Rule reports of the per-S grids added up per actuator count."""
+    out: dict[int, dict[str, Any]] = {}
+    for r in reports:
+        d = r.to_dict()
+        zero = {key: 0 for key in ("designs", "physically_feasible", "flyable")}
+        acc = out.setdefault(d["actuators"], {
+            **d, **zero,
+            "removed_alone": dict.fromkeys(d["removed_alone"], 0),
+            "removed_in_turn": dict.fromkeys(d["removed_in_turn"], 0),
+        })
+        for key in ("designs", "physically_feasible", "flyable"):
+            acc[key] += d[key]
+        for key in ("removed_alone", "removed_in_turn"):
+            for name, v in d[key].items():
+                acc[key][name] += v
+    return list(out.values())
+
+
+def print_rule_reports(reports: list[dict[str, Any]]) -> None:
+    """One line per actuator count: designs each rule removed (alone / in turn)."""
+    for r in reports:
+        parts = ", ".join(f"{k} {r['removed_alone'][k]}/{r['removed_in_turn'][k]}"
+                          for k in r["removed_alone"])
+        print(f"rules, {r['actuators']} actuators: {r['physically_feasible']} of "
+              f"{r['designs']} designs within the limits, {r['flyable']} flyable; removed "
+              f"(alone/in turn): {parts}")
 
 
 def _json_default(obj: Any) -> Any:

@@ -1,0 +1,169 @@
+"""``rotorbench pareto``: the exact front of two objectives (e.g. flight time vs time constant).
+
+Per actuator count the epsilon-constraint MILP (``optimizer.pareto``) walks the
+non-dominated designs; the fronts of several counts are merged by dominance. ``--check``
+also enumerates every design and says whether the two fronts agree. ``front`` lists
+designs with the keys of an ``optimize --json`` design. Exit 0 with a front, 3 when no
+design is feasible, 2 for bad input.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bench.commands.optimize import (
+    EXIT_NO_FEASIBLE,
+    _json_default,
+    add_catalog_args,
+    add_rule_args,
+    load,
+    rules_from_args,
+)
+from optimizer.errors import RequestError
+
+#: Most points drawn in grey on the plot (an even subsample beyond this).
+PLOT_CLOUD_MAX = 200_000
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    from optimizer.objectives import METRICS
+
+    p = subparsers.add_parser(
+        "pareto",
+        help="exact Pareto front of two objectives (epsilon-constraint MILP)",
+        description="The non-dominated designs of two objectives (any of "
+        f"{', '.join(METRICS)}), exact: an epsilon-constraint MILP per actuator count, "
+        "fronts merged by dominance.",
+    )
+    add_catalog_args(p)
+    p.add_argument("--actuators", type=int, nargs="+", default=[4, 6, 8], metavar="N")
+    p.add_argument("--x", choices=tuple(METRICS), default="flight-time")
+    p.add_argument("--y", choices=tuple(METRICS), default="time-constant")
+    p.add_argument("--method", choices=("milp", "exact"), default="milp",
+                   help="milp: epsilon-constraint MILP (default); exact: enumeration")
+    p.add_argument("--check", action="store_true",
+                   help="also enumerate and report whether both fronts agree")
+    p.add_argument("--plot", type=Path, default=None, metavar="PNG",
+                   help="draw the front over all feasible designs (grey) to this PNG")
+    add_rule_args(p)
+    p.set_defaults(func=handler)
+
+
+def compute(args: argparse.Namespace) -> dict[str, Any]:
+    from optimizer import pareto
+    from optimizer.model import evaluate_grid
+    from optimizer.objectives import single
+    from optimizer.selection import DesignResult, _design_at
+
+    if args.x == args.y:
+        raise RequestError(f"--x and --y are both {args.x}; give two different objectives")
+    for n in args.actuators:
+        if n < 3:
+            raise RequestError(f"--actuators: expected counts >= 3, got {n}")
+    catalog = load(args.catalog)
+    rules = rules_from_args(args)
+    build: Any = evaluate_grid
+    if rules is not None:
+        from optimizer.flyable import FlyableBuilder
+
+        build = FlyableBuilder(rules)
+    ox, oy = single(args.x), single(args.y)
+    per, candidates, cloud_x, cloud_y = [], [], [], []
+    for n in dict.fromkeys(args.actuators):
+        t0 = time.perf_counter()
+        grid = build(catalog, n, args.payload_kg)
+        grid_time = time.perf_counter() - t0
+        ok = grid.feasible()
+        cx, cy = ox.cost(grid), oy.cost(grid)
+        solver = pareto.milp_front if args.method == "milp" else pareto.enumerate_front
+        res = solver(cx, cy, ok)
+        entry: dict[str, Any] = {
+            "actuators": n, "points": len(res.indices), "method": res.method,
+            "solves": res.solves, "time_s": res.time_s, "grid_time_s": grid_time,
+            "feasible_designs": int(ok.sum()), "designs": int(np.prod(grid.shape)),
+        }
+        if args.check:
+            other = (pareto.enumerate_front if args.method == "milp" else pareto.milp_front)(
+                cx, cy, ok)
+            entry["check_method"] = other.method
+            entry["check_time_s"] = other.time_s
+            entry["check_agrees"] = other.indices.tolist() == res.indices.tolist()
+        per.append(entry)
+        for flat in res.indices:
+            idx = tuple(int(v) for v in np.unravel_index(flat, grid.shape))
+            d = DesignResult(
+                actuators=n, feasible=True, **_design_at(grid, idx), cost=float(cx.flat[flat]),
+                solve_time_s=res.time_s, grid_time_s=grid_time, method=res.method,
+                status="optimal", n_candidates=int(ok.sum()), n_designs=int(np.prod(grid.shape)),
+            )
+            candidates.append((float(cx.flat[flat]), float(cy.flat[flat]), d))
+        metric_x, metric_y = ox.terms[0][0].metric, oy.terms[0][0].metric
+        cloud_x.append(grid.metrics[metric_x][ok])
+        cloud_y.append(grid.metrics[metric_y][ok])
+    keep = pareto.merge_fronts([(x, y) for x, y, _ in candidates])
+    front = [candidates[i][2].to_dict() for i in keep]
+    for d in front:  # solve_time_s here: the whole front of its actuator count
+        d.pop("objective_cost", None)
+    spec_x, spec_y = ox.terms[0][0], oy.terms[0][0]
+    return {
+        "x": args.x, "y": args.y,
+        "x_key": spec_x.metric, "y_key": spec_y.metric,
+        "x_label": f"{spec_x.label} ({spec_x.unit})" if spec_x.unit else spec_x.label,
+        "y_label": f"{spec_y.label} ({spec_y.unit})" if spec_y.unit else spec_y.label,
+        "catalog": catalog.source, "catalog_name": Path(str(catalog.source)).name,
+        "actuators": list(dict.fromkeys(args.actuators)), "payload_kg": args.payload_kg,
+        "method": args.method, "front": front, "per_actuator": per,
+        "rules": None if rules is None else {"enabled": list(rules.enabled),
+                                              "removed": [r.to_dict() for r in build.reports]},
+        "_cloud": (np.concatenate(cloud_x), np.concatenate(cloud_y)),
+    }
+
+
+def handler(args: argparse.Namespace) -> int:
+    doc = compute(args)
+    if args.plot is not None:
+        from bench.sizing_figures import pareto_figure
+
+        cx, cy = doc["_cloud"]
+        step = max(1, -(-cx.size // PLOT_CLOUD_MAX))
+        pareto_figure({**doc, "_cloud": (cx[::step], cy[::step])}, args.plot)
+    doc.pop("_cloud")
+    if args.json:
+        print(json.dumps(doc, indent=2, default=_json_default))
+    else:
+        print_front(doc)
+        if args.plot is not None:
+            print(f"plot: {args.plot}")
+    return 0 if doc["front"] else EXIT_NO_FEASIBLE
+
+
+def print_front(doc: dict[str, Any]) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(title=f"Pareto front: {doc['x']} vs {doc['y']}, payload "
+                  f"{doc['payload_kg']:g} kg, method {doc['method']}", title_justify="left")
+    for head in ("N", "Propeller", "Motor", "Battery", doc["x_label"], doc["y_label"],
+                 "Price", "Mass (kg)"):
+        table.add_column(head, justify="right")
+    for d in doc["front"]:
+        table.add_row(str(d["actuators"]), d["propeller"], d["motor"], d["battery"],
+                      f"{d[doc['x_key']]:.4g}", f"{d[doc['y_key']]:.4g}",
+                      f"{d['price']:.2f}", f"{d['total_mass_kg']:.3f}")
+    console = Console(soft_wrap=False)
+    console.print(table)
+    for e in doc["per_actuator"]:
+        line = (f"{e['actuators']} actuators: {e['points']} points from {e['feasible_designs']} "
+                f"feasible designs, {e['solves']} MILP solves, {e['time_s']:.3f} s")
+        if "check_agrees" in e:
+            verdict = "agrees" if e["check_agrees"] else "DISAGREES"
+            line += f"; {e['check_method']} {verdict} ({e['check_time_s']:.3f} s)"
+        console.print(line)
+    if not doc["front"]:
+        console.print("No feasible design.", style="bold red")
