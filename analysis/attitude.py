@@ -64,6 +64,9 @@ def accelerometer_quaternion(acc: ArrayLike, eps: float = 1e-9) -> Array:
     return quat.normalize(q)
 
 
+TILT_MODES = ("estimate", "body", "yaw-aligned")
+
+
 def estimate_attitude(
     t_s: ArrayLike,
     gyro: ArrayLike,
@@ -72,27 +75,92 @@ def estimate_attitude(
     acc_lowpass: float = 0.0,
     q0: ArrayLike | None = None,
     yaw_aligned: bool = False,
+    tilt: str = "body",
+    gyro_lag: bool = True,
 ) -> Array:
     """Attitude quaternions ``(n, 4)`` from gyro (rad/s) and accelerometer samples.
 
     ``gain`` is P_err per sample (Paper B used 0.002 at 400 Hz). The first estimate is the
-    accelerometer quaternion unless ``q0`` is given. The loop is sequential by nature; it
-    runs on Python floats (about 1 µs per operation), fast enough for IMU rates.
+    accelerometer quaternion unless ``q0`` is given. ``tilt`` chooses the accelerometer
+    quaternion q^a that the blend (B.17-B.19) pulls towards:
+
+    * ``"body"``: Paper B as printed, the shortest arc from the measured specific force to
+      the navigation z axis (B.15-B.16). Its heading is zero, so the blend also pulls the
+      heading to zero, and near upside down that heading swings wildly (singular at 180°).
+    * ``"yaw-aligned"`` (``yaw_aligned=True``): that arc given the heading of q^g first.
+      Still singular upside down, where the heading of q^g is undefined.
+    * ``"estimate"``: (B.15-B.16) with the navigation z axis replaced by the vertical that
+      q^g predicts in the body frame, ``v = q^g* ⊗ z ⊗ q^g``; then ``q^a = q^g ⊗ arc(a → v)``.
+      q^a maps the measured force onto z like Paper B's and is the one closest to q^g, so
+      the blend corrects only the tilt, never the heading, in every orientation. The only
+      degenerate case is an estimate 180° from the measured vertical (a half turn about a
+      horizontal axis is used then). Trig-free, as the paper's.
+
+    The loop is sequential by nature; it runs on Python floats (about 1 µs per
+    operation), fast enough for IMU rates.
     """
+    if yaw_aligned:
+        tilt = "yaw-aligned"
+    if tilt not in TILT_MODES:
+        raise ValueError(f"tilt must be one of {', '.join(TILT_MODES)}, got {tilt!r}")
     t = np.asarray(t_s, dtype=float)
     w = np.asarray(gyro, dtype=float)
     if not 0.0 <= gain <= 1.0:
         raise ValueError(f"P_err must be in [0, 1], got {gain}")
-    qa_all = accelerometer_quaternion(lowpass_acc(acc, acc_lowpass))
+    acc_f = lowpass_acc(acc, acc_lowpass)
+    qa_all = accelerometer_quaternion(acc_f)
     n = len(t)
     out = np.empty((n, 4))
     q = quat.normalize(qa_all[0] if q0 is None else np.asarray(q0, dtype=float))
     out[0] = q
     dts = np.diff(t).tolist()
     wl = w.tolist()
-    qal = qa_all.tolist()
     p = float(gain)
     s0, s1, s2, s3 = (float(v) for v in q)
+    shift = 1 if gyro_lag else 0
+    if tilt == "estimate":
+        al = (acc_f / np.linalg.norm(acc_f, axis=1, keepdims=True)).tolist()
+        sqrt = math.sqrt
+        for k in range(1, n):
+            h = 0.5 * dts[k - 1]
+            wx, wy, wz = wl[k - shift]
+            # (B.5), (B.12): q^g = q + ts·½ q ⊗ [0, ω]
+            g0 = s0 + h * (-s1 * wx - s2 * wy - s3 * wz)
+            g1 = s1 + h * (s0 * wx + s2 * wz - s3 * wy)
+            g2 = s2 + h * (s0 * wy - s1 * wz + s3 * wx)
+            g3 = s3 + h * (s0 * wz + s1 * wy - s2 * wx)
+            # predicted vertical in the body frame: third row of the rotation matrix of q^g
+            vx = 2.0 * (g1 * g3 - g0 * g2)
+            vy = 2.0 * (g2 * g3 + g0 * g1)
+            vz = g0 * g0 - g1 * g1 - g2 * g2 + g3 * g3
+            nv = 1.0 / sqrt(vx * vx + vy * vy + vz * vz)
+            vx, vy, vz = vx * nv, vy * nv, vz * nv
+            ax, ay, az = al[k]
+            # (B.15)-(B.16) with z replaced by v: arc(a → v) = [1 + a·v, a × v] / sqrt(2(1 + a·v))
+            c0 = 1.0 + ax * vx + ay * vy + az * vz
+            if c0 > 1e-9:
+                c1, c2, c3 = ay * vz - az * vy, az * vx - ax * vz, ax * vy - ay * vx
+                m = 1.0 / sqrt(2.0 * c0)
+                c0, c1, c2, c3 = c0 * m, c1 * m, c2 * m, c3 * m
+            else:  # measured vertical opposite to the estimate: half turn about an axis ⟂ v
+                c1, c2, c3 = (vy, -vx, 0.0) if abs(vz) < 0.9 else (0.0, vz, -vy)
+                m = 1.0 / sqrt(c1 * c1 + c2 * c2 + c3 * c3)
+                c0, c1, c2, c3 = 0.0, c1 * m, c2 * m, c3 * m
+            # q^a = q^g ⊗ arc (B.3); same hemisphere as q^g since c0 >= 0
+            a0 = g0 * c0 - g1 * c1 - g2 * c2 - g3 * c3
+            a1 = g0 * c1 + g1 * c0 + g2 * c3 - g3 * c2
+            a2 = g0 * c2 - g1 * c3 + g2 * c0 + g3 * c1
+            a3 = g0 * c3 + g1 * c2 - g2 * c1 + g3 * c0
+            # (B.17)-(B.19): q = q^g + P_err (q^a - q^g); (B.20) normalise
+            s0 = g0 + p * (a0 - g0)
+            s1 = g1 + p * (a1 - g1)
+            s2 = g2 + p * (a2 - g2)
+            s3 = g3 + p * (a3 - g3)
+            nq = 1.0 / sqrt(s0 * s0 + s1 * s1 + s2 * s2 + s3 * s3)
+            s0, s1, s2, s3 = s0 * nq, s1 * nq, s2 * nq, s3 * nq
+            out[k] = (s0, s1, s2, s3)
+        return out
+    qal = qa_all.tolist()
     for k in range(1, n):
         dt = dts[k - 1]
         wx, wy, wz = wl[k - 1]
@@ -103,7 +171,7 @@ def estimate_attitude(
         g2 = s2 + h * (s0 * wy - s1 * wz + s3 * wx)
         g3 = s3 + h * (s0 * wz + s1 * wy - s2 * wx)
         a0, a1, a2, a3 = qal[k]
-        if yaw_aligned:  # q^a ← h(q^g) ⊗ q^a, h = [g0, 0, 0, g3]/‖·‖
+        if tilt == "yaw-aligned":  # q^a ← h(q^g) ⊗ q^a, h = [g0, 0, 0, g3]/‖·‖
             nh = math.sqrt(g0 * g0 + g3 * g3)
             if nh > 0.0:
                 c, s = g0 / nh, g3 / nh
