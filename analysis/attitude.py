@@ -121,6 +121,7 @@ def estimate_attitude(
     if tilt == "estimate":
         al = (acc_f / np.linalg.norm(acc_f, axis=1, keepdims=True)).tolist()
         sqrt = math.sqrt
+        rows: list[tuple[float, float, float, float]] = []
         for k in range(1, n):
             h = 0.5 * dts[k - 1]
             wx, wy, wz = wl[k - shift]
@@ -158,7 +159,8 @@ def estimate_attitude(
             s3 = g3 + p * (a3 - g3)
             nq = 1.0 / sqrt(s0 * s0 + s1 * s1 + s2 * s2 + s3 * s3)
             s0, s1, s2, s3 = s0 * nq, s1 * nq, s2 * nq, s3 * nq
-            out[k] = (s0, s1, s2, s3)
+            rows.append((s0, s1, s2, s3))
+        out[1:] = rows
         return out
     qal = qa_all.tolist()
     for k in range(1, n):

@@ -26,8 +26,8 @@ from analysis import quaternion as quat
 
 __all__ = [
     "AttitudeScore",
-    "error_quaternion_earth",
     "error_angles",
+    "error_quaternion_earth",
     "heading_offset",
     "score",
 ]
@@ -37,7 +37,8 @@ Array = NDArray[np.float64]
 
 def error_quaternion_earth(q_est: ArrayLike, q_ref: ArrayLike) -> Array:
     """``q_est ⊗ q_ref⁻¹``: the estimation error as a rotation of the earth frame."""
-    return quat.normalize(quat.multiply(quat.normalize(q_est), quat.conjugate(quat.normalize(q_ref))))
+    qe, qr = quat.normalize(q_est), quat.normalize(q_ref)
+    return quat.normalize(quat.multiply(qe, quat.conjugate(qr)))
 
 
 def error_angles(q_err_earth: ArrayLike) -> tuple[Array, Array, Array]:
