@@ -119,53 +119,11 @@ def estimate_attitude(
     s0, s1, s2, s3 = (float(v) for v in q)
     shift = 1 if gyro_lag else 0
     if tilt == "estimate":
-        al = (acc_f / np.linalg.norm(acc_f, axis=1, keepdims=True)).tolist()
-        sqrt = math.sqrt
-        rows: list[tuple[float, float, float, float]] = []
-        for k in range(1, n):
-            h = 0.5 * dts[k - 1]
-            wx, wy, wz = wl[k - shift]
-            # (B.5), (B.12): q^g = q + ts·½ q ⊗ [0, ω]
-            g0 = s0 + h * (-s1 * wx - s2 * wy - s3 * wz)
-            g1 = s1 + h * (s0 * wx + s2 * wz - s3 * wy)
-            g2 = s2 + h * (s0 * wy - s1 * wz + s3 * wx)
-            g3 = s3 + h * (s0 * wz + s1 * wy - s2 * wx)
-            # predicted vertical in the body frame: third row of the rotation matrix of q^g
-            vx = 2.0 * (g1 * g3 - g0 * g2)
-            vy = 2.0 * (g2 * g3 + g0 * g1)
-            vz = g0 * g0 - g1 * g1 - g2 * g2 + g3 * g3
-            nv = 1.0 / sqrt(vx * vx + vy * vy + vz * vz)
-            vx, vy, vz = vx * nv, vy * nv, vz * nv
-            ax, ay, az = al[k]
-            # (B.15)-(B.16) with z replaced by v: arc(a → v) = [1 + a·v, a × v] / sqrt(2(1 + a·v))
-            c0 = 1.0 + ax * vx + ay * vy + az * vz
-            if c0 > 1e-9:
-                c1, c2, c3 = ay * vz - az * vy, az * vx - ax * vz, ax * vy - ay * vx
-                m = 1.0 / sqrt(2.0 * c0)
-                c0, c1, c2, c3 = c0 * m, c1 * m, c2 * m, c3 * m
-            else:  # measured vertical opposite to the estimate: half turn about an axis ⟂ v
-                c1, c2, c3 = (vy, -vx, 0.0) if abs(vz) < 0.9 else (0.0, vz, -vy)
-                m = 1.0 / sqrt(c1 * c1 + c2 * c2 + c3 * c3)
-                c0, c1, c2, c3 = 0.0, c1 * m, c2 * m, c3 * m
-            # q^a = q^g ⊗ arc (B.3); same hemisphere as q^g since c0 >= 0
-            a0 = g0 * c0 - g1 * c1 - g2 * c2 - g3 * c3
-            a1 = g0 * c1 + g1 * c0 + g2 * c3 - g3 * c2
-            a2 = g0 * c2 - g1 * c3 + g2 * c0 + g3 * c1
-            a3 = g0 * c3 + g1 * c2 - g2 * c1 + g3 * c0
-            # (B.17)-(B.19): q = q^g + P_err (q^a - q^g); (B.20) normalise
-            s0 = g0 + p * (a0 - g0)
-            s1 = g1 + p * (a1 - g1)
-            s2 = g2 + p * (a2 - g2)
-            s3 = g3 + p * (a3 - g3)
-            nq = 1.0 / sqrt(s0 * s0 + s1 * s1 + s2 * s2 + s3 * s3)
-            s0, s1, s2, s3 = s0 * nq, s1 * nq, s2 * nq, s3 * nq
-            rows.append((s0, s1, s2, s3))
-        out[1:] = rows
-        return out
+        return _estimate_frame_loop(out, s0, s1, s2, s3, t, w, acc_f, p, shift)
     qal = qa_all.tolist()
     for k in range(1, n):
         dt = dts[k - 1]
-        wx, wy, wz = wl[k - 1]
+        wx, wy, wz = wl[k - shift]
         h = 0.5 * dt
         # (B.5), (B.12): q^g = q + ts·½ q ⊗ [0, ω]
         g0 = s0 + h * (-s1 * wx - s2 * wy - s3 * wz)
@@ -188,6 +146,63 @@ def estimate_attitude(
         nq = math.sqrt(s0 * s0 + s1 * s1 + s2 * s2 + s3 * s3)  # (B.20)
         s0, s1, s2, s3 = s0 / nq, s1 / nq, s2 / nq, s3 / nq
         out[k] = (s0, s1, s2, s3)
+    return out
+
+
+def _estimate_frame_loop(out: Array, s0: float, s1: float, s2: float, s3: float, t: Array,
+                         w: Array, acc: Array, p: float, shift: int) -> Array:
+    """The ``tilt="estimate"`` loop of :func:`estimate_attitude`, on plain floats.
+
+    Per sample k (all that does not depend on the state is computed before, vectorised):
+    ``e = [1, ½·t_s·ω]`` so that (B.12) is ``q^g = q ⊗ e``; ``r = 1/‖q^g‖² = 1/(1 + ‖½t_sω‖²)``
+    normalises the predicted vertical; the measured direction ``â`` is a unit vector.
+    (B.17)-(B.19), ``q = q^g + P(q^a - q^g)`` with ``q^a = q^g ⊗ c``, is computed as the
+    identical ``q^g ⊗ (1 + P(c - 1))``: one product instead of a product and a blend.
+    """
+    dts = np.diff(t)
+    hw = 0.5 * dts[:, None] * (w[1:] if shift == 0 else w[:-1])
+    inv2 = 1.0 / (1.0 + np.sum(hw * hw, axis=1))
+    al = acc[1:] / np.linalg.norm(acc[1:], axis=1, keepdims=True)
+    sqrt = math.sqrt
+    q1p = 1.0 - p
+    rows: list[tuple[float, float, float, float]] = []
+    append = rows.append
+    for (hx, hy, hz), (ax, ay, az), r in zip(hw.tolist(), al.tolist(), inv2.tolist(),
+                                             strict=True):
+        # (B.5), (B.12): q^g = q + ts·½ q ⊗ [0, ω] = q ⊗ [1, ½ts·ω]
+        g0 = s0 - s1 * hx - s2 * hy - s3 * hz
+        g1 = s1 + s0 * hx + s2 * hz - s3 * hy
+        g2 = s2 + s0 * hy - s1 * hz + s3 * hx
+        g3 = s3 + s0 * hz + s1 * hy - s2 * hx
+        # predicted vertical in the body frame (third row of the rotation of q^g), unit
+        vx = 2.0 * (g1 * g3 - g0 * g2) * r
+        vy = 2.0 * (g2 * g3 + g0 * g1) * r
+        vz = (g0 * g0 - g1 * g1 - g2 * g2 + g3 * g3) * r
+        # (B.15)-(B.16) with z replaced by v: c = [1 + â·v, â × v] / sqrt(2(1 + â·v))
+        c0 = 1.0 + ax * vx + ay * vy + az * vz
+        if c0 > 1e-9:
+            m = p / sqrt(2.0 * c0)
+            d0 = q1p + c0 * m
+            d1 = (ay * vz - az * vy) * m
+            d2 = (az * vx - ax * vz) * m
+            d3 = (ax * vy - ay * vx) * m
+        else:  # measured vertical opposite to the estimate: half turn about an axis ⟂ v
+            d1, d2, d3 = (vy, -vx, 0.0) if abs(vz) < 0.9 else (0.0, vz, -vy)
+            m = p / sqrt(d1 * d1 + d2 * d2 + d3 * d3)
+            d0, d1, d2, d3 = q1p, d1 * m, d2 * m, d3 * m
+        # (B.17)-(B.19) as q^g ⊗ d (B.3); then (B.20)
+        s0 = g0 * d0 - g1 * d1 - g2 * d2 - g3 * d3
+        s1 = g0 * d1 + g1 * d0 + g2 * d3 - g3 * d2
+        s2 = g0 * d2 - g1 * d3 + g2 * d0 + g3 * d1
+        s3 = g0 * d3 + g1 * d2 - g2 * d1 + g3 * d0
+        nq = 1.0 / sqrt(s0 * s0 + s1 * s1 + s2 * s2 + s3 * s3)
+        s0 *= nq
+        s1 *= nq
+        s2 *= nq
+        s3 *= nq
+        append((s0, s1, s2, s3))
+    if rows:
+        out[1:] = rows
     return out
 
 

@@ -36,7 +36,8 @@ class ComparisonRow:
     def as_dict(self) -> dict[str, object]:
         return {"filter": self.label, "kind": self.kind,
                 "mode": "9D" if self.run.nine_d else "6D",
-                "seconds": round(self.run.seconds, 4), **self.score.as_deg()}
+                "seconds": round(self.run.seconds, 4),
+                "cpu_seconds": round(self.run.cpu_seconds, 4), **self.score.as_deg()}
 
 
 def score_run(rec: ImuRecording, run: FilterRun) -> AttitudeScore:

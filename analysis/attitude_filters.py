@@ -61,12 +61,17 @@ _NWU_TO_ENU = np.array([math.sqrt(0.5), 0.0, 0.0, math.sqrt(0.5)])  # 90° about
 
 @dataclass(frozen=True)
 class FilterRun:
-    """One filter's output on one recording: quaternions, 6D/9D and wall time."""
+    """One filter's output on one recording: quaternions, 6D/9D, wall and CPU time (s).
+
+    On a shared machine the wall time includes waiting for a core; the CPU time of this
+    process is the filter's own cost.
+    """
 
     name: str
     quat: Array
     nine_d: bool
     seconds: float
+    cpu_seconds: float = float("nan")
 
 
 def _c(x: Array) -> Array:
@@ -146,7 +151,7 @@ def run_filter(name: str, rec: ImuRecording, six_d: bool = False) -> FilterRun:
     nine_d = (rec.mag_ut is not None and not six_d) if mode is None else mode
     if nine_d and rec.mag_ut is None:
         raise ValueError(f"filter {name} needs magnetometer samples; {rec.source} has none")
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     q = np.asarray(runner(rec, nine_d), dtype=float)
-    seconds = time.perf_counter() - start
-    return FilterRun(name, quat.normalize(q), nine_d, seconds)
+    seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
+    return FilterRun(name, quat.normalize(q), nine_d, seconds, cpu)

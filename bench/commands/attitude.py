@@ -14,6 +14,7 @@ import argparse
 import json
 import math
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -95,9 +96,7 @@ def _check_args(args: argparse.Namespace) -> None:
 
 def _paper_b_run(rec: ImuRecording, args: argparse.Namespace) -> FilterRun:
     """paper-b with the command's options (the defaults go through run_filter)."""
-    import time
-
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     t, gyro = rec.t_s, rec.gyro_rad_s
     if args.bias_seconds is not None:
         bias = np.broadcast_to(gyro[t <= t[0] + args.bias_seconds].mean(axis=0), gyro.shape)
@@ -107,7 +106,8 @@ def _paper_b_run(rec: ImuRecording, args: argparse.Namespace) -> FilterRun:
     acc = lowpass_acc(rec.acc_m_s2, args.acc_lowpass or 0.0)
     q = estimate_attitude(t, gyro - bias, acc, gain=gain, gyro_lag=False,
                           tilt="yaw-aligned" if args.yaw_aligned else "estimate")
-    return FilterRun("paper-b", q, False, time.perf_counter() - start)
+    return FilterRun("paper-b", q, False, time.perf_counter() - start,
+                     time.process_time() - cpu)
 
 
 def _load(args: argparse.Namespace) -> ImuRecording:
@@ -125,14 +125,15 @@ def _load(args: argparse.Namespace) -> ImuRecording:
 def _table(rows: list[ComparisonRow], title: str) -> Table:
     table = Table(title=title)
     for col in ("filter", "kind", "mode", "inclination", "heading", "total", "samples",
-                "time (s)"):
-        table.add_column(col, justify="left" if col in ("filter", "kind") else "right")
+                "wall (s)", "CPU (s)"):
+        table.add_column(col, justify="left" if col in ("filter", "kind") else "right",
+                         no_wrap=True)
     for r in rows:
         d = r.score.as_deg()
         head = f"{d['heading_rmse_deg']:.3f}" + ("*" if not r.run.nine_d else "")
         table.add_row(r.label, r.kind, "9D" if r.run.nine_d else "6D",
                       f"{d['inclination_rmse_deg']:.3f}", head, f"{d['total_rmse_deg']:.3f}",
-                      str(d["samples"]), f"{r.run.seconds:.2f}")
+                      str(d["samples"]), f"{r.run.seconds:.2f}", f"{r.run.cpu_seconds:.2f}")
     return table
 
 
