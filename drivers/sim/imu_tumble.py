@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["EARTH_FIELD_UT", "simulate_tumble"]
+__all__ = ["EARTH_FIELD_UT", "simulate_angles", "simulate_tumble", "simulate_upside_down"]
 
 G = 9.80665
 EARTH_FIELD_UT = np.array([0.0, 20.0, -44.0])  # ENU, mid-latitude north, dip ≈ 65°
@@ -29,24 +29,15 @@ def _envelope(t: Array, start: float, ramp: float) -> tuple[Array, Array]:
     return e, de
 
 
-def simulate_tumble(duration_s: float = 60.0, rate_hz: float = 285.714, seed: int = 0,
-                    rest_s: float = 3.0, roll_rate_rad_s: float = 1.2,
-                    lin_acc_m_s2: float = 0.5, gyro_bias_rad_s: tuple = (0.01, -0.008, 0.005),
+def simulate_angles(t: Array, angles: Array, rates: Array, seed: int = 0,
+                    lin_acc: Array | None = None,
+                    gyro_bias_rad_s: tuple = (0.01, -0.008, 0.005),
                     gyro_noise_rad_s: float = 0.004, acc_noise_m_s2: float = 0.03,
                     mag_noise_ut: float = 0.3) -> dict[str, Array]:
-    """``t_s, gyro (rad/s), acc (m/s²), mag (µT), quat (truth), movement`` arrays."""
+    """IMU samples for Z-Y-X angles ``(n, 3)`` (roll, pitch, yaw) and their time derivatives."""
     rng = np.random.default_rng(seed)
-    t = np.arange(round(duration_s * rate_hz)) / rate_hz
-    e, de = _envelope(t, rest_s, 2.0)
-    tm = t - rest_s
-    w1, w2 = 2 * np.pi * 0.05, 2 * np.pi * 0.037
-    f_roll, df_roll = roll_rate_rad_s * tm + 0.8 * np.sin(0.9 * tm), \
-        roll_rate_rad_s + 0.72 * np.cos(0.9 * tm)
-    f_pitch, df_pitch = 1.31 * np.sin(w1 * tm), 1.31 * w1 * np.cos(w1 * tm)
-    f_yaw, df_yaw = 2.0 * np.sin(w2 * tm + 0.3), 2.0 * w2 * np.cos(w2 * tm + 0.3)
-    phi, th, psi = e * f_roll, e * f_pitch, e * f_yaw
-    dphi, dth, dpsi = (de * f + e * df for f, df in
-                       ((f_roll, df_roll), (f_pitch, df_pitch), (f_yaw, df_yaw)))
+    phi, th, psi = angles.T
+    dphi, dth, dpsi = rates.T
     sphi, cphi, sth, cth = np.sin(phi), np.cos(phi), np.sin(th), np.cos(th)
     omega = np.stack([dphi - dpsi * sth,  # Z-Y-X Euler rates to body rates
                       dth * cphi + dpsi * cth * sphi,
@@ -61,11 +52,8 @@ def simulate_tumble(duration_s: float = 60.0, rate_hz: float = 285.714, seed: in
         np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], axis=1),
         np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], axis=1),
     ], axis=1)
-    a_lin = lin_acc_m_s2 * e[:, None] * np.stack(
-        [np.sin(2 * np.pi * 0.31 * t), np.sin(2 * np.pi * 0.23 * t + 1.0),
-         np.sin(2 * np.pi * 0.17 * t + 2.0)], axis=1)
-    f_earth = a_lin + np.array([0.0, 0.0, G])
-    acc = np.einsum("nji,nj->ni", rot, f_earth)  # Rᵀ f
+    f_earth = np.array([0.0, 0.0, G]) + (0.0 if lin_acc is None else lin_acc)
+    acc = np.einsum("nji,nj->ni", rot, np.broadcast_to(f_earth, (len(t), 3)))  # Rᵀ f
     mag = np.einsum("nji,j->ni", rot, EARTH_FIELD_UT)
     n = len(t)
     gyro = omega + np.asarray(gyro_bias_rad_s) + gyro_noise_rad_s * rng.standard_normal((n, 3))
@@ -75,5 +63,52 @@ def simulate_tumble(duration_s: float = 60.0, rate_hz: float = 285.714, seed: in
         "acc": acc + acc_noise_m_s2 * rng.standard_normal((n, 3)),
         "mag": mag + mag_noise_ut * rng.standard_normal((n, 3)),
         "quat": q,
-        "movement": e > 0,
+        "movement": np.ones(n, dtype=bool),
     }
+
+
+def simulate_tumble(duration_s: float = 60.0, rate_hz: float = 285.714, seed: int = 0,
+                    rest_s: float = 3.0, roll_rate_rad_s: float = 1.2,
+                    lin_acc_m_s2: float = 0.5, **noise) -> dict[str, Array]:
+    """``t_s, gyro (rad/s), acc (m/s²), mag (µT), quat (truth), movement`` arrays.
+
+    ``noise``: keyword arguments of :func:`simulate_angles` (bias and noise levels).
+    """
+    t = np.arange(round(duration_s * rate_hz)) / rate_hz
+    e, de = _envelope(t, rest_s, 2.0)
+    tm = t - rest_s
+    w1, w2 = 2 * np.pi * 0.05, 2 * np.pi * 0.037
+    f = np.stack([roll_rate_rad_s * tm + 0.8 * np.sin(0.9 * tm),
+                  1.31 * np.sin(w1 * tm), 2.0 * np.sin(w2 * tm + 0.3)], axis=1)
+    df = np.stack([roll_rate_rad_s + 0.72 * np.cos(0.9 * tm),
+                   1.31 * w1 * np.cos(w1 * tm), 2.0 * w2 * np.cos(w2 * tm + 0.3)], axis=1)
+    a_lin = lin_acc_m_s2 * e[:, None] * np.stack(
+        [np.sin(2 * np.pi * 0.31 * t), np.sin(2 * np.pi * 0.23 * t + 1.0),
+         np.sin(2 * np.pi * 0.17 * t + 2.0)], axis=1)
+    out = simulate_angles(t, e[:, None] * f, de[:, None] * f + e[:, None] * df, seed,
+                          a_lin, **noise)
+    out["movement"] = e > 0
+    return out
+
+
+def simulate_upside_down(duration_s: float = 60.0, rate_hz: float = 285.714, seed: int = 0,
+                         rest_s: float = 3.0, yaw_rate_rad_s: float = 0.5,
+                         wobble_rad: float = 0.05, **noise) -> dict[str, Array]:
+    """Upside down (roll 180°): at rest, then wobbling by ``wobble_rad`` and turning about
+    the vertical.
+
+    The case where Paper B's body-frame accelerometer quaternion is singular: its heading
+    follows the noise of the small horizontal acceleration components.
+    """
+    t = np.arange(round(duration_s * rate_hz)) / rate_hz
+    e, de = _envelope(t, rest_s, 2.0)
+    tm = t - rest_s
+    w1, w2 = 2 * np.pi * 0.3, 2 * np.pi * 0.23
+    f = np.stack([wobble_rad * np.sin(w1 * tm), wobble_rad * np.sin(w2 * tm),
+                  yaw_rate_rad_s * tm], axis=1)
+    df = np.stack([wobble_rad * w1 * np.cos(w1 * tm), wobble_rad * w2 * np.cos(w2 * tm),
+                   np.full_like(t, yaw_rate_rad_s)], axis=1)
+    ang = e[:, None] * f + [np.pi, 0.0, 0.0]
+    out = simulate_angles(t, ang, de[:, None] * f + e[:, None] * df, seed, **noise)
+    out["movement"] = e > 0
+    return out

@@ -18,7 +18,7 @@ def _write_broad(path: Path, n: int = 20, rate: float = 100.0, **override) -> Pa
     rng = np.random.default_rng(0)
     data = {
         "imu_gyr": rng.normal(size=(n, 3)),
-        "imu_acc": rng.normal(size=(n, 3)) + [0, 0, 9.81],
+        "imu_acc": rng.normal(size=(n, 3)) + np.array([0, 0, 9.81]),
         "imu_mag": rng.normal(size=(n, 3)),
         "opt_quat": np.tile([1.0, 0, 0, 0], (n, 1)),
         "movement": (np.arange(n) >= n // 2).astype(np.uint8)[:, None],  # MAT-style column
@@ -65,7 +65,7 @@ def test_broad_reader_rate_and_file_errors(tmp_path: Path) -> None:
         read_broad(_write_broad(tmp_path / "r.hdf5", rate=0.0))
     text = tmp_path / "text.hdf5"
     text.write_text("not hdf5")
-    with pytest.raises(LogError, match="text.hdf5: not a readable HDF5 file"):
+    with pytest.raises(LogError, match=r"text\.hdf5: not a readable HDF5 file"):
         read_broad(text)
     with pytest.raises(LogError, match="file not found"):
         read_broad(tmp_path / "missing.hdf5")
@@ -90,7 +90,7 @@ def test_project_log_with_magnetometer_and_movement(tmp_path: Path) -> None:
         load_recording(path)
     df["movement"] = [0, 1, 1]
     df.drop(columns=["mag_z_ut"]).to_csv(path, index=False)
-    with pytest.raises(LogError, match="magnetometer needs all of .* missing mag_z_ut"):
+    with pytest.raises(LogError, match=r"magnetometer needs all of .* missing mag_z_ut"):
         load_recording(path)
 
 
