@@ -151,7 +151,7 @@ def handler(args: argparse.Namespace) -> int:
     if args.compare and rec.ref_quat is None:
         raise LogError(f"{args.log}: --compare needs a reference orientation (BROAD opt_quat "
                        "or ref_qw..ref_qz) to score against")
-    console = Console(file=sys.stderr if args.json else sys.stdout)
+    console = Console(file=sys.stderr if args.json else sys.stdout, width=120)
     if args.filter == "paper-b":
         run = _paper_b_run(rec, args)
     else:
