@@ -47,6 +47,7 @@ __all__ = [
     "PROJECT_FILTERS",
     "FilterRun",
     "available",
+    "paper_b",
     "run_filter",
 ]
 
@@ -97,12 +98,24 @@ def _online_vqf(rec: ImuRecording, nine_d: bool) -> Array:
     return f.updateBatch(_c(rec.gyro_rad_s), _c(rec.acc_m_s2))["quat6D"]
 
 
-def paper_b(rec: ImuRecording, tau_s: float = PAPER_B_TAU_S) -> Array:
-    """Paper B's filter, valid in every orientation, on the gyro with its bias removed."""
-    bias, _ = gyro_bias_at_rest(rec.t_s, rec.gyro_rad_s, rec.acc_m_s2)
-    gain = min(1.0, _ts(rec) / tau_s)  # P_err = t_s / τ
-    return estimate_attitude(rec.t_s, rec.gyro_rad_s - bias, rec.acc_m_s2, gain=gain,
-                             tilt="estimate", gyro_lag=False)
+def paper_b(rec: ImuRecording, tau_s: float = PAPER_B_TAU_S, gain: float | None = None,
+            bias_seconds: float | None = None, acc_lowpass: float = 0.0,
+            tilt: str = "estimate") -> Array:
+    """Paper B's filter, valid in every orientation, on the gyro with its bias removed.
+
+    ``gain`` (P_err per sample) defaults to ``t_s / tau_s``. The bias is estimated at every
+    rest unless ``bias_seconds`` asks for Paper B's fixed bias, the mean of the first S s.
+    ``acc_lowpass`` is G_a of (B.28); ``tilt`` as in :func:`estimate_attitude`.
+    """
+    t, gyro = rec.t_s, rec.gyro_rad_s
+    if bias_seconds is not None:
+        bias = np.broadcast_to(gyro[t <= t[0] + bias_seconds].mean(axis=0), gyro.shape)
+    else:
+        bias, _ = gyro_bias_at_rest(t, gyro, rec.acc_m_s2)
+    if gain is None:
+        gain = min(1.0, _ts(rec) / tau_s)  # P_err = t_s / τ
+    return estimate_attitude(t, gyro - bias, rec.acc_m_s2, gain=gain, acc_lowpass=acc_lowpass,
+                             tilt=tilt)
 
 
 def _ahrs(name: str, rec: ImuRecording, nine_d: bool) -> Array:

@@ -23,12 +23,16 @@ from rich.console import Console
 from rich.table import Table
 
 from analysis import quaternion as quat
-from analysis.attitude import estimate_attitude, lowpass_acc
 from analysis.attitude_compare import ComparisonRow, compare, error_figure, score_run
-from analysis.attitude_filters import PAPER_B_TAU_S, PROJECT_FILTERS, FilterRun, run_filter
+from analysis.attitude_filters import (
+    PAPER_B_TAU_S,
+    PROJECT_FILTERS,
+    FilterRun,
+    paper_b,
+    run_filter,
+)
 from analysis.calibrated_recording import calibrate_recording
 from analysis.errors import LogError
-from analysis.gyro_bias import gyro_bias_at_rest
 from analysis.imu_calibration import load_calibration
 from analysis.imu_log import write_table
 from analysis.imu_recording import ImuRecording, load_recording
@@ -95,17 +99,11 @@ def _check_args(args: argparse.Namespace) -> None:
 
 
 def _paper_b_run(rec: ImuRecording, args: argparse.Namespace) -> FilterRun:
-    """paper-b with the command's options (the defaults go through run_filter)."""
+    """paper-b with the command's options."""
     start, cpu = time.perf_counter(), time.process_time()
-    t, gyro = rec.t_s, rec.gyro_rad_s
-    if args.bias_seconds is not None:
-        bias = np.broadcast_to(gyro[t <= t[0] + args.bias_seconds].mean(axis=0), gyro.shape)
-    else:
-        bias, _ = gyro_bias_at_rest(t, gyro, rec.acc_m_s2)
-    gain = args.gain if args.gain is not None else min(1.0, 1.0 / rec.rate_hz / PAPER_B_TAU_S)
-    acc = lowpass_acc(rec.acc_m_s2, args.acc_lowpass or 0.0)
-    q = estimate_attitude(t, gyro - bias, acc, gain=gain, gyro_lag=False,
-                          tilt="yaw-aligned" if args.yaw_aligned else "estimate")
+    q = paper_b(rec, gain=args.gain, bias_seconds=args.bias_seconds,
+                acc_lowpass=args.acc_lowpass or 0.0,
+                tilt="yaw-aligned" if args.yaw_aligned else "estimate")
     return FilterRun("paper-b", q, False, time.perf_counter() - start,
                      time.process_time() - cpu)
 

@@ -11,7 +11,6 @@ filed), which guards the frame conversions and the scoring.
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import pytest
 

@@ -67,7 +67,7 @@ def test_upside_down_paper_b_keeps_its_heading() -> None:
     assert incl < 0.3 and head < 3.0
     bias = np.array([0.01, -0.008, 0.005])  # the simulated bias, as Paper B would measure it
     printed = estimate_attitude(rec.t_s, rec.gyro_rad_s - bias, rec.acc_m_s2,
-                                gain=1 / rec.rate_hz / 3.0, tilt="body", gyro_lag=False)
+                                gain=1 / rec.rate_hz / 3.0, tilt="body")
     _, head_b = _deg(score(printed, rec.ref_quat, rec.movement, remove_heading_offset=True))
     assert head_b > 10.0
     for name in ("default", "default-causal"):
