@@ -91,6 +91,10 @@ def _check_args(args: argparse.Namespace) -> None:
         raise LogError(f"{opt}: a paper-b option; add --filter paper-b")
     if args.png is not None and not args.compare:
         raise LogError("--png: the figure belongs to --compare")
+    if args.out is not None and args.out.suffix.lower() not in (".csv", ".parquet"):
+        raise LogError(f"{args.out}: output must end in .csv or .parquet")
+    if args.png is not None and args.png.suffix.lower() != ".png":
+        raise LogError(f"{args.png}: the figure is a PNG; name it *.png")
     for path in (args.out, args.png):
         if path is not None and path.is_dir():
             raise LogError(f"{path}: is a folder; expected the name of the file to write")
@@ -174,7 +178,7 @@ def handler(args: argparse.Namespace) -> int:
         png = args.png or Path(f"{args.log.stem}_errors.png")
         error_figure(rec, rows, png, title=f"{args.log.name}: error over time")
         print(f"wrote {png}", file=sys.stderr)
-    if rows and args.json:
+    if args.json:
         print(json.dumps({"log": str(args.log), "calibration": str(args.cal or ""),
                           "scores": [r.as_dict() for r in rows]}, indent=2))
     elif rows:

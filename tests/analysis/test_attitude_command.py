@@ -174,3 +174,13 @@ def test_compare_without_reference_is_refused(sim: dict, tmp_path: Path,
                  ).to_csv(log, index=False)
     assert main(["attitude", str(log), "--compare"]) == 2
     assert "--compare needs a reference orientation" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(("argv", "message"), [
+    (["--out", "est.txt"], "est.txt: output must end in .csv or .parquet"),
+    (["--compare", "--png", "e.jpg"], "e.jpg: the figure is a PNG"),
+])
+def test_output_names_checked_before_work(sim: dict, tmp_path: Path, argv: list[str],
+                                          message: str, capsys: pytest.CaptureFixture) -> None:
+    assert main(["attitude", str(_broad(tmp_path / "t.hdf5", sim)), *argv]) == 2
+    assert message in capsys.readouterr().err
