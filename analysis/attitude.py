@@ -113,18 +113,22 @@ def estimate_attitude(
     if not 0.0 <= gain <= 1.0:
         raise ValueError(f"P_err must be in [0, 1], got {gain}")
     acc_f = lowpass_acc(acc, acc_lowpass)
-    qa_all = accelerometer_quaternion(acc_f)
     n = len(t)
     out = np.empty((n, 4))
+    p = float(gain)
+    shift = 1 if gyro_lag else 0
+    if tilt == "estimate":
+        q = quat.normalize(accelerometer_quaternion(acc_f[0]) if q0 is None
+                           else np.asarray(q0, dtype=float))
+        out[0] = q
+        s0, s1, s2, s3 = (float(v) for v in q)
+        return _estimate_frame_loop(out, s0, s1, s2, s3, t, w, acc_f, p, shift)
+    qa_all = accelerometer_quaternion(acc_f)
     q = quat.normalize(qa_all[0] if q0 is None else np.asarray(q0, dtype=float))
     out[0] = q
     dts = np.diff(t).tolist()
     wl = w.tolist()
-    p = float(gain)
     s0, s1, s2, s3 = (float(v) for v in q)
-    shift = 1 if gyro_lag else 0
-    if tilt == "estimate":
-        return _estimate_frame_loop(out, s0, s1, s2, s3, t, w, acc_f, p, shift)
     qal = qa_all.tolist()
     for k in range(1, n):
         dt = dts[k - 1]
