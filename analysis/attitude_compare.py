@@ -77,7 +77,8 @@ def error_figure(rec: ImuRecording, rows: list[ComparisonRow], path: str | Path,
     path = Path(path)
     fig, axes = plt.subplots(2, 1, figsize=(11, 6.5), sharex=True)
     t = rec.t_s - rec.t_s[0]
-    for row in rows:
+    colors = plt.cm.tab20(np.linspace(0.0, 1.0, 20))
+    for i, row in enumerate(rows):
         q_ref = rec.ref_quat
         qe = row.run.quat
         if not row.run.nine_d and row.score.heading_offset_rad:
@@ -85,8 +86,9 @@ def error_figure(rec: ImuRecording, rows: list[ComparisonRow], path: str | Path,
                                qe)
         _, heading, incl = error_angles(error_quaternion_earth(qe, q_ref))
         style = "-" if row.kind == "project" else ":"
-        axes[0].plot(t, np.degrees(incl), style, lw=0.8, label=row.label)
-        axes[1].plot(t, np.degrees(heading), style, lw=0.8, label=row.label)
+        c = colors[(2 * i) % 20 + (2 * i) // 20 % 2]
+        axes[0].plot(t, np.degrees(incl), style, lw=0.8, color=c, label=row.label)
+        axes[1].plot(t, np.degrees(heading), style, lw=0.8, color=c, label=row.label)
     if rec.movement is not None:
         for ax in axes:
             ax.fill_between(t, 0, 1, where=~rec.movement, color="0.9",
