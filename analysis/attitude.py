@@ -64,6 +64,9 @@ def accelerometer_quaternion(acc: ArrayLike, eps: float = 1e-9) -> Array:
     return quat.normalize(q)
 
 
+TILT_MODES = ("estimate", "body", "yaw-aligned")
+
+
 def estimate_attitude(
     t_s: ArrayLike,
     gyro: ArrayLike,
@@ -72,30 +75,64 @@ def estimate_attitude(
     acc_lowpass: float = 0.0,
     q0: ArrayLike | None = None,
     yaw_aligned: bool = False,
+    tilt: str = "body",
+    gyro_lag: bool = False,
 ) -> Array:
     """Attitude quaternions ``(n, 4)`` from gyro (rad/s) and accelerometer samples.
 
     ``gain`` is P_err per sample (Paper B used 0.002 at 400 Hz). The first estimate is the
-    accelerometer quaternion unless ``q0`` is given. The loop is sequential by nature; it
-    runs on Python floats (about 1 µs per operation), fast enough for IMU rates.
+    accelerometer quaternion unless ``q0`` is given. ``tilt`` chooses the accelerometer
+    quaternion q^a that the blend (B.17-B.19) pulls towards:
+
+    * ``"body"``: Paper B as printed, the shortest arc from the measured specific force to
+      the navigation z axis (B.15-B.16). Its heading is zero, so the blend also pulls the
+      heading to zero, and near upside down that heading swings wildly (singular at 180°).
+    * ``"yaw-aligned"`` (``yaw_aligned=True``): that arc given the heading of q^g first.
+      Still singular upside down, where the heading of q^g is undefined.
+    * ``"estimate"``: (B.15-B.16) with the navigation z axis replaced by the vertical that
+      q^g predicts in the body frame, ``v = q^g* ⊗ z ⊗ q^g``; then ``q^a = q^g ⊗ arc(a → v)``.
+      q^a maps the measured force onto z like Paper B's and is the one closest to q^g, so
+      the blend corrects only the tilt, never the heading, in every orientation. The only
+      degenerate case is an estimate 180° from the measured vertical (a half turn about a
+      horizontal axis is used then). Trig-free, as the paper's.
+
+    (B.12) integrates the gyro sample read in the same cycle (``ω_k`` from q_(k-1) to q_k,
+    as a flight controller's loop and every peer do); ``gyro_lag=True`` uses the previous
+    sample instead, one sample late (on BROAD trial 07 that alone costs 0.7° of gyro-only
+    inclination error).
+
+    The loop is sequential by nature; it runs on Python floats (about 1 µs per
+    operation), fast enough for IMU rates.
     """
+    if yaw_aligned:
+        tilt = "yaw-aligned"
+    if tilt not in TILT_MODES:
+        raise ValueError(f"tilt must be one of {', '.join(TILT_MODES)}, got {tilt!r}")
     t = np.asarray(t_s, dtype=float)
     w = np.asarray(gyro, dtype=float)
     if not 0.0 <= gain <= 1.0:
         raise ValueError(f"P_err must be in [0, 1], got {gain}")
-    qa_all = accelerometer_quaternion(lowpass_acc(acc, acc_lowpass))
+    acc_f = lowpass_acc(acc, acc_lowpass)
     n = len(t)
     out = np.empty((n, 4))
+    p = float(gain)
+    shift = 1 if gyro_lag else 0
+    if tilt == "estimate":
+        q = quat.normalize(accelerometer_quaternion(acc_f[0]) if q0 is None
+                           else np.asarray(q0, dtype=float))
+        out[0] = q
+        s0, s1, s2, s3 = (float(v) for v in q)
+        return _estimate_frame_loop(out, s0, s1, s2, s3, t, w, acc_f, p, shift)
+    qa_all = accelerometer_quaternion(acc_f)
     q = quat.normalize(qa_all[0] if q0 is None else np.asarray(q0, dtype=float))
     out[0] = q
     dts = np.diff(t).tolist()
     wl = w.tolist()
-    qal = qa_all.tolist()
-    p = float(gain)
     s0, s1, s2, s3 = (float(v) for v in q)
+    qal = qa_all.tolist()
     for k in range(1, n):
         dt = dts[k - 1]
-        wx, wy, wz = wl[k - 1]
+        wx, wy, wz = wl[k - shift]
         h = 0.5 * dt
         # (B.5), (B.12): q^g = q + ts·½ q ⊗ [0, ω]
         g0 = s0 + h * (-s1 * wx - s2 * wy - s3 * wz)
@@ -103,7 +140,7 @@ def estimate_attitude(
         g2 = s2 + h * (s0 * wy - s1 * wz + s3 * wx)
         g3 = s3 + h * (s0 * wz + s1 * wy - s2 * wx)
         a0, a1, a2, a3 = qal[k]
-        if yaw_aligned:  # q^a ← h(q^g) ⊗ q^a, h = [g0, 0, 0, g3]/‖·‖
+        if tilt == "yaw-aligned":  # q^a ← h(q^g) ⊗ q^a, h = [g0, 0, 0, g3]/‖·‖
             nh = math.sqrt(g0 * g0 + g3 * g3)
             if nh > 0.0:
                 c, s = g0 / nh, g3 / nh
@@ -118,6 +155,63 @@ def estimate_attitude(
         nq = math.sqrt(s0 * s0 + s1 * s1 + s2 * s2 + s3 * s3)  # (B.20)
         s0, s1, s2, s3 = s0 / nq, s1 / nq, s2 / nq, s3 / nq
         out[k] = (s0, s1, s2, s3)
+    return out
+
+
+def _estimate_frame_loop(out: Array, s0: float, s1: float, s2: float, s3: float, t: Array,
+                         w: Array, acc: Array, p: float, shift: int) -> Array:
+    """The ``tilt="estimate"`` loop of :func:`estimate_attitude`, on plain floats.
+
+    Per sample k (all that does not depend on the state is computed before, vectorised):
+    ``e = [1, ½·t_s·ω]`` so that (B.12) is ``q^g = q ⊗ e``; ``r = 1/‖q^g‖² = 1/(1 + ‖½t_sω‖²)``
+    normalises the predicted vertical; the measured direction ``â`` is a unit vector.
+    (B.17)-(B.19), ``q = q^g + P(q^a - q^g)`` with ``q^a = q^g ⊗ c``, is computed as the
+    identical ``q^g ⊗ (1 + P(c - 1))``: one product instead of a product and a blend.
+    """
+    dts = np.diff(t)
+    hw = 0.5 * dts[:, None] * (w[1:] if shift == 0 else w[:-1])
+    inv2 = 1.0 / (1.0 + np.sum(hw * hw, axis=1))
+    al = acc[1:] / np.linalg.norm(acc[1:], axis=1, keepdims=True)
+    sqrt = math.sqrt
+    q1p = 1.0 - p
+    rows: list[tuple[float, float, float, float]] = []
+    append = rows.append
+    for (hx, hy, hz), (ax, ay, az), r in zip(hw.tolist(), al.tolist(), inv2.tolist(),
+                                             strict=True):
+        # (B.5), (B.12): q^g = q + ts·½ q ⊗ [0, ω] = q ⊗ [1, ½ts·ω]
+        g0 = s0 - s1 * hx - s2 * hy - s3 * hz
+        g1 = s1 + s0 * hx + s2 * hz - s3 * hy
+        g2 = s2 + s0 * hy - s1 * hz + s3 * hx
+        g3 = s3 + s0 * hz + s1 * hy - s2 * hx
+        # predicted vertical in the body frame (third row of the rotation of q^g), unit
+        vx = 2.0 * (g1 * g3 - g0 * g2) * r
+        vy = 2.0 * (g2 * g3 + g0 * g1) * r
+        vz = (g0 * g0 - g1 * g1 - g2 * g2 + g3 * g3) * r
+        # (B.15)-(B.16) with z replaced by v: c = [1 + â·v, â × v] / sqrt(2(1 + â·v))
+        c0 = 1.0 + ax * vx + ay * vy + az * vz
+        if c0 > 1e-9:
+            m = p / sqrt(2.0 * c0)
+            d0 = q1p + c0 * m
+            d1 = (ay * vz - az * vy) * m
+            d2 = (az * vx - ax * vz) * m
+            d3 = (ax * vy - ay * vx) * m
+        else:  # measured vertical opposite to the estimate: half turn about an axis ⟂ v
+            d1, d2, d3 = (vy, -vx, 0.0) if abs(vz) < 0.9 else (0.0, vz, -vy)
+            m = p / sqrt(d1 * d1 + d2 * d2 + d3 * d3)
+            d0, d1, d2, d3 = q1p, d1 * m, d2 * m, d3 * m
+        # (B.17)-(B.19) as q^g ⊗ d (B.3); then (B.20)
+        s0 = g0 * d0 - g1 * d1 - g2 * d2 - g3 * d3
+        s1 = g0 * d1 + g1 * d0 + g2 * d3 - g3 * d2
+        s2 = g0 * d2 - g1 * d3 + g2 * d0 + g3 * d1
+        s3 = g0 * d3 + g1 * d2 - g2 * d1 + g3 * d0
+        nq = 1.0 / sqrt(s0 * s0 + s1 * s1 + s2 * s2 + s3 * s3)
+        s0 *= nq
+        s1 *= nq
+        s2 *= nq
+        s3 *= nq
+        append((s0, s1, s2, s3))
+    if rows:
+        out[1:] = rows
     return out
 
 

@@ -13,3 +13,9 @@ class CalibrationError(ValueError):
     """The data cannot give a trustworthy calibration (e.g. an axis is not excited)."""
 
     exit_code = 2
+
+
+class MissingExtraError(ImportError):
+    """An optional extra (e.g. ``imu``: h5py, vqf, ahrs) is needed but not installed."""
+
+    exit_code = 2

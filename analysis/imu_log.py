@@ -17,6 +17,8 @@ __all__ = [
     "ACC_COLUMNS",
     "CALIBRATION_COLUMNS",
     "GYRO_COLUMNS",
+    "MAG_COLUMNS",
+    "MOVEMENT_COLUMN",
     "PHASES",
     "REF_QUAT_COLUMNS",
     "imu_columns",
@@ -38,6 +40,8 @@ IMU_ACC = tuple(f"imu_acc_{a}_m_s2" for a in XYZ)
 GYRO_COLUMNS = tuple(f"gyro_{a}_rad_s" for a in XYZ)
 ACC_COLUMNS = tuple(f"acc_{a}_m_s2" for a in XYZ)
 REF_QUAT_COLUMNS = ("ref_qw", "ref_qx", "ref_qy", "ref_qz")
+MAG_COLUMNS = tuple(f"mag_{a}_ut" for a in XYZ)
+MOVEMENT_COLUMN = "movement"
 CALIBRATION_COLUMNS = ("t_s", "phase", *REF_OMEGA, *REF_ALPHA, *REF_ACC, *IMU_GYRO, *IMU_ACC)
 
 
@@ -149,22 +153,35 @@ def load_imu_log(path: str | Path) -> pd.DataFrame:
 
 
 def load_attitude_log(path: str | Path) -> pd.DataFrame:
-    """Load ``t_s, gyro_*_rad_s, acc_*_m_s2`` and, if present, ``ref_qw..ref_qz``.
+    """Load ``t_s`` with gyro/acc columns and, if present, a reference, magnetometer, mask.
 
-    Reference quaternions are scalar-first and may be empty (NaN) where the reference lost
-    track; such rows are left out of the error statistics.
+    Gyro/acc are ``gyro_*_rad_s, acc_*_m_s2`` (calibrated) or ``imu_gyro_*, imu_acc_*``
+    (raw). Optional: ``ref_qw..ref_qz`` (scalar-first, sensor to earth; empty where the
+    reference lost track, such rows are left out of the scores), ``mag_{x,y,z}_ut`` and a
+    0/1 ``movement`` column (the samples the scores use).
     """
     df = read_table(path)
     p = Path(path)
-    _require(df, p, ("t_s", *GYRO_COLUMNS, *ACC_COLUMNS))
-    _numeric(df, p, ("t_s", *GYRO_COLUMNS, *ACC_COLUMNS))
-    present = [c for c in REF_QUAT_COLUMNS if c in df.columns]
-    if present and len(present) != 4:
-        missing = [c for c in REF_QUAT_COLUMNS if c not in df.columns]
-        raise LogError(f"{p}: reference quaternion needs all of {', '.join(REF_QUAT_COLUMNS)}; "
-                       f"missing {', '.join(missing)}")
-    if present:
+    gyro, acc = imu_columns(df)
+    _require(df, p, ("t_s", *gyro, *acc))
+    _numeric(df, p, ("t_s", *gyro, *acc))
+    for group, label in ((REF_QUAT_COLUMNS, "reference quaternion"), (MAG_COLUMNS, "magnetometer")):
+        present = [c for c in group if c in df.columns]
+        if present and len(present) != len(group):
+            missing = [c for c in group if c not in df.columns]
+            raise LogError(f"{p}: {label} needs all of {', '.join(group)}; "
+                           f"missing {', '.join(missing)}")
+    if REF_QUAT_COLUMNS[0] in df.columns:
         _numeric(df, p, REF_QUAT_COLUMNS, allow_nan=True)
+    if MAG_COLUMNS[0] in df.columns:
+        _numeric(df, p, MAG_COLUMNS)
+    if MOVEMENT_COLUMN in df.columns:
+        _numeric(df, p, (MOVEMENT_COLUMN,))
+        bad = ~np.isin(df[MOVEMENT_COLUMN].to_numpy(), (0.0, 1.0))
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise LogError(f"{_where(p, i + 1)}, column {MOVEMENT_COLUMN}: expected 0 or 1, "
+                           f"got {df[MOVEMENT_COLUMN].iloc[i]!r}")
     _increasing(df["t_s"].to_numpy(), p)
     return df
 

@@ -1,15 +1,20 @@
-"""``rotorbench attitude LOG``: Paper B's quaternion attitude estimator on an IMU log.
+"""``rotorbench attitude LOG``: orientation of an IMU recording, scored where it has truth.
 
-The log has ``t_s, gyro_{x,y,z}_rad_s, acc_{x,y,z}_m_s2`` and optionally a scalar-first
-reference quaternion ``ref_qw, ref_qx, ref_qy, ref_qz``; with a reference the roll, pitch
-and inclination RMS errors are printed.
+LOG is a BROAD HDF5 trial or a project IMU log (CSV/Parquet: ``t_s``, gyro and
+accelerometer columns, optionally ``mag_*_ut``, ``ref_qw..ref_qz``, ``movement``).
+``--cal`` applies a Paper A calibration first; ``--out`` writes one row per sample
+(``t_s, qw, qx, qy, qz`` sensor to earth, ENU, and roll/pitch/yaw in degrees); with a
+reference the BROAD scores are printed (``--json`` for JSON); ``--compare`` adds the peers
+and a PNG of the errors over time.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -18,76 +23,167 @@ from rich.console import Console
 from rich.table import Table
 
 from analysis import quaternion as quat
-from analysis.attitude import attitude_errors, estimate_attitude
-from analysis.errors import LogError
-from analysis.imu_log import (
-    ACC_COLUMNS,
-    GYRO_COLUMNS,
-    REF_QUAT_COLUMNS,
-    load_attitude_log,
-    write_table,
+from analysis.attitude_compare import ComparisonRow, compare, error_figure, score_run
+from analysis.attitude_filters import (
+    PAPER_B_TAU_S,
+    PROJECT_FILTERS,
+    FilterRun,
+    paper_b,
+    run_filter,
 )
+from analysis.calibrated_recording import calibrate_recording
+from analysis.errors import LogError
+from analysis.imu_calibration import load_calibration
+from analysis.imu_log import write_table
+from analysis.imu_recording import ImuRecording, load_recording
+
+_PAPER_B_OPTIONS = ("gain", "acc_lowpass", "bias_seconds", "yaw_aligned")
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    p = subparsers.add_parser("attitude", help="quaternion attitude estimate (Paper B) of a log")
-    p.add_argument("log", type=Path, metavar="LOG", help="IMU log (.csv/.parquet)")
-    p.add_argument("--gain", type=float, default=0.002, metavar="P",
-                   help="blend gain P_err per sample, 0..1 (default 0.002, Paper B)")
-    p.add_argument("--acc-lowpass", type=float, default=0.0, metavar="G",
-                   help="accelerometer low-pass gain G_a of (B.28), 0..1 (default 0: off)")
-    p.add_argument("--bias-seconds", type=float, default=0.0, metavar="S",
-                   help="average the gyro over the first S seconds (at rest) as its bias")
-    p.add_argument("--yaw-aligned", action="store_true",
-                   help="give the accelerometer quaternion the current heading (not in Paper B)")
+    p = subparsers.add_parser(
+        "attitude", help="orientation of an IMU log or BROAD trial; scores, peers side by side",
+        description="Estimate the orientation (sensor to earth, ENU) of every sample of an "
+                    "IMU log or a BROAD HDF5 trial; score it against a reference as the "
+                    "BROAD benchmark does.")
+    p.add_argument("log", type=Path, metavar="LOG", help="BROAD trial (.hdf5) or IMU log "
+                   "(.csv/.parquet)")
+    p.add_argument("--filter", choices=tuple(PROJECT_FILTERS), default="default",
+                   help="default: VQF offline (6D/9D); default-causal: VQF sample by sample; "
+                        "paper-b: Paper B's filter (6D)")
+    p.add_argument("--6d", dest="six_d", action="store_true",
+                   help="ignore the magnetometer (6D estimate, heading not absolute)")
+    p.add_argument("--cal", type=Path, metavar="CAL.json",
+                   help="apply this Paper A calibration (bias, K, mounting, lever arm) first")
     p.add_argument("--out", type=Path, metavar="FILE",
-                   help="write t_s, q_w..q_z, roll/pitch and the (B.26) controller input")
+                   help="write t_s, qw..qz, roll/pitch/yaw_deg (.csv or .parquet)")
+    p.add_argument("--json", action="store_true", help="print the scores as JSON only")
+    p.add_argument("--compare", action="store_true",
+                   help="also run the peers (VQF, Madgwick, Mahony) on the same samples")
+    p.add_argument("--png", type=Path, metavar="FILE",
+                   help="error-over-time figure of --compare (default LOG-stem_errors.png)")
+    g = p.add_argument_group("paper-b options")
+    g.add_argument("--gain", type=float, metavar="P",
+                   help=f"blend gain P_err per sample, 0..1 (default t_s/{PAPER_B_TAU_S:g} s)")
+    g.add_argument("--acc-lowpass", type=float, metavar="G",
+                   help="accelerometer low-pass gain G_a of (B.28), 0..1 (default 0: off)")
+    g.add_argument("--bias-seconds", type=float, metavar="S",
+                   help="fixed gyro bias: the mean of the first S seconds (instead of the "
+                        "bias estimated at every rest)")
+    g.add_argument("--yaw-aligned", action="store_true",
+                   help="Paper B's body-frame accelerometer quaternion given the heading "
+                        "(not valid upside down; default: the estimate-frame form)")
     p.set_defaults(func=handler)
 
 
-def handler(args: argparse.Namespace) -> int:
-    if not 0.0 <= args.gain <= 1.0:
+def _check_args(args: argparse.Namespace) -> None:
+    if args.gain is not None and not 0.0 <= args.gain <= 1.0:
         raise LogError(f"--gain: P_err must be in [0, 1], got {args.gain}")
-    if not 0.0 <= args.acc_lowpass < 1.0:
+    if args.acc_lowpass is not None and not 0.0 <= args.acc_lowpass < 1.0:
         raise LogError(f"--acc-lowpass: G_a must be in [0, 1), got {args.acc_lowpass}")
-    if not (math.isfinite(args.bias_seconds) and args.bias_seconds >= 0):
+    if args.bias_seconds is not None and not (math.isfinite(args.bias_seconds)
+                                              and args.bias_seconds >= 0):
         raise LogError(f"--bias-seconds: expected a number of seconds >= 0, "
                        f"got {args.bias_seconds:g}")
-    df = load_attitude_log(args.log)
-    t = df["t_s"].to_numpy()
-    gyro = df[list(GYRO_COLUMNS)].to_numpy()
-    acc = df[list(ACC_COLUMNS)].to_numpy()
-    if np.any(np.linalg.norm(acc, axis=1) == 0):
-        i = int(np.flatnonzero(np.linalg.norm(acc, axis=1) == 0)[0])
+    used = [o for o in _PAPER_B_OPTIONS if getattr(args, o) not in (None, False)]
+    if used and args.filter != "paper-b":
+        opt = "--" + used[0].replace("_", "-")
+        raise LogError(f"{opt}: a paper-b option; add --filter paper-b")
+    if args.png is not None and not args.compare:
+        raise LogError("--png: the figure belongs to --compare")
+    if args.out is not None and args.out.suffix.lower() not in (".csv", ".parquet"):
+        raise LogError(f"{args.out}: output must end in .csv or .parquet")
+    if args.png is not None and args.png.suffix.lower() != ".png":
+        raise LogError(f"{args.png}: the figure is a PNG; name it *.png")
+    for path in (args.out, args.png):
+        if path is not None and path.is_dir():
+            raise LogError(f"{path}: is a folder; expected the name of the file to write")
+        if path is not None and not path.parent.is_dir():
+            raise LogError(f"{path}: folder {path.parent} does not exist")
+
+
+def _paper_b_run(rec: ImuRecording, args: argparse.Namespace) -> FilterRun:
+    """paper-b with the command's options."""
+    start, cpu = time.perf_counter(), time.process_time()
+    q = paper_b(rec, gain=args.gain, bias_seconds=args.bias_seconds,
+                acc_lowpass=args.acc_lowpass or 0.0,
+                tilt="yaw-aligned" if args.yaw_aligned else "estimate")
+    return FilterRun("paper-b", q, False, time.perf_counter() - start,
+                     time.process_time() - cpu)
+
+
+def _load(args: argparse.Namespace) -> ImuRecording:
+    rec = load_recording(args.log)
+    norm = np.linalg.norm(rec.acc_m_s2, axis=1)
+    if np.any(norm == 0):
+        i = int(np.flatnonzero(norm == 0)[0])
         raise LogError(f"{args.log}: row {i + 1}: accelerometer reads exactly zero; "
                        "the estimator needs the gravity direction")
-    bias = np.zeros(3)
-    if args.bias_seconds > 0:
-        rest = t <= t[0] + args.bias_seconds
-        bias = gyro[rest].mean(axis=0)
-    q = estimate_attitude(t, gyro - bias, acc, gain=args.gain, acc_lowpass=args.acc_lowpass,
-                          yaw_aligned=args.yaw_aligned)
-    console = Console()
-    rate = (len(t) - 1) / (t[-1] - t[0]) if len(t) > 1 else float("nan")
-    console.print(f"{args.log}: {len(t)} samples at {rate:.1f} Hz, P_err = {args.gain:g}, "
-                  f"G_a = {args.acc_lowpass:g}, gyro bias {np.round(bias, 5).tolist()} rad/s")
-    if all(c in df.columns for c in REF_QUAT_COLUMNS):
-        e = attitude_errors(q, df[list(REF_QUAT_COLUMNS)].to_numpy())
-        table = Table(title="attitude error vs reference (RMS)")
-        for col in ("roll", "pitch", "inclination", "samples"):
-            table.add_column(col)
-        table.add_row(*(f"{math.degrees(v):.3f}°" for v in
-                        (e.roll_rms, e.pitch_rms, e.inclination_rms)), str(e.samples))
-        console.print(table)
+    if args.cal is not None:
+        rec = calibrate_recording(rec, load_calibration(args.cal), args.cal)
+    return rec
+
+
+def _table(rows: list[ComparisonRow], title: str) -> Table:
+    table = Table(title=title)
+    for col in ("filter", "kind", "mode", "inclination", "heading", "total", "samples",
+                "wall (s)", "CPU (s)"):
+        table.add_column(col, justify="left" if col in ("filter", "kind") else "right",
+                         no_wrap=True)
+    for r in rows:
+        d = r.score.as_deg()
+        head = f"{d['heading_rmse_deg']:.3f}" + ("*" if not r.run.nine_d else "")
+        table.add_row(r.label, r.kind, "9D" if r.run.nine_d else "6D",
+                      f"{d['inclination_rmse_deg']:.3f}", head, f"{d['total_rmse_deg']:.3f}",
+                      str(d["samples"]), f"{r.run.seconds:.2f}", f"{r.run.cpu_seconds:.2f}")
+    return table
+
+
+def _write_estimate(rec: ImuRecording, q: np.ndarray, path: Path) -> None:
+    rpy = np.degrees(quat.to_euler(q))  # (B.6): Z-Y-X, yaw about up from east
+    out = pd.DataFrame({"t_s": rec.t_s, "qw": q[:, 0], "qx": q[:, 1], "qy": q[:, 2],
+                        "qz": q[:, 3], "roll_deg": rpy[:, 0], "pitch_deg": rpy[:, 1],
+                        "yaw_deg": rpy[:, 2]})
+    write_table(out, path)
+
+
+def handler(args: argparse.Namespace) -> int:
+    _check_args(args)
+    rec = _load(args)
+    if args.compare and rec.ref_quat is None:
+        raise LogError(f"{args.log}: --compare needs a reference orientation (BROAD opt_quat "
+                       "or ref_qw..ref_qz) to score against")
+    console = Console(file=sys.stderr if args.json else sys.stdout, width=120)
+    if args.filter == "paper-b":
+        run = _paper_b_run(rec, args)
+    else:
+        run = run_filter(args.filter, rec, six_d=args.six_d)
+    mags = "magnetometer" if rec.mag_ut is not None else "no magnetometer"
+    console.print(f"{args.log}: {len(rec.t_s)} samples at {rec.rate_hz:.1f} Hz, {mags}; "
+                  f"filter {args.filter} ({'9D' if run.nine_d else '6D'}) in {run.seconds:.2f} s"
+                  + (f"; calibration {args.cal}" if args.cal else ""))
+    rows: list[ComparisonRow] = []
+    if rec.ref_quat is not None:
+        label = f"{args.filter} ({'9D' if run.nine_d else '6D'})"
+        rows.append(ComparisonRow(label, "project", run, score_run(rec, run)))
+        if args.compare:
+            rows += [r for r in compare(rec) if r.label != label]
     elif args.out is None:
-        console.print("no reference attitude in the log (ref_qw..ref_qz) to compare with; "
-                      "--out FILE writes the estimate")
+        console.print("no reference attitude in the log (ref_qw..ref_qz or opt_quat) to "
+                      "compare with; --out FILE writes the estimate")
     if args.out is not None:
-        rpy = quat.to_euler(q)
-        u = quat.controller_input(q)
-        out = pd.DataFrame({"t_s": t, "q_w": q[:, 0], "q_x": q[:, 1], "q_y": q[:, 2],
-                            "q_z": q[:, 3], "roll_rad": rpy[:, 0], "pitch_rad": rpy[:, 1],
-                            "u_x": u[:, 0], "u_y": u[:, 1], "u_z": u[:, 2]})
-        write_table(out, args.out)
+        _write_estimate(rec, run.quat, args.out)
         print(f"wrote {args.out}", file=sys.stderr)
+    if args.compare:
+        png = args.png or Path(f"{args.log.stem}_errors.png")
+        error_figure(rec, rows, png, title=f"{args.log.name}: error over time")
+        print(f"wrote {png}", file=sys.stderr)
+    if args.json:
+        print(json.dumps({"log": str(args.log), "calibration": str(args.cal or ""),
+                          "scores": [r.as_dict() for r in rows]}, indent=2))
+    elif rows:
+        console.print(_table(rows, "orientation error vs reference, RMSE over movement (deg)"))
+        if any(not r.run.nine_d for r in rows):
+            console.print("* 6D: heading is relative; scored after removing its constant "
+                          "offset")
     return 0

@@ -96,9 +96,10 @@ def test_broad_trial_07_roll_pitch_rms(shared_data: Path) -> None:
     gyro of this IMU alone (P_err = 0, bias removed) drifts to 3.1° / 2.0° RMS and the
     accelerometer alone (P_err = 1) is off by 24° / 13° (fast rotation), so Paper B's
     fixed small gain cannot do much better than the gyro; the bound is that gyro level
-    plus ~25 % margin for seeds/platforms. A broken filter (quaternion order, frame or
-    sign) lands at tens of degrees. Peers on the same input (benchmarks/attitude_bench.py):
-    Madgwick 1.5° / 0.9°, VQF 1.2° / 0.5°, Mahony 3.5° / 2.5°.
+    plus ~25 % margin for seeds/platforms (measured with the former one-sample-late gyro;
+    the estimator now integrates the current sample and does better). A broken filter
+    (quaternion order, frame or sign) lands at tens of degrees. The BROAD-scored
+    comparison with the peers is tests/analysis/test_attitude_broad.py.
     """
     h5py = pytest.importorskip("h5py")
     path = shared_data / "broad" / "07_undisturbed_fast_rotation_B.hdf5"

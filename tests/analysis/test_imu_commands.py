@@ -44,18 +44,20 @@ def test_apply_then_attitude_pipeline(sim_log: Path, tmp_path: Path,
     assert {"gyro_x_rad_s", "acc_z_m_s2", "phase", "ref_acc_z_m_s2"} <= set(df.columns)
     assert "imu_gyro_x_rad_s" not in df.columns
     att = tmp_path / "att.parquet"
-    assert main(["attitude", str(corrected), "--out", str(att), "--bias-seconds", "5"]) == 0
+    assert main(["attitude", str(corrected), "--out", str(att), "--filter", "paper-b",
+                 "--bias-seconds", "5"]) == 0
     q = pd.read_parquet(att)
-    assert {"q_w", "roll_rad", "u_x"} <= set(q.columns) and len(q) == len(df)
+    assert {"qw", "qz", "roll_deg", "yaw_deg"} <= set(q.columns) and len(q) == len(df)
 
 
 def test_attitude_with_reference_prints_rms(tmp_path: Path,
                                             capsys: pytest.CaptureFixture) -> None:
     path = tmp_path / "att.csv"
     pd.DataFrame(simulate_attitude_log()).to_csv(path, index=False)
-    assert main(["attitude", str(path), "--gain", "0.002", "--yaw-aligned"]) == 0
+    assert main(["attitude", str(path), "--filter", "paper-b", "--gain", "0.002",
+                 "--yaw-aligned"]) == 0
     out = capsys.readouterr().out
-    assert "roll" in out and "pitch" in out and "°" in out
+    assert "inclination" in out and "heading" in out and "paper-b (6D)" in out
 
 
 def test_calibrate_on_a_propulsion_rig_says_what_is_missing(

@@ -1,0 +1,137 @@
+"""One IMU recording in SI units, read from a BROAD HDF5 trial or from a project log.
+
+BROAD (Laidig, Caruso, Cereatti, Seel, Data 6(7), 2021, doi:10.3390/data6070072) stores
+per trial ``imu_acc`` (m/s²), ``imu_gyr`` (rad/s), ``imu_mag`` (µT), ``opt_quat`` (optical
+ground truth, scalar-first, sensor to an ENU earth frame, NaN during marker loss),
+``movement`` (the samples the benchmark scores) and the attribute ``sampling_rate`` (Hz).
+The project's own logs (CSV/Parquet) carry the same content under the column names of
+:mod:`analysis.imu_log`. Either way the estimators get one :class:`ImuRecording`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from analysis.errors import LogError
+from analysis.extras import import_extra
+from analysis.imu_log import (
+    MAG_COLUMNS,
+    MOVEMENT_COLUMN,
+    REF_QUAT_COLUMNS,
+    imu_columns,
+    load_attitude_log,
+)
+
+__all__ = ["HDF5_SUFFIXES", "ImuRecording", "load_recording", "read_broad"]
+
+Array = NDArray[np.float64]
+HDF5_SUFFIXES = (".hdf5", ".h5")
+
+
+@dataclass(frozen=True)
+class ImuRecording:
+    """Samples of one IMU; optional parts are ``None`` when the file has none.
+
+    ``ref_quat`` maps sensor to earth frame (ENU, z up), scalar-first, NaN rows where the
+    reference lost track. ``movement`` marks the samples to score (all, if ``None``).
+    """
+
+    source: str
+    t_s: Array
+    gyro_rad_s: Array
+    acc_m_s2: Array
+    mag_ut: Array | None = None
+    ref_quat: Array | None = None
+    movement: NDArray[np.bool_] | None = None
+
+    @property
+    def rate_hz(self) -> float:
+        """Mean sampling rate over the recording."""
+        t = self.t_s
+        return float((len(t) - 1) / (t[-1] - t[0])) if len(t) > 1 else float("nan")
+
+    def with_imu(self, t_s: Array, gyro: Array, acc: Array, keep: NDArray[np.bool_]
+                 ) -> ImuRecording:
+        """Copy with corrected IMU samples on the rows ``keep`` (e.g. after a calibration)."""
+        def sub(a: Array | None) -> Array | None:
+            return None if a is None else a[keep]
+        return replace(self, t_s=t_s, gyro_rad_s=gyro, acc_m_s2=acc, mag_ut=sub(self.mag_ut),
+                       ref_quat=sub(self.ref_quat), movement=sub(self.movement))
+
+
+def _dataset(f, path: Path, name: str, width: int, n: int | None, finite: bool) -> Array:
+    if name not in f:
+        raise LogError(f"{path}: dataset {name}: missing (a BROAD trial has imu_acc, imu_gyr, "
+                       "imu_mag, opt_quat, movement)")
+    arr = np.asarray(f[name][()], dtype=float)
+    if width == 1 and arr.ndim == 2 and 1 in arr.shape:
+        arr = arr.reshape(-1)  # MAT-style column vectors
+    want = (n if n is not None else arr.shape[0],) + ((width,) if width > 1 else ())
+    if arr.shape != want:
+        raise LogError(f"{path}: dataset {name}: expected shape {want}, got {arr.shape}")
+    if finite:
+        bad = ~np.isfinite(arr).reshape(len(arr), -1).all(axis=1)
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise LogError(f"{path}: dataset {name}, sample {i}: expected finite numbers, "
+                           f"got {arr[i].tolist()}")
+    return arr
+
+
+def read_broad(path: str | Path) -> ImuRecording:
+    """Read a BROAD HDF5 trial (needs the ``imu`` extra for h5py)."""
+    h5py = import_extra("h5py", "imu", "reading a BROAD HDF5 trial")
+    path = Path(path)
+    if not path.is_file():
+        raise LogError(f"{path}: file not found")
+    try:
+        f = h5py.File(path, "r")
+    except OSError as exc:
+        raise LogError(f"{path}: not a readable HDF5 file ({' '.join(str(exc).split())})"
+                       ) from None
+    with f:
+        if "sampling_rate" not in f.attrs:
+            raise LogError(f"{path}: attribute sampling_rate: missing")
+        try:
+            rate = float(np.asarray(f.attrs["sampling_rate"]).reshape(-1)[0])
+        except (TypeError, ValueError, IndexError):
+            rate = float("nan")
+        if not (np.isfinite(rate) and rate > 0):
+            raise LogError(f"{path}: attribute sampling_rate: expected a rate in Hz > 0, "
+                           f"got {f.attrs['sampling_rate']!r}")
+        gyr = _dataset(f, path, "imu_gyr", 3, None, True)
+        n = len(gyr)
+        if n < 2:
+            raise LogError(f"{path}: dataset imu_gyr: expected at least 2 samples, got {n}")
+        acc = _dataset(f, path, "imu_acc", 3, n, True)
+        mag = _dataset(f, path, "imu_mag", 3, n, True) if "imu_mag" in f else None
+        ref = _dataset(f, path, "opt_quat", 4, n, False) if "opt_quat" in f else None
+        mov = _dataset(f, path, "movement", 1, n, True) if "movement" in f else None
+    if mov is not None and not np.isin(mov, (0.0, 1.0)).all():
+        i = int(np.flatnonzero(~np.isin(mov, (0.0, 1.0)))[0])
+        raise LogError(f"{path}: dataset movement, sample {i}: expected 0 or 1, got {mov[i]!r}")
+    return ImuRecording(str(path), np.arange(n) / rate, gyr, acc, mag, ref,
+                        None if mov is None else mov.astype(bool))
+
+
+def load_recording(path: str | Path) -> ImuRecording:
+    """A BROAD trial (``.hdf5``/``.h5``) or a project IMU log (``.csv``/``.parquet``)."""
+    path = Path(path)
+    if path.suffix.lower() in HDF5_SUFFIXES:
+        return read_broad(path)
+    if path.suffix.lower() not in (".csv", ".parquet"):
+        raise LogError(f"{path}: expected a BROAD trial (.hdf5) or an IMU log (.csv/.parquet), "
+                       f"got {path.suffix or 'no suffix'!r}")
+    df = load_attitude_log(path)
+    gyro, acc = imu_columns(df)
+
+    def cols(names: tuple[str, ...]) -> Array | None:
+        return df[list(names)].to_numpy(dtype=float) if names[0] in df.columns else None
+
+    mov = df[MOVEMENT_COLUMN].to_numpy() > 0.5 if MOVEMENT_COLUMN in df.columns else None
+    return ImuRecording(str(path), df["t_s"].to_numpy(dtype=float), cols(gyro), cols(acc),
+                        cols(MAG_COLUMNS), cols(REF_QUAT_COLUMNS), mov)
