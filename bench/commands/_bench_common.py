@@ -15,6 +15,7 @@ from typing import Any
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
+from bench.commands._output import check_writable
 from bench.errors import RigError
 from bench.indexed_run import RunInterrupted
 from bench.runner import RunOptions
@@ -115,6 +116,7 @@ def execute(rig: Any, seq: Sequence, args: argparse.Namespace,
     from drivers.factory import open_rig
 
     check_limits(rig, seq)
+    check_writable(args.out, "--out", folder=True)
     options = RunOptions(tick_s=args.tick, realtime=bool(args.realtime or args.live))
     stop = threading.Event()
     total = plan_for(rig, seq).duration_s

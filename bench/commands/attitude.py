@@ -27,6 +27,7 @@ from analysis.imu_log import (
     load_attitude_log,
     write_table,
 )
+from bench.commands._output import check_writable
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -53,6 +54,8 @@ def handler(args: argparse.Namespace) -> int:
     if not (math.isfinite(args.bias_seconds) and args.bias_seconds >= 0):
         raise LogError(f"--bias-seconds: expected a number of seconds >= 0, "
                        f"got {args.bias_seconds:g}")
+    if args.out is not None:
+        check_writable(args.out, "--out", folder=False, make_parents=False)
     df = load_attitude_log(args.log)
     t = df["t_s"].to_numpy()
     gyro = df[list(GYRO_COLUMNS)].to_numpy()
