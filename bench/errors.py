@@ -5,3 +5,12 @@ class RigError(ValueError):
     """A rig file or sequence is invalid; the message names the file and field."""
 
     exit_code = 2
+
+
+class RecordingError(RuntimeError):
+    """A run folder could not be written (disk full, medium gone): the run is aborted.
+
+    Raised by the recorder; the runner stops the actuators safely first, as for any error.
+    """
+
+    exit_code = 2

@@ -94,8 +94,11 @@ class RunIndex:
             meta.get("host"),
             meta.get("pid"),
         )
-        with self._connect() as con:
-            con.execute("INSERT OR REPLACE INTO runs VALUES (?,?,?,?,?,?,?,?,?,?,?)", row)
+        try:
+            with self._connect() as con:
+                con.execute("INSERT OR REPLACE INTO runs VALUES (?,?,?,?,?,?,?,?,?,?,?)", row)
+        except sqlite3.OperationalError as exc:  # disk full, read-only medium
+            raise RigError(f"{self.path}: cannot update the run index ({exc})") from None
 
     def list(self) -> list[RunRow]:
         import socket

@@ -16,8 +16,8 @@ from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 from bench.commands._output import check_writable
-from bench.errors import RigError
-from bench.indexed_run import RunInterrupted
+from bench.errors import RecordingError, RigError
+from bench.indexed_run import RunInterrupted, RunRecordingFailed
 from bench.runner import RunOptions
 from bench.safety import LIMIT_FIELDS, effective_limits
 from bench.sequences import Segment, Sequence, format_plan
@@ -151,12 +151,16 @@ def execute(rig: Any, seq: Sequence, args: argparse.Namespace,
 @contextlib.contextmanager
 def say_where_an_interrupted_run_went(what: str, safe: str):
     """Ctrl-C / SIGTERM: one line on stderr naming the run folder and its recorded status
-    (after the progress bar has stopped), then the interrupt goes on (exit 130)."""
+    (after the progress bar has stopped), then the interrupt goes on (exit 130). A run
+    aborted by a failed write (disk full) becomes the one-line error (exit 2) saying the
+    same in this bench's words: what was made safe, where the partial run is."""
     try:
         yield
     except RunInterrupted as exc:
         print(f"rotorbench: {exc.summary(what, safe)}", file=sys.stderr, flush=True)
         raise
+    except RunRecordingFailed as exc:
+        raise RecordingError(exc.summary(what, safe)) from None
 
 
 @contextlib.contextmanager
