@@ -46,6 +46,7 @@ def handler(args: argparse.Namespace) -> int:
                   "(`rotorbench sweep --dry-run` shows it); thrust-step commands shown as (map)")
         common.print_dry_run(rig, seq)
         return 0
+    common.check_budget_of(rig, seq, args)  # before a sweep for a missing map could start
     if rig.thrust_map is None and seq.needs_thrust_map:
         from bench.commands.sweep import measure_map
 
