@@ -7,6 +7,15 @@ class RigError(ValueError):
     exit_code = 2
 
 
+class ThrustOutsideMap(RigError):
+    """A thrust setpoint beyond the measured range of a static thrust map; ``lo``/``hi``
+    let the caller (a sequence) say which setpoint is wrong rather than blame the map."""
+
+    def __init__(self, message: str, lo: float, hi: float) -> None:
+        super().__init__(message)
+        self.lo, self.hi = lo, hi
+
+
 class RecordingError(RuntimeError):
     """A run folder could not be written (disk full, medium gone): the run is aborted.
 

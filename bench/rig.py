@@ -26,7 +26,7 @@ from urllib.parse import urlsplit
 
 import numpy as np
 
-from bench.errors import RigError
+from bench.errors import RigError, ThrustOutsideMap
 from bench.rig_table import RigTable, read_rig_toml
 
 REPO = Path(__file__).resolve().parents[1]
@@ -180,10 +180,9 @@ class ThrustMap:
         thr, cmd = thr[keep], cmd[keep]
         t = np.asarray(thrust_n, dtype=float)
         if np.any(t < thr[0]) or np.any(t > thr[-1]):
-            raise RigError(
+            raise ThrustOutsideMap(
                 f"{self.path or 'thrust map'}: thrust {thrust_n} N outside the measured "
-                f"range {thr[0]:.3f}-{thr[-1]:.3f} N"
-            )
+                f"range {thr[0]:.3f}-{thr[-1]:.3f} N", float(thr[0]), float(thr[-1]))
         out = np.interp(t, thr, cmd)
         return float(out) if out.ndim == 0 else out
 

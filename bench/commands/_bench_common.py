@@ -102,7 +102,7 @@ def check_budget_of(rig: Any, seq: Sequence, args: argparse.Namespace) -> Budget
     """The plan's projected rig time and samples size, refused beyond the bounds of
     ``bench.run_budget`` (above the confirmation bounds unless ``--yes``)."""
     budget = project(plan_for(rig, seq, dry_run=True).duration_s, row_rate_hz(rig))
-    check_budget(budget, f"sequence {seq.name!r}", bool(getattr(args, "yes", False)))
+    check_budget(budget, seq.where, bool(getattr(args, "yes", False)))
     return budget
 
 

@@ -66,8 +66,8 @@ def test_a_sequence_file_with_an_absurd_hold(sim_rig_mapped_path: Path, tmp_path
     out = tmp_path / "runs"
     err = run_bad(capsys, "step", "--sequence", str(seq), "--rig", str(sim_rig_mapped_path),
                   "--out", str(out))
-    assert err.startswith("rotorbench: error: sequence 'soak': projected 278 h of rig time "
-                          "and about 430 GB of samples (25000 rows/s)")
+    assert err.startswith(f"rotorbench: error: sequence 'soak' ({seq}): projected 278 h of "
+                          "rig time and about 430 GB of samples (25000 rows/s)")
     assert not out.exists()
 
 
