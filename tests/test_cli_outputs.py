@@ -15,10 +15,9 @@ from pathlib import Path
 
 import pytest
 
-from bench.cli import main
 from bench.commands._output import check_writable
 from bench.errors import RigError
-from tests.test_cli_errors import run_bad
+from tests.test_cli_errors import _imported_run, run_bad
 
 
 def _can_write(folder: Path) -> bool:
@@ -47,15 +46,6 @@ def read_only(tmp_path: Path) -> Iterator[Path]:
     if immutable:
         subprocess.run(["chattr", "-i", str(folder)], check=True)
     folder.chmod(0o755)
-
-
-def _imported_run(tmp_path: Path) -> Path:
-    f = tmp_path / "stand.csv"
-    rows = "\n".join(f"{i * 0.1:.1f},{1000 + 10 * i},{0.01 * i * i}" for i in range(40))
-    f.write_text("t_s,throttle_us,thrust_n\n" + rows + "\n")
-    run = tmp_path / "run"
-    assert main(["import", str(f), "--format", "csv", "--out", str(run)]) == 0
-    return run
 
 
 #: command line with the output at OUT (a folder or file that cannot be created)
