@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.errors import RigError
+from bench.sqlite_store import connect, writing
 
 __all__ = ["KEY_FIELDS", "STORE_NAME", "ActuatorKey", "ConstantsRow", "ConstantsStore"]
 
@@ -96,14 +97,8 @@ class ConstantsStore:
         except OSError as exc:
             raise RigError(f"{self.root}: cannot create the constants folder "
                            f"({exc.strerror or exc})") from None
-        try:
-            con = sqlite3.connect(self.path, timeout=10.0)
-            con.execute(_SCHEMA)
-        except sqlite3.DatabaseError as exc:
-            raise RigError(f"{self.path}: not a readable constants store ({exc}); move it "
-                           "away and store the runs again with `rotorbench constants "
-                           "--add RUN`") from None
-        return con
+        return connect(self.path, _SCHEMA, "constants store", "move it away and store the "
+                       "runs again with `rotorbench constants --add RUN`")
 
     def put(self, key: ActuatorKey, kind: str, run_id: str, run_path: str,
             data: Mapping[str, Any]) -> None:
@@ -112,7 +107,7 @@ class ConstantsStore:
             raise ValueError(f"kind must be step or static, got {kind!r}")
         text = json.dumps(_clean(data), allow_nan=False)
         now = datetime.now(UTC).isoformat(timespec="seconds")
-        with self._connect() as con:
+        with writing(self.path, "constants store"), self._connect() as con:
             con.execute(
                 "INSERT OR REPLACE INTO constants VALUES (?,?,?,?,?,?,?,?,?,?,?)",
                 (key.motor, key.propeller, key.esc, key.esc_mode, key.battery, kind,

@@ -39,6 +39,12 @@ IMU_DATASHEET = ("rate_hz", "gyro_range_rad_s", "acc_range_m_s2", "gyro_noise_de
 IMU_SIM_ERRORS = tuple(f.name for f in dataclasses.fields(ImuModel)
                        if f.name not in IMU_DATASHEET)
 REFERENCE_KEYS = ("rate_hz", "attitude_noise_rad", "gyro_noise_rad_s")
+#: The largest hexapod limit a rig file may set (SI), well beyond motion-simulator
+#: hexapods (Paper A's: 0.6 m/s, 6 m/s^2, 0.7 rad/s, 0.25 m, 25 deg); above it the
+#: limit would no longer stop anything.
+HEXAPOD_LIMIT_MAXIMA = {"velocity_m_s": 10.0, "acceleration_m_s2": 100.0, "rate_rad_s": 20.0,
+                        "angular_acceleration_rad_s2": 500.0, "position_m": 2.0,
+                        "angle_rad": math.pi}
 
 
 def default_imu_rig_path() -> Path:
@@ -173,7 +179,8 @@ def load_imu_rig(path: str | os.PathLike[str]) -> ImuRigConfig:
 
     hx = top.table("hexapod", required=False) or RigTable(path, "hexapod", {})
     hx.only(*HexapodLimits.names(), "pivot_m", "log_rate_hz", "trajectory_rate_hz")
-    limits = {n: hx.number(n, getattr(HexapodLimits(), n), lo=0.0) for n in HexapodLimits.names()}
+    limits = {n: hx.number(n, getattr(HexapodLimits(), n), lo=0.0, hi=HEXAPOD_LIMIT_MAXIMA[n])
+              for n in HexapodLimits.names()}
     for n, v in limits.items():
         if not v > 0:  # type: ignore[operator]
             hx.fail(n, f"expected a positive limit, got {v}")

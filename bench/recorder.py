@@ -6,10 +6,16 @@ Each part is written under a hidden temporary name and renamed into place, and
 on disk is complete and readable: at most the last (unwritten) chunk is lost.
 ``run.json`` is written at the start with status ``running`` and replaced atomically
 at the end; events are appended one flushed line at a time.
+
+A write that fails during the run (disk full, medium gone) raises ``RecordingError``: the
+runner stops the actuators and ends the run as aborted. The parts already on disk stay
+readable; the rows still buffered are dropped and counted (``rows_lost`` in ``run.json``),
+and ``finish`` writes what it still can without raising again.
 """
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import json
@@ -26,7 +32,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from bench.errors import RigError
+from bench.errors import RecordingError, RigError
 
 __all__ = ["BASE_COLUMNS", "RunRecorder", "atomic_write_json", "new_run_id",
            "software_version", "utc_now"]
@@ -58,12 +64,17 @@ def new_run_id(name: str) -> str:
 def atomic_write_json(path: Path, data: Mapping[str, Any]) -> None:
     """Write JSON to a temporary file next to ``path`` and rename it into place."""
     tmp = path.with_name(f".{path.name}.tmp")
-    with open(tmp, "w", encoding="utf-8") as fh:
-        json.dump(_jsonable(data), fh, indent=2, allow_nan=False)
-        fh.write("\n")
-        fh.flush()
-        os.fsync(fh.fileno())
-    os.replace(tmp, path)
+    try:
+        with open(tmp, "w", encoding="utf-8") as fh:
+            json.dump(_jsonable(data), fh, indent=2, allow_nan=False)
+            fh.write("\n")
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:  # a full disk leaves the old file, not half a new one beside it
+        with contextlib.suppress(OSError):
+            tmp.unlink(missing_ok=True)
+        raise
 
 
 def _jsonable(obj: Any) -> Any:
@@ -103,11 +114,7 @@ class RunRecorder:
         self.parts = 0
         self.rows_written = 0
         self.closed = False
-        try:
-            self.run_dir.mkdir(parents=True, exist_ok=False)
-            (self.run_dir / SAMPLES_DIR).mkdir()
-        except OSError as exc:
-            raise RigError(f"{self.run_dir}: cannot create the run folder ({exc})") from None
+        self.failure: str | None = None  # the first write that failed, if any
         # The first Parquet write initialises pyarrow's writer (~0.3 s); do it now, not
         # inside the command loop where it would look like a stalled host.
         pq.write_table(pa.table({"t_s": np.zeros(1)}), io.BytesIO(), compression=compression)
@@ -115,11 +122,17 @@ class RunRecorder:
         self.meta.update(status="running", reason="", started_utc=utc_now(), ended_utc=None,
                          software_version=software_version(), host=socket.gethostname(),
                          pid=os.getpid(), samples=SAMPLES_DIR, events="events.csv")
-        atomic_write_json(self.run_dir / "run.json", self.meta)
-        self._events = open(self.run_dir / "events.csv", "w", newline="", encoding="utf-8")
-        self._events_csv = csv.writer(self._events)
-        self._events_csv.writerow(EVENT_FIELDS)
-        self._events.flush()
+        try:
+            self.run_dir.mkdir(parents=True, exist_ok=False)
+            (self.run_dir / SAMPLES_DIR).mkdir()
+            atomic_write_json(self.run_dir / "run.json", self.meta)
+            self._events = open(self.run_dir / "events.csv", "w", newline="", encoding="utf-8")
+            self._events_csv = csv.writer(self._events)
+            self._events_csv.writerow(EVENT_FIELDS)
+            self._events.flush()
+        except OSError as exc:
+            raise RigError(f"{self.run_dir}: cannot create the run folder "
+                           f"({exc.strerror or exc})") from None
 
     # -- samples ------------------------------------------------------------------------
 
@@ -178,9 +191,14 @@ class RunRecorder:
         name = f"part-{self.parts:06d}.parquet"
         final = self.run_dir / SAMPLES_DIR / name
         tmp = final.with_name(f".{name}.tmp")
-        pq.write_table(table, tmp, compression=self.compression, use_dictionary=False,
-                       write_statistics=["t_s"])
-        os.replace(tmp, final)
+        try:
+            pq.write_table(table, tmp, compression=self.compression, use_dictionary=False,
+                           write_statistics=["t_s"])
+            os.replace(tmp, final)
+        except OSError as exc:
+            with contextlib.suppress(OSError):
+                tmp.unlink(missing_ok=True)
+            self._failed(f"cannot write samples to {final.parent}", exc)
         self.parts += 1
         self.rows_written += table.num_rows
 
@@ -191,25 +209,43 @@ class RunRecorder:
         """Append one event line (flushed at once, so a crash keeps it)."""
         if self._events.closed:
             return
-        self._events_csv.writerow([
-            "" if t_s is None or math.isnan(t_s) else f"{t_s:.6f}", utc_now(), kind,
-            "" if step is None else step, label,
-            json.dumps(_jsonable(detail), allow_nan=False) if detail else "",
-        ])
-        self._events.flush()
+        try:
+            self._events_csv.writerow([
+                "" if t_s is None or math.isnan(t_s) else f"{t_s:.6f}", utc_now(), kind,
+                "" if step is None else step, label,
+                json.dumps(_jsonable(detail), allow_nan=False) if detail else "",
+            ])
+            self._events.flush()
+        except OSError as exc:
+            if self.failure is None:  # after a failure the end of the run writes what it can
+                self._failed(f"cannot write events to {self._events.name}", exc)
+
+    def _failed(self, what: str, exc: OSError) -> None:
+        self.failure = f"{what} ({exc.strerror or exc})"
+        raise RecordingError(self.failure) from None
 
     def finish(self, status: str, reason: str, **extra: Any) -> dict[str, Any]:
         """Flush the samples and rewrite ``run.json`` with the exit status; idempotent."""
         if self.closed:
             return self.meta
         try:
-            self.flush()
+            if self.failure is None:
+                self.flush()
         finally:
             self.closed = True
-            self._events.close()
+            with contextlib.suppress(OSError):  # a full disk cannot take the last line
+                self._events.close()
             self.meta.update(extra)
             self.meta.update(status=status, reason=reason, ended_utc=utc_now(),
                              rows=self.rows_written, parts=self.parts,
                              finished_unix=time.time())
-            atomic_write_json(self.run_dir / "run.json", self.meta)
+            if self.failure is not None:
+                if self.meta["status"] == "success":  # the last flush failed
+                    self.meta.update(status="abort", reason=f"recording failed: {self.failure}")
+                self.meta.update(recording_error=self.failure, rows_lost=self._n)
+                self._n = 0
+                with contextlib.suppress(OSError):  # run.json may keep "running"
+                    atomic_write_json(self.run_dir / "run.json", self.meta)
+            else:
+                atomic_write_json(self.run_dir / "run.json", self.meta)
         return self.meta

@@ -26,7 +26,7 @@ from urllib.parse import urlsplit
 
 import numpy as np
 
-from bench.errors import RigError
+from bench.errors import RigError, ThrustOutsideMap
 from bench.rig_table import RigTable, read_rig_toml
 
 REPO = Path(__file__).resolve().parents[1]
@@ -180,10 +180,9 @@ class ThrustMap:
         thr, cmd = thr[keep], cmd[keep]
         t = np.asarray(thrust_n, dtype=float)
         if np.any(t < thr[0]) or np.any(t > thr[-1]):
-            raise RigError(
+            raise ThrustOutsideMap(
                 f"{self.path or 'thrust map'}: thrust {thrust_n} N outside the measured "
-                f"range {thr[0]:.3f}-{thr[-1]:.3f} N"
-            )
+                f"range {thr[0]:.3f}-{thr[-1]:.3f} N", float(thr[0]), float(thr[-1]))
         out = np.interp(t, thr, cmd)
         return float(out) if out.ndim == 0 else out
 
@@ -252,15 +251,27 @@ def _device(top: RigTable, role: str) -> DeviceConfig:
     return DeviceConfig(url, channel, calibration, dict(opts.data) if opts else {})
 
 
+#: The largest limit a rig file may set, far beyond any stand the bench drives (the
+#: biggest commercial thrust stands: 1.5 kN, 300 A, 100 V, 60 000 rpm). A limit above it
+#: switches the check off in effect (``thrust_n = 1e308`` never trips): a typo, refused.
+LIMIT_MAXIMA = {"thrust_n": 5000.0, "current_a": 1000.0, "rpm": 200_000.0,
+                "voltage_min_v": 1000.0, "voltage_max_v": 1000.0, "temperature_c": 300.0}
+
+
 def _limits(path: Path, t: RigTable) -> Limits:
     t.only(*(f.name for f in fields(Limits) if f.name != "source"))
+    hi = LIMIT_MAXIMA
     vals = {
-        "thrust_n": t.number("thrust_n", required=True, lo=0.0, unit="N"),
-        "current_a": t.number("current_a", required=True, lo=0.0, unit="A"),
-        "rpm": t.number("rpm", required=True, lo=0.0, unit="rpm"),
-        "voltage_min_v": t.number("voltage_min_v", required=True, lo=0.0, unit="V"),
-        "voltage_max_v": t.number("voltage_max_v", required=True, lo=0.0, unit="V"),
-        "temperature_c": t.number("temperature_c", None, lo=-50.0, hi=300.0, unit="C"),
+        "thrust_n": t.number("thrust_n", required=True, lo=0.0, hi=hi["thrust_n"], unit="N"),
+        "current_a": t.number("current_a", required=True, lo=0.0, hi=hi["current_a"],
+                              unit="A"),
+        "rpm": t.number("rpm", required=True, lo=0.0, hi=hi["rpm"], unit="rpm"),
+        "voltage_min_v": t.number("voltage_min_v", required=True, lo=0.0,
+                                  hi=hi["voltage_min_v"], unit="V"),
+        "voltage_max_v": t.number("voltage_max_v", required=True, lo=0.0,
+                                  hi=hi["voltage_max_v"], unit="V"),
+        "temperature_c": t.number("temperature_c", None, lo=-50.0, hi=hi["temperature_c"],
+                                  unit="C"),
     }
     if vals["voltage_min_v"] >= vals["voltage_max_v"]:  # type: ignore[operator]
         t.fail("voltage_min_v", f"{vals['voltage_min_v']} V must be below voltage_max_v "

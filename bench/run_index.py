@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.errors import RigError
+from bench.sqlite_store import connect, writing
 
 __all__ = ["INDEX_NAME", "RunIndex", "RunRow"]
 
@@ -63,19 +64,11 @@ class RunIndex:
         except OSError as exc:
             raise RigError(f"--out {self.root}: cannot create the run folder "
                            f"({exc.strerror or exc})") from None
-        try:
-            with self._connect() as con:
-                con.execute(_SCHEMA)
-        except sqlite3.DatabaseError as exc:
-            raise RigError(f"{self.path}: not a readable run index ({exc}); move it away "
-                           "and run `rotorbench runs --rebuild` to index the run folders "
-                           "again") from None
+        self._connect().close()
 
     def _connect(self) -> sqlite3.Connection:
-        try:
-            return sqlite3.connect(self.path, timeout=10.0)
-        except sqlite3.Error as exc:
-            raise RigError(f"{self.path}: cannot open the run index ({exc})") from None
+        return connect(self.path, _SCHEMA, "run index", "move it away and run `rotorbench "
+                       "runs --rebuild` to index the run folders again")
 
     def upsert(self, meta: Mapping[str, Any], run_dir: Path) -> None:
         """Insert or update the row of one run from its ``run.json`` content."""
@@ -94,7 +87,7 @@ class RunIndex:
             meta.get("host"),
             meta.get("pid"),
         )
-        with self._connect() as con:
+        with writing(self.path, "run index"), self._connect() as con:
             con.execute("INSERT OR REPLACE INTO runs VALUES (?,?,?,?,?,?,?,?,?,?,?)", row)
 
     def list(self) -> list[RunRow]:

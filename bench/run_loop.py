@@ -23,6 +23,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from bench.errors import RecordingError
 from bench.recorder import RunRecorder
 from bench.safety import LimitTrip, Trip
 from bench.watchdog import HostWatchdog, WatchdogTrip
@@ -157,6 +158,8 @@ class SafeRunLoop:
             status, reason = "abort", exc.reason()
         except KeyboardInterrupt as exc:
             status, reason, pending = "abort", "interrupted by operator (Ctrl-C or SIGTERM)", exc
+        except RecordingError as exc:  # disk full: stop, keep what is on disk
+            status, reason, pending = "abort", f"recording failed: {exc}", exc
         except DeviceError as exc:
             status, reason, pending = "fail", f"device error: {exc}", exc
         except BaseException as exc:

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from bench.errors import RigError
+from bench.errors import RigError, ThrustOutsideMap
 
 G0 = 9.80665  # standard gravity, m/s^2 (grams-force -> newtons)
 
@@ -142,6 +142,12 @@ class Sequence:
     limits: Mapping[str, float] = field(default_factory=dict)
     description: str = ""
     needs_thrust_map: bool = False
+    source: str = field(default="", compare=False)  # the file it was read from, if any
+
+    @property
+    def where(self) -> str:
+        """How messages name it: ``sequence 'name'``, with its file when it has one."""
+        return f"sequence {self.name!r}" + (f" ({self.source})" if self.source else "")
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -193,6 +199,7 @@ class Sequence:
             limits=_limits_from(data.get("limits", {}), source),
             description=str(data.get("description", "")),
             needs_thrust_map=any(isinstance(s, ThrustStep) for s in steps),
+            source="" if source == "<sequence>" else source,
         )
 
 
@@ -474,8 +481,14 @@ def compile_plan(
                 if thrust_to_us is None:
                     target_us = math.nan
                 else:
-                    target_us = check_us(float(thrust_to_us(target)), i,
-                                         f"thrust_step {target:.3f} N")
+                    try:
+                        mapped = float(thrust_to_us(target))
+                    except ThrustOutsideMap as exc:  # the setpoint is wrong, not the map
+                        raise RigError(f"{seq.where}: steps[{i}].thrust_n: {target:g} N is "
+                                       f"outside the rig's static thrust map ({exc.lo:.3f}-"
+                                       f"{exc.hi:.3f} N); choose a setpoint inside it or "
+                                       "sweep a wider range") from None
+                    target_us = check_us(mapped, i, f"thrust_step {target:.3f} N")
                 if _dur(ramp, i, seq) > 0:
                     add("ramp", f"ramp to {target:.3f} N", ramp, us, target_us)
                     t = segs[-1].t_end_s

@@ -20,7 +20,7 @@ import numpy as np
 import pandas as pd
 from numpy.polynomial import Polynomial
 
-from bench.errors import RigError
+from bench.errors import RigError, ThrustOutsideMap
 from bench.recorder import atomic_write_json
 
 __all__ = ["StaticThrustMap", "SweepFit", "fit_sweep", "fit_sweep_run"]
@@ -67,8 +67,9 @@ class StaticThrustMap:
         """The command that gives ``thrust_n`` in steady state (inverse by interpolation)."""
         lo, hi = self.thrust_n[0], self.thrust_n[-1]
         if not lo <= thrust_n <= hi:
-            raise RigError(f"{self.source or 'thrust map'}: setpoint {thrust_n:.3f} N outside "
-                           f"the measured range {lo:.3f}-{hi:.3f} N; sweep a wider range")
+            raise ThrustOutsideMap(f"{self.source or 'thrust map'}: setpoint {thrust_n:.3f} N "
+                                   f"outside the measured range {lo:.3f}-{hi:.3f} N; sweep a "
+                                   "wider range", float(lo), float(hi))
         return float(np.interp(thrust_n, self.thrust_n, self.command_us))
 
     def thrust_at(self, command_us: float | np.ndarray) -> np.ndarray:

@@ -92,17 +92,20 @@ _BATT_COLS = ("Voltage_V", "Capacity_mAh", "Discharge_Rate_C", "Weight_g")
 _BURST = "Max_Burst_Discharge_Rate_C"
 
 
-def _read(path: Path, needed: tuple[str, ...]) -> pd.DataFrame:
+def _read(path: Path, needed: tuple[str, ...], positive: tuple[str, ...] = ()) -> pd.DataFrame:
+    """The table with ``needed`` columns as numbers; ``positive`` ones must be > 0 (a part
+    without mass or resistance is a hole in the list, not a free lunch for the optimizer)."""
     if not path.is_file():
         raise CatalogError(f"{path}: SizingLab file not found")
     try:
-        frame = pd.read_csv(path, sep=";")
+        frame = pd.read_csv(path, sep=";", dtype=str, keep_default_na=False)  # as written
     except (pd.errors.ParserError, UnicodeDecodeError, pd.errors.EmptyDataError) as exc:
         raise CatalogError(f"{path}: not a semicolon-separated table ({exc})") from None
     frame.columns = [str(c).strip() for c in frame.columns]
     missing = [c for c in needed if c not in frame.columns]
     if missing:
         raise CatalogError(f"{path}: missing column(s) {', '.join(missing)}")
+    frame.attrs["as_written"] = frame[list(needed)].copy()  # for messages
     for col in needed:
         if col in ("TYPE", "Model", "Brand"):
             continue
@@ -112,8 +115,20 @@ def _read(path: Path, needed: tuple[str, ...]) -> pd.DataFrame:
             row = int(bad[0]) + 2  # 1-based, after the header line
             got = frame[col].iloc[bad[0]]
             raise CatalogError(f"{path}: line {row}, column {col}: expected a number, got {got!r}")
+        if col in positive:
+            _check_positive(path, frame.assign(**{col: values}), col, frame[col])
         frame[col] = values
     return frame
+
+
+def _check_positive(path: Path, frame: pd.DataFrame, col: str, raw: pd.Series,
+                    rows: str = "") -> None:
+    """Refuse the first value <= 0 of ``col``, naming its line (the frame keeps the file's
+    row index) and the value as written in the file."""
+    bad = frame.index[(frame[col] <= 0).to_numpy()]
+    if len(bad):
+        raise CatalogError(f"{path}: line {int(bad[0]) + 2}, column {col}: expected a number "
+                           f"> 0{rows}, got {str(raw.loc[bad[0]]).strip()}")
 
 
 def _slug(text: str) -> str:
@@ -131,10 +146,13 @@ def _unique(ids: list[str]) -> list[str]:
 
 def propellers_frame(folder: Path) -> pd.DataFrame:
     """APC MR propellers with static Ct/Cp (catalog columns, datasheet units)."""
-    data = _read(folder / "Propeller_Data.csv", _PROP_COLS)
+    data = _read(folder / "Propeller_Data.csv", _PROP_COLS, ("DIAMETER_IN", "BETA"))
     static = data[data["J_adv-ratio"] == 0]
     if static.empty:
         raise CatalogError(f"{folder / 'Propeller_Data.csv'}: no static rows (J_adv-ratio = 0)")
+    for col in ("Ct", "Cp"):  # other advance ratios may reach zero thrust, a static row not
+        _check_positive(folder / "Propeller_Data.csv", static, col,
+                        data.attrs["as_written"][col], " in a static row (J_adv-ratio = 0)")
     grouped = static.groupby(["DIAMETER_IN", "BETA"], sort=True)[["Ct", "Cp"]].mean()
     grouped = grouped.reset_index()
     d_in = grouped["DIAMETER_IN"].to_numpy(float)
@@ -162,7 +180,7 @@ def motor_inertia_kgm2(mass_g: np.ndarray) -> np.ndarray:
 
 
 def motors_frame(folder: Path) -> pd.DataFrame:
-    data = _read(folder / "Motors_Data.csv", _MOTOR_COLS)
+    data = _read(folder / "Motors_Data.csv", _MOTOR_COLS, ("Kv_rpm_v", "R_ohm", "Mass_g"))
     mass = data["Mass_g"].to_numpy(float)
     kv_rad = data["Kv_rpm_v"].to_numpy(float) * (2.0 * math.pi / 60.0)
     no_load = data["Io_A"].to_numpy(float)
@@ -193,7 +211,8 @@ def motors_frame(folder: Path) -> pd.DataFrame:
 def batteries_frame(folder: Path) -> pd.DataFrame:
     parts = []
     for name, brand in (("Batteries_Data.csv", "TYPE"), ("Batteries_Data_2.csv", "Brand")):
-        data = _read(folder / name, (brand, *_BATT_COLS, _BURST))
+        data = _read(folder / name, (brand, *_BATT_COLS, _BURST),
+                     ("Voltage_V", "Capacity_mAh", "Weight_g"))
         parts.append(
             pd.DataFrame(
                 {

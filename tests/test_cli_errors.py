@@ -62,7 +62,7 @@ def test_import_out_below_a_file(tmp_path: Path, capsys) -> None:
     f = tmp_path / "log.csv"
     f.write_text("t_s,thrust_n\n0,1\n0.1,2\n")
     err = run_bad(capsys, "import", str(f), "--format", "csv", "--out", str(f / "run"))
-    assert "cannot create its folder" in err
+    assert "log.csv is a file, not a folder" in err
 
 
 def test_import_long_time_gap_writes_few_parts(tmp_path: Path, capsys) -> None:
@@ -135,7 +135,7 @@ def test_step_out_is_a_file(tmp_path: Path, capsys) -> None:
     f = tmp_path / "notes.txt"
     f.write_text("keep me")
     err = run_bad(capsys, "step", "--repeats", "1", "--out", str(f))
-    assert "notes.txt: cannot create the run folder" in err
+    assert "--out" in err and "notes.txt: is a file; expected a folder" in err
     assert f.read_text() == "keep me"
 
 
@@ -294,7 +294,7 @@ def test_calibrate_runs_folder_is_a_file(tmp_path: Path, capsys) -> None:
     f.write_text("keep me")
     err = run_bad(capsys, "calibrate", "--quick", "--runs", str(f), "--out",
                   str(tmp_path / "cal.json"))
-    assert "--runs" in err and "notes.txt: cannot create the run folder" in err
+    assert "--runs" in err and "notes.txt: is a file; expected a folder" in err
     assert f.read_text() == "keep me" and not (tmp_path / "cal.json").exists()
 
 

@@ -15,8 +15,10 @@ from typing import Any
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-from bench.errors import RigError
-from bench.indexed_run import RunInterrupted
+from bench.commands._output import check_writable
+from bench.errors import RecordingError, RigError
+from bench.indexed_run import RunInterrupted, RunRecordingFailed
+from bench.run_budget import Budget, check_budget, project, row_rate_hz
 from bench.runner import RunOptions
 from bench.safety import LIMIT_FIELDS, effective_limits
 from bench.sequences import Segment, Sequence, format_plan
@@ -46,6 +48,9 @@ def add_common_arguments(p: argparse.ArgumentParser) -> None:
                    help="show rolling plots in a window (pyqtgraph); implies --realtime")
     p.add_argument("--realtime", action="store_true",
                    help="pace a simulated rig to the wall clock")
+    p.add_argument("--yes", action="store_true",
+                   help="run a plan longer than 1 h or projected above 2 GB of samples "
+                        "(refused without it; a plan longer than 24 h is always refused)")
     p.add_argument("--tick", type=float, default=0.02,
                    help="command/read period in seconds; limits are checked on every "
                         "sample, the reaction comes within one tick (default 0.02)")
@@ -93,6 +98,14 @@ def check_limits(rig: Any, seq: Sequence) -> None:
     effective_limits(rig.limits, seq.limits, source=f"sequence {seq.name!r}")
 
 
+def check_budget_of(rig: Any, seq: Sequence, args: argparse.Namespace) -> Budget:
+    """The plan's projected rig time and samples size, refused beyond the bounds of
+    ``bench.run_budget`` (above the confirmation bounds unless ``--yes``)."""
+    budget = project(plan_for(rig, seq, dry_run=True).duration_s, row_rate_hz(rig))
+    check_budget(budget, seq.where, bool(getattr(args, "yes", False)))
+    return budget
+
+
 def with_limits(seq: Sequence, extra: Mapping[str, float]) -> Sequence:
     if not extra:
         return seq
@@ -107,6 +120,7 @@ def print_dry_run(rig: Any, seq: Sequence) -> None:
     print(f"rig {rig.name} ({rig.path}); ESC {rig.esc.idle_us:g} us idle, "
           f"{rig.esc.min_us:g}-{rig.esc.max_us:g} us at {rig.esc.frame_rate_hz:g} Hz")
     print(format_plan(plan))
+    print(project(plan.duration_s, row_rate_hz(rig)).describe())
 
 
 def execute(rig: Any, seq: Sequence, args: argparse.Namespace,
@@ -115,6 +129,8 @@ def execute(rig: Any, seq: Sequence, args: argparse.Namespace,
     from drivers.factory import open_rig
 
     check_limits(rig, seq)
+    check_budget_of(rig, seq, args)
+    check_writable(args.out, "--out", folder=True)
     options = RunOptions(tick_s=args.tick, realtime=bool(args.realtime or args.live))
     stop = threading.Event()
     total = plan_for(rig, seq).duration_s
@@ -149,12 +165,16 @@ def execute(rig: Any, seq: Sequence, args: argparse.Namespace,
 @contextlib.contextmanager
 def say_where_an_interrupted_run_went(what: str, safe: str):
     """Ctrl-C / SIGTERM: one line on stderr naming the run folder and its recorded status
-    (after the progress bar has stopped), then the interrupt goes on (exit 130)."""
+    (after the progress bar has stopped), then the interrupt goes on (exit 130). A run
+    aborted by a failed write (disk full) becomes the one-line error (exit 2) saying the
+    same in this bench's words: what was made safe, where the partial run is."""
     try:
         yield
     except RunInterrupted as exc:
         print(f"rotorbench: {exc.summary(what, safe)}", file=sys.stderr, flush=True)
         raise
+    except RunRecordingFailed as exc:
+        raise RecordingError(exc.summary(what, safe)) from None
 
 
 @contextlib.contextmanager

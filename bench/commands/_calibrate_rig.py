@@ -30,6 +30,7 @@ from bench.commands._bench_common import (
     err_console,
     say_where_an_interrupted_run_went,
 )
+from bench.commands._output import check_writable
 from bench.commands.calibrate import (
     _check_out,
     calibrate_frame,
@@ -81,6 +82,7 @@ def run_on_rig(args: argparse.Namespace) -> int:
             print(format_plan(plan))
         return 0
     _check_out(args)
+    check_writable(args.runs, "--runs", folder=True)
     session = new_run_id("calibration")
     out = args.out or args.runs / f"{session}.json"
     try:

@@ -36,6 +36,7 @@ from analysis.errors import LogError
 from analysis.imu_calibration import load_calibration
 from analysis.imu_log import write_table
 from analysis.imu_recording import ImuRecording, load_recording
+from bench.commands._output import check_writable
 
 _PAPER_B_OPTIONS = ("gain", "acc_lowpass", "bias_seconds", "yaw_aligned")
 
@@ -95,11 +96,9 @@ def _check_args(args: argparse.Namespace) -> None:
         raise LogError(f"{args.out}: output must end in .csv or .parquet")
     if args.png is not None and args.png.suffix.lower() != ".png":
         raise LogError(f"{args.png}: the figure is a PNG; name it *.png")
-    for path in (args.out, args.png):
-        if path is not None and path.is_dir():
-            raise LogError(f"{path}: is a folder; expected the name of the file to write")
-        if path is not None and not path.parent.is_dir():
-            raise LogError(f"{path}: folder {path.parent} does not exist")
+    for path, flag in ((args.out, "--out"), (args.png, "--png")):
+        if path is not None:
+            check_writable(path, flag, folder=False, make_parents=False)
 
 
 def _paper_b_run(rec: ImuRecording, args: argparse.Namespace) -> FilterRun:

@@ -32,6 +32,7 @@ from analysis.imu_calibration import (
     save_calibration,
 )
 from analysis.imu_log import load_calibration_log, load_imu_log, write_table
+from bench.commands._output import check_writable
 
 _XYZ = ("x", "y", "z")
 
@@ -106,12 +107,10 @@ def handler(args: argparse.Namespace) -> int:
 
 
 def _check_out(args: argparse.Namespace) -> None:
-    if args.out is not None and not args.out.parent.is_dir():
-        raise LogError(f"{args.out}: folder {args.out.parent} does not exist")
-    if args.out is not None and args.out.is_dir():
-        raise LogError(f"{args.out}: is a folder; expected the name of the JSON to write")
-    if args.figures is not None and args.figures.exists() and not args.figures.is_dir():
-        raise LogError(f"--figures {args.figures}: is a file; expected a folder")
+    if args.out is not None:
+        check_writable(args.out, "--out", folder=False, make_parents=False)
+    if args.figures is not None:
+        check_writable(args.figures, "--figures", folder=True)
     for flag, value in (("--gyro-range-dps", args.gyro_range_dps),
                         ("--acc-range-g", args.acc_range_g), ("--max-lag", args.max_lag)):
         if not (math.isfinite(value) and value > 0):
@@ -142,6 +141,7 @@ def finish(cal: Calibration, df, args: argparse.Namespace, out: Path | None, sou
 
 
 def _apply(args: argparse.Namespace) -> int:
+    check_writable(args.apply_out, "--out", folder=False, make_parents=False)
     cal = load_calibration(args.cal)
     df = load_imu_log(args.log)
     out = apply_to_frame(cal, df)
@@ -158,10 +158,7 @@ def _simulate(args: argparse.Namespace) -> int:
 
     if args.simulate_log.suffix.lower() not in (".csv", ".parquet"):
         raise LogError(f"{args.simulate_log}: simulated log must end in .csv or .parquet")
-    if not args.simulate_log.parent.is_dir():
-        raise LogError(f"{args.simulate_log}: folder {args.simulate_log.parent} does not exist")
-    if args.simulate_log.is_dir():
-        raise LogError(f"{args.simulate_log}: is a folder; expected the name of the log")
+    check_writable(args.simulate_log, "--simulate-log", folder=False, make_parents=False)
     m = ADIS16400
     seed = 0 if args.seed is None else args.seed
     cols = simulate_calibration_log(m, paper_a_protocol(m.rate_hz, short=args.short),

@@ -17,6 +17,7 @@ import numpy as np
 from rich.console import Console
 from rich.table import Table
 
+from bench.commands._output import check_writable
 from bench.constants_store import ActuatorKey, ConstantsStore
 from bench.errors import RigError
 
@@ -140,6 +141,8 @@ def _flight_extras(step: Any, static: Any) -> dict[str, float]:
 
 
 def handler(args: argparse.Namespace) -> int:
+    if args.add:
+        check_writable(args.out, "--out", folder=True)
     store = ConstantsStore(args.out)
     for run in args.add:
         key, kind, run_id, data = fit_for_store(run)

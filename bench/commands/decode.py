@@ -67,7 +67,7 @@ def _decode_bytes(protocol: str, side: str, data: bytes) -> tuple[list[dict[str,
         dec = gx3.Gx3Decoder()
         located = dec.feed_located(data) + dec.flush_located()
         return [{"offset": loc.offset, **_fields(loc.message)} for loc in located], dec.stats
-    dec = gcs.GcsReplyDecoder() if side == "device" else gcs.GcsCommandDecoder()
+    dec = gcs.GcsReplyDecoder(strict=True) if side == "device" else gcs.GcsCommandDecoder()
     located = dec.feed_located(data) + dec.flush_located()
     return [_gcs_record(loc) for loc in located], dec.stats
 

@@ -29,6 +29,7 @@ import numpy as np
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
+from bench.commands._output import check_writable
 from bench.commands.optimize import PAPER_E_CASES
 from bench.errors import RigError
 
@@ -151,7 +152,7 @@ def handler(args: argparse.Namespace) -> int:
         raise RigError(f"--combos: expected a count >= 1, got {args.combos}")
     if args.repeats < 1:
         raise RigError(f"--repeats: expected a count >= 1, got {args.repeats}")
-    out = check_out(args.out)
+    out = check_writable(check_out(args.out), "--out", folder=True, beside=True)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent))
     runs_root, figs, tabs = tmp / "runs", tmp / "figures", tmp / "tables"

@@ -89,7 +89,11 @@ def write_run(out: Path, samples, meta: dict) -> Path:
 
 def handler(args: argparse.Namespace) -> int:
     from analysis.importers import import_log
+    from bench.commands._output import check_writable
 
+    if args.out.exists():
+        raise RigError(f"--out {args.out}: already exists (choose a new run folder)")
+    check_writable(args.out, "--out", folder=True, beside=True)
     samples, meta = import_log(args.file, args.fmt, parse_mapping(args.mapping) or None)
     meta = {"kind": "import", "components": {}, "import": meta}
     out = write_run(args.out, samples, meta)

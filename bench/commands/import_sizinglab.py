@@ -28,9 +28,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def handler(args: argparse.Namespace) -> int:
+    from bench.commands._output import check_writable
     from optimizer.catalog import load_catalog
     from optimizer.sizinglab import import_to_folder
 
+    check_writable(args.out, "--out", folder=True, beside=True)
     out = import_to_folder(args.source, args.out)
     catalog = load_catalog(out)
     print(

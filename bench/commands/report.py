@@ -19,6 +19,7 @@ from typing import Any
 
 from rich.console import Console
 
+from bench.commands._output import check_writable
 from bench.errors import RigError
 
 G0 = 9.80665
@@ -153,6 +154,7 @@ def handler(args: argparse.Namespace) -> int:
         # a run folder or a user's file
         raise RigError(f"--out {out}: exists and is not a report folder (no report.json in "
                        "it); refusing to replace it, choose a new folder")
+    check_writable(out, "--out", folder=True, beside=True)
     tmp = out.with_name(f".{out.name}.tmp")
     if tmp.exists():
         shutil.rmtree(tmp)

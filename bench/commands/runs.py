@@ -9,6 +9,7 @@ from pathlib import Path
 from rich.console import Console
 from rich.table import Table
 
+from bench.commands._output import check_writable
 from bench.run_index import INDEX_NAME, RunIndex
 
 
@@ -25,6 +26,8 @@ def handler(args: argparse.Namespace) -> int:
     if not (args.out / INDEX_NAME).exists() and not args.rebuild:
         print(f"no runs recorded under {args.out} (no {INDEX_NAME})")
         return 0
+    if args.rebuild:
+        check_writable(args.out, "--out", folder=True)
     index = RunIndex(args.out)
     if args.rebuild:
         index.rebuild()

@@ -12,7 +12,7 @@ from bench.sequences import load_sequence, step1, step2
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
         "step", help="run Paper C thrust steps (Step 1 / Step 2) and record them",
-        description="Thrust steps between hover -30 %% and +30 %% (175 g and 325 g per rotor "
+        description="Thrust steps between hover -30 % and +30 % (175 g and 325 g per rotor "
                     "of the 1 kg quadcopter, Paper C section 4). Setpoints become ESC "
                     "commands through the rig's static thrust map; if the rig has none yet, "
                     "a sweep measures it first and stores it with the rig (for a shipped or "
@@ -46,6 +46,7 @@ def handler(args: argparse.Namespace) -> int:
                   "(`rotorbench sweep --dry-run` shows it); thrust-step commands shown as (map)")
         common.print_dry_run(rig, seq)
         return 0
+    common.check_budget_of(rig, seq, args)  # before a sweep for a missing map could start
     if rig.thrust_map is None and seq.needs_thrust_map:
         from bench.commands.sweep import measure_map
 

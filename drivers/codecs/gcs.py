@@ -348,6 +348,7 @@ class _TextDecoder:
     """Shared line splitting with counters (``DecoderStats``); never raises or blocks."""
 
     keep: frozenset[int] = frozenset()
+    keep_inside = False  # a byte never in GCS text inside a message: keep it (to reject)
 
     def __init__(self, max_bytes: int = DEFAULT_MAX_REPLY) -> None:
         self.stats = DecoderStats()
@@ -386,7 +387,7 @@ class _TextDecoder:
                 st.garbage_bytes += 1
                 self._overflow = b != 0x0A
                 continue
-            if b in _BAD and b not in self.keep:
+            if b in _BAD and b not in self.keep and not (self.keep_inside and self._cur):
                 st.garbage_bytes += 1
                 continue
             if not self._cur:
@@ -412,15 +413,38 @@ class _TextDecoder:
         raise NotImplementedError
 
 
+# what a controller's reply is made of (§6.1): printable ASCII lines (TAB, CRLF allowed),
+# or the single ready/busy character of ``#7``
+_REPLY_TEXT = re.compile(r"[\x20-\x7e\t\r\n]*")
+
+
+def is_reply_text(text: str) -> bool:
+    """True if ``text`` (a terminated reply, cp1252) can be a GCS controller's reply."""
+    return text.strip() in (READY_CHAR, BUSY_CHAR) or _REPLY_TEXT.fullmatch(text) is not None
+
+
 class GcsReplyDecoder(_TextDecoder):
-    """Splits the controller's byte stream into ``GcsReply``s (§6.1 termination rule)."""
+    """Splits the controller's byte stream into ``GcsReply``s (§6.1 termination rule).
+
+    ``strict`` (``rotorbench decode``): only what can be a controller's reply
+    (:func:`is_reply_text`) is a message; a line with other bytes, control bytes inside it
+    included, counts as garbage. Random bytes then decode to (almost) nothing instead of a
+    "reply" per line feed. The driver keeps the lenient default: a reply it cannot parse
+    is reported by the parser, not silently dropped.
+    """
+
+    def __init__(self, max_bytes: int = DEFAULT_MAX_REPLY, strict: bool = False) -> None:
+        super().__init__(max_bytes)
+        self.strict = self.keep_inside = strict
 
     def _step(self, b: int) -> object | None:
         cur = self._cur
         if b != 0x0A or (len(cur) >= 2 and cur[-2] == 0x20):
             return None
-        text = cur.decode(ENCODING)
+        text = cur.decode(ENCODING, errors="replace")
         if not text.strip():  # an empty line is not a reply
+            return _DROP
+        if self.strict and not is_reply_text(text):
             return _DROP
         lines = text[:-1].split("\n")
         return GcsReply(tuple((ln[:-1] if ln.endswith(" ") else ln).rstrip("\r") for ln in lines))

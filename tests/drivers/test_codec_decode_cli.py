@@ -93,3 +93,22 @@ def test_bad_hex_dump_names_the_line(capsys, tmp_path):
     code = main(["decode", "--protocol", "msp", str(path)])
     _, err = capsys.readouterr()
     assert code == 2 and "x.hex:3" in err and "'ZZ'" in err
+
+
+def test_gcs_random_bytes_are_garbage_not_replies(capsys, tmp_path):
+    """4 kB of random bytes used to give 22 'messages' (one per line feed)."""
+    import random
+
+    noise = tmp_path / "noise.bin"
+    noise.write_bytes(random.Random(10).randbytes(4096))
+    code, recs, _ = _run(capsys, "--protocol", "gcs", str(noise))
+    stats = recs[-1]
+    assert code == 0 and stats["messages"] == len(recs) - 1 <= 1
+    assert stats["garbage_bytes"] >= 4096 - 8 and stats["bytes_in"] == 4096
+    # real replies around the noise still decode, noise between them is garbage
+    real = (T / "gcs/replies.txt").read_bytes()
+    mixed = tmp_path / "mixed.bin"
+    mixed.write_bytes(real + random.Random(10).randbytes(4096) + b"\n" + real)
+    code, recs, _ = _run(capsys, "--protocol", "gcs", str(mixed))
+    kinds = [r["kind"] for r in recs[:-1]]
+    assert kinds.count("axis_values") == 2 and kinds.count("data_array") == 2

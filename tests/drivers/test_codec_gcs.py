@@ -161,3 +161,26 @@ def test_fuzz_noise_never_raises(noise, cuts):
         for r in [x.message for x in props.feed_chunked(make(), noise, [])]:
             if isinstance(r, gcs.GcsReply):
                 gcs.reply_kind(r)  # the classifier accepts any reply
+
+
+def test_strict_decoder_takes_only_what_a_controller_can_send():
+    real = (T / "replies.txt").read_bytes()
+    for data in (real, real.replace(b"\n", b"\r\n"), gcs.encode_reply([gcs.READY_CHAR])):
+        lenient, strict = gcs.GcsReplyDecoder(), gcs.GcsReplyDecoder(strict=True)
+        assert strict.feed(data) == lenient.feed(data) != []
+    dec = gcs.GcsReplyDecoder(strict=True)
+    # a control byte inside a line, a byte above ASCII, then a good reply
+    assert dec.feed(b"X=1\x02.5\n\xe9t\xe9\nY=2\n") == [gcs.GcsReply(("Y=2",))]
+    s = dec.stats
+    assert s.messages == 1 and s.garbage_bytes == 11 and s.bytes_in == s.frame_bytes + 11
+    assert gcs.GcsReplyDecoder().feed(b"X=1\x02.5\n") == [gcs.GcsReply(("X=1.5",))]  # lenient
+
+
+@FUZZ
+@given(st.binary(min_size=1, max_size=600))
+def test_fuzz_strict_replies_are_reply_text(noise):
+    dec = gcs.GcsReplyDecoder(strict=True)
+    for r in dec.feed(noise) + dec.flush():
+        assert gcs.is_reply_text(" \n".join(r.lines) + "\n")
+    s = dec.stats
+    assert dec.buffered == 0 and s.bytes_in == s.frame_bytes + s.garbage_bytes

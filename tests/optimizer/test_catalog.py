@@ -259,3 +259,16 @@ def test_from_frames_validates_the_same_way():
         Catalog.from_frames(
             props, pd.read_csv(THESIS_E / "motors.csv"), batts, {"rho": 1.2}, source="mem"
         )
+
+
+@pytest.mark.parametrize(("file", "column"), [
+    ("batteries.csv", "mass_g"), ("batteries.csv", "capacity_mah"),
+    ("motors.csv", "mass_g"), ("motors.csv", "kv_rpm_per_v"), ("motors.csv", "resistance_ohm"),
+    ("propellers.csv", "mass_g"), ("propellers.csv", "diameter_m"),
+])
+@pytest.mark.parametrize("value", ["0", "-2"])
+def test_part_without_mass_capacity_kv_diameter_or_resistance(cat_dir, file, column, value):
+    """A 0 g battery was accepted and the optimizer promised an 85 min flight with it."""
+    _set_cell(cat_dir / file, 2, column, value)
+    _fails(cat_dir, f"{cat_dir / file}: data row 2 (line 3), column '{column}': "
+                    f"expected a number > 0, got {value}")

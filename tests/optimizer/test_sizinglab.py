@@ -80,3 +80,50 @@ def test_bad_folder_and_bad_file(tmp_path, sizinglab) -> None:
     (tmp_path / "Motors_Data.csv").write_text("\n".join(lines) + "\n", encoding="utf-8")
     with pytest.raises(CatalogError, match=r"Motors_Data.csv: line 2, column R_ohm"):
         import_sizinglab(tmp_path)
+
+
+def _tiny_sizinglab(folder, *, prop=None, motor=None, battery=None):
+    """A two-row-per-file SizingLab folder; ``prop``/``motor``/``battery`` = (column, value)
+    replaced in the second data row (line 3)."""
+    files = {
+        "Propeller_Data.csv": ("BETA;J_adv-ratio;Ct;Cp;DIAMETER_IN",
+                               ["0.45;0;0.11;0.043;10", "0.45;0;0.12;0.05;12"], prop),
+        "Motors_Data.csv": ("TYPE;Model;Kv_rpm_v;Io_A;R_ohm;Mass_g;Imax_A;Voltage;Tnom_Nm",
+                            ["AXI;A1;1525;0.4;0.39;18.5;7;7.4;0.032",
+                             "AXI;A2;900;0.5;0.1;60;20;11.1;0.2"], motor),
+        "Batteries_Data.csv": ("TYPE;Voltage_V;Capacity_mAh;Discharge_Rate_C;Weight_g;"
+                               "Max_Burst_Discharge_Rate_C",
+                               ["T;11.1;1300;45;119;90", "T;11.1;2200;45;180;90"], battery),
+        "Batteries_Data_2.csv": ("Brand;Voltage_V;Capacity_mAh;Discharge_Rate_C;Weight_g;"
+                                 "Max_Burst_Discharge_Rate_C",
+                                 ["U;14.8;1300;75;150;150", "U;14.8;5000;25;500;50"], None),
+    }
+    folder.mkdir()
+    for name, (header, rows, change) in files.items():
+        if change is not None:
+            cols = header.split(";")
+            cells = rows[1].split(";")
+            cells[cols.index(change[0])] = change[1]
+            rows = [rows[0], ";".join(cells)]
+        (folder / name).write_text("\n".join([header, *rows]) + "\n")
+    return folder
+
+
+@pytest.mark.parametrize(("kind", "file", "column"), [
+    ("motor", "Motors_Data.csv", "Mass_g"), ("motor", "Motors_Data.csv", "R_ohm"),
+    ("motor", "Motors_Data.csv", "Kv_rpm_v"), ("battery", "Batteries_Data.csv", "Weight_g"),
+    ("battery", "Batteries_Data.csv", "Capacity_mAh"), ("prop", "Propeller_Data.csv", "Ct"),
+    ("prop", "Propeller_Data.csv", "DIAMETER_IN"),
+])
+@pytest.mark.parametrize("value", ["0", "-1.5"])
+def test_parts_without_mass_capacity_kv_diameter_or_resistance(tmp_path, kind, file, column,
+                                                               value) -> None:
+    good = _tiny_sizinglab(tmp_path / "good")
+    assert len(import_sizinglab(good).motors) == 2  # the folder itself imports
+    folder = _tiny_sizinglab(tmp_path / "bad", **{kind: (column, value)})
+    with pytest.raises(CatalogError, match=rf"^{folder / file}: line 3, column {column}: "
+                                           rf"expected a number > 0.*, got {value}$"):
+        import_sizinglab(folder)
+    with pytest.raises(CatalogError):
+        import_to_folder(folder, tmp_path / "out")
+    assert not (tmp_path / "out").exists()
