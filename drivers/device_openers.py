@@ -474,7 +474,8 @@ class DeviceOpener:
         e = self.rig.esc
         settings = ni.PwmSettings(f"{_ni_device(spec)}/{chans[0]}", e.frame_rate_hz, e.min_us,
                                   e.max_us, e.idle_us,
-                                  spec.number("host_timeout_s", 0.5, lo=0.02, hi=10.0))
+                                  spec.number("host_timeout_s", 0.5, lo=0.02, hi=10.0),
+                                  spec.number("dead_host_s", 0.25, lo=0.01, hi=10.0))
         try:
             esc = ni.NiPwmEsc(settings, url=spec.url)
         except DeviceError:
