@@ -201,7 +201,8 @@ class DeviceOpener:
         self.answers[spec.role] = (f"flight controller {variant}, MSP API "
                                    f"{api.api_major}.{api.api_minor}, motor {motor}")
         e = self.rig.esc
-        esc = msp_fc.MspMotorEsc(client, motor, min_us=e.min_us, max_us=e.max_us, url=spec.url)
+        esc = msp_fc.MspMotorEsc(client, motor, min_us=e.min_us, max_us=e.max_us, url=spec.url,
+                                 propellers_off=spec.flag("propellers_off", False))
         self._probes[spec.role] = lambda _t: (client.identify(), self.answers[spec.role])[1]
         return esc
 

@@ -164,3 +164,42 @@ def test_kill_9_of_the_host_stops_the_dronecan_esc_within_its_timeout():
     assert took <= 0.5 + 0.05, f"DroneCAN ESC stopped {took:.3f} s after the kill (bound 0.5 s)"
     print(f"DroneCAN: ESC stopped {took:.3f} s after kill -9 (bound 0.5 s + 5 ms tick)")
 
+
+
+MSP_CHILD = r"""
+import sys, time
+from drivers.backends.msp_fc import MspClient, MspMotorEsc
+from drivers.backends.serial_link import open_port
+
+client = MspClient(open_port(sys.argv[1], 115200), "fc", timeout_s=0.5)
+esc = MspMotorEsc(client, 0, propellers_off=True)
+esc.arm()
+while True:
+    esc.set_pulse_us(1500.0)
+    time.sleep(0.01)
+"""
+
+
+@pytest.mark.slow
+def test_kill_9_of_the_host_leaves_the_msp_motor_test_running_as_betaflight_does():
+    """Why the MSP backend is refused for propellers-on runs: nothing stops the motor."""
+    pytest.importorskip("serial")
+    from drivers.wire_sim.msp_fc import SimFlightController
+
+    fc = SimFlightController(lambda _t: ((0.0, 0.0, 9.8), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)))
+    fc.start()
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    child = subprocess.Popen([sys.executable, "-c", MSP_CHILD, fc.path], env=env, cwd=REPO)
+    try:
+        deadline = time.monotonic() + 30.0
+        while fc.motors()[0] != 1500:
+            assert child.poll() is None and time.monotonic() < deadline
+            time.sleep(0.01)
+        child.send_signal(signal.SIGKILL)
+        child.wait(timeout=10)
+        time.sleep(1.5)  # longer than every other backend's bound
+        assert fc.motors()[0] == 1500  # still spinning: the FC holds the last value
+    finally:
+        if child.poll() is None:
+            child.kill()
+        fc.stop()
