@@ -23,6 +23,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from bench.drops import DropCounter
 from bench.recorder import RunRecorder
 from bench.safety import LimitTrip, Trip
 from bench.watchdog import HostWatchdog, WatchdogTrip
@@ -100,6 +101,7 @@ class SafeRunLoop:
         self._wall0 = 0.0
         self._segment: Any = None
         self._heard: dict[str, float] = {}
+        self.drops = DropCounter()  # missed or late samples per role, for run.json
 
     # -- what a subclass fills in -------------------------------------------------------
 
@@ -197,6 +199,7 @@ class SafeRunLoop:
         """One block from a device, stamped relative to the run start; a device silent for
         longer than ``stale_s`` ends the run."""
         b = read()
+        self.drops.update(role, b.t_s, b.values)
         if len(b):
             self._heard[role] = now
         elif now - self._heard.get(role, 0.0) > self.options.stale_s:
@@ -251,9 +254,11 @@ class SafeRunLoop:
                         detail={"errors": errors} if errors else None)
             self._event("run_end", label=res.status, detail={"reason": res.reason})
         finally:
+            drops = self.drops.summary()
+            marks = ["drops"] if drops["dropped_samples"] else []
             self.recorder.finish(res.status, res.reason, trip=trip.to_dict() if trip else None,
                                  safe_stop_errors=errors, duration_s=res.t_end_s,
-                                 **self._finish_fields())
+                                 **drops, marks=marks, **self._finish_fields())
 
 
 @contextlib.contextmanager
