@@ -257,3 +257,33 @@ def start_dronecan_esc(plant: WirePlant, link, node_id: int, esc_index: int,
 
     return PlantDroneCanEsc(link, node_id, esc_index, model,
                             status_period_s=status_period_s).start()
+
+
+def start_vesc_uart(plant: WirePlant, pole_pairs: int):
+    """A VESC on a pty (USB/UART packets); duty commands drive the plant, GET_VALUES
+    reports its state; the firmware's 1 s command timeout reaches the motor."""
+    from drivers.wire_sim.vesc import VescCommand, VescState
+    from drivers.wire_sim.vesc_uart import SimVescUart
+
+    def fraction(cmd: VescCommand) -> float:
+        return cmd.value if cmd.kind == "duty" else 0.0  # current 0 / release: coast
+
+    def model(_t: float, cmd: VescCommand) -> VescState:
+        tr = plant.truth()
+        return VescState(erpm=tr.rpm * pole_pairs, motor_current_a=tr.current_winding_a,
+                         duty=max(tr.duty, 0.0), input_current_a=tr.current_bus_a,
+                         voltage_in_v=tr.voltage_bus_v, temp_fet_c=ESC_TEMPERATURE_C,
+                         temp_motor_c=ESC_TEMPERATURE_C)
+
+    class PlantVescUart(SimVescUart):
+        def applied(self, command: VescCommand) -> None:
+            plant.command_fraction(fraction(command))
+
+        def _tick(self) -> bytes:
+            released = self.timeouts
+            out = super()._tick()
+            if self.timeouts > released:  # the timeout released the motor
+                plant.command_fraction(0.0)
+            return out
+
+    return PlantVescUart(model).start()

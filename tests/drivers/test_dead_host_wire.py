@@ -203,3 +203,47 @@ def test_kill_9_of_the_host_leaves_the_msp_motor_test_running_as_betaflight_does
         if child.poll() is None:
             child.kill()
         fc.stop()
+
+
+VESC_UART_CHILD = r"""
+import sys, time
+from drivers.backends.serial_link import open_port
+from drivers.backends.vesc_uart import VescUartEsc, VescUartLink, VescUartSettings
+
+esc = VescUartEsc(VescUartLink(open_port(sys.argv[1], 115200), "vesc"), VescUartSettings())
+esc.arm()
+while True:
+    esc.set_pulse_us(1500.0)
+    time.sleep(0.01)
+"""
+
+
+@pytest.mark.slow
+def test_kill_9_of_the_host_releases_the_vesc_on_usb_within_its_timeout():
+    pytest.importorskip("serial")
+    from drivers.wire_sim.vesc_uart import SimVescUart
+
+    vesc = SimVescUart(_model).start()
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    child = subprocess.Popen([sys.executable, "-c", VESC_UART_CHILD, vesc.path], env=env,
+                             cwd=REPO)
+    try:
+        deadline = time.monotonic() + 30.0
+        while not (vesc.command.kind == "duty" and vesc.command.value > 0.4):
+            assert child.poll() is None and time.monotonic() < deadline
+            time.sleep(0.01)
+        time.sleep(0.3)
+        child.send_signal(signal.SIGKILL)
+        killed = time.monotonic()
+        child.wait(timeout=10)
+        while vesc.command.kind != "release":
+            assert time.monotonic() - killed < 3.0, "the VESC never released the motor"
+            time.sleep(0.002)
+        took = time.monotonic() - killed
+    finally:
+        if child.poll() is None:
+            child.kill()
+        vesc.stop()
+    assert vesc.timeouts == 1
+    assert took <= 1.0 + 0.05, f"VESC released {took:.3f} s after the kill (bound 1 s)"
+    print(f"VESC (USB/UART): motor released {took:.3f} s after kill -9 (bound 1.0 s)")
