@@ -105,6 +105,10 @@ class SafeRunLoop:
 
     # -- what a subclass fills in -------------------------------------------------------
 
+    def _expected_rates(self) -> dict[str, float]:
+        """Sample rates the devices state, per role (for counting drops); none known here."""
+        return {}
+
     def _drain(self) -> None:
         """Discard what the sensors buffered before the run."""
         raise NotImplementedError
@@ -138,6 +142,8 @@ class SafeRunLoop:
         pending: BaseException | None = None
         try:
             self._drain()
+            for role, rate in self._expected_rates().items():
+                self.drops.expect(role, rate)
             self._t0 = self.rig.clock.now()
             self._wall0 = time.monotonic()
             self._event("run_start", detail={"rig_t0_s": self._t0,
