@@ -18,7 +18,7 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
-from drivers.backends.can_esc_guard import HostGuardedCanEsc
+from drivers.backends.can_esc_guard import DutyEsc
 from drivers.backends.row_stream import block_from_rows
 from drivers.backends.serial_link import Deadline, read_some, write_all
 from drivers.codecs import vesc_uart as vu
@@ -66,41 +66,19 @@ class VescUartSettings:
     keepalive_s: float = 0.1
     host_timeout_s: float = 0.5
 
-    def duty(self, pulse_us: float) -> float:
-        return min(1.0, max(0.0, (pulse_us - self.min_us) / (self.max_us - self.min_us)))
 
-
-class VescUartEsc(HostGuardedCanEsc):
+class VescUartEsc(DutyEsc):
     """The bench ESC on a VESC's USB/UART port (``drivers.contracts.Esc``)."""
 
     def __init__(self, link: VescUartLink, settings: VescUartSettings,
                  url: str = "serial://vesc") -> None:
-        if settings.keepalive_s >= COMMAND_TIMEOUT_S:
-            raise DeviceError(f"{url}: keepalive_s must be below the VESC's "
-                              f"{COMMAND_TIMEOUT_S} s command timeout")
-        self.link = link
-        self.settings = settings
-        self._pulse_us = settings.min_us
-        super().__init__(url, settings.keepalive_s, settings.host_timeout_s,
-                         f"vesc-uart-keepalive-{url}")
+        super().__init__(link, settings, url, COMMAND_TIMEOUT_S, f"vesc-uart-keepalive-{url}")
 
     def describe(self) -> DeviceInfo:
-        s = self.settings
-        return DeviceInfo(
-            kind="esc", model="VESC (USB/UART)", url=self.url,
-            channels=(ChannelInfo("throttle_us", "us", 1.0 / s.keepalive_s, s.min_us, s.max_us),),
-            extra={"keepalive_s": s.keepalive_s, "host_timeout_s": s.host_timeout_s,
-                   "command": "SET_DUTY (linear)", "dead_host_s": COMMAND_TIMEOUT_S})
-
-    def _hold(self, pulse_us: float) -> None:
-        s = self.settings
-        self._pulse_us = min(s.max_us, max(s.min_us, pulse_us))
-
-    def _hold_idle(self) -> None:
-        self._pulse_us = self.settings.min_us
+        return self._info("VESC (USB/UART)", {"dead_host_s": COMMAND_TIMEOUT_S})
 
     def _send_held(self) -> None:
-        duty = self.settings.duty(self._pulse_us) if self._armed else 0.0
+        duty = self._duty()
         self.link.send(vu.SetDuty(duty) if duty > 0.0 else vu.SetCurrent(0.0))
 
     def _send_stop(self) -> None:
