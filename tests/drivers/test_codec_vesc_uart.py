@@ -83,20 +83,8 @@ frames = st.one_of(
     .map(lambda m: (vu.encode(m), m)))
 
 
-@st.composite
-def streams(draw, garbage=None, damaged=True):
-    garbage = st.binary(max_size=12) if garbage is None else garbage
-    pieces = []
-    for frame, msg in draw(st.lists(frames, min_size=1, max_size=8)):
-        if draw(st.booleans()):
-            pieces.append(props.Piece(draw(garbage)))
-        if damaged and draw(st.integers(0, 4)) == 0:
-            pieces.append(props.damage(frame, draw(st.data())))
-        else:
-            pieces.append(props.Piece(frame, msg, intact=True))
-    data, intact = props.assemble(pieces)
-    cuts = draw(st.lists(st.integers(0, len(data)), max_size=6))
-    return data, intact, cuts
+def streams(garbage=None, damaged=True):
+    return props.streams(frames, garbage, damaged)
 
 
 def _host_decoder():
