@@ -27,8 +27,9 @@ from drivers.errors import DeviceError
 
 COMMAND_TIMEOUT_S = 1.0  # §3.2 APPCONF_TIMEOUT_MSEC 1000
 # the columns of the CAN backend's VescTelemetry, so rigs swap the wire without changes
-TELEMETRY_CHANNELS = ("rpm", "current_a", "voltage_v", "motor_current_a", "duty", "temp_fet_c",
-                      "temp_motor_c")
+TELEMETRY_UNITS = {"rpm": "rpm", "current_a": "A", "voltage_v": "V", "motor_current_a": "A",
+                   "duty": "1", "temp_fet_c": "degC", "temp_motor_c": "degC"}
+TELEMETRY_CHANNELS = tuple(TELEMETRY_UNITS)
 
 
 class VescUartLink:
@@ -108,10 +109,8 @@ class VescUartTelemetry:
         self._thread.start()
 
     def describe(self) -> DeviceInfo:
-        units = {"rpm": "rpm", "current_a": "A", "voltage_v": "V", "motor_current_a": "A",
-                 "duty": "1", "temp_fet_c": "degC", "temp_motor_c": "degC"}
         return DeviceInfo(kind="esc_telemetry", model="VESC GET_VALUES (USB/UART)", url=self.url,
-                          channels=tuple(ChannelInfo(n, units[n], self.rate_hz)
+                          channels=tuple(ChannelInfo(n, TELEMETRY_UNITS[n], self.rate_hz)
                                          for n in TELEMETRY_CHANNELS),
                           extra={"pole_pairs": self.pole_pairs,
                                  "controller_id": self.firmware.controller_id})
