@@ -32,6 +32,7 @@ from bench.errors import RigError
 from bench.hexapod_runner import RECORD_BASE, HexapodRunner, HexapodRunOptions, ImuBenchLike
 from bench.indexed_run import indexed_run
 from bench.run_loop import RunResult
+from drivers.hexapod_contracts import Trajectory
 
 __all__ = ["CalibrationRun", "StageOutcome", "collect_log", "plans_for", "run_calibration",
            "run_stage"]
@@ -68,6 +69,19 @@ def _rig_summary(rig: Any) -> dict[str, Any]:
     return {"name": rig.name, "path": str(rig.path), "kind": "imu",
             "devices": {r: {"url": d.url} for r, d in rig.devices.items()},
             "hexapod": dataclasses.asdict(rig.hexapod), "imu": dataclasses.asdict(rig.imu)}
+
+
+def preflight(bench: Any, plans: Sequence[HexapodPlan], rate_hz: float) -> None:
+    """Every motion of every stage against what the controller itself reports (travel
+    limits, referenced, servo), before anything moves; a hexapod that cannot tell
+    (no ``check_motion``) is checked against the rig file's limits only."""
+    check = getattr(bench.hexapod, "check_motion", None)
+    if check is None:
+        return
+    for plan in plans:
+        for seg in plan.segments:
+            if seg.kind == "move" and seg.motion is not None:
+                check(Trajectory.from_motion(seg.motion, rate_hz))
 
 
 def run_stage(bench: ImuBenchLike, rig: Any, plan: HexapodPlan, out_root: Path, *,
@@ -119,6 +133,8 @@ def run_calibration(rig: Any, out_root: Path, *, quick: bool = False, seed: int 
     out = CalibrationRun(planned=len(plans))
     bench = open_bench(rig, seed=seed)
     try:
+        preflight(bench, plans, (options.trajectory_rate_hz if options is not None
+                                 else rig.hexapod.trajectory_rate_hz))
         sim = getattr(bench, "sim", None)
         if sim is not None:
             truth = sim.truth()

@@ -23,6 +23,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from bench.drops import DropCounter
 from bench.errors import RecordingError
 from bench.recorder import RunRecorder
 from bench.safety import LimitTrip, Trip
@@ -105,8 +106,13 @@ class SafeRunLoop:
         self._wall0 = 0.0
         self._segment: Any = None
         self._heard: dict[str, float] = {}
+        self.drops = DropCounter()  # missed or late samples per role, for run.json
 
     # -- what a subclass fills in -------------------------------------------------------
+
+    def _expected_rates(self) -> dict[str, float]:
+        """Sample rates the devices state, per role (for counting drops); none known here."""
+        return {}
 
     def _drain(self) -> None:
         """Discard what the sensors buffered before the run."""
@@ -141,6 +147,8 @@ class SafeRunLoop:
         pending: BaseException | None = None
         try:
             self._drain()
+            for role, rate in self._expected_rates().items():
+                self.drops.expect(role, rate)
             self._t0 = self.rig.clock.now()
             self._wall0 = time.monotonic()
             self._event("run_start", detail={"rig_t0_s": self._t0,
@@ -203,6 +211,7 @@ class SafeRunLoop:
         """One block from a device, stamped relative to the run start; a device silent for
         longer than ``stale_s`` ends the run."""
         b = read()
+        self.drops.update(role, b.t_s, b.values)
         if len(b):
             self._heard[role] = now
         elif now - self._heard.get(role, 0.0) > self.options.stale_s:
@@ -257,9 +266,11 @@ class SafeRunLoop:
                         detail={"errors": errors} if errors else None)
             self._event("run_end", label=res.status, detail={"reason": res.reason})
         finally:
+            drops = self.drops.summary()
+            marks = ["drops"] if drops["dropped_samples"] else []
             self.recorder.finish(res.status, res.reason, trip=trip.to_dict() if trip else None,
                                  safe_stop_errors=errors, duration_s=res.t_end_s,
-                                 **self._finish_fields())
+                                 **drops, marks=marks, **self._finish_fields())
 
 
 @contextlib.contextmanager

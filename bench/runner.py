@@ -143,6 +143,14 @@ class Runner(SafeRunLoop):
         for sensor in self.rig.sensors.values():
             sensor.read_block()
 
+    def _expected_rates(self) -> dict[str, float]:
+        out = {}
+        for role, sensor in self.rig.sensors.items():
+            rates = [c.rate_hz for c in sensor.describe().channels if c.rate_hz > 0]
+            if rates:
+                out[role] = max(rates)
+        return out
+
     def _acquire(self) -> None:
         blocks: dict[str, Block] = {}
         now = self._now_rel()

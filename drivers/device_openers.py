@@ -3,8 +3,9 @@
 :class:`DeviceOpener` turns checked device URLs (``drivers.device_options``) into backends:
 
 - ``serial://<port>`` (``serial:///dev/ttyUSB0``, ``serial://COM3``): ``protocol = "msp"``
-  (flight-controller motor test, the ESC role) or ``"loadcell"`` (a line-printing board,
-  sensor roles; several roles may share one board);
+  (flight-controller motor test, the ESC role), ``"vesc"`` (a VESC's USB/UART port: the
+  ESC role and the power / rpm roles from GET_VALUES, one port shared) or ``"loadcell"``
+  (a line-printing board, sensor roles; several roles may share one board);
 - ``can://<python-can interface>/<channel>`` (``can://socketcan/can0``,
   ``can://virtual/bench``): ``protocol = "vesc"`` or ``"dronecan"``; one bus per URL, shared;
   the ESC role commands it, sensor roles read its status broadcasts;
@@ -37,6 +38,7 @@ __all__ = ["DEFAULT_COLUMNS", "DeviceOpener"]
 DEFAULT_COLUMNS = {"load_cell": ("thrust_n",), "power": ("current_a", "voltage_v"),
                    "rpm": ("rpm",)}
 _LIBS = {"serial_link": "pyserial", "loadcell_serial": "pyserial", "msp_fc": "pyserial",
+         "vesc_uart": "pyserial",
          "can_link": "python-can", "vesc": "python-can", "dronecan_esc": "python-can",
          "ni_daq": "nidaqmx", "pi_hexapod": "the standard library"}
 _sim_channels = itertools.count()
@@ -67,6 +69,7 @@ class DeviceOpener:
         self.wire = None  # drivers.wire_rig.WireSims once a sim peer is needed
         self._closers: list[Callable[[], None]] = []
         self._ports: dict[str, tuple[str, Any]] = {}  # port key -> (protocol, port)
+        self._vesc_links: dict[str, Any] = {}  # port key -> VescUartLink
         self._shared: dict[tuple, tuple[SharedSensor, dict[str, Any]]] = {}
         self._links: dict[tuple[str, str], Any] = {}
         self._sim_links: dict[str, tuple[Any, str]] = {}  # sim channel -> (device link, name)
@@ -179,12 +182,40 @@ class DeviceOpener:
     def _serial_protocol(self, spec: DeviceUrl, default: str) -> str:
         if spec.is_wire_sim and not spec.has("protocol"):
             default = spec.path.strip("/") or default
-        return spec.text("protocol", default, choices=("msp", "loadcell"))
+        return spec.text("protocol", default, choices=("msp", "loadcell", "vesc"))
+
+    def _vesc_uart_link(self, spec: DeviceUrl) -> tuple[Any, int]:
+        """The shared VESC USB/UART port (one link per port) and the motor's pole pairs."""
+        vu = backend("vesc_uart", spec)
+        pole_pairs = spec.integer("pole_pairs", 7, lo=1, hi=100)
+        timeout_s = spec.number("timeout_s", 0.1, lo=0.005, hi=5.0)
+
+        def start():
+            from drivers.wire_rig import start_vesc_uart
+
+            return start_vesc_uart(self._plant(), pole_pairs)
+
+        port, key = self._port(spec, "vesc", 115_200, start)
+        if key not in self._vesc_links:
+            self._vesc_links[key] = vu.VescUartLink(port, spec.url, timeout_s)
+        return self._vesc_links[key], pole_pairs
 
     def _serial_esc(self, spec: DeviceUrl) -> Esc:
         protocol = self._serial_protocol(spec, "msp")
+        if protocol == "vesc":
+            vu = backend("vesc_uart", spec)
+            link, _ = self._vesc_uart_link(spec)
+            e = self.rig.esc
+            settings = vu.VescUartSettings(
+                e.min_us, e.max_us, spec.number("keepalive_s", 0.1, lo=0.005, hi=0.9),
+                spec.number("host_timeout_s", 0.5, lo=0.02, hi=10.0))
+            firmware = link.values()  # fails here, at open, when nothing answers
+            self.answers[spec.role] = (f"VESC (USB/UART), controller id "
+                                       f"{firmware.controller_id}")
+            self._probes[spec.role] = lambda _t: (link.values(), self.answers[spec.role])[1]
+            return vu.VescUartEsc(link, settings, spec.url)
         if protocol != "msp":
-            raise spec.fail("protocol", f"{protocol!r} cannot drive an ESC; use msp")
+            raise spec.fail("protocol", f"{protocol!r} cannot drive an ESC; use msp or vesc")
         msp_fc = backend("msp_fc", spec)
         motor = spec.integer("motor", 0, lo=0, hi=7)
         version = spec.integer("version", 1, lo=1, hi=2)
@@ -201,7 +232,8 @@ class DeviceOpener:
         self.answers[spec.role] = (f"flight controller {variant}, MSP API "
                                    f"{api.api_major}.{api.api_minor}, motor {motor}")
         e = self.rig.esc
-        esc = msp_fc.MspMotorEsc(client, motor, min_us=e.min_us, max_us=e.max_us, url=spec.url)
+        esc = msp_fc.MspMotorEsc(client, motor, min_us=e.min_us, max_us=e.max_us, url=spec.url,
+                                 propellers_off=spec.flag("propellers_off", False))
         self._probes[spec.role] = lambda _t: (client.identify(), self.answers[spec.role])[1]
         return esc
 
@@ -240,6 +272,17 @@ class DeviceOpener:
 
     def _serial_sensor(self, spec: DeviceUrl) -> Sensor:
         protocol = self._serial_protocol(spec, "loadcell")
+        if protocol == "vesc" and spec.role in ("power", "rpm"):
+            link, pole_pairs = self._vesc_uart_link(spec)
+            rate = spec.number("rate_hz", 100.0, lo=1.0, hi=1000.0)
+            stale = spec.number("stale_s", 0.5, lo=0.02, hi=60.0)
+
+            def make_vesc() -> Sensor:
+                vu = backend("vesc_uart", spec)
+                return vu.VescUartTelemetry(link, pole_pairs, rate_hz=rate, clock=self.clock,
+                                            stale_s=stale, url=spec.url)
+
+            return self._shared_sensor(("serial-vesc", spec.host, spec.path), spec, make_vesc)
         if protocol != "loadcell":
             raise spec.fail("protocol", f"{protocol!r} is not a {spec.role} sensor; use "
                                         "loadcell (a line-printing board)")
@@ -474,7 +517,8 @@ class DeviceOpener:
         e = self.rig.esc
         settings = ni.PwmSettings(f"{_ni_device(spec)}/{chans[0]}", e.frame_rate_hz, e.min_us,
                                   e.max_us, e.idle_us,
-                                  spec.number("host_timeout_s", 0.5, lo=0.02, hi=10.0))
+                                  spec.number("host_timeout_s", 0.5, lo=0.02, hi=10.0),
+                                  spec.number("dead_host_s", 0.25, lo=0.01, hi=10.0))
         try:
             esc = ni.NiPwmEsc(settings, url=spec.url)
         except DeviceError:

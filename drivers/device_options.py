@@ -91,6 +91,12 @@ class DeviceUrl:
             raise self.fail(key, f"expected a whole number, got {value:g}")
         return int(value)
 
+    def flag(self, key: str, default: bool = False) -> bool:
+        value = self.raw(key, default)
+        if not isinstance(value, bool):
+            raise self.fail(key, f"expected true or false, got {value!r}")
+        return value
+
     def names(self, key: str, default: tuple[str, ...]) -> tuple[str, ...]:
         value = self.raw(key, None)
         if value is None:

@@ -22,6 +22,7 @@ simulated hexapod's motion, nor a simulated IMU a real one's.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -328,7 +329,11 @@ def _open_simulated(rig: Any, seed: int | None) -> OpenImuRig:
             from drivers.wire_sim.pi_hexapod import SimPiController
 
             try:
-                wire = SimPiController(plant=sim.hexapod, port=parts.port or 0).start()
+                lim = sim.hexapod.limits()  # the controller's soft limits: the plant's own
+                mm, deg = lim.position_m * 1e3, math.degrees(lim.angle_rad)
+                travel = {a: (-mm, mm) for a in "XYZ"} | {a: (-deg, deg) for a in "UVW"}
+                wire = SimPiController(plant=sim.hexapod, port=parts.port or 0,
+                                       travel=travel).start()
             except OSError as exc:
                 raise DeviceError(f"hexapod: {hex_dev.url!r}: cannot start the simulated "
                                   f"controller on port {parts.port} ({exc})") from None

@@ -208,29 +208,38 @@ def start_loadcell_board(plant: WirePlant, layout, period_s: float):
     return SimLoadcellBoard(layout, model, period_s=period_s).start()
 
 
+def _vesc_fraction(cmd) -> float:
+    """A VESC command as a duty fraction: current 0 / brake / release coast at 0."""
+    return cmd.value if cmd.kind == "duty" else 0.0
+
+
+def _vesc_state(plant: WirePlant, pole_pairs: int):
+    """What a VESC on the plant reports (status broadcasts or GET_VALUES)."""
+    from drivers.wire_sim.vesc import VescState
+
+    tr = plant.truth()
+    return VescState(erpm=tr.rpm * pole_pairs, motor_current_a=tr.current_winding_a,
+                     duty=max(tr.duty, 0.0), input_current_a=tr.current_bus_a,
+                     voltage_in_v=tr.voltage_bus_v, temp_fet_c=ESC_TEMPERATURE_C,
+                     temp_motor_c=ESC_TEMPERATURE_C)
+
+
 def start_vesc(plant: WirePlant, link, controller_id: int, pole_pairs: int,
                status_rate_hz: float):
     """A VESC on the bus; duty commands drive the plant, statuses report its state."""
     from drivers.codecs.can_log import CanFrame
     from drivers.wire_sim.vesc import SimVescDevice, VescCommand, VescState
 
-    def fraction(cmd: VescCommand) -> float:
-        return cmd.value if cmd.kind == "duty" else 0.0  # current 0 / release: coast
-
     def model(_t: float, cmd: VescCommand) -> VescState:
-        plant.command_fraction(fraction(cmd))  # the firmware's own timeout reaches the motor
-        tr = plant.truth()
-        return VescState(erpm=tr.rpm * pole_pairs, motor_current_a=tr.current_winding_a,
-                         duty=max(tr.duty, 0.0), input_current_a=tr.current_bus_a,
-                         voltage_in_v=tr.voltage_bus_v, temp_fet_c=ESC_TEMPERATURE_C,
-                         temp_motor_c=ESC_TEMPERATURE_C)
+        plant.command_fraction(_vesc_fraction(cmd))  # the firmware's timeout reaches the motor
+        return _vesc_state(plant, pole_pairs)
 
     class PlantVesc(SimVescDevice):
         def _on_frame(self, frame: CanFrame) -> None:
             before = len(self.commands_seen)
             super()._on_frame(frame)
             if len(self.commands_seen) > before:  # a command for us: applied on arrival
-                plant.command_fraction(fraction(self.command))
+                plant.command_fraction(_vesc_fraction(self.command))
 
     return PlantVesc(link, controller_id, model, status_rate_hz=status_rate_hz).start()
 
@@ -257,3 +266,26 @@ def start_dronecan_esc(plant: WirePlant, link, node_id: int, esc_index: int,
 
     return PlantDroneCanEsc(link, node_id, esc_index, model,
                             status_period_s=status_period_s).start()
+
+
+def start_vesc_uart(plant: WirePlant, pole_pairs: int):
+    """A VESC on a pty (USB/UART packets); duty commands drive the plant, GET_VALUES
+    reports its state; the firmware's 1 s command timeout reaches the motor."""
+    from drivers.wire_sim.vesc import VescCommand, VescState
+    from drivers.wire_sim.vesc_uart import SimVescUart
+
+    def model(_t: float, _cmd: VescCommand) -> VescState:
+        return _vesc_state(plant, pole_pairs)
+
+    class PlantVescUart(SimVescUart):
+        def applied(self, command: VescCommand) -> None:
+            plant.command_fraction(_vesc_fraction(command))
+
+        def _tick(self) -> bytes:
+            released = self.timeouts
+            out = super()._tick()
+            if self.timeouts > released:  # the timeout released the motor
+                plant.command_fraction(0.0)
+            return out
+
+    return PlantVescUart(model).start()

@@ -25,7 +25,50 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--timeout", type=float, default=2.0,
                    help="seconds to wait for each device (default 2)")
     p.add_argument("--json", action="store_true", help="print JSON lines instead of a table")
+    p.add_argument("--deep", action="store_true",
+                   help="bring-up report at rest: identity and firmware, limits stated by the "
+                        "device against the rig file's, achieved rate and drops, noise floor, "
+                        "clock skew; saved as <rig>.bringup.json beside the rig file")
+    p.add_argument("--seconds", type=float, default=2.0,
+                   help="--deep: seconds to listen at rest (default 2)")
+    p.add_argument("--save", type=Path, default=None,
+                   help="--deep: where to save the report (default: beside the rig file)")
     p.set_defaults(func=handler)
+
+
+def _fmt(v: object) -> str:
+    return f"{v:.4g}" if isinstance(v, float) else str(v)
+
+
+def deep(args: argparse.Namespace, path: Path) -> int:
+    """``--deep``: the bring-up report (bench/bringup.py), printed and saved."""
+    from bench.bringup import bringup_report
+    from bench.recorder import atomic_write_json
+    from bench.rig import load_rig
+
+    if not (math.isfinite(args.seconds) and 0 < args.seconds <= 600):
+        raise RigError(f"--seconds: expected 0 < seconds <= 600, got {args.seconds:g}")
+    report = bringup_report(load_rig(path), args.seconds)
+    out = args.save or path.with_name(f"{path.stem}.bringup.json")
+    atomic_write_json(out, report)
+    if args.json:
+        for d in report["devices"]:
+            print(json.dumps(d))
+    else:
+        for d in report["devices"]:
+            ident = ", ".join(f"{k} {_fmt(v)}" for k, v in d["identity"].items())
+            print(f"{d['role']:<10} {d['url']}  {ident}")
+            for name, lim in d["limits"].items():
+                print(f"{'':<10}   limit {name}: device {lim['device']}, rig {lim['rig']}")
+            if d["role"] == "esc":
+                continue
+            print(f"{'':<10}   rate {d['rate_hz']:.1f} samples/s (stated {d['stated_rate_hz']}),"
+                  f" dropped {d['dropped']}, longest gap {d['longest_gap_s']} s, lag "
+                  f"{_fmt(d['lag_s'])} s, skew {_fmt(d['skew_s'])} s")
+            for col, st in d["noise"].items():
+                print(f"{'':<10}   {col}: mean {st['mean']:.6g}, rms {st['rms']:.3g}")
+    print(f"saved {out}")
+    return 0
 
 
 def handler(args: argparse.Namespace) -> int:
@@ -35,6 +78,11 @@ def handler(args: argparse.Namespace) -> int:
     if not (math.isfinite(args.timeout) and args.timeout > 0):
         raise RigError(f"--timeout: expected seconds > 0 per device, got {args.timeout:g}")
     path = args.rig or default_rig_path()
+    if args.deep:
+        if is_imu_rig(path):
+            raise RigError(f"{path}: check --deep covers propulsion rigs; for an IMU bench "
+                           "use check (without --deep)")
+        return deep(args, path)
     if is_imu_rig(path):
         from drivers.imu_rig_check import check_imu_rig
 

@@ -85,6 +85,12 @@ def build(args: argparse.Namespace, out: Path, console: Console) -> dict[str, An
             except LogError as exc:
                 notes.append(f"{rec.id}: no step fit ({exc})")
     summary: dict[str, Any] = {"runs": [str(r.path) for r in records], "notes": notes}
+    for rec in records:  # runs with missed or late samples are marked (run.json "drops")
+        summary.setdefault("dropped_samples", {})[rec.id] = rec.meta.get("dropped_samples")
+        if rec.meta.get("dropped_samples"):
+            notes.append(f"{rec.id}: {rec.meta['dropped_samples']} samples missed or late "
+                         f"(longest gap {rec.meta.get('longest_gap_s') or 0:.3f} s; run.json "
+                         "drops)")
 
     tau_par = None
     if motor is not None:

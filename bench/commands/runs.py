@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import shutil
 from pathlib import Path
 
@@ -22,6 +23,19 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=handler)
 
 
+def drops_text(run_dir: Path) -> str:
+    """``0``, ``! 12 (gap 0.040 s)`` for a run with drops, ``-`` for a record without the
+    count (older runs, killed runs); from the run's ``run.json``."""
+    try:
+        meta = json.loads((run_dir / "run.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return "-"
+    n = meta.get("dropped_samples")
+    if n is None:
+        return "-"
+    return f"! {n} (gap {meta.get('longest_gap_s') or 0:.3f} s)" if n else "0"
+
+
 def handler(args: argparse.Namespace) -> int:
     if not (args.out / INDEX_NAME).exists() and not args.rebuild:
         print(f"no runs recorded under {args.out} (no {INDEX_NAME})")
@@ -33,10 +47,11 @@ def handler(args: argparse.Namespace) -> int:
         index.rebuild()
     rows = index.list()
     table = Table(title=f"runs in {args.out}")
-    for col in ("id", "sequence", "rig", "esc mode", "started (UTC)", "status", "reason"):
+    for col in ("id", "sequence", "rig", "esc mode", "started (UTC)", "status", "drops",
+                "reason"):
         table.add_column(col, overflow="fold")
     for r in rows:
         table.add_row(r.id, r.sequence, r.rig, str(r.components.get("esc_mode", "")),
-                      r.started_utc[:19], r.status, r.reason)
+                      r.started_utc[:19], r.status, drops_text(args.out / r.path), r.reason)
     Console(width=shutil.get_terminal_size((160, 24)).columns).print(table)
     return 0

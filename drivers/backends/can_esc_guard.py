@@ -12,10 +12,12 @@ from __future__ import annotations
 import math
 import threading
 import time
+from typing import Any
 
+from drivers.contracts import ChannelInfo, DeviceInfo
 from drivers.errors import DeviceError
 
-__all__ = ["HostGuardedCanEsc"]
+__all__ = ["DutyEsc", "HostGuardedCanEsc"]
 
 
 class HostGuardedCanEsc:
@@ -125,3 +127,42 @@ class HostGuardedCanEsc:
                     self._send_held()
                 except DeviceError as exc:
                     self._error = exc
+
+
+class DutyEsc(HostGuardedCanEsc):
+    """A host-guarded ESC commanded by duty (the VESC on CAN and on USB/UART): the pulse
+    width in force, clamped to ``settings.min_us .. max_us``, maps linearly to duty 0..1;
+    disarmed or at idle it is 0. A subclass sends ``_duty()`` in ``_send_held``."""
+
+    def __init__(self, link: Any, settings: Any, url: str, command_timeout_s: float,
+                 thread_name: str) -> None:
+        """``settings``: min_us, max_us, keepalive_s (inside the ESC's own
+        ``command_timeout_s``), host_timeout_s."""
+        if settings.keepalive_s >= command_timeout_s:
+            raise DeviceError(f"{url}: keepalive_s must be below the VESC's "
+                              f"{command_timeout_s} s command timeout")
+        self.link = link
+        self.settings = settings
+        self._pulse_us = settings.min_us
+        super().__init__(url, settings.keepalive_s, settings.host_timeout_s, thread_name)
+
+    def _info(self, model: str, extra: dict[str, Any]) -> DeviceInfo:
+        s = self.settings
+        return DeviceInfo(
+            kind="esc", model=model, url=self.url,
+            channels=(ChannelInfo("throttle_us", "us", 1.0 / s.keepalive_s, s.min_us, s.max_us),),
+            extra={"keepalive_s": s.keepalive_s, "host_timeout_s": s.host_timeout_s,
+                   "command": "SET_DUTY (linear)", **extra})
+
+    def _hold(self, pulse_us: float) -> None:
+        s = self.settings
+        self._pulse_us = min(s.max_us, max(s.min_us, pulse_us))
+
+    def _hold_idle(self) -> None:
+        self._pulse_us = self.settings.min_us
+
+    def _duty(self) -> float:
+        if not self._armed:
+            return 0.0
+        s = self.settings
+        return min(1.0, max(0.0, (self._pulse_us - s.min_us) / (s.max_us - s.min_us)))

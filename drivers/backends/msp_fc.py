@@ -6,9 +6,12 @@ response, no documented deadline; 100 ms is the reference's suggested client tim
 ``Sensor``; ``MspMotorEsc`` drives one motor through MSP_SET_MOTOR as an ``Esc``.
 
 Safety, from §1.7: Betaflight applies SET_MOTOR values **only while disarmed** (the
-configurator motor test), and the motors then really spin; no FC-side timeout for motor
-test values is documented, so a stalled host is caught only by the host's own watchdog
-— ``MspMotorEsc.close()``/``disarm()`` always send every motor to 1000.
+configurator motor test), and the motors then really spin. Betaflight and INAV keep the
+last motor-test value with no expiry (docs/protocols.md, "dead host"): a host that dies
+leaves the motor running. ``MspMotorEsc`` therefore refuses to open unless the rig says
+the propeller is off (``propellers_off``), refuses to start while the FC reports itself
+armed (STATUS_EX flight-mode flag bit 0), and ``close()``/``disarm()`` always send every
+motor to 1000.
 """
 
 from __future__ import annotations
@@ -65,6 +68,37 @@ class MspClient:
         if not isinstance(variant, msp.FcVariant) or not isinstance(api, msp.ApiVersion):
             raise DeviceError(f"{self.name}: unexpected identification replies")
         return variant.name, api
+
+    def firmware(self) -> dict[str, str]:
+        """Variant, MSP API, firmware version and board: what a bring-up report shows.
+        FC_VERSION / BOARD_INFO an older firmware refuses are left out."""
+        variant, api = self.identify()
+        out = {"variant": variant, "msp_api": f"{api.api_major}.{api.api_minor}"}
+        for cmd, key in ((msp.MSP_FC_VERSION, "version"), (msp.MSP_BOARD_INFO, "board")):
+            try:
+                reply = self.request(msp.Request(cmd))
+            except DeviceError as exc:
+                if "refused" not in str(exc):
+                    raise
+                continue
+            if isinstance(reply, msp.FcVersion):
+                out[key] = str(reply)
+            elif isinstance(reply, msp.BoardInfo):
+                out[key] = reply.board_id + (f" ({reply.target_name})" if reply.target_name
+                                             else "")
+        return out
+
+    def armed(self) -> bool:
+        """Arming state from STATUS_EX (STATUS where refused): flight-mode flag bit 0."""
+        try:
+            reply = self.request(msp.Request(msp.MSP_STATUS_EX))
+        except DeviceError as exc:
+            if "refused" not in str(exc):
+                raise
+            reply = self.request(msp.Request(msp.MSP_STATUS))
+        if not isinstance(reply, (msp.StatusEx, msp.FcStatus)):
+            raise DeviceError(f"{self.name}: unexpected status reply {reply!r}")
+        return bool(reply.flight_mode_flags & msp.ARMED_FLAG)
 
 
 IMU_CHANNELS = ("acc_x_m_s2", "acc_y_m_s2", "acc_z_m_s2", "gyro_x_rad_s", "gyro_y_rad_s",
@@ -144,15 +178,27 @@ class MspImu:
             self._thread.join(timeout=1.0)
 
 
+DEAD_HOST = ("Betaflight and INAV keep the last MSP_SET_MOTOR value when the host stops "
+             "sending (no timeout), so a dead host leaves the motor running")
+
+
 class MspMotorEsc:
     """One motor of the FC driven by MSP_SET_MOTOR (motor test, FC disarmed) as an ``Esc``.
 
-    The FC must stay *disarmed* for the values to apply (§1.7); protocols.md does not say
-    which status flag bit means armed, so ``arm()`` only enables sending.
+    The FC must stay *disarmed* for the values to apply (§1.7): ``arm()`` reads the
+    arming state and refuses while the FC is armed. The FC holds the last value if the
+    host dies, so the backend opens only for runs with the propeller off
+    (``propellers_off=True``).
     """
 
     def __init__(self, client: MspClient, motor_index: int, *, min_us: float = 1000.0,
-                 max_us: float = 2000.0, url: str = "serial://msp") -> None:
+                 max_us: float = 2000.0, url: str = "serial://msp",
+                 propellers_off: bool = False) -> None:
+        if not propellers_off:
+            raise DeviceError(f"{url}: MSP motor test refused for a propellers-on run: "
+                              f"{DEAD_HOST}; remove the propeller and set "
+                              "options.propellers_off = true, or use a VESC, DroneCAN or "
+                              "NI-DAQmx ESC")
         if not 0 <= motor_index < msp.MOTOR_SLOTS:
             raise DeviceError(f"{url}: motor index must be 0..{msp.MOTOR_SLOTS - 1}")
         self.client = client
@@ -167,7 +213,8 @@ class MspMotorEsc:
                           url=self.url,
                           channels=(ChannelInfo("throttle_us", "us", 0.0, self.min_us,
                                                 self.max_us),),
-                          extra={"motor_index": self.motor_index})
+                          extra={"motor_index": self.motor_index, "propellers_off": True,
+                                 "dead_host": DEAD_HOST})
 
     def _send(self, pulse_us: float) -> None:
         values = [msp.MOTOR_MIN_US] * msp.MOTOR_SLOTS
@@ -177,6 +224,9 @@ class MspMotorEsc:
             raise DeviceError(f"{self.url}: SET_MOTOR not acknowledged ({reply!r})")
 
     def arm(self) -> None:
+        if self.client.armed():
+            raise DeviceError(f"{self.url}: the flight controller is armed; motor-test "
+                              "values apply only while it is disarmed (disarm it first)")
         self._send(msp.MOTOR_MIN_US)
         self._armed = True
 

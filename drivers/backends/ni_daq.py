@@ -5,8 +5,9 @@ hardware-timed continuous sample clock (up to 25 kHz here), the hall sensor on a
 that counts edges *sampled by the AI sample clock* (``/<dev>/ai/SampleClock``, counter
 started before the AI task) so speed lines up with force sample by sample, and the ESC
 pulse train on a counter output channel defined by high/low time, updated on the fly with
-``CounterWriter.write_one_sample_pulse_time``. Closing the output task stops the pulses;
-the line idles low and the ESC sees signal loss (its failsafe).
+``CounterWriter.write_one_sample_pulse_time``. The pulse train is finite and renewed by
+the host (``NiPwmEsc``): a dead host stops the pulses within ``dead_host_s``. Closing the
+output task stops the pulses; the line idles low and the ESC sees signal loss (its failsafe).
 
 Reads never block: ``read_block`` takes what is in the DAQ buffer (``avail_samp_per_chan``)
 into fresh arrays. DAQmx errors (buffer overrun, device gone) become ``DeviceError``.
@@ -280,7 +281,12 @@ def rpm_sensor(hub: NiHub, magnets: int, timeout_s: float = 0.25,
 
 @dataclass(frozen=True)
 class PwmSettings:
-    """The ESC pulse train (rig-file ``[esc]``): frame rate and pulse limits."""
+    """The ESC pulse train (rig-file ``[esc]``): frame rate and pulse limits.
+
+    ``dead_host_s`` is the length of one finite pulse train: when the host stops renewing
+    it (killed, frozen, crashed) the counter stops within this time and the line idles
+    low, which the ESC treats as signal loss.
+    """
 
     counter: str  # e.g. "Dev1/ctr1"
     frame_rate_hz: float = 400.0
@@ -288,20 +294,34 @@ class PwmSettings:
     max_us: float = 2000.0
     idle_us: float = 1000.0
     host_timeout_s: float = 0.5  # host silent this long -> idle pulses
+    dead_host_s: float = 0.25  # pulses last this long after the last renewal
 
     def __post_init__(self) -> None:
         if self.max_us * 1e-6 >= 1.0 / self.frame_rate_hz:
             raise DeviceError(f"nidaq://{self.counter}: a {self.max_us} us pulse does not fit "
                               f"a {self.frame_rate_hz} Hz frame")
+        if not 4.0 / self.frame_rate_hz <= self.dead_host_s <= 10.0:
+            raise DeviceError(f"nidaq://{self.counter}: dead_host_s must be 4 frames .. 10 s, "
+                              f"got {self.dead_host_s}")
+
+    @property
+    def train_pulses(self) -> int:
+        """Pulses in one finite train (``dead_host_s`` of frames)."""
+        return max(4, math.floor(self.dead_host_s * self.frame_rate_hz))
 
 
 class NiPwmEsc:
     """ESC pulse train on a counter output, pulse width updated on the fly (``Esc``).
 
-    The width is clamped here, not only by the caller. A guard thread sends idle pulses
-    when the host has not commanded for ``host_timeout_s`` (a stuck control loop); a
-    frozen process is not covered — the pulses would continue (hardware watchdogs are
-    outside protocols.md / the anchors).
+    The width is clamped here, not only by the caller. The counter generates a *finite*
+    train of ``train_pulses`` pulses (``dead_host_s``); a renewal thread restarts it every
+    ``dead_host_s / 3`` with the width in force. A process that dies (kill -9, a crash of
+    the live view) or freezes stops renewing, so the pulses end at most ``dead_host_s``
+    after the last renewal: the line idles low and the ESC's signal-loss failsafe stops
+    the motor. A continuous train would go on at the last width by itself. Each renewal
+    is a stop and a start of the task: at most one frame is lost. When the host has not
+    commanded for ``host_timeout_s`` (a stuck control loop in a live process) the train
+    goes on at idle until the next command.
     """
 
     def __init__(self, settings: PwmSettings, *, task_factory: TaskFactory = nidaqmx.Task,
@@ -309,18 +329,23 @@ class NiPwmEsc:
         self.settings = settings
         self.url = url or f"nidaq://{settings.counter}"
         self.period_s = 1.0 / settings.frame_rate_hz
+        self.renew_s = settings.dead_host_s / 3.0
         self._lock = threading.Lock()
         self._armed = False
         self._stalled = False
         self._last_host_t = time.monotonic()
+        self._pulse_us = settings.idle_us
         self._closed = False
+        self.renewals = 0
+        self.error: DeviceError | None = None
         try:
             self._task = task_factory()
             high = settings.idle_us * 1e-6
-            self._task.co_channels.add_co_pulse_chan_time(
+            self._chan = self._task.co_channels.add_co_pulse_chan_time(
                 settings.counter, idle_state=Level.LOW, initial_delay=0.0,
                 low_time=self.period_s - high, high_time=high)
-            self._task.timing.cfg_implicit_timing(sample_mode=AcquisitionType.CONTINUOUS)
+            self._task.timing.cfg_implicit_timing(sample_mode=AcquisitionType.FINITE,
+                                                  samps_per_chan=settings.train_pulses)
             self._writer = CounterWriter(self._task.out_stream)
             self._task.start()
         except nidaqmx.errors.DaqError as exc:
@@ -335,17 +360,33 @@ class NiPwmEsc:
         return DeviceInfo(kind="esc", model="NI counter output (PWM)", url=self.url,
                           channels=(ChannelInfo("throttle_us", "us", s.frame_rate_hz, s.min_us,
                                                 s.max_us),),
-                          extra={"frame_rate_hz": s.frame_rate_hz, "idle_us": s.idle_us})
+                          extra={"frame_rate_hz": s.frame_rate_hz, "idle_us": s.idle_us,
+                                 "dead_host_s": s.dead_host_s,
+                                 "train_pulses": s.train_pulses})
 
     def _write(self, pulse_us: float) -> None:
         high = pulse_us * 1e-6
+        self._pulse_us = pulse_us
         try:
             self._writer.write_one_sample_pulse_time(high, self.period_s - high, timeout=0.1)
         except nidaqmx.errors.DaqError as exc:
             raise _daq(f"pulse update on {self.settings.counter}", exc) from None
 
+    def _renew(self) -> None:
+        """Restart the finite train with the width in force (lock held)."""
+        high = self._pulse_us * 1e-6
+        try:
+            self._task.stop()
+            self._chan.co_pulse_high_time = high
+            self._chan.co_pulse_low_time = self.period_s - high
+            self._task.start()
+        except nidaqmx.errors.DaqError as exc:
+            raise _daq(f"pulse train renewal on {self.settings.counter}", exc) from None
+        self.renewals += 1
+
     def arm(self) -> None:
         with self._lock:
+            self._raise_pending()
             self._armed = True
             self._last_host_t = time.monotonic()
             self._write(self.settings.idle_us)
@@ -358,6 +399,7 @@ class NiPwmEsc:
         with self._lock:
             if self._closed:
                 raise DeviceError(f"{self.url}: ESC output is closed")
+            self._raise_pending()
             self._last_host_t = time.monotonic()
             self._stalled = False
             if self._armed:
@@ -374,16 +416,24 @@ class NiPwmEsc:
             except DeviceError:
                 pass
 
+    def _raise_pending(self) -> None:
+        if self.error is not None:
+            err, self.error = self.error, None
+            raise err
+
     def _guard(self) -> None:
-        while not self._stop.wait(self.settings.host_timeout_s / 4):
+        while not self._stop.wait(self.renew_s):
             with self._lock:
-                silent = time.monotonic() - self._last_host_t > self.settings.host_timeout_s
-                if self._armed and silent and not self._stalled and not self._closed:
-                    try:
+                if self._closed:
+                    return
+                try:
+                    silent = time.monotonic() - self._last_host_t > self.settings.host_timeout_s
+                    if self._armed and silent and not self._stalled:
                         self._write(self.settings.idle_us)
-                    except DeviceError:
-                        pass
-                    self._stalled = True  # the next set_pulse_us resumes, like an ESC failsafe
+                        self._stalled = True  # the next set_pulse_us resumes
+                    self._renew()
+                except DeviceError as exc:
+                    self.error = exc  # raised by the host's next command; the train ends
 
     def close(self) -> None:
         """Idle, then stop the pulses (line low: the ESC's signal-loss failsafe)."""

@@ -47,7 +47,8 @@ from drivers.hexapod_kinematics import (
 )
 from drivers.hexapod_log import checked_spline, log_block
 
-__all__ = ["DEFAULT_TIMEOUT_S", "GcsDialect", "PiHexapod", "from_wire", "open_tcp", "to_wire"]
+__all__ = ["DEFAULT_TIMEOUT_S", "ControllerState", "GcsDialect", "PiHexapod", "from_wire",
+           "open_tcp", "to_wire"]
 
 LINEAR_AXES = ("X", "Y", "Z")  # mm on the wire
 ANGULAR_AXES = ("U", "V", "W")  # degrees on the wire
@@ -182,6 +183,28 @@ class GcsDialect:
     def recorder_read(self, first: int, count: int) -> bytes:
         """Points ``first .. first + count - 1`` (0-based) of the six tables."""
         return gcs.drr_query(first + self.drr_first_offset, count, range(1, 7))
+
+
+@dataclass(frozen=True)
+class ControllerState:
+    """What the controller says about itself before any motion (SI travel limits)."""
+
+    servo: dict[str, bool]
+    referenced: dict[str, bool]
+    travel: dict[str, tuple[float, float]]  # axis -> (TMN?, TMX?) in m or rad
+
+    def require_ready(self, url: str) -> None:
+        for what, flags, fix in (("not referenced", self.referenced, "reference it (FRF)"),
+                                 ("servo off", self.servo, "switch the servo on (SVO)")):
+            off = [a for a in gcs.HEXAPOD_AXES if not flags.get(a, False)]
+            if off:
+                query = "FRF?" if flags is self.referenced else "SVO?"
+                raise DeviceError(f"{url}: hexapod {what} ({query} {off[0]}=0): {fix} "
+                                  "before any motion; refused")
+
+    def as_dict(self) -> dict[str, object]:
+        return {"servo": self.servo, "referenced": self.referenced,
+                "travel": {a: list(v) for a, v in self.travel.items()}}
 
 
 # ---------------------------------------------------------------------------- wire
@@ -393,6 +416,7 @@ class PiHexapod:
         self.stop_calls = 0
         self.closed = False
         self.identification = self._identify()
+        self.state = self.controller_state()  # read before any motion (limits, reference)
         if connect is not None:
             try:
                 self._stop_link = _Link(connect(), url + " (stop connection)", timeout_s)
@@ -428,6 +452,42 @@ class PiHexapod:
     def _identify(self) -> gcs.Identification:
         return gcs.parse_idn(self.query(gcs.idn()))
 
+    def controller_state(self) -> ControllerState:
+        """Servo (``SVO?``), referenced (``FRF?``) and soft travel limits (``TMN?``,
+        ``TMX?``) as the controller reports them (PIPython reply syntax, §6.3)."""
+        def values(name: str) -> dict[str, float]:
+            return gcs.parse_axis_values(self.query(gcs.command(name)))
+
+        servo, ref = values("SVO?"), values("FRF?")
+        low, high = from_wire(values("TMN?")), from_wire(values("TMX?"))
+        missing = [a for a in gcs.HEXAPOD_AXES if a not in low or a not in high]
+        if missing:
+            raise gcs.GcsReplyError(f"{self.url}: TMN?/TMX? reply lacks axis {missing[0]}")
+        return ControllerState({a: v == 1.0 for a, v in servo.items()},
+                               {a: v == 1.0 for a, v in ref.items()},
+                               {a: (low[a], high[a]) for a in gcs.HEXAPOD_AXES})
+
+    def check_motion(self, trajectory: Trajectory, *, refresh: bool = True) -> None:
+        """Refuse a motion the controller would refuse or stop in: axes not referenced or
+        servo off, or a pose beyond ``TMN?``/``TMX?``; reads the state afresh unless
+        ``refresh`` is False (``upload``: eight round trips would delay every motion)."""
+        if refresh:
+            self.state = self.controller_state()
+        state = self.state
+        state.require_ready(self.url)
+        lo = trajectory.poses.min(axis=0)
+        hi = trajectory.poses.max(axis=0)
+        for k, axis in enumerate(gcs.HEXAPOD_AXES):
+            tmn, tmx = state.travel[axis]
+            for value, limit, query, beyond in ((lo[k], tmn, "TMN?", lo[k] < tmn - 1e-12),
+                                                (hi[k], tmx, "TMX?", hi[k] > tmx + 1e-12)):
+                if beyond:
+                    unit = "m" if axis in LINEAR_AXES else "rad"
+                    raise DeviceError(
+                        f"{self.url}: motion {trajectory.name!r} reaches {axis} = "
+                        f"{value:.6g} {unit}, beyond the controller's {query} {axis} = "
+                        f"{limit:.6g} {unit}; refused before it starts")
+
     # ------------------------------------------------------------------ motion API
     def describe(self) -> DeviceInfo:
         d = self.dialect
@@ -440,6 +500,7 @@ class PiHexapod:
                    "firmware": self.identification.firmware,
                    "servo_cycle_s": d.servo_cycle_s, "pivot_axes": list(d.pivot_axes),
                    "stop_connection": self._stop_link is not None,
+                   "controller": self.state.as_dict(),
                    "unverified": "wave-table PNT upload, WTR interpolation, generator/axis "
                                  "mapping, recorder trigger and DRR? offsets, pivot letters "
                                  "(docs/hexapod-tcp.md)"})
@@ -448,8 +509,17 @@ class PiHexapod:
         return self._limits
 
     def move_to(self, pose: Mapping[str, float]) -> None:
-        """Absolute move of the given axes (SI); all axes start together (§6.3 MOV)."""
-        self.command(gcs.mov(to_wire(pose)))
+        """Absolute move of the given axes (SI); all axes start together (§6.3 MOV).
+        Refused, naming axis and limit, unless referenced, servo on and within TMN?/TMX?."""
+        wire = to_wire(pose)
+        self.state = state = self.controller_state()
+        state.require_ready(self.url)
+        for axis, value in from_wire(wire).items():
+            tmn, tmx = state.travel[axis]
+            if not tmn - 1e-12 <= value <= tmx + 1e-12:
+                raise DeviceError(f"{self.url}: MOV {axis} = {value:.6g} outside the "
+                                  f"controller's TMN?..TMX? {tmn:.6g}..{tmx:.6g}; refused")
+        self.command(gcs.mov(wire))
 
     def position(self, axes: Iterable[str] = ()) -> dict[str, float]:
         return from_wire(gcs.parse_axis_values(self.query(gcs.pos_query(axes))))
@@ -509,6 +579,7 @@ class PiHexapod:
         up generators and recorder; nothing moves until ``start``."""
         name = trajectory.name
         checked_spline(trajectory, self._limits, self.gravity, self.url)
+        self.check_motion(trajectory, refresh=False)  # state as read at open / preflight
         d = self.dialect
         cycles = d.cycles_per_point(trajectory.rate_hz, f"trajectory {name!r} rate")
         with self._lock:

@@ -20,7 +20,7 @@ import math
 import threading
 from dataclasses import dataclass
 
-from drivers.backends.can_esc_guard import HostGuardedCanEsc
+from drivers.backends.can_esc_guard import DutyEsc
 from drivers.backends.can_link import CanLink
 from drivers.backends.row_stream import block_from_rows
 from drivers.codecs import vesc_can as vc
@@ -44,40 +44,21 @@ class VescEscSettings:
         return min(1.0, max(0.0, (pulse_us - self.min_us) / (self.max_us - self.min_us)))
 
 
-class VescEsc(HostGuardedCanEsc):
+class VescEsc(DutyEsc):
     """The bench ESC on a VESC (``drivers.contracts.Esc``)."""
 
     def __init__(self, link: CanLink, settings: VescEscSettings, url: str = "can://vesc") -> None:
-        if settings.keepalive_s >= vc.COMMAND_TIMEOUT_S:
-            raise DeviceError(f"{url}: keepalive_s must be below the VESC's "
-                              f"{vc.COMMAND_TIMEOUT_S} s command timeout")
-        self.link = link
-        self.settings = settings
-        self._pulse_us = settings.min_us
-        super().__init__(url, settings.keepalive_s, settings.host_timeout_s,
-                         f"vesc-keepalive-{url}")
+        super().__init__(link, settings, url, vc.COMMAND_TIMEOUT_S, f"vesc-keepalive-{url}")
 
     def describe(self) -> DeviceInfo:
-        s = self.settings
-        return DeviceInfo(
-            kind="esc", model="VESC (CAN)", url=self.url,
-            channels=(ChannelInfo("throttle_us", "us", 1.0 / s.keepalive_s, s.min_us, s.max_us),),
-            extra={"controller_id": s.controller_id, "keepalive_s": s.keepalive_s,
-                   "host_timeout_s": s.host_timeout_s, "command": "SET_DUTY (linear)"})
+        return self._info("VESC (CAN)", {"controller_id": self.settings.controller_id})
 
     def _command(self) -> CanFrame:
-        duty = self.settings.duty(self._pulse_us) if self._armed else 0.0
+        duty = self._duty()
         cid = self.settings.controller_id
         if duty <= 0.0:
             return vc.encode(vc.SetCurrent(cid, 0.0))
         return vc.encode(vc.SetDuty(cid, duty))
-
-    def _hold(self, pulse_us: float) -> None:
-        s = self.settings
-        self._pulse_us = min(s.max_us, max(s.min_us, pulse_us))
-
-    def _hold_idle(self) -> None:
-        self._pulse_us = self.settings.min_us
 
     def _send_held(self) -> None:
         self.link.send(self._command())

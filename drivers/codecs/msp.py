@@ -30,14 +30,19 @@ _DIRECTIONS = frozenset(b"<>!")
 # §1.3 command ids (msp_protocol.h)
 MSP_API_VERSION = 1
 MSP_FC_VARIANT = 2
+MSP_FC_VERSION = 3
+MSP_BOARD_INFO = 4
 MSP_STATUS = 101
 MSP_RAW_IMU = 102
 MSP_MOTOR = 104
 MSP_ATTITUDE = 108
+MSP_ANALOG = 110
+MSP_STATUS_EX = 150
 MSP_ATTITUDE_QUATERNION = 167
 MSP_SET_MOTOR = 214
 MSP_V2_FRAME_ID = 255  # §1.1 "MSPv2-over-v1": cmd 255 carries a v2 frame (msp.h)
 
+ARMED_FLAG = 1  # bit 0 of the flight-mode flags: box BOXARM = 0, set while armed (BF msp_box.h)
 MOTOR_SLOTS = 8  # §1.5: MSP_MOTOR carries 8 x uint16; MultiWii SET_MOTOR reads exactly 16 bytes
 MOTOR_MIN_US = 1000  # §1.5/§1.7: external "PWM-like" scale 1000..2000
 MOTOR_MAX_US = 2000
@@ -284,6 +289,164 @@ class FcStatus:
 
 
 @dataclass(frozen=True)
+class FcVersion:
+    """MSP_FC_VERSION reply: u8 major, minor, patch (BF ``msp.c``; yamspy
+    ``process_MSP_FC_VERSION``)."""
+
+    CMD: ClassVar[int] = MSP_FC_VERSION
+    major: int
+    minor: int
+    patch: int
+
+    def to_payload(self) -> bytes:
+        return bytes([self.major, self.minor, self.patch])
+
+    @classmethod
+    def from_payload(cls, p: bytes) -> FcVersion:
+        _need(p, 3, exact=False)
+        return cls(p[0], p[1], p[2])
+
+    def __str__(self) -> str:
+        return f"{self.major}.{self.minor}.{self.patch}"
+
+
+def _pascal(p: bytes, at: int) -> tuple[str, int]:
+    """A u8-length-prefixed string at ``at`` -> (text, offset after it)."""
+    _need(p, at + 1, exact=False)
+    n = p[at]
+    _need(p, at + 1 + n, exact=False)
+    return p[at + 1:at + 1 + n].decode("ascii", errors="replace"), at + 1 + n
+
+
+@dataclass(frozen=True)
+class BoardInfo:
+    """MSP_BOARD_INFO reply, Betaflight layout (BF ``msp.c``; yamspy
+    ``process_MSP_BOARD_INFO``): 4-char board id, u16 hardware revision, u8 board type
+    (0 = FC), u8 target capabilities, u8-prefixed target name, board name and
+    manufacturer id, 32-byte signature, u8 MCU type id; anything after is kept raw."""
+
+    CMD: ClassVar[int] = MSP_BOARD_INFO
+    board_id: str
+    hw_revision: int = 0
+    board_type: int = 0
+    capabilities: int = 0
+    target_name: str = ""
+    board_name: str = ""
+    manufacturer_id: str = ""
+    signature_hex: str = "00" * 32
+    mcu_type: int = 255
+    rest_hex: str = ""
+
+    def to_payload(self) -> bytes:
+        def pascal(text: str) -> bytes:
+            raw = text.encode("ascii")
+            return bytes([len(raw)]) + raw
+
+        board = self.board_id.encode("ascii")
+        if len(board) != 4:
+            raise ValueError(f"board id must be 4 ASCII characters, got {self.board_id!r}")
+        return (board + struct.pack("<HBB", self.hw_revision, self.board_type,
+                                    self.capabilities)
+                + pascal(self.target_name) + pascal(self.board_name)
+                + pascal(self.manufacturer_id) + bytes.fromhex(self.signature_hex)
+                + bytes([self.mcu_type]) + bytes.fromhex(self.rest_hex))
+
+    @classmethod
+    def from_payload(cls, p: bytes) -> BoardInfo:
+        _need(p, 8, exact=False)
+        hw, kind, caps = struct.unpack_from("<HBB", p, 4)
+        target, at = _pascal(p, 8)
+        if at == len(p):  # older firmware: no board name and the rest
+            return cls(p[:4].decode("ascii", errors="replace"), hw, kind, caps, target)
+        board, at = _pascal(p, at)
+        maker, at = _pascal(p, at)
+        _need(p, at + 33, exact=False)
+        return cls(p[:4].decode("ascii", errors="replace"), hw, kind, caps, target, board, maker,
+                   p[at:at + 32].hex(), p[at + 32], p[at + 33:].hex())
+
+
+@dataclass(frozen=True)
+class StatusEx:
+    """MSP_STATUS_EX reply, Betaflight layout (§1.8; yamspy ``process_MSP_STATUS_EX``):
+    the STATUS prefix, u16 system load, u8 PID profile count, u8 rate profile, u8 count +
+    extra flight-mode flag bytes, u8 arming-disable flag count, u32 arming-disable flags,
+    then the rest (config state, CPU temperature, ...) kept raw.
+
+    ``armed``: bit 0 of the flight-mode flags (``ARMED_FLAG``)."""
+
+    CMD: ClassVar[int] = MSP_STATUS_EX
+    cycle_time_us: int
+    i2c_errors: int
+    sensors: int
+    flight_mode_flags: int
+    profile: int
+    system_load: int = 0
+    profile_count: int = 1
+    rate_profile: int = 0
+    extra_flags_hex: str = ""
+    arming_disable_count: int = 0
+    arming_disable_flags: int = 0
+    rest_hex: str = ""
+
+    @property
+    def armed(self) -> bool:
+        return bool(self.flight_mode_flags & ARMED_FLAG)
+
+    def to_payload(self) -> bytes:
+        extra = bytes.fromhex(self.extra_flags_hex)
+        return (struct.pack("<HHHIBHBBB", self.cycle_time_us, self.i2c_errors, self.sensors,
+                            self.flight_mode_flags, self.profile, self.system_load,
+                            self.profile_count, self.rate_profile, len(extra))
+                + extra + struct.pack("<BI", self.arming_disable_count,
+                                      self.arming_disable_flags)
+                + bytes.fromhex(self.rest_hex))
+
+    @classmethod
+    def from_payload(cls, p: bytes) -> StatusEx:
+        _need(p, 16, exact=False)
+        head = struct.unpack_from("<HHHIBHBBB", p)
+        n = head[-1]
+        _need(p, 16 + n + 5, exact=False)
+        disable_count, disable = struct.unpack_from("<BI", p, 16 + n)
+        return cls(*head[:-1], p[16:16 + n].hex(), disable_count, disable,
+                   p[16 + n + 5:].hex())
+
+
+@dataclass(frozen=True)
+class Analog:
+    """MSP_ANALOG reply, Betaflight layout (§1.8 "other replies"; yamspy
+    ``process_MSP_ANALOG``): u8 legacy vbat (0.1 V), u16 mAh drawn, u16 rssi (0..1023),
+    i16 current (0.01 A), u16 voltage (0.01 V). INAV sends only the first 7 bytes."""
+
+    CMD: ClassVar[int] = MSP_ANALOG
+    vbat_legacy_dv: int
+    mah_drawn: int
+    rssi: int
+    current_ca: int
+    voltage_cv: int | None = None
+
+    @property
+    def voltage_v(self) -> float:
+        return (self.voltage_cv / 100.0 if self.voltage_cv is not None
+                else self.vbat_legacy_dv / 10.0)
+
+    @property
+    def current_a(self) -> float:
+        return self.current_ca / 100.0
+
+    def to_payload(self) -> bytes:
+        out = struct.pack("<BHHh", self.vbat_legacy_dv, self.mah_drawn, self.rssi,
+                          self.current_ca)
+        return out if self.voltage_cv is None else out + struct.pack("<H", self.voltage_cv)
+
+    @classmethod
+    def from_payload(cls, p: bytes) -> Analog:
+        _need(p, 7, exact=False)
+        head = struct.unpack_from("<BHHh", p)
+        return cls(*head, struct.unpack_from("<H", p, 7)[0] if len(p) >= 9 else None)
+
+
+@dataclass(frozen=True)
 class RawImu:
     """MSP_RAW_IMU reply (§1.4): 9 x int16 LE. Units depend on the firmware; see ``imu_si``."""
 
@@ -414,10 +577,12 @@ class SetMotor:
 
 
 MspMessage = (Request | Ack | ErrorReply | Unknown | ApiVersion | FcVariant | FcStatus | RawImu
-              | Attitude | AttitudeQuaternion | Motor | SetMotor)
+              | Attitude | AttitudeQuaternion | Motor | SetMotor | FcVersion | BoardInfo
+              | StatusEx | Analog)
 
 _REPLIES: dict[int, type] = {c.CMD: c for c in (ApiVersion, FcVariant, FcStatus, RawImu, Attitude,
-                                                AttitudeQuaternion, Motor)}
+                                                AttitudeQuaternion, Motor, FcVersion, BoardInfo,
+                                                StatusEx, Analog)}
 _IN_COMMANDS: dict[int, type] = {MSP_SET_MOTOR: SetMotor}
 
 

@@ -1,9 +1,13 @@
 """A simulated Betaflight-like flight controller answering MSP on a pseudo-terminal.
 
-Answers (protocols.md §1): API_VERSION, FC_VARIANT ("BTFL"), STATUS, RAW_IMU (acc in
-counts with ``acc_1g``, gyro in whole deg/s, §1.4), ATTITUDE (0.1° roll/pitch, whole-degree
-yaw, §1.5), MOTOR, SET_MOTOR (ack; values apply only while disarmed, and a payload
-shorter than ``motor_count`` motors is refused, §1.7); anything else gets an error reply.
+Answers (protocols.md §1): API_VERSION, FC_VARIANT ("BTFL"), FC_VERSION, BOARD_INFO,
+STATUS and STATUS_EX (bit 0 of the flight-mode flags set while ``armed``), ANALOG (from
+``battery() -> (V, A)``), RAW_IMU (acc in counts with ``acc_1g``, gyro in whole deg/s,
+§1.4), ATTITUDE (0.1° roll/pitch, whole-degree yaw, §1.5), MOTOR, SET_MOTOR (ack; values
+apply only while disarmed, and a payload shorter than ``motor_count`` motors is refused,
+§1.7); anything else gets the error reply ``$M!`` as Betaflight sends for a command it
+does not know. Like Betaflight and INAV, the motor-test values have no expiry: when the
+host stops sending, the motors keep the last value (docs/protocols.md, dead host).
 The IMU values come from ``imu(t_s) -> (acc_m_s2, gyro_rad_s, (roll, pitch, yaw) rad)``.
 """
 
@@ -30,8 +34,11 @@ class SimFlightController(PtySimulator):
     """MSP responder; ``armed`` switches SET_MOTOR off like the real firmware."""
 
     def __init__(self, imu: ImuModel, *, acc_1g: int = 2048, motor_count: int = 4,
-                 api: tuple[int, int] = (1, 46)) -> None:
+                 api: tuple[int, int] = (1, 46), version: tuple[int, int, int] = (4, 5, 0),
+                 battery: Callable[[], tuple[float, float]] = lambda: (0.0, 0.0)) -> None:
         self.imu = imu
+        self.version = version  # what this simulator reports; not a claim about a firmware
+        self.battery = battery
         self.acc_1g = acc_1g
         self.motor_count = motor_count
         self.api = api  # what this simulator reports; not a claim about a real firmware
@@ -71,8 +78,22 @@ class SimFlightController(PtySimulator):
             return enc(msp.ApiVersion(0, *self.api))
         if cmd == msp.MSP_FC_VARIANT:
             return enc(msp.FcVariant("BTFL"))
+        flags = msp.ARMED_FLAG if self.armed else 0
         if cmd == msp.MSP_STATUS:
-            return enc(msp.FcStatus(125, 0, 0b100001, 0, 0))  # acc + gyro present (§1.8)
+            return enc(msp.FcStatus(125, 0, 0b100001, flags, 0))  # acc + gyro present (§1.8)
+        if cmd == msp.MSP_STATUS_EX:
+            # rest: config state 0, CPU temperature 0 degC, 4 control-rate profiles (§1.8)
+            return enc(msp.StatusEx(125, 0, 0b100001, flags, 0, system_load=5,
+                                    profile_count=4, rest_hex="00" "0000" "04"))
+        if cmd == msp.MSP_FC_VERSION:
+            return enc(msp.FcVersion(*self.version))
+        if cmd == msp.MSP_BOARD_INFO:
+            return enc(msp.BoardInfo("SIMF", target_name="ROTORBENCH_SIM",
+                                     board_name="simulated FC", manufacturer_id="RTRB"))
+        if cmd == msp.MSP_ANALOG:
+            volts, amps = self.battery()
+            return enc(msp.Analog(min(255, round(volts * 10)), 0, 0,
+                                  _i16(amps * 100), round(volts * 100)))
         if cmd == msp.MSP_MOTOR:
             vals = self.motors() + [0] * (msp.MOTOR_SLOTS - self.motor_count)
             return enc(msp.Motor(tuple(vals)))

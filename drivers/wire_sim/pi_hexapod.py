@@ -80,9 +80,16 @@ class SimPiController:
     def __init__(self, *, velocity: float = 10.0, limit: float = 50.0,
                  host: str = "127.0.0.1", port: int = 0, plant=None,
                  servo_cycle_s: float = gcs.SERVO_CYCLE_S_C887,
-                 recorder_points: int = 1 << 22, max_wave_points: int = 1 << 20) -> None:
+                 recorder_points: int = 1 << 22, max_wave_points: int = 1 << 20,
+                 travel: dict[str, tuple[float, float]] | None = None,
+                 referenced: bool = True, servo: bool = True) -> None:
         self.velocity = velocity  # controller units per second for every axis (VLS)
         self.limit = limit  # |value| limit of every axis, controller units
+        # soft limits TMN?/TMX? per axis (controller units); default +-limit
+        self.travel = {a: (-limit, limit) for a in gcs.HEXAPOD_AXES}
+        self.travel.update(travel or {})
+        self.referenced = referenced  # FRF?: a C-887 references all axes at once (FRF X)
+        self.servo = dict.fromkeys(gcs.HEXAPOD_AXES, servo)  # SVO?
         self.plant = plant
         self.servo_cycle_s = servo_cycle_s
         self.recorder_points = recorder_points
@@ -241,8 +248,14 @@ class SimPiController:
     def _values(self, values: dict[str, float]) -> bytes:
         return gcs.encode_reply(f"{k}={v:.6f}" for k, v in values.items())
 
+    def _ready_to_move(self) -> None:
+        """Error 5 (move without reference or with servo off), as the controller refuses."""
+        if not self.referenced or not all(self.servo.values()):
+            raise _Refused(5)
+
     def _move(self, targets: dict[str, float], now: float) -> None:
-        if any(abs(v) > self.limit for v in targets.values()):
+        self._ready_to_move()
+        if any(not self.travel[a][0] <= v <= self.travel[a][1] for a, v in targets.items()):
             self._fail(7)  # position out of limits
             return
         if self.plant is not None:
@@ -333,6 +346,7 @@ class SimPiController:
             self.error = 0  # stopping a generator is not an error
         if not go:
             return
+        self._ready_to_move()
         if self.plant is not None:
             if self._moving(now):
                 raise _Refused(17)
@@ -500,8 +514,40 @@ class SimPiController:
             return None
         if name == "DRR?":
             return self._drr(args, now)
-        if name in ("SVO", "FRF"):
-            return None  # accepted and recorded in ``commands``
+        if name == "SVO":
+            pairs = self._axis_pairs(args, self.servo)
+            if pairs is not None:
+                self.servo.update({a: v != 0 for a, v in pairs.items()})
+            return None
+        if name == "FRF":
+            if any(a not in self.axes for a in args):
+                raise _Refused(15)
+            if not all(self.servo.values()):
+                raise _Refused(5)
+            self.referenced = True  # at once: the simulator has no reference move to run
+            return None
+        if name in ("SVO?", "FRF?", "TMN?", "TMX?"):
+            axes = args or gcs.HEXAPOD_AXES
+            if any(a not in self.axes for a in axes):
+                raise _Refused(15)
+            if name in ("SVO?", "FRF?"):
+                on = self.servo if name == "SVO?" else dict.fromkeys(axes, self.referenced)
+                return gcs.encode_reply(f"{a}={int(on[a])}" for a in axes)
+            k = 0 if name == "TMN?" else 1
+            return self._values({a: self.travel[a][k] for a in axes})
+        if name == "WSL?":
+            gens = self._ints(args) if args else list(range(1, 7))
+            return gcs.encode_reply(f"{g}={self.wave_select.get(g, 0)}" for g in gens)
+        if name == "WGO?":
+            gens = self._ints(args) if args else list(range(1, 7))
+            running = self._running(now)
+            return gcs.encode_reply(f"{g}={int(g in running)}" for g in gens)
+        if name == "DRC?":
+            tables = self._ints(args) if args else sorted(self.record_tables)
+            if any(t not in self.record_tables for t in tables):
+                raise _Refused(17)
+            return gcs.encode_reply(f"{t}={self.record_tables[t][0]} {self.record_tables[t][1]}"
+                                    for t in tables)
         if name.endswith("?"):
             self._fail(2)
             return gcs.encode_reply(["0"])

@@ -38,7 +38,7 @@ def _fit(run_root, capsys) -> dict:
 
 def test_step_fits_agree_on_sim_serial_and_can_rigs(tmp_path, capsys):
     fits = {}
-    for name in ("sim", "sim-serial", "sim-can"):
+    for name in ("sim", "sim-serial", "sim-can", "sim-vesc-uart"):
         errors = []
         for attempt in range(2):  # one retry: a shared CI host can stall a process for
             out = tmp_path / f"{name}-{attempt}"  # longer than a device timeout
@@ -52,7 +52,7 @@ def test_step_fits_agree_on_sim_serial_and_can_rigs(tmp_path, capsys):
         assert "success" in captured.out
         fits[name] = _fit(out, capsys)
     ref = fits["sim"]
-    for name in ("sim-serial", "sim-can"):
+    for name in ("sim-serial", "sim-can", "sim-vesc-uart"):
         fit = fits[name]
         assert ref["repeats_up"] == ref["repeats_down"] == 3
         # an edge with a gap in its rows (a host stall) is left out by the fit
@@ -188,7 +188,7 @@ def test_flight_controller_silent_is_recorded(tmp_path):
 
 
 # -- rotorbench check ------------------------------------------------------------------------
-@pytest.mark.parametrize("name", ["sim", "sim-serial", "sim-can"])
+@pytest.mark.parametrize("name", ["sim", "sim-serial", "sim-can", "sim-vesc-uart"])
 def test_check_reports_every_device_of_the_sim_rigs(name, capsys):
     code = main(["check", "--rig", str(RIGS / f"{name}.toml"), "--json", "--timeout", "5"])
     out = capsys.readouterr().out

@@ -86,3 +86,24 @@ def damage(frame: bytes, data: st.DataObject) -> Piece:
         mask = data.draw(st.integers(1, 255))
         return Piece(frame[:k] + bytes([frame[k] ^ mask]) + frame[k + 1 :])
     return Piece(frame[:k] + frame[k + 1 :])
+
+
+@st.composite
+def streams(draw: st.DrawFn, frames: st.SearchStrategy, garbage: st.SearchStrategy | None = None,
+            damaged: bool = True, max_frames: int = 8, damage_one_in: int = 5,
+            trailing: bool = False) -> tuple[bytes, list, list[int]]:
+    """A test stream of ``(frame bytes, message)`` draws with garbage between them, some
+    frames damaged (one in ``damage_one_in``), optional trailing garbage, and chunk cuts."""
+    garbage = st.binary(max_size=12) if garbage is None else garbage
+    pieces = []
+    for frame, msg in draw(st.lists(frames, min_size=1, max_size=max_frames)):
+        if draw(st.booleans()):
+            pieces.append(Piece(draw(garbage)))
+        if damaged and draw(st.integers(0, damage_one_in - 1)) == 0:
+            pieces.append(damage(frame, draw(st.data())))
+        else:
+            pieces.append(Piece(frame, msg, intact=True))
+    if trailing and draw(st.booleans()):
+        pieces.append(Piece(draw(garbage)))
+    data, intact = assemble(pieces)
+    return data, intact, draw(st.lists(st.integers(0, len(data)), max_size=6))

@@ -50,7 +50,7 @@ def test_imu_in_si_through_the_pty(fc):
 
 def test_motor_test_applies_only_while_disarmed(fc):
     sim, client = fc
-    esc = MspMotorEsc(client, motor_index=2)
+    esc = MspMotorEsc(client, motor_index=2, propellers_off=True)
     assert isinstance(esc, Esc)
     esc.arm()
     esc.set_pulse_us(1350)
@@ -68,14 +68,14 @@ def test_motor_test_applies_only_while_disarmed(fc):
 
 def test_fc_refusal_and_silence_become_device_errors(fc):
     sim, client = fc
-    with pytest.raises(DeviceError, match="refused MSP command 150"):
-        client.request(msp.Request(150))
+    with pytest.raises(DeviceError, match="refused MSP command 151"):
+        client.request(msp.Request(151))
     sim.port.disconnect()
     t0 = time.monotonic()
     with pytest.raises(DeviceError, match="no reply"):
         client.request(msp.Request(msp.MSP_ATTITUDE))
     assert time.monotonic() - t0 < 0.3
-    esc = MspMotorEsc(client, 0)
+    esc = MspMotorEsc(client, 0, propellers_off=True)
     esc.disarm()  # never raises, even with the FC silent
 
 
@@ -93,3 +93,28 @@ def test_betaflight_needs_acc_scale(fc):
     _, client = fc
     with pytest.raises(DeviceError, match="acc_1g"):
         MspImu(client)
+
+
+def test_identity_and_arming_state_are_read_and_an_armed_fc_is_refused(fc):
+    sim, client = fc
+    assert client.firmware() == {"variant": "BTFL", "msp_api": "1.46", "version": "4.5.0",
+                                 "board": "SIMF (ROTORBENCH_SIM)"}
+    assert client.armed() is False
+    sim.armed = True
+    assert client.armed() is True
+    esc = MspMotorEsc(client, 1, propellers_off=True)
+    with pytest.raises(DeviceError, match="flight controller is armed"):
+        esc.arm()
+    assert not any(isinstance(m, msp.SetMotor) and m.values_us[1] != 1000
+                   for m in sim.requests)
+    sim.armed = False
+    esc.arm()
+    esc.set_pulse_us(1200)
+    assert sim.motors()[1] == 1200
+    esc.close()
+
+
+def test_propellers_on_is_refused_because_the_fc_holds_the_last_value(fc):
+    _, client = fc
+    with pytest.raises(DeviceError, match="propellers-on run: Betaflight and INAV keep"):
+        MspMotorEsc(client, 0)

@@ -36,15 +36,40 @@ def test_move_wait_and_position(hexapod):
     dev.wait_on_target(timeout_s=1.0)
     pos = dev.position()
     assert pos["X"] == pytest.approx(0.002) and pos["W"] == pytest.approx(math.radians(5.0))
-    assert [c.name for c in sim.commands[:3]] == ["*IDN?", "ERR?", "MOV"]
+    names = [c.name for c in sim.commands if c.name != "ERR?"]
+    # the state is read at open and again before the move (limits, reference, servo)
+    assert names[:5] == ["*IDN?", "SVO?", "FRF?", "TMN?", "TMX?"]
+    assert names[names.index("MOV") - 4:names.index("MOV")] == ["SVO?", "FRF?", "TMN?", "TMX?"]
     mov = next(c for c in sim.commands if c.name == "MOV")
     assert mov.args == ("X", "2", "W", "5")  # mm and degrees on the wire
+
+
+def test_limits_and_reference_are_read_from_the_controller_before_motion():
+    sim = SimPiController(travel={"Z": (-10.0, 20.0)}, referenced=False).start()
+    dev = PiHexapod(open_tcp(*sim.address), url="tcp://sim", timeout_s=0.5)
+    try:
+        assert dev.state.travel["Z"] == pytest.approx((-0.010, 0.020))
+        assert dev.describe().extra["controller"]["referenced"]["X"] is False
+        with pytest.raises(DeviceError, match=r"not referenced \(FRF\? X=0\): reference it"):
+            dev.move_to({"X": 0.001})
+        sim.referenced = True
+        with pytest.raises(DeviceError, match=r"MOV Z = 0.021 outside the controller's "
+                                              r"TMN\?..TMX\? -0.01..0.02"):
+            dev.move_to({"Z": 0.021})
+        sim.servo["V"] = False
+        with pytest.raises(DeviceError, match=r"servo off \(SVO\? V=0\)"):
+            dev.move_to({"Z": 0.001})
+        assert not any(c.name == "MOV" for c in sim.commands)  # nothing moved
+    finally:
+        dev.close()
+        sim.stop()
 
 
 def test_refused_commands_raise_with_the_gcs_error(hexapod):
     _, dev = hexapod
     with pytest.raises(DeviceError, match="GCS error 7"):
-        dev.move_to({"Z": 1.0})  # 1000 mm: out of limits
+        dev.command(gcs.mov({"Z": 1000.0}))  # 1000 mm: out of limits (the backend's own
+        # move_to refuses it before sending: see the TMN?/TMX? test)
     with pytest.raises(DeviceError, match="GCS error 2"):
         dev.command(gcs.command("NOPE"))
     dev.move_to({"Z": 0.001})  # the error was cleared by ERR?

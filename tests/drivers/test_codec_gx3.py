@@ -121,19 +121,8 @@ def test_si_accel_rate_round_trip_within_float32(t, acc_g, rate):
     assert back.rate_rad_s == pytest.approx(rate, rel=1e-6, abs=1e-30)
 
 
-@st.composite
-def streams(draw, garbage=None, damaged=True):
-    garbage = st.binary(max_size=12) if garbage is None else garbage
-    pieces = []
-    for frame, msg in draw(st.lists(packets(), min_size=1, max_size=6)):
-        if draw(st.booleans()):
-            pieces.append(props.Piece(draw(garbage)))
-        if damaged and draw(st.integers(0, 3)) == 0:
-            pieces.append(props.damage(frame, draw(st.data())))
-        else:
-            pieces.append(props.Piece(frame, msg, intact=True))
-    data, intact = props.assemble(pieces)
-    return data, intact, draw(st.lists(st.integers(0, len(data)), max_size=6))
+def streams(garbage=None, damaged=True):
+    return props.streams(packets(), garbage, damaged, max_frames=6, damage_one_in=4)
 
 
 @FUZZ

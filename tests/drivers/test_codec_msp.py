@@ -172,22 +172,8 @@ frames = st.builds(
     st.binary(max_size=40), st.integers(0, 255))
 
 
-@st.composite
-def streams(draw, garbage=None, damaged=True):
-    garbage = st.binary(max_size=12) if garbage is None else garbage
-    pieces = []
-    for frame, msg in draw(st.lists(frames, min_size=1, max_size=8)):
-        if draw(st.booleans()):
-            pieces.append(props.Piece(draw(garbage)))
-        if damaged and draw(st.integers(0, 4)) == 0:
-            pieces.append(props.damage(frame, draw(st.data())))
-        else:
-            pieces.append(props.Piece(frame, msg, intact=True))
-    if draw(st.booleans()):
-        pieces.append(props.Piece(draw(garbage)))
-    data, intact = props.assemble(pieces)
-    cuts = draw(st.lists(st.integers(0, len(data)), max_size=6))
-    return data, intact, cuts
+def streams(garbage=None, damaged=True):
+    return props.streams(frames, garbage, damaged, trailing=True)
 
 
 @FUZZ

@@ -47,9 +47,12 @@ def _open(tmp_path, devices, base=None):
 
 
 @pytest.mark.parametrize(("body", "match"), [
-    ('url = "serial://sim/msp"\noptions = { motr = 1 }',
+    ('url = "serial://sim/msp"\noptions = { motr = 1, propellers_off = true }',
      r"\[devices.esc\] options.motr: unknown option for this device \(known: .*motor"),
     ('url = "serial://sim/msp"\noptions = { motor = 9 }', r"options.motor: 9 outside 0..7"),
+    ('url = "serial://sim/msp"', r"\[devices.esc\] .*propellers-on run: Betaflight and INAV"),
+    ('url = "serial://sim/msp"\noptions = { propellers_off = "yes" }',
+     r"options.propellers_off: expected true or false"),
     ('url = "serial://sim/msp"\noptions = { protocol = "loadcell" }',
      r"options.protocol: 'loadcell' cannot drive an ESC"),
     ('url = "can://sim/bench"\noptions = { protocol = "vesc" }',
@@ -73,7 +76,8 @@ def test_bad_device_tables_name_file_device_and_field(tmp_path, body, match):
 
 def test_roles_sharing_a_board_must_agree_and_one_port_serves_one_protocol(tmp_path):
     board = 'url = "serial://sim/loadcell"\noptions = {{ stale_s = {} }}'
-    devices = {"esc": 'url = "serial://sim/msp"', "load_cell": board.format(0.3),
+    devices = {"esc": 'url = "serial://sim/msp"\noptions = { propellers_off = true }',
+               "load_cell": board.format(0.3),
                "power": board.format(0.3), "rpm": board.format(0.5)}
     with pytest.raises(DeviceError, match=r"\[devices.rpm\] options.stale_s: roles sharing"):
         _open(tmp_path, devices)

@@ -1,0 +1,95 @@
+"""VESC USB/UART backend end to end against the simulated VESC on a pseudo-terminal."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+pytest.importorskip("serial")
+
+from drivers.backends.serial_link import open_port
+from drivers.backends.vesc_uart import (
+    VescUartEsc,
+    VescUartLink,
+    VescUartSettings,
+    VescUartTelemetry,
+)
+from drivers.contracts import Esc, Sensor
+from drivers.errors import DeviceError
+from drivers.wire_sim.vesc import VescCommand, VescState
+from drivers.wire_sim.vesc_uart import SimVescUart
+
+
+def model(_t: float, cmd: VescCommand) -> VescState:
+    duty = cmd.value if cmd.kind == "duty" else 0.0
+    return VescState(70_000 * duty, 20 * duty, duty, 10 * duty, 12.3, 30.0, 35.0)
+
+
+@pytest.fixture
+def vesc():
+    sim = SimVescUart(model, controller_id=5).start()
+    port = open_port(sim.path, 115200)
+    link = VescUartLink(port, "vesc", timeout_s=0.5)
+    yield sim, link
+    port.close()
+    sim.stop()
+
+
+def _wait(cond, timeout=1.0) -> bool:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if cond():
+            return True
+        time.sleep(0.005)
+    return False
+
+
+def test_throttle_to_duty_and_telemetry(vesc):
+    sim, link = vesc
+    esc = VescUartEsc(link, VescUartSettings(keepalive_s=0.05))
+    tel = VescUartTelemetry(link, pole_pairs=7, rate_hz=100.0)
+    assert isinstance(esc, Esc) and isinstance(tel, Sensor)
+    assert tel.describe().extra["controller_id"] == 5
+    esc.arm()
+    assert _wait(lambda: sim.command == VescCommand("current", 0.0))  # idle: no torque
+    esc.set_pulse_us(1500)
+    assert _wait(lambda: sim.command == VescCommand("duty", 0.5))
+    time.sleep(0.1)
+    b = tel.read_block()
+    assert len(b) >= 5 and b.values["rpm"][-1] == pytest.approx(70_000 * 0.5 / 7)
+    assert b.values["voltage_v"][-1] == pytest.approx(12.3)
+    esc.close()
+    tel.close()
+    assert _wait(lambda: sim.command == VescCommand("current", 0.0))
+
+
+def test_keepalive_holds_the_command_past_the_vesc_timeout(vesc):
+    sim, link = vesc
+    sim.timeout_s = 0.2
+    esc = VescUartEsc(link, VescUartSettings(keepalive_s=0.05, host_timeout_s=1.0))
+    esc.arm()
+    esc.set_pulse_us(1800)
+    time.sleep(0.5)  # the host keeps commanding inside its own timeout: no release
+    assert sim.timeouts == 0 and sim.command.kind == "duty"
+    esc.close()
+
+
+def test_stalled_host_lets_the_vesc_release_the_motor(vesc):
+    sim, link = vesc
+    sim.timeout_s = 0.2
+    esc = VescUartEsc(link, VescUartSettings(keepalive_s=0.05, host_timeout_s=0.1))
+    esc.arm()
+    esc.set_pulse_us(1800)
+    assert _wait(lambda: esc.host_stalled, 1.0)  # the host went silent: one stop sent
+    assert _wait(lambda: sim.command == VescCommand("current", 0.0))
+    esc.close()
+
+
+def test_silent_vesc_is_a_device_error(vesc):
+    sim, link = vesc
+    sim.port.disconnect()
+    with pytest.raises(DeviceError, match="no GET_VALUES reply"):
+        VescUartTelemetry(link, pole_pairs=7)
+    with pytest.raises(DeviceError, match="keepalive_s must be below"):
+        VescUartEsc(link, VescUartSettings(keepalive_s=1.0))

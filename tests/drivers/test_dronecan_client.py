@@ -1,0 +1,97 @@
+"""Other people's CAN clients against the simulated CAN devices (python-can ``virtual``).
+
+* The ``dronecan`` package's own node (PyPI 1.0.27, protocols.md §4.3) broadcasts
+  ``uavcan.equipment.esc.RawCommand`` and listens for ``esc.Status``: the simulated ESC
+  follows the command and its Status decodes in dronecan's own DSDL types. dronecan's
+  ``PythonCAN.receive`` passes ``timeout * 1000`` to python-can (§4.3 known bug), so
+  ``spin`` is given a thousandth of the wait wanted; and its writer thread calls
+  ``bus.flush_tx_buffer()``, which python-can's ``virtual`` bus does not implement
+  (``NotImplementedError``, python-can 4.6), so the test gives the virtual bus a no-op one.
+* Plain python-can sends the VESC frames of protocols.md §3.2 (its computed examples) to
+  the simulated VESC and reads its STATUS broadcasts.
+"""
+
+from __future__ import annotations
+
+import itertools
+import os
+import time
+
+import pytest
+
+can = pytest.importorskip("can")
+dronecan = pytest.importorskip("dronecan")
+
+from drivers.backends.can_link import CanLink  # noqa: E402
+from drivers.codecs import dronecan as dc  # noqa: E402
+from drivers.wire_sim.dronecan_esc import SimDroneCanEsc  # noqa: E402
+from drivers.wire_sim.vesc import SimVescDevice, VescCommand, VescState  # noqa: E402
+
+_channels = itertools.count()
+
+
+def _channel(kind: str) -> str:
+    return f"client-{kind}-{os.getpid()}-{next(_channels)}"
+
+
+def test_the_dronecan_node_drives_the_simulated_esc(monkeypatch):
+    from can.interfaces.virtual import VirtualBus
+
+    monkeypatch.setattr(VirtualBus, "flush_tx_buffer", lambda self: None, raising=False)
+    channel = _channel("dronecan")
+    link = CanLink(can.Bus(channel, interface="virtual"), "sim side")
+
+    def model(_t: float, raw: int) -> dc.EscStatus:
+        return dc.EscStatus(7, 12.5, 3.25, 300.0, raw, 0, 2)
+
+    esc = SimDroneCanEsc(link, 21, 2, model, status_period_s=0.01).start()
+    node = dronecan.make_node(channel, node_id=100, bitrate=1_000_000, bustype="virtual")
+    seen = []
+    node.add_handler(dronecan.uavcan.equipment.esc.Status, lambda e: seen.append(e.message))
+    try:
+        end = time.monotonic() + 5.0  # the node's NodeStatus comes once a second
+        while time.monotonic() < end and not (esc.raw == 4096 and seen and esc.host_node_status):
+            node.broadcast(dronecan.uavcan.equipment.esc.RawCommand(cmd=[0, 0, 4096]))
+            node.spin(0.02e-3)  # 20 ms (see module doc)
+        assert esc.raw == 4096  # the simulated ESC took dronecan's RawCommand
+        assert esc.host_node_status >= 1  # and heard the dronecan node's NodeStatus
+        st = seen[-1]
+        assert (st.esc_index, st.error_count, st.rpm) == (2, 7, 4096)
+        assert st.voltage == pytest.approx(12.5) and st.temperature == pytest.approx(300.0)
+    finally:
+        node.close()
+        esc.stop()
+        link.close()
+        link.bus.shutdown()
+
+
+def test_python_can_drives_the_simulated_vesc_with_the_reference_frames():
+    channel = _channel("vesc")
+    link = CanLink(can.Bus(channel, interface="virtual"), "sim side")
+
+    def model(_t: float, cmd: VescCommand) -> VescState:
+        duty = cmd.value if cmd.kind == "duty" else 0.0
+        return VescState(48_000 * duty, 10.5, duty, 3.1, 24.3, 35.2, 40.0, 123456)
+
+    vesc = SimVescDevice(link, 1, model, status_rate_hz=100.0).start()
+    bus = can.Bus(channel, interface="virtual")
+    try:
+        # §3.2: SET_DUTY 0.25 to controller 1 = id 0x00000001, data 00 00 61 A8
+        bus.send(can.Message(arbitration_id=0x00000001, data=bytes.fromhex("000061A8"),
+                             is_extended_id=True))
+        status = {}
+        end = time.monotonic() + 2.0
+        while time.monotonic() < end and len(status) < 3:
+            msg = bus.recv(0.1)
+            if msg is not None and msg.arbitration_id >> 8 in (9, 16, 27):
+                status[msg.arbitration_id >> 8] = bytes(msg.data)
+        assert vesc.command == VescCommand("duty", 0.25)
+        # STATUS (12000 ERPM, 10.5 A, duty 0.25), STATUS_4 and STATUS_5 as in §3.2
+        assert status[9] == bytes.fromhex("00002EE0006900FA")
+        assert status[16] == bytes.fromhex("01600190001F0000")
+        assert status[27] == bytes.fromhex("0001E24000F30000")
+    finally:
+        bus.shutdown()
+        vesc.stop()
+        link.close()
+        link.bus.shutdown()
