@@ -99,6 +99,20 @@ class RingBuffer:
                 self._data[:, :m - first] = block[:, first:]
             self._count[0] = total + n
 
+    def tail(self, n: int) -> tuple[int, dict[str, np.ndarray]]:
+        """The rows pushed total and a copy of the newest ``min(n, kept)`` rows, oldest
+        first: a reader that remembers ``total`` copies only what is new."""
+        with self._lock:
+            total = int(self._count[0])
+            m = max(min(int(n), total, self.capacity), 0)
+            end = total % self.capacity
+            start = end - m
+            if start >= 0:
+                data = self._data[:, start:end].copy()
+            else:
+                data = np.concatenate([self._data[:, start:], self._data[:, :end]], axis=1)
+        return total, {name: data[i] for i, name in enumerate(self.names)}
+
     def snapshot(self) -> dict[str, np.ndarray]:
         """A copy of the kept rows, oldest first (two slices, no full-buffer roll)."""
         with self._lock:
