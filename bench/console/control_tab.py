@@ -98,7 +98,7 @@ class ControlTab(QtWidgets.QWidget):
     """Throttle | plots | limits."""
 
     def __init__(self, ring: RingBuffer, request: Callable[[str, Any], None],
-                 window_s: float = 5.0, frame_ms: int = 20) -> None:
+                 window_s: float = 5.0, frame_ms: int = 10) -> None:
         super().__init__()
         self.request = request
         self.esc = {"idle_us": 1000.0, "min_us": 1000.0, "max_us": 2000.0}

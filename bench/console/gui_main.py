@@ -4,8 +4,11 @@ drives it like an operator: arm, throttle to 30 %, hold, stop, screenshot, frame
 from __future__ import annotations
 
 import multiprocessing as mp
+import os
 import signal
+import sys
 import time
+import traceback
 from pathlib import Path
 from typing import Any
 
@@ -29,6 +32,13 @@ def window_main(gui_args: tuple[Any, ...], out: str, selftest: dict[str, Any] | 
 
     from bench.console.window import ConsoleWindow
 
+    def crash(kind: Any, value: Any, tb: Any) -> None:
+        # an exception in a Qt slot would otherwise be printed and forgotten; the window
+        # ends instead, so the bench sees it crash and stops any run
+        traceback.print_exception(kind, value, tb)
+        os._exit(3)
+
+    sys.excepthook = crash
     app = pg.mkQApp("rotorbench console")
     win = ConsoleWindow(link, Path(out), window_s=window_s)
     win.show()

@@ -14,6 +14,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import threading
+import time
 from collections.abc import Callable, Mapping
 from typing import Any
 
@@ -116,6 +117,7 @@ class ConsoleRunner(Runner):
         self.in_manual = False
         self._shift = 0.0  # a manual segment ended early moves the later ones forward
         self._limits_lock = threading.Lock()
+        self.safe_at: float | None = None
 
     @property
     def limits(self) -> dict[str, float]:
@@ -183,4 +185,5 @@ class ConsoleRunner(Runner):
     def _safe_stop(self) -> list[str]:
         errors = super()._safe_stop()
         self.armed = False
+        self.safe_at = time.monotonic()  # when the ESC was made safe (the tests measure it)
         return errors

@@ -44,7 +44,7 @@ class _StopKeys(QtCore.QObject):
 
 class ConsoleWindow(QtWidgets.QMainWindow):
     def __init__(self, link: GuiLink, out: Path, window_s: float = 5.0,
-                 frame_ms: int = 20) -> None:
+                 frame_ms: int = 10) -> None:
         super().__init__()
         self.link = link
         self.setWindowTitle("rotorbench console")
@@ -193,8 +193,8 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         self.imu.refresh()
 
     def _slow(self) -> None:
-        snap = self.link.ring.snapshot()
-        last = {k: float(v[-1]) for k, v in snap.items() if v.size}
+        _, newest = self.link.ring.tail(1)
+        last = {k: float(v[-1]) for k, v in newest.items() if v.size}
         self.devices.show_last(last, bool(self.state.get("busy")))
 
     def frames_per_s(self, since: float, until: float | None = None) -> float:
