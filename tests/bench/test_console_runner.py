@@ -165,3 +165,16 @@ def test_the_link_says_why_the_window_is_lost():
     assert gui.receive() == [("state", {"x": 1})]
     link.closed_by_operator = True
     assert link.lost() == "console window closed"
+
+
+def test_console_refuses_a_bad_rig_file_or_limit_in_one_line(tmp_path, capsys):
+    from bench.cli import main
+
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[rig]\nname = 3\n")
+    assert main(["console", "--rig", str(bad), "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("rotorbench: error:") and str(bad) in err and "\n" not in err
+    assert main(["console", "--limit", "thrust_n=99", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "only tighten" in err and "\n" not in err

@@ -267,3 +267,26 @@ def test_a_frozen_window_stops_the_run_within_the_heartbeat_bound(window_process
     os.kill(proc.pid, signal.SIGCONT)  # the window recovers: the console goes on
     time.sleep(0.5)
     assert proc.is_alive() and bench.lost_reason is None
+
+
+def test_the_selftest_runs_headless_and_records_a_run_that_ends_at_idle(tmp_path):
+    """The whole ``rotorbench console --selftest`` (its frame rate is measured, printed and
+    checked by the command; here any rate is accepted: no timed test in the suite)."""
+    import subprocess
+    import sys
+
+    from PIL import Image
+
+    shot = tmp_path / "shot.png"
+    proc = subprocess.run([sys.executable, "-m", "bench.cli", "console", "--selftest",
+                           "--out", str(tmp_path), "--screenshot", str(shot), "--min-fps", "0"],
+                          capture_output=True, text=True, timeout=240, check=False)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert re.search(r"^\d+ frames/s$", proc.stdout, re.M)
+    assert "recorded throttle: up to 1300 us, last 1000 us" in proc.stdout
+    with Image.open(shot) as img:
+        assert img.size[0] >= 800 and img.size[1] >= 500
+    from bench.run_index import RunIndex
+
+    rows = RunIndex(tmp_path).list()
+    assert [(r.sequence, r.status) for r in rows] == [("manual", "success")]
