@@ -121,7 +121,7 @@ class ControlTab(QtWidgets.QWidget):
         left_box.setFixedWidth(130)
         self.plots = LivePlots(ring, window_s=window_s, frame_ms=frame_ms)
         self.limits = LimitsPanel(request)
-        self.limits.setFixedWidth(260)
+        self.limits.setFixedWidth(330)
         layout = QtWidgets.QHBoxLayout(self)
         layout.addWidget(left_box)
         layout.addWidget(self.plots, 1)

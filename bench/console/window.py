@@ -61,7 +61,7 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         self.arm_button.setMinimumHeight(50)
         self.arm_button.clicked.connect(self.arm)
         self.stop_button = QtWidgets.QPushButton("STOP  (Space / Esc)")
-        self.stop_button.setMinimumSize(260, 60)
+        self.stop_button.setMinimumSize(300, 60)
         self.stop_button.setStyleSheet(
             "QPushButton { background: #c00000; color: white; font-size: 18pt; "
             "font-weight: bold; border-radius: 6px; }")
