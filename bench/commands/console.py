@@ -57,11 +57,16 @@ def handler(args: argparse.Namespace) -> int:
     from bench.console.link import BenchLink
     from bench.console.manual import DEFAULT_RATE_US_S
     from bench.console.server import ConsoleBench
+    from bench.imu_rig import is_imu_rig, load_imu_rig
     from bench.live import _qt_binding_missing
     from bench.runner import RunOptions
 
-    rig = common.load_rig_from_args(args)
-    limits = _tightened(rig, common.parse_limits(args.limit))  # refused before any window
+    imu = args.rig is not None and is_imu_rig(args.rig)
+    rig = load_imu_rig(args.rig) if imu else common.load_rig_from_args(args)
+    if imu and (args.limit or args.selftest):
+        raise RigError(f"{args.rig}: an IMU-bench rig; --limit and --selftest are for "
+                       "propulsion rigs (the hexapod's limits are in its rig file)")
+    limits = {} if imu else _tightened(rig, common.parse_limits(args.limit))
     if args.rate is not None and not (args.rate > 0 and args.rate < 1e5):
         raise RigError(f"--rate {args.rate:g}: expected a rate limit in us/s > 0")
     if args.window <= 0 or args.window > 60:

@@ -61,7 +61,7 @@ class ActiveRun:
     """One run on its worker thread and what the window needs to know of it."""
 
     kind: str
-    seq: Sequence
+    seq: Sequence | None
     stop: threading.Event
     setpoint: Setpoint | None = None
     runner: ConsoleRunner | None = None
@@ -69,6 +69,7 @@ class ActiveRun:
     progress: tuple[float, float, str, int] = (0.0, 0.0, "", -1)
     result: dict[str, Any] | None = None
     ended_at: float | None = None  # time.monotonic() when the run (and its safe stop) ended
+    imu: Any = None  # an IMU-bench calibration (bench.console.imu_bench.ImuCalibration)
 
 
 class ConsoleBench:
@@ -78,13 +79,14 @@ class ConsoleBench:
                  options: RunOptions | None = None, rate_us_s: float = DEFAULT_RATE_US_S,
                  open_rig: Callable[..., Any] | None = None) -> None:
         self.rig = rig
+        self.imu = getattr(rig, "hexapod", None) is not None  # an IMU-bench rig
         self.out = Path(out)
         self.link = link
         self.seed = seed
         self.options = options or RunOptions(realtime=True)
         self.rate_us_s = rate_us_s
-        self.esc = esc_range_of(rig)
-        self.rig_limits = limits_dict(rig.limits)
+        self.esc = esc_range_of(rig) if not self.imu else None
+        self.rig_limits = limits_dict(rig.limits) if not self.imu else {}
         self.limits = dict(self.rig_limits)
         self._open_rig = open_rig
         self.run: ActiveRun | None = None
@@ -107,7 +109,30 @@ class ConsoleBench:
         except RigError as exc:
             self.link.send("error", str(exc))
 
+    def _propulsion(self, what: str) -> None:
+        if self.imu:
+            raise RigError(f"{what}: {self.rig.name} is an IMU-bench rig (hexapod and IMUs); "
+                           "calibrate it from the IMU tab")
+
+    def _on_calibrate(self, payload: Any) -> None:
+        from bench.console.imu_bench import ImuCalibration
+
+        if not self.imu:
+            raise RigError("calibrate: this is a propulsion rig; the IMU tab calibrates "
+                           "IMU-bench rigs ([rig] kind = \"imu\")")
+        if self.busy:
+            raise RigError(f"calibrate: a {self.run.kind} run is going on; stop it first")
+        run = ActiveRun("calibration", None, threading.Event())
+        run.imu = ImuCalibration(self.rig, self.out, bool((payload or {}).get("quick", True)),
+                                 run.stop, self.link.lost)
+        run.thread = threading.Thread(target=self._work, args=(run, run.imu.run),
+                                      name="rotorbench-console-calibration", daemon=True)
+        self.run = run
+        run.thread.start()
+        self.send_state(force=True)
+
     def _on_arm(self, _payload: Any) -> None:
+        self._propulsion("arm")
         seq, index = manual_sequence(rate_us_s=self.rate_us_s)
         setpoint = Setpoint(self.esc, self.rate_us_s)
         self._start("manual", seq, setpoint=setpoint, manual_index=index,
@@ -133,10 +158,13 @@ class ConsoleBench:
     _on_abort = _on_stop
 
     def _on_start_plan(self, spec: Any) -> None:
+        self._propulsion("plan")
         seq = plan_sequence(dict(spec))
         self._start(str(seq.name), seq, meta={"console": {"plan": dict(spec)}})
 
     def _on_preview(self, spec: Any) -> None:
+        if self.imu:
+            return
         seq = plan_sequence(dict(spec))
         seq = dataclasses.replace(seq, limits={**seq.limits, **self._tighter()})
         effective_limits(self.rig.limits, seq.limits, source=f"sequence {seq.name!r}")
@@ -146,10 +174,12 @@ class ConsoleBench:
                                    "segments": [_segment_row(s) for s in plan.segments]})
 
     def _on_tare(self, _payload: Any) -> None:
+        self._propulsion("tare")
         self._start("tare", Sequence("tare", (Tare(TARE_S),),
                                      description="console: load-cell tare, motor stopped"))
 
     def _on_tighten(self, payload: Any) -> None:
+        self._propulsion("tighten")
         name, value = payload
         if name not in LIMIT_FIELDS:
             raise RigError(f"limit {name!r}: expected one of {', '.join(LIMIT_FIELDS)}")
@@ -233,6 +263,9 @@ class ConsoleBench:
         except BaseException as exc:  # the run was made safe and recorded by its finally
             error = exc
         run.ended_at = time.monotonic()
+        if isinstance(outcome, dict):  # an IMU calibration says itself how it went
+            self._finished(run, outcome)
+            return
         runner = run.runner
         res = outcome.result if outcome is not None else (runner.result if runner else None)
         info: dict[str, Any] = {"kind": run.kind, "status": "fail",
@@ -247,6 +280,11 @@ class ConsoleBench:
             info["tare_offset_n"] = runner.tare_offset_n
             if runner.recorder is not None:
                 info["run_dir"] = str(runner.recorder.run_dir)
+        if run.imu is not None and error is not None:
+            info["reason"] = f"calibration: {type(error).__name__}: {error}"
+        self._finished(run, info)
+
+    def _finished(self, run: ActiveRun, info: dict[str, Any]) -> None:
         run.result = info
         with self._lock:
             self.finished.append(info)
@@ -264,6 +302,13 @@ class ConsoleBench:
     # -- state --------------------------------------------------------------------------
 
     def rig_info(self) -> dict[str, Any]:
+        base = {"name": self.rig.name, "path": str(getattr(self.rig, "path", "")),
+                "kind": "imu" if self.imu else "propulsion", "rate_us_s": self.rate_us_s,
+                "out": str(self.out)}
+        if self.imu:
+            from bench.console.imu_bench import imu_rig_info
+
+            return {**base, **imu_rig_info(self.rig)}
         tm = getattr(self.rig, "thrust_map", None)
         thrust_cap_us = None
         if tm is not None and "thrust_n" in self.rig_limits:
@@ -282,11 +327,14 @@ class ConsoleBench:
 
     def state(self) -> dict[str, Any]:
         run = self.run
+        idle = self.esc.idle_us if self.esc is not None else 1000.0
         out: dict[str, Any] = {"limits": dict(self.limits), "busy": self.busy,
-                               "kind": None, "armed": False, "command_us": self.esc.idle_us,
-                               "target_us": self.esc.idle_us, "manual": False,
-                               "progress": None}
-        if run is not None and run.ended_at is None:
+                               "kind": None, "armed": False, "command_us": idle,
+                               "target_us": idle, "manual": False, "progress": None,
+                               "imu": None}
+        if run is not None and run.ended_at is None and run.imu is not None:
+            out.update(kind=run.kind, imu=dict(run.imu.progress))
+        elif run is not None and run.ended_at is None:
             runner = run.runner
             out.update(kind=run.kind, progress=run.progress)
             if runner is not None:

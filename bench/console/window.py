@@ -82,7 +82,7 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         self.devices = DevicesTab(self.request)
         self.plans = PlansTab(self.request)
         self.history = HistoryTab(out)
-        self.imu = ImuTab(out)
+        self.imu = ImuTab(out, self.request)
         self.tabs = QtWidgets.QTabWidget()
         for name, tab in zip(TAB_NAMES, (self.control, self.devices, self.plans, self.history,
                                          self.imu), strict=True):
@@ -141,6 +141,9 @@ class ConsoleWindow(QtWidgets.QMainWindow):
                 self.control.show_rig(payload)
                 self.devices.show_rig(payload)
                 self.imu.show_rig(payload)
+                if payload.get("kind") == "imu":
+                    self.arm_button.setEnabled(False)
+                    self.tabs.setCurrentWidget(self.imu)
                 self.show_state(self.state or {"limits": payload["rig_limits"], "busy": False,
                                                "command_us": payload["esc"]["idle_us"]})
                 self.plans.preview()
@@ -163,13 +166,14 @@ class ConsoleWindow(QtWidgets.QMainWindow):
             self.control.limits.show_limits(state["limits"], self.rig["rig_limits"])
         self.control.show_state(state)
         self.plans.show_state(state)
+        self.imu.show_state(state)
         if state.get("busy"):
             arm = "ARMED" if state.get("armed") else "disarmed"
             self.status.setText(f"{state['kind']} run: {arm}, command "
                                 f"{state['command_us']:.0f} us")
         elif not self.status.text().startswith("refused"):
             self.status.setText(f"idle (ESC idle, disarmed) - rig {self.rig.get('name', '?')}")
-        self.arm_button.setEnabled(not state.get("busy"))
+        self.arm_button.setEnabled(not state.get("busy") and self.rig.get("kind") != "imu")
         self.plans.start_button.setEnabled(not state.get("busy"))
 
     def show_finished(self, info: dict[str, Any]) -> None:
@@ -188,6 +192,8 @@ class ConsoleWindow(QtWidgets.QMainWindow):
             self.banner.show()
         if info["kind"] == "tare":
             self.devices.show_tare(info)
+        if info["kind"] == "calibration":
+            self.imu.show_finished(info)
         self.plans.show_finished(info)
         self.history.refresh()
         self.imu.refresh()

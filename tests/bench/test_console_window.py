@@ -290,3 +290,59 @@ def test_the_selftest_runs_headless_and_records_a_run_that_ends_at_idle(tmp_path
 
     rows = RunIndex(tmp_path).list()
     assert [(r.sequence, r.status) for r in rows] == [("manual", "success")]
+
+
+@pytest.fixture
+def imu_console(qtbot, tmp_path):
+    from bench.console.window import ConsoleWindow
+    from bench.imu_rig import default_imu_rig_path, load_imu_rig
+
+    link = BenchLink(capacity=1000)
+    bench = ConsoleBench(load_imu_rig(default_imu_rig_path()), tmp_path, link)
+    win = ConsoleWindow(link.gui_link(), tmp_path)
+    qtbot.addWidget(win)
+    win.show()
+    serving = threading.Thread(target=bench.serve, daemon=True)
+    serving.start()
+    qtbot.waitUntil(lambda: bool(win.rig), timeout=30_000)
+    yield win, bench
+    win.close()
+    serving.join(60)
+
+
+def test_the_imu_tab_calibrates_an_imu_rig_stage_by_stage(qtbot, imu_console, tmp_path):
+    win, bench = imu_console
+    assert win.tabs.currentWidget() is win.imu and not win.arm_button.isEnabled()
+    qtbot.mouseClick(win.arm_button, LEFT)  # disabled: nothing happens
+    qtbot.mouseClick(win.imu.quick_button, LEFT)
+    qtbot.waitUntil(lambda: bool(win.finished), timeout=300_000)
+    info = win.finished[-1]
+    assert info["kind"] == "calibration" and info["status"] == "success", info["reason"]
+    assert len(info["stages"]) == 5
+    assert "calibration success: 5/5 stages" in win.imu.stage_label.text()
+    import json as _json
+    from pathlib import Path
+
+    cal = _json.loads(Path(info["calibration"]).read_text())
+    assert cal["format"] == "rotorbench-imu-calibration/1"
+    assert np.asarray(cal["k_gyro"]).shape == (3, 3)
+    assert '"format": "rotorbench-imu-calibration/1"' in win.imu.result.toPlainText()
+    assert win.imu.table.rowCount() == 5  # one recorded run per stage, from the index
+    bench.handle("arm", None)  # the bench refuses propulsion requests on an IMU rig
+    assert bench.run.kind == "calibration"
+
+
+def test_aborting_a_calibration_stops_the_hexapod_and_records_the_stage(qtbot, imu_console):
+    import json as _json
+    from pathlib import Path
+
+    win, _bench = imu_console
+    qtbot.mouseClick(win.imu.quick_button, LEFT)
+    qtbot.waitUntil(lambda: (win.state.get("imu") or {}).get("t", 0) > 0, timeout=60_000)
+    assert "stage 1/5" in win.imu.stage_label.text()
+    qtbot.keyClick(win, Key.Key_Space)
+    qtbot.waitUntil(lambda: bool(win.finished), timeout=60_000)
+    info = win.finished[-1]
+    assert info["status"] == "abort" and "stopped by operator" in info["reason"]
+    meta = _json.loads((Path(info["run_dir"]) / "run.json").read_text())
+    assert meta["status"] == "abort" and not meta.get("safe_stop_errors")
