@@ -181,14 +181,14 @@ class LiveView:
         self.win.close()
 
 
-def check_display() -> None:
+def check_display(what: str = "--live", instead: str = "run without --live, or ") -> None:
     """Without a display Qt aborts the whole process (SIGABRT, several lines of Qt text):
     say so in one line before anything is opened."""
     if not sys.platform.startswith("linux") or os.environ.get("QT_QPA_PLATFORM"):
         return
     if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-        raise RigError("--live needs a display: neither DISPLAY nor WAYLAND_DISPLAY is set "
-                       "(run without --live, or set QT_QPA_PLATFORM=offscreen)")
+        raise RigError(f"{what} needs a display: neither DISPLAY nor WAYLAND_DISPLAY is set "
+                       f"({instead}set QT_QPA_PLATFORM=offscreen)")
 
 
 def none_refs_per_call(call: Callable[[], object], calls: int = 2000) -> float:

@@ -1,8 +1,9 @@
 """Screenshots of each console tab for the README: docs/img/console-<tab>.png.
 
-Runs offscreen on the simulated rig, the bench on a thread of this process: a manual
+Runs offscreen on the simulated rigs, the bench on a thread of this process: a manual
 session at 30 % (control tab), a device check (devices), a Step 1 plan under way (plans),
-two runs overlaid (history), the IMU tab. Usage: python docs/make_console_screenshots.py
+two runs overlaid (history), and on the simulated IMU bench a quick calibration (IMU).
+Usage: python docs/make_console_screenshots.py
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ def main() -> int:
     from bench.console.window import ConsoleWindow
     from bench.rig import default_rig_path, load_rig
 
-    app = pg.mkQApp("rotorbench console")
+    _app = pg.mkQApp("rotorbench console")  # kept alive while the windows live
     out = Path(tempfile.mkdtemp(prefix="console-shots-"))
     link = BenchLink(capacity=25_000 * 6)
     bench = ConsoleBench(load_rig(default_rig_path()), out, link)
@@ -77,7 +78,19 @@ def main() -> int:
     win.history.select(0, 1)
     win.history.open_selected()
     shot("history")
-    win.tabs.setCurrentWidget(win.imu)
+    win.close()
+    # IMU: the simulated IMU bench, a quick calibration done
+    from bench.imu_rig import default_imu_rig_path, load_imu_rig
+
+    imu_link = BenchLink(capacity=1000)
+    imu_bench = ConsoleBench(load_imu_rig(default_imu_rig_path()), out / "imu", imu_link)
+    win = ConsoleWindow(imu_link.gui_link(), out / "imu")
+    win.resize(1280, 800)
+    win.show()
+    threading.Thread(target=imu_bench.serve, daemon=True).start()
+    wait(lambda: bool(win.rig))
+    win.imu.quick_button.click()
+    wait(lambda: bool(win.finished), 600.0)
     shot("imu")
     win.close()
     time.sleep(0.5)

@@ -45,20 +45,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=handler, esc_mode=None)
 
 
-def _check_display() -> None:
-    if not sys.platform.startswith("linux") or os.environ.get("QT_QPA_PLATFORM"):
-        return
-    if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-        raise RigError("console needs a display: neither DISPLAY nor WAYLAND_DISPLAY is set "
-                       "(or run headless with QT_QPA_PLATFORM=offscreen)")
-
-
 def handler(args: argparse.Namespace) -> int:
     from bench.console.link import BenchLink
     from bench.console.manual import DEFAULT_RATE_US_S
     from bench.console.server import ConsoleBench
     from bench.imu_rig import is_imu_rig, load_imu_rig
-    from bench.live import _qt_binding_missing
+    from bench.live import _qt_binding_missing, check_display
     from bench.runner import RunOptions
 
     imu = args.rig is not None and is_imu_rig(args.rig)
@@ -76,7 +68,7 @@ def handler(args: argparse.Namespace) -> int:
         os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
         if args.screenshot is None:
             args.screenshot = args.out / "console-selftest.png"
-    _check_display()
+    check_display("console", "")
     problem = _qt_binding_missing()
     if problem is not None:
         raise RigError(problem.replace("--live", "console"))

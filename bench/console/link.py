@@ -12,11 +12,11 @@ so a frozen window can never fill the pipe and block the bench.
 from __future__ import annotations
 
 import multiprocessing as mp
-import signal
 import time
 from typing import Any
 
 from bench.live import RingBuffer
+from bench.live import _exit_text as exit_text
 
 __all__ = ["HEARTBEAT_BOUND_S", "HEARTBEAT_PERIOD_S", "RING_NAMES", "BenchLink", "GuiLink",
            "exit_text"]
@@ -31,13 +31,16 @@ RING_NAMES = ("t_s", "throttle_us", "thrust_setpoint_n", "thrust_n", "torque_nm"
               "voltage_v", "rpm")
 
 
-def exit_text(code: int) -> str:
-    if code < 0:
-        try:
-            return f"signal {signal.Signals(-code).name}"
-        except ValueError:
-            return f"signal {-code}"
-    return f"exit code {code}"
+def _drain(conn: Any, gone: tuple[str, Any] | None) -> list[tuple[str, Any]]:
+    """Every message waiting on ``conn``; ``gone`` is appended if the other end closed."""
+    out = []
+    try:
+        while conn.poll():
+            out.append(conn.recv())
+    except (EOFError, OSError):
+        if gone is not None:
+            out.append(gone)
+    return out
 
 
 class GuiLink:
@@ -59,13 +62,7 @@ class GuiLink:
             pass  # the bench is gone; the window notices through `bench_gone`
 
     def receive(self) -> list[tuple[str, Any]]:
-        out = []
-        try:
-            while self.conn.poll():
-                out.append(self.conn.recv())
-        except (EOFError, OSError):
-            out.append(("bench_gone", None))
-        return out
+        return _drain(self.conn, ("bench_gone", None))
 
 
 class BenchLink:
@@ -130,10 +127,4 @@ class BenchLink:
             pass
 
     def receive(self) -> list[tuple[str, Any]]:
-        out = []
-        try:
-            while self.conn.poll():
-                out.append(self.conn.recv())
-        except (EOFError, OSError):
-            pass
-        return out
+        return _drain(self.conn, None)

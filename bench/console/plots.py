@@ -196,15 +196,16 @@ class LivePlots(QtWidgets.QWidget):
         self.refreshes += 1
 
     def _fit_y(self, key: str, plot: Any, y: np.ndarray) -> None:
-        """Grow the y range at once to show every sample, shrink it only when the data
-        uses less than a third of it; ranges snap to a grid so the axis rarely redraws."""
+        """Grow the y range at once to show every sample (strictly inside: a line on the
+        edge would be clipped), shrink it only when the data uses less than a third of it;
+        ranges snap to a grid so the axis rarely redraws."""
         finite = y[np.isfinite(y)]
         if finite.size == 0:
             return
         lo, hi = float(finite.min()), float(finite.max())
         span = max(hi - lo, 1e-3 * max(abs(hi), abs(lo)), 1e-6)
         cur = self._yrange.get(key)
-        if cur is not None and cur[0] <= lo and hi <= cur[1] and \
+        if cur is not None and cur[0] < lo and hi < cur[1] and \
                 (hi - lo) >= (cur[1] - cur[0]) / 3:
             return
         step = 10.0 ** np.floor(np.log10(span))

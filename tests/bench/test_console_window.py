@@ -58,23 +58,31 @@ def _throttle(run_dir) -> np.ndarray:
                            )["throttle_us"].to_numpy()
 
 
-@pytest.fixture
-def console(qtbot, tmp_path):
+def _served_window(qtbot, tmp_path, rig, capacity, **kwargs):
+    """The window here, its bench serving it on a thread; a generator: yields both, then
+    closes the window and checks the bench ended with it."""
     from bench.console.window import ConsoleWindow
 
-    opener = _Opener()
-    link = BenchLink(capacity=25_000 * 6)
-    bench = ConsoleBench(load_rig(default_rig_path()), tmp_path, link, open_rig=opener)
+    link = BenchLink(capacity=capacity)
+    bench = ConsoleBench(rig, tmp_path, link, **kwargs)
     win = ConsoleWindow(link.gui_link(), tmp_path)
     qtbot.addWidget(win)
     win.show()
     serving = threading.Thread(target=bench.serve, daemon=True)
     serving.start()
     qtbot.waitUntil(lambda: bool(win.rig), timeout=30_000)
-    yield win, bench, opener
+    yield win, bench
     win.close()
-    serving.join(30)
+    serving.join(60)
     assert not serving.is_alive()
+
+
+@pytest.fixture
+def console(qtbot, tmp_path):
+    opener = _Opener()
+    for win, bench in _served_window(qtbot, tmp_path, load_rig(default_rig_path()),
+                                     25_000 * 6, open_rig=opener):
+        yield win, bench, opener
 
 
 def _arm_and_throttle(qtbot, win, presses=3):
@@ -232,33 +240,32 @@ def _wait_end(bench, timeout_s=10.0):
     assert not bench.busy
 
 
-def test_killing_the_window_process_mid_run_makes_the_esc_safe_at_once(window_process):
+def _signal_mid_run(window_process, sig, what):
+    """Spin at 30 %, send ``sig`` to the window process; the run's record and the time
+    from the signal to the ESC made safe."""
     bench, proc, opener = window_process
     _spin(bench)
-    killed = time.monotonic()
-    os.kill(proc.pid, signal.SIGKILL)
+    sent = time.monotonic()
+    os.kill(proc.pid, sig)
     _wait_end(bench)
-    delay = bench.run.runner.safe_at - killed
-    print(f"window killed -> ESC idle and disarmed in {delay * 1e3:.0f} ms")
-    info = bench.finished[-1]
+    delay = bench.run.runner.safe_at - sent
+    print(f"window {what} -> ESC idle and disarmed in {delay * 1e3:.0f} ms "
+          f"(heartbeat bound {HEARTBEAT_BOUND_S:g} s)")
+    assert opener.esc_safe()
+    return bench.finished[-1], delay
+
+
+def test_killing_the_window_process_mid_run_makes_the_esc_safe_at_once(window_process):
+    info, delay = _signal_mid_run(window_process, signal.SIGKILL, "killed")
     assert info["status"] == "abort" and "crashed (signal SIGKILL)" in info["reason"]
-    assert opener.esc_safe() and _throttle(__import__("pathlib").Path(info["run_dir"])).max() \
-        == 1300.0
+    assert _throttle(__import__("pathlib").Path(info["run_dir"])).max() == 1300.0
     assert delay < 0.5  # the next tick sees the process gone (20 ms ticks)
 
 
 def test_a_frozen_window_stops_the_run_within_the_heartbeat_bound(window_process):
-    bench, proc, opener = window_process
-    _spin(bench)
-    stopped = time.monotonic()
-    os.kill(proc.pid, signal.SIGSTOP)
-    _wait_end(bench)
-    delay = bench.run.runner.safe_at - stopped
-    print(f"window frozen -> ESC idle and disarmed in {delay * 1e3:.0f} ms "
-          f"(bound {HEARTBEAT_BOUND_S:g} s)")
-    info = bench.finished[-1]
+    bench, proc, _ = window_process
+    info, delay = _signal_mid_run(window_process, signal.SIGSTOP, "frozen (SIGSTOP)")
     assert info["status"] == "abort" and "console frozen" in info["reason"]
-    assert opener.esc_safe()
     # the window's last beat may predate the SIGSTOP (a long paint): the run stops once the
     # beat is older than the bound, never before, and within a tick or two after
     age = float(re.search(r"no heartbeat for ([0-9.]+) s", info["reason"]).group(1))
@@ -294,20 +301,9 @@ def test_the_selftest_runs_headless_and_records_a_run_that_ends_at_idle(tmp_path
 
 @pytest.fixture
 def imu_console(qtbot, tmp_path):
-    from bench.console.window import ConsoleWindow
     from bench.imu_rig import default_imu_rig_path, load_imu_rig
 
-    link = BenchLink(capacity=1000)
-    bench = ConsoleBench(load_imu_rig(default_imu_rig_path()), tmp_path, link)
-    win = ConsoleWindow(link.gui_link(), tmp_path)
-    qtbot.addWidget(win)
-    win.show()
-    serving = threading.Thread(target=bench.serve, daemon=True)
-    serving.start()
-    qtbot.waitUntil(lambda: bool(win.rig), timeout=30_000)
-    yield win, bench
-    win.close()
-    serving.join(60)
+    yield from _served_window(qtbot, tmp_path, load_imu_rig(default_imu_rig_path()), 1000)
 
 
 def test_the_imu_tab_calibrates_an_imu_rig_stage_by_stage(qtbot, imu_console, tmp_path):
