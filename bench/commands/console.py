@@ -23,7 +23,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description="A window to run the stand by hand and by plan (needs the live extra: "
                     "pip install 'rotorbench[live]'). Stop (button, Space, Esc) puts the ESC "
                     "at idle and disarms it; closing the window, a crash of it or a frozen "
-                    "window (no heartbeat for 0.5 s) does the same.")
+                    "window (no heartbeat for 1 s) does the same. On an IMU-bench rig the IMU "
+                    "tab runs the Paper A calibration.")
     p.add_argument("--rig", type=Path, default=None,
                    help="rig file (TOML); default: the simulated rig fixtures/rigs/sim.toml")
     p.add_argument("--out", type=Path, default=common.DEFAULT_OUT,
