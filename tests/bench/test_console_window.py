@@ -79,9 +79,15 @@ def _served_window(qtbot, tmp_path, rig, capacity, **kwargs):
 
 @pytest.fixture
 def console(qtbot, tmp_path):
+    from bench.runner import RunOptions
+
     opener = _Opener()
+    # window and bench share one interpreter here: a long paint holding the GIL can stall
+    # the run loop past the 0.5 s watchdog on a loaded machine (a safe stop, but not what
+    # these tests look at); the watchdog has its own tests, the processes below are apart
+    options = RunOptions(realtime=True, watchdog_timeout_s=2.0)
     for win, bench in _served_window(qtbot, tmp_path, load_rig(default_rig_path()),
-                                     25_000 * 6, open_rig=opener):
+                                     25_000 * 6, open_rig=opener, options=options):
         yield win, bench, opener
 
 
@@ -342,3 +348,29 @@ def test_aborting_a_calibration_stops_the_hexapod_and_records_the_stage(qtbot, i
     assert info["status"] == "abort" and "stopped by operator" in info["reason"]
     meta = _json.loads((Path(info["run_dir"]) / "run.json").read_text())
     assert meta["status"] == "abort" and not meta.get("safe_stop_errors")
+
+
+def test_history_fits_the_last_step_run_and_exports_through_the_cli(qtbot, console):
+    win, _bench, _ = console
+    win.plans.repeats.setValue(2)
+    win.plans.hold.setValue(0.3)
+    qtbot.waitUntil(lambda: "2 repeats" in win.plans.description.text(), timeout=5000)
+    qtbot.mouseClick(win.plans.start_button, LEFT)
+    qtbot.waitUntil(lambda: bool(win.finished), timeout=60_000)
+    assert win.finished[-1]["status"] == "success", win.finished[-1]["reason"]
+    hist = win.history
+    hist.fit_last()  # `rotorbench fit RUN --json` in a child process; the window goes on
+    qtbot.waitUntil(lambda: hist.process.state() == QtCore.QProcess.ProcessState.NotRunning,
+                    timeout=60_000)
+    qtbot.wait(200)
+    text = hist.fit_label.text()
+    assert text.startswith("last fit ("), hist.output.toPlainText()
+    assert "step1" in text and "tau up" in text and "gain" in text
+    assert re.search(r"tau up \d", text), text  # a number was fitted, not '-'
+    hist.select(0)
+    hist.export("px4")  # `rotorbench export px4 RUN`: its output (or one-line error) shown
+    qtbot.waitUntil(lambda: hist.process.state() == QtCore.QProcess.ProcessState.NotRunning,
+                    timeout=60_000)
+    qtbot.wait(200)
+    lines = hist.output.toPlainText().splitlines()
+    assert lines[0].startswith("$ ") and "export px4" in lines[0] and len(lines) >= 2
