@@ -99,6 +99,20 @@ class RingBuffer:
                 self._data[:, :m - first] = block[:, first:]
             self._count[0] = total + n
 
+    def tail(self, n: int) -> tuple[int, dict[str, np.ndarray]]:
+        """The rows pushed total and a copy of the newest ``min(n, kept)`` rows, oldest
+        first: a reader that remembers ``total`` copies only what is new."""
+        with self._lock:
+            total = int(self._count[0])
+            m = max(min(int(n), total, self.capacity), 0)
+            end = total % self.capacity
+            start = end - m
+            if start >= 0:
+                data = self._data[:, start:end].copy()
+            else:
+                data = np.concatenate([self._data[:, start:], self._data[:, :end]], axis=1)
+        return total, {name: data[i] for i, name in enumerate(self.names)}
+
     def snapshot(self) -> dict[str, np.ndarray]:
         """A copy of the kept rows, oldest first (two slices, no full-buffer roll)."""
         with self._lock:
@@ -167,14 +181,14 @@ class LiveView:
         self.win.close()
 
 
-def check_display() -> None:
+def check_display(what: str = "--live", instead: str = "run without --live, or ") -> None:
     """Without a display Qt aborts the whole process (SIGABRT, several lines of Qt text):
     say so in one line before anything is opened."""
     if not sys.platform.startswith("linux") or os.environ.get("QT_QPA_PLATFORM"):
         return
     if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-        raise RigError("--live needs a display: neither DISPLAY nor WAYLAND_DISPLAY is set "
-                       "(run without --live, or set QT_QPA_PLATFORM=offscreen)")
+        raise RigError(f"{what} needs a display: neither DISPLAY nor WAYLAND_DISPLAY is set "
+                       f"({instead}set QT_QPA_PLATFORM=offscreen)")
 
 
 def none_refs_per_call(call: Callable[[], object], calls: int = 2000) -> float:

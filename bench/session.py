@@ -93,11 +93,14 @@ def run_sequence(
     on_progress: Callable[[float, float, Segment], None] | None = None,
     stop_event: threading.Event | None = None,
     extra_meta: Mapping[str, Any] | None = None,
+    runner_factory: Callable[..., Runner] = Runner,
 ) -> RunOutcome:
     """Run ``seq`` on ``rig`` and record it under ``out_root``; see module docstring.
 
     Device errors, Ctrl-C and bugs propagate after the run has been made safe and
     recorded (``runner.result`` holds the record); trips return with status abort.
+    ``runner_factory`` builds the runner from Runner's arguments (the console passes a
+    Runner subclass that follows the operator's throttle).
     """
     options = options or RunOptions()
     plan = plan_for(rig, seq)
@@ -125,7 +128,7 @@ def run_sequence(
             raise
         try:
             try:
-                runner = Runner(devices, plan, esc_range_of(rig), limits, recorder, options,
+                runner = runner_factory(devices, plan, esc_range_of(rig), limits, recorder, options,
                                 on_rows=on_rows, on_progress=on_progress, stop_event=stop_event)
             except BaseException as exc:
                 recorder.finish("fail", f"runner did not start: {exc}")
