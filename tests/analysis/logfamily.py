@@ -52,7 +52,7 @@ def rotor_rpm(t: np.ndarray, duty: np.ndarray, tau_s: float) -> np.ndarray:
     return rpm
 
 
-def rcbenchmark_log(path: Path, *, seconds: float = 80.0, seed: int = 0, tau_s: float = 0.05,
+def rcbenchmark_log(path: Path, *, seconds: float = 90.0, seed: int = 0, tau_s: float = 0.05,
                     steps_back: int = 0, back_ms: tuple[float, float] = (1.0, 9.0),
                     concatenated: bool = False, esc_signal: bool = False,
                     thrust_period_s: float = 0.15) -> Path:
@@ -95,7 +95,7 @@ def rcbenchmark_log(path: Path, *, seconds: float = 80.0, seed: int = 0, tau_s: 
     return path
 
 
-def esc32_log(path: Path, *, seconds: float = 60.0, seed: int = 0, tau_s: float = 0.06,
+def esc32_log(path: Path, *, seconds: float = 90.0, seed: int = 0, tau_s: float = 0.06,
               delay_s: float = 0.0, hold_s: float = 5.0) -> Path:
     """An ESC32 telemetry log of hand-set duty steps, a row every 15 ms (ms stamps)."""
     rng = np.random.default_rng(seed)
