@@ -92,3 +92,12 @@ def test_csv_time_cells_nan_and_repeats_are_named(tmp_path):
     with pytest.raises(LogError, match=r"row 5, column 'time \(ms\)': repeated timestamp "
                                        r"'10' "):
         import_csv(p, {"t_s": "time (ms)"})
+
+
+def test_the_shipped_jitter_fixture_is_what_the_generator_writes(logfamily, fixtures_dir,
+                                                                tmp_path):
+    again = logfamily.rcbenchmark_log(tmp_path / "j.csv", seconds=15, steps_back=3, seed=7)
+    shipped = fixtures_dir / "logs" / "rcbenchmark_jitter.csv"
+    assert shipped.read_bytes() == again.read_bytes()
+    _, meta = import_rcbenchmark(shipped)
+    assert meta["time_order"]["reordered_rows"] == 6  # as the README shows
