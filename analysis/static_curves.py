@@ -238,8 +238,9 @@ def fit_static(
             return None, math.nan, math.nan
         p = Polynomial.fit(w[ok], y[ok], deg)
         binned = float(np.sqrt(np.mean((p(w[ok]) - y[ok]) ** 2)))
-        r = np.isfinite(raw)
-        return p, float(np.sqrt(np.mean((p(w_raw[r]) - raw[r]) ** 2))), binned
+        r = np.isfinite(raw)  # the medians came from these samples: never empty here
+        raw_rms = float(np.sqrt(np.mean((p(w_raw[r]) - raw[r]) ** 2))) if r.any() else math.nan
+        return p, raw_rms, binned
 
     tp, trms, trms_b = poly(pts["thrust"], th[use], 2)
     cp, crms, crms_b = poly(pts["current"], cu[use], 3)

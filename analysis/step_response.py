@@ -51,6 +51,13 @@ MIN_BINS = 6  # bins with samples an edge needs for a fit (4 parameters + 2)
 MIN_SAMPLES_PER_TAU = 1.0  # a signal sampled more slowly than tau cannot resolve it
 
 
+def finite_mean(values: Any) -> float:
+    """Mean of the finite values, NaN if there are none (no "Mean of empty slice")."""
+    v = np.asarray(values, float)
+    v = v[np.isfinite(v)]
+    return float(np.mean(v)) if v.size else math.nan
+
+
 # --- models ---------------------------------------------------------------------------------
 
 
@@ -286,7 +293,7 @@ class StepResponse:
             "tau_down_ms": ms(dn.tau.value) if dn else None,
             "tau_up_std_ms": ms(up.tau.std) if up else None,
             "tau_down_std_ms": ms(dn.tau.std) if dn else None,
-            "latency_std_ms": ms(float(np.nanmean([e.std for e in lat]))) if lat else None,
+            "latency_std_ms": ms(finite_mean([e.std for e in lat])) if lat else None,
             "gain": num(float(np.mean([d.gain.value for d in (up, dn) if d is not None])))
             if (up or dn) else None,
             "gain_up": num(up.gain.value) if up else None,
@@ -551,12 +558,12 @@ def _headline(groups: list[DirectionFit], direction: str) -> DirectionFit | None
 
     show = max(fitted, key=lambda g: abs(g.step))  # the curve a figure shows
     mean = FirstOrderFit(avg("latency_s"), avg("tau_s"), avg("gain"), show.mean.y0,
-                         show.mean.y1, avg("rms"), float(np.nanmean([f.t63_s for f in fits])))
+                         show.mean.y1, avg("rms"), finite_mean([f.t63_s for f in fits]))
     return DirectionFit(
         direction=direction,
         u_before=float(np.mean([g.u_before for g in fitted])),
         u_after=float(np.mean([g.u_after for g in fitted])),
-        step=float(np.nanmean(steps)),
+        step=finite_mean(steps),
         edges=tuple(i for i, _ in pairs),
         mean=mean,
         singles=tuple(fits),
