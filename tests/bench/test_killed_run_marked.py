@@ -5,20 +5,37 @@ finished run are left alone."""
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 
 from analysis.run_record import read_run
-from bench.recorder import RunRecorder, atomic_write_json
+from bench.recorder import RunRecorder
 from bench.run_index import RunIndex
 
+DIES = """
+import os, sys
+from pathlib import Path
+import numpy as np
+from bench.recorder import RunRecorder
+from bench.run_index import RunIndex
 
-def _dead_pid() -> int:
-    child = subprocess.Popen([sys.executable, "-c", "pass"])
-    child.wait()
-    return child.pid
+root = Path(sys.argv[1])
+rec = RunRecorder(root / "dead", {"id": "dead", "sequence": {"name": "step1"}})
+t = np.arange(0.0, 2.5, 0.001)
+rec.append({"t_s": t, **{c: np.zeros(t.size) for c in rec.base_columns if c != "t_s"}})
+RunIndex(root).upsert(rec.meta, root / "dead")
+os._exit(0)  # dies like kill -9: no finish, 2.0-2.5 s never written
+"""
+
+
+def _run_that_dies(root) -> None:
+    repo = Path(__file__).resolve().parents[2]
+    subprocess.run([sys.executable, "-c", DIES, str(root)], check=True, cwd=repo,
+                   env={**os.environ, "PYTHONPATH": str(repo)}, timeout=120)
 
 
 def _run(root, name, seconds):
@@ -31,10 +48,8 @@ def _run(root, name, seconds):
 
 def test_store_open_marks_a_dead_run_killed_in_run_json(tmp_path):
     root = tmp_path / "runs"
-    dead = _run(root, "dead", 2.5)  # parts of 0-1 s and 1-2 s on disk, 2-2.5 s buffered
-    meta = dict(dead.meta, pid=_dead_pid())  # the recording process is gone
-    atomic_write_json(root / "dead" / "run.json", meta)
-    RunIndex(root).upsert(meta, root / "dead")
+    _run_that_dies(root)  # parts of 0-1 s and 1-2 s on disk, 2-2.5 s were buffered
+    assert json.loads((root / "dead" / "run.json").read_text())["status"] == "running"
     live = _run(root, "live", 1.5)  # this process: alive
     done = _run(root, "done", 1.5)
     done.finish("success", "")
