@@ -669,41 +669,40 @@ def fit_run(record: RunRecord, signal: str = "auto", command: str | None = None,
         cols = " or ".join(repr(SIGNALS[n]) for n in names)
         raise LogError(f"{record.path}: column {cols} has no data to fit")
     kwargs.setdefault("bin_s", None)
-    results: dict[str, StepResponse] = {}
+    unit = "N" if sp is not None else _COMMAND_UNITS.get(cmd, f"unit of {cmd}")
     why: dict[str, str] = {}
-    for name in cands:
+    periods: dict[str, float] = {}
+    for name in cands:  # in order; the first signal that resolves its time constant wins
         col = SIGNALS[name]
-        y_unit = "N" if col == "thrust_n" else "rpm"
-        unit = "N" if sp is not None else _COMMAND_UNITS.get(cmd, f"unit of {cmd}")
+        y = record.column(col)
+        periods[name] = period = signal_period(t, y)
         try:
-            results[name] = fit_step_response(
-                t, record.column(col), u, sp, event_times(record), signal=col, command=cmd,
-                gain_unit=f"{y_unit}/{unit}", **kwargs)
+            res = fit_step_response(t, y, u, sp, event_times(record), signal=col, command=cmd,
+                                    gain_unit=f"{'N' if col == 'thrust_n' else 'rpm'}/{unit}",
+                                    **kwargs)
         except LogError as exc:
             msg = str(exc)
             if "no step edges" in msg or "none held" in msg:
                 raise LogError(f"{record.path}: {msg}; {STATIC_HINT}") from None
             why[name] = msg
-    # judge each signal's resolution by the best time constant any signal gave
-    taus = {n: _fitted_tau(r) for n, r in results.items()}
-    known = [(tau, n) for n, tau in taus.items() if math.isfinite(tau)]
-    tau_ref, ref = min(known) if known else (math.nan, "")
-    for name, res in results.items():
-        col = SIGNALS[name]
-        period = signal_period(t, record.column(col))
-        if math.isfinite(tau_ref) and tau_ref / period < MIN_SAMPLES_PER_TAU:
-            why[name] = _too_slow(col, period, tau_ref, col if ref == name else SIGNALS[ref])
-        elif res.up is None and res.down is None:
+            continue
+        tau = _fitted_tau(res)
+        if res.up is None and res.down is None:
             first = next((f.why for g in res.groups for f in g.singles if f.why), "")
             why[name] = (f"{col}: sampled every {period * 1e3:.3g} ms; no edge gave an "
                          f"estimate ({first or 'no usable edge'})")
-    for name in cands:
-        if name in results and name not in why:
-            notes = tuple(f"not fitted: {why[n]}" for n in cands
-                          if n != name and n in why and cands.index(n) < cands.index(name))
+        elif tau / period < MIN_SAMPLES_PER_TAU:
+            why[name] = _too_slow(col, period, tau, col)
+        else:
+            # an earlier signal that failed: say whether it is too slow for this tau
+            notes = []
+            for n, reason in why.items():
+                if tau / periods[n] < MIN_SAMPLES_PER_TAU:
+                    reason = _too_slow(SIGNALS[n], periods[n], tau, col)
+                notes.append(f"not fitted: {reason}")
             if notes:
-                notes += (f"fitted {SIGNALS[name]} instead",)
-            return replace(results[name], notes=notes)
+                notes.append(f"fitted {col} instead")
+            return replace(res, notes=tuple(notes))
     raise LogError(f"{record.path}: no signal can be fitted: " + "; ".join(
         why[n] for n in cands))
 
