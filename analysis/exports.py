@@ -9,13 +9,16 @@ Formulas from ``reference/thrust-stands.md`` section 5:
   in ``e``) and, as a cross-check, by the WebTool criterion (the ``e`` for which thrust is
   most linear in demand: minimum standard deviation of d thrust / d demand).
   ``MOT_SPIN_MIN`` is the command where thrust starts and ``MOT_SPIN_MAX`` where it
-  saturates, each only when the data covers that point; ``MOT_THST_HOVER`` is the
-  linearised demand at hover thrust.
+  saturates (the curve stays flat from there to the end of the data), each only when the
+  data covers that point; ``MOT_THST_HOVER`` is the linearised demand at hover thrust,
+  refused when above 1 (the vehicle cannot hover on these motors).
 * PX4 (FunctionMotors): ``rel_thrust = f rel_signal^2 + (1 - f) rel_signal`` with both
   normalised over the experiment (PX4 tuning guide); ``THR_MDL_FAC = f`` in [0, 1].
-* Gazebo / PX4 SITL multirotor motor model: thrust = motorConstant w^2, torque =
-  momentConstant thrust, first-order rotor speed with timeConstantUp / timeConstantDown,
-  maxRotVelocity (rad/s).
+* Gazebo / PX4 SITL multirotor motor model: thrust = motorConstant w^2, drag torque =
+  -turningDirection momentConstant thrust, first-order rotor speed with timeConstantUp /
+  timeConstantDown, maxRotVelocity (rad/s). momentConstant is a positive magnitude (the
+  direction of spin is the plugin's per-motor ``turningDirection``, cw = 1, ccw = -1), so a
+  stand whose torque reads negative for this rotation exports |torque / thrust| with a note.
 """
 
 from __future__ import annotations
@@ -99,15 +102,25 @@ def _expo_and_spin_min(c: ThrustCurve, spin_max: float, lo: float, hi: float
     return float(s[k, 0]), float(e[k])
 
 
-def _saturation(c: ThrustCurve, ratio: float = 0.5) -> float | None:
-    """First command above the middle of the range where the local slope falls below
-    ``ratio`` of the steepest slope seen so far (thrust saturates), else None."""
+def _saturation(c: ThrustCurve, ratio: float = 0.5, min_span: float = 0.04) -> float | None:
+    """The command above the middle of the range from which the thrust curve really
+    flattens, else None.
+
+    A point qualifies when every slope from it to the end of the data stays below
+    ``ratio`` of the steepest slope seen before it and the flat part spans at least
+    ``min_span`` of the command range with >= 2 further points. One flat or noisy bin in a
+    rising curve (a plateau's median, a load-cell outlier) is not saturation: the curve
+    rises again after it."""
     a, t = c.actuator, c.thrust_n
     slope = np.diff(t) / np.diff(a)
-    mid = 0.5 * (a[0] + a[-1])
     peak = np.maximum.accumulate(slope)
-    sat = np.flatnonzero((a[:-1] >= mid) & (slope < ratio * peak))
-    return float(a[int(sat[0])]) if sat.size else None
+    mid = 0.5 * (a[0] + a[-1])
+    # the largest slope from each point on to the end (suffix maximum)
+    ahead = np.maximum.accumulate(slope[::-1])[::-1]
+    flat = (a[:-1] >= mid) & (ahead < ratio * peak) & (a[-1] - a[:-1] >= min_span) \
+        & (np.arange(slope.size) <= slope.size - 2)
+    k = np.flatnonzero(flat)
+    return float(a[int(k[0])]) if k.size else None
 
 
 def expo_least_squares(u: np.ndarray, t: np.ndarray) -> float:
@@ -181,6 +194,11 @@ def ardupilot_params(c: ThrustCurve, hover_thrust_n: float | None = None) -> dic
     }
     if hover_thrust_n is not None:
         demand = hover_thrust_n / t_max  # linearised demand: thrust / lift at SPIN_MAX
+        if demand > 1.0:
+            raise LogError(f"{c.source}: MOT_THST_HOVER: the vehicle cannot hover: it needs "
+                           f"{hover_thrust_n:.3g} N per motor, the motor gives at most "
+                           f"{t_max:.3g} N at SPIN_MAX ({spin_max:.3f}) in this data "
+                           f"(demand {demand:.2f} > 1)")
         out["MOT_THST_HOVER"] = round(demand, 4)
         if not 0.125 <= demand <= 0.6875:
             notes.append(f"MOT_THST_HOVER {demand:.3f} is outside ArduPilot's range "
@@ -211,6 +229,13 @@ def gazebo_params(k_f: float, moment_constant_m: float, tau_up_s: float | None,
         raise LogError("motorConstant: no thrust-vs-speed data")
     if not math.isfinite(moment_constant_m):
         notes.append("momentConstant: no torque in the data")
+    elif moment_constant_m < 0:
+        notes.append("momentConstant: the log's torque has the opposite sign to its thrust "
+                     "(the stand's sign convention for this rotation); exported as the "
+                     "magnitude, the spin direction is the model's turningDirection")
+    # the plugin applies drag torque = -turningDirection * momentConstant * thrust, so
+    # momentConstant is a positive magnitude; the rotor's direction is set per motor
+    moment_constant_m = abs(moment_constant_m)
     if tau_up_s is None or tau_down_s is None:
         notes.append("timeConstantUp/Down: give a step run (--step-run) to fit them")
     if not reaches_full_command:

@@ -6,6 +6,13 @@ Each importer returns a DataFrame whose columns carry the run's names and SI uni
 into a run folder. Units are taken from the column names: a header ``Thrust (gf)`` or
 ``thrust [kgf]`` is converted to newtons by its unit, and a column already named like a
 run column (``thrust_n``) is taken as it is.
+
+Rows are put in time order: a real stand's log can step back in time by a fraction of a
+sample period where two boards interleave their rows. A step back of at most
+``JITTER_MAX_PERIODS`` (5) median sample periods is reordered (stable sort) and counted in
+the metadata (``time_order``: rows moved, places, largest step back, the bound); a larger
+jump back is refused naming the row. Cells are read as text, so an error quotes the cell
+as written ('inf', 'NaN', 'abc'); an empty cell is "no value".
 """
 
 from __future__ import annotations
@@ -115,7 +122,10 @@ def _check_file(path: Path) -> None:
 def _read_csv(path: Path, **kwargs: Any) -> pd.DataFrame:
     _check_file(path)
     try:
-        df = pd.read_csv(path, encoding="utf-8-sig", **kwargs)
+        # every cell as written: errors quote the file's text ('inf', not np.float64(inf)),
+        # and only an empty cell means "no value"
+        df = pd.read_csv(path, encoding="utf-8-sig", dtype=str, keep_default_na=False,
+                         **kwargs)
     except (UnicodeDecodeError, pd.errors.ParserError, csv.Error) as exc:
         reason = " ".join(str(exc).split())  # pandas' messages span lines; one line here
         raise LogError(f"{path}: not a readable CSV ({reason})") from None
@@ -128,36 +138,89 @@ def _read_csv(path: Path, **kwargs: Any) -> pd.DataFrame:
                        "columns must be separated by commas")
     if df.empty:
         raise LogError(f"{path}: no data rows (only a header)")
+    df.attrs["first_line"] = 2 + int(kwargs.get("skiprows", 0) or 0)  # file line of row 0
     return df
 
 
 def _numeric(df: pd.DataFrame, header: str, path: Path) -> np.ndarray:
-    col = pd.to_numeric(df[header], errors="coerce")
-    bad = col.isna() & df[header].notna() & (df[header].astype(str).str.strip() != "")
+    """A column as floats: an empty cell is NaN (no value); text, NaN and inf are refused
+    naming row and column with the cell as written in the file."""
+    raw = df[header].astype(str).str.strip()
+    empty = raw.to_numpy() == ""
+    values = pd.to_numeric(raw.where(~empty, "nan"), errors="coerce").to_numpy(dtype=float)
+    bad = ~np.isfinite(values) & ~empty
     if bad.any():
-        row = int(np.flatnonzero(bad.to_numpy())[0])
-        raise LogError(f"{path}: row {row + 2}, column {header!r}: expected a number, got "
-                       f"{df[header].iloc[row]!r}")
-    values = col.to_numpy(dtype=float)
-    if np.isinf(values).any():
-        row = int(np.flatnonzero(np.isinf(values))[0])
-        raise LogError(f"{path}: row {row + 2}, column {header!r}: expected a finite number, "
-                       f"got {df[header].iloc[row]!r}")
+        row = int(np.flatnonzero(bad)[0])
+        what = "a number" if math.isnan(values[row]) and raw.iloc[row].lower() != "nan" \
+            else "a finite number (leave the cell empty for no value)"
+        raise LogError(f"{path}: row {row + _first_line(df)}, column {header!r}: expected "
+                       f"{what}, got {raw.iloc[row]!r}")
     return values
 
 
-def _frame(columns: Mapping[str, np.ndarray], path: Path) -> pd.DataFrame:
+def _first_line(df: pd.DataFrame) -> int:
+    return int(df.attrs.get("first_line", 2))
+
+
+# Two boards of a stand can interleave their rows, so the time column of a real log may
+# step back by a fraction of a sample period. Rows are put in time order (stably) when
+# the step back is at most this many median sample periods; a larger jump back (two logs
+# concatenated, a clock reset) is refused.
+JITTER_MAX_PERIODS = 5.0
+
+
+def _order_time(t: np.ndarray, path: Path, time_col: str, raw: pd.Series | None,
+                first_line: int, allow_repeats: bool) -> tuple[np.ndarray, dict[str, Any]]:
+    """Stable time order of the rows and what it changed; ``LogError`` for a far jump
+    back or (``allow_repeats`` False) for a repeated timestamp."""
+
+    def cell(i: int) -> str:
+        return repr(str(raw.iloc[i]).strip()) if raw is not None else repr(f"{t[i]:g}")
+
+    dt = np.diff(t)
+    pos = dt[dt > 0]
+    period = float(np.median(pos)) if pos.size else 0.0
+    bound = JITTER_MAX_PERIODS * period
+    back = np.maximum.accumulate(t)[:-1] - t[1:]  # how far each row lies behind the latest
+    far = np.flatnonzero(back > bound)
+    if far.size:
+        i = int(far[0]) + 1
+        raise LogError(f"{path}: row {i + first_line}, column {time_col!r}: time jumps back "
+                       f"{back[i - 1]:.6g} s (to {cell(i)}), more than the jitter bound of "
+                       f"{JITTER_MAX_PERIODS:g} sample periods ({bound:.3g} s): two logs in "
+                       "one file? split it")
+    order = np.argsort(t, kind="stable")
+    if not allow_repeats:
+        ts = t[order]
+        rep = np.flatnonzero(ts[1:] == ts[:-1])
+        if rep.size:
+            i = int(np.min(order[rep + 1]))
+            raise LogError(f"{path}: row {i + first_line}, column {time_col!r}: repeated "
+                           f"timestamp {cell(i)} (each row needs its own time)")
+    moved = int(np.count_nonzero(order != np.arange(t.size)))
+    info: dict[str, Any] = {"reordered_rows": moved, "time_steps_back": int(np.sum(dt < 0)),
+                            "max_step_back_s": float(np.max(back, initial=0.0)),
+                            "jitter_bound_s": bound, "median_period_s": period}
+    return order, info
+
+
+def _frame(columns: Mapping[str, np.ndarray], path: Path, *, time_col: str = "t_s",
+           raw_time: pd.Series | None = None, first_line: int = 2,
+           allow_repeats: bool = True) -> tuple[pd.DataFrame, dict[str, Any]]:
+    """The run columns in time order, with the reordering summary for the metadata."""
     out = pd.DataFrame({k: np.asarray(v, float) for k, v in columns.items()})
     if "t_s" not in out.columns:
         raise LogError(f"{path}: no time column (t_s)")
     t = out["t_s"].to_numpy()
     if not np.isfinite(t).all():
         row = int(np.flatnonzero(~np.isfinite(t))[0])
-        raise LogError(f"{path}: row {row + 2}: time is empty or not a number")
-    if np.any(np.diff(t) < 0):
-        row = int(np.flatnonzero(np.diff(t) < 0)[0]) + 1
-        raise LogError(f"{path}: row {row + 2}: time goes backwards ({t[row - 1]} -> {t[row]})")
-    return out
+        got = f", got {str(raw_time.iloc[row]).strip()!r}" if raw_time is not None else ""
+        raise LogError(f"{path}: row {row + first_line}, column {time_col!r}: time is empty "
+                       f"or not a number{got}")
+    order, info = _order_time(t, path, time_col, raw_time, first_line, allow_repeats)
+    if info["reordered_rows"]:
+        out = out.iloc[order].reset_index(drop=True)
+    return out, info
 
 
 # --- RCbenchmark --------------------------------------------------------------------------
@@ -213,9 +276,11 @@ def import_rcbenchmark(path: str | Path) -> tuple[pd.DataFrame, dict[str, Any]]:
     if not np.any(np.nan_to_num(cols.get("rpm_optical", np.zeros(1))) > 0):
         cols.pop("rpm_optical", None)
         used.pop("rpm_optical", None)
+    frame, order = _frame(cols, path, time_col=used["t_s"], raw_time=df[used["t_s"]],
+                          first_line=_first_line(df))
     meta = {"format": "rcbenchmark", "source_file": str(path), "columns": used,
-            "control_protocol": first[0].strip() if skip else None}
-    return _frame(cols, path), meta
+            "control_protocol": first[0].strip() if skip else None, "time_order": order}
+    return frame, meta
 
 
 # --- AutoQuad ESC32 -----------------------------------------------------------------------
@@ -243,19 +308,22 @@ def import_esc32(path: str | Path) -> tuple[pd.DataFrame, dict[str, Any]]:
                            errors="coerce")
     if stamp.isna().any():
         row = int(np.flatnonzero(stamp.isna().to_numpy())[0])
-        raise LogError(f"{path}: row {row + 2}, column 'Timestamp': expected "
+        raise LogError(f"{path}: row {row + _first_line(df)}, column 'Timestamp': expected "
                        f"'YYYY-MM-DD HH:MM:SS:mmm', got {df['Timestamp'].iloc[row]!r}")
-    t = (stamp - stamp.iloc[0]).dt.total_seconds().to_numpy()
+    start = stamp.min()  # the first row may lie a little behind a later one (jitter)
+    t = (stamp - start).dt.total_seconds().to_numpy()
     cols: dict[str, np.ndarray] = {"t_s": t}
     missing = [h for h, _ in _ESC32_MAP if h not in df.columns]
     if missing:
         raise LogError(f"{path}: missing ESC32 columns {missing}")
     for header, target in _ESC32_MAP:
         cols[target] = _numeric(df, header, path)
+    frame, order = _frame(cols, path, time_col="Timestamp", raw_time=df["Timestamp"],
+                          first_line=_first_line(df))
     meta = {"format": "esc32", "source_file": str(path),
             "columns": {t: h for h, t in _ESC32_MAP} | {"t_s": "Timestamp"},
-            "start_time": str(stamp.iloc[0])}
-    return _frame(cols, path), meta
+            "start_time": str(start), "time_order": order}
+    return frame, meta
 
 
 # --- any CSV ------------------------------------------------------------------------------
@@ -284,8 +352,12 @@ def import_csv(path: str | Path, mapping: Mapping[str, str] | None = None
         raise LogError(f"{path}: no time column: name one t_s or pass --map t_s=COLUMN")
     cols = {run_col: _numeric(df, file_col, path) * _unit_factor(file_col, run_col, str(path))
             for run_col, file_col in mapping.items()}
-    meta = {"format": "csv", "source_file": str(path), "columns": dict(mapping)}
-    return _frame(cols, path), meta
+    # a CSV of run columns has one row per instant: a repeated time is refused
+    frame, order = _frame(cols, path, time_col=mapping["t_s"], raw_time=df[mapping["t_s"]],
+                          first_line=_first_line(df), allow_repeats=False)
+    meta = {"format": "csv", "source_file": str(path), "columns": dict(mapping),
+            "time_order": order}
+    return frame, meta
 
 
 FORMATS = ("rcbenchmark", "esc32", "csv")

@@ -7,7 +7,9 @@ narrow speed bins (so a 25 kHz sweep, a 50 Hz stand log with sparse load-cell ro
 log of hand-set plateaus all give a clean point cloud), then fitted by least squares:
 
 * thrust = a w^2 + b w + c and its analytic inverse, and the pure k_f w^2 of (E.1) (the
-  Gazebo motor constant);
+  Gazebo motor constant); the residual is reported on the raw samples (``thrust_rms``:
+  what a prediction of one sample is off by) and on the binned medians the curve was
+  fitted to (``thrust_rms_binned``, much smaller: the medians have averaged the noise);
 * current = polynomial in w (degree 3: power grows with w^3), whose slope at hover is
   the damping D of Fig. C.5;
 * torque = k_q w^2 and torque / thrust (the moment constant), when torque is logged;
@@ -132,8 +134,10 @@ class StaticCurves:
     k_f: float  # thrust = k_f w^2 (E.1), N s^2/rad^2
     k_q: float  # torque = k_q w^2 (E.2, E.3), N m s^2/rad^2
     moment_constant_m: float  # torque / thrust (m)
-    thrust_rms: float
+    thrust_rms: float  # residual of the raw samples (what a prediction is off by)
     current_rms: float
+    thrust_rms_binned: float  # residual of the binned medians the curve was fitted to
+    current_rms_binned: float
     omega_max: float  # highest steady speed in the data (rad/s)
     voltage_v: float  # median supply voltage (V)
 
@@ -179,6 +183,8 @@ class StaticCurves:
             "moment_constant_m": num(self.moment_constant_m),
             "thrust_rms_n": num(self.thrust_rms),
             "current_rms_a": num(self.current_rms),
+            "thrust_rms_binned_n": num(self.thrust_rms_binned),
+            "current_rms_binned_a": num(self.current_rms_binned),
             "omega_max_rad_s": num(self.omega_max),
             "rpm_max": num(self.omega_max / RPM_TO_RAD_S),
             "voltage_v": num(self.voltage_v),
@@ -222,15 +228,22 @@ def fit_static(
     if w.size < 4:
         raise LogError(f"{source}: only {w.size} speed levels with data; need >= 4 for a curve")
 
-    def poly(y: np.ndarray, deg: int) -> tuple[Polynomial | None, float]:
+    w_raw = rpm[use] * RPM_TO_RAD_S
+
+    def poly(y: np.ndarray, raw: np.ndarray, deg: int
+             ) -> tuple[Polynomial | None, float, float]:
+        """Fit on the binned medians; RMS of the raw samples and of the medians."""
         ok = np.isfinite(y)
         if ok.sum() < deg + 2:
-            return None, math.nan
+            return None, math.nan, math.nan
         p = Polynomial.fit(w[ok], y[ok], deg)
-        return p, float(np.sqrt(np.mean((p(w[ok]) - y[ok]) ** 2)))
+        binned = float(np.sqrt(np.mean((p(w[ok]) - y[ok]) ** 2)))
+        r = np.isfinite(raw)  # the medians came from these samples: never empty here
+        raw_rms = float(np.sqrt(np.mean((p(w_raw[r]) - raw[r]) ** 2))) if r.any() else math.nan
+        return p, raw_rms, binned
 
-    tp, trms = poly(pts["thrust"], 2)
-    cp, crms = poly(pts["current"], 3)
+    tp, trms, trms_b = poly(pts["thrust"], th[use], 2)
+    cp, crms, crms_b = poly(pts["current"], cu[use], 3)
     k_f = _lsq_through_origin(w**2, pts["thrust"])
     k_q = _lsq_through_origin(w**2, pts["torque"])
     vmed = float(np.nanmedian(vv[use])) if np.isfinite(vv[use]).any() else math.nan
@@ -238,7 +251,8 @@ def fit_static(
         omega=w, thrust=pts["thrust"], current=pts["current"], torque=pts["torque"],
         thrust_poly=tp, current_poly=cp, k_f=k_f, k_q=k_q,
         moment_constant_m=k_q / k_f if math.isfinite(k_q) and k_f > 0 else math.nan,
-        thrust_rms=trms, current_rms=crms, omega_max=float(np.max(w)), voltage_v=vmed,
+        thrust_rms=trms, current_rms=crms, thrust_rms_binned=trms_b,
+        current_rms_binned=crms_b, omega_max=float(np.max(w)), voltage_v=vmed,
     )
 
 

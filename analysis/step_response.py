@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 import warnings
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -47,6 +47,15 @@ __all__ = [
 
 T63 = 1.0 - math.exp(-1.0)  # 0.632: the response of a first-order lag after one tau
 T28 = 1.0 - math.exp(-1.0 / 3.0)  # 0.283: after tau / 3 (two-point method)
+MIN_BINS = 6  # bins with samples an edge needs for a fit (4 parameters + 2)
+MIN_SAMPLES_PER_TAU = 1.0  # a signal sampled more slowly than tau cannot resolve it
+
+
+def finite_mean(values: Any) -> float:
+    """Mean of the finite values, NaN if there are none (no "Mean of empty slice")."""
+    v = np.asarray(values, float)
+    v = v[np.isfinite(v)]
+    return float(np.mean(v)) if v.size else math.nan
 
 
 # --- models ---------------------------------------------------------------------------------
@@ -173,6 +182,12 @@ class FirstOrderFit:
     rms: float  # residual RMS in signal units
     t63_s: float  # 63.2 % rise time read from the data, from the command edge
     ok: bool = True
+    why: str = ""  # why there is no estimate (ok False)
+
+    @property
+    def fitted(self) -> bool:
+        """A usable estimate: the solver converged to finite latency and tau."""
+        return self.ok and math.isfinite(self.tau_s) and math.isfinite(self.latency_s)
 
 
 @dataclass(frozen=True)
@@ -224,6 +239,21 @@ class DirectionFit:
     t_s: np.ndarray = field(repr=False)  # bin times relative to the edge
     y_mean: np.ndarray = field(repr=False)  # mean response of the repeats
     second_order: SecondOrderFit | None = None
+    pooled: bool = False  # values are means of single-edge fits at different levels
+
+    @property
+    def fitted_edges(self) -> tuple[int, ...]:
+        """Indices (into ``StepResponse.edges``) of the edges with an estimate."""
+        return tuple(i for i, f in zip(self.edges, self.singles, strict=True) if f.fitted)
+
+    def describe(self) -> str:
+        """Where the headline numbers of this direction come from."""
+        n = len(self.fitted_edges)
+        if self.pooled:
+            return (f"mean of {n} single-edge fits at different levels (no level pair "
+                    "repeated)")
+        return (f"fit of the mean of {len(self.edges)} repeats {self.u_before:g} -> "
+                f"{self.u_after:g} ({n} single edges fitted)")
 
 
 @dataclass(frozen=True)
@@ -240,6 +270,7 @@ class StepResponse:
     rise_fall_rms: float  # Table C.1 RMS of |rising change| - |falling change|, 500 ms
     window_s: float
     bin_s: float
+    notes: tuple[str, ...] = ()  # e.g. why another signal was not fitted
 
     def summary(self) -> dict[str, Any]:
         """The JSON of ``rotorbench fit`` (times in ms, signal units otherwise)."""
@@ -262,7 +293,7 @@ class StepResponse:
             "tau_down_ms": ms(dn.tau.value) if dn else None,
             "tau_up_std_ms": ms(up.tau.std) if up else None,
             "tau_down_std_ms": ms(dn.tau.std) if dn else None,
-            "latency_std_ms": ms(float(np.nanmean([e.std for e in lat]))) if lat else None,
+            "latency_std_ms": ms(finite_mean([e.std for e in lat])) if lat else None,
             "gain": num(float(np.mean([d.gain.value for d in (up, dn) if d is not None])))
             if (up or dn) else None,
             "gain_up": num(up.gain.value) if up else None,
@@ -277,6 +308,10 @@ class StepResponse:
             "bin_ms": ms(self.bin_s),
         }
         for name, d in (("up", up), ("down", dn)):
+            out[f"summary_{name}"] = None if d is None else {
+                "from": d.describe(), "edges": list(d.fitted_edges)}
+        out["notes"] = list(self.notes)
+        for name, d in (("up", up), ("down", dn)):
             if d is not None and d.second_order is not None:
                 so = d.second_order
                 out[f"second_order_{name}"] = {"latency_ms": ms(so.latency_s),
@@ -287,8 +322,12 @@ class StepResponse:
         out["edges"] = [
             {"t_s": round(e.t_s, 6), "direction": e.direction, "u_before": e.u_before,
              "u_after": e.u_after, "step": e.step, "used": i in used,
+             "fitted": i in fits and fits[i].fitted,
              **({"latency_ms": ms(fits[i].latency_s), "tau_ms": ms(fits[i].tau_s),
-                 "gain": num(fits[i].gain), "t63_ms": ms(fits[i].t63_s)} if i in fits else {})}
+                 "gain": num(fits[i].gain), "t63_ms": ms(fits[i].t63_s)}
+                if i in fits and fits[i].fitted else {}),
+             **({"why": fits[i].why} if i in fits and not fits[i].fitted else {}),
+             **({} if i in used else {"why": "level held too briefly before or after"})}
             for i, e in enumerate(self.edges)
         ]
         return out
@@ -343,8 +382,16 @@ def _fit_first_order(tb: np.ndarray, yb: np.ndarray, cnt: np.ndarray, step: floa
                      post_s: float) -> FirstOrderFit:
     y0d, y1d = _direct_levels(tb, yb)
     use = np.isfinite(yb) & (cnt > 0)
-    if not (math.isfinite(y0d) and math.isfinite(y1d)) or use.sum() < 6 or y1d == y0d:
-        return FirstOrderFit(*(math.nan,) * 7, ok=False)
+    why = ""
+    if use.sum() < MIN_BINS:
+        why = (f"{int(use.sum())} of {tb.size} bins hold samples (need {MIN_BINS}): the "
+               "signal is sampled too slowly for this window")
+    elif not (math.isfinite(y0d) and math.isfinite(y1d)):
+        why = "no samples before the edge or at the end of the window"
+    elif y1d == y0d:
+        why = "the signal does not change (e.g. the rotor does not turn at either level)"
+    if why:
+        return FirstOrderFit(*(math.nan,) * 7, ok=False, why=why)
     z = (yb - y0d) / (y1d - y0d)
     t63 = _crossing(tb, z, T63)
     t28 = _crossing(tb, z, T28)
@@ -363,7 +410,10 @@ def _fit_first_order(tb: np.ndarray, yb: np.ndarray, cnt: np.ndarray, step: floa
     lat, tau, y0, y1 = (float(v) for v in sol.x)
     model = y0 + (y1 - y0) * first_order_step(tt, lat, tau)
     rms = float(np.sqrt(np.average((model - yy) ** 2, weights=cnt[use])))
-    return FirstOrderFit(lat, tau, (y1 - y0) / step, y0, y1, rms, t63, bool(sol.success))
+    ok, why = bool(sol.success), "" if sol.success else f"the solver failed ({sol.message})"
+    if ok and tau >= 0.99 * hi[1]:
+        ok, why = False, f"tau runs into its bound ({tau * 1e3:.0f} ms): no settling in the window"
+    return FirstOrderFit(lat, tau, (y1 - y0) / step, y0, y1, rms, t63, ok, why)
 
 
 def _fit_second_order(tb: np.ndarray, yb: np.ndarray, cnt: np.ndarray, step: float,
@@ -461,7 +511,7 @@ def fit_step_response(
         mean = _fit_first_order(tb, y_mean, cnt, step, post_s)
         so = _fit_second_order(tb, y_mean, cnt, step, post_s, mean) if second_order and \
             mean.ok else None
-        e0 = edges[idx[0]]
+        good = [s for s in singles if s.fitted]
         groups.append(DirectionFit(
             direction=direction,
             u_before=float(np.mean([edges[i].u_before for i in idx])),
@@ -470,31 +520,69 @@ def fit_step_response(
             edges=tuple(idx),
             mean=mean,
             singles=singles,
-            latency=Estimate.of(mean.latency_s, np.array([s.latency_s for s in singles])),
-            tau=Estimate.of(mean.tau_s, np.array([s.tau_s for s in singles])),
-            gain=Estimate.of(mean.gain, np.array([s.gain for s in singles])),
-            t63=Estimate.of(mean.t63_s, np.array([s.t63_s for s in singles])),
+            latency=Estimate.of(mean.latency_s, np.array([s.latency_s for s in good])),
+            tau=Estimate.of(mean.tau_s, np.array([s.tau_s for s in good])),
+            gain=Estimate.of(mean.gain, np.array([s.gain for s in good])),
+            t63=Estimate.of(mean.t63_s, np.array([s.t63_s for s in good])),
             t_s=tb,
             y_mean=y_mean,
             second_order=so,
         ))
-        del e0
 
-    def headline(direction: str) -> DirectionFit | None:
-        cands = [g for g in groups if g.direction == direction]
-        return max(cands, key=lambda g: (len(g.edges), abs(g.step))) if cands else None
-
-    up, down = headline("up"), headline("down")
+    up, down = _headline(groups, "up"), _headline(groups, "down")
     return StepResponse(signal, command, gain_unit, tuple(edges), tuple(groups), up, down,
                         rise_fall_rms(up, down), post_s, bin_s)
+
+
+def _headline(groups: list[DirectionFit], direction: str) -> DirectionFit | None:
+    """The numbers a direction reports, built only from edges that gave an estimate: the
+    mean-of-repeats fit of the most repeated level pair (Step 1, Table C.1) when a pair
+    has >= 2 fitted repeats, else the mean of the single-edge fits of every level pair
+    (hand-set steps through the range); None if no edge of that direction was fitted."""
+    mine = [g for g in groups if g.direction == direction]
+    repeated = [g for g in mine if g.mean.fitted and len(g.fitted_edges) >= 2]
+    if repeated:
+        return max(repeated, key=lambda g: (len(g.fitted_edges), abs(g.step)))
+    fitted = [g for g in mine if g.fitted_edges]
+    if not fitted:
+        return None
+    if len(fitted) == 1 and fitted[0].mean.fitted:
+        return fitted[0]
+    pairs = [(i, f) for g in fitted for i, f in zip(g.edges, g.singles, strict=True)
+             if f.fitted]
+    fits = [f for _, f in pairs]
+    steps = [(f.y1 - f.y0) / f.gain if f.gain else math.nan for f in fits]
+
+    def avg(name: str) -> float:
+        return float(np.mean([getattr(f, name) for f in fits]))
+
+    show = max(fitted, key=lambda g: abs(g.step))  # the curve a figure shows
+    mean = FirstOrderFit(avg("latency_s"), avg("tau_s"), avg("gain"), show.mean.y0,
+                         show.mean.y1, avg("rms"), finite_mean([f.t63_s for f in fits]))
+    return DirectionFit(
+        direction=direction,
+        u_before=float(np.mean([g.u_before for g in fitted])),
+        u_after=float(np.mean([g.u_after for g in fitted])),
+        step=finite_mean(steps),
+        edges=tuple(i for i, _ in pairs),
+        mean=mean,
+        singles=tuple(fits),
+        latency=Estimate.of(mean.latency_s, np.array([f.latency_s for f in fits])),
+        tau=Estimate.of(mean.tau_s, np.array([f.tau_s for f in fits])),
+        gain=Estimate.of(mean.gain, np.array([f.gain for f in fits])),
+        t63=Estimate.of(mean.t63_s, np.array([f.t63_s for f in fits])),
+        t_s=show.t_s,
+        y_mean=show.y_mean,
+        pooled=True,
+    )
 
 
 def rise_fall_rms(up: DirectionFit | None, down: DirectionFit | None,
                   window_s: float = 0.5) -> float:
     """Table C.1 RMS: sqrt(mean((R_i - F_i)^2)) of the absolute changes of the mean rising
     and falling responses over ``window_s`` from the edge."""
-    if up is None or down is None:
-        return math.nan
+    if up is None or down is None or up.pooled or down.pooled:
+        return math.nan  # different level pairs: their changes are not comparable
     n = min(up.t_s.size, down.t_s.size)
     tb = up.t_s[:n]
     sel = (tb >= 0) & (tb <= window_s)
@@ -508,38 +596,115 @@ def rise_fall_rms(up: DirectionFit | None, down: DirectionFit | None,
 # --- runs -----------------------------------------------------------------------------------
 
 SIGNALS = {"thrust": "thrust_n", "rpm": "rpm"}
+# command columns tried in order when none is named: a thrust setpoint is also the gain's
+# denominator, so it is taken as the command only when there is no ESC command
+COMMANDS = ("throttle_us", "thrust_setpoint_n", "duty_pct")
+_COMMAND_UNITS = {"throttle_us": "us", "thrust_setpoint_n": "N", "duty_pct": "%"}
+STATIC_HINT = ("for a log without command steps use the static analysis (`rotorbench report "
+               "RUN`, `rotorbench export ardupilot|px4|gazebo RUN`)")
 
 
 def _has_data(record: RunRecord, col: str) -> bool:
     return col in record.samples.columns and bool(np.isfinite(record.column(col)).any())
 
 
-def fit_run(record: RunRecord, signal: str = "auto", **kwargs: Any) -> StepResponse:
-    """Fit the step responses of a run folder; ``signal`` is thrust, rpm or auto (thrust
-    if the run has a load cell, else rpm). The gain is per setpoint newton when the run
-    has thrust setpoints, else per microsecond of command."""
-    if signal == "auto":
-        signal = "thrust" if _has_data(record, "thrust_n") else "rpm"
-    if signal not in SIGNALS:
+def _command(record: RunRecord, command: str | None) -> str:
+    """The command column: the one named, else the first of ``COMMANDS`` with data."""
+    if command is not None:
+        if command not in record.samples.columns:
+            raise LogError(f"{record.path}: --command {command}: no such column (columns: "
+                           f"{', '.join(map(str, record.samples.columns))})")
+        if not _has_data(record, command):
+            raise LogError(f"{record.path}: --command {command}: the column is empty; "
+                           f"{STATIC_HINT}")
+        return command
+    for name in COMMANDS:
+        if _has_data(record, name):
+            return name
+    raise LogError(f"{record.path}: no command column with data ({', '.join(COMMANDS)}; name "
+                   f"another with --command COL): nothing to fit a step to; {STATIC_HINT}")
+
+
+def signal_period(t: np.ndarray, y: np.ndarray) -> float:
+    """Median time between the samples that hold a value (a load cell logged on every
+    sixth row of a stand log has six times the row period)."""
+    tt = t[np.isfinite(y)]
+    d = np.diff(tt)
+    d = d[d > 0]
+    return float(np.median(d)) if d.size else math.inf
+
+
+def _too_slow(col: str, period: float, tau: float, source: str) -> str:
+    return (f"{col}: sampled every {period * 1e3:.3g} ms ({1 / period:.3g} Hz), "
+            f"{tau / period:.2g} samples per time constant (tau {tau * 1e3:.3g} ms from "
+            f"{source}; need >= {MIN_SAMPLES_PER_TAU:g})")
+
+
+def _fitted_tau(res: StepResponse) -> float:
+    taus = [d.tau.value for d in (res.up, res.down) if d is not None]
+    taus = [x for x in taus if math.isfinite(x)]
+    return float(np.mean(taus)) if taus else math.nan
+
+
+def fit_run(record: RunRecord, signal: str = "auto", command: str | None = None,
+            **kwargs: Any) -> StepResponse:
+    """Fit the step responses of a run folder.
+
+    ``command`` names the command column (default: throttle_us, thrust_setpoint_n, then an
+    ESC's duty_pct). ``signal`` is thrust, rpm or auto: thrust if logged and fast enough,
+    else rpm. A signal is refused with its reason when it has fewer than
+    ``MIN_SAMPLES_PER_TAU`` samples per time constant (e.g. a stand's load cell at 6.6 Hz
+    under a 50 ms rotor) or no edge gives an estimate; auto then fits the next signal and
+    says which was used (``StepResponse.notes``). The gain is per setpoint newton when the
+    run has thrust setpoints, else per unit of the command. Errors name the run."""
+    if signal != "auto" and signal not in SIGNALS:
         raise LogError(f"signal {signal!r}: expected one of auto, {', '.join(SIGNALS)}")
-    col = SIGNALS[signal]
-    if not _has_data(record, col):
-        raise LogError(f"{record.path}: column {col!r} has no data to fit")
+    cmd = _command(record, command)
     t = record.column("t_s")
+    u = record.column(cmd)
     sp = record.column("thrust_setpoint_n") if _has_data(record, "thrust_setpoint_n") else None
-    if _has_data(record, "throttle_us"):
-        u, command = record.column("throttle_us"), "throttle_us"
-    elif sp is not None:
-        u, command = sp, "thrust_setpoint_n"
-    else:
-        raise LogError(f"{record.path}: no command column (throttle_us or thrust_setpoint_n)")
-    y_unit = "N" if col == "thrust_n" else "rpm"
-    sp_ok = sp is not None
-    gain_unit = f"{y_unit}/N" if sp_ok else f"{y_unit}/us"
+    names = list(SIGNALS) if signal == "auto" else [signal]
+    cands = [n for n in names if _has_data(record, SIGNALS[n])]
+    if not cands:
+        cols = " or ".join(repr(SIGNALS[n]) for n in names)
+        raise LogError(f"{record.path}: column {cols} has no data to fit")
     kwargs.setdefault("bin_s", None)
-    res = fit_step_response(t, record.column(col), u, sp, event_times(record),
-                            signal=col, command=command, gain_unit=gain_unit, **kwargs)
-    return res
+    unit = "N" if sp is not None else _COMMAND_UNITS.get(cmd, f"unit of {cmd}")
+    why: dict[str, str] = {}
+    periods: dict[str, float] = {}
+    for name in cands:  # in order; the first signal that resolves its time constant wins
+        col = SIGNALS[name]
+        y = record.column(col)
+        periods[name] = period = signal_period(t, y)
+        try:
+            res = fit_step_response(t, y, u, sp, event_times(record), signal=col, command=cmd,
+                                    gain_unit=f"{'N' if col == 'thrust_n' else 'rpm'}/{unit}",
+                                    **kwargs)
+        except LogError as exc:
+            msg = str(exc)
+            if "no step edges" in msg or "none held" in msg:
+                raise LogError(f"{record.path}: {msg}; {STATIC_HINT}") from None
+            why[name] = msg
+            continue
+        tau = _fitted_tau(res)
+        if res.up is None and res.down is None:
+            first = next((f.why for g in res.groups for f in g.singles if f.why), "")
+            why[name] = (f"{col}: sampled every {period * 1e3:.3g} ms; no edge gave an "
+                         f"estimate ({first or 'no usable edge'})")
+        elif tau / period < MIN_SAMPLES_PER_TAU:
+            why[name] = _too_slow(col, period, tau, col)
+        else:
+            # an earlier signal that failed: say whether it is too slow for this tau
+            notes = []
+            for n, reason in why.items():
+                if tau / periods[n] < MIN_SAMPLES_PER_TAU:
+                    reason = _too_slow(SIGNALS[n], periods[n], tau, col)
+                notes.append(f"not fitted: {reason}")
+            if notes:
+                notes.append(f"fitted {col} instead")
+            return replace(res, notes=tuple(notes))
+    raise LogError(f"{record.path}: no signal can be fitted: " + "; ".join(
+        why[n] for n in cands))
 
 
 def frame_period(record: RunRecord) -> float:

@@ -2,9 +2,11 @@
 
 The run folders stay the record; the index is for listing and finding them. A run is
 added when it starts (status ``running``) and updated when it ends. If a process died
-(kill -9, power loss) its row still says running; :meth:`RunIndex.list` reports such
-rows as ``killed`` when the recording process is gone. ``rebuild`` re-reads every
-``run.json`` under the root.
+(kill -9, power loss) its row and its ``run.json`` still say running: opening the index
+(the store) finds such runs of this host whose recording process is gone and marks them
+``killed`` in ``run.json`` too (with the last sample time on disk), so every reader of
+the folder agrees with ``rotorbench runs``. ``rebuild`` re-reads every ``run.json``
+under the root.
 """
 
 from __future__ import annotations
@@ -65,6 +67,44 @@ class RunIndex:
             raise RigError(f"--out {self.root}: cannot create the run folder "
                            f"({exc.strerror or exc})") from None
         self._connect().close()
+        self.mark_killed()
+
+    def mark_killed(self) -> list[str]:
+        """Runs of this host still 'running' whose process is gone: write status killed,
+        the reason and the last sample time into their ``run.json`` and the index row.
+        Returns their ids. A folder that cannot be updated (read-only, gone) is left as it
+        is; the listing still reports it killed."""
+        import socket
+
+        with self._connect() as con:
+            rows = con.execute("SELECT id, path, pid FROM runs WHERE status = 'running' AND "
+                               "host = ?", (socket.gethostname(),)).fetchall()
+        marked = []
+        for rid, rel, pid in rows:
+            if not pid or _alive(int(pid)):
+                continue
+            run_dir = self.root / rel
+            try:
+                meta = json.loads((run_dir / "run.json").read_text(encoding="utf-8"))
+            except (OSError, json.JSONDecodeError):
+                continue
+            if meta.get("status") != "running" or meta.get("pid") != pid:
+                continue
+            last_t, rows_on_disk = _last_sample(run_dir / str(meta.get("samples")
+                                                              or "samples.parquet"))
+            meta.update(status="killed", reason=f"recording process {pid} is gone (kill -9 or "
+                        "power loss); samples up to the last written part",
+                        last_sample_t_s=last_t, rows=rows_on_disk,
+                        marked_killed_utc=_utc_now())
+            try:
+                from bench.recorder import atomic_write_json
+
+                atomic_write_json(run_dir / "run.json", meta)
+            except OSError:
+                continue
+            self.upsert(meta, run_dir)
+            marked.append(str(rid))
+        return marked
 
     def _connect(self) -> sqlite3.Connection:
         return connect(self.path, _SCHEMA, "run index", "move it away and run `rotorbench "
@@ -118,6 +158,24 @@ class RunIndex:
             self.upsert(meta, meta_path.parent)
             count += 1
         return count
+
+
+def _utc_now() -> str:
+    from datetime import UTC, datetime
+
+    return datetime.now(UTC).isoformat(timespec="milliseconds")
+
+
+def _last_sample(samples: Path) -> tuple[float | None, int]:
+    """Largest ``t_s`` and row count of the complete parts on disk (hidden temporary
+    parts are skipped by the reader); (None, 0) if nothing is readable."""
+    import pyarrow.parquet as pq
+
+    try:
+        t = pq.read_table(samples, columns=["t_s"]).column("t_s").to_numpy()
+    except Exception:  # no parts, damaged part: the status is what matters here
+        return None, 0
+    return (float(t.max()) if t.size else None), int(t.size)
 
 
 def _alive(pid: int) -> bool:

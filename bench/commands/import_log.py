@@ -88,7 +88,7 @@ def write_run(out: Path, samples, meta: dict) -> Path:
 
 
 def handler(args: argparse.Namespace) -> int:
-    from analysis.importers import import_log
+    from analysis.importers import JITTER_MAX_PERIODS, import_log
     from bench.commands._output import check_writable
 
     if args.out.exists():
@@ -99,4 +99,11 @@ def handler(args: argparse.Namespace) -> int:
     out = write_run(args.out, samples, meta)
     cols = ", ".join(c for c in samples.columns)
     print(f"{out}: imported {len(samples)} rows from {args.file} ({args.fmt}); columns {cols}")
+    order = meta["import"].get("time_order") or {}
+    if order.get("reordered_rows"):
+        print(f"time order: {order['reordered_rows']} rows reordered where the time stepped "
+              f"back ({order['time_steps_back']} places, at most "
+              f"{order['max_step_back_s'] * 1e3:.3g} ms; bound {JITTER_MAX_PERIODS:g} sample "
+              f"periods = {order['jitter_bound_s'] * 1e3:.3g} ms); recorded in run.json "
+              "import.time_order")
     return 0

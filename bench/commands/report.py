@@ -116,11 +116,15 @@ def build(args: argparse.Namespace, out: Path, console: Console) -> dict[str, An
             plot_static(s, out / f"static_{rec.id}.png", title=f"Static curves: {rec.id}")
             sm = s.summary()
             rows.append((rec.id, sm["k_f_n_s2"], sm["moment_constant_m"], sm["rpm_max"],
-                         sm["thrust_rms_n"], sm["current_rms_a"]))
+                         sm["thrust_rms_n"], sm["thrust_rms_binned_n"], sm["current_rms_a"],
+                         sm["current_rms_binned_a"]))
             summary.setdefault("static", {})[rec.id] = sm
         ts = Table("Static curves (Fig. C.13-C.14)",
                    ("run", "k_f [N s2]", "torque/thrust [m]", "rpm max", "thrust rms [N]",
-                    "current rms [A]"), tuple(rows))
+                    "thrust rms of binned medians [N]", "current rms [A]",
+                    "current rms of binned medians [A]"), tuple(rows),
+                   note="rms: residual of the raw samples to the fitted curve; of binned "
+                        "medians: of the speed-bin medians the curve was fitted to")
         console.print(ts.to_rich())
         write_csv(ts, out / "static_curves.csv")
     if step2s:

@@ -737,7 +737,8 @@ class PiHexapod:
         except DeviceError:
             return
         if locked and self._main.dead:  # the new link carries the main conversation on
-            self._main = link
+            old_main, self._main = self._main, link
+            old_main.close()  # its socket is dead but still open (a ResourceWarning later)
         else:
             old, self._stop_link = self._stop_link, link
             if old is not None:

@@ -79,7 +79,7 @@ def test_csv_errors_name_file_row_and_column(tmp_path):
     with pytest.raises(LogError, match=r"bad\.csv: row 3, column 'thrust_n'"):
         import_csv(p)
     p.write_text("t_s,thrust_n\n1,1\n0.5,1\n", encoding="utf-8")
-    with pytest.raises(LogError, match="time goes backwards"):
+    with pytest.raises(LogError, match=r"row 3, column 't_s': time jumps back 0\.5 s"):
         import_csv(p)
     with pytest.raises(LogError, match="not an ESC32"):
         import_esc32(p)

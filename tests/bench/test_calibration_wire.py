@@ -32,6 +32,8 @@ from drivers.hexapod_contracts import POSE_CHANNELS
 from drivers.hexapod_motions import gyro_sines
 from drivers.imu_factory import open_imu_rig
 
+pytestmark = pytest.mark.slow  # the module's calibration through the wire takes ~55 s
+
 REPO = Path(__file__).resolve().parents[2]
 WIRE_RIG_PATH = REPO / "fixtures" / "rigs" / "sim-imu-wire.toml"
 RIG = load_imu_rig(WIRE_RIG_PATH)

@@ -66,9 +66,13 @@ def test_kill_9_mid_run_keeps_everything_up_to_the_last_part(sim_rig_mapped_path
     elapsed = (killed_at - started).total_seconds()  # rig time == wall time (realtime pacing)
     assert t[-1] >= elapsed - 1.0 - 0.3, (t[-1], elapsed)  # lost at most ~one second
     meta = json.loads((run_dir / "run.json").read_text())
-    assert meta["status"] == "running"  # never finished: the record says so
+    assert meta["status"] == "running"  # never finished, and no store opened since
     listed = {r.id: r.status for r in RunIndex(out).list()}
     assert listed[run_dir.name] == "killed"
+    # opening the store marked run.json too: every reader agrees
+    meta = json.loads((run_dir / "run.json").read_text())
+    assert meta["status"] == "killed" and "kill -9" in meta["reason"]
+    assert meta["last_sample_t_s"] == t[-1] and meta["rows"] == t.size
 
 
 def test_sigterm_mid_run_stops_safely_and_records_it(sim_rig_mapped_path, tmp_path):
