@@ -117,6 +117,7 @@ def test_kill_9_of_the_host_stops_the_pulse_train_within_dead_host_s(tmp_path):
         if child.poll() is None:
             child.kill()
     reader.join(timeout=5)
+    child.stdout.close()
     end, width_us, last_start = hw.train_end(400.0)
     assert width_us == pytest.approx(1800.0)  # the motor was running when the host died
     assert last_start <= killed
