@@ -52,7 +52,15 @@ def _rel(a, b) -> float:
 def calibrated(tmp_path_factory: pytest.TempPathFactory):
     root = tmp_path_factory.mktemp("cal_wire")
     out = root / "cal.json"
-    code = main(["calibrate", "--quick", "--tick", "0.1", "--rig", str(WIRE_RIG_PATH),
+    # The shipped rig runs the bench at 6x real time: 600 MSP polls per wall second over a
+    # pty, which one Python process cannot serve on every machine (about 370/s measured on
+    # the CI machine in Nov 2026, CPU-bound, and it failed there unchanged since the last
+    # green CI). At 3x the wire and the plant have the headroom this test is not about.
+    rig = root / "sim-imu-wire.toml"
+    text = WIRE_RIG_PATH.read_text(encoding="utf-8")
+    assert text.count("time_scale = 6.0") == 2
+    rig.write_text(text.replace("time_scale = 6.0", "time_scale = 3.0"), encoding="utf-8")
+    code = main(["calibrate", "--quick", "--tick", "0.1", "--rig", str(rig),
                  "--runs", str(root / "runs"), "--out", str(out)])
     runs = sorted((root / "runs").glob("*/run.json"))
     metas = sorted(((json.loads(p.read_text()), p.parent) for p in runs),
