@@ -20,7 +20,6 @@ import multiprocessing as mp
 import os
 import signal
 import sys
-import threading
 import time
 from collections.abc import Callable, Mapping
 from typing import Any, TypeVar
@@ -49,10 +48,15 @@ class RingBuffer:
     """Fixed-size numpy ring of the newest rows; one writer, any number of readers.
 
     ``buffer`` (optional) is the memory to use, e.g. a ``multiprocessing`` ``RawArray`` of
-    :meth:`cells` doubles shared with another process (``fresh`` says whether to clear it);
-    ``lock`` is any context-manager lock (a ``multiprocessing`` lock across processes). Cell 0
-    holds the number of rows pushed so far, so a reader in another process knows it too.
+    :meth:`cells` doubles shared with another process (``fresh`` says whether to clear it).
+    The writer never waits for a reader: cell 0 is a sequence number the writer makes odd
+    before and even after each push (a seqlock), cell 1 the number of rows pushed so far;
+    a reader copies and retries if a push overlapped its copy. So a reader that freezes
+    (a window process stopped mid-copy) can never block the run loop that writes. ``lock``
+    is accepted for callers that still pass one and is not used.
     """
+
+    _RETRIES = 100
 
     def __init__(self, names: tuple[str, ...], capacity: int, buffer: Any = None,
                  lock: Any = None, fresh: bool = True) -> None:
@@ -64,17 +68,18 @@ class RingBuffer:
         memory = np.frombuffer(buffer, dtype=float) if buffer is not None else np.empty(cells)
         if memory.size != cells:
             raise ValueError(f"ring memory holds {memory.size} cells, needs {cells}")
-        self._count = memory[:1]
-        self._data = memory[1:].reshape(len(self.names), self.capacity)
-        self._lock = lock if lock is not None else threading.Lock()
+        self._seq = memory[:1]
+        self._count = memory[1:2]
+        self._data = memory[2:].reshape(len(self.names), self.capacity)
         if fresh:
+            self._seq[0] = 0.0
             self._count[0] = 0.0
             self._data[:] = np.nan
 
     @staticmethod
     def cells(n_names: int, capacity: int) -> int:
         """Doubles of memory a ring of ``n_names`` columns and ``capacity`` rows needs."""
-        return 1 + n_names * capacity
+        return 2 + n_names * capacity
 
     @property
     def total(self) -> int:
@@ -90,39 +95,57 @@ class RingBuffer:
         if n > self.capacity:
             block = block[:, -self.capacity:]
         m = block.shape[1]
-        with self._lock:
+        total = int(self._count[0])
+        start = (total + (n - m)) % self.capacity
+        first = min(m, self.capacity - start)
+        self._seq[0] += 1.0  # odd: a push is under way
+        self._data[:, start:start + first] = block[:, :first]
+        if first < m:
+            self._data[:, :m - first] = block[:, first:]
+        self._count[0] = total + n
+        self._seq[0] += 1.0  # even: consistent again
+
+    def _read(self, copy: Callable[[int], np.ndarray]) -> tuple[int, np.ndarray]:
+        """``copy(total)`` under the seqlock: retried while a push overlaps it (after
+        :attr:`_RETRIES` tries the last copy is returned: a display can live with it)."""
+        for _ in range(self._RETRIES):
+            seq = self._seq[0]
+            if seq % 2:
+                time.sleep(0)
+                continue
             total = int(self._count[0])
-            start = (total + (n - m)) % self.capacity
-            first = min(m, self.capacity - start)
-            self._data[:, start:start + first] = block[:, :first]
-            if first < m:
-                self._data[:, :m - first] = block[:, first:]
-            self._count[0] = total + n
+            data = copy(total)
+            if self._seq[0] == seq:
+                return total, data
+        total = int(self._count[0])
+        return total, copy(total)
 
     def tail(self, n: int) -> tuple[int, dict[str, np.ndarray]]:
         """The rows pushed total and a copy of the newest ``min(n, kept)`` rows, oldest
         first: a reader that remembers ``total`` copies only what is new."""
-        with self._lock:
-            total = int(self._count[0])
+
+        def copy(total: int) -> np.ndarray:
             m = max(min(int(n), total, self.capacity), 0)
             end = total % self.capacity
             start = end - m
             if start >= 0:
-                data = self._data[:, start:end].copy()
-            else:
-                data = np.concatenate([self._data[:, start:], self._data[:, :end]], axis=1)
+                return self._data[:, start:end].copy()
+            return np.concatenate([self._data[:, start:], self._data[:, :end]], axis=1)
+
+        total, data = self._read(copy)
         return total, {name: data[i] for i, name in enumerate(self.names)}
 
     def snapshot(self) -> dict[str, np.ndarray]:
         """A copy of the kept rows, oldest first (two slices, no full-buffer roll)."""
-        with self._lock:
-            total = int(self._count[0])
+
+        def copy(total: int) -> np.ndarray:
             kept = min(total, self.capacity)
             end = total % self.capacity
             if kept < self.capacity:
-                data = self._data[:, :kept].copy()
-            else:
-                data = np.concatenate([self._data[:, end:], self._data[:, :end]], axis=1)
+                return self._data[:, :kept].copy()
+            return np.concatenate([self._data[:, end:], self._data[:, :end]], axis=1)
+
+        _total, data = self._read(copy)
         return {name: data[i] for i, name in enumerate(self.names)}
 
 
@@ -298,7 +321,7 @@ class _Window:
                  interval_ms: int, title: str, close_when_done: bool) -> None:
         ctx = mp.get_context("spawn")  # never fork a process that may hold Qt or device state
         memory = ctx.RawArray("d", RingBuffer.cells(len(names), capacity))
-        lock = ctx.Lock()
+        lock = None  # the ring is a seqlock: no lock is shared with the window
         self.ring = RingBuffer(names, capacity, buffer=memory, lock=lock)
         self.conn, child = ctx.Pipe()
         self.proc = ctx.Process(target=_window_main, name="rotorbench-live", daemon=True,
