@@ -11,6 +11,12 @@ import time
 
 import serial
 
+try:  # pyserial's POSIX port lets termios.error (not an OSError) escape flush()
+    from termios import error as TermiosError
+except ImportError:  # Windows
+    class TermiosError(Exception):  # type: ignore[no-redef]
+        """Never raised: Windows has no termios."""
+
 from drivers.errors import DeviceError
 
 
@@ -36,7 +42,7 @@ def read_some(port: serial.SerialBase, name: str) -> bytes:
     try:
         n = port.in_waiting
         return port.read(n if n > 0 else 1)
-    except (serial.SerialException, OSError, TypeError) as exc:
+    except (serial.SerialException, OSError, TermiosError, TypeError) as exc:
         raise DeviceError(f"{name}: serial read failed, device gone? ({exc})") from None
 
 
@@ -44,7 +50,7 @@ def write_all(port: serial.SerialBase, data: bytes, name: str) -> None:
     try:
         port.write(data)
         port.flush()
-    except (serial.SerialException, OSError) as exc:
+    except (serial.SerialException, OSError, TermiosError) as exc:
         raise DeviceError(f"{name}: serial write failed, device gone? ({exc})") from None
 
 
