@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from bench.commands._output import check_writable
+from bench.cli_support import check_writable
 from bench.errors import RigError
 from tests.test_cli_errors import _imported_run, run_bad
 

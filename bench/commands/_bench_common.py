@@ -15,7 +15,7 @@ from typing import Any
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-from bench.commands._output import check_writable
+from bench.cli_support import check_writable
 from bench.errors import RecordingError, RigError
 from bench.indexed_run import RunInterrupted, RunRecordingFailed
 from bench.run_budget import Budget, check_budget, project, row_rate_hz

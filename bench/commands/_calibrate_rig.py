@@ -24,13 +24,13 @@ from analysis.imu_calibration import Calibration
 from analysis.imu_log import load_calibration_log
 from bench.calibration_sequences import HexapodPlan, HexapodSegment, format_plan, paper_a_sequences
 from bench.calibration_session import CalibrationRun, collect_log, plans_for, run_calibration
+from bench.cli_support import check_writable
 from bench.commands._bench_common import (
     _sigterm_as_interrupt,
     erase_on_user_error,
     err_console,
     say_where_an_interrupted_run_went,
 )
-from bench.commands._output import check_writable
 from bench.commands.calibrate import (
     _check_out,
     calibrate_frame,

@@ -32,7 +32,7 @@ from analysis.imu_calibration import (
     save_calibration,
 )
 from analysis.imu_log import load_calibration_log, load_imu_log, write_table
-from bench.commands._output import check_writable
+from bench.cli_support import check_writable
 
 _XYZ = ("x", "y", "z")
 

@@ -17,7 +17,7 @@ import numpy as np
 from rich.console import Console
 from rich.table import Table
 
-from bench.commands._output import check_writable
+from bench.cli_support import check_writable
 from bench.constants_store import ActuatorKey, ConstantsStore
 from bench.errors import RigError
 

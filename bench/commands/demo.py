@@ -29,7 +29,7 @@ import numpy as np
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-from bench.commands._output import check_writable
+from bench.cli_support import check_writable
 from bench.commands.optimize import PAPER_E_CASES
 from bench.errors import RigError
 

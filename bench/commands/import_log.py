@@ -89,7 +89,7 @@ def write_run(out: Path, samples, meta: dict) -> Path:
 
 def handler(args: argparse.Namespace) -> int:
     from analysis.importers import JITTER_MAX_PERIODS, import_log
-    from bench.commands._output import check_writable
+    from bench.cli_support import check_writable
 
     if args.out.exists():
         raise RigError(f"--out {args.out}: already exists (choose a new run folder)")

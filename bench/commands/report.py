@@ -19,7 +19,7 @@ from typing import Any
 
 from rich.console import Console
 
-from bench.commands._output import check_writable
+from bench.cli_support import check_writable
 from bench.errors import RigError
 
 G0 = 9.80665

@@ -10,7 +10,7 @@ from pathlib import Path
 from rich.console import Console
 from rich.table import Table
 
-from bench.commands._output import check_writable
+from bench.cli_support import check_writable
 from bench.run_index import INDEX_NAME, RunIndex
 
 

@@ -1,4 +1,6 @@
-"""The one check every writing command makes on its output path before any work.
+"""Helpers every CLI command shares (the one home: commands never import each other).
+
+The output check every writing command makes on its output path before any work.
 
 A command that would run for minutes (a demo, a calibration on the rig) and then fail to
 write its result wastes the run; a traceback at the end says nothing useful. So each
