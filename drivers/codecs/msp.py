@@ -32,14 +32,18 @@ MSP_API_VERSION = 1
 MSP_FC_VARIANT = 2
 MSP_FC_VERSION = 3
 MSP_BOARD_INFO = 4
+MSP_BUILD_INFO = 5
+MSP_NAME = 10
 MSP_STATUS = 101
 MSP_RAW_IMU = 102
 MSP_MOTOR = 104
 MSP_ATTITUDE = 108
 MSP_ANALOG = 110
 MSP_STATUS_EX = 150
+MSP_UID = 160
 MSP_ATTITUDE_QUATERNION = 167
 MSP_SET_MOTOR = 214
+MSP_ACC_TRIM = 240
 MSP_V2_FRAME_ID = 255  # §1.1 "MSPv2-over-v1": cmd 255 carries a v2 frame (msp.h)
 
 ARMED_FLAG = 1  # bit 0 of the flight-mode flags: box BOXARM = 0, set while armed (BF msp_box.h)
@@ -576,13 +580,86 @@ class SetMotor:
         return cls(struct.unpack(f"<{len(p) // 2}H", p))
 
 
+@dataclass(frozen=True)
+class BuildInfo:
+    """MSP_BUILD_INFO reply: build date (11 chars, "MMM DD YYYY"), build time (8 chars,
+    "HH:MM:SS"), short git revision (BF ``build/version.h`` lengths; yamspy
+    ``process_MSP_BUILD_INFO`` reads date and time); anything after is kept raw."""
+
+    CMD: ClassVar[int] = MSP_BUILD_INFO
+    date: str
+    time: str
+    revision: str = ""
+
+    def to_payload(self) -> bytes:
+        if len(self.date) != 11 or len(self.time) != 8:
+            raise PayloadError("MSP_BUILD_INFO: date must be 11 and time 8 characters")
+        return (self.date + self.time + self.revision).encode("ascii")
+
+    @classmethod
+    def from_payload(cls, p: bytes) -> BuildInfo:
+        _need(p, 19, exact=False)
+        text = p.decode("ascii", errors="replace")
+        return cls(text[:11], text[11:19], text[19:])
+
+
+@dataclass(frozen=True)
+class Uid:
+    """MSP_UID reply: the MCU's 96-bit unique id as three u32 (yamspy ``process_MSP_UID``)."""
+
+    CMD: ClassVar[int] = MSP_UID
+    words: tuple[int, int, int]
+
+    def to_payload(self) -> bytes:
+        return struct.pack("<3I", *self.words)
+
+    @classmethod
+    def from_payload(cls, p: bytes) -> Uid:
+        _need(p, 12)
+        return cls(struct.unpack("<3I", p))
+
+
+@dataclass(frozen=True)
+class AccTrim:
+    """MSP_ACC_TRIM reply: i16 pitch and roll trims (yamspy ``process_MSP_ACC_TRIM``)."""
+
+    CMD: ClassVar[int] = MSP_ACC_TRIM
+    pitch: int
+    roll: int
+
+    def to_payload(self) -> bytes:
+        return struct.pack("<hh", self.pitch, self.roll)
+
+    @classmethod
+    def from_payload(cls, p: bytes) -> AccTrim:
+        _need(p, 4)
+        return cls(*struct.unpack("<hh", p))
+
+
+@dataclass(frozen=True)
+class CraftName:
+    """MSP_NAME reply: the craft name, the whole payload, no length byte (yamspy
+    ``process_MSP_NAME`` reads to the end); empty when none is set."""
+
+    CMD: ClassVar[int] = MSP_NAME
+    name: str
+
+    def to_payload(self) -> bytes:
+        return self.name.encode("ascii")
+
+    @classmethod
+    def from_payload(cls, p: bytes) -> CraftName:
+        return cls(p.decode("ascii", errors="replace"))
+
+
 MspMessage = (Request | Ack | ErrorReply | Unknown | ApiVersion | FcVariant | FcStatus | RawImu
               | Attitude | AttitudeQuaternion | Motor | SetMotor | FcVersion | BoardInfo
-              | StatusEx | Analog)
+              | StatusEx | Analog | BuildInfo | Uid | AccTrim | CraftName)
 
 _REPLIES: dict[int, type] = {c.CMD: c for c in (ApiVersion, FcVariant, FcStatus, RawImu, Attitude,
                                                 AttitudeQuaternion, Motor, FcVersion, BoardInfo,
-                                                StatusEx, Analog)}
+                                                StatusEx, Analog, BuildInfo, Uid, AccTrim,
+                                                CraftName)}
 _IN_COMMANDS: dict[int, type] = {MSP_SET_MOTOR: SetMotor}
 
 

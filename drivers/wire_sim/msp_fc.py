@@ -1,6 +1,7 @@
 """A simulated Betaflight-like flight controller answering MSP on a pseudo-terminal.
 
 Answers (protocols.md §1): API_VERSION, FC_VARIANT ("BTFL"), FC_VERSION, BOARD_INFO,
+BUILD_INFO, UID, ACC_TRIM, NAME (what yamspy's ``MSPy.basic_info`` asks at connect),
 STATUS and STATUS_EX (bit 0 of the flight-mode flags set while ``armed``), ANALOG (from
 ``battery() -> (V, A)``), RAW_IMU (acc in counts with ``acc_1g``, gyro in whole deg/s,
 §1.4), ATTITUDE (0.1° roll/pitch, whole-degree yaw, §1.5), MOTOR, SET_MOTOR (ack; values
@@ -43,6 +44,7 @@ class SimFlightController(PtySimulator):
         self.motor_count = motor_count
         self.api = api  # what this simulator reports; not a claim about a real firmware
         self.armed = False
+        self.craft_name = "rotorbench sim"
         self.motor_disarmed = [msp.MOTOR_MIN_US] * motor_count
         self.requests: list[msp.MspMessage] = []
         self._decoder = msp.MspDecoder(typed=True)
@@ -90,6 +92,14 @@ class SimFlightController(PtySimulator):
         if cmd == msp.MSP_BOARD_INFO:
             return enc(msp.BoardInfo("SIMF", target_name="ROTORBENCH_SIM",
                                      board_name="simulated FC", manufacturer_id="RTRB"))
+        if cmd == msp.MSP_BUILD_INFO:
+            return enc(msp.BuildInfo("Nov 25 2026", "12:00:00", "0000000"))
+        if cmd == msp.MSP_UID:
+            return enc(msp.Uid((0x524F544F, 0x5242454E, 0x00000001)))  # "ROTO" "RBEN" 1
+        if cmd == msp.MSP_ACC_TRIM:
+            return enc(msp.AccTrim(0, 0))
+        if cmd == msp.MSP_NAME:
+            return enc(msp.CraftName(self.craft_name))
         if cmd == msp.MSP_ANALOG:
             volts, amps = self.battery()
             return enc(msp.Analog(min(255, round(volts * 10)), 0, 0,

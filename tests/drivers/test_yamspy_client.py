@@ -2,8 +2,8 @@
 
 yamspy's ``MSPy`` opens the pty like a serial port and asks, at connect, API_VERSION,
 FC_VARIANT, FC_VERSION, BUILD_INFO, BOARD_INFO, UID, ACC_TRIM, NAME, STATUS and STATUS_EX
-(``MSPy.basic_info``); the simulator answers the identity and status messages and
-refuses the others with ``$M!`` as Betaflight does for a command it does not serve.
+(``MSPy.basic_info``); the simulator answers all of them, and refuses commands it does
+not serve with ``$M!`` as Betaflight does.
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ import pytest
 pytest.importorskip("serial")
 yamspy = pytest.importorskip("yamspy")
 
+from drivers.codecs import msp  # noqa: E402
 from drivers.wire_sim.msp_fc import SimFlightController  # noqa: E402
 
 G = 9.80665
@@ -47,6 +48,23 @@ def test_yamspy_identifies_the_simulated_fc(board):
     assert cfg["flightControllerVersion"] == "4.5.0"
     assert cfg["boardIdentifier"] == "SIMF" and cfg["targetName"] == "ROTORBENCH_SIM"
     assert cfg["armingDisableFlags"] == 0 and cfg["mode"] == 0  # STATUS_EX: disarmed
+    assert cfg["buildInfo"] == "Nov 25 2026 12:00:00"
+    assert cfg["uid"] == [0x524F544F, 0x5242454E, 1]
+    assert cfg["accelerometerTrims"] == [0, 0] and cfg["name"] == "rotorbench sim"
+
+
+def test_every_connect_time_request_is_served(board):
+    """``MSPy.basic_info`` asks these at connect; none may get the '$M!' error reply."""
+    sim, _ = board
+    asked = {m.cmd for m in sim.requests if isinstance(m, msp.Request)}
+    connect = {msp.MSP_API_VERSION, msp.MSP_FC_VARIANT, msp.MSP_FC_VERSION, msp.MSP_BUILD_INFO,
+               msp.MSP_BOARD_INFO, msp.MSP_UID, msp.MSP_ACC_TRIM, msp.MSP_NAME,
+               msp.MSP_STATUS, msp.MSP_STATUS_EX}
+    assert connect <= asked
+    replies = msp.MspDecoder(typed=True).feed(b"".join(
+        sim.handle(msp.encode_message(msp.Request(cmd))) for cmd in sorted(connect)))
+    assert len(replies) == len(connect)
+    assert not [r for r in replies if isinstance(r, msp.ErrorReply)]
 
 
 @pytest.mark.parametrize("name", ["MSP_FC_VERSION", "MSP_BOARD_INFO", "MSP_STATUS_EX",
@@ -74,5 +92,5 @@ def test_yamspy_reads_values_in_its_own_units(board):
 
 def test_yamspy_is_told_when_a_command_is_not_served(board):
     _, b = board
-    assert _ask(b, "MSP_NAME")["unsupported"] == 1  # yamspy read the '$M!' error reply
+    assert _ask(b, "MSP_PID")["unsupported"] == 1  # yamspy read the '$M!' error reply
     assert _ask(b, "MSP_FC_VERSION")["result"] >= 0  # and the next request still works
