@@ -13,6 +13,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import threading
+import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,6 +22,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from analysis.imu_calibration import Calibration, calibrate
 from bench.calibration_sequences import (
     CalibrationSequence,
     HexapodPlan,
@@ -34,8 +36,8 @@ from bench.indexed_run import indexed_run
 from bench.run_loop import RunResult
 from drivers.hexapod_contracts import Trajectory
 
-__all__ = ["CalibrationRun", "StageOutcome", "collect_log", "plans_for", "run_calibration",
-           "run_stage"]
+__all__ = ["CalibrationRun", "StageOutcome", "calibrate_frame", "collect_log", "plans_for",
+           "run_calibration", "run_stage"]
 
 
 @dataclass(frozen=True)
@@ -185,3 +187,14 @@ def collect_log(run_dirs: Sequence[Path], path: Path) -> Path:
         raise RigError("no stage runs to collect")
     log = pd.concat(frames, ignore_index=True)
     return write_table(log, path)
+
+
+def calibrate_frame(df: pd.DataFrame, mounting: tuple[float, float, float] | None,
+                    gyro_range_rad_s: float, acc_range_m_s2: float,
+                    max_lag_s: float) -> Calibration:
+    """Paper A's stages on a validated log; warnings are kept in ``cal.warnings`` (the CLI
+    and the console print or store them with the result, not as Python warnings)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return calibrate(df, measured_mounting_deg=mounting, gyro_range_rad_s=gyro_range_rad_s,
+                         acc_range_m_s2=acc_range_m_s2, max_lag_s=max_lag_s)

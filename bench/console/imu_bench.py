@@ -53,8 +53,12 @@ class ImuCalibration:
     def run(self) -> dict[str, Any]:
         from analysis.imu_log import load_calibration_log
         from bench.calibration_sequences import paper_a_sequences
-        from bench.calibration_session import collect_log, plans_for, run_calibration
-        from bench.commands.calibrate import calibrate_frame
+        from bench.calibration_session import (
+            calibrate_frame,
+            collect_log,
+            plans_for,
+            run_calibration,
+        )
         from bench.hexapod_runner import HexapodRunOptions
         from bench.recorder import new_run_id
 
