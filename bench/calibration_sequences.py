@@ -1,5 +1,9 @@
 """Paper A's calibration stages as hexapod sequences (data), and their compiled plans.
 
+The IMU bench's own steps (set pivot, rest, move) beside the shared ones of
+:mod:`bench.sequences` (``Checkpoint``); every compiled segment carries its step, and the
+one runner (:mod:`bench.runner`) dispatches on the step's type.
+
 A :class:`CalibrationSequence` is a list of small steps: set the pivot, rest (record with
 the platform still), move (run one of :mod:`drivers.hexapod_motions`' trajectories),
 checkpoint. Every step that takes time carries the calibration log's ``phase`` label
@@ -26,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from bench.errors import RigError
+from bench.sequences import Checkpoint
 from drivers.hexapod_contracts import HexapodLimits, limit_violations
 from drivers.hexapod_kinematics import body_frame_state, motion_peaks
 from drivers.hexapod_motions import (
@@ -80,14 +85,6 @@ class Move:
     kind: str = "move"
 
 
-@dataclass(frozen=True)
-class Checkpoint:
-    """A labelled mark in the run's events; no time passes."""
-
-    label: str
-    kind: str = "checkpoint"
-
-
 HexStep = SetPivot | Rest | Move | Checkpoint
 
 
@@ -119,6 +116,8 @@ class HexapodSegment:
     motion: Motion | None = None
     pivot_m: tuple[float, float, float] | None = None
     peaks: Mapping[str, float] = field(default_factory=dict)
+    #: the step this segment carries out: the runner dispatches on its type
+    step: Any = field(default=None, compare=False, repr=False)
 
     @property
     def t_end_s(self) -> float:
@@ -191,12 +190,13 @@ def compile_plan(seq: CalibrationSequence, rig_limits: HexapodLimits,
                 if len(pv) != 3 or not all(math.isfinite(v) for v in pv):
                     raise RigError(f"{where}: pivot_m: expected three finite numbers (m)")
                 segs.append(HexapodSegment(len(segs), "set_pivot", "pivot " + _vec(pv), phase,
-                                           t, 0.0, pivot_m=pv))  # type: ignore[arg-type]
+                                           t, 0.0, pivot_m=pv, step=step))  # type: ignore[arg-type]
             case Rest(duration_s=d, phase=ph):
                 _check_phase(ph, where)
                 if not (d > 0 and math.isfinite(d)):
                     raise RigError(f"{where}: duration_s must be > 0 s, got {d!r}")
-                segs.append(HexapodSegment(len(segs), "rest", f"rest {d:g} s", ph, t, float(d)))
+                segs.append(HexapodSegment(len(segs), "rest", f"rest {d:g} s", ph, t, float(d),
+                                           step=step))
             case Move(motion=m, phase=ph):
                 _check_phase(ph, where)
                 peaks = peaks_of(m)
@@ -206,9 +206,10 @@ def compile_plan(seq: CalibrationSequence, rig_limits: HexapodLimits,
                     raise RigError(f"{where}: motion {m.name!r} exceeds the hexapod limits: "
                                    f"{text}")
                 segs.append(HexapodSegment(len(segs), "move", m.name, ph, t, float(m.duration_s),
-                                           motion=m, peaks=peaks))
+                                           motion=m, peaks=peaks, step=step))
             case Checkpoint(label=label):
-                segs.append(HexapodSegment(len(segs), "checkpoint", label, phase, t, 0.0))
+                segs.append(HexapodSegment(len(segs), "checkpoint", label, phase, t, 0.0,
+                                           step=step))
             case _:
                 raise RigError(f"{where}: unknown step {step!r}")
         t = segs[-1].t_end_s

@@ -1,7 +1,7 @@
 """A whole IMU calibration on the bench: every Paper A stage as its own recorded run.
 
 ``run_calibration`` opens the IMU bench once (the IMU keeps its clock across stages, as on
-a real bench), runs each stage's sequence through :class:`~bench.hexapod_runner.HexapodRunner`
+a real bench), runs each stage's sequence through :class:`~bench.runner.HexapodRunner`
 into its own run folder (indexed in ``runs.sqlite`` like every other run), stops at the
 first stage that does not succeed, and closes the devices (hexapod stopped) whatever
 happened. ``collect_log`` joins the stages' samples on the rig clock into one calibration
@@ -31,9 +31,9 @@ from bench.calibration_sequences import (
     paper_a_sequences,
 )
 from bench.errors import RigError
-from bench.hexapod_runner import RECORD_BASE, HexapodRunner, HexapodRunOptions, ImuBenchLike
 from bench.indexed_run import indexed_run
 from bench.run_loop import RunResult
+from bench.runner import RECORD_BASE, HexapodRunner, HexapodRunOptions, ImuBenchLike
 from drivers.hexapod_contracts import Trajectory
 
 __all__ = ["CalibrationRun", "StageOutcome", "calibrate_frame", "collect_log", "plans_for",
@@ -82,7 +82,7 @@ def preflight(bench: Any, plans: Sequence[HexapodPlan], rate_hz: float) -> None:
         return
     for plan in plans:
         for seg in plan.segments:
-            if seg.kind == "move" and seg.motion is not None:
+            if seg.motion is not None:  # a Move step's segment
                 check(Trajectory.from_motion(seg.motion, rate_hz))
 
 

@@ -24,10 +24,9 @@ from bench.calibration_sequences import CalibrationSequence, HexapodPlan, Hexapo
 from bench.calibration_session import CalibrationRun, run_calibration
 from bench.cli_support import check_writable
 from bench.errors import RecordingError
-from bench.hexapod_runner import HexapodRunOptions
 from bench.indexed_run import RunInterrupted, RunRecordingFailed
 from bench.run_budget import Budget, check_budget, project, row_rate_hz
-from bench.runner import RunOptions
+from bench.runner import HexapodRunOptions, RunOptions
 from bench.safety import effective_limits
 from bench.sequences import Segment
 from bench.sequences import Sequence as PropSequence

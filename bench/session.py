@@ -111,7 +111,7 @@ def run_sequence(
         "components": _plain(getattr(rig, "components", {})),
         "sequence": seq.to_dict(),
         "plan": {"duration_s": plan.duration_s,
-                 "segments": [dataclasses.asdict(s) for s in plan.segments]},
+                 "segments": [s.record() for s in plan.segments]},
         "limits": limits,
         "rig_limits": limits_dict(rig.limits),
         "thrust_map": _plain(getattr(rig, "thrust_map", None)),

@@ -59,8 +59,8 @@ class ImuCalibration:
             plans_for,
             run_calibration,
         )
-        from bench.hexapod_runner import HexapodRunOptions
         from bench.recorder import new_run_id
+        from bench.runner import HexapodRunOptions
 
         rig = self.rig
         seqs = paper_a_sequences(rig.imu.value("rate_hz"), quick=self.quick)

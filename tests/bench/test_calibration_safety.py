@@ -12,8 +12,8 @@ import pytest
 
 from bench.calibration_sequences import CalibrationSequence, Move, Rest, SetPivot, compile_plan
 from bench.calibration_session import run_stage
-from bench.hexapod_runner import HexapodRunOptions
 from bench.imu_rig import default_imu_rig_path, load_imu_rig
+from bench.runner import HexapodRunOptions
 from drivers.contracts import Fault
 from drivers.errors import DeviceError
 from drivers.hexapod_contracts import HexapodLimits
