@@ -21,7 +21,7 @@ from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 from bench.calibration_sequences import CalibrationSequence, HexapodPlan, HexapodSegment
-from bench.calibration_session import CalibrationRun, run_calibration
+from bench.calibration_stages import CalibrationRun, run_calibration
 from bench.cli_support import check_writable
 from bench.errors import RecordingError
 from bench.indexed_run import RunInterrupted, RunRecordingFailed

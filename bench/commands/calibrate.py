@@ -7,7 +7,7 @@ and apply.
     rotorbench calibrate apply --cal cal.json LOG --out corrected.parquet
 
 On the rig (default: the simulated IMU bench ``fixtures/rigs/sim-imu.toml``) every Paper A
-stage runs as its own recorded run (``bench.calibration_session``); the stages' samples are
+stage runs as its own recorded run (``bench.calibration_stages``); the stages' samples are
 joined into one calibration log next to the runs and calibrated like ``--from-log``.
 """
 
@@ -32,7 +32,7 @@ from analysis.imu_calibration import (
 from analysis.imu_log import load_calibration_log, load_imu_log, write_table
 from bench.calibration_report import mat, print_calibration, print_stages, print_truth, vec
 from bench.calibration_sequences import format_plan, paper_a_sequences
-from bench.calibration_session import calibrate_frame, collect_log, plans_for
+from bench.calibration_stages import calibrate_frame, collect_log, plans_for
 from bench.cli_support import check_writable
 from bench.errors import RigError
 from bench.imu_rig import default_imu_rig_path, is_imu_rig, load_imu_rig

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from bench.calibration_sequences import CalibrationSequence, Move, Rest, SetPivot, compile_plan
-from bench.calibration_session import run_stage
 from bench.imu_rig import default_imu_rig_path, load_imu_rig
 from bench.runner import HexapodRunOptions
+from bench.session import run_stage
 from drivers.contracts import Fault
 from drivers.errors import DeviceError
 from drivers.hexapod_contracts import HexapodLimits
@@ -176,7 +176,7 @@ def test_stalled_host_is_stopped_by_the_watchdog(bench, tmp_path: Path) -> None:
 
 
 def test_calibration_session_stops_at_a_failed_stage_and_closes(tmp_path: Path) -> None:
-    from bench.calibration_session import run_calibration
+    from bench.calibration_stages import run_calibration
 
     opened = []
 

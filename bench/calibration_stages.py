@@ -1,8 +1,9 @@
 """A whole IMU calibration on the bench: every Paper A stage as its own recorded run.
 
 ``run_calibration`` opens the IMU bench once (the IMU keeps its clock across stages, as on
-a real bench), runs each stage's sequence through :class:`~bench.runner.HexapodRunner`
-into its own run folder (indexed in ``runs.sqlite`` like every other run), stops at the
+a real bench), runs each stage's plan through the one recording path
+(:func:`bench.session.run_stage`: the runner of :mod:`bench.runner`) into its own run
+folder (indexed in ``runs.sqlite`` like every other run), stops at the
 first stage that does not succeed, and closes the devices (hexapod stopped) whatever
 happened. ``collect_log`` joins the stages' samples on the rig clock into one calibration
 log in the format of :mod:`analysis.imu_log`, which :mod:`analysis.imu_calibration` reads.
@@ -10,7 +11,6 @@ log in the format of :mod:`analysis.imu_log`, which :mod:`analysis.imu_calibrati
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import threading
 import warnings
@@ -31,27 +31,19 @@ from bench.calibration_sequences import (
     paper_a_sequences,
 )
 from bench.errors import RigError
-from bench.indexed_run import indexed_run
-from bench.run_loop import RunResult
-from bench.runner import RECORD_BASE, HexapodRunner, HexapodRunOptions, ImuBenchLike
+from bench.runner import HexapodRunOptions
+from bench.session import RunOutcome, run_stage
 from drivers.hexapod_contracts import Trajectory
 
-__all__ = ["CalibrationRun", "StageOutcome", "calibrate_frame", "collect_log", "plans_for",
-           "run_calibration", "run_stage"]
-
-
-@dataclass(frozen=True)
-class StageOutcome:
-    result: RunResult
-    run_dir: Path
-    plan: HexapodPlan
+__all__ = ["CalibrationRun", "calibrate_frame", "collect_log", "plans_for", "preflight",
+           "run_calibration"]
 
 
 @dataclass
 class CalibrationRun:
     """The stages run so far; ``complete`` when every stage succeeded."""
 
-    stages: list[StageOutcome] = field(default_factory=list)
+    stages: list[RunOutcome] = field(default_factory=list)
     planned: int = 0
     truth: dict[str, Any] | None = None
 
@@ -67,12 +59,6 @@ def plans_for(rig: Any, sequences: Sequence[CalibrationSequence]) -> list[Hexapo
     return [compile_plan(s, limits, tuple(rig.hexapod.pivot_m)) for s in sequences]
 
 
-def _rig_summary(rig: Any) -> dict[str, Any]:
-    return {"name": rig.name, "path": str(rig.path), "kind": "imu",
-            "devices": {r: {"url": d.url} for r, d in rig.devices.items()},
-            "hexapod": dataclasses.asdict(rig.hexapod), "imu": dataclasses.asdict(rig.imu)}
-
-
 def preflight(bench: Any, plans: Sequence[HexapodPlan], rate_hz: float) -> None:
     """Every motion of every stage against what the controller itself reports (travel
     limits, referenced, servo), before anything moves; a hexapod that cannot tell
@@ -84,38 +70,6 @@ def preflight(bench: Any, plans: Sequence[HexapodPlan], rate_hz: float) -> None:
         for seg in plan.segments:
             if seg.motion is not None:  # a Move step's segment
                 check(Trajectory.from_motion(seg.motion, rate_hz))
-
-
-def run_stage(bench: ImuBenchLike, rig: Any, plan: HexapodPlan, out_root: Path, *,
-              options: HexapodRunOptions | None = None,
-              on_progress: Callable[[float, float, HexapodSegment], None] | None = None,
-              on_rows: Callable[[Mapping[str, np.ndarray]], None] | None = None,
-              stop_event: threading.Event | None = None,
-              extra_meta: Mapping[str, Any] | None = None) -> StageOutcome:
-    """Run one stage into its own run folder; errors propagate after the safe stop."""
-    options = options or HexapodRunOptions(trajectory_rate_hz=rig.hexapod.trajectory_rate_hz)
-    seq = plan.sequence
-    meta = {
-        "kind": seq.name,
-        "rig": _rig_summary(rig),
-        "sequence": json.loads(json.dumps(seq.to_dict(), default=str)),
-        "plan": {"duration_s": plan.duration_s,
-                 "segments": [{"index": s.index, "kind": s.kind, "label": s.label,
-                               "phase": s.phase, "t_start_s": s.t_start_s,
-                               "duration_s": s.duration_s, "peaks": dict(s.peaks)}
-                              for s in plan.segments]},
-        "limits": plan.limits.as_dict(),
-        "rig_limits": dict(rig.hexapod.limits),
-        "options": dataclasses.asdict(options),
-        "seed": rig.sim.seed if rig.is_simulated else None,
-        "log_format": "analysis.imu_log calibration log (t_s, phase, ref_*, imu_*)",
-        **dict(extra_meta or {}),
-    }
-    with indexed_run(out_root, seq.name, meta, base_columns=RECORD_BASE) as recorder:
-        runner = HexapodRunner(bench, plan, recorder, options, on_rows=on_rows,
-                               on_progress=on_progress, stop_event=stop_event)
-        result = runner.run()
-    return StageOutcome(result, recorder.run_dir, plan)
 
 
 def run_calibration(rig: Any, out_root: Path, *, quick: bool = False, seed: int | None = None,
