@@ -35,8 +35,8 @@ from bench.calibration_sequences import format_plan, paper_a_sequences
 from bench.calibration_stages import calibrate_frame, collect_log, plans_for
 from bench.cli_support import check_writable
 from bench.errors import RigError
-from bench.imu_rig import default_imu_rig_path, is_imu_rig, load_imu_rig
 from bench.recorder import new_run_id
+from bench.rig import default_imu_rig_path, is_imu_rig, load_imu_rig
 from bench.run_progress import run_calibration_with_progress
 from bench.runner import HexapodRunOptions
 

@@ -50,8 +50,8 @@ def handler(args: argparse.Namespace) -> int:
     from bench.console.link import BenchLink
     from bench.console.manual import DEFAULT_RATE_US_S
     from bench.console.server import ConsoleBench
-    from bench.imu_rig import is_imu_rig, load_imu_rig
     from bench.live import _qt_binding_missing, check_display
+    from bench.rig import is_imu_rig, load_imu_rig
     from bench.runner import RunOptions
 
     imu = args.rig is not None and is_imu_rig(args.rig)

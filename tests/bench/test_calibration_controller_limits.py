@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from bench.calibration_stages import run_calibration
-from bench.imu_rig import load_imu_rig
+from bench.rig import load_imu_rig
 from drivers.errors import DeviceError
 from drivers.imu_factory import open_imu_rig
 

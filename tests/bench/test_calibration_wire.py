@@ -24,7 +24,7 @@ from scipy.spatial.transform import Rotation
 from analysis.imu_calibration import calibrate, load_calibration
 from bench.calibration_sequences import CalibrationSequence, Move, Rest, SetPivot, compile_plan
 from bench.cli import main
-from bench.imu_rig import load_imu_rig
+from bench.rig import load_imu_rig
 from bench.runner import HexapodRunOptions
 from bench.session import run_stage
 from drivers.errors import DeviceError

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from bench.calibration_sequences import CalibrationSequence, Move, Rest, SetPivot, compile_plan
-from bench.imu_rig import default_imu_rig_path, load_imu_rig
+from bench.rig import default_imu_rig_path, load_imu_rig
 from bench.runner import HexapodRunner, HexapodRunOptions
 from drivers.errors import DeviceError
 from drivers.hexapod_contracts import POSE_CHANNELS
