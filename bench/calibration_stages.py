@@ -24,14 +24,14 @@ import pandas as pd
 
 from analysis.imu_calibration import Calibration, calibrate
 from bench.calibration_sequences import (
-    CalibrationSequence,
-    HexapodPlan,
     HexapodSegment,
     compile_plan,
     paper_a_sequences,
 )
 from bench.errors import RigError
 from bench.runner import HexapodRunOptions
+from bench.sequences import Plan
+from bench.sequences import Sequence as PlanSequence
 from bench.session import RunOutcome, run_stage
 from drivers.hexapod_contracts import Trajectory
 
@@ -53,13 +53,13 @@ class CalibrationRun:
                 and all(s.result.status == "success" for s in self.stages))
 
 
-def plans_for(rig: Any, sequences: Sequence[CalibrationSequence]) -> list[HexapodPlan]:
+def plans_for(rig: Any, sequences: Sequence[PlanSequence]) -> list[Plan]:
     """Compile every stage against the rig's hexapod limits and pivot (no device touched)."""
     limits = rig.hexapod.hexapod_limits()
     return [compile_plan(s, limits, tuple(rig.hexapod.pivot_m)) for s in sequences]
 
 
-def preflight(bench: Any, plans: Sequence[HexapodPlan], rate_hz: float) -> None:
+def preflight(bench: Any, plans: Sequence[Plan], rate_hz: float) -> None:
     """Every motion of every stage against what the controller itself reports (travel
     limits, referenced, servo), before anything moves; a hexapod that cannot tell
     (no ``check_motion``) is checked against the rig file's limits only."""
@@ -74,8 +74,8 @@ def preflight(bench: Any, plans: Sequence[HexapodPlan], rate_hz: float) -> None:
 
 def run_calibration(rig: Any, out_root: Path, *, quick: bool = False, seed: int | None = None,
                     options: HexapodRunOptions | None = None,
-                    sequences: Sequence[CalibrationSequence] | None = None,
-                    on_stage: Callable[[int, HexapodPlan], None] | None = None,
+                    sequences: Sequence[PlanSequence] | None = None,
+                    on_stage: Callable[[int, Plan], None] | None = None,
                     on_progress: Callable[[float, float, HexapodSegment], None] | None = None,
                     stop_event: threading.Event | None = None,
                     open_bench: Callable[..., Any] | None = None,

@@ -20,8 +20,9 @@ from typing import Protocol
 
 import numpy as np
 
-from bench.calibration_sequences import HexapodPlan, HexapodSegment
+from bench.calibration_sequences import HexapodSegment, phase_at, step_at
 from bench.safety import Trip
+from bench.sequences import Plan
 from bench.watchdog import WatchdogTrip
 from drivers.contracts import Block, Clock, Sensor
 from drivers.hexapod_contracts import (
@@ -140,7 +141,7 @@ class HexapodSupervisor:
 class RowMerger:
     """IMU rows with the hexapod's log and the reference IMU interpolated onto them."""
 
-    def __init__(self, plan: HexapodPlan, with_reference: bool) -> None:
+    def __init__(self, plan: Plan, with_reference: bool) -> None:
         self.plan = plan
         self.with_reference = with_reference
         # the realised start (s since the run start) of every timed segment begun so far
@@ -163,7 +164,7 @@ class RowMerger:
     def _labels(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Phase label and step index of the segment in force at each time."""
         if not self.segments:
-            return self.plan.phase_at(t), self.plan.step_at(t)
+            return phase_at(self.plan, t), step_at(self.plan, t)
         i = np.clip(np.searchsorted(np.asarray(self.starts), t, side="right") - 1, 0,
                     len(self.segments) - 1)
         return (np.array([s.phase for s in self.segments], dtype=object)[i],

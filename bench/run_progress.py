@@ -20,7 +20,7 @@ import numpy as np
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-from bench.calibration_sequences import CalibrationSequence, HexapodPlan, HexapodSegment
+from bench.calibration_sequences import HexapodSegment
 from bench.calibration_stages import CalibrationRun, run_calibration
 from bench.cli_support import check_writable
 from bench.errors import RecordingError
@@ -28,8 +28,8 @@ from bench.indexed_run import RunInterrupted, RunRecordingFailed
 from bench.run_budget import Budget, check_budget, project, row_rate_hz
 from bench.runner import HexapodRunOptions, RunOptions
 from bench.safety import effective_limits
-from bench.sequences import Segment
-from bench.sequences import Sequence as PropSequence
+from bench.sequences import Plan, Segment
+from bench.sequences import Sequence as PlanSequence
 from bench.session import RunOutcome, plan_for, run_sequence
 
 __all__ = [
@@ -55,13 +55,13 @@ def _progress_bar() -> Progress:
                     TimeElapsedColumn(), console=err_console())
 
 
-def check_limits(rig: Any, seq: PropSequence) -> None:
+def check_limits(rig: Any, seq: PlanSequence) -> None:
     """Refuse a sequence (or --limit) that would loosen the rig's limits before anything
     is shown or opened: the dry run says what the run would say."""
     effective_limits(rig.limits, seq.limits, source=f"sequence {seq.name!r}")
 
 
-def check_budget_of(rig: Any, seq: PropSequence, confirmed: bool) -> Budget:
+def check_budget_of(rig: Any, seq: PlanSequence, confirmed: bool) -> Budget:
     """The plan's projected rig time and samples size, refused beyond the bounds of
     ``bench.run_budget`` (above the confirmation bounds unless ``confirmed``: --yes)."""
     budget = project(plan_for(rig, seq, dry_run=True).duration_s, row_rate_hz(rig))
@@ -69,7 +69,7 @@ def check_budget_of(rig: Any, seq: PropSequence, confirmed: bool) -> Budget:
     return budget
 
 
-def run_with_progress(rig: Any, seq: PropSequence, out: Path, *, seed: int | None = None,
+def run_with_progress(rig: Any, seq: PlanSequence, out: Path, *, seed: int | None = None,
                       options: RunOptions | None = None, live: bool = False,
                       confirmed: bool = False,
                       extra_meta: Mapping[str, Any] | None = None) -> RunOutcome:
@@ -108,7 +108,7 @@ def run_with_progress(rig: Any, seq: PropSequence, out: Path, *, seed: int | Non
     return outcome
 
 
-def run_calibration_with_progress(rig: Any, plans: Sequence[HexapodPlan], runs: Path, *,
+def run_calibration_with_progress(rig: Any, plans: Sequence[Plan], runs: Path, *,
                                   quick: bool, options: HexapodRunOptions,
                                   extra_meta: Mapping[str, Any] | None = None
                                   ) -> CalibrationRun:
@@ -120,7 +120,7 @@ def run_calibration_with_progress(rig: Any, plans: Sequence[HexapodPlan], runs: 
     stage = {"i": 0}
     stop = threading.Event()
 
-    def on_stage(i: int, plan: HexapodPlan) -> None:
+    def on_stage(i: int, plan: Plan) -> None:
         stage["i"] = i
         progress.update(task, completed=offsets[i],
                         description=f"{i + 1}/{len(plans)} {plan.sequence.name}")
@@ -131,7 +131,7 @@ def run_calibration_with_progress(rig: Any, plans: Sequence[HexapodPlan], runs: 
                         description=f"{i + 1}/{len(plans)} {plans[i].sequence.name} "
                                     f"[{seg.phase}: {seg.label}]")
 
-    seqs: list[CalibrationSequence] = [p.sequence for p in plans]
+    seqs: list[PlanSequence] = [p.sequence for p in plans]
     meta = {"command_line": ["rotorbench", *sys.argv[1:]], **dict(extra_meta or {})}
     with say_where_an_interrupted_run_went("calibration stage", "hexapod stopped"), \
             progress, sigterm_as_interrupt(stop), erase_on_user_error(progress):

@@ -37,7 +37,7 @@ from typing import Any, ClassVar, Protocol
 import numpy as np
 
 from bench.alignment import BlockAligner
-from bench.calibration_sequences import HexapodPlan, HexapodSegment, Move, SetPivot
+from bench.calibration_sequences import HexapodSegment, Move, SetPivot
 from bench.errors import RigError
 from bench.hexapod_parts import (
     RECORD_BASE,
@@ -301,10 +301,10 @@ class HexapodRunner(PlanRunner):
 
     safe_stop_label = "hexapod stop"
     rig: ImuBenchLike
-    plan: HexapodPlan
+    plan: Plan
     options: HexapodRunOptions
 
-    def __init__(self, rig: ImuBenchLike, plan: HexapodPlan,
+    def __init__(self, rig: ImuBenchLike, plan: Plan,
                  recorder: RunRecorder | None = None,
                  options: HexapodRunOptions | None = None,
                  on_rows: Callable[[Mapping[str, np.ndarray]], None] | None = None,

@@ -421,10 +421,16 @@ class Segment:
 
 @dataclass(frozen=True)
 class Plan:
-    """A compiled sequence: its segments, total duration and the sequence it came from."""
+    """A compiled sequence, whatever the bench: the sequence it came from, its timed
+    segments (each carrying its step: :class:`Segment` for the propulsion stand,
+    ``bench.calibration_sequences.HexapodSegment`` for the IMU bench) and the limits it
+    was checked against where the bench checks motions before the run (the IMU bench's
+    effective ``HexapodLimits``; None on the propulsion stand, whose limits are checked
+    on every sample)."""
 
     sequence: Sequence
-    segments: tuple[Segment, ...]
+    segments: tuple[Any, ...]
+    limits: Any = None
 
     @property
     def duration_s(self) -> float:

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from bench.calibration_sequences import HexapodPlan, HexapodSegment
+from bench.calibration_sequences import HexapodSegment
 from bench.hexapod_parts import RECORD_BASE, ImuBenchLike
 from bench.indexed_run import indexed_run
 from bench.recorder import BASE_COLUMNS, RunRecorder
@@ -50,10 +50,10 @@ class RunOutcome:
 
     result: RunResult
     run_dir: Path
-    plan: Plan | HexapodPlan
+    plan: Plan
 
 
-def record_plan(out_root: Path, name: str, meta: Mapping[str, Any], plan: Plan | HexapodPlan,
+def record_plan(out_root: Path, name: str, meta: Mapping[str, Any], plan: Plan,
                 run: Callable[[RunRecorder], RunResult], *,
                 base_columns: tuple[str, ...] = BASE_COLUMNS) -> RunOutcome:
     """Record one run of ``plan`` under ``out_root``: ``run(recorder)`` builds the bench's
@@ -182,7 +182,7 @@ def _rig_summary(rig: Any) -> dict[str, Any]:
             "hexapod": dataclasses.asdict(rig.hexapod), "imu": dataclasses.asdict(rig.imu)}
 
 
-def run_stage(bench: ImuBenchLike, rig: Any, plan: HexapodPlan, out_root: Path, *,
+def run_stage(bench: ImuBenchLike, rig: Any, plan: Plan, out_root: Path, *,
               options: HexapodRunOptions | None = None,
               on_progress: Callable[[float, float, HexapodSegment], None] | None = None,
               on_rows: Callable[[Mapping[str, np.ndarray]], None] | None = None,

@@ -10,9 +10,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bench.calibration_sequences import CalibrationSequence, Move, Rest, SetPivot, compile_plan
+from bench.calibration_sequences import Move, Rest, SetPivot, compile_plan
 from bench.rig import default_imu_rig_path, load_imu_rig
 from bench.runner import HexapodRunOptions
+from bench.sequences import Sequence
 from bench.session import run_stage
 from drivers.contracts import Fault
 from drivers.errors import DeviceError
@@ -21,7 +22,7 @@ from drivers.hexapod_motions import gyro_sines
 from drivers.imu_factory import open_imu_rig
 
 RIG = load_imu_rig(default_imu_rig_path())
-SEQ = CalibrationSequence("cal_test", (SetPivot(), Rest(0.5, "gyro"),
+SEQ = Sequence("cal_test", (SetPivot(), Rest(0.5, "gyro"),
                                        Move(gyro_sines(beats=1), "gyro"), Rest(0.5, "gyro")))
 OPTIONS = HexapodRunOptions(tick_s=0.1)
 
