@@ -1,6 +1,11 @@
 """Paper A's calibration stages as hexapod sequences (data), and their compiled plans.
 
-A :class:`CalibrationSequence` is a list of small steps: set the pivot, rest (record with
+The IMU bench's own steps (set pivot, rest, move) beside the shared ones of
+:mod:`bench.sequences` (``Checkpoint``); every compiled segment carries its step, and the
+one runner (:mod:`bench.runner`) dispatches on the step's type.
+
+A sequence (:class:`bench.sequences.Sequence`, one class for every bench) is a list of
+small steps: set the pivot, rest (record with
 the platform still), move (run one of :mod:`drivers.hexapod_motions`' trajectories),
 checkpoint. Every step that takes time carries the calibration log's ``phase`` label
 (``bias, gyro, acc, lever_x, lever_y, lever_z, verify``), so the recorded rows are the
@@ -17,7 +22,6 @@ verification motion (0.1-1 Hz, 5°, 0.1 m).
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -26,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from bench.errors import RigError
+from bench.sequences import Checkpoint, Plan, Sequence
 from drivers.hexapod_contracts import HexapodLimits, limit_violations
 from drivers.hexapod_kinematics import body_frame_state, motion_peaks
 from drivers.hexapod_motions import (
@@ -37,9 +42,7 @@ from drivers.hexapod_motions import (
 )
 
 __all__ = [
-    "CalibrationSequence",
     "Checkpoint",
-    "HexapodPlan",
     "HexapodSegment",
     "Move",
     "Rest",
@@ -48,6 +51,8 @@ __all__ = [
     "effective_hexapod_limits",
     "format_plan",
     "paper_a_sequences",
+    "phase_at",
+    "step_at",
 ]
 
 PHASES = ("bias", "gyro", "acc", "lever_x", "lever_y", "lever_z", "verify")
@@ -80,30 +85,7 @@ class Move:
     kind: str = "move"
 
 
-@dataclass(frozen=True)
-class Checkpoint:
-    """A labelled mark in the run's events; no time passes."""
-
-    label: str
-    kind: str = "checkpoint"
-
-
 HexStep = SetPivot | Rest | Move | Checkpoint
-
-
-@dataclass(frozen=True)
-class CalibrationSequence:
-    """A named list of hexapod steps; ``limits`` (HexapodLimits fields) only tighten."""
-
-    name: str
-    steps: tuple[HexStep, ...]
-    limits: Mapping[str, float] = field(default_factory=dict)
-    description: str = ""
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"name": self.name, "description": self.description,
-                "limits": dict(self.limits),
-                "steps": [dataclasses.asdict(s) for s in self.steps]}
 
 
 @dataclass(frozen=True)
@@ -119,35 +101,31 @@ class HexapodSegment:
     motion: Motion | None = None
     pivot_m: tuple[float, float, float] | None = None
     peaks: Mapping[str, float] = field(default_factory=dict)
+    #: the step this segment carries out: the runner dispatches on its type
+    step: Any = field(default=None, compare=False, repr=False)
 
     @property
     def t_end_s(self) -> float:
         return self.t_start_s + self.duration_s
 
 
-@dataclass(frozen=True)
-class HexapodPlan:
-    sequence: CalibrationSequence
-    segments: tuple[HexapodSegment, ...]
-    limits: HexapodLimits
+def _timed(plan: Plan) -> tuple[list[HexapodSegment], np.ndarray]:
+    timed = [s for s in plan.segments if s.duration_s > 0]
+    return timed, np.array([s.t_start_s for s in timed])
 
-    @property
-    def duration_s(self) -> float:
-        return self.segments[-1].t_end_s if self.segments else 0.0
 
-    def phase_at(self, t_s: np.ndarray) -> np.ndarray:
-        """Phase label and step index of the segment in force at each time."""
-        timed = [s for s in self.segments if s.duration_s > 0]
-        starts = np.array([s.t_start_s for s in timed])
-        i = np.clip(np.searchsorted(starts, t_s, side="right") - 1, 0, len(timed) - 1)
-        labels = np.array([s.phase for s in timed], dtype=object)
-        return labels[i]
+def phase_at(plan: Plan, t_s: np.ndarray) -> np.ndarray:
+    """The phase label of the (timed) segment the plan schedules at each time."""
+    timed, starts = _timed(plan)
+    i = np.clip(np.searchsorted(starts, t_s, side="right") - 1, 0, len(timed) - 1)
+    return np.array([s.phase for s in timed], dtype=object)[i]
 
-    def step_at(self, t_s: np.ndarray) -> np.ndarray:
-        timed = [s for s in self.segments if s.duration_s > 0]
-        starts = np.array([s.t_start_s for s in timed])
-        i = np.clip(np.searchsorted(starts, t_s, side="right") - 1, 0, len(timed) - 1)
-        return np.array([s.index for s in timed], dtype=np.int32)[i]
+
+def step_at(plan: Plan, t_s: np.ndarray) -> np.ndarray:
+    """The index of the (timed) segment the plan schedules at each time."""
+    timed, starts = _timed(plan)
+    i = np.clip(np.searchsorted(starts, t_s, side="right") - 1, 0, len(timed) - 1)
+    return np.array([s.index for s in timed], dtype=np.int32)[i]
 
 
 def effective_hexapod_limits(rig_limits: HexapodLimits, tighter: Mapping[str, float],
@@ -176,8 +154,8 @@ def peaks_of(motion: Motion, step_s: float = 0.002) -> dict[str, float]:
     return motion_peaks(pose, vel, acc, body_frame_state(t, pose, vel, acc))
 
 
-def compile_plan(seq: CalibrationSequence, rig_limits: HexapodLimits,
-                 pivot_m: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> HexapodPlan:
+def compile_plan(seq: Sequence, rig_limits: HexapodLimits,
+                 pivot_m: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> Plan:
     """Resolve times, pivots and phases; refuse any motion outside the effective limits."""
     limits = effective_hexapod_limits(rig_limits, seq.limits, f"sequence {seq.name!r}")
     segs: list[HexapodSegment] = []
@@ -191,12 +169,13 @@ def compile_plan(seq: CalibrationSequence, rig_limits: HexapodLimits,
                 if len(pv) != 3 or not all(math.isfinite(v) for v in pv):
                     raise RigError(f"{where}: pivot_m: expected three finite numbers (m)")
                 segs.append(HexapodSegment(len(segs), "set_pivot", "pivot " + _vec(pv), phase,
-                                           t, 0.0, pivot_m=pv))  # type: ignore[arg-type]
+                                           t, 0.0, pivot_m=pv, step=step))  # type: ignore[arg-type]
             case Rest(duration_s=d, phase=ph):
                 _check_phase(ph, where)
                 if not (d > 0 and math.isfinite(d)):
                     raise RigError(f"{where}: duration_s must be > 0 s, got {d!r}")
-                segs.append(HexapodSegment(len(segs), "rest", f"rest {d:g} s", ph, t, float(d)))
+                segs.append(HexapodSegment(len(segs), "rest", f"rest {d:g} s", ph, t, float(d),
+                                           step=step))
             case Move(motion=m, phase=ph):
                 _check_phase(ph, where)
                 peaks = peaks_of(m)
@@ -206,15 +185,16 @@ def compile_plan(seq: CalibrationSequence, rig_limits: HexapodLimits,
                     raise RigError(f"{where}: motion {m.name!r} exceeds the hexapod limits: "
                                    f"{text}")
                 segs.append(HexapodSegment(len(segs), "move", m.name, ph, t, float(m.duration_s),
-                                           motion=m, peaks=peaks))
+                                           motion=m, peaks=peaks, step=step))
             case Checkpoint(label=label):
-                segs.append(HexapodSegment(len(segs), "checkpoint", label, phase, t, 0.0))
+                segs.append(HexapodSegment(len(segs), "checkpoint", label, phase, t, 0.0,
+                                           step=step))
             case _:
                 raise RigError(f"{where}: unknown step {step!r}")
         t = segs[-1].t_end_s
     if not any(s.duration_s > 0 for s in segs):
         raise RigError(f"sequence {seq.name!r}: no step takes time; nothing to record")
-    return HexapodPlan(seq, tuple(segs), limits)
+    return Plan(seq, tuple(segs), limits)
 
 
 def _check_phase(phase: str, where: str) -> None:
@@ -226,7 +206,7 @@ def _vec(v: tuple[float, ...]) -> str:
     return "[" + ", ".join(f"{x:g}" for x in v) + "]"
 
 
-def format_plan(plan: HexapodPlan) -> str:
+def format_plan(plan: Plan) -> str:
     """The dry-run listing: one line per step with times, phase and the motion's peaks."""
     seq = plan.sequence
     lim = plan.limits
@@ -254,58 +234,58 @@ def format_plan(plan: HexapodPlan) -> str:
 # --- Paper A ---------------------------------------------------------------------------------
 
 
-def bias_sequence(samples: int = 10_000, rate_hz: float = 100.0) -> CalibrationSequence:
+def bias_sequence(samples: int = 10_000, rate_hz: float = 100.0) -> Sequence:
     """Paper A section 4.1: the platform holds still for ``samples`` IMU samples (A.12)."""
     if samples < 2:
         raise RigError(f"bias hold: expected at least 2 samples, got {samples}")
-    return CalibrationSequence(
+    return Sequence(
         "cal_bias", (SetPivot(), Rest(samples / rate_hz, "bias"), Rest(0.1, "bias")),
         description=f"Paper A 4.1: static hold, {samples} samples at {rate_hz:g} Hz")
 
 
-def gyro_sequence(beats: int = 2) -> CalibrationSequence:
+def gyro_sequence(beats: int = 2) -> Sequence:
     """Paper A section 4.2: sines about x, y, z at 0.6/0.65/0.7 Hz, 4°, whole 20 s periods."""
     m = gyro_sines(beats=beats)
-    return CalibrationSequence(
+    return Sequence(
         "cal_gyro", (SetPivot(), Rest(SETTLE_S, "gyro"), Move(m, "gyro"),
                      Rest(SETTLE_S, "gyro")),
         description=f"Paper A 4.2: 4 deg sines at 0.6, 0.65, 0.7 Hz, {beats} x 20 s")
 
 
-def acc_sequence(rotation_hz: float = 0.01) -> CalibrationSequence:
+def acc_sequence(rotation_hz: float = 0.01) -> Sequence:
     """Paper A section 3.2: rapid translations with one slow rotation about each axis."""
     steps: list[HexStep] = [SetPivot(), Rest(SETTLE_S, "acc")]
     for a in "xyz":
         steps += [Checkpoint(f"slow rotation about {a}"),
                   Move(acc_motion(a, rotation_hz=rotation_hz), "acc"), Rest(SETTLE_S, "acc")]
-    return CalibrationSequence(
+    return Sequence(
         "cal_acc", tuple(steps),
         description=f"Paper A 3.2: translations 1.1-1.5 Hz, {rotation_hz:g} Hz rotation "
                     "about x, y, z in turn")
 
 
-def lever_sequence(duration_s: float = 30.0) -> CalibrationSequence:
+def lever_sequence(duration_s: float = 30.0) -> Sequence:
     """Paper A section 4.3: 5° at 0.7 Hz about x, y and z in turn."""
     steps: list[HexStep] = [SetPivot()]
     for a in "xyz":
         steps += [Rest(SETTLE_S, f"lever_{a}"),
                   Move(lever_arm_motion(a, duration_s=duration_s), f"lever_{a}")]
     steps.append(Rest(SETTLE_S, "lever_z"))
-    return CalibrationSequence(
+    return Sequence(
         "cal_lever", tuple(steps),
         description=f"Paper A 4.3: 5 deg at 0.7 Hz about x, y, z, {duration_s:g} s each")
 
 
-def verify_sequence(duration_s: float = 60.0) -> CalibrationSequence:
+def verify_sequence(duration_s: float = 60.0) -> Sequence:
     """Paper A section 4.4: the independent multi-sine, 0.1-1 Hz, 5° and 0.1 m."""
-    return CalibrationSequence(
+    return Sequence(
         "cal_verify", (SetPivot(), Rest(SETTLE_S, "verify"),
                        Move(verification_motion(duration_s=duration_s), "verify"),
                        Rest(SETTLE_S, "verify")),
         description=f"Paper A 4.4: independent verification motion, {duration_s:g} s")
 
 
-def paper_a_sequences(rate_hz: float = 100.0, quick: bool = False) -> list[CalibrationSequence]:
+def paper_a_sequences(rate_hz: float = 100.0, quick: bool = False) -> list[Sequence]:
     """Every stage of Paper A in order. ``quick`` shortens the stages for tests (3000-sample
     hold, 0.02 Hz slow rotation, 20 s lever-arm and 30 s verification motions; the gyro
     sines keep their two 20 s beats) as ``paper_a_protocol(short=True)`` does."""

@@ -1,8 +1,8 @@
 """Reading rig files (propulsion and IMU bench): TOML tables that name file and field.
 
-Both rig loaders (:mod:`bench.rig`, :mod:`bench.imu_rig`) check every value through a
-:class:`RigTable`, so a bad value raises ``RigError`` naming the file, the table, the key
-and what was expected.
+Both benches' rig sections (:mod:`bench.rig_propulsion`, :mod:`bench.rig_imu`) check
+every value through a :class:`RigTable`, so a bad value raises ``RigError`` naming the
+file, the table, the key and what was expected.
 """
 
 from __future__ import annotations

@@ -6,7 +6,7 @@ error or a bug) its ``finally`` makes the actuators safe first (the subclass's
 :meth:`SafeRunLoop._safe_stop`: ESC idle + disarmed, hexapod stopped) with a second Ctrl-C
 or SIGTERM held until that is done and the record written, then stops the watchdog and
 records the exit status (``success``, ``abort`` or ``fail``) and the reason.
-:class:`bench.runner.Runner` (ESC) and :class:`bench.hexapod_runner.HexapodRunner` (hexapod)
+:class:`bench.runner.Runner` (ESC) and :class:`bench.runner.HexapodRunner` (hexapod)
 fill in the devices: what to drain, what one segment does, how to read and check a tick.
 """
 

@@ -113,7 +113,8 @@ class ThrustStep:
 
 @dataclass(frozen=True)
 class Checkpoint:
-    """A labelled mark in the run's events (e.g. the start of a repeat); no time passes."""
+    """A labelled mark in the run's events (e.g. the start of a repeat); no time passes.
+    One class for every bench: the IMU calibration plans use it too."""
 
     label: str
     kind: str = "checkpoint"
@@ -398,6 +399,14 @@ class Segment:
     us_end: float
     setpoint_n: float = math.nan
     armed: bool = True
+    #: the step this segment carries out: the runner dispatches on its type (kept out of
+    #: comparisons and of the run record, which has ``kind`` and the sequence's steps)
+    step: Any = field(default=None, compare=False, repr=False)
+
+    def record(self) -> dict[str, Any]:
+        """The segment as run.json stores it (every field but the step object)."""
+        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)
+                if f.name != "step"}
 
     @property
     def t_end_s(self) -> float:
@@ -412,10 +421,16 @@ class Segment:
 
 @dataclass(frozen=True)
 class Plan:
-    """A compiled sequence: its segments, total duration and the sequence it came from."""
+    """A compiled sequence, whatever the bench: the sequence it came from, its timed
+    segments (each carrying its step: :class:`Segment` for the propulsion stand,
+    ``bench.calibration_sequences.HexapodSegment`` for the IMU bench) and the limits it
+    was checked against where the bench checks motions before the run (the IMU bench's
+    effective ``HexapodLimits``; None on the propulsion stand, whose limits are checked
+    on every sample)."""
 
     sequence: Sequence
-    segments: tuple[Segment, ...]
+    segments: tuple[Any, ...]
+    limits: Any = None
 
     @property
     def duration_s(self) -> float:
@@ -439,8 +454,10 @@ def compile_plan(
     armed = False
     segs: list[Segment] = []
 
+    step: Step | None = None
+
     def add(kind: str, label: str, dur: float, u0: float, u1: float, sp: float = math.nan):
-        segs.append(Segment(len(segs), kind, label, t, dur, u0, u1, sp, armed))
+        segs.append(Segment(len(segs), kind, label, t, dur, u0, u1, sp, armed, step))
 
     def check_us(value: float, i: int, what: str) -> float:
         if value == esc.idle_us:

@@ -1,13 +1,21 @@
-"""One bench run from rig config to indexed run folder (what the CLI commands call).
+"""One session/recording path for every bench: a compiled plan becomes one indexed run.
 
-Compiles the sequence against the rig (ESC range, static thrust map, limits tightened
-by the sequence), creates the run folder and its index row, opens the devices, runs,
-and closes the devices and updates the index whatever happened.
+:func:`record_plan` is the only place a run folder is made: it creates the run folder and
+its index row (``bench.indexed_run``), hands the recorder to the bench's runner (the one
+runner module, :mod:`bench.runner`) and records whatever happened. Each bench only says
+what goes into ``run.json`` and how its devices are opened:
+
+- :func:`run_sequence` (propulsion stand): compiles the sequence against the rig (ESC
+  range, static thrust map, limits tightened by the sequence), opens the devices for the
+  run and closes them whatever happened.
+- :func:`run_stage` (IMU bench): one calibration stage on a bench opened once for all
+  stages (``bench.calibration_stages``), the IMU keeping its clock across them.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import json
 import threading
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -16,22 +24,47 @@ from typing import Any
 
 import numpy as np
 
+from bench.calibration_sequences import HexapodSegment
+from bench.hexapod_parts import RECORD_BASE, ImuBenchLike
 from bench.indexed_run import indexed_run
-from bench.runner import OpenRigLike, Runner, RunOptions, RunResult
+from bench.recorder import BASE_COLUMNS, RunRecorder
+from bench.runner import (
+    HexapodRunner,
+    HexapodRunOptions,
+    OpenRigLike,
+    Runner,
+    RunOptions,
+    RunResult,
+)
 from bench.safety import effective_limits, limits_dict
 from bench.sequences import EscRange, Plan, Segment, Sequence, compile_plan
 from bench.thrust_map import StaticThrustMap
 
-__all__ = ["RunOutcome", "esc_range_of", "plan_for", "rig_summary", "run_sequence"]
+__all__ = ["RunOutcome", "esc_range_of", "plan_for", "record_plan", "rig_summary",
+           "run_sequence", "run_stage"]
 
 
 @dataclass(frozen=True)
 class RunOutcome:
+    """How a recorded run ended, where it is, and the plan it carried out."""
+
     result: RunResult
     run_dir: Path
     plan: Plan
 
 
+def record_plan(out_root: Path, name: str, meta: Mapping[str, Any], plan: Plan,
+                run: Callable[[RunRecorder], RunResult], *,
+                base_columns: tuple[str, ...] = BASE_COLUMNS) -> RunOutcome:
+    """Record one run of ``plan`` under ``out_root``: ``run(recorder)`` builds the bench's
+    runner and runs it. Device errors, Ctrl-C and bugs propagate after the run has been
+    made safe and recorded; a runner that never started is recorded as failed."""
+    with indexed_run(out_root, name, meta, base_columns=base_columns) as recorder:
+        result = run(recorder)
+    return RunOutcome(result, recorder.run_dir, plan)
+
+
+# --- the propulsion stand -------------------------------------------------------------------
 def esc_range_of(rig: Any) -> EscRange:
     esc = rig.esc
     return EscRange(float(esc.idle_us), float(esc.min_us), float(esc.max_us))
@@ -111,7 +144,7 @@ def run_sequence(
         "components": _plain(getattr(rig, "components", {})),
         "sequence": seq.to_dict(),
         "plan": {"duration_s": plan.duration_s,
-                 "segments": [dataclasses.asdict(s) for s in plan.segments]},
+                 "segments": [s.record() for s in plan.segments]},
         "limits": limits,
         "rig_limits": limits_dict(rig.limits),
         "thrust_map": _plain(getattr(rig, "thrust_map", None)),
@@ -119,7 +152,8 @@ def run_sequence(
         "seed": seed if seed is not None else getattr(getattr(rig, "sim", None), "seed", None),
         **dict(extra_meta or {}),
     }
-    with indexed_run(out_root, seq.name, meta) as recorder:
+
+    def run(recorder: RunRecorder) -> RunResult:
         try:
             devices = open_rig(rig, seed=seed)
         except BaseException as exc:
@@ -129,11 +163,55 @@ def run_sequence(
         try:
             try:
                 runner = runner_factory(devices, plan, esc_range_of(rig), limits, recorder, options,
-                                on_rows=on_rows, on_progress=on_progress, stop_event=stop_event)
+                                        on_rows=on_rows, on_progress=on_progress,
+                                        stop_event=stop_event)
             except BaseException as exc:
                 recorder.finish("fail", f"runner did not start: {exc}")
                 raise
-            result = runner.run()
+            return runner.run()
         finally:
             devices.close()
-    return RunOutcome(result, recorder.run_dir, plan)
+
+    return record_plan(out_root, seq.name, meta, plan, run)
+
+
+# --- the IMU bench --------------------------------------------------------------------------
+def _rig_summary(rig: Any) -> dict[str, Any]:
+    return {"name": rig.name, "path": str(rig.path), "kind": "imu",
+            "devices": {r: {"url": d.url} for r, d in rig.devices.items()},
+            "hexapod": dataclasses.asdict(rig.hexapod), "imu": dataclasses.asdict(rig.imu)}
+
+
+def run_stage(bench: ImuBenchLike, rig: Any, plan: Plan, out_root: Path, *,
+              options: HexapodRunOptions | None = None,
+              on_progress: Callable[[float, float, HexapodSegment], None] | None = None,
+              on_rows: Callable[[Mapping[str, np.ndarray]], None] | None = None,
+              stop_event: threading.Event | None = None,
+              extra_meta: Mapping[str, Any] | None = None) -> RunOutcome:
+    """Run one calibration stage on an open IMU bench into its own run folder; errors
+    propagate after the safe stop (hexapod stopped) and the record."""
+    options = options or HexapodRunOptions(trajectory_rate_hz=rig.hexapod.trajectory_rate_hz)
+    seq = plan.sequence
+    meta = {
+        "kind": seq.name,
+        "rig": _rig_summary(rig),
+        "sequence": json.loads(json.dumps(seq.to_dict(), default=str)),
+        "plan": {"duration_s": plan.duration_s,
+                 "segments": [{"index": s.index, "kind": s.kind, "label": s.label,
+                               "phase": s.phase, "t_start_s": s.t_start_s,
+                               "duration_s": s.duration_s, "peaks": dict(s.peaks)}
+                              for s in plan.segments]},
+        "limits": plan.limits.as_dict(),
+        "rig_limits": dict(rig.hexapod.limits),
+        "options": dataclasses.asdict(options),
+        "seed": rig.sim.seed if rig.is_simulated else None,
+        "log_format": "analysis.imu_log calibration log (t_s, phase, ref_*, imu_*)",
+        **dict(extra_meta or {}),
+    }
+
+    def run(recorder: RunRecorder) -> RunResult:
+        runner = HexapodRunner(bench, plan, recorder, options, on_rows=on_rows,
+                               on_progress=on_progress, stop_event=stop_event)
+        return runner.run()
+
+    return record_plan(out_root, seq.name, meta, plan, run, base_columns=RECORD_BASE)

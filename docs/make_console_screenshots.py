@@ -80,7 +80,7 @@ def main() -> int:
     shot("history")
     win.close()
     # IMU: the simulated IMU bench, a quick calibration done
-    from bench.imu_rig import default_imu_rig_path, load_imu_rig
+    from bench.rig import default_imu_rig_path, load_imu_rig
 
     imu_link = BenchLink(capacity=1000)
     imu_bench = ConsoleBench(load_imu_rig(default_imu_rig_path()), out / "imu", imu_link)

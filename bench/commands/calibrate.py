@@ -7,7 +7,7 @@ and apply.
     rotorbench calibrate apply --cal cal.json LOG --out corrected.parquet
 
 On the rig (default: the simulated IMU bench ``fixtures/rigs/sim-imu.toml``) every Paper A
-stage runs as its own recorded run (``bench.calibration_session``); the stages' samples are
+stage runs as its own recorded run (``bench.calibration_stages``); the stages' samples are
 joined into one calibration log next to the runs and calibrated like ``--from-log``.
 """
 
@@ -16,10 +16,9 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-import warnings
+import tomllib
 from pathlib import Path
 
-import numpy as np
 from rich.console import Console
 from rich.table import Table
 
@@ -27,14 +26,19 @@ from analysis.errors import LogError
 from analysis.imu_calibration import (
     Calibration,
     apply_to_frame,
-    calibrate,
     load_calibration,
     save_calibration,
 )
 from analysis.imu_log import load_calibration_log, load_imu_log, write_table
+from bench.calibration_report import mat, print_calibration, print_stages, print_truth, vec
+from bench.calibration_sequences import format_plan, paper_a_sequences
+from bench.calibration_stages import calibrate_frame, collect_log, plans_for
 from bench.cli_support import check_writable
-
-_XYZ = ("x", "y", "z")
+from bench.errors import RigError
+from bench.recorder import new_run_id
+from bench.rig import default_imu_rig_path, is_imu_rig, load_imu_rig
+from bench.run_progress import run_calibration_with_progress
+from bench.runner import HexapodRunOptions
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -93,8 +97,6 @@ def handler(args: argparse.Namespace) -> int:
     if args.simulate_log is not None:
         return _simulate(args)
     if args.from_log is None:
-        from bench.commands._calibrate_rig import run_on_rig
-
         return run_on_rig(args)
     _check_out(args)
     df = load_calibration_log(args.from_log)
@@ -115,15 +117,6 @@ def _check_out(args: argparse.Namespace) -> None:
                         ("--acc-range-g", args.acc_range_g), ("--max-lag", args.max_lag)):
         if not (math.isfinite(value) and value > 0):
             raise LogError(f"{flag}: expected a number > 0, got {value:g}")
-
-
-def calibrate_frame(df, mounting: tuple[float, float, float] | None, gyro_range_rad_s: float,
-                    acc_range_m_s2: float, max_lag_s: float) -> Calibration:
-    """Paper A's stages on a validated log; warnings are kept in ``cal.warnings``."""
-    with warnings.catch_warnings():  # warnings are kept in cal.warnings and printed below
-        warnings.simplefilter("ignore")
-        return calibrate(df, measured_mounting_deg=mounting, gyro_range_rad_s=gyro_range_rad_s,
-                         acc_range_m_s2=acc_range_m_s2, max_lag_s=max_lag_s)
 
 
 def finish(cal: Calibration, df, args: argparse.Namespace, out: Path | None, source: str) -> None:
@@ -180,74 +173,70 @@ def _simulate(args: argparse.Namespace) -> int:
     return 0
 
 
-def vec(v, fmt: str) -> str:
-    return "[" + ", ".join(fmt.format(float(x)) for x in v) + "]"
+# --- on the rig ------------------------------------------------------------------------------
+def _load(args: argparse.Namespace):
+    path = args.rig or default_imu_rig_path()
+    if path.is_file():
+        _check_toml(path)  # a broken file is reported as broken, not as the wrong kind
+    if path.is_file() and not is_imu_rig(path):
+        raise RigError(f"{path}: [rig] kind: not an IMU-bench rig; `rotorbench calibrate` "
+                       "needs a rig file with [rig] kind = \"imu\" (see fixtures/rigs/"
+                       "sim-imu.toml)")
+    rig = load_imu_rig(path)
+    return rig.with_seed(args.seed) if args.seed is not None else rig
 
 
-def mat(k) -> str:
-    return "\n".join(vec(row, "{:+.4f}") for row in np.asarray(k))
+def _check_toml(path) -> None:
+    try:
+        with path.open("rb") as fh:
+            tomllib.load(fh)
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise RigError(f"{path}: not valid TOML: {exc}") from None
+    except OSError as exc:
+        raise RigError(f"{path}: cannot read rig file: {exc.strerror or exc}") from None
 
 
-def print_calibration(cal: Calibration, console: Console) -> None:
-    s = Table(title="IMU calibration (Paper A)")
-    s.add_column("quantity")
-    s.add_column("value")
-    bias = ", ".join(f"{b:+.5f} ± {e:.5f}" for b, e in
-                     zip(cal.gyro_bias_rad_s, cal.gyro_bias_stderr_rad_s, strict=True))
-    s.add_row("gyro bias (A.12), rad/s", bias)
-    s.add_row("accelerometer bias, m/s²", vec(cal.acc_bias_m_s2, "{:+.4f}"))
-    s.add_row("time offset hexapod→IMU", f"{cal.time_offset_s * 1e3:.2f} ms")
-    s.add_row(f"K_ω (A.13), cond {cal.conditioning.get('gyro', float('nan')):.2f}",
-              mat(cal.k_gyro))
-    s.add_row(f"K_a (A.14), cond {cal.conditioning.get('acc', float('nan')):.2f}",
-              mat(cal.k_acc))
-    s.add_row("lever arm R, m", vec(cal.lever_arm_m, "{:+.4f}"))
-    console.print(s)
-
-    d = Table(title="K split into rotation, scale, non-orthogonality (A.15-A.16)",
-              caption=cal.decomposition.get("convention", ""))
-    for col in ("sensor", "φ, θ, ψ (deg)", "scale", "non-orth xy, xz, yz (deg)",
-                "vs measured (deg)"):
-        d.add_column(col)
-    for name in ("gyro", "acc"):
-        p = cal.decomposition.get(name, {})
-        if not p:
-            continue
-        vs = p.get("rotation_vs_measured_deg")
-        d.add_row(name, vec(p["euler_deg"], "{:.3f}"), vec(p["scale"], "{:.4f}"),
-                  vec(p["nonorthogonality_deg"], "{:+.3f}"), "-" if vs is None else f"{vs:.3f}")
-    console.print(d)
-
-    est = cal.lever_arm_estimates
-    la = Table(title="Lever arm estimates from α (A.11), m (Table A.1 layout)")
-    for col in ("rotation axis", "R_x", "R_y", "R_z"):
-        la.add_column(col)
-    for ax in _XYZ:
-        row = est.get("table_a1_alpha_m", {}).get(ax, {})
-        la.add_row(f"ω_{ax}", *(f"{row[c]:+.4f}" if c in row else "-" for c in _XYZ))
-    la.add_row("final (mean)", *(f"{v:+.4f}" for v in cal.lever_arm_m))
-    la.add_row("agreement |Δ|", *(f"{v * 1e3:.2f} mm" for v in est.get("agreement_m", [])))
-    for ax in _XYZ:
-        row = est.get("omega2_m", {}).get(ax, {})
-        la.add_row(f"ω_{ax} (ω² term)", *(f"{row[c]:+.3f}" if c in row else "-" for c in _XYZ))
-    console.print(la)
-
-    v = cal.verification_rms
-    if v is None:
-        console.print("no 'verify' phase in the log: verification RMS not computed")
-    else:
-        t = Table(title=f"Verification RMS (A.19) on the independent motion, "
-                        f"{v['samples']} samples (Table A.2)")
-        for col in ("signal", "raw", "corrected", "% of range", "% of peak", "Table A.2"):
-            t.add_column(col)
-        for kind, unit, pk in (("acc_m_s2", "m/s²", "acc_pct_peak"),
-                               ("gyro_rad_s", "rad/s", "gyro_pct_peak")):
-            short = "a" if kind.startswith("acc") else "ω"
-            pct = v["acc_pct_range" if short == "a" else "gyro_pct_range"]["corrected"]
-            for i, ax in enumerate(_XYZ):
-                t.add_row(f"{short}_{ax} ({unit})", f"{v[kind]['raw'][i]:.4f}",
-                          f"{v[kind]['corrected'][i]:.4f}", f"{pct[i]:.3f} %",
-                          f"{v[pk][i]:.2f} %", f"{v['table_a2'][kind][i]:.4f}")
-        console.print(t)
-    for w in cal.warnings:
-        console.print(f"[yellow]warning:[/yellow] {w}")
+def run_on_rig(args: argparse.Namespace) -> int:
+    rig = _load(args)
+    options = HexapodRunOptions(tick_s=args.tick, realtime=bool(args.realtime),
+                                trajectory_rate_hz=rig.hexapod.trajectory_rate_hz)
+    seqs = paper_a_sequences(rig.imu.value("rate_hz"), quick=args.quick)
+    plans = plans_for(rig, seqs)
+    if args.dry_run:
+        print(f"rig {rig.name} ({rig.path}); pivot {vec(rig.hexapod.pivot_m, '{:g}')} m; "
+              f"{len(plans)} stages, {sum(p.duration_s for p in plans):.1f} s")
+        for plan in plans:
+            print()
+            print(format_plan(plan))
+        return 0
+    _check_out(args)
+    check_writable(args.runs, "--runs", folder=True)
+    session = new_run_id("calibration")
+    out = args.out or args.runs / f"{session}.json"
+    try:
+        args.runs.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise RigError(f"--runs {args.runs}: cannot create the run folder "
+                       f"({exc.strerror or exc})") from None
+    run = run_calibration_with_progress(
+        rig, plans, args.runs, quick=args.quick, options=options,
+        extra_meta={"calibration_session": session, "quick": bool(args.quick)})
+    console = Console()
+    print_stages(run, console)
+    if not run.complete:
+        failed = run.stages[-1].result if run.stages else None
+        print(f"calibration stopped at stage {len(run.stages)}/{run.planned}: "
+              f"{failed.status + ': ' + failed.reason if failed else 'no stage ran'}; "
+              "no calibration written", file=sys.stderr)
+        return 1
+    log_path = collect_log([s.run_dir for s in run.stages], args.runs / f"{session}.parquet")
+    print(f"wrote {log_path}", file=sys.stderr)
+    df = load_calibration_log(log_path)
+    cal = calibrate_frame(df, rig.imu.measured_mounting_deg, rig.imu.value("gyro_range_rad_s"),
+                          rig.imu.value("acc_range_m_s2"), max_lag_s=0.5)
+    cal.source = str(log_path)
+    print_calibration(cal, console)
+    if run.truth is not None:
+        print_truth(cal, run.truth, console)
+    finish(cal, df, args, out, str(log_path))
+    return 0

@@ -72,8 +72,7 @@ def deep(args: argparse.Namespace, path: Path) -> int:
 
 
 def handler(args: argparse.Namespace) -> int:
-    from bench.imu_rig import is_imu_rig, load_imu_rig
-    from bench.rig import default_rig_path, load_rig
+    from bench.rig import default_rig_path, is_imu_rig, load_imu_rig, load_rig
 
     if not (math.isfinite(args.timeout) and args.timeout > 0):
         raise RigError(f"--timeout: expected seconds > 0 per device, got {args.timeout:g}")

@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from bench.commands import _bench_common as common
+from bench import cli_support as cli
 from bench.errors import RigError
 
 SELFTEST_MIN_FPS = 30.0
@@ -27,7 +27,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "tab runs the Paper A calibration.")
     p.add_argument("--rig", type=Path, default=None,
                    help="rig file (TOML); default: the simulated rig fixtures/rigs/sim.toml")
-    p.add_argument("--out", type=Path, default=common.DEFAULT_OUT,
+    p.add_argument("--out", type=Path, default=cli.DEFAULT_OUT,
                    help="output root for run folders and runs.sqlite (default: ./runs)")
     p.add_argument("--seed", type=int, default=None, help="seed of the simulated rig")
     p.add_argument("--limit", action="append", default=[], metavar="NAME=VALUE",
@@ -50,16 +50,16 @@ def handler(args: argparse.Namespace) -> int:
     from bench.console.link import BenchLink
     from bench.console.manual import DEFAULT_RATE_US_S
     from bench.console.server import ConsoleBench
-    from bench.imu_rig import is_imu_rig, load_imu_rig
     from bench.live import _qt_binding_missing, check_display
+    from bench.rig import is_imu_rig, load_imu_rig
     from bench.runner import RunOptions
 
     imu = args.rig is not None and is_imu_rig(args.rig)
-    rig = load_imu_rig(args.rig) if imu else common.load_rig_from_args(args)
+    rig = load_imu_rig(args.rig) if imu else cli.load_rig_from_args(args)
     if imu and (args.limit or args.selftest):
         raise RigError(f"{args.rig}: an IMU-bench rig; --limit and --selftest are for "
                        "propulsion rigs (the hexapod's limits are in its rig file)")
-    limits = {} if imu else _tightened(rig, common.parse_limits(args.limit))
+    limits = {} if imu else _tightened(rig, cli.parse_limits(args.limit))
     if args.rate is not None and not (args.rate > 0 and args.rate < 1e5):
         raise RigError(f"--rate {args.rate:g}: expected a rate limit in us/s > 0")
     if args.window <= 0 or args.window > 60:

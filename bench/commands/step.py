@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
-from bench.commands import _bench_common as common
-from bench.sequences import load_sequence, step1, step2
+from bench import cli_support as cli
+from bench.plan_specs import named_step_sequence
+from bench.sequences import Sequence
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -18,7 +18,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "a sweep measures it first and stores it with the rig (for a shipped or "
                     "read-only rig: in a copy under OUT/rigs/, used by later runs with the "
                     "same --out).")
-    common.add_common_arguments(p)
+    cli.add_common_arguments(p)
     p.add_argument("--sequence", default="step1", metavar="step1|step2|FILE",
                    help="Paper C Step 1 (default) or Step 2, or a sequence file (.json/.toml "
                         "with name, limits and steps, as stored in run.json)")
@@ -27,33 +27,40 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=handler)
 
 
-def build(args: argparse.Namespace):
-    if args.sequence in ("step1", "step2"):
-        maker = step1 if args.sequence == "step1" else step2
-        seq = maker(repeats=args.repeats, hold_s=args.hold)
-    else:
-        seq = load_sequence(Path(args.sequence))
-    return common.with_limits(seq, common.parse_limits(args.limit))
+def build(args: argparse.Namespace) -> Sequence:
+    return named_step_sequence(args.sequence, args.repeats, args.hold,
+                               cli.parse_limits(args.limit))
 
 
 def handler(args: argparse.Namespace) -> int:
-    rig = common.load_rig_from_args(args, prefer_out_copy=True)
+    from bench.map_sweep import measure_map
+    from bench.run_progress import (
+        check_budget_of,
+        check_limits,
+        err_console,
+        report,
+        run_with_progress,
+    )
+
+    rig = cli.load_rig_from_args(args, prefer_out_copy=True)
     seq = build(args)
-    common.check_limits(rig, seq)  # before a sweep for a missing map could start
+    check_limits(rig, seq)  # before a sweep for a missing map could start
     if args.dry_run:
         if rig.thrust_map is None and seq.needs_thrust_map:
             print("no static thrust map in the rig yet: a sweep would run first "
                   "(`rotorbench sweep --dry-run` shows it); thrust-step commands shown as (map)")
-        common.print_dry_run(rig, seq)
+        cli.print_dry_run(rig, seq)
         return 0
-    common.check_budget_of(rig, seq, args)  # before a sweep for a missing map could start
+    check_budget_of(rig, seq, args.yes)  # before a sweep for a missing map could start
+    options = cli.run_options_from_args(args)
     if rig.thrust_map is None and seq.needs_thrust_map:
-        from bench.commands.sweep import measure_map
-
-        common.err_console().print(
+        err_console().print(
             f"rig {rig.name} has no static thrust map yet: measuring one with a sweep first")
-        rig, code = measure_map(rig, args)
+        rig, code = measure_map(rig, args.out, limits=cli.parse_limits(args.limit),
+                                seed=args.seed, options=options, live=args.live,
+                                confirmed=args.yes)
         if code:
             return code
-    outcome = common.execute(rig, seq, args)
-    return common.report(outcome)
+    outcome = run_with_progress(rig, seq, args.out, seed=args.seed, options=options,
+                                live=args.live, confirmed=args.yes)
+    return report(outcome)

@@ -134,9 +134,9 @@ class ConsoleRunner(Runner):
     def _run_segment(self, seg: Segment) -> None:
         if self._shift:
             seg = dataclasses.replace(seg, t_start_s=seg.t_start_s + self._shift)
-        if seg.kind == "arm":
+        if isinstance(seg.step, Arm):
             self.armed = True
-        if seg.kind == "disarm":
+        if isinstance(seg.step, Disarm):
             self.armed = False
         if self.setpoint is None or seg.index != self.manual_index:
             super()._run_segment(seg)

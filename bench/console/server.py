@@ -11,7 +11,6 @@ tick (ESC idle and disarmed) and ends :meth:`serve`.
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import functools
 import math
@@ -24,36 +23,16 @@ from typing import Any
 from bench.console.link import BenchLink
 from bench.console.manual import DEFAULT_RATE_US_S, ConsoleRunner, Setpoint, manual_sequence
 from bench.errors import RigError
+from bench.plan_specs import plan_sequence
 from bench.runner import RunOptions
 from bench.safety import LIMIT_FIELDS, effective_limits, limits_dict
 from bench.sequences import Segment, Sequence, Tare
 from bench.session import esc_range_of, plan_for, run_sequence
 
-__all__ = ["ActiveRun", "ConsoleBench", "plan_sequence"]
+__all__ = ["ActiveRun", "ConsoleBench"]
 
 STATE_PERIOD_S = 0.1
 TARE_S = 0.5
-
-
-def plan_sequence(spec: dict[str, Any]) -> Sequence:
-    """The sequence a plan request names, built by the step/sweep commands' own builders
-    (Step 1, Step 2, the sweep, or a plan file)."""
-    from bench.commands import step as step_cmd
-    from bench.commands import sweep as sweep_cmd
-
-    kind = str(spec.get("plan", ""))
-    if kind in ("step1", "step2", "file"):
-        sequence = str(spec.get("path", "")) if kind == "file" else kind
-        if kind == "file" and not sequence:
-            raise RigError("plan file: choose a .json or .toml sequence file first")
-        return step_cmd.build(argparse.Namespace(
-            sequence=sequence, repeats=int(spec.get("repeats", 20)),
-            hold=float(spec.get("hold_s", 0.5)), limit=[]))
-    if kind == "sweep":
-        return sweep_cmd.build(argparse.Namespace(
-            start_us=float(spec.get("start_us", 1100.0)), end_us=float(spec.get("end_us", 1900.0)),
-            duration=float(spec.get("duration_s", 20.0)), limit=[]))
-    raise RigError(f"plan {kind!r}: expected step1, step2, sweep or file")
 
 
 @dataclasses.dataclass

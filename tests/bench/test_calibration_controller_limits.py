@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from bench.calibration_session import run_calibration
-from bench.imu_rig import load_imu_rig
+from bench.calibration_stages import run_calibration
+from bench.rig import load_imu_rig
 from drivers.errors import DeviceError
 from drivers.imu_factory import open_imu_rig
 

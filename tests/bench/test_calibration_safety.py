@@ -10,10 +10,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bench.calibration_sequences import CalibrationSequence, Move, Rest, SetPivot, compile_plan
-from bench.calibration_session import run_stage
-from bench.hexapod_runner import HexapodRunOptions
-from bench.imu_rig import default_imu_rig_path, load_imu_rig
+from bench.calibration_sequences import Move, Rest, SetPivot, compile_plan
+from bench.rig import default_imu_rig_path, load_imu_rig
+from bench.runner import HexapodRunOptions
+from bench.sequences import Sequence
+from bench.session import run_stage
 from drivers.contracts import Fault
 from drivers.errors import DeviceError
 from drivers.hexapod_contracts import HexapodLimits
@@ -21,7 +22,7 @@ from drivers.hexapod_motions import gyro_sines
 from drivers.imu_factory import open_imu_rig
 
 RIG = load_imu_rig(default_imu_rig_path())
-SEQ = CalibrationSequence("cal_test", (SetPivot(), Rest(0.5, "gyro"),
+SEQ = Sequence("cal_test", (SetPivot(), Rest(0.5, "gyro"),
                                        Move(gyro_sines(beats=1), "gyro"), Rest(0.5, "gyro")))
 OPTIONS = HexapodRunOptions(tick_s=0.1)
 
@@ -176,7 +177,7 @@ def test_stalled_host_is_stopped_by_the_watchdog(bench, tmp_path: Path) -> None:
 
 
 def test_calibration_session_stops_at_a_failed_stage_and_closes(tmp_path: Path) -> None:
-    from bench.calibration_session import run_calibration
+    from bench.calibration_stages import run_calibration
 
     opened = []
 

@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 
 from bench.calibration_sequences import (
-    CalibrationSequence,
     Move,
     Rest,
     SetPivot,
@@ -17,8 +16,10 @@ from bench.calibration_sequences import (
     effective_hexapod_limits,
     format_plan,
     paper_a_sequences,
+    phase_at,
 )
 from bench.errors import RigError
+from bench.sequences import Sequence
 from drivers.hexapod_contracts import HexapodLimits
 from drivers.hexapod_motions import gyro_sines, lever_arm_motion
 
@@ -86,7 +87,7 @@ def test_sequence_may_tighten_limits_but_never_loosen() -> None:
 
 
 def test_motion_beyond_the_rig_limits_is_refused_at_compile_time() -> None:
-    seq = CalibrationSequence("fast", (SetPivot(), Move(lever_arm_motion("y", freq_hz=3.0),
+    seq = Sequence("fast", (SetPivot(), Move(lever_arm_motion("y", freq_hz=3.0),
                                                         "lever_y")))
     with pytest.raises(RigError, match=r"steps\[1\].*angular_acceleration"):
         compile_plan(seq, LIMITS)
@@ -94,18 +95,18 @@ def test_motion_beyond_the_rig_limits_is_refused_at_compile_time() -> None:
 
 def test_bad_steps_name_the_step() -> None:
     with pytest.raises(RigError, match=r"steps\[0\].*phase 'warmup'"):
-        compile_plan(CalibrationSequence("x", (Rest(1.0, "warmup"),)), LIMITS)
+        compile_plan(Sequence("x", (Rest(1.0, "warmup"),)), LIMITS)
     with pytest.raises(RigError, match=r"steps\[0\].*duration_s"):
-        compile_plan(CalibrationSequence("x", (Rest(-1.0, "bias"),)), LIMITS)
+        compile_plan(Sequence("x", (Rest(-1.0, "bias"),)), LIMITS)
     with pytest.raises(RigError, match="nothing to record"):
-        compile_plan(CalibrationSequence("x", (SetPivot(),)), LIMITS)
+        compile_plan(Sequence("x", (SetPivot(),)), LIMITS)
 
 
 def test_phase_lookup_follows_the_segments() -> None:
-    seq = CalibrationSequence("x", (SetPivot((0, 0, 0.1)), Rest(1.0, "lever_x"),
+    seq = Sequence("x", (SetPivot((0, 0, 0.1)), Rest(1.0, "lever_x"),
                                     Move(gyro_sines(beats=1), "gyro")))
     plan = compile_plan(seq, LIMITS)
     assert plan.segments[0].pivot_m == (0.0, 0.0, 0.1)
-    assert list(plan.phase_at(np.array([0.0, 0.5, 1.5, 100.0]))) == \
+    assert list(phase_at(plan, np.array([0.0, 0.5, 1.5, 100.0]))) == \
         ["lever_x", "lever_x", "gyro", "gyro"]
     assert seq.to_dict()["steps"][2]["motion"]["name"] == "gyro_sines"

@@ -13,11 +13,12 @@ import pandas as pd
 import pytest
 
 from analysis.imu_calibration import load_calibration
-from bench.calibration_sequences import CalibrationSequence, Move, Rest, SetPivot, compile_plan
-from bench.calibration_session import run_stage
+from bench.calibration_sequences import Move, Rest, SetPivot, compile_plan
 from bench.cli import main
-from bench.hexapod_runner import HexapodRunOptions
-from bench.imu_rig import load_imu_rig
+from bench.rig import load_imu_rig
+from bench.runner import HexapodRunOptions
+from bench.sequences import Sequence
+from bench.session import run_stage
 from drivers.backends.pi_hexapod import PiHexapod
 from drivers.errors import DeviceError
 from drivers.hexapod_motions import gyro_sines
@@ -26,7 +27,7 @@ from drivers.imu_factory import open_imu_rig
 REPO = Path(__file__).resolve().parents[2]
 TCP_RIG_PATH = REPO / "fixtures" / "rigs" / "sim-imu-tcp.toml"
 RIG = load_imu_rig(TCP_RIG_PATH)
-SEQ = CalibrationSequence("cal_test", (SetPivot(), Rest(0.5, "gyro"),
+SEQ = Sequence("cal_test", (SetPivot(), Rest(0.5, "gyro"),
                                        Move(gyro_sines(beats=1), "gyro"), Rest(0.5, "gyro")))
 
 

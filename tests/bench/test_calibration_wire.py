@@ -22,11 +22,12 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from analysis.imu_calibration import calibrate, load_calibration
-from bench.calibration_sequences import CalibrationSequence, Move, Rest, SetPivot, compile_plan
-from bench.calibration_session import run_stage
+from bench.calibration_sequences import Move, Rest, SetPivot, compile_plan
 from bench.cli import main
-from bench.hexapod_runner import HexapodRunOptions
-from bench.imu_rig import load_imu_rig
+from bench.rig import load_imu_rig
+from bench.runner import HexapodRunOptions
+from bench.sequences import Sequence
+from bench.session import run_stage
 from drivers.errors import DeviceError
 from drivers.hexapod_contracts import POSE_CHANNELS
 from drivers.hexapod_motions import gyro_sines
@@ -37,7 +38,7 @@ pytestmark = pytest.mark.slow  # the module's calibration through the wire takes
 REPO = Path(__file__).resolve().parents[2]
 WIRE_RIG_PATH = REPO / "fixtures" / "rigs" / "sim-imu-wire.toml"
 RIG = load_imu_rig(WIRE_RIG_PATH)
-SEQ = CalibrationSequence("cal_test", (SetPivot(), Rest(0.5, "gyro"),
+SEQ = Sequence("cal_test", (SetPivot(), Rest(0.5, "gyro"),
                                        Move(gyro_sines(beats=1), "gyro"), Rest(0.5, "gyro")))
 MSP_GYRO_LSB = math.radians(1.0)  # Betaflight RAW_IMU: whole deg/s (§1.4)
 MSP_ACC_LSB = 9.80665 / 2048  # acc_1g of the rig file

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from bench.cli import main
-from bench.imu_rig import load_imu_rig
+from bench.rig import load_imu_rig
 from drivers.hexapod_contracts import Trajectory
 from drivers.hexapod_motions import gyro_sines
 from drivers.imu_factory import open_imu_rig

@@ -307,7 +307,7 @@ def test_the_selftest_runs_headless_and_records_a_run_that_ends_at_idle(tmp_path
 
 @pytest.fixture
 def imu_console(qtbot, tmp_path):
-    from bench.imu_rig import default_imu_rig_path, load_imu_rig
+    from bench.rig import default_imu_rig_path, load_imu_rig
 
     yield from _served_window(qtbot, tmp_path, load_imu_rig(default_imu_rig_path()), 1000)
 

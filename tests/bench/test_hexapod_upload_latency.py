@@ -13,9 +13,10 @@ from typing import Any
 import numpy as np
 import pytest
 
-from bench.calibration_sequences import CalibrationSequence, Move, Rest, SetPivot, compile_plan
-from bench.hexapod_runner import HexapodRunner, HexapodRunOptions
-from bench.imu_rig import default_imu_rig_path, load_imu_rig
+from bench.calibration_sequences import Move, Rest, SetPivot, compile_plan
+from bench.rig import default_imu_rig_path, load_imu_rig
+from bench.runner import HexapodRunner, HexapodRunOptions
+from bench.sequences import Sequence
 from drivers.errors import DeviceError
 from drivers.hexapod_contracts import POSE_CHANNELS
 from drivers.hexapod_motions import lever_arm_motion
@@ -23,7 +24,7 @@ from drivers.imu_factory import open_imu_rig
 
 RIG = load_imu_rig(default_imu_rig_path())
 MOVES = (lever_arm_motion("x", duration_s=4.0), lever_arm_motion("y", duration_s=4.0))
-SEQ = CalibrationSequence("latency", (SetPivot(), Rest(0.5, "lever_x"), Move(MOVES[0], "lever_x"),
+SEQ = Sequence("latency", (SetPivot(), Rest(0.5, "lever_x"), Move(MOVES[0], "lever_x"),
                                       Rest(0.5, "lever_x"), Move(MOVES[1], "lever_y"),
                                       Rest(0.5, "lever_y")))
 UPLOAD_S = 0.8  # longer than the rest between the two moves

@@ -11,8 +11,7 @@ import pytest
 
 import bench.run_budget as budget_module
 from bench.cli import main
-from bench.imu_rig import HEXAPOD_LIMIT_MAXIMA, default_imu_rig_path
-from bench.rig import LIMIT_MAXIMA
+from bench.rig import HEXAPOD_LIMIT_MAXIMA, LIMIT_MAXIMA, default_imu_rig_path
 from bench.run_budget import Budget, check_budget, project
 from tests.test_cli_errors import run_bad
 

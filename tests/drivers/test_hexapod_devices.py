@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from bench.imu_rig import default_imu_rig_path, load_imu_rig
+from bench.rig import default_imu_rig_path, load_imu_rig
 from drivers.contracts import Block, DeviceInfo, Fault, Sensor
 from drivers.errors import DeviceError
 from drivers.hexapod_contracts import (

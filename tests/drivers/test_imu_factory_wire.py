@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from bench.imu_rig import load_imu_rig
+from bench.rig import load_imu_rig
 from drivers.codecs import gx3
 from drivers.contracts import Block
 from drivers.errors import DeviceError

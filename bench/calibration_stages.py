@@ -1,8 +1,9 @@
 """A whole IMU calibration on the bench: every Paper A stage as its own recorded run.
 
 ``run_calibration`` opens the IMU bench once (the IMU keeps its clock across stages, as on
-a real bench), runs each stage's sequence through :class:`~bench.hexapod_runner.HexapodRunner`
-into its own run folder (indexed in ``runs.sqlite`` like every other run), stops at the
+a real bench), runs each stage's plan through the one recording path
+(:func:`bench.session.run_stage`: the runner of :mod:`bench.runner`) into its own run
+folder (indexed in ``runs.sqlite`` like every other run), stops at the
 first stage that does not succeed, and closes the devices (hexapod stopped) whatever
 happened. ``collect_log`` joins the stages' samples on the rig clock into one calibration
 log in the format of :mod:`analysis.imu_log`, which :mod:`analysis.imu_calibration` reads.
@@ -10,9 +11,9 @@ log in the format of :mod:`analysis.imu_log`, which :mod:`analysis.imu_calibrati
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import threading
+import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,35 +22,28 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from analysis.imu_calibration import Calibration, calibrate
 from bench.calibration_sequences import (
-    CalibrationSequence,
-    HexapodPlan,
     HexapodSegment,
     compile_plan,
     paper_a_sequences,
 )
 from bench.errors import RigError
-from bench.hexapod_runner import RECORD_BASE, HexapodRunner, HexapodRunOptions, ImuBenchLike
-from bench.indexed_run import indexed_run
-from bench.run_loop import RunResult
+from bench.runner import HexapodRunOptions
+from bench.sequences import Plan
+from bench.sequences import Sequence as PlanSequence
+from bench.session import RunOutcome, run_stage
 from drivers.hexapod_contracts import Trajectory
 
-__all__ = ["CalibrationRun", "StageOutcome", "collect_log", "plans_for", "run_calibration",
-           "run_stage"]
-
-
-@dataclass(frozen=True)
-class StageOutcome:
-    result: RunResult
-    run_dir: Path
-    plan: HexapodPlan
+__all__ = ["CalibrationRun", "calibrate_frame", "collect_log", "plans_for", "preflight",
+           "run_calibration"]
 
 
 @dataclass
 class CalibrationRun:
     """The stages run so far; ``complete`` when every stage succeeded."""
 
-    stages: list[StageOutcome] = field(default_factory=list)
+    stages: list[RunOutcome] = field(default_factory=list)
     planned: int = 0
     truth: dict[str, Any] | None = None
 
@@ -59,19 +53,13 @@ class CalibrationRun:
                 and all(s.result.status == "success" for s in self.stages))
 
 
-def plans_for(rig: Any, sequences: Sequence[CalibrationSequence]) -> list[HexapodPlan]:
+def plans_for(rig: Any, sequences: Sequence[PlanSequence]) -> list[Plan]:
     """Compile every stage against the rig's hexapod limits and pivot (no device touched)."""
     limits = rig.hexapod.hexapod_limits()
     return [compile_plan(s, limits, tuple(rig.hexapod.pivot_m)) for s in sequences]
 
 
-def _rig_summary(rig: Any) -> dict[str, Any]:
-    return {"name": rig.name, "path": str(rig.path), "kind": "imu",
-            "devices": {r: {"url": d.url} for r, d in rig.devices.items()},
-            "hexapod": dataclasses.asdict(rig.hexapod), "imu": dataclasses.asdict(rig.imu)}
-
-
-def preflight(bench: Any, plans: Sequence[HexapodPlan], rate_hz: float) -> None:
+def preflight(bench: Any, plans: Sequence[Plan], rate_hz: float) -> None:
     """Every motion of every stage against what the controller itself reports (travel
     limits, referenced, servo), before anything moves; a hexapod that cannot tell
     (no ``check_motion``) is checked against the rig file's limits only."""
@@ -80,46 +68,14 @@ def preflight(bench: Any, plans: Sequence[HexapodPlan], rate_hz: float) -> None:
         return
     for plan in plans:
         for seg in plan.segments:
-            if seg.kind == "move" and seg.motion is not None:
+            if seg.motion is not None:  # a Move step's segment
                 check(Trajectory.from_motion(seg.motion, rate_hz))
-
-
-def run_stage(bench: ImuBenchLike, rig: Any, plan: HexapodPlan, out_root: Path, *,
-              options: HexapodRunOptions | None = None,
-              on_progress: Callable[[float, float, HexapodSegment], None] | None = None,
-              on_rows: Callable[[Mapping[str, np.ndarray]], None] | None = None,
-              stop_event: threading.Event | None = None,
-              extra_meta: Mapping[str, Any] | None = None) -> StageOutcome:
-    """Run one stage into its own run folder; errors propagate after the safe stop."""
-    options = options or HexapodRunOptions(trajectory_rate_hz=rig.hexapod.trajectory_rate_hz)
-    seq = plan.sequence
-    meta = {
-        "kind": seq.name,
-        "rig": _rig_summary(rig),
-        "sequence": json.loads(json.dumps(seq.to_dict(), default=str)),
-        "plan": {"duration_s": plan.duration_s,
-                 "segments": [{"index": s.index, "kind": s.kind, "label": s.label,
-                               "phase": s.phase, "t_start_s": s.t_start_s,
-                               "duration_s": s.duration_s, "peaks": dict(s.peaks)}
-                              for s in plan.segments]},
-        "limits": plan.limits.as_dict(),
-        "rig_limits": dict(rig.hexapod.limits),
-        "options": dataclasses.asdict(options),
-        "seed": rig.sim.seed if rig.is_simulated else None,
-        "log_format": "analysis.imu_log calibration log (t_s, phase, ref_*, imu_*)",
-        **dict(extra_meta or {}),
-    }
-    with indexed_run(out_root, seq.name, meta, base_columns=RECORD_BASE) as recorder:
-        runner = HexapodRunner(bench, plan, recorder, options, on_rows=on_rows,
-                               on_progress=on_progress, stop_event=stop_event)
-        result = runner.run()
-    return StageOutcome(result, recorder.run_dir, plan)
 
 
 def run_calibration(rig: Any, out_root: Path, *, quick: bool = False, seed: int | None = None,
                     options: HexapodRunOptions | None = None,
-                    sequences: Sequence[CalibrationSequence] | None = None,
-                    on_stage: Callable[[int, HexapodPlan], None] | None = None,
+                    sequences: Sequence[PlanSequence] | None = None,
+                    on_stage: Callable[[int, Plan], None] | None = None,
                     on_progress: Callable[[float, float, HexapodSegment], None] | None = None,
                     stop_event: threading.Event | None = None,
                     open_bench: Callable[..., Any] | None = None,
@@ -185,3 +141,14 @@ def collect_log(run_dirs: Sequence[Path], path: Path) -> Path:
         raise RigError("no stage runs to collect")
     log = pd.concat(frames, ignore_index=True)
     return write_table(log, path)
+
+
+def calibrate_frame(df: pd.DataFrame, mounting: tuple[float, float, float] | None,
+                    gyro_range_rad_s: float, acc_range_m_s2: float,
+                    max_lag_s: float) -> Calibration:
+    """Paper A's stages on a validated log; warnings are kept in ``cal.warnings`` (the CLI
+    and the console print or store them with the result, not as Python warnings)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return calibrate(df, measured_mounting_deg=mounting, gyro_range_rad_s=gyro_range_rad_s,
+                         acc_range_m_s2=acc_range_m_s2, max_lag_s=max_lag_s)

@@ -1,8 +1,9 @@
-"""IMU-bench rig files: a hexapod, the IMU under test and a reference IMU (Paper A/B).
+"""The IMU bench's own sections of a rig file: a hexapod, the IMU under test and a
+reference IMU (Paper A/B).
 
-A separate loader from the propulsion rig (``bench.rig``): the table ``[rig] kind = "imu"``
-marks the file. ``load_imu_rig(path)`` validates everything up front and returns a frozen
-:class:`ImuRigConfig`; problems raise ``RigError`` naming the file and the field.
+``[rig] kind = "imu"`` marks the file. :func:`parse` reads its tables into the fields of
+the one :class:`bench.rig.RigConfig`; problems raise ``RigError`` naming the file and the
+field.
 
 Layout (see ``fixtures/rigs/sim-imu.toml``): ``[devices.hexapod|imu|reference_imu]`` with
 ``url`` (and ``options``), ``[hexapod]`` limits, pivot and log/trajectory rates, ``[imu]``
@@ -15,19 +16,18 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from bench.errors import RigError
-from bench.rig import REPO, URL_SCHEMES, DeviceConfig
-from bench.rig_table import RigTable, read_rig_toml
+from bench.rig_devices import DeviceConfig, parse_device
+from bench.rig_table import RigTable
 from drivers.hexapod_contracts import HexapodLimits
 from drivers.sim.imu import ImuModel
 
-__all__ = ["ImuRigConfig", "default_imu_rig_path", "is_imu_rig", "load_imu_rig"]
+__all__ = ["HEXAPOD_LIMIT_MAXIMA", "ROLES", "HexapodSettings", "ImuSettings", "ImuSimConfig",
+           "parse"]
 
 ROLES = ("hexapod", "imu", "reference_imu")
 REQUIRED_ROLES = ("hexapod", "imu")
@@ -45,11 +45,6 @@ REFERENCE_KEYS = ("rate_hz", "attitude_noise_rad", "gyro_noise_rad_s")
 HEXAPOD_LIMIT_MAXIMA = {"velocity_m_s": 10.0, "acceleration_m_s2": 100.0, "rate_rad_s": 20.0,
                         "angular_acceleration_rad_s2": 500.0, "position_m": 2.0,
                         "angle_rad": math.pi}
-
-
-def default_imu_rig_path() -> Path:
-    """The simulated IMU bench ``rotorbench calibrate`` uses when no ``--rig`` is given."""
-    return REPO / "fixtures" / "rigs" / "sim-imu.toml"
 
 
 @dataclass(frozen=True)
@@ -85,37 +80,6 @@ class ImuSimConfig:
     imu: Mapping[str, Any] = field(default_factory=dict)  # hidden ImuModel errors
 
 
-@dataclass(frozen=True)
-class ImuRigConfig:
-    """A validated IMU-bench rig file."""
-
-    path: Path
-    name: str
-    devices: Mapping[str, DeviceConfig]
-    hexapod: HexapodSettings
-    imu: ImuSettings
-    reference_imu: Mapping[str, float]
-    sim: ImuSimConfig
-    description: str = ""
-
-    @property
-    def is_simulated(self) -> bool:
-        return all(d.scheme == "sim" for d in self.devices.values())
-
-    def with_seed(self, seed: int) -> ImuRigConfig:
-        return dataclasses.replace(self, sim=dataclasses.replace(self.sim, seed=int(seed)))
-
-
-def is_imu_rig(path: str | os.PathLike[str]) -> bool:
-    """True when the file's ``[rig] kind`` is ``"imu"`` (unreadable files: False)."""
-    try:
-        data = read_rig_toml(Path(path))
-    except RigError:
-        return False
-    rig = data.get("rig")
-    return isinstance(rig, dict) and rig.get("kind") == "imu"
-
-
 def _vector(t: RigTable, key: str, default: tuple[float, ...] | None = None
             ) -> tuple[float, float, float] | None:
     if key not in t.data:
@@ -144,25 +108,20 @@ def _model_fields(t: RigTable, names: tuple[str, ...]) -> dict[str, Any]:
 
 
 def _device(top: RigTable, role: str) -> DeviceConfig:
-    t = top.table(role)
-    assert t is not None
-    t.only("url", "options")
-    url = t.text("url")
-    scheme = url.split("://", 1)[0] if "://" in url else ""
-    if scheme not in URL_SCHEMES:
-        t.fail("url", f"{url!r}: unknown scheme {scheme!r}; expected one of "
-                      + ", ".join(f"{s}://" for s in URL_SCHEMES))
     want = role.replace("_", "-")
-    if scheme == "sim" and url != f"sim://{want}":
-        t.fail("url", f"{url!r}: a simulated {role} must be sim://{want}")
-    opts = t.table("options", required=False)
-    return DeviceConfig(url, "", {}, dict(opts.data) if opts else {})
+
+    def sim_problem(url: str) -> str | None:
+        if url != f"sim://{want}":
+            return f"{url!r}: a simulated {role} must be sim://{want}"
+        return None
+
+    return parse_device(top, role, keys=("options",),
+                        scheme_of=lambda url: url.split("://", 1)[0] if "://" in url else "",
+                        sim_problem=sim_problem)
 
 
-def load_imu_rig(path: str | os.PathLike[str]) -> ImuRigConfig:
-    """Read and validate an IMU-bench rig file; raises ``RigError`` naming file and field."""
-    path = Path(path).resolve()
-    top = RigTable(path, "", read_rig_toml(path))
+def parse(path: Path, top: RigTable) -> dict[str, Any]:
+    """An IMU-bench rig file's tables as the fields of :class:`bench.rig.RigConfig`."""
     top.only("rig", "devices", "hexapod", "imu", "reference_imu", "sim")
     rig = top.table("rig")
     assert rig is not None
@@ -212,5 +171,6 @@ def load_imu_rig(path: str | os.PathLike[str]) -> ImuRigConfig:
     sim_imu.only(*IMU_SIM_ERRORS)
     sim = ImuSimConfig(int(seed), st.flag("noise", True), _vector(st, "cg_m"),  # type: ignore[arg-type]
                        _model_fields(sim_imu, IMU_SIM_ERRORS))
-    return ImuRigConfig(path, rig.text("name"), devices, hexapod, imu, reference, sim,
-                        rig.text("description", ""))
+    return {"path": path, "name": rig.text("name"), "devices": devices, "hexapod": hexapod,
+            "imu": imu, "reference_imu": reference, "sim": sim,
+            "description": rig.text("description", "")}
