@@ -15,6 +15,7 @@ what goes into ``run.json`` and how its devices are opened:
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import threading
 from collections.abc import Callable, Mapping
@@ -71,13 +72,17 @@ def esc_range_of(rig: Any) -> EscRange:
 
 
 def thrust_to_us_of(rig: Any):
-    """The rig's static map as a thrust (N) -> command (us) function, or None."""
+    """The rig's static map as a thrust (N) -> command (us) function, or None.
+
+    Memoised: a plan asks it once per thrust step, and a long plan (a typo's 100 000
+    repeats, refused by its budget) has few setpoints but hundreds of thousands of steps."""
     tm = getattr(rig, "thrust_map", None)
     if tm is None:
         return None
     if callable(getattr(tm, "command_for", None)):
-        return lambda f: float(tm.command_for(f))
-    return StaticThrustMap.from_rig(tm, source=f"{_rig_name(rig)}: thrust_map").command_for
+        return functools.lru_cache(maxsize=1024)(lambda f: float(tm.command_for(f)))
+    return functools.lru_cache(maxsize=1024)(
+        StaticThrustMap.from_rig(tm, source=f"{_rig_name(rig)}: thrust_map").command_for)
 
 
 def plan_for(rig: Any, seq: Sequence, dry_run: bool = False) -> Plan:
