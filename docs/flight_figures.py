@@ -20,10 +20,10 @@ import numpy as np
 from bench.commands._fly_plots import _pyplot
 from bench.commands._measured import load_measured_set
 from optimizer.catalog import load_catalog
+from optimizer.design_model import evaluate_grid
 from optimizer.flight.design import gains_for, setup
 from optimizer.flight.maneuvers import MANEUVERS, fly
 from optimizer.flight.ranking import rank
-from optimizer.model import evaluate_grid
 from optimizer.objectives import single
 from optimizer.selection import optimize
 

@@ -180,7 +180,7 @@ class FlyableBuilder:
 
     def __call__(self, catalog: Catalog, n: int, payload: float) -> DesignGrid:
         if self.base is None:
-            from optimizer.model import evaluate_grid
+            from optimizer.design_model import evaluate_grid
 
             grid = evaluate_grid(catalog, n, payload)
         else:

@@ -1,6 +1,6 @@
 """Hover physics of Papers D and E as numpy functions that broadcast.
 
-Every function takes SI arrays of any broadcastable shape, so ``optimizer.model`` can
+Every function takes SI arrays of any broadcastable shape, so ``optimizer.design_model`` can
 evaluate the whole (propeller, motor, battery) product at once. Equation numbers refer to
 the thesis (reference/000_e15d712adc6c55bf.txt).
 """

@@ -1,6 +1,6 @@
 """One design as eCalc shows it: full throttle, hover throttle, partial load, battery.
 
-``design_sheet`` adds to ``optimizer.model.evaluate_design``'s record (the thesis'
+``design_sheet`` adds to ``optimizer.design_model.evaluate_design``'s record (the thesis'
 hover numbers, unchanged) what a designer reads on an eCalc sheet: maximum thrust per
 actuator, thrust-to-weight, hover throttle, efficiency, the partial-load table, the
 Shepherd-model flight time beside the thesis' constant-voltage one, C-rate checks
@@ -18,7 +18,7 @@ from optimizer import battery as bat
 from optimizer import performance as perf
 from optimizer import physics
 from optimizer.catalog import Catalog
-from optimizer.model import battery_voltage_v
+from optimizer.design_model import battery_voltage_v
 
 
 def drive_of(catalog: Catalog, coefficients: perf.Coefficients | None = None) -> perf.Drive:

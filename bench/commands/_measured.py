@@ -50,7 +50,7 @@ class MeasuredSet:
 
     def build_grid(self, catalog: Any, n: int, payload_kg: float) -> Any:
         """``optimize(build_grid=...)``: the model grid with the overrides; kept for sources."""
-        from optimizer.model import evaluate_grid
+        from optimizer.design_model import evaluate_grid
 
         grid = evaluate_grid(
             catalog, n, payload_kg, overrides=self.overrides, esc_mode=self.esc_mode
@@ -60,7 +60,7 @@ class MeasuredSet:
 
     def annotate(self, result: Any) -> None:
         """Add ``sources`` to every design of a selection result built by ``build_grid``."""
-        from optimizer.model import design_sources
+        from optimizer.design_model import design_sources
 
         for d in result.designs:
             grid = self.grids.get(d.actuators)

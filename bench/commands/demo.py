@@ -70,7 +70,7 @@ def _catalog():
 def combo_rig(base: Any, catalog: Any, i: int, j: int, mode: str, seed: int) -> Any:
     """The default sim rig with propeller ``i`` on motor ``j`` of the catalog."""
     from bench.rig import Limits
-    from optimizer.model import battery_voltage_v, motor_inertia_kgm2, propeller_inertia_kgm2
+    from optimizer.design_model import battery_voltage_v, motor_inertia_kgm2, propeller_inertia_kgm2
 
     prop = catalog.propellers.iloc[i]
     mot = catalog.motors.iloc[j]
@@ -243,7 +243,7 @@ def _measured_vs_model(catalog: Any, measured: Any) -> Any:
     losses show up here; the demo prints this rather than hiding the gap."""
     from analysis.report import Table
     from optimizer import physics
-    from optimizer.model import battery_voltage_v, motor_inertia_kgm2, propeller_inertia_kgm2
+    from optimizer.design_model import battery_voltage_v, motor_inertia_kgm2, propeller_inertia_kgm2
 
     c = catalog.constants
     rho = c.air_density_kg_m3

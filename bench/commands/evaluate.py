@@ -93,8 +93,8 @@ def _with_pack(catalog: Any, battery_id: str) -> Any:
 
 def evaluate(args: argparse.Namespace) -> dict[str, Any]:
     from optimizer import battery as bat
+    from optimizer.design_model import MODEL_SOURCES, evaluate_design, single_design_catalog
     from optimizer.freeform import NO_LIMIT
-    from optimizer.model import MODEL_SOURCES, evaluate_design, single_design_catalog
     from optimizer.sheet import design_sheet
 
     if args.actuators < 3:
@@ -143,8 +143,8 @@ def flyable_rules(single: Any, n: int, payload_kg: float) -> list[dict[str, Any]
     ``feasible`` stays the catalog's limits; ``optimize --flyable`` enforces them."""
     import numpy as np
 
+    from optimizer.design_model import evaluate_grid
     from optimizer.flyable import Rules, rule_checks, rule_of
-    from optimizer.model import evaluate_grid
 
     grid = evaluate_grid(single, n, payload_kg)
     out = []

@@ -71,7 +71,7 @@ def step_constants(run: Path) -> Any:
 
 
 def _grid(args: argparse.Namespace, catalog: Any, n: int) -> Any:
-    from optimizer.model import evaluate_grid
+    from optimizer.design_model import evaluate_grid
 
     measured = _measured(args, catalog)
     if measured is not None:
@@ -112,9 +112,9 @@ def handler(args: argparse.Namespace) -> int:
 
 
 def _one(args: argparse.Namespace, catalog: Any, grid: Any, step: Any, measured: Any) -> int:
+    from optimizer.design_model import design_record
     from optimizer.flight.design import design_index, fly_report, setup
     from optimizer.flight.maneuvers import MANEUVERS, maneuver
-    from optimizer.model import design_record
 
     index = design_index(grid, args.propeller, args.motor, args.battery)
     record = design_record(grid, *index)

@@ -248,7 +248,7 @@ def prop_data_build(catalog: Any) -> tuple[Any, Any]:
     """``--prop-data``: (build_grid with the APC C_t(rpm), C_p(rpm), match report)."""
     from functools import partial
 
-    from optimizer.model import evaluate_grid
+    from optimizer.design_model import evaluate_grid
     from optimizer.propdata import catalog_curves, data_folder, load_curves, match_report
 
     table = catalog_curves(catalog, load_curves(data_folder()))

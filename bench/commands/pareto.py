@@ -57,7 +57,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def compute(args: argparse.Namespace) -> dict[str, Any]:
     from optimizer import pareto
-    from optimizer.model import evaluate_grid
+    from optimizer.design_model import evaluate_grid
     from optimizer.objectives import single
     from optimizer.selection import DesignResult, _design_at
 

@@ -18,7 +18,7 @@ Like Paper B, the reaction torque of accelerating rotors and rotor gyroscopic to
 are neglected. Integration: ``step``, second order, with the rotor thrusts held over a
 tick.
 
-Design parameters come from the optimizer's model (``optimizer.model.evaluate_grid``):
+Design parameters come from the optimizer's model (``optimizer.design_model.evaluate_grid``):
 take-off mass, roll and pitch inertia (E.58-E.59), arm length (D.4), hover speed; rotor
 constants k_f = C_t rho D^4 / (2 pi)^2 and k_m = C_p rho D^5 / (2 pi)^3 follow from
 (E.1)-(E.3) via ``optimizer.physics``. The yaw inertia is roll + pitch (perpendicular-axis

@@ -9,9 +9,9 @@ import pytest
 
 from bench.cli import main
 from optimizer.catalog import load_catalog
+from optimizer.design_model import evaluate_grid
 from optimizer.flight.design import setup
 from optimizer.measured import MeasuredActuator
-from optimizer.model import evaluate_grid
 from tests.conftest import FIXTURES
 
 CASE_I = ["--actuators", "4", "--propeller", "P4", "--motor", "M1", "--battery", "B3"]

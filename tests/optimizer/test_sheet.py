@@ -11,7 +11,7 @@ from bench.cli import main
 from optimizer import performance as perf
 from optimizer import physics
 from optimizer.catalog import load_catalog
-from optimizer.model import evaluate_design, single_design_catalog
+from optimizer.design_model import evaluate_design, single_design_catalog
 from optimizer.sheet import design_sheet, drive_of
 
 CASE_I = ("P4", "M1", "B3")  # Case I's best thesis-e design, 4 actuators (Table E.8)

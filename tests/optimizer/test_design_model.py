@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from optimizer.catalog import load_catalog
+from optimizer.design_model import evaluate_design, evaluate_grid
 from optimizer.errors import RequestError
 from optimizer.grid import METRIC_KEYS
-from optimizer.model import evaluate_design, evaluate_grid
 
 ROOT = Path(__file__).resolve().parents[2]
 

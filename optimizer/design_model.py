@@ -3,7 +3,7 @@
 ``evaluate_grid`` fills an ``optimizer.grid.DesignGrid`` for one actuator count and
 payload with numpy broadcasting over the axes (P, M, B); ``evaluate_design`` reads one
 design out of it. The physics is Papers D and E (see ``optimizer.physics``); the open
-readings of the printed equations are catalog constants (``optimizer.constants``).
+readings of the printed equations are catalog constants (``optimizer.model_constants``).
 
 Metric definitions (all at hover, the operating point of Paper E's flight time):
 - ``propeller_power_w``: power of one propeller, x17 (E.61-E.63).
