@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from optimizer import physics
 from optimizer.catalog import Catalog
 from optimizer.design_model import (
     design_record,
@@ -352,7 +353,7 @@ def build_thesis_model(
     # Thrust and n^2 per propeller (E.19)-(E.22).
     x4 = var("x4", (x1.lb + payload_kg) * g, (x1.ub + payload_kg) * g)
     model.add(x4 == (x1 + payload_kg) * g, name="E.19")
-    k_n2 = 1.0 / (na * rho * ct * diam**4)
+    k_n2 = 1.0 / (na * physics.thrust_n(ct, rho, 1.0, diam))  # (E.1): n^2 = F / (C_t rho D^4)
     n2_set = [
         rule1_product(model, d_prop[i], float(k_n2[i]) * x4, f"x22[{pid}]")
         for i, pid in enumerate(grid.propeller_ids)
@@ -397,7 +398,7 @@ def build_thesis_model(
     model.add(x6 == n3.y, name="E.60")
 
     # Propeller power (E.61)-(E.63).
-    k_pow = cp * rho * diam**5
+    k_pow = physics.propeller_power_w(cp, rho, 1.0, diam)  # (E.2): W = C_p rho D^5 n^3
     pow_set = [
         rule1_product(model, d_prop[i], float(k_pow[i]) * x6, f"x37[{pid}]")
         for i, pid in enumerate(grid.propeller_ids)

@@ -108,12 +108,9 @@ class Vehicle:
 
 
 def rotor_constants(ct: float, cp: float, rho: float, diameter_m: float) -> tuple[float, float]:
-    """k_f, k_m with F = k_f omega^2, Q = k_m omega^2 from (E.1)-(E.3) at omega = 1 rad/s."""
-    n_one = 1.0 / physics.TWO_PI  # rev/s at 1 rad/s
-    k_f = float(physics.thrust_n(ct, rho, n_one, diameter_m))
-    k_m = float(physics.hover_torque_nm(physics.propeller_power_w(cp, rho, n_one, diameter_m),
-                                        n_one))
-    return k_f, k_m
+    """k_f, k_m with F = k_f omega^2, Q = k_m omega^2 from (E.1)-(E.3)."""
+    return (float(physics.thrust_per_omega2(ct, rho, diameter_m)),
+            float(physics.torque_per_omega2(cp, rho, diameter_m)))
 
 
 def vehicle_from_grid(catalog: Any, grid: Any, index: tuple[int, int, int],
