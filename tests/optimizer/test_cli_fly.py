@@ -59,7 +59,7 @@ def test_measured_actuator_numbers_reach_the_flight_model() -> None:
 
 
 def test_step_run_is_fitted_on_the_fly(capsys, tmp_path) -> None:
-    from bench.commands.constants import fit_for_store
+    from bench.constants_fit import fit_for_store
     from bench.rig import default_rig_path, load_rig
     from bench.runner import RunOptions
     from bench.sequences import hover_band_n, step1
