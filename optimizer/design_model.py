@@ -4,6 +4,10 @@
 payload with numpy broadcasting over the axes (P, M, B); ``evaluate_design`` reads one
 design out of it. The physics is Papers D and E (see ``optimizer.physics``); the open
 readings of the printed equations are catalog constants (``optimizer.model_constants``).
+One actuator's chain from its thrust to speed, power, current and time constant is
+``hover_actuator``, run by ``evaluate_grid`` on every design and by ``actuator_at_thrust``
+on one propeller and motor at any thrust (what a bench measurement is compared with).
+(Named ``design_model`` to set it apart from ``optimizer.milp_builder``, which builds MILPs.)
 
 Metric definitions (all at hover, the operating point of Paper E's flight time):
 - ``propeller_power_w``: power of one propeller, x17 (E.61-E.63).
