@@ -37,7 +37,7 @@ from optimizer.catalog import Catalog
 from optimizer.errors import RequestError
 from optimizer.grid import METRIC_KEYS, Check, DesignGrid
 from optimizer.measured import MeasuredActuator, select_overrides
-from optimizer.performance import Coefficients, speed_for_thrust
+from optimizer.operating_points import Coefficients, speed_for_thrust
 
 
 @dataclass(frozen=True)

@@ -176,11 +176,11 @@ def compare_for_design(single: Catalog, record: dict[str, Any], curve: Any) -> d
     const = {k: record[k] for k in ("max_thrust_n", "hover_throttle_pct", "efficiency_g_per_w",
                                    "hover_electric_power_w")}
     n = int(record["actuators"])
-    from optimizer import performance as perf
+    from optimizer import operating_points as ops
     from optimizer.sheet import drive_of, pack_of
 
     weight = float(record["total_mass_kg"]) * single.constants.gravity_m_s2
-    hover = perf.at_thrust(drive_of(single, table.coefficients), weight / n,
+    hover = ops.at_thrust(drive_of(single, table.coefficients), weight / n,
                            pack_of(single)["voltage_v"])
     rows = {
         "hover_rpm": (float(record["hover_rpm"]), float(np.ravel(hover.rpm)[0])),

@@ -321,15 +321,15 @@ def test_actuator_at_thrust_is_the_grid_chain(cat):
 
 def test_top_thrust_is_the_drive_at_full_throttle(cat):
     """``top_thrust_n`` (E.1 at the full-throttle speed) agrees with the eCalc-style drive
-    model at 100 % throttle, an independent path through ``optimizer.performance``."""
-    from optimizer import performance as perf
+    model at 100 % throttle, an independent path through ``optimizer.operating_points``."""
+    from optimizer import operating_points as ops
     from optimizer.design_model import actuator_at_thrust
 
     point = actuator_at_thrust(cat, 3, 0, 2.0, 11.1)
     prop, mot = cat.propellers.iloc[3], cat.motors.iloc[0]
-    drive = perf.Drive(ct=prop["ct"], cp=prop["cp"], diameter_m=prop["diameter_m"],
+    drive = ops.Drive(ct=prop["ct"], cp=prop["cp"], diameter_m=prop["diameter_m"],
                        kt=1.0 / mot["kv_rad_s_per_v"], resistance_ohm=mot["resistance_ohm"],
                        no_load_current_a=0.0, rho=cat.constants.air_density_kg_m3)
-    full = perf.at_throttle(drive, 1.0, 11.1)
+    full = ops.at_throttle(drive, 1.0, 11.1)
     assert point.top_thrust_n == pytest.approx(float(full.thrust_n), rel=1e-12)
     assert point.voltage_v == 11.1 and point.thrust_n == 2.0
