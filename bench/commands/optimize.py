@@ -27,7 +27,12 @@ from bench.design_tables import print_table
 from optimizer.errors import RequestError
 from optimizer.objectives import OBJECTIVE_NAMES, Objective, parse_weights, single, weighted
 from optimizer.paper_e_cases import PAPER_E_CASES
-from optimizer.selection_options import solve
+from optimizer.selection_options import (
+    meet_roll_rise_option,
+    prop_data_option,
+    solve,
+    solve_packs,
+)
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -128,18 +133,6 @@ def run_paper_e_cases(args: argparse.Namespace, catalog: Any) -> int:
     return 0 if all(r.any_feasible for _, _, r in results) else EXIT_NO_FEASIBLE
 
 
-def prop_data_build(catalog: Any) -> tuple[Any, Any]:
-    """``--prop-data``: (build_grid with the APC C_t(rpm), C_p(rpm), match report)."""
-    from functools import partial
-
-    from optimizer.design_model import evaluate_grid
-    from optimizer.propdata import catalog_curves, data_folder, load_curves, match_report
-
-    table = catalog_curves(catalog, load_curves(data_folder()))
-    return (partial(evaluate_grid, coefficients=table.coefficients),
-            {**match_report(catalog, table), "coefficients": table.coefficients})
-
-
 def build_objective(args: argparse.Namespace) -> Objective:
     if args.objective == "weighted":
         if not args.weights:
@@ -169,12 +162,16 @@ def handler(args: argparse.Namespace) -> int:
     )
     measured = measured_from_args(args, catalog)
     rules = rules_from_args(args)
-    prop_data = None
-    if args.prop_data:
-        build, info = prop_data_build(catalog)
-        prop_data = {"build": build, "coefficients": info.pop("coefficients"), "report": info}
+    prop_data = prop_data_option(catalog) if args.prop_data else None
     if args.series is not None or args.parallel is not None:
-        result = solve_packs(args, catalog, objective, requirements, measured, rules, prop_data)
+        if args.series is None:
+            raise RequestError("--parallel needs --series (e.g. --series 2-6 --parallel 1-4)")
+        from optimizer.packs import parse_counts
+
+        result = solve_packs(catalog, objective, tuple(args.actuators), requirements,
+                             args.method, parse_counts(args.series, "--series"),
+                             parse_counts(args.parallel or "1", "--parallel"), measured, rules,
+                             prop_data)
     else:
         result = solve(catalog, objective, tuple(args.actuators), requirements, args.method,
                        measured, rules, prop_data)
@@ -183,7 +180,8 @@ def handler(args: argparse.Namespace) -> int:
             raise RequestError("--max-roll-rise-ms does not combine with --flyable, --prop-data "
                                "or --series/--parallel yet (the flown candidates come from the "
                                "plain catalog model)")
-        result = _fly_filter(args, catalog, objective, requirements, result, measured)
+        result = meet_roll_rise_option(result, catalog, objective, requirements, args.method,
+                                       args.max_roll_rise_ms, measured)
     if args.json:
         doc = result.to_dict()
         if measured is not None:
@@ -207,66 +205,6 @@ def handler(args: argparse.Namespace) -> int:
         if rules is not None:
             print_rule_reports(result.rule_reports)
     return 0 if result.any_feasible else EXIT_NO_FEASIBLE
-
-
-def _fly_filter(args: argparse.Namespace, catalog: Any, objective: Objective,
-                requirements: Any, result: Any, measured: Any) -> Any:
-    """--max-roll-rise-ms: fly the MILP's picks, then candidates (optimizer.flight.choice)."""
-    from optimizer.flight.choice import meet_roll_rise
-
-    if args.method == "thesis":
-        raise RequestError("--max-roll-rise-ms works with --method milp or exact")
-    result = meet_roll_rise(result, catalog, objective, requirements, args.max_roll_rise_ms,
-                            build_grid=None if measured is None else measured.build_grid)
-    if measured is not None:
-        measured.annotate(result)
-    return result
-
-
-def solve_packs(args: argparse.Namespace, catalog: Any, objective: Objective,
-                requirements: Any, measured: Any, rules: Any, prop_data: Any) -> Any:
-    """``--series/--parallel``: ``optimizer.packs.optimize_packs`` with the same options."""
-    from optimizer.packs import optimize_packs, parse_counts
-
-    if args.series is None:
-        raise RequestError("--parallel needs --series (e.g. --series 2-6 --parallel 1-4)")
-    if measured is not None:
-        raise RequestError("--series/--parallel do not combine with --measured (measured "
-                           "currents belong to the bench's supply voltage)")
-    series = parse_counts(args.series, "--series")
-    parallel = parse_counts(args.parallel or "1", "--parallel")
-    build, coefficients = None, None
-    if prop_data is not None:
-        build, coefficients = prop_data["build"], prop_data["coefficients"]
-    builder = None
-    if rules is not None:
-        from optimizer.flyable import FlyableBuilder
-
-        build = builder = FlyableBuilder(rules, build, coefficients=coefficients)
-    result = optimize_packs(catalog, objective, tuple(args.actuators), requirements,
-                            args.method, series, parallel, build_grid=build)
-    if builder is not None:
-        result.rule_reports = _sum_reports(builder.reports)
-    return result
-
-
-def _sum_reports(reports: list[Any]) -> list[dict[str, Any]]:
-    """Rule reports of the per-S grids added up per actuator count."""
-    out: dict[int, dict[str, Any]] = {}
-    for r in reports:
-        d = r.to_dict()
-        zero = {key: 0 for key in ("designs", "physically_feasible", "flyable")}
-        acc = out.setdefault(d["actuators"], {
-            **d, **zero,
-            "removed_alone": dict.fromkeys(d["removed_alone"], 0),
-            "removed_in_turn": dict.fromkeys(d["removed_in_turn"], 0),
-        })
-        for key in ("designs", "physically_feasible", "flyable"):
-            acc[key] += d[key]
-        for key in ("removed_alone", "removed_in_turn"):
-            for name, v in d[key].items():
-                acc[key][name] += v
-    return list(out.values())
 
 
 def print_rule_reports(reports: list[dict[str, Any]]) -> None:

@@ -72,3 +72,24 @@ def test_paper_e_cases_are_the_three_tables():
         ("I", "flight-time", 0.0), ("II", "flight-time", 1.5), ("III", "time-constant", 0.0)]
     assert [t.split("(")[-1] for _, t, _, _ in PAPER_E_CASES] == [
         "Table E.8)", "Table E.9)", "Table E.10)"]
+
+
+def test_packs_refuse_measured_and_add_rule_reports_per_count():
+    from optimizer.selection_options import solve_packs
+
+    with pytest.raises(RequestError, match="--series/--parallel do not combine with --measured"):
+        solve_packs(CAT, single("flight-time"), (4,), Requirements(), "milp", (3,), (1,),
+                    _Measured())
+    got = solve_packs(CAT, single("flight-time"), (4, 6), Requirements(), "milp", (2, 3),
+                      (1, 2), rules=Rules())
+    reports = got.rule_reports
+    assert [r["actuators"] for r in reports] == [4, 6]  # one per count, not one per S
+    grid_designs = len(CAT.propeller_ids) * len(CAT.motor_ids) * len(CAT.battery_ids) * 2 * 2
+    assert all(r["designs"] == grid_designs for r in reports)
+
+
+def test_roll_rise_option_refuses_the_thesis_method():
+    from optimizer.selection_options import meet_roll_rise_option
+
+    with pytest.raises(RequestError, match="--max-roll-rise-ms works with --method milp"):
+        meet_roll_rise_option(None, CAT, single("flight-time"), Requirements(), "thesis", 100.0)
