@@ -4,6 +4,14 @@ The bench commands' common arguments (``--rig``, ``--out``, ``--limit``, ...), r
 them (the rig, the limits, the loop options) and the dry-run listing; and the output
 check every writing command makes on its output path before any work.
 
+And the option groups the sizing commands (``optimize``, ``evaluate``, ``pareto``, ``fly``)
+share: the catalog (:func:`add_catalog_args`), the measured constants
+(:func:`add_measured_args`, :func:`measured_from_args`) and the flyable-design rules
+(:func:`add_rule_args`, :func:`rules_from_args`), plus their JSON encoder
+(:func:`json_default`) and the exit status when nothing is feasible. The work behind
+them lives in library modules (``bench.catalogs``, ``bench.measured_constants``,
+``optimizer.flyable``); here is only argparse and output.
+
 A command that would run for minutes (a demo, a calibration on the rig) and then fail to
 write its result wastes the run; a traceback at the end says nothing useful. So each
 command names its outputs up front and :func:`check_writable` refuses, in one line with
@@ -24,11 +32,33 @@ from pathlib import Path
 from typing import Any
 
 from bench.errors import RigError
+from optimizer.errors import RequestError
 
-__all__ = ["DEFAULT_OUT", "add_common_arguments", "check_writable", "load_rig_from_args",
-           "parse_limits", "print_dry_run", "run_options_from_args"]
+__all__ = [
+    "DEFAULT_OUT",
+    "DEFAULT_RUNS_ROOT",
+    "EXIT_NO_FEASIBLE",
+    "add_catalog_args",
+    "add_common_arguments",
+    "add_measured_args",
+    "add_rule_args",
+    "check_writable",
+    "json_default",
+    "load_rig_from_args",
+    "measured_from_args",
+    "parse_limits",
+    "print_dry_run",
+    "rules_from_args",
+    "run_options_from_args",
+]
 
+#: The output root of every command's runs and runs.sqlite (``--out``).
 DEFAULT_OUT = Path("runs")
+#: The same root, named for the sizing commands that read the constants store in it.
+DEFAULT_RUNS_ROOT = DEFAULT_OUT
+
+#: Exit status of a sizing command when no requested actuator count has a feasible design.
+EXIT_NO_FEASIBLE = 3
 
 
 def check_writable(path: Path, flag: str, *, folder: bool, beside: bool = False,
@@ -161,3 +191,100 @@ def print_dry_run(rig: Any, seq: Any) -> None:
           f"{rig.esc.min_us:g}-{rig.esc.max_us:g} us at {rig.esc.frame_rate_hz:g} Hz")
     print(format_plan(plan))
     print(project(plan.duration_s, row_rate_hz(rig)).describe())
+
+
+# --- the sizing commands' option groups (optimize, evaluate, pareto, fly) ---------------
+def add_catalog_args(p: argparse.ArgumentParser) -> None:
+    """``--catalog``, ``--payload-kg`` and ``--json`` of the sizing commands."""
+    p.add_argument(
+        "--catalog",
+        type=Path,
+        default=None,
+        help="catalog folder, or the name of a shipped one (thesis-e, thesis-d; "
+             "default: fixtures/catalogs/thesis-e)",
+    )
+    p.add_argument("--payload-kg", type=float, default=0.0, help="payload mass (default 0)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+
+
+def add_measured_args(p: argparse.ArgumentParser) -> None:
+    """``--measured [DIR]`` and ``--esc-mode``: the constants store as the optimizer's
+    measured overrides (``bench.measured_constants``)."""
+    p.add_argument(
+        "--measured",
+        type=Path,
+        nargs="?",
+        const=DEFAULT_RUNS_ROOT,
+        default=None,
+        metavar="DIR",
+        help="use measured time constants and hover currents from DIR/constants.sqlite "
+        "where a combination has them (default DIR: ./runs; a demo output folder works)",
+    )
+    p.add_argument(
+        "--esc-mode",
+        default=None,
+        help="with --measured: which ESC mode's constants (default: the mode stored for "
+        "the most combinations)",
+    )
+
+
+def measured_from_args(args: argparse.Namespace, catalog: Any) -> Any:
+    """The ``MeasuredSet`` of ``--measured``/``--esc-mode`` for ``catalog`` (None without
+    ``--measured``; ``--esc-mode`` alone is refused)."""
+    if getattr(args, "measured", None) is None:
+        if getattr(args, "esc_mode", None) is not None:
+            raise RequestError("--esc-mode only applies with --measured")
+        return None
+    from bench.measured_constants import load_measured_set
+
+    return load_measured_set(args.measured, catalog, args.esc_mode)
+
+
+def add_rule_args(p: argparse.ArgumentParser) -> None:
+    """``--flyable`` and its rule switches (optimizer.flyable)."""
+    from optimizer.flyable import RULE_NAMES, Rules
+
+    d = Rules()
+    g = p.add_argument_group("flyable-design rules (docs/sizing.md)")
+    g.add_argument("--flyable", action="store_true",
+                   help=f"apply the rules {', '.join(RULE_NAMES)} and report what each removes")
+    g.add_argument("--no-rule", action="append", default=[], choices=RULE_NAMES,
+                   metavar="NAME", help="switch one rule off (repeatable)")
+    g.add_argument("--tip-speed-max", type=float, default=d.tip_speed_m_s, metavar="M_S",
+                   help=f"rule tip-speed: full-throttle tip speed limit (default "
+                   f"{d.tip_speed_m_s:g} m/s)")
+    g.add_argument("--max-wheelbase-m", type=float, default=d.max_wheelbase_m, metavar="M",
+                   help=f"rule frame: motor-to-motor diagonal limit (default "
+                   f"{d.max_wheelbase_m:g} m)")
+    g.add_argument("--hover-throttle", type=float, nargs=2, default=d.hover_throttle_pct,
+                   metavar=("LO", "HI"), help="rule hover-throttle: band in percent "
+                   "(default 30 70)")
+    g.add_argument("--rule-max-time-constant-ms", type=float, default=d.max_time_constant_ms,
+                   metavar="MS", help=f"rule response: time-constant limit (default "
+                   f"{d.max_time_constant_ms:g} ms)")
+
+
+def rules_from_args(args: argparse.Namespace) -> Any:
+    """The ``Rules`` of ``--flyable`` (None without it)."""
+    from optimizer.flyable import RULE_NAMES, Rules
+
+    if not getattr(args, "flyable", False):
+        if getattr(args, "no_rule", None):
+            raise RequestError("--no-rule only applies with --flyable")
+        return None
+    return Rules(
+        enabled=tuple(r for r in RULE_NAMES if r not in args.no_rule),
+        tip_speed_m_s=args.tip_speed_max,
+        max_wheelbase_m=args.max_wheelbase_m,
+        hover_throttle_pct=tuple(args.hover_throttle),
+        max_time_constant_ms=args.rule_max_time_constant_ms,
+    ).validate()
+
+
+def json_default(obj: Any) -> Any:
+    """``json.dumps(default=...)`` of the sizing commands: numpy scalars, tuples, sets."""
+    if hasattr(obj, "item"):
+        return obj.item()
+    if isinstance(obj, tuple | set):
+        return list(obj)
+    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")

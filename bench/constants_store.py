@@ -4,7 +4,8 @@ One row per actuator (motor, propeller, ESC, ESC mode, battery/supply) and kind 
 ``step`` rows hold the fitted latency and time constants of a step run, ``static`` rows
 the static curves of a sweep and the supply current at a list of thrusts. Every row
 names the run it came from; storing a newer fit of the same kind replaces the old row.
-The optimizer reads them through ``bench.commands.constants.load_measured``.
+The optimizer reads them through ``bench.measured_constants.load_measured``; the rows
+are fitted by ``bench.constants_fit.fit_for_store``.
 """
 
 from __future__ import annotations

@@ -19,10 +19,10 @@ import time
 import timeit
 
 from optimizer.catalog import load_catalog
+from optimizer.design_model import evaluate_grid
 from optimizer.flight.design import gains_for, setup
 from optimizer.flight.maneuvers import MANEUVERS, fly
 from optimizer.flight.ranking import rank
-from optimizer.model import evaluate_grid
 from optimizer.objectives import single
 from optimizer.selection import optimize
 

@@ -14,7 +14,7 @@ from rich.console import Console
 from rich.table import Table
 
 from optimizer.catalog import Catalog
-from optimizer.model import evaluate_grid
+from optimizer.design_model import evaluate_grid
 
 SIZES = (200, 150, 40)
 REPEATS = 7

@@ -31,7 +31,7 @@ sys.path.insert(0, str(REPO))
 
 from optimizer import exhaustive, milp_exact  # noqa: E402
 from optimizer.catalog import Catalog, load_catalog  # noqa: E402
-from optimizer.model import evaluate_grid  # noqa: E402
+from optimizer.design_model import evaluate_grid  # noqa: E402
 from optimizer.objectives import single  # noqa: E402
 from optimizer.selection import Requirements, optimize, select_from_grids  # noqa: E402
 

@@ -27,8 +27,8 @@ sys.path.insert(0, str(REPO))
 
 from optimizer import battery as bat  # noqa: E402
 from optimizer.catalog import load_catalog  # noqa: E402
+from optimizer.design_model import evaluate_design, evaluate_grid, single_design_catalog  # noqa: E402
 from optimizer.flyable import FlyableBuilder, Rules  # noqa: E402
-from optimizer.model import evaluate_design, evaluate_grid, single_design_catalog  # noqa: E402
 from optimizer.objectives import single  # noqa: E402
 from optimizer.packs import optimize_packs  # noqa: E402
 from optimizer.pareto import enumerate_front, milp_front  # noqa: E402

@@ -17,13 +17,13 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.commands._fly_plots import _pyplot
-from bench.commands._measured import load_measured_set
+from bench.fly_figures import pyplot
+from bench.measured_constants import load_measured_set
 from optimizer.catalog import load_catalog
+from optimizer.design_model import evaluate_grid
 from optimizer.flight.design import gains_for, setup
 from optimizer.flight.maneuvers import MANEUVERS, fly
 from optimizer.flight.ranking import rank
-from optimizer.model import evaluate_grid
 from optimizer.objectives import single
 from optimizer.selection import optimize
 
@@ -50,7 +50,7 @@ def main() -> None:
 
     best = optimize(catalog, single("flight-time"), (4,)).best
     fastest = min((r for r in model.rows if not r.note), key=lambda r: r.time_constant_ms)
-    plt = _pyplot()
+    plt = pyplot()
     IMG.mkdir(parents=True, exist_ok=True)
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(7, 5.5), sharex=True)
     for label, (pid, mid, bid) in (

@@ -39,7 +39,7 @@ def discharge_figure(path: Path) -> None:
 
     from optimizer import battery as bat
     from optimizer.catalog import load_catalog
-    from optimizer.model import evaluate_design, single_design_catalog
+    from optimizer.design_model import evaluate_design, single_design_catalog
     from optimizer.sheet import design_sheet, pack_of
 
     cat = load_catalog(REPO / "fixtures" / "catalogs" / "thesis-e")

@@ -1,7 +1,7 @@
 """Component catalogs: read, validate and convert datasheet tables to SI.
 
 A catalog is a folder with ``propellers.csv``, ``motors.csv``, ``batteries.csv`` and an
-optional ``catalog.toml`` (model constants, see ``optimizer.constants``). Datasheet units
+optional ``catalog.toml`` (model constants, see ``optimizer.model_constants``). Datasheet units
 live only here: columns are converted by name (``mass_g`` -> ``mass_kg``, ``capacity_mah``
 -> ``capacity_ah``, ``kv_rpm_per_v`` -> ``kv_rad_s_per_v``, ...). Every bad value raises
 ``CatalogError`` naming the file, the data row (1-based, header excluded) with its CSV line,
@@ -21,8 +21,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from optimizer.constants import ModelConstants, constants_from_mapping, load_constants
 from optimizer.errors import CatalogError
+from optimizer.model_constants import ModelConstants, constants_from_mapping, load_constants
 
 RPM_PER_V_TO_RAD_S_PER_V = 2.0 * math.pi / 60.0
 

@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from optimizer import performance as perf
+from optimizer import operating_points as ops
 from optimizer.catalog import Catalog
 from optimizer.errors import RequestError
 from optimizer.grid import Check, DesignGrid
@@ -83,7 +83,7 @@ def rule_checks(
     catalog: Catalog,
     grid: DesignGrid,
     rules: Rules,
-    coefficients: perf.Coefficients | None = None,
+    coefficients: ops.Coefficients | None = None,
 ) -> tuple[Check, ...]:
     """The enabled rules as checks on ``grid`` (built from ``catalog``)."""
     from optimizer.sheet import drive_of, pack_of
@@ -93,7 +93,7 @@ def rule_checks(
     drive = drive_of(catalog, coefficients)
     pack = pack_of(catalog)
     v_b = pack["voltage_v"]
-    top = perf.at_throttle(drive, 1.0, v_b)
+    top = ops.at_throttle(drive, 1.0, v_b)
     out: list[Check] = []
     on = set(rules.enabled)
     if "tip-speed" in on:
@@ -110,7 +110,7 @@ def rule_checks(
                          top.motor_current_a, limit))
     hover = None
     if "c-rate" in on or "hover-throttle" in on:
-        hover = perf.at_thrust(drive, grid.extras["hover_thrust_n"], v_b)  # type: ignore
+        hover = ops.at_thrust(drive, grid.extras["hover_thrust_n"], v_b)  # type: ignore
     if "c-rate" in on:
         out.append(Check("rule c-rate: hover battery current (continuous)", "A",
                          n * hover.battery_current_a, pack["continuous_a"]))
@@ -176,11 +176,11 @@ class FlyableBuilder:
     base: Callable[[Any, int, float], DesignGrid] | None = None
     reports: list[RuleReport] = field(default_factory=list)
     #: measured C_t(rpm), C_p(rpm) for the full-throttle and hover rule values
-    coefficients: perf.Coefficients | None = None
+    coefficients: ops.Coefficients | None = None
 
     def __call__(self, catalog: Catalog, n: int, payload: float) -> DesignGrid:
         if self.base is None:
-            from optimizer.model import evaluate_grid
+            from optimizer.design_model import evaluate_grid
 
             grid = evaluate_grid(catalog, n, payload)
         else:

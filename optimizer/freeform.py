@@ -13,8 +13,8 @@ from typing import Any
 import pandas as pd
 
 from optimizer.catalog import Catalog
-from optimizer.constants import ModelConstants
 from optimizer.errors import CatalogError, RequestError
+from optimizer.model_constants import ModelConstants
 from optimizer.sizinglab import PROP_MASS_COEF_G, PROP_MASS_EXPONENT
 
 #: Stand-in for a limit the user did not give (A, W): large, finite, never binding.

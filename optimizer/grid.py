@@ -1,6 +1,6 @@
 """The contract between the design model and the selection layer.
 
-The model (``optimizer.model``) computes every quantity of every discrete design
+The model (``optimizer.design_model``) computes every quantity of every discrete design
 exactly; the selection layer (enumeration, MILP) only chooses among them. A
 ``DesignGrid`` holds, for one actuator count and one payload, every metric on the
 full (propeller, motor, battery) product as arrays of shape ``(P, M, B)``, and the

@@ -137,7 +137,7 @@ def optimize_packs(
         raise RequestError("series/parallel selection works with --method milp or exact")
     req = (requirements or Requirements()).validate()
     if build_grid is None:
-        from optimizer.model import evaluate_grid as build_grid
+        from optimizer.design_model import evaluate_grid as build_grid
     cells = cells_of(catalog)
     designs: list[DesignResult] = []
     for n in dict.fromkeys(actuators):

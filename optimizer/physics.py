@@ -1,6 +1,6 @@
 """Hover physics of Papers D and E as numpy functions that broadcast.
 
-Every function takes SI arrays of any broadcastable shape, so ``optimizer.model`` can
+Every function takes SI arrays of any broadcastable shape, so ``optimizer.design_model`` can
 evaluate the whole (propeller, motor, battery) product at once. Equation numbers refer to
 the thesis (reference/000_e15d712adc6c55bf.txt).
 """
@@ -42,6 +42,27 @@ def propeller_power_w(cp, rho: float, n_rev_s, diameter_m):
 def thrust_n(ct, rho: float, n_rev_s, diameter_m):
     """(E.1) F = C_t rho n^2 D^4."""
     return ct * rho * n_rev_s**2 * diameter_m**4
+
+
+def thrust_per_omega2(ct, rho: float, diameter_m):
+    """(E.1) with n = omega / 2 pi: F = k_f omega^2, k_f = C_t rho D^4 / (2 pi)^2."""
+    return ct * rho * diameter_m**4 / TWO_PI**2
+
+
+def torque_per_omega2(cp, rho: float, diameter_m):
+    """(E.2)-(E.3) with n = omega / 2 pi: Q = W / omega = k_m omega^2,
+    k_m = C_p rho D^5 / (2 pi)^3."""
+    return rho * cp * diameter_m**5 / TWO_PI**3
+
+
+def thrust_coefficient(force_n, rho: float, n_rev_s, diameter_m):
+    """(E.1) solved for C_t: C_t = F / (rho n^2 D^4) (APC's convention, n in rev/s)."""
+    return force_n / (rho * n_rev_s**2 * diameter_m**4)
+
+
+def power_coefficient(torque_nm, rho: float, n_rev_s, diameter_m):
+    """(E.2) with W = 2 pi n Q (E.3) solved for C_p: C_p = 2 pi Q / (rho n^2 D^5)."""
+    return TWO_PI * torque_nm / (rho * n_rev_s**2 * diameter_m**5)
 
 
 def propeller_damping(cp, rho: float, n_rev_s, diameter_m):
@@ -119,7 +140,14 @@ def full_throttle_speed_rad_s(voltage_v, kt, resistance_ohm, cp, rho: float, dia
     With T = c omega^2, c = rho C_p D^5 / (2 pi)^3 from (E.2)-(E.3):
     V = K_e omega + R_a c omega^2 / K_t, solved for omega > 0.
     """
-    c = rho * cp * diameter_m**5 / TWO_PI**3
+    c = torque_per_omega2(cp, rho, diameter_m)
     a = resistance_ohm * c / kt
     # Root of a w^2 + K_e w - V = 0 in the form that stays finite as a -> 0.
     return 2.0 * voltage_v / (kt + np.sqrt(kt**2 + 4.0 * a * voltage_v))
+
+
+def full_throttle_thrust_n(voltage_v, kt, resistance_ohm, ct, cp, rho: float, diameter_m):
+    """(E.1) at the full-throttle speed of :func:`full_throttle_speed_rad_s`: the most
+    thrust one actuator gives on ``voltage_v``."""
+    omega = full_throttle_speed_rad_s(voltage_v, kt, resistance_ohm, cp, rho, diameter_m)
+    return thrust_n(ct, rho, omega / TWO_PI, diameter_m)

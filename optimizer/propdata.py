@@ -17,13 +17,13 @@ constants; ``match_report`` lists both.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from optimizer import physics
 from optimizer.catalog import Catalog
 from optimizer.sizinglab import _read as read_sizinglab_table
 
@@ -74,8 +74,8 @@ def load_curves(folder: str | Path) -> list[PropCurve]:
         d = float(d_in) * 0.0254
         thrust = rows["THRUST(LBF)"].to_numpy(float) * LBF_TO_N
         torque = rows["TORQUE(IN.LBF)"].to_numpy(float) * IN_LBF_TO_NM
-        ct = thrust / (RHO_APC * n**2 * d**4)  # (E.1)
-        cp = 2 * math.pi * torque / (RHO_APC * n**2 * d**5)  # (E.2) with P = 2 pi n Q
+        ct = physics.thrust_coefficient(thrust, RHO_APC, n, d)  # (E.1)
+        cp = physics.power_coefficient(torque, RHO_APC, n, d)  # (E.2) with P = 2 pi n Q
         fam = "" if str(family) in ("NULL", "nan") else str(family)
         out.append(PropCurve(int(comp), fam, float(d_in), float(p_in), int(blades),
                              rows["RPM"].to_numpy(float), ct, cp))
@@ -176,11 +176,11 @@ def compare_for_design(single: Catalog, record: dict[str, Any], curve: Any) -> d
     const = {k: record[k] for k in ("max_thrust_n", "hover_throttle_pct", "efficiency_g_per_w",
                                    "hover_electric_power_w")}
     n = int(record["actuators"])
-    from optimizer import performance as perf
+    from optimizer import operating_points as ops
     from optimizer.sheet import drive_of, pack_of
 
     weight = float(record["total_mass_kg"]) * single.constants.gravity_m_s2
-    hover = perf.at_thrust(drive_of(single, table.coefficients), weight / n,
+    hover = ops.at_thrust(drive_of(single, table.coefficients), weight / n,
                            pack_of(single)["voltage_v"])
     rows = {
         "hover_rpm": (float(record["hover_rpm"]), float(np.ravel(hover.rpm)[0])),

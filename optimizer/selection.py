@@ -537,7 +537,7 @@ def optimize(
     if not actuators:
         raise RequestError("actuators: give at least one actuator count, e.g. 4 6 8")
     if build_grid is None:
-        from optimizer.model import evaluate_grid as build_grid
+        from optimizer.design_model import evaluate_grid as build_grid
     grids, times = [], []
     for n in dict.fromkeys(actuators):
         start = time.perf_counter()

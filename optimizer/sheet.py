@@ -1,6 +1,6 @@
 """One design as eCalc shows it: full throttle, hover throttle, partial load, battery.
 
-``design_sheet`` adds to ``optimizer.model.evaluate_design``'s record (the thesis'
+``design_sheet`` adds to ``optimizer.design_model.evaluate_design``'s record (the thesis'
 hover numbers, unchanged) what a designer reads on an eCalc sheet: maximum thrust per
 actuator, thrust-to-weight, hover throttle, efficiency, the partial-load table, the
 Shepherd-model flight time beside the thesis' constant-voltage one, C-rate checks
@@ -15,13 +15,13 @@ from typing import Any
 import numpy as np
 
 from optimizer import battery as bat
-from optimizer import performance as perf
+from optimizer import operating_points as ops
 from optimizer import physics
 from optimizer.catalog import Catalog
-from optimizer.model import battery_voltage_v
+from optimizer.design_model import battery_voltage_v
 
 
-def drive_of(catalog: Catalog, coefficients: perf.Coefficients | None = None) -> perf.Drive:
+def drive_of(catalog: Catalog, coefficients: ops.Coefficients | None = None) -> ops.Drive:
     """The catalog's drives on grid axes: propellers (P,1,1), motors (1,M,1)."""
     props, mots = catalog.propellers, catalog.motors
 
@@ -31,7 +31,7 @@ def drive_of(catalog: Catalog, coefficients: perf.Coefficients | None = None) ->
     def m_(col: str) -> np.ndarray:
         return mots[col].to_numpy(float)[None, :, None]
 
-    return perf.Drive(
+    return ops.Drive(
         ct=p_("ct"),
         cp=p_("cp"),
         diameter_m=p_("diameter_m"),
@@ -73,7 +73,7 @@ def design_sheet(
     single: Catalog,
     record: dict[str, Any],
     curve: bat.CellCurve = bat.DEFAULT_CELL,
-    coefficients: perf.Coefficients | None = None,
+    coefficients: ops.Coefficients | None = None,
 ) -> dict[str, Any]:
     """eCalc-like keys for the one design of ``single`` (a catalog of one row each)."""
     c = single.constants
@@ -83,8 +83,8 @@ def design_sheet(
     drive = drive_of(single, coefficients)
     pack = pack_of(single)
     v_b = pack["voltage_v"]
-    top = perf.at_throttle(drive, 1.0, v_b)
-    hover = perf.at_thrust(drive, weight / n, v_b)  # (E.19)-(E.20)
+    top = ops.at_throttle(drive, 1.0, v_b)
+    hover = ops.at_thrust(drive, weight / n, v_b)  # (E.19)-(E.20)
     max_thrust = _one(top.thrust_n)
     out: dict[str, Any] = {
         "max_thrust_n": max_thrust,
@@ -100,8 +100,8 @@ def design_sheet(
         "max_battery_current_a": n * _one(top.battery_current_a),
         "max_electric_power_w": n * _one(top.power_w),
         "tip_speed_max_m_s": math.pi * _one(drive.diameter_m) * _one(top.rpm) / 60.0,
-        "partial_load": perf.partial_load(
-            perf.Drive(**{**drive.__dict__, **_squeeze(drive)}), _one(v_b)
+        "partial_load": ops.partial_load(
+            ops.Drive(**{**drive.__dict__, **_squeeze(drive)}), _one(v_b)
         ),
     }
     dis = bat.discharge(
@@ -142,7 +142,7 @@ def design_sheet(
     return out
 
 
-def _squeeze(drive: perf.Drive) -> dict[str, Any]:
+def _squeeze(drive: ops.Drive) -> dict[str, Any]:
     return {
         k: float(np.asarray(getattr(drive, k)).reshape(-1)[0])
         for k in ("ct", "cp", "diameter_m", "kt", "resistance_ohm", "no_load_current_a")

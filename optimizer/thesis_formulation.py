@@ -16,13 +16,13 @@ Structure (one MILP per actuator count, as the thesis does):
   from the roll and pitch axes, their squares (PWL), the actuator and frame inertia
   sets (Rule 4 / Rule 1), the frame lengths and the PWL z-sets.
 * Constants per component and per combination (masses, prices, arm lengths, battery
-  voltage, ``J``, the time constants of E.32-E.39) come from ``optimizer.model``, so
+  voltage, ``J``, the time constants of E.32-E.39) come from ``optimizer.design_model``, so
   the two formulations share one physics.
 
 Readings (see docs/thesis-formulation.md): (E.70)-(E.71) "x20 = x19" is used as
 ``x20 >= x19`` with ``T_F`` the required flight time (an equality would fix the
 capacity); (E.55) is used with the ``1/3`` of (E.52) (a rod about its end); the
-limits of ``optimizer.model`` (motor power and current, battery current) are added as
+limits of ``optimizer.design_model`` (motor power and current, battery current) are added as
 linear rows on x17 and x18; any other check is enforced per combination with
 ``d_p + d_m + d_b <= 2`` cuts (exact, no linearisation).
 """
@@ -37,17 +37,18 @@ from typing import Any
 
 import numpy as np
 
+from optimizer import physics
 from optimizer.catalog import Catalog
-from optimizer.errors import RequestError
-from optimizer.grid import METRIC_KEYS
-from optimizer.model import (
+from optimizer.design_model import (
     design_record,
     evaluate_grid,
     motor_inertia_kgm2,
     propeller_inertia_kgm2,
 )
-from optimizer.modeling import LinExpr, Model, Solution, Var, quicksum
-from optimizer.rules import exactly_one, piecewise_linear, rule1_product, rule4_product
+from optimizer.errors import RequestError
+from optimizer.grid import METRIC_KEYS
+from optimizer.milp_builder import LinExpr, Model, Solution, Var, quicksum
+from optimizer.milp_rules import exactly_one, piecewise_linear, rule1_product, rule4_product
 
 #: Objective name (CLI) -> (Table E.2 variable, sense).
 OBJECTIVES: dict[str, tuple[str, str]] = {
@@ -135,7 +136,7 @@ class ThesisResult:
 
     ``linearised`` holds the MILP's own values (x-variables converted to the metric
     units of ``optimizer.grid``); ``exact`` the model's values at the chosen design
-    (``optimizer.model.design_record`` keys); ``errors`` their relative difference.
+    (``optimizer.design_model.design_record`` keys); ``errors`` their relative difference.
     """
 
     n_actuators: int
@@ -305,7 +306,7 @@ def build_thesis_model(
     price_p = col(props, "price") if c.price_includes_propellers else np.zeros(len(props))
     price_m, price_b = col(mots, "price"), col(bats, "price")
     ah_b = col(bats, "capacity_ah")
-    volt_b = grid.extras["voltage_v"][0, 0, :]  # B_V (E.67), reading of optimizer.model
+    volt_b = grid.extras["voltage_v"][0, 0, :]  # B_V (E.67), reading of optimizer.design_model
     arm_p = grid.extras["arm_length_m"][:, 0, 0]  # L_f(D_i, N_a) (E.23)-(E.25)
     j_m, j_p = motor_inertia_kgm2(catalog), propeller_inertia_kgm2(catalog)
     tau_s = grid.metrics["time_constant_ms"] * 1e-3  # (E.32)-(E.39), per combination
@@ -352,7 +353,7 @@ def build_thesis_model(
     # Thrust and n^2 per propeller (E.19)-(E.22).
     x4 = var("x4", (x1.lb + payload_kg) * g, (x1.ub + payload_kg) * g)
     model.add(x4 == (x1 + payload_kg) * g, name="E.19")
-    k_n2 = 1.0 / (na * rho * ct * diam**4)
+    k_n2 = 1.0 / (na * physics.thrust_n(ct, rho, 1.0, diam))  # (E.1): n^2 = F / (C_t rho D^4)
     n2_set = [
         rule1_product(model, d_prop[i], float(k_n2[i]) * x4, f"x22[{pid}]")
         for i, pid in enumerate(grid.propeller_ids)
@@ -397,7 +398,7 @@ def build_thesis_model(
     model.add(x6 == n3.y, name="E.60")
 
     # Propeller power (E.61)-(E.63).
-    k_pow = cp * rho * diam**5
+    k_pow = physics.propeller_power_w(cp, rho, 1.0, diam)  # (E.2): W = C_p rho D^5 n^3
     pow_set = [
         rule1_product(model, d_prop[i], float(k_pow[i]) * x6, f"x37[{pid}]")
         for i, pid in enumerate(grid.propeller_ids)
@@ -484,7 +485,7 @@ def build_thesis_model(
     model.add(x13 == x["x9"] + x["x11"], name="E.58")
     model.add(x14 == x["x10"] + x["x12"], name="E.59")
 
-    # Limits of optimizer.model as linear rows; other checks as per-combination cuts.
+    # Limits of optimizer.design_model as linear rows; other checks as per-combination cuts.
     limits = {
         "motor power": lambda: x17 <= lin(col(mots, "max_power_w"), d_motor),
         "motor current": lambda: x18 / na <= lin(col(mots, "max_current_a"), d_motor),

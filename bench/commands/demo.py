@@ -30,8 +30,8 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from bench.cli_support import check_writable
-from bench.commands.optimize import PAPER_E_CASES
 from bench.errors import RigError
+from optimizer.paper_e_cases import PAPER_E_CASES
 
 G0 = 9.80665
 ACTUATORS = (4, 6, 8)
@@ -60,21 +60,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=handler)
 
 
-def _catalog():
-    from optimizer.catalog import load_catalog
-
-    root = Path(__file__).resolve().parents[2] / "fixtures" / "catalogs" / "thesis-e"
-    return load_catalog(root)
-
-
 def combo_rig(base: Any, catalog: Any, i: int, j: int, mode: str, seed: int) -> Any:
     """The default sim rig with propeller ``i`` on motor ``j`` of the catalog."""
     from bench.rig import Limits
-    from optimizer.model import battery_voltage_v, motor_inertia_kgm2, propeller_inertia_kgm2
+    from optimizer.design_model import battery_voltage_v, motor_inertia_kgm2, propeller_inertia_kgm2
+    from optimizer.physics import torque_constant
 
     prop = catalog.propellers.iloc[i]
     mot = catalog.motors.iloc[j]
-    kt = 1.0 / float(mot["kv_rad_s_per_v"])  # (2.37) in SI
+    kt = float(torque_constant(float(mot["kv_rad_s_per_v"])))  # (2.37) in SI
     plant = {
         "kt_nm_a": kt, "ke_v_s_rad": kt, "r_ohm": float(mot["resistance_ohm"]),
         "j_kg_m2": float(propeller_inertia_kgm2(catalog)[i] + motor_inertia_kgm2(catalog)[j]),
@@ -94,9 +88,9 @@ def combo_rig(base: Any, catalog: Any, i: int, j: int, mode: str, seed: int) -> 
 def _optimize_cases(catalog: Any, measured: Any, progress: Any, task: Any) -> list[Any]:
     """Paper E's test cases by the real optimizer (exact MILP, the CLI's tie rules), with
     the datasheet model and with the measured constants where the store has them."""
-    from bench.commands.optimize import solve
     from optimizer.objectives import single
     from optimizer.selection import Requirements
+    from optimizer.selection_options import solve
 
     cases = []
     for case, title, objective, payload in PAPER_E_CASES:
@@ -136,9 +130,10 @@ def handler(args: argparse.Namespace) -> int:
     from analysis.static_curves import fit_static_run
     from analysis.step_response import fit_run
     from analysis.validation import validate_run
-    from bench.commands._measured import MeasuredSet
-    from bench.commands.constants import fit_for_store, load_measured
+    from bench.catalogs import shipped_catalog
+    from bench.constants_fit import fit_for_store
     from bench.constants_store import ConstantsStore
+    from bench.measured_constants import MeasuredSet, load_measured
     from bench.rig import default_rig_path, load_rig
     from bench.runner import RunOptions
     from bench.sequences import step1, step2, sweep
@@ -158,7 +153,7 @@ def handler(args: argparse.Namespace) -> int:
     runs_root, figs, tabs = tmp / "runs", tmp / "figures", tmp / "tables"
     for d in (runs_root, figs, tabs):
         d.mkdir(parents=True)
-    catalog = _catalog()
+    catalog = shipped_catalog("thesis-e")
     base = load_rig(default_rig_path())
     # simulated rig only: the plant advances per tick, not with the wall clock, so a host
     # busy with other jobs (2 cores) must not end a run as a "stalled" command loop
@@ -240,33 +235,25 @@ def handler(args: argparse.Namespace) -> int:
 def _measured_vs_model(catalog: Any, measured: Any) -> Any:
     """Measured against datasheet-model constants of every measured actuator, at 35 % of
     its measured top thrust (the centre of its Step 1 band). The sim's copper and supply
-    losses show up here; the demo prints this rather than hiding the gap."""
+    losses show up here; the demo prints this rather than hiding the gap. The model's
+    numbers come from the optimizer's design model (``actuator_at_thrust``: E.20, E.35,
+    E.67 and the full-throttle thrust), the same code that sizes the designs."""
     from analysis.report import Table
-    from optimizer import physics
-    from optimizer.model import battery_voltage_v, motor_inertia_kgm2, propeller_inertia_kgm2
+    from optimizer.design_model import actuator_at_thrust, battery_voltage_v
 
-    c = catalog.constants
-    rho = c.air_density_kg_m3
     volt = float(np.max(battery_voltage_v(catalog)))
-    jp, jm = propeller_inertia_kgm2(catalog), motor_inertia_kgm2(catalog)
     rows = []
     for item in measured.overrides:
         if item.esc_mode != measured.esc_mode or item.top_thrust_n is None:
             continue
         i = catalog.propeller_ids.index(item.propeller_id)
         j = catalog.motor_ids.index(item.motor_id)
-        prop, mot = catalog.propellers.iloc[i], catalog.motors.iloc[j]
-        d, ct, cp = (float(prop[k]) for k in ("diameter_m", "ct", "cp"))
-        kt = physics.torque_constant(float(mot["kv_rad_s_per_v"]))
-        r = float(mot["resistance_ohm"])
         t_ref = 0.35 * item.top_thrust_n
-        n = physics.hover_speed_rev_s(t_ref, ct, rho, d)  # (E.20)
-        tau_model = physics.time_constant_s(
-            r, jp[i] + jm[j], kt, physics.propeller_damping(cp, rho, n, d))  # (E.35)
-        cur_model = physics.propeller_power_w(cp, rho, n, d) / volt  # (E.67)
+        model = actuator_at_thrust(catalog, i, j, t_ref, volt)
+        tau_model = model.hover.time_constant_s  # (E.35) at the (E.20) speed
+        cur_model = model.hover.current_a  # (E.67)
+        top_model = model.top_thrust_n
         cur, inside = item.current_at(np.array([t_ref]), np.array([volt]))
-        top_model = physics.thrust_n(ct, rho, physics.full_throttle_speed_rad_s(
-            volt, kt, r, cp, rho, d) / physics.TWO_PI, d)
         tau = item.time_constant_s
         rows.append((f"{item.propeller_id}-{item.motor_id}", t_ref,
                      None if tau is None else tau * 1e3, float(tau_model) * 1e3,
@@ -303,7 +290,7 @@ def _tables_and_figures(console, catalog, fits, statics, step2_runs, measured, c
                                  title=f"Step 2, {m}: RMS error first order "
                                        f"{v.rms_first_order_pct:.1f} % of the band")
     # Tables E.8-E.10: the optimizer's designs, datasheet model and measured constants
-    from bench.commands.optimize import print_table
+    from bench.design_tables import print_table
 
     sel_rows, e11, e13, e14 = [], [], [], []
     for case, title, pair in cases:

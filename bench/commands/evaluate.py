@@ -16,16 +16,10 @@ import time
 from pathlib import Path
 from typing import Any
 
-from bench.commands._measured import add_measured_args, is_measured
-from bench.commands.optimize import (
-    MEASURED_MARK,
-    ROWS,
-    _fmt,
-    _json_default,
-    _measured,
-    add_catalog_args,
-    load,
-)
+from bench.catalogs import load
+from bench.cli_support import add_catalog_args, add_measured_args, json_default, measured_from_args
+from bench.design_tables import MEASURED_MARK, ROWS, format_cell
+from bench.measured_constants import is_measured
 from optimizer.errors import RequestError
 
 
@@ -93,8 +87,8 @@ def _with_pack(catalog: Any, battery_id: str) -> Any:
 
 def evaluate(args: argparse.Namespace) -> dict[str, Any]:
     from optimizer import battery as bat
+    from optimizer.design_model import MODEL_SOURCES, evaluate_design, single_design_catalog
     from optimizer.freeform import NO_LIMIT
-    from optimizer.model import MODEL_SOURCES, evaluate_design, single_design_catalog
     from optimizer.sheet import design_sheet
 
     if args.actuators < 3:
@@ -106,7 +100,7 @@ def evaluate(args: argparse.Namespace) -> dict[str, Any]:
                                f"got {args.cutoff_cell_v:g}")
         curve = bat.CellCurve(cutoff_v=args.cutoff_cell_v)
     catalog, (pid, mid, bid) = _catalog_and_ids(args)
-    measured = _measured(args, catalog)
+    measured = measured_from_args(args, catalog)
     start = time.perf_counter()
     record = evaluate_design(
         catalog,
@@ -143,8 +137,8 @@ def flyable_rules(single: Any, n: int, payload_kg: float) -> list[dict[str, Any]
     ``feasible`` stays the catalog's limits; ``optimize --flyable`` enforces them."""
     import numpy as np
 
+    from optimizer.design_model import evaluate_grid
     from optimizer.flyable import Rules, rule_checks, rule_of
-    from optimizer.model import evaluate_grid
 
     grid = evaluate_grid(single, n, payload_kg)
     out = []
@@ -164,7 +158,7 @@ def handler(args: argparse.Namespace) -> int:
 
         partial_load_figure(record, args.plot)
     if args.json:
-        print(json.dumps(record, indent=2, default=_json_default))
+        print(json.dumps(record, indent=2, default=json_default))
         return 0
     print_sheet(record)
     if args.plot is not None:
@@ -186,7 +180,7 @@ def print_sheet(record: dict[str, Any]) -> None:
     table.add_column("Value", justify="right")
     sources = record.get("sources")
     for label, key, fmt in ROWS:
-        cell = _fmt(record.get(key), fmt)
+        cell = format_cell(record.get(key), fmt)
         if is_measured(sources, key):
             cell = f"{cell} {MEASURED_MARK}"
         table.add_row(label.replace(" chosen", ""), cell)

@@ -18,8 +18,8 @@ import math
 from pathlib import Path
 from typing import Any
 
-from bench.commands._measured import add_measured_args
-from bench.commands.optimize import _json_default, _measured, add_catalog_args, load
+from bench.catalogs import load
+from bench.cli_support import add_catalog_args, add_measured_args, json_default, measured_from_args
 from optimizer.errors import RequestError
 
 
@@ -58,7 +58,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def step_constants(run: Path) -> Any:
     """Fit a step run (as ``rotorbench constants`` does) into flight-model numbers."""
     from analysis.run_record import esc_frame_s, read_run
-    from bench.commands.constants import fit_for_store
+    from bench.constants_fit import fit_for_store
     from optimizer.flight.design import StepConstants
 
     key, kind, run_id, data = fit_for_store(run)
@@ -71,9 +71,9 @@ def step_constants(run: Path) -> Any:
 
 
 def _grid(args: argparse.Namespace, catalog: Any, n: int) -> Any:
-    from optimizer.model import evaluate_grid
+    from optimizer.design_model import evaluate_grid
 
-    measured = _measured(args, catalog)
+    measured = measured_from_args(args, catalog)
     if measured is not None:
         return measured.build_grid(catalog, n, args.payload_kg), measured
     return evaluate_grid(catalog, n, args.payload_kg), None
@@ -112,9 +112,9 @@ def handler(args: argparse.Namespace) -> int:
 
 
 def _one(args: argparse.Namespace, catalog: Any, grid: Any, step: Any, measured: Any) -> int:
+    from optimizer.design_model import design_record
     from optimizer.flight.design import design_index, fly_report, setup
     from optimizer.flight.maneuvers import MANEUVERS, maneuver
-    from optimizer.model import design_record
 
     index = design_index(grid, args.propeller, args.motor, args.battery)
     record = design_record(grid, *index)
@@ -127,11 +127,11 @@ def _one(args: argparse.Namespace, catalog: Any, grid: Any, step: Any, measured:
     if measured is not None:
         report["measured_store"] = measured.describe()
     if args.plot is not None:
-        from bench.commands._fly_plots import maneuver_figures
+        from bench.fly_figures import maneuver_figures
 
         report["plots"] = [str(p) for p in maneuver_figures(flights, vehicle, args.plot)]
     if args.json:
-        print(json.dumps(report, indent=2, default=_json_default))
+        print(json.dumps(report, indent=2, default=json_default))
         return 0
     _print_one(report)
     return 0
@@ -187,11 +187,11 @@ def _sweep(args: argparse.Namespace, catalog: Any, grid: Any, step: Any, measure
     if measured is not None:
         doc["measured_store"] = measured.describe()
     if args.plot is not None:
-        from bench.commands._fly_plots import ranking_scatter
+        from bench.fly_figures import ranking_scatter
 
         doc["plots"] = [str(ranking_scatter(ranking, args.plot, Path(catalog.source).name))]
     if args.json:
-        print(json.dumps(doc, indent=2, default=_json_default))
+        print(json.dumps(doc, indent=2, default=json_default))
         return 0
     print_ranking(ranking, Console(soft_wrap=False))
     for p in doc.get("plots", []):

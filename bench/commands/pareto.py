@@ -17,12 +17,12 @@ from typing import Any
 
 import numpy as np
 
-from bench.commands.optimize import (
+from bench.catalogs import load
+from bench.cli_support import (
     EXIT_NO_FEASIBLE,
-    _json_default,
     add_catalog_args,
     add_rule_args,
-    load,
+    json_default,
     rules_from_args,
 )
 from optimizer.errors import RequestError
@@ -57,7 +57,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def compute(args: argparse.Namespace) -> dict[str, Any]:
     from optimizer import pareto
-    from optimizer.model import evaluate_grid
+    from optimizer.design_model import evaluate_grid
     from optimizer.objectives import single
     from optimizer.selection import DesignResult, _design_at
 
@@ -135,7 +135,7 @@ def handler(args: argparse.Namespace) -> int:
         pareto_figure({**doc, "_cloud": (cx[::step], cy[::step])}, args.plot)
     doc.pop("_cloud")
     if args.json:
-        print(json.dumps(doc, indent=2, default=_json_default))
+        print(json.dumps(doc, indent=2, default=json_default))
     else:
         print_front(doc)
         if args.plot is not None:

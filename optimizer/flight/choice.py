@@ -43,7 +43,7 @@ def meet_roll_rise(result: SelectionResult, catalog: Any, objective: Objective,
             raise RequestError(f"--max-roll-rise-ms: the flight model flies N = 4, 6 or 8, "
                                f"not {d.actuators}")
     if build_grid is None:
-        from optimizer.model import evaluate_grid as build_grid
+        from optimizer.design_model import evaluate_grid as build_grid
     grids = {d.actuators: build_grid(catalog, d.actuators, requirements.payload_kg)
              for d in result.designs}
     oks = {n: _feasible(g, (*g.checks, *requirements.checks(g))) for n, g in grids.items()}

@@ -1,6 +1,6 @@
 """A catalog design as something to fly: its vehicle, its actuator model, its report.
 
-The numbers come from the optimizer's own model grid (``optimizer.model.evaluate_grid``,
+The numbers come from the optimizer's own model grid (``optimizer.design_model.evaluate_grid``,
 with measured overrides when the grid was built with them), so the flight model and
 ``evaluate`` agree on mass, inertia, hover speed and time constant. Measured actuator
 numbers, where a ``MeasuredActuator`` carries them, replace the model's: rising and

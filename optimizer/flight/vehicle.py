@@ -18,7 +18,7 @@ Like Paper B, the reaction torque of accelerating rotors and rotor gyroscopic to
 are neglected. Integration: ``step``, second order, with the rotor thrusts held over a
 tick.
 
-Design parameters come from the optimizer's model (``optimizer.model.evaluate_grid``):
+Design parameters come from the optimizer's model (``optimizer.design_model.evaluate_grid``):
 take-off mass, roll and pitch inertia (E.58-E.59), arm length (D.4), hover speed; rotor
 constants k_f = C_t rho D^4 / (2 pi)^2 and k_m = C_p rho D^5 / (2 pi)^3 follow from
 (E.1)-(E.3) via ``optimizer.physics``. The yaw inertia is roll + pitch (perpendicular-axis
@@ -108,12 +108,9 @@ class Vehicle:
 
 
 def rotor_constants(ct: float, cp: float, rho: float, diameter_m: float) -> tuple[float, float]:
-    """k_f, k_m with F = k_f omega^2, Q = k_m omega^2 from (E.1)-(E.3) at omega = 1 rad/s."""
-    n_one = 1.0 / physics.TWO_PI  # rev/s at 1 rad/s
-    k_f = float(physics.thrust_n(ct, rho, n_one, diameter_m))
-    k_m = float(physics.hover_torque_nm(physics.propeller_power_w(cp, rho, n_one, diameter_m),
-                                        n_one))
-    return k_f, k_m
+    """k_f, k_m with F = k_f omega^2, Q = k_m omega^2 from (E.1)-(E.3)."""
+    return (float(physics.thrust_per_omega2(ct, rho, diameter_m)),
+            float(physics.torque_per_omega2(cp, rho, diameter_m)))
 
 
 def vehicle_from_grid(catalog: Any, grid: Any, index: tuple[int, int, int],

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from bench.cli import main
-from bench.commands.constants import load_measured
 from bench.constants_store import ConstantsStore
 from bench.errors import RigError
+from bench.measured_constants import load_measured
 from bench.rig import default_rig_path, load_rig
 from bench.runner import RunOptions
 from bench.sequences import hover_band_n, step1, sweep

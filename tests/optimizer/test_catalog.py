@@ -11,8 +11,8 @@ import pandas as pd
 import pytest
 
 from optimizer.catalog import Catalog, load_catalog
-from optimizer.constants import ModelConstants
 from optimizer.errors import CatalogError
+from optimizer.model_constants import ModelConstants
 
 ROOT = Path(__file__).resolve().parents[2]
 THESIS_E = ROOT / "fixtures" / "catalogs" / "thesis-e"

@@ -9,9 +9,9 @@ import pytest
 
 from bench.cli import main
 from optimizer.catalog import load_catalog
+from optimizer.design_model import evaluate_grid
 from optimizer.flight.design import setup
 from optimizer.measured import MeasuredActuator
-from optimizer.model import evaluate_grid
 from tests.conftest import FIXTURES
 
 CASE_I = ["--actuators", "4", "--propeller", "P4", "--motor", "M1", "--battery", "B3"]
@@ -59,7 +59,7 @@ def test_measured_actuator_numbers_reach_the_flight_model() -> None:
 
 
 def test_step_run_is_fitted_on_the_fly(capsys, tmp_path) -> None:
-    from bench.commands.constants import fit_for_store
+    from bench.constants_fit import fit_for_store
     from bench.rig import default_rig_path, load_rig
     from bench.runner import RunOptions
     from bench.sequences import hover_band_n, step1

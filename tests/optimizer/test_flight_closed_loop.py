@@ -9,12 +9,12 @@ import pytest
 from scipy import signal
 
 from optimizer.catalog import load_catalog
+from optimizer.design_model import design_record, evaluate_grid
 from optimizer.flight.controller import closed_loop, phase_margins
 from optimizer.flight.design import fly_report, gains_for, setup
 from optimizer.flight.maneuvers import MANEUVERS, fly
 from optimizer.flight.metrics import step_metrics
 from optimizer.flight.ranking import rank
-from optimizer.model import design_record, evaluate_grid
 from optimizer.objectives import single
 from optimizer.selection import optimize
 from tests.conftest import FIXTURES

@@ -7,8 +7,8 @@ import pytest
 
 from bench.cli import main
 from optimizer.catalog import load_catalog
+from optimizer.design_model import evaluate_design, evaluate_grid, single_design_catalog
 from optimizer.flyable import RULE_NAMES, FlyableBuilder, Rules, rule_checks, rule_of
-from optimizer.model import evaluate_design, evaluate_grid, single_design_catalog
 from optimizer.objectives import single
 from optimizer.selection import optimize
 from optimizer.sheet import design_sheet

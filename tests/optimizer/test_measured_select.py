@@ -12,9 +12,9 @@ import pytest
 from bench.cli import main
 from bench.constants_store import ActuatorKey, ConstantsStore
 from optimizer.catalog import load_catalog
+from optimizer.design_model import MODEL_SOURCES, design_sources, evaluate_design, evaluate_grid
 from optimizer.errors import RequestError
 from optimizer.measured import MeasuredActuator
-from optimizer.model import MODEL_SOURCES, design_sources, evaluate_design, evaluate_grid
 from optimizer.objectives import single
 from optimizer.selection import Requirements, optimize
 

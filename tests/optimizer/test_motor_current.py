@@ -14,8 +14,8 @@ import pandas as pd
 import pytest
 
 from optimizer.catalog import Catalog, load_catalog
+from optimizer.design_model import evaluate_design, evaluate_grid
 from optimizer.errors import CatalogError
-from optimizer.model import evaluate_design, evaluate_grid
 from optimizer.objectives import single
 from optimizer.selection import Requirements, optimize
 

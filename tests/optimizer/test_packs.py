@@ -8,8 +8,8 @@ import pytest
 
 from bench.cli import main
 from optimizer.catalog import Catalog, load_catalog
+from optimizer.design_model import evaluate_grid
 from optimizer.errors import RequestError
-from optimizer.model import evaluate_grid
 from optimizer.objectives import single
 from optimizer.packs import cells_of, optimize_packs, pack_frame, parse_counts, with_packs
 

@@ -61,7 +61,7 @@ def test_thesis_e_four_actuators_front(capsys, tmp_path) -> None:
 
 def test_merged_front_over_actuator_counts_is_not_dominated(capsys, fixtures_dir) -> None:
     from optimizer.catalog import load_catalog
-    from optimizer.model import evaluate_grid
+    from optimizer.design_model import evaluate_grid
 
     cat_dir = fixtures_dir / "catalogs" / "thesis-d"
     doc = run(capsys, "--catalog", str(cat_dir), "--x", "price", "--y", "flight-time",

@@ -11,7 +11,7 @@ import pytest
 
 from bench.cli import main
 from optimizer.catalog import load_catalog
-from optimizer.model import evaluate_grid
+from optimizer.design_model import evaluate_grid
 from optimizer.propdata import catalog_curves, load_curves, match, match_report
 
 

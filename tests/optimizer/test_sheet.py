@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from bench.cli import main
-from optimizer import performance as perf
+from optimizer import operating_points as ops
 from optimizer import physics
 from optimizer.catalog import load_catalog
-from optimizer.model import evaluate_design, single_design_catalog
+from optimizer.design_model import evaluate_design, single_design_catalog
 from optimizer.sheet import design_sheet, drive_of
 
 CASE_I = ("P4", "M1", "B3")  # Case I's best thesis-e design, 4 actuators (Table E.8)
@@ -73,7 +73,7 @@ def test_lossless_motor_matches_the_thesis_current(fixtures_dir) -> None:
 def test_full_throttle_is_the_motor_steady_state(fixtures_dir) -> None:
     cat = load_catalog(fixtures_dir / "catalogs" / "thesis-e")
     drive = drive_of(cat)
-    op = perf.at_throttle(drive, 1.0, 12.0)
+    op = ops.at_throttle(drive, 1.0, 12.0)
     omega = op.rpm / 60 * physics.TWO_PI
     # V = K_e omega + R I with I = Q / K_t (E.4)-(E.7), Q = W / omega (E.3)
     torque = op.shaft_power_w / omega

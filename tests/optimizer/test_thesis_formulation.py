@@ -9,8 +9,8 @@ import pandas as pd
 import pytest
 
 from optimizer.catalog import Catalog, load_catalog
+from optimizer.design_model import evaluate_grid
 from optimizer.errors import RequestError
-from optimizer.model import evaluate_grid
 from optimizer.thesis_formulation import (
     THESIS_REGIONS,
     THESIS_VARIABLE_COUNTS,

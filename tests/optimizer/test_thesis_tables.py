@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from optimizer.catalog import load_catalog
-from optimizer.model import evaluate_design
+from optimizer.design_model import evaluate_design
 
 # (table, N_a, payload kg, propeller, motor, battery, time constant ms, flight time min, price)
 PAPER_E = [

@@ -3,7 +3,11 @@
 ``evaluate_grid`` fills an ``optimizer.grid.DesignGrid`` for one actuator count and
 payload with numpy broadcasting over the axes (P, M, B); ``evaluate_design`` reads one
 design out of it. The physics is Papers D and E (see ``optimizer.physics``); the open
-readings of the printed equations are catalog constants (``optimizer.constants``).
+readings of the printed equations are catalog constants (``optimizer.model_constants``).
+One actuator's chain from its thrust to speed, power, current and time constant is
+``hover_actuator``, run by ``evaluate_grid`` on every design and by ``actuator_at_thrust``
+on one propeller and motor at any thrust (what a bench measurement is compared with).
+(Named ``design_model`` to set it apart from ``optimizer.milp_builder``, which builds MILPs.)
 
 Metric definitions (all at hover, the operating point of Paper E's flight time):
 - ``propeller_power_w``: power of one propeller, x17 (E.61-E.63).
@@ -33,7 +37,7 @@ from optimizer.catalog import Catalog
 from optimizer.errors import RequestError
 from optimizer.grid import METRIC_KEYS, Check, DesignGrid
 from optimizer.measured import MeasuredActuator, select_overrides
-from optimizer.performance import Coefficients, speed_for_thrust
+from optimizer.operating_points import Coefficients, speed_for_thrust
 
 
 @dataclass(frozen=True)
@@ -100,6 +104,73 @@ def battery_voltage_v(catalog: Catalog) -> np.ndarray:
     return np.where(np.isnan(nominal), cells * c.cell_voltage_nominal_v, nominal)
 
 
+@dataclass(frozen=True)
+class HoverActuator:
+    """One actuator (or a grid of them, arrays broadcast) delivering a thrust: Paper E's
+    chain from the thrust to the speed, power, currents and time constant."""
+
+    n_rev_s: Any  # (E.20) speed, rev/s
+    ct: Any  # C_t at that speed (the constant without measured coefficients)
+    cp: Any  # C_p at that speed
+    propeller_power_w: Any  # (E.60)-(E.63) x17
+    current_a: Any  # (E.67) battery current per actuator, x18 / N_a
+    torque_nm: Any  # (E.3) shaft torque Q = W / omega
+    winding_current_a: Any  # (E.5)-(E.7) Q / K_t + I_0
+    time_constant_s: Any  # (E.34)-(E.35)
+
+
+def hover_actuator(thrust_n: Any, ct: Any, cp: Any, rho: float, diameter_m: Any,
+                   resistance_ohm: Any, inertia_kgm2: Any, kt: Any, voltage_v: Any,
+                   no_load_current_a: Any = 0.0,
+                   coefficients: Coefficients | None = None) -> HoverActuator:
+    """Paper E's actuator at ``thrust_n``: (E.20) speed, (E.60)-(E.63) power, (E.67)
+    current, (E.3), (E.5)-(E.7) torque and winding current, (E.34)-(E.35) time constant.
+
+    The one home of that chain: ``evaluate_grid`` runs it on the whole design grid,
+    ``actuator_at_thrust`` on one propeller and motor (the demo's model column).
+    ``coefficients`` (rpm -> C_t, C_p) replace the constant coefficients at the speed.
+    """
+    n_rev_s, ct, cp = speed_for_thrust(thrust_n, ct, cp, rho, diameter_m, coefficients)
+    power = physics.propeller_power_w(cp, rho, n_rev_s, diameter_m)  # (E.60)-(E.63)
+    torque = physics.hover_torque_nm(power, n_rev_s)  # (E.3) Q = W / omega
+    damping = physics.propeller_damping(cp, rho, n_rev_s, diameter_m)  # (E.34)
+    return HoverActuator(
+        n_rev_s=n_rev_s, ct=ct, cp=cp, propeller_power_w=power,
+        current_a=power / voltage_v,  # (E.67): x18 / N_a per actuator
+        torque_nm=torque,
+        winding_current_a=physics.winding_current_a(torque, kt, no_load_current_a),
+        time_constant_s=physics.time_constant_s(resistance_ohm, inertia_kgm2, kt, damping),
+    )
+
+
+@dataclass(frozen=True)
+class ActuatorPoint:
+    """The model's numbers of one propeller on one motor at a thrust and supply voltage."""
+
+    thrust_n: float
+    voltage_v: float
+    hover: HoverActuator
+    top_thrust_n: float  # (E.1) at the full-throttle speed of (E.4)-(E.7)
+
+
+def actuator_at_thrust(catalog: Catalog, propeller: int, motor: int, thrust_n: float,
+                       voltage_v: float) -> ActuatorPoint:
+    """The datasheet model of propeller ``propeller`` on motor ``motor`` (catalog indices)
+    at ``thrust_n`` per actuator on ``voltage_v``: what a bench measurement of that
+    actuator is compared with (the demo's "measured vs datasheet model" table)."""
+    c = catalog.constants
+    rho = c.air_density_kg_m3
+    prop, mot = catalog.propellers.iloc[propeller], catalog.motors.iloc[motor]
+    d, ct, cp = (float(prop[k]) for k in ("diameter_m", "ct", "cp"))
+    kt = physics.torque_constant(float(mot["kv_rad_s_per_v"]))
+    r = float(mot["resistance_ohm"])
+    inertia = propeller_inertia_kgm2(catalog)[propeller] + motor_inertia_kgm2(catalog)[motor]
+    no_load = float(np.nan_to_num(float(mot["no_load_current_a"]), nan=0.0))
+    hover = hover_actuator(thrust_n, ct, cp, rho, d, r, inertia, kt, voltage_v, no_load)
+    top = physics.full_throttle_thrust_n(voltage_v, kt, r, ct, cp, rho, d)
+    return ActuatorPoint(float(thrust_n), float(voltage_v), hover, float(top))
+
+
 def evaluate_grid(
     catalog: Catalog,
     n_actuators: int,
@@ -146,16 +217,12 @@ def evaluate_grid(
     # (E.16)-(E.17) total weight; (E.19) plus payload m_L.
     total_mass = n * actuator_mass + frame + m_batt + payload
     hover_thrust = total_mass * g / n  # (E.19)-(E.20), per propeller
-    ct_const, cp_const = ct, cp
-    # (E.20); with measured coefficients C_t(rpm), C_p(rpm) at the hover speed
-    n_rev_s, ct, cp = speed_for_thrust(hover_thrust, ct, cp, rho, diameter, coefficients)
-    prop_power = physics.propeller_power_w(cp, rho, n_rev_s, diameter)  # (E.60)-(E.63)
-    actuator_current = prop_power / voltage  # (E.67): x18 / N_a per actuator
-    torque = physics.hover_torque_nm(prop_power, n_rev_s)  # (E.3) Q = W / omega
     no_load = np.nan_to_num(m_("no_load_current_a"), nan=0.0)  # I_0, 0 where not given
-    winding_current = physics.winding_current_a(torque, kt, no_load)  # (E.5)-(E.7)
-    damping = physics.propeller_damping(cp, rho, n_rev_s, diameter)  # (E.34)
-    tau = physics.time_constant_s(resistance, j_total, kt, damping)  # (E.35)
+    hover = hover_actuator(hover_thrust, ct, cp, rho, diameter, resistance, j_total, kt,
+                           voltage, no_load, coefficients)
+    n_rev_s, prop_power, torque = hover.n_rev_s, hover.propeller_power_w, hover.torque_nm
+    actuator_current, winding_current = hover.current_a, hover.winding_current_a
+    tau = hover.time_constant_s
     shape = (len(props), len(mots), len(bats))
     tau = np.broadcast_to(tau, shape)
     actuator_current = np.broadcast_to(actuator_current, shape)
@@ -226,10 +293,8 @@ def evaluate_grid(
         "motor_current_a": winding_current,
     }
     if c.min_thrust_to_weight is not None:
-        omega_max = physics.full_throttle_speed_rad_s(
-            voltage, kt, resistance, cp_const, rho, diameter
-        )
-        max_thrust = physics.thrust_n(ct_const, rho, omega_max / physics.TWO_PI, diameter)
+        max_thrust = physics.full_throttle_thrust_n(voltage, kt, resistance, ct, cp, rho,
+                                                    diameter)
         ratio = full(max_thrust / hover_thrust)
         extras["thrust_to_weight"] = ratio
         checks.append(
@@ -472,8 +537,3 @@ def design_sources(grid: ModelGrid, i: int, j: int, k: int) -> dict[str, str]:
         )
     return out
 
-
-# Earlier names, kept for modules that imported them.
-_propeller_inertia = propeller_inertia_kgm2
-_motor_inertia = motor_inertia_kgm2
-_battery_voltage = battery_voltage_v

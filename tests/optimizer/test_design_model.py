@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from optimizer.catalog import load_catalog
+from optimizer.design_model import evaluate_design, evaluate_grid
 from optimizer.errors import RequestError
 from optimizer.grid import METRIC_KEYS
-from optimizer.model import evaluate_design, evaluate_grid
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -296,3 +296,40 @@ def test_random_catalogs_obey_the_model_invariants():
         assert d["feasible"] == bool(light.feasible()[i, j, k])
 
     check()
+
+
+def test_actuator_at_thrust_is_the_grid_chain(cat):
+    """The demo's model column (one propeller and motor at a given thrust) is the grid's
+    own chain: at a design's hover thrust it gives that design's time constant, current
+    per actuator and hover speed, bit for bit."""
+    from optimizer.design_model import actuator_at_thrust, battery_voltage_v
+
+    g = evaluate_grid(_with(cat, min_thrust_to_weight=1.0), 6, 0.5)
+    k = 2
+    volt = float(battery_voltage_v(cat)[k])
+    for i, j in ((0, 0), (3, 2), (1, 1)):
+        thrust = float(g.extras["hover_thrust_n"][i, j, k])
+        point = actuator_at_thrust(cat, i, j, thrust, volt)
+        assert point.hover.time_constant_s * 1e3 == g.metrics["time_constant_ms"][i, j, k]
+        assert point.hover.current_a * 6 == pytest.approx(g.metrics["current_a"][i, j, k],
+                                                          rel=1e-15)
+        assert point.hover.n_rev_s * 60.0 == g.metrics["hover_rpm"][i, j, k]
+        assert point.hover.winding_current_a == g.extras["motor_current_a"][i, j, k]
+        ratio = g.extras["thrust_to_weight"][i, j, k]
+        assert point.top_thrust_n == pytest.approx(ratio * thrust, rel=1e-14)
+
+
+def test_top_thrust_is_the_drive_at_full_throttle(cat):
+    """``top_thrust_n`` (E.1 at the full-throttle speed) agrees with the eCalc-style drive
+    model at 100 % throttle, an independent path through ``optimizer.operating_points``."""
+    from optimizer import operating_points as ops
+    from optimizer.design_model import actuator_at_thrust
+
+    point = actuator_at_thrust(cat, 3, 0, 2.0, 11.1)
+    prop, mot = cat.propellers.iloc[3], cat.motors.iloc[0]
+    drive = ops.Drive(ct=prop["ct"], cp=prop["cp"], diameter_m=prop["diameter_m"],
+                       kt=1.0 / mot["kv_rad_s_per_v"], resistance_ohm=mot["resistance_ohm"],
+                       no_load_current_a=0.0, rho=cat.constants.air_density_kg_m3)
+    full = ops.at_throttle(drive, 1.0, 11.1)
+    assert point.top_thrust_n == pytest.approx(float(full.thrust_n), rel=1e-12)
+    assert point.voltage_v == 11.1 and point.thrust_n == 2.0

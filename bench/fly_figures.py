@@ -1,5 +1,10 @@
-"""Figures of ``rotorbench fly``: maneuver responses (like Paper B Figs. B.6-B.8) and the
-time-constant ranking scatter."""
+"""Figures of a flown design: maneuver responses (like Paper B Figs. B.6-B.8) and the
+time-constant ranking scatter.
+
+Drawn for ``rotorbench fly --plot`` and by docs/flight_figures.py; beside
+``bench.sizing_figures`` (the figures of ``evaluate`` and ``pareto``) so no command owns
+what another script needs.
+"""
 
 from __future__ import annotations
 
@@ -12,7 +17,8 @@ import numpy as np
 AXIS = {"roll": (0, "roll (deg)"), "pitch": (1, "pitch (deg)"), "yaw": (2, "yaw (deg)")}
 
 
-def _pyplot() -> Any:
+def pyplot() -> Any:
+    """matplotlib.pyplot on the Agg backend (files only, no display needed)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -23,7 +29,7 @@ def _pyplot() -> Any:
 
 def maneuver_figures(flights: dict[str, Any], vehicle: Any, out: Path) -> list[Path]:
     """One PNG per maneuver: the commanded axis against its setpoint, and rotor speeds."""
-    plt = _pyplot()
+    plt = pyplot()
     out.mkdir(parents=True, exist_ok=True)
     paths = []
     rpm = 60.0 / (2.0 * math.pi)
@@ -64,7 +70,7 @@ def maneuver_figures(flights: dict[str, Any], vehicle: Any, out: Path) -> list[P
 
 def ranking_scatter(ranking: Any, out: Path, catalog_name: str) -> Path:
     """Time constant against closed-loop roll rise time, one point per design."""
-    plt = _pyplot()
+    plt = pyplot()
     out.mkdir(parents=True, exist_ok=True)
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
     ok = [r for r in ranking.rows if not r.note and r.rise_time_ms is not None]

@@ -24,7 +24,7 @@ MOTOR_CURRENT_CHOICES = ("winding", "battery")
 
 @dataclass(frozen=True)
 class ModelConstants:
-    """Physical constants and model readings used by ``optimizer.model``.
+    """Physical constants and model readings used by ``optimizer.design_model``.
 
     Defaults are the readings that reproduce Paper E's Tables E.8-E.10 (see
     docs/thesis-reproduction.md), except ``price_includes_propellers`` which follows
