@@ -16,7 +16,17 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-__all__ = ["ImuCalibration", "imu_rig_info"]
+__all__ = ["ImuCalibration", "commanded_pose", "imu_rig_info"]
+
+
+def commanded_pose(seg: Any, t_s: float) -> list[float]:
+    """The pose (x, y, z m, roll, pitch, yaw rad) the segment's motion commands at plan
+    time ``t_s``; the home pose outside a motion (holds, pivot changes)."""
+    motion = getattr(seg, "motion", None)
+    if motion is None:
+        return [0.0] * 6
+    pose, _, _ = motion.evaluate(t_s - seg.t_start_s)
+    return [float(v) for v in pose[0]]
 
 
 def imu_rig_info(rig: Any) -> dict[str, Any]:
@@ -44,7 +54,8 @@ class ImuCalibration:
 
     def _on_progress(self, t: float, total: float, seg: Any) -> None:
         self.progress.update(t=t, total=total, phase=seg.phase, label=seg.label,
-                             peaks={k: round(float(v), 4) for k, v in seg.peaks.items()})
+                             peaks={k: round(float(v), 4) for k, v in seg.peaks.items()},
+                             pose=commanded_pose(seg, t))
         lost = self.lost()
         if lost is not None and not self.stop.is_set():
             self.lost_reason = lost

@@ -1,6 +1,7 @@
 """The IMU tab: on an IMU-bench rig, start or abort a Paper A calibration and follow its
-stages (stage, phase, the hexapod motion and its peaks, progress); the IMU-bench runs
-recorded under the output folder and the newest calibration result."""
+stages (stage, phase, the hexapod motion and its peaks, progress, and the hexapod's pose
+drawn front and side); the IMU-bench runs recorded under the output folder and the newest
+calibration result."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ from typing import Any
 
 from pyqtgraph.Qt import QtCore, QtWidgets
 
+from bench.console.pose_view import PoseView
 from bench.run_index import RunIndex
 
 __all__ = ["ImuTab"]
@@ -45,6 +47,7 @@ class ImuTab(QtWidgets.QWidget):
         self.progress = QtWidgets.QProgressBar()
         self.stage_label = QtWidgets.QLabel("no calibration running")
         self.stage_label.setWordWrap(True)
+        self.pose_view = PoseView()
         buttons = QtWidgets.QHBoxLayout()
         for b in (self.quick_button, self.full_button, self.abort_button):
             buttons.addWidget(b)
@@ -58,6 +61,7 @@ class ImuTab(QtWidgets.QWidget):
         layout.addWidget(self.info)
         layout.addLayout(buttons)
         layout.addWidget(self.stage_label)
+        layout.addWidget(self.pose_view, 1)
         layout.addWidget(QtWidgets.QLabel("IMU-bench runs (hexapod stages)"))
         layout.addWidget(self.table, 1)
         layout.addWidget(QtWidgets.QLabel("newest calibration result"))
@@ -83,6 +87,8 @@ class ImuTab(QtWidgets.QWidget):
         p = state.get("imu")
         if not p:
             return
+        if p.get("pose") is not None:
+            self.pose_view.show_pose(p["pose"])
         total = p["total"] or 1.0
         self.progress.setValue(int(100 * p["t"] / total))
         peaks = ", ".join(f"{k} {v:g}" for k, v in (p.get("peaks") or {}).items())
