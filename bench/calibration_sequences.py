@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from bench.errors import RigError
-from drivers.hexapod_contracts import HexapodLimits, limit_violations
+from drivers.contracts import HexapodLimits, limit_violations
 from drivers.hexapod_kinematics import body_frame_state, motion_peaks
 from drivers.hexapod_motions import (
     Motion,

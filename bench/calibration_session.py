@@ -32,7 +32,7 @@ from bench.errors import RigError
 from bench.hexapod_runner import RECORD_BASE, HexapodRunner, HexapodRunOptions, ImuBenchLike
 from bench.indexed_run import indexed_run
 from bench.run_loop import RunResult
-from drivers.hexapod_contracts import Trajectory
+from drivers.contracts import Trajectory
 
 __all__ = ["CalibrationRun", "StageOutcome", "collect_log", "plans_for", "run_calibration",
            "run_stage"]
@@ -126,7 +126,7 @@ def run_calibration(rig: Any, out_root: Path, *, quick: bool = False, seed: int 
                     extra_meta: Mapping[str, Any] | None = None) -> CalibrationRun:
     """Run every stage (Paper A by default) on the rig; see module docstring."""
     if open_bench is None:
-        from drivers.imu_factory import open_imu_rig as open_bench
+        from drivers.factory import open_rig as open_bench
     rate = rig.imu.value("rate_hz")
     seqs = list(sequences) if sequences is not None else paper_a_sequences(rate, quick)
     plans = plans_for(rig, seqs)  # every stage checked before anything moves

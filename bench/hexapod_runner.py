@@ -34,19 +34,21 @@ from bench.recorder import RunRecorder
 from bench.run_loop import SafeRunLoop
 from bench.safety import Trip
 from bench.watchdog import HostWatchdog, WatchdogTrip
-from drivers.contracts import Block, Clock, Sensor
-from drivers.errors import DeviceError
-from drivers.hexapod_contracts import (
+from drivers.contracts import (
     ACCELERATION_CHANNELS,
     BODY_CHANNELS,
     IMU_CHANNELS,
     POSE_CHANNELS,
     REFERENCE_IMU_CHANNELS,
     VELOCITY_CHANNELS,
+    Block,
+    Clock,
     Hexapod,
     HexapodLimits,
+    Sensor,
     Trajectory,
 )
+from drivers.errors import DeviceError
 
 __all__ = ["RECORD_BASE", "GuardedHexapod", "HexapodRunOptions", "HexapodRunner",
            "HexapodSupervisor", "ImuBenchLike"]
@@ -55,7 +57,7 @@ RECORD_BASE = ("t_s", "phase", "step")
 
 
 class ImuBenchLike(Protocol):
-    """What the runner needs of ``drivers.imu_factory.OpenImuRig``."""
+    """What the runner needs of ``drivers.factory.OpenRig`` (an IMU bench)."""
 
     clock: Clock
     hexapod: Hexapod

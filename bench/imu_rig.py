@@ -24,7 +24,7 @@ from typing import Any
 from bench.errors import RigError
 from bench.rig import REPO, URL_SCHEMES, DeviceConfig
 from bench.rig_table import RigTable, read_rig_toml
-from drivers.hexapod_contracts import HexapodLimits
+from drivers.contracts import HexapodLimits
 from drivers.sim.imu import ImuModel
 
 __all__ = ["ImuRigConfig", "default_imu_rig_path", "is_imu_rig", "load_imu_rig"]

@@ -11,7 +11,7 @@ import pytest
 from bench.calibration_session import run_calibration
 from bench.imu_rig import load_imu_rig
 from drivers.errors import DeviceError
-from drivers.imu_factory import open_imu_rig
+from drivers.factory import open_rig as open_imu_rig
 
 REPO = Path(__file__).resolve().parents[2]
 RIG = load_imu_rig(REPO / "fixtures" / "rigs" / "sim-imu-tcp.toml")

@@ -14,11 +14,10 @@ from bench.calibration_sequences import CalibrationSequence, Move, Rest, SetPivo
 from bench.calibration_session import run_stage
 from bench.hexapod_runner import HexapodRunOptions
 from bench.imu_rig import default_imu_rig_path, load_imu_rig
-from drivers.contracts import Fault
+from drivers.contracts import Fault, HexapodLimits
 from drivers.errors import DeviceError
-from drivers.hexapod_contracts import HexapodLimits
+from drivers.factory import open_rig as open_imu_rig
 from drivers.hexapod_motions import gyro_sines
-from drivers.imu_factory import open_imu_rig
 
 RIG = load_imu_rig(default_imu_rig_path())
 SEQ = CalibrationSequence("cal_test", (SetPivot(), Rest(0.5, "gyro"),

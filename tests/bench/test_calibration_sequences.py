@@ -19,7 +19,7 @@ from bench.calibration_sequences import (
     paper_a_sequences,
 )
 from bench.errors import RigError
-from drivers.hexapod_contracts import HexapodLimits
+from drivers.contracts import HexapodLimits
 from drivers.hexapod_motions import gyro_sines, lever_arm_motion
 
 LIMITS = HexapodLimits()

@@ -20,8 +20,8 @@ from bench.hexapod_runner import HexapodRunOptions
 from bench.imu_rig import load_imu_rig
 from drivers.backends.pi_hexapod import PiHexapod
 from drivers.errors import DeviceError
+from drivers.factory import open_rig as open_imu_rig
 from drivers.hexapod_motions import gyro_sines
-from drivers.imu_factory import open_imu_rig
 
 REPO = Path(__file__).resolve().parents[2]
 TCP_RIG_PATH = REPO / "fixtures" / "rigs" / "sim-imu-tcp.toml"

@@ -27,10 +27,10 @@ from bench.calibration_session import run_stage
 from bench.cli import main
 from bench.hexapod_runner import HexapodRunOptions
 from bench.imu_rig import load_imu_rig
+from drivers.contracts import POSE_CHANNELS
 from drivers.errors import DeviceError
-from drivers.hexapod_contracts import POSE_CHANNELS
+from drivers.factory import open_rig as open_imu_rig
 from drivers.hexapod_motions import gyro_sines
-from drivers.imu_factory import open_imu_rig
 
 pytestmark = pytest.mark.slow  # the module's calibration through the wire takes ~55 s
 

@@ -9,10 +9,10 @@ import pytest
 
 from bench.cli import main
 from bench.imu_rig import load_imu_rig
-from drivers.hexapod_contracts import Trajectory
+from drivers.check import hexapod_answer as _hexapod_answer
+from drivers.contracts import Trajectory
+from drivers.factory import open_rig as open_imu_rig
 from drivers.hexapod_motions import gyro_sines
-from drivers.imu_factory import open_imu_rig
-from drivers.imu_rig_check import _hexapod_answer
 
 RIGS = Path(__file__).resolve().parents[2] / "fixtures" / "rigs"
 

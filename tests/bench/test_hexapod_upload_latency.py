@@ -16,10 +16,10 @@ import pytest
 from bench.calibration_sequences import CalibrationSequence, Move, Rest, SetPivot, compile_plan
 from bench.hexapod_runner import HexapodRunner, HexapodRunOptions
 from bench.imu_rig import default_imu_rig_path, load_imu_rig
+from drivers.contracts import POSE_CHANNELS
 from drivers.errors import DeviceError
-from drivers.hexapod_contracts import POSE_CHANNELS
+from drivers.factory import open_rig as open_imu_rig
 from drivers.hexapod_motions import lever_arm_motion
-from drivers.imu_factory import open_imu_rig
 
 RIG = load_imu_rig(default_imu_rig_path())
 MOVES = (lever_arm_motion("x", duration_s=4.0), lever_arm_motion("y", duration_s=4.0))

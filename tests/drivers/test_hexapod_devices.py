@@ -9,19 +9,22 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from bench.imu_rig import default_imu_rig_path, load_imu_rig
-from drivers.contracts import Block, DeviceInfo, Fault, Sensor
-from drivers.errors import DeviceError
-from drivers.hexapod_contracts import (
+from drivers.contracts import (
     HEXAPOD_LOG_CHANNELS,
     IMU_CHANNELS,
     REFERENCE_IMU_CHANNELS,
+    Block,
+    DeviceInfo,
+    Fault,
     Hexapod,
     HexapodLimitError,
     HexapodLimits,
+    Sensor,
     Trajectory,
 )
+from drivers.errors import DeviceError
+from drivers.factory import open_rig as open_imu_rig
 from drivers.hexapod_motions import gyro_sines, lever_arm_motion, verification_motion
-from drivers.imu_factory import open_imu_rig
 from drivers.sim.hexapod import SimHexapod
 
 

@@ -12,12 +12,13 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from bench.imu_rig import load_imu_rig
+from drivers.backends.gx3_imu import Gx3Reference
+from drivers.backends.msp_fc import MspImuSensor
 from drivers.codecs import gx3
-from drivers.contracts import Block
+from drivers.contracts import IMU_CHANNELS, REFERENCE_IMU_CHANNELS, Block, Trajectory
 from drivers.errors import DeviceError
-from drivers.hexapod_contracts import IMU_CHANNELS, REFERENCE_IMU_CHANNELS, Trajectory
-from drivers.imu_factory import open_imu_rig
-from drivers.imu_wire import Gx3Reference, MspImuSensor, PacedClock
+from drivers.factory import open_rig as open_imu_rig
+from drivers.wire_sim.paced_clock import PacedClock
 
 REPO = Path(__file__).resolve().parents[2]
 WIRE_RIG = REPO / "fixtures" / "rigs" / "sim-imu-wire.toml"

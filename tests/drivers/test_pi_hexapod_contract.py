@@ -17,16 +17,16 @@ import pytest
 from bench.imu_rig import load_imu_rig
 from drivers.backends.pi_hexapod import GcsDialect, PiHexapod
 from drivers.codecs import gcs
-from drivers.contracts import DeviceInfo
-from drivers.errors import DeviceError
-from drivers.hexapod_contracts import (
+from drivers.contracts import (
     HEXAPOD_LOG_CHANNELS,
+    DeviceInfo,
     Hexapod,
     HexapodLimitError,
     Trajectory,
 )
+from drivers.errors import DeviceError
+from drivers.factory import open_rig as open_imu_rig
 from drivers.hexapod_motions import gyro_sines, lever_arm_motion, verification_motion
-from drivers.imu_factory import open_imu_rig
 from drivers.sim.hexapod import SimHexapod
 
 REPO = Path(__file__).resolve().parents[2]
