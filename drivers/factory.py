@@ -86,13 +86,24 @@ class OpenRig:
     raise_close_errors: bool = True
     close_errors: list[str] = field(default_factory=list)
 
+    def __post_init__(self) -> None:
+        self._sensor_roles = [r for r, d in self.devices.items() if isinstance(d, Sensor)]
+
     @property
     def esc(self) -> Esc:
         return self.devices["esc"]
 
+    @esc.setter
+    def esc(self, dev: Esc) -> None:  # a wrapper around the device (tests, instruments)
+        self.devices["esc"] = dev
+
     @property
     def hexapod(self) -> Hexapod:
         return self.devices["hexapod"]
+
+    @hexapod.setter
+    def hexapod(self, dev: Hexapod) -> None:
+        self.devices["hexapod"] = dev
 
     @property
     def imu(self) -> Sensor:
@@ -104,8 +115,13 @@ class OpenRig:
 
     @property
     def sensors(self) -> dict[str, Sensor]:
-        """Every device that hands out sample blocks, by role."""
-        return {role: d for role, d in self.devices.items() if isinstance(d, Sensor)}
+        """Every device that hands out sample blocks (a ``Sensor`` when opened), by role."""
+        return {role: self.devices[role] for role in self._sensor_roles}
+
+    @sensors.setter
+    def sensors(self, sensors: dict[str, Sensor]) -> None:
+        self.devices.update(sensors)
+        self._sensor_roles = list(sensors)
 
     def truth(self) -> PlantTruth | None:
         if self.wire is not None and hasattr(self.wire, "plant"):
