@@ -7,6 +7,7 @@ may share a board or a VESC: same options, one port):
   IMU under test);
 - ``vesc``: a VESC's USB/UART port, the ESC role and the power / rpm roles (GET_VALUES);
 - ``loadcell``: a line-printing load-cell board, the sensor roles;
+- ``kiss``: KISS / BLHeli_32 ESC telemetry (10-byte frames), the power and rpm roles;
 - ``gx3``: a 3DM-GX3-25 streaming Euler angles and rates, the reference IMU.
 
 The host ``sim`` (``serial://sim/msp``, ``serial://sim/loadcell``, ``serial://sim/gx3``...)
@@ -239,6 +240,33 @@ def loadcell_board(ctx: Any, spec: DeviceUrl) -> Sensor:
         return dev
 
     return ctx.shared_sensor(("serial", spec.host, spec.path), spec, make)
+
+
+# -- KISS / BLHeli_32 ESC telemetry -------------------------------------------------------------
+@register("serial", "kiss", ("power", "rpm"), summary="serial devices", example=EXAMPLE)
+def kiss_telemetry(ctx: Any, spec: DeviceUrl) -> Sensor:
+    """The ESC's telemetry wire (10-byte frames) as the power and rpm sources."""
+    pole_pairs = spec.integer("pole_pairs", 7, lo=1, hi=100)
+    stale_s = spec.number("stale_s", 0.5, lo=0.02, hi=60.0)
+    period_s = spec.number("period_s", 0.01, lo=0.001, hi=1.0) if spec.is_wire_sim else 0.0
+    kt = backend("kiss_telemetry", spec)
+
+    def start() -> Any:
+        def esc(plant: Any) -> Any:
+            def model() -> tuple[float, float, float]:
+                tr = plant.truth()
+                return tr.voltage_bus_v, tr.current_bus_a, tr.rpm
+
+            return kt.SimKissEsc(model, pole_pairs, period_s=period_s).start()
+
+        return plant_peer(ctx, f"serial:{_label(spec, 'kiss')}", esc)
+
+    def make() -> Sensor:
+        link, _ = port(ctx, spec, "kiss", kt.kiss.BAUD, start)
+        return kt.KissTelemetry(link, pole_pairs, clock=ctx.clock, stale_s=stale_s,
+                                url=spec.url)
+
+    return ctx.shared_sensor(("serial-kiss", spec.host, spec.path), spec, make)
 
 
 # -- 3DM-GX3-25 reference IMU --------------------------------------------------------------------
