@@ -17,6 +17,7 @@ rig's simulated world; the path names the protocol when the options do not.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -245,24 +246,35 @@ def loadcell_board(ctx: Any, spec: DeviceUrl) -> Sensor:
 # -- KISS / BLHeli_32 ESC telemetry -------------------------------------------------------------
 @register("serial", "kiss", ("power", "rpm"), summary="serial devices", example=EXAMPLE)
 def kiss_telemetry(ctx: Any, spec: DeviceUrl) -> Sensor:
-    """The ESC's telemetry wire (10-byte frames) as the power and rpm sources."""
+    """The ESC's telemetry wire (10-byte frames) as the power and rpm sources; on the host
+    ``sim`` a simulated ESC streams the plant's bus voltage, current and speed."""
     pole_pairs = spec.integer("pole_pairs", 7, lo=1, hi=100)
     stale_s = spec.number("stale_s", 0.5, lo=0.02, hi=60.0)
     period_s = spec.number("period_s", 0.01, lo=0.001, hi=1.0) if spec.is_wire_sim else 0.0
     kt = backend("kiss_telemetry", spec)
+    kiss = kt.kiss
 
     def start() -> Any:
         def esc(plant: Any) -> Any:
-            def model() -> tuple[float, float, float]:
-                tr = plant.truth()
-                return tr.voltage_bus_v, tr.current_bus_a, tr.rpm
+            from drivers.wire_sim.plant_peers import ESC_TEMPERATURE_C
+            from drivers.wire_sim.pty_sim import PtyStream
 
-            return kt.SimKissEsc(model, pole_pairs, period_s=period_s).start()
+            used = {"mah": 0.0, "t": time.monotonic()}  # the firmware's consumption count
+
+            def next_frame() -> bytes:
+                tr, now = plant.truth(), time.monotonic()
+                used["mah"] += max(tr.current_bus_a, 0.0) * (now - used["t"]) / 3.6
+                used["t"] = now
+                return kiss.encode(kiss.Telemetry(ESC_TEMPERATURE_C, tr.voltage_bus_v,
+                                                  tr.current_bus_a, used["mah"],
+                                                  tr.rpm * pole_pairs))
+
+            return PtyStream(next_frame, period_s).start()
 
         return plant_peer(ctx, f"serial:{_label(spec, 'kiss')}", esc)
 
     def make() -> Sensor:
-        link, _ = port(ctx, spec, "kiss", kt.kiss.BAUD, start)
+        link, _ = port(ctx, spec, "kiss", kiss.BAUD, start)
         return kt.KissTelemetry(link, pole_pairs, clock=ctx.clock, stale_s=stale_s,
                                 url=spec.url)
 
