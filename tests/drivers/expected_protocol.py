@@ -37,6 +37,12 @@ class ScriptedPort:
         while self.script and not self.script[0][0]:
             self._out += self.script.pop(0)[1]
 
+    def send(self, data: bytes) -> None:
+        """The device sends ``data`` now, unasked (the next part of a stream)."""
+        with self._cond:
+            self._out += data
+            self._cond.notify_all()
+
     def done(self) -> bool:
         with self._cond:
             return not self.script and not self._pending
