@@ -232,3 +232,27 @@ def test_dronecan_raw_command_frames_and_status_values(bus_pair):
                 cmds.append(r.message.cmd)
     assert any(c[2] == dc.RAW_MAX for c in cmds)  # full throttle in slot 2 (8191)
     assert cmds[-1][2] == 0  # the stop
+
+
+# -- PI GCS hexapod over TCP (the backend's wire layer) ---------------------------------------
+def test_pi_gcs_commands_error_checks_and_queries():
+    from drivers.backends.pi_hexapod import _Link
+    from drivers.codecs import gcs
+
+    sock = ep.ScriptedPort([
+        (b"MOV X 1 Y 0.5\n", b""),  # a command has no reply ...
+        (b"ERR?\n", b"0\n"),  # ... so ERR? follows it (pipython's default)
+        (b"POS?\n", b"X=1.0000 \nY=0.5000 \nZ=0.0000 \nU=0.0000 \nV=0.0000 \nW=0.0000\n"),
+        (b"ERR?\n", b"10\n"),  # after a stop: error 10
+    ])
+    link = _Link(sock, "tcp://hexapod", timeout_s=0.5)
+    link.send(gcs.mov({"X": 1.0, "Y": 0.5}))
+    link.check("MOV")
+    link.send(gcs.pos_query())
+    pos = gcs.parse_axis_values(link.reply())
+    assert pos == {"X": 1.0, "Y": 0.5, "Z": 0.0, "U": 0.0, "V": 0.0, "W": 0.0}
+    with pytest.raises(DeviceError, match=r"'WGO' failed: GCS error 10 \(stopped by command"):
+        link.check("WGO")
+    assert sock.done()
+    link.close()
+    assert sock.closed
