@@ -66,7 +66,7 @@ class DeviceContext:
             msg = str(exc)
             if msg.startswith(spec.rig_path):
                 raise
-            raise type(exc)(f"{spec.where} {spec.url!r}: {msg}") from None
+            raise DeviceError(f"{spec.where} {spec.url!r}: {msg}") from None
 
     def world(self) -> Any:
         """The rig's simulated world (built on first use)."""

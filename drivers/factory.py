@@ -23,6 +23,7 @@ Problems raise ``DeviceError`` naming the rig file, the device table and the fie
 
 from __future__ import annotations
 
+from collections.abc import Iterator, Mapping, MutableMapping
 from dataclasses import dataclass, field
 from typing import Any
 from urllib.parse import urlsplit
@@ -114,12 +115,13 @@ class OpenRig:
         return self.devices.get("reference_imu")
 
     @property
-    def sensors(self) -> dict[str, Sensor]:
-        """Every device that hands out sample blocks (a ``Sensor`` when opened), by role."""
-        return {role: self.devices[role] for role in self._sensor_roles}
+    def sensors(self) -> MutableMapping[str, Sensor]:
+        """Every device that hands out sample blocks (a ``Sensor`` when opened), by role; a
+        live view: ``rig.sensors["power"] = wrapped`` replaces the device of that role."""
+        return _Sensors(self)
 
     @sensors.setter
-    def sensors(self, sensors: dict[str, Sensor]) -> None:
+    def sensors(self, sensors: Mapping[str, Sensor]) -> None:
         self.devices.update(sensors)
         self._sensor_roles = list(sensors)
 
@@ -152,6 +154,33 @@ class OpenRig:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+class _Sensors(MutableMapping[str, Sensor]):
+    """The sensor roles of an :class:`OpenRig`, read and written through its devices."""
+
+    def __init__(self, rig: OpenRig) -> None:
+        self._rig = rig
+
+    def __getitem__(self, role: str) -> Sensor:
+        if role not in self._rig._sensor_roles:
+            raise KeyError(role)
+        return self._rig.devices[role]
+
+    def __setitem__(self, role: str, sensor: Sensor) -> None:
+        self._rig.devices[role] = sensor
+        if role not in self._rig._sensor_roles:
+            self._rig._sensor_roles.append(role)
+
+    def __delitem__(self, role: str) -> None:
+        self._rig._sensor_roles.remove(role)
+        del self._rig.devices[role]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(list(self._rig._sensor_roles))
+
+    def __len__(self) -> int:
+        return len(self._rig._sensor_roles)
 
 
 def validate_device(rig_path: Any, role: str, dev: Any) -> None:
