@@ -31,7 +31,7 @@ import numpy as np
 
 from bench.errors import RigError
 from bench.sequences import Checkpoint, Plan, Sequence
-from drivers.hexapod_contracts import HexapodLimits, limit_violations
+from drivers.contracts import HexapodLimits, limit_violations
 from drivers.hexapod_kinematics import body_frame_state, motion_peaks
 from drivers.hexapod_motions import (
     Motion,

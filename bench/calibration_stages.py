@@ -33,7 +33,7 @@ from bench.runner import HexapodRunOptions
 from bench.sequences import Plan
 from bench.sequences import Sequence as PlanSequence
 from bench.session import RunOutcome, run_stage
-from drivers.hexapod_contracts import Trajectory
+from drivers.contracts import Trajectory
 
 __all__ = ["CalibrationRun", "calibrate_frame", "collect_log", "plans_for", "preflight",
            "run_calibration"]
@@ -82,7 +82,7 @@ def run_calibration(rig: Any, out_root: Path, *, quick: bool = False, seed: int 
                     extra_meta: Mapping[str, Any] | None = None) -> CalibrationRun:
     """Run every stage (Paper A by default) on the rig; see module docstring."""
     if open_bench is None:
-        from drivers.imu_factory import open_imu_rig as open_bench
+        from drivers.factory import open_rig as open_bench
     rate = rig.imu.value("rate_hz")
     seqs = list(sequences) if sequences is not None else paper_a_sequences(rate, quick)
     plans = plans_for(rig, seqs)  # every stage checked before anything moves

@@ -24,16 +24,18 @@ from bench.calibration_sequences import HexapodSegment, phase_at, step_at
 from bench.safety import Trip
 from bench.sequences import Plan
 from bench.watchdog import WatchdogTrip
-from drivers.contracts import Block, Clock, Sensor
-from drivers.hexapod_contracts import (
+from drivers.contracts import (
     ACCELERATION_CHANNELS,
     BODY_CHANNELS,
     IMU_CHANNELS,
     POSE_CHANNELS,
     REFERENCE_IMU_CHANNELS,
     VELOCITY_CHANNELS,
+    Block,
+    Clock,
     Hexapod,
     HexapodLimits,
+    Sensor,
     Trajectory,
 )
 
@@ -43,7 +45,7 @@ RECORD_BASE = ("t_s", "phase", "step")
 
 
 class ImuBenchLike(Protocol):
-    """What the runner needs of ``drivers.imu_factory.OpenImuRig``."""
+    """What the runner needs of ``drivers.factory.OpenRig`` (an IMU bench)."""
 
     clock: Clock
     hexapod: Hexapod

@@ -23,7 +23,7 @@ from typing import Any
 
 from bench.rig_devices import DeviceConfig, parse_device
 from bench.rig_table import RigTable
-from drivers.hexapod_contracts import HexapodLimits
+from drivers.contracts import HexapodLimits
 from drivers.sim.imu import ImuModel
 
 __all__ = ["HEXAPOD_LIMIT_MAXIMA", "ROLES", "HexapodSettings", "ImuSettings", "ImuSimConfig",

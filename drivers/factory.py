@@ -1,40 +1,53 @@
-"""Rig-file URLs -> devices. The one place that decides which backend serves a device.
+"""Rig files -> opened devices, whatever the bench: one opener, devices by role.
 
-``open_rig(rig)`` takes a validated rig config (``bench.rig.RigConfig``, used duck-typed so
-``drivers`` does not import ``bench``) and returns an ``OpenRig``: clock, ESC, sensors by role.
+``open_rig(rig)`` takes a validated rig config (``bench.rig.RigConfig``, of either bench,
+used duck-typed so ``drivers`` does not import ``bench``) and returns an :class:`OpenRig`:
+the clock and the devices by role (``esc``, ``load_cell``, ``power``, ``rpm``; ``hexapod``, ``imu``, ``reference_imu``).
+Each device is opened by its entry in the protocol registry (``drivers.registry``, entries
+in ``drivers.protocols``): a lookup by URL scheme, ``protocol`` option and role.
 
-- ``sim://<role>`` devices come from one shared ``drivers.sim.rig.SimRig`` on its own fast
-  simulated clock; ``replay://`` sensors read a recorded block list;
-- ``serial://``, ``can://`` and ``nidaq://`` devices are real backends
-  (``drivers.backends``, imported lazily by ``drivers.device_openers``) on the host's
-  monotonic clock; ``tcp://`` is the PI GCS hexapod of the IMU bench (``open_hexapod``);
-- the host ``sim`` in those URLs (``serial://sim/msp``, ``serial://sim/loadcell``,
-  ``can://sim/bench``) starts the wire-level simulated device (``drivers.wire_sim``) on a
-  pty or python-can's virtual bus, driven by the rig's ``[sim]`` plant in real time
-  (``drivers.wire_rig``), and points the real backend at it.
+What a bench brings is its simulated world and the rule of which devices may mix
+(``drivers.sim_worlds``):
+
+- propulsion: ``sim://<role>`` devices (and ``replay://`` sensors) share one seeded
+  ``SimRig`` on its own fast clock and cannot be mixed with hardware; the host ``sim`` of
+  wire-level URLs (``serial://sim/msp``, ``can://sim/bench``...) starts peers driven by
+  the same plant on the wall clock, next to real devices if need be;
+- IMU bench: all simulated (``sim://``, ``tcp://sim``, ``serial://sim/...``, one
+  ``SimImuRig``; on the wall clock when serial peers need it, option ``time_scale``) or
+  all real: a real IMU cannot see a simulated hexapod's motion, nor the reverse.
 
 Problems raise ``DeviceError`` naming the rig file, the device table and the field.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Iterator, Mapping, MutableMapping
 from dataclasses import dataclass, field
 from typing import Any
 from urllib.parse import urlsplit
 
 import numpy as np
 
-from drivers.contracts import Clock, Esc, Fault, MonotonicClock, Sensor
+from drivers.contracts import Clock, Esc, Hexapod, MonotonicClock, Sensor
+from drivers.device_context import DeviceContext
 from drivers.device_options import DeviceUrl, parse_device
 from drivers.errors import DeviceError
-from drivers.sim.esc import EscSettings
+from drivers.registry import schemes
 from drivers.sim.faults import FaultSwitches
-from drivers.sim.plant import PlantParams
-from drivers.sim.rig import ESC_FAULTS, PlantTruth, SimRig
-from drivers.sim.sensors import SensorParams, SimSensor, check_calibration
+from drivers.sim.rig import ESC_FAULTS, PlantTruth
+from drivers.sim.sensors import SimSensor, check_calibration
+from drivers.sim_worlds import (
+    PROPULSION_SENSORS,
+    build_sim_imu_rig,
+    build_sim_rig,
+    sim_faults,
+    wire_plant,
+)
 
 __all__ = [
+    "IMU_ROLES",
+    "ROLES",
     "SENSOR_ROLES",
     "OpenRig",
     "build_sim_rig",
@@ -44,44 +57,96 @@ __all__ = [
     "validate_device",
 ]
 
-SENSOR_ROLES = ("load_cell", "power", "rpm")
-ROLES = ("esc", *SENSOR_ROLES)
-HARDWARE_SCHEMES = ("serial", "can", "nidaq")
+SENSOR_ROLES = PROPULSION_SENSORS
+ROLES = ("esc", *SENSOR_ROLES)  # the propulsion stand, in opening order
+IMU_ROLES = ("hexapod", "imu", "reference_imu")  # the IMU bench, in opening order
+SIM_HOST = "sim"
 
 
 @dataclass
 class OpenRig:
-    """Opened devices of one rig. ``truth()`` gives the plant truth on simulated rigs
-    (and on rigs of wire-level simulated devices, whose plant runs on the wall clock)."""
+    """Opened devices of one rig, by role. ``truth()`` gives the plant truth of a
+    simulated propulsion rig (also behind wire-level simulated devices); ``sim`` is the
+    simulated world of ``sim://`` devices; ``wire`` the owner of the simulated peers
+    (propulsion: ``WireSims``; IMU bench: the simulated PI controller of ``tcp://sim``);
+    ``peers`` the simulated serial devices of the IMU bench, by role.
+
+    ``close()`` makes the actuators safe first (ESC disarmed, hexapod stopped), then
+    closes everything; the errors are kept in ``close_errors``. A propulsion rig raises
+    the first one (as a ``with`` block expects); the IMU bench's close never raises (its
+    calibration records them).
+    """
 
     clock: Clock
-    esc: Esc
-    sensors: dict[str, Sensor]
-    sim: SimRig | None = None
-    _closers: list[Callable[[], None]] = field(default_factory=list, repr=False)
-    wire: Any = None  # drivers.wire_rig.WireSims on rigs of wire-level simulated devices
+    devices: dict[str, Any]
+    sim: Any = None
+    wire: Any = None
+    peers: dict[str, Any] = field(default_factory=dict)
+    context: DeviceContext | None = field(default=None, repr=False)
+    raise_close_errors: bool = True
+    close_errors: list[str] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        self._sensor_roles = [r for r, d in self.devices.items() if isinstance(d, Sensor)]
+
+    @property
+    def esc(self) -> Esc:
+        return self.devices["esc"]
+
+    @esc.setter
+    def esc(self, dev: Esc) -> None:  # a wrapper around the device (tests, instruments)
+        self.devices["esc"] = dev
+
+    @property
+    def hexapod(self) -> Hexapod:
+        return self.devices["hexapod"]
+
+    @hexapod.setter
+    def hexapod(self, dev: Hexapod) -> None:
+        self.devices["hexapod"] = dev
+
+    @property
+    def imu(self) -> Sensor:
+        return self.devices["imu"]
+
+    @property
+    def reference_imu(self) -> Sensor | None:
+        return self.devices.get("reference_imu")
+
+    @property
+    def sensors(self) -> MutableMapping[str, Sensor]:
+        """Every device that hands out sample blocks (a ``Sensor`` when opened), by role; a
+        live view: ``rig.sensors["power"] = wrapped`` replaces the device of that role."""
+        return _Sensors(self)
+
+    @sensors.setter
+    def sensors(self, sensors: Mapping[str, Sensor]) -> None:
+        self.devices.update(sensors)
+        self._sensor_roles = list(sensors)
 
     def truth(self) -> PlantTruth | None:
-        if self.wire is not None:
+        if self.wire is not None and hasattr(self.wire, "plant"):
             return self.wire.plant.truth()
         return self.sim.truth() if self.sim is not None else None
 
-    def close(self) -> None:
-        """Disarm the ESC and close every device; safe to call more than once."""
-        try:
-            self.esc.disarm()
-        finally:
-            closers = [self.esc.close, *(s.close for s in self.sensors.values()),
-                       *self._closers]
-            self._closers = []
-            errors = []
-            for close in closers:
-                try:
-                    close()
-                except Exception as exc:  # every device gets closed
-                    errors.append(exc)
-            if errors:
-                raise errors[0]
+    def close(self) -> list[str]:
+        """Safe state, then close every device; safe to call more than once."""
+        devs = list(self.devices.values())
+        actions = [*(d.disarm for d in devs if isinstance(d, Esc)),
+                   *(d.stop for d in devs if isinstance(d, Hexapod)),
+                   *(d.close for d in devs)]
+        if self.context is not None:
+            actions.append(self.context.close)
+        errors: list[Exception] = []
+        for action in actions:
+            try:
+                action()
+            except Exception as exc:  # every device gets closed
+                errors.append(exc)
+        self.close_errors = [f"{type(e).__name__}: {e}" for e in errors]
+        if errors and self.raise_close_errors:
+            raise errors[0]
+        return self.close_errors
 
     def __enter__(self) -> OpenRig:
         return self
@@ -90,28 +155,31 @@ class OpenRig:
         self.close()
 
 
-def _sim_faults(device: Any, options: Mapping[str, Any], role: str, table: str = "") -> None:
-    """Faults scheduled in a rig file: ``options.faults = [{kind = "dropout", at_s = 2}]``.
+class _Sensors(MutableMapping[str, Sensor]):
+    """The sensor roles of an :class:`OpenRig`, read and written through its devices."""
 
-    ``table`` (``<rig file>: [devices.<role>]``) makes the messages name file and key.
-    """
-    unknown = sorted(set(options) - {"faults"})
-    if unknown:
-        where = f"{table} options.{unknown[0]}" if table else role
-        raise DeviceError(f"{where}: simulated devices take only the option 'faults', "
-                          f"got {', '.join(map(repr, unknown))}")
-    faults = options.get("faults", [])
-    if not isinstance(faults, list | tuple):
-        raise DeviceError(f"{table or role} options.faults: expected a list of tables, "
-                          f"got {faults!r}")
-    for spec in faults:
-        try:
-            kwargs = dict(spec)
-            kind = Fault(kwargs.pop("kind"))
-            device.inject(kind, **kwargs)
-        except (KeyError, ValueError, TypeError) as exc:
-            where = f"{table} options.faults" if table else role
-            raise DeviceError(f"{where}: bad fault spec {spec!r}: {exc}") from None
+    def __init__(self, rig: OpenRig) -> None:
+        self._rig = rig
+
+    def __getitem__(self, role: str) -> Sensor:
+        if role not in self._rig._sensor_roles:
+            raise KeyError(role)
+        return self._rig.devices[role]
+
+    def __setitem__(self, role: str, sensor: Sensor) -> None:
+        self._rig.devices[role] = sensor
+        if role not in self._rig._sensor_roles:
+            self._rig._sensor_roles.append(role)
+
+    def __delitem__(self, role: str) -> None:
+        self._rig._sensor_roles.remove(role)
+        del self._rig.devices[role]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(list(self._rig._sensor_roles))
+
+    def __len__(self) -> int:
+        return len(self._rig._sensor_roles)
 
 
 def validate_device(rig_path: Any, role: str, dev: Any) -> None:
@@ -130,41 +198,9 @@ def validate_device(rig_path: Any, role: str, dev: Any) -> None:
         check_calibration(role, calibration, table)
         allowed = ESC_FAULTS if role == "esc" else SimSensor.allowed_faults
         probe = FaultSwitches(str(dev.url), np.random.default_rng(0), allowed)
-        _sim_faults(probe, dict(getattr(dev, "options", {}) or {}), role, table)
+        sim_faults(probe, dict(getattr(dev, "options", {}) or {}), role, table)
     elif scheme == "nidaq" and role in SENSOR_ROLES:
         check_calibration(role, calibration, table)
-
-
-def build_sim_rig(rig: Any, *, seed: int | None = None, urls: dict[str, str] | None = None,
-                  calibrations: bool = False) -> SimRig:
-    """The seeded simulated rig of a rig file's ``[sim]`` and ``[esc]`` tables.
-
-    ``calibrations``: take the sensors' calibration tables from the rig's devices (the
-    ``sim://`` rig); wire-level peers report calibrated values like their firmware.
-    """
-    try:
-        params = PlantParams.with_overrides(dict(rig.sim.plant))
-        sensor_params = SensorParams.with_overrides(
-            {"noise": bool(rig.sim.noise), **dict(rig.sim.sensors)})
-    except KeyError as exc:
-        raise DeviceError(f"{rig.path}: [sim] unknown plant/sensor parameter {exc}") from None
-    e = rig.esc
-    esc_settings = EscSettings(e.frame_rate_hz, e.min_us, e.max_us, e.idle_us, e.arm_us,
-                               e.timeout_s)
-    devices = rig.devices
-    cal = {role: dict(devices[role].calibration) if calibrations else {}
-           for role in SENSOR_ROLES}
-    return SimRig(
-        params=params,
-        sensor_params=sensor_params,
-        esc_settings=esc_settings,
-        esc_mode=rig.sim.esc_mode,
-        seed=int(rig.sim.seed if seed is None else seed),
-        urls=urls,
-        load_cell_cal=cal["load_cell"],
-        power_cal=cal["power"],
-        rpm_cal=cal["rpm"],
-    )
 
 
 def device_specs(rig: Any) -> dict[str, DeviceUrl]:
@@ -172,78 +208,113 @@ def device_specs(rig: Any) -> dict[str, DeviceUrl]:
     return {role: parse_device(rig.path, role, dev) for role, dev in rig.devices.items()}
 
 
-def open_rig(rig: Any, *, seed: int | None = None) -> OpenRig:
-    """Open every device the rig config names; see the module docstring."""
-    devices = rig.devices
-    schemes = {role: urlsplit(dev.url).scheme for role, dev in devices.items()}
-    for role, scheme in schemes.items():
-        if scheme not in ("sim", "replay", "tcp", *HARDWARE_SCHEMES):
-            raise DeviceError(f"{rig.path}: [devices.{role}] url {devices[role].url!r}: "
-                              f"unknown device URL scheme {scheme!r}")
-    if any(s in HARDWARE_SCHEMES or s == "tcp" for s in schemes.values()):
-        return _open_hardware_rig(rig, seed)
-    if schemes.get("esc") != "sim":
-        raise DeviceError(f"{rig.path}: [devices.esc] url {devices['esc'].url!r}: a replay "
-                          "cannot drive a motor; use sim://esc or a hardware ESC")
-    sim = build_sim_rig(rig, seed=seed, calibrations=True,
-                        urls={r: d.url for r, d in devices.items() if schemes[r] == "sim"})
-    sensors: dict[str, Sensor] = {}
-    for role in SENSOR_ROLES:
-        dev = devices[role]
-        if schemes[role] == "sim":
-            sensors[role] = sim.sensors[role]
-            _sim_faults(sensors[role], dev.options, role)
-        else:
-            from drivers.replay import ReplaySensor
-
-            sensors[role] = ReplaySensor.from_url(dev.url, sim.clock)
-    _sim_faults(sim.esc, devices["esc"].options, "esc")
-    return OpenRig(clock=sim.clock, esc=sim.esc, sensors=sensors, sim=sim)
+def is_imu_bench(rig: Any) -> bool:
+    """The IMU bench is the rig with a hexapod; every other rig is a propulsion stand."""
+    return "hexapod" in rig.devices
 
 
-def _open_hardware_rig(rig: Any, seed: int | None) -> OpenRig:
-    from drivers.device_openers import DeviceOpener
+def _simulated(spec: DeviceUrl) -> bool:
+    return spec.scheme == "sim" or spec.host == SIM_HOST
 
-    specs = device_specs(rig)
+
+def _propulsion(rig: Any, specs: dict[str, DeviceUrl], seed: int | None) -> DeviceContext:
+    if {s.scheme for s in specs.values()} <= {"sim", "replay"}:
+        sim = build_sim_rig(rig, seed=seed, calibrations=True,
+                            urls={r: s.url for r, s in specs.items() if s.scheme == "sim"})
+        ctx = DeviceContext(rig, sim.clock, specs, world=lambda: sim, seed=seed)
+        ctx.one_world = True
+        return ctx
     for spec in specs.values():
         if spec.scheme == "sim":
             raise spec.fail("", "sim:// devices run on the simulated clock and cannot be "
                                 "mixed with hardware; use the wire-level simulated devices "
                                 "(serial://sim/..., can://sim/...) instead")
-    clock = MonotonicClock()
-    opener = DeviceOpener(rig, clock, seed)
-    opener.plan_nidaq(list(specs.values()))
-    esc: Esc | None = None
-    sensors: dict[str, Sensor] = {}
-    try:
-        esc = opener.open_esc(specs["esc"])
-        for role in SENSOR_ROLES:
-            spec = specs[role]
-            if spec.scheme == "replay":
-                from drivers.replay import ReplaySensor
+    ctx = DeviceContext(rig, MonotonicClock(), specs, seed=seed)
 
-                sensors[role] = ReplaySensor.from_url(spec.url, clock)
-            else:
-                sensors[role] = opener.open_sensor(spec)
+    def world() -> Any:
+        wire = wire_plant(rig, seed)
+        ctx.on_close(wire.close)  # after every port and bus opened later
+        return wire
+
+    ctx.set_world(world)
+    return ctx
+
+
+def _time_scale(rig: Any, specs: dict[str, DeviceUrl]) -> float | None:
+    """``time_scale`` of the serial peers (they must agree); None without serial peers."""
+    scales = {role: s.number("time_scale", 1.0, lo=1e-3, hi=1e3)
+              for role, s in specs.items() if s.scheme == "serial" and s.host == SIM_HOST}
+    if len(set(scales.values())) > 1:
+        raise DeviceError(f"{rig.path}: [devices.*] options.time_scale: the simulated serial "
+                          f"devices must agree, got {scales}")
+    return next(iter(scales.values()), None)
+
+
+def _imu_bench(rig: Any, specs: dict[str, DeviceUrl], seed: int | None) -> DeviceContext:
+    real = [r for r, s in specs.items() if not _simulated(s)]
+    if real and len(real) != len(specs):
+        sims = [r for r in specs if r not in real]
+        raise DeviceError(f"{rig.path}: [devices] {', '.join(real)} real but "
+                          f"{', '.join(sims)} simulated: a real hexapod needs a real IMU "
+                          "under test (and a real IMU a real hexapod: neither sees the other's "
+                          "motion); make them all real or all simulated (sim://, "
+                          f"tcp://{SIM_HOST}, serial://{SIM_HOST}/...)")
+    if real:
+        return DeviceContext(rig, MonotonicClock(), specs, seed=seed)
+    sim = build_sim_imu_rig(rig, seed, _time_scale(rig, specs))
+    ctx = DeviceContext(rig, sim.clock, specs, world=lambda: sim, seed=seed)
+    ctx.one_world = True
+    return ctx
+
+
+def open_context(rig: Any, *, seed: int | None = None) -> DeviceContext:
+    """The device context of a rig (clock, simulated world), before any device opens."""
+    specs = device_specs(rig)
+    known = schemes()
+    for spec in specs.values():
+        if spec.scheme not in known:
+            raise spec.fail("", f"unknown device URL scheme {spec.scheme!r}")
+    if is_imu_bench(rig):
+        return _imu_bench(rig, specs, seed)
+    return _propulsion(rig, specs, seed)
+
+
+def open_rig(rig: Any, *, seed: int | None = None) -> OpenRig:
+    """Open every device the rig config names; see the module docstring."""
+    return open_devices(open_context(rig, seed=seed))
+
+
+def open_devices(ctx: DeviceContext) -> OpenRig:
+    """Open every device of a context, in the bench's order; all or nothing."""
+    imu = is_imu_bench(ctx.rig)
+    order = [r for r in (IMU_ROLES if imu else ROLES) if r in ctx.specs]
+    order += [r for r in ctx.specs if r not in order]
+    devices: dict[str, Any] = {}
+    try:
+        for role in order:
+            devices[role] = ctx.open(ctx.specs[role])
     except BaseException:
-        for dev in [*sensors.values(), *([esc] if esc is not None else [])]:
+        for dev in reversed(devices.values()):
             try:
+                if isinstance(dev, Hexapod):
+                    dev.stop()
                 dev.close()
             except Exception:  # already failing: close the rest
                 pass
         try:
-            opener.close()
+            ctx.close()
         except Exception:
             pass
         raise
-    return OpenRig(clock=clock, esc=esc, sensors=sensors, _closers=[opener.close],
-                   wire=opener.wire)
+    sim = ctx.built_world if imu or any(s.scheme == "sim" for s in ctx.specs.values()) else None
+    return OpenRig(ctx.clock, devices, sim=sim, wire=ctx.wire, peers=ctx.peers, context=ctx,
+                   raise_close_errors=not imu)
 
 
 def open_hexapod(url: str, *, where: str = "hexapod", timeout_s: float = 2.0) -> Any:
     """``tcp://host[:50000]`` -> a connected PI GCS client (``drivers.backends.pi_hexapod``).
 
-    The hexapod is an IMU-bench device (``drivers.imu_factory``); this entry point serves
+    The hexapod of an IMU-bench rig opens with ``open_rig``; this entry point serves
     scripts and checks. The wave-table upload syntax is not in protocols.md: see
     docs/devices.md before running trajectories on a real controller.
     """

@@ -12,12 +12,12 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.interpolate import CubicSpline
 
-from drivers.contracts import Block
-from drivers.hexapod_contracts import (
+from drivers.contracts import (
     ACCELERATION_CHANNELS,
     BODY_CHANNELS,
     POSE_CHANNELS,
     VELOCITY_CHANNELS,
+    Block,
     HexapodLimitError,
     HexapodLimits,
     Trajectory,

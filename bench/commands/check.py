@@ -82,14 +82,10 @@ def handler(args: argparse.Namespace) -> int:
             raise RigError(f"{path}: check --deep covers propulsion rigs; for an IMU bench "
                            "use check (without --deep)")
         return deep(args, path)
-    if is_imu_rig(path):
-        from drivers.imu_rig_check import check_imu_rig
+    from drivers.check import check_rig
 
-        reports = check_imu_rig(load_imu_rig(path), timeout_s=args.timeout)
-    else:
-        from drivers.rig_check import check_rig
-
-        reports = check_rig(load_rig(path), timeout_s=args.timeout)
+    rig = load_imu_rig(path) if is_imu_rig(path) else load_rig(path)
+    reports = check_rig(rig, timeout_s=args.timeout)
     if args.json:
         for r in reports:
             print(json.dumps({"role": r.role, "url": r.url, "ok": r.ok, "detail": r.detail}))

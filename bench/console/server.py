@@ -270,7 +270,7 @@ class ConsoleBench:
         self.link.send("finished", info)
 
     def _check(self) -> None:
-        from drivers.rig_check import check_rig
+        from drivers.check import check_rig
 
         try:
             reports = [dataclasses.asdict(r) for r in check_rig(self.rig)]

@@ -6,17 +6,30 @@ command (protocols.md §2.2, as the ROS driver checks). A reader thread then dec
 stream; each packet becomes one row. ``t_s`` is the rig clock at reception; the device's
 own timer (62 500 ticks/s, unwrapped) is kept as ``device_t_s`` for precise spacing.
 ``close()`` stops the stream.
+
+:class:`Gx3Reference` is a GX3 streaming ``0xCF`` (Euler angles and rates, §2.2) as the
+IMU bench's reference IMU. Rows carry the device's own timer; it is mapped onto the host
+clock by the smallest ``arrival - device time`` seen over the last ``window_s`` (the
+least-delayed packets; the sliding window follows a crystal's drift), so the USB/pty
+jitter does not enter the stamps. Euler angles become the scalar-first quaternion of the
+contract with the Z-Y-X convention of the hexapod's poses (``Rotation.from_euler("xyz",
+...)``, extrinsic x-y-z).
 """
 
 from __future__ import annotations
 
+import math
+from collections import deque
 from dataclasses import fields
 from typing import Any
+
+import numpy as np
+from scipy.spatial.transform import Rotation
 
 from drivers.backends.row_stream import SerialStreamSensor
 from drivers.backends.serial_link import Deadline, read_some, write_all
 from drivers.codecs import gx3
-from drivers.contracts import ChannelInfo, Clock, DeviceInfo
+from drivers.contracts import REFERENCE_IMU_CHANNELS, Block, ChannelInfo, Clock, DeviceInfo
 from drivers.errors import DeviceError
 
 # message field -> column names (SI units in the names)
@@ -96,3 +109,61 @@ class Gx3Imu(SerialStreamSensor):
             write_all(self.port, gx3.stop_continuous(), self.url)
         except DeviceError:
             pass
+
+
+_GYRO = ("gyro_x_rad_s", "gyro_y_rad_s", "gyro_z_rad_s")
+
+
+class Gx3Reference:
+    """A :class:`drivers.backends.gx3_imu.Gx3Imu` streaming 0xCF as the reference IMU
+    (``REFERENCE_IMU_CHANNELS``), stamped from the device timer (see module doc)."""
+
+    def __init__(self, gx3_imu: Any, *, window_s: float = 5.0, port: Any = None,
+                 peer: Any = None) -> None:
+        if gx3_imu.packet != gx3.EULER_RATES:
+            raise DeviceError(f"{gx3_imu.url}: the reference IMU needs packet 0xCF "
+                              "(Euler angles and rates)")
+        self.dev = gx3_imu
+        self.port, self.peer = port, peer  # closed with the sensor; the simulated GX3
+        self.window_s = float(window_s)
+        self._offsets: deque[tuple[float, float]] = deque()  # (arrival, min offset)
+        self._last_t = -math.inf
+
+    def describe(self) -> DeviceInfo:
+        info = self.dev.describe()
+        chans = tuple(ChannelInfo(c, "1" if c.startswith("ref_q") else "rad/s", 0.0)
+                      for c in REFERENCE_IMU_CHANNELS)
+        return DeviceInfo("reference_imu", info.model, info.url, chans,
+                          {**info.extra, "quaternion": "scalar-first, Z-Y-X Euler of 0xCF",
+                           "time_stamps": "device timer + min(arrival - device) offset"})
+
+    def host_times(self, arrival: np.ndarray, device: np.ndarray) -> np.ndarray:
+        """Device times on the host clock; never running backwards."""
+        now = float(arrival[-1])
+        self._offsets.append((now, float(np.min(arrival - device))))
+        while self._offsets[0][0] < now - self.window_s:
+            self._offsets.popleft()
+        offset = min(o for _, o in self._offsets)
+        t = np.maximum.accumulate(np.maximum(device + offset, self._last_t))
+        self._last_t = float(t[-1])
+        return t
+
+    def read_block(self) -> Block:
+        b = self.dev.read_block()
+        if len(b) == 0:
+            return Block.empty(REFERENCE_IMU_CHANNELS)
+        v = b.values
+        euler = np.column_stack([v["roll_rad"], v["pitch_rad"], v["yaw_rad"]])
+        q = Rotation.from_euler("xyz", euler).as_quat(canonical=True, scalar_first=True)
+        t = self.host_times(np.asarray(b.t_s, float), np.asarray(v["device_t_s"], float))
+        out = {c: q[:, i] for i, c in enumerate(REFERENCE_IMU_CHANNELS[:4])}
+        for c, s in zip(REFERENCE_IMU_CHANNELS[4:], _GYRO, strict=True):
+            out[c] = np.asarray(v[s], float)
+        return Block(t, out)
+
+    def close(self) -> None:
+        try:
+            self.dev.close()
+        finally:
+            if self.port is not None:
+                self.port.close()

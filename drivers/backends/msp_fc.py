@@ -3,7 +3,15 @@
 ``MspClient`` does request/response on one port (protocols.md §1: strictly request/
 response, no documented deadline; 100 ms is the reference's suggested client timeout
 [U]). ``MspImu`` polls RAW_IMU and ATTITUDE on a thread and hands the rows out as a
-``Sensor``; ``MspMotorEsc`` drives one motor through MSP_SET_MOTOR as an ``Esc``.
+``Sensor``; ``MspMotorEsc`` drives one motor through MSP_SET_MOTOR as an ``Esc``;
+``MspImuSensor`` is ``MspImu`` as the IMU bench's IMU under test (``IMU_CHANNELS``).
+
+The IMU under test: Betaflight and INAV send the gyro of RAW_IMU (§1.4) in whole deg/s;
+the accelerometer in counts, 1 g = ``acc_1g`` (Betaflight: the driver's ``acc_1G``, 2048
+for the MPU6000/6050/ICM-2060x class at ±16 g; INAV: always 512). RAW_IMU carries no time
+stamp, so a row is stamped with the host clock when its reply arrives: the FC's
+sensor/filter latency and the wire's latency become part of the hexapod-IMU time offset
+the calibration estimates, and their jitter is noise.
 
 Safety, from §1.7: Betaflight applies SET_MOTOR values **only while disarmed** (the
 configurator motor test), and the motors then really spin. Betaflight and INAV keep the
@@ -25,6 +33,7 @@ import numpy as np
 
 from drivers.backends.serial_link import Deadline, read_some, write_all
 from drivers.codecs import msp
+from drivers.contracts import IMU_CHANNELS as BENCH_IMU_CHANNELS
 from drivers.contracts import Block, ChannelInfo, Clock, DeviceInfo, MonotonicClock
 from drivers.errors import DeviceError
 
@@ -247,3 +256,46 @@ class MspMotorEsc:
 
     def close(self) -> None:
         self.disarm()
+
+
+_MSP_GYRO = ("gyro_x_rad_s", "gyro_y_rad_s", "gyro_z_rad_s")
+_MSP_ACC = ("acc_x_m_s2", "acc_y_m_s2", "acc_z_m_s2")
+
+
+class MspImuSensor:
+    """An :class:`MspImu` as the IMU under test (the contract's ``IMU_CHANNELS``)."""
+
+    def __init__(self, imu: Any, rate_hz: float | None = None, *, port: Any = None,
+                 peer: Any = None) -> None:
+        self.imu = imu
+        self.rate_hz = imu.rate_hz if rate_hz is None else rate_hz  # of the rig clock
+        self.port, self.peer = port, peer  # closed with the sensor; the simulated FC
+        self._last_t = -math.inf
+
+    def describe(self) -> DeviceInfo:
+        info = self.imu.describe()
+        rate = self.rate_hz
+        chans = tuple(ChannelInfo(c, "rad/s" if "gyro" in c else "m/s^2", rate)
+                      for c in BENCH_IMU_CHANNELS)
+        return DeviceInfo("imu", info.model, info.url, chans,
+                          {"time_stamps": "host clock at reply arrival (RAW_IMU has none)"})
+
+    def read_block(self) -> Block:
+        """The rows since the previous call; a row not later than the one before (two
+        replies within one clock tick) is dropped, so stamps strictly increase."""
+        b = self.imu.read_block()
+        src = (*_MSP_GYRO, *_MSP_ACC)
+        t = np.asarray(b.t_s, float)
+        keep = t > np.maximum.accumulate(np.concatenate(([self._last_t], t[:-1])))
+        if not keep.any():
+            return Block.empty(BENCH_IMU_CHANNELS)
+        self._last_t = float(t[keep][-1])
+        return Block(t[keep], {c: np.asarray(b.values[s], float)[keep]
+                               for c, s in zip(BENCH_IMU_CHANNELS, src, strict=True)})
+
+    def close(self) -> None:
+        try:
+            self.imu.close()
+        finally:
+            if self.port is not None:
+                self.port.close()

@@ -6,7 +6,7 @@ with LF, replies end at an LF not preceded by a space, and every command is foll
 and radians — and are sent in the controller's units, mm for X, Y, Z and degrees for
 U, V, W (§6.2).
 
-:class:`PiHexapod` fills :class:`drivers.hexapod_contracts.Hexapod`: a trajectory is
+:class:`PiHexapod` fills :class:`drivers.contracts.Hexapod`: a trajectory is
 checked against the rig's limits (the controller does not report acceleration limits)
 and the present pose (``POS?``), written as one wave table per axis, started with
 ``WGO``; the data recorder logs the actual position of the six axes, read back with
@@ -35,13 +35,17 @@ from numpy.typing import NDArray
 from scipy.signal import savgol_coeffs, savgol_filter
 
 from drivers.codecs import gcs
-from drivers.contracts import Block, ChannelInfo, Clock, DeviceInfo, MonotonicClock
-from drivers.errors import DeviceError
-from drivers.hexapod_contracts import (
+from drivers.contracts import (
     HEXAPOD_LOG_CHANNELS,
+    Block,
+    ChannelInfo,
+    Clock,
+    DeviceInfo,
     HexapodLimits,
+    MonotonicClock,
     Trajectory,
 )
+from drivers.errors import DeviceError
 from drivers.hexapod_kinematics import (
     GRAVITY_M_S2,
 )

@@ -12,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
+from drivers.contracts import HexapodLimits
 from drivers.errors import DeviceError
-from drivers.hexapod_contracts import HexapodLimits
 from drivers.hexapod_kinematics import (
     GRAVITY_M_S2,
     HexapodState,

@@ -19,13 +19,16 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.interpolate import CubicSpline
 
-from drivers.contracts import Block, ChannelInfo, DeviceInfo, Fault
-from drivers.errors import DeviceError
-from drivers.hexapod_contracts import (
+from drivers.contracts import (
     HEXAPOD_LOG_CHANNELS,
+    Block,
+    ChannelInfo,
+    DeviceInfo,
+    Fault,
     HexapodLimits,
     Trajectory,
 )
+from drivers.errors import DeviceError
 from drivers.hexapod_kinematics import (
     GRAVITY_M_S2,
     HexapodState,

@@ -22,9 +22,15 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from drivers.contracts import Block, ChannelInfo, DeviceInfo, Fault
+from drivers.contracts import (
+    IMU_CHANNELS,
+    REFERENCE_IMU_CHANNELS,
+    Block,
+    ChannelInfo,
+    DeviceInfo,
+    Fault,
+)
 from drivers.errors import DeviceError
-from drivers.hexapod_contracts import IMU_CHANNELS, REFERENCE_IMU_CHANNELS
 from drivers.sim.clock import SimClock
 from drivers.sim.faults import FaultSwitches
 from drivers.sim.hexapod_device import SimHexapodDevice

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from drivers.hexapod_contracts import HexapodLimits
+from drivers.contracts import HexapodLimits
 from drivers.sim.clock import SimClock
 from drivers.sim.hexapod_device import SimHexapodDevice
 from drivers.sim.imu import ImuModel

@@ -38,8 +38,8 @@ from collections.abc import Callable
 import numpy as np
 
 from drivers.codecs import gcs
+from drivers.contracts import HexapodLimitError, Trajectory
 from drivers.errors import DeviceError
-from drivers.hexapod_contracts import HexapodLimitError, Trajectory
 
 PIVOT_AXES = ("R", "S", "T")  # §6.3 [U]: pivot coordinate names, unverified in the sources
 _SI_PER_WIRE = np.array([1e-3, 1e-3, 1e-3, math.pi / 180, math.pi / 180, math.pi / 180])

@@ -11,7 +11,7 @@ import pytest
 from bench.calibration_stages import run_calibration
 from bench.rig import load_imu_rig
 from drivers.errors import DeviceError
-from drivers.imu_factory import open_imu_rig
+from drivers.factory import open_rig
 
 REPO = Path(__file__).resolve().parents[2]
 RIG = load_imu_rig(REPO / "fixtures" / "rigs" / "sim-imu-tcp.toml")
@@ -22,7 +22,7 @@ def _opened(change):
     benches = []
 
     def open_bench(rig, seed=None):
-        bench = open_imu_rig(rig, seed=seed)
+        bench = open_rig(rig, seed=seed)
         change(bench.wire)
         benches.append(bench)
         return bench

@@ -15,11 +15,10 @@ from bench.rig import default_imu_rig_path, load_imu_rig
 from bench.runner import HexapodRunOptions
 from bench.sequences import Sequence
 from bench.session import run_stage
-from drivers.contracts import Fault
+from drivers.contracts import Fault, HexapodLimits
 from drivers.errors import DeviceError
-from drivers.hexapod_contracts import HexapodLimits
+from drivers.factory import open_rig
 from drivers.hexapod_motions import gyro_sines
-from drivers.imu_factory import open_imu_rig
 
 RIG = load_imu_rig(default_imu_rig_path())
 SEQ = Sequence("cal_test", (SetPivot(), Rest(0.5, "gyro"),
@@ -29,7 +28,7 @@ OPTIONS = HexapodRunOptions(tick_s=0.1)
 
 @pytest.fixture
 def bench():
-    b = open_imu_rig(RIG)
+    b = open_rig(RIG)
     yield b
     b.close()
 
@@ -182,7 +181,7 @@ def test_calibration_session_stops_at_a_failed_stage_and_closes(tmp_path: Path) 
     opened = []
 
     def open_bench(rig, seed=None):
-        b = open_imu_rig(rig, seed=seed)
+        b = open_rig(rig, seed=seed)
         b.hexapod.inject(Fault.SPIKES, at_s=1.0, probability=1.0)
         opened.append(b)
         return b

@@ -20,7 +20,7 @@ from bench.calibration_sequences import (
 )
 from bench.errors import RigError
 from bench.sequences import Sequence
-from drivers.hexapod_contracts import HexapodLimits
+from drivers.contracts import HexapodLimits
 from drivers.hexapod_motions import gyro_sines, lever_arm_motion
 
 LIMITS = HexapodLimits()

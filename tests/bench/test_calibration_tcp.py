@@ -21,8 +21,8 @@ from bench.sequences import Sequence
 from bench.session import run_stage
 from drivers.backends.pi_hexapod import PiHexapod
 from drivers.errors import DeviceError
+from drivers.factory import open_rig
 from drivers.hexapod_motions import gyro_sines
-from drivers.imu_factory import open_imu_rig
 
 REPO = Path(__file__).resolve().parents[2]
 TCP_RIG_PATH = REPO / "fixtures" / "rigs" / "sim-imu-tcp.toml"
@@ -76,7 +76,7 @@ def _bench(tmp_path: Path, options: str = ""):
         path.write_text(TCP_RIG_PATH.read_text(encoding="utf-8").replace(
             'url = "tcp://sim"', f'url = "tcp://sim"\noptions = {{ {options} }}'),
             encoding="utf-8")
-    return open_imu_rig(load_imu_rig(path))
+    return open_rig(load_imu_rig(path))
 
 
 def _at(bench, t_s: float, action) -> None:

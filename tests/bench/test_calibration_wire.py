@@ -28,10 +28,10 @@ from bench.rig import load_imu_rig
 from bench.runner import HexapodRunOptions
 from bench.sequences import Sequence
 from bench.session import run_stage
+from drivers.contracts import POSE_CHANNELS
 from drivers.errors import DeviceError
-from drivers.hexapod_contracts import POSE_CHANNELS
+from drivers.factory import open_rig
 from drivers.hexapod_motions import gyro_sines
-from drivers.imu_factory import open_imu_rig
 
 pytestmark = pytest.mark.slow  # the module's calibration through the wire takes ~55 s
 
@@ -166,7 +166,7 @@ def test_a_device_lost_mid_run_stops_the_hexapod_and_keeps_the_data(
     time without a sample (83 ms of wall time at time_scale 6)."""
     fault_at = 3.0
     hit: list[float] = []
-    with open_imu_rig(RIG) as bench:
+    with open_rig(RIG) as bench:
         peer = bench.peers[role]
 
         def on_rows(rows) -> None:

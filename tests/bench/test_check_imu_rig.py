@@ -9,10 +9,10 @@ import pytest
 
 from bench.cli import main
 from bench.rig import load_imu_rig
-from drivers.hexapod_contracts import Trajectory
+from drivers.check import hexapod_answer as _hexapod_answer
+from drivers.contracts import Trajectory
+from drivers.factory import open_rig
 from drivers.hexapod_motions import gyro_sines
-from drivers.imu_factory import open_imu_rig
-from drivers.imu_rig_check import _hexapod_answer
 
 RIGS = Path(__file__).resolve().parents[2] / "fixtures" / "rigs"
 
@@ -47,7 +47,7 @@ def test_check_exits_2_with_one_line_per_device_that_does_not_answer(tmp_path: P
 
 
 def test_a_moving_hexapod_is_stopped_by_the_check() -> None:
-    bench = open_imu_rig(load_imu_rig(RIGS / "sim-imu.toml"))
+    bench = open_rig(load_imu_rig(RIGS / "sim-imu.toml"))
     try:
         bench.hexapod.upload(Trajectory.from_motion(gyro_sines(beats=1), 200.0))
         bench.hexapod.start()

@@ -17,10 +17,10 @@ from bench.calibration_sequences import Move, Rest, SetPivot, compile_plan
 from bench.rig import default_imu_rig_path, load_imu_rig
 from bench.runner import HexapodRunner, HexapodRunOptions
 from bench.sequences import Sequence
+from drivers.contracts import POSE_CHANNELS
 from drivers.errors import DeviceError
-from drivers.hexapod_contracts import POSE_CHANNELS
+from drivers.factory import open_rig
 from drivers.hexapod_motions import lever_arm_motion
-from drivers.imu_factory import open_imu_rig
 
 RIG = load_imu_rig(default_imu_rig_path())
 MOVES = (lever_arm_motion("x", duration_s=4.0), lever_arm_motion("y", duration_s=4.0))
@@ -58,7 +58,7 @@ class SlowUploads:
 
 @pytest.fixture
 def bench():
-    b = open_imu_rig(RIG)
+    b = open_rig(RIG)
     b.hexapod = SlowUploads(b.hexapod, b.clock, UPLOAD_S)  # type: ignore[assignment]
     yield b
     b.close()

@@ -27,6 +27,7 @@ def _load_helper(name: str, filename: str) -> None:
 
 _load_helper(_NAME, "stepfit.py")
 _load_helper("rotorbench_tests_codec_props", "codec_props.py")  # the codec fuzz tests' checks
+_load_helper("rotorbench_tests_expected_protocol", "expected_protocol.py")  # transcript tests
 
 
 @pytest.fixture

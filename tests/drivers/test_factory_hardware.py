@@ -12,8 +12,8 @@ import os
 import pytest
 
 from bench.rig import load_rig
+from drivers.check import check_rig
 from drivers.discovery import can_configs, serial_ports
-from drivers.rig_check import check_rig
 
 
 def _rig_file() -> str:

@@ -9,25 +9,28 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from bench.rig import default_imu_rig_path, load_imu_rig
-from drivers.contracts import Block, DeviceInfo, Fault, Sensor
-from drivers.errors import DeviceError
-from drivers.hexapod_contracts import (
+from drivers.contracts import (
     HEXAPOD_LOG_CHANNELS,
     IMU_CHANNELS,
     REFERENCE_IMU_CHANNELS,
+    Block,
+    DeviceInfo,
+    Fault,
     Hexapod,
     HexapodLimitError,
     HexapodLimits,
+    Sensor,
     Trajectory,
 )
+from drivers.errors import DeviceError
+from drivers.factory import open_rig
 from drivers.hexapod_motions import gyro_sines, lever_arm_motion, verification_motion
-from drivers.imu_factory import open_imu_rig
 from drivers.sim.hexapod import SimHexapod
 
 
 @pytest.fixture
 def bench():
-    rig = open_imu_rig(load_imu_rig(default_imu_rig_path()))
+    rig = open_rig(load_imu_rig(default_imu_rig_path()))
     yield rig
     rig.close()
 
@@ -192,7 +195,7 @@ def test_same_seed_same_samples() -> None:
     cfg = load_imu_rig(default_imu_rig_path())
     out = []
     for seed in (3, 3, 4):
-        with open_imu_rig(cfg, seed=seed) as rig:
+        with open_rig(cfg, seed=seed) as rig:
             rig.clock.sleep(0.5)
             out.append(rig.imu.read_block().values["imu_gyro_x_rad_s"])
     assert np.array_equal(out[0], out[1]) and not np.array_equal(out[0], out[2])
@@ -229,7 +232,7 @@ def test_non_sim_urls_name_what_the_backend_lacks(tmp_path) -> None:
     path = tmp_path / "real.toml"
     path.write_text(text, encoding="utf-8")
     with pytest.raises(DeviceError, match=r"hexapod.*real IMU under test.*tcp://sim"):
-        open_imu_rig(load_imu_rig(path))
+        open_rig(load_imu_rig(path))
 
 
 def test_rig_file_faults_reach_the_simulated_devices(tmp_path) -> None:
@@ -239,7 +242,7 @@ def test_rig_file_faults_reach_the_simulated_devices(tmp_path) -> None:
         'at_s = 0.2}]}')
     path = tmp_path / "faulty.toml"
     path.write_text(text, encoding="utf-8")
-    with open_imu_rig(load_imu_rig(path)) as rig:
+    with open_rig(load_imu_rig(path)) as rig:
         rig.clock.sleep(0.1)
         rig.imu.read_block()
         rig.clock.sleep(0.2)
@@ -248,4 +251,4 @@ def test_rig_file_faults_reach_the_simulated_devices(tmp_path) -> None:
     bad = tmp_path / "bad.toml"
     bad.write_text(text.replace('"disconnect"', '"melt"'), encoding="utf-8")
     with pytest.raises(DeviceError, match="imu: bad fault spec"):
-        open_imu_rig(load_imu_rig(bad))
+        open_rig(load_imu_rig(bad))

@@ -17,16 +17,16 @@ import pytest
 from bench.rig import load_imu_rig
 from drivers.backends.pi_hexapod import GcsDialect, PiHexapod
 from drivers.codecs import gcs
-from drivers.contracts import DeviceInfo
-from drivers.errors import DeviceError
-from drivers.hexapod_contracts import (
+from drivers.contracts import (
     HEXAPOD_LOG_CHANNELS,
+    DeviceInfo,
     Hexapod,
     HexapodLimitError,
     Trajectory,
 )
+from drivers.errors import DeviceError
+from drivers.factory import open_rig
 from drivers.hexapod_motions import gyro_sines, lever_arm_motion, verification_motion
-from drivers.imu_factory import open_imu_rig
 from drivers.sim.hexapod import SimHexapod
 
 REPO = Path(__file__).resolve().parents[2]
@@ -35,7 +35,7 @@ TCP_RIG = REPO / "fixtures" / "rigs" / "sim-imu-tcp.toml"
 
 @pytest.fixture
 def bench():
-    rig = open_imu_rig(load_imu_rig(TCP_RIG))
+    rig = open_rig(load_imu_rig(TCP_RIG))
     yield rig
     rig.close()
 
@@ -123,7 +123,7 @@ def _rig_with(tmp_path: Path, options: str) -> Path:
 def test_plain_differences_on_request_and_bad_options_named(tmp_path: Path) -> None:
     """``derivative_window = 3``: 3-point differences of the recorded positions (second
     order one-sided at the run's ends) instead of the Savitzky-Golay fit."""
-    with open_imu_rig(load_imu_rig(_rig_with(tmp_path, "derivative_window = 3"))) as b:
+    with open_rig(load_imu_rig(_rig_with(tmp_path, "derivative_window = 3"))) as b:
         motion = lever_arm_motion("y", duration_s=3.0)
         b.hexapod.upload(Trajectory.from_motion(motion, 200.0))
         b.hexapod.start()
@@ -138,7 +138,7 @@ def test_plain_differences_on_request_and_bad_options_named(tmp_path: Path) -> N
                              ("wave_chunk_points = 0", "must be positive"),
                              ('pivot_letters = "RST"', "unknown option")):
         with pytest.raises(DeviceError, match=message) as err:
-            open_imu_rig(load_imu_rig(_rig_with(tmp_path, options)))
+            open_rig(load_imu_rig(_rig_with(tmp_path, options)))
         assert "tcp.toml: [devices.hexapod] options" in str(err.value)
 
 
@@ -284,7 +284,7 @@ def test_a_dropped_connection_fails_loudly_and_stop_reconnects(bench) -> None:
 
 
 def test_stop_raises_only_when_nothing_can_carry_it(tmp_path: Path) -> None:
-    with open_imu_rig(load_imu_rig(_rig_with(tmp_path, "timeout_s = 0.3"))) as b:
+    with open_rig(load_imu_rig(_rig_with(tmp_path, "timeout_s = 0.3"))) as b:
         b.wire.disconnect()  # silent controller: every reply is lost
         t0 = time.monotonic()
         with pytest.raises(DeviceError, match="stop not confirmed"):

@@ -1,35 +1,54 @@
-"""The simulated rig's plant run on the wall clock, feeding wire-level simulated devices.
+"""The simulated benches' plants driving wire-level simulated peers (``drivers.wire_sim``).
 
 A rig file whose device URLs name the host ``sim`` (``serial://sim/msp``,
-``serial://sim/loadcell``, ``can://sim/<channel>``) gets real backends talking to the
-``drivers.wire_sim`` peers over a pty or python-can's ``virtual`` bus. The peers take
-their physics from one :class:`WirePlant`: the same seeded ``drivers.sim.rig.SimRig`` the
-plain simulated rig uses (plant, ESC firmware model, load cell, current sensor, hall
-counter), whose simulated clock is pulled along with ``time.monotonic``. Commands that
-reach a peer go into the ESC firmware model at their arrival time, so the wire's latency
-and the frame phase show up in the response exactly as on a bench.
+``serial://sim/loadcell``, ``can://sim/<channel>``,
+``serial://sim/msp-imu``, ``serial://sim/gx3``) gets real backends talking to these
+peers over a pty or python-can's ``virtual`` bus, byte for byte.
 
-Peers: a flight controller (MSP motor test) whose motor output feeds the ESC model; a
-load-cell board printing one line per ``period_s`` with the mean of the load-cell (and
-power-sensor) samples since its previous line (the boxcar of an integrating ADC) and the
-latest hall-counter speed; a VESC and a DroneCAN ESC whose commands set the duty and whose
-status broadcasts carry the plant's speed, currents and voltage.
+Propulsion stand: the peers take their physics from one :class:`WirePlant`: the same
+seeded ``drivers.sim.rig.SimRig`` the plain simulated rig uses (plant, ESC firmware model,
+load cell, current sensor, hall counter), whose simulated clock is pulled along with
+``time.monotonic``. Commands that reach a peer go into the ESC firmware model at their
+arrival time, so the wire's latency and the frame phase show up in the response exactly
+as on a bench. Peers: a flight controller (MSP motor test) whose motor output feeds the
+ESC model; a load-cell board printing one line per ``period_s`` with the mean of the
+load-cell (and power-sensor) samples since its previous line (the boxcar of an integrating
+ADC) and the latest hall-counter speed; a VESC and a DroneCAN ESC whose commands set the
+duty and whose status broadcasts carry the plant's speed, currents and voltage.
+
+IMU bench: the simulated IMU bench (:class:`drivers.sim.imu_rig.SimImuRig`) on a
+:class:`drivers.wire_sim.paced_clock.PacedClock`. :func:`start_msp_peer` answers MSP from
+the same IMU model ``sim://imu`` uses (mounting, scale, axes, lever arm, bias, noise),
+sampled ``clock_offset_s`` before the request arrives (the FC's sensor latency);
+:func:`start_gx3_peer` streams the platform's attitude and rates with the reference's
+noise, its timer counting simulated time.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
+from drivers.codecs import gx3, msp
 from drivers.errors import DeviceError
+from drivers.sim.clock import SimClock
+from drivers.sim.imu import ImuModel, SimImu
+from drivers.sim.imu_rig import SimImuRig
 from drivers.sim.rig import PlantTruth, SimRig
 
-__all__ = ["ESC_TEMPERATURE_C", "WirePlant", "WireSims"]
+__all__ = ["BTFL_ACC_1G", "ESC_TEMPERATURE_C", "WirePlant", "WireSims", "start_gx3_peer",
+           "start_msp_peer"]
+
+BTFL_ACC_1G = 2048  # protocols.md §1.4: Betaflight MPU6000/6050-class acc_1G (512 * 4), ±16 g
+_MAX_BURST = 16  # GX3 packets written per wakeup of the simulated device at most
 
 ESC_TEMPERATURE_C = 25.0  # the plant has no thermal model: telemetry reports ambient
 
@@ -164,7 +183,7 @@ class WireSims:
             raise DeviceError(f"stopping the simulated wire devices: {errors[0]}")
 
 
-# -- peers -----------------------------------------------------------------------------------
+# -- propulsion peers ------------------------------------------------------------------
 def _still_imu(_t: float):
     """A level, resting flight controller: gravity on z, no rotation."""
     from drivers.codecs.msp import STANDARD_GRAVITY
@@ -289,3 +308,114 @@ def start_vesc_uart(plant: WirePlant, pole_pairs: int):
             return out
 
     return PlantVescUart(model).start()
+
+
+# -- IMU-bench peers ------------------------------------------------------------------------------
+class _FixedModel(ImuModel):
+    """An :class:`ImuModel` whose forward matrices are computed once (one sample a call)."""
+
+    def forward_gyro(self) -> Any:
+        if "_fg" not in self.__dict__:
+            self.__dict__["_fg"] = ImuModel.forward_gyro(self)
+        return self.__dict__["_fg"]
+
+    def forward_acc(self) -> Any:
+        if "_fa" not in self.__dict__:
+            self.__dict__["_fa"] = ImuModel.forward_acc(self)
+        return self.__dict__["_fa"]
+
+
+class _PlantImu:
+    """The IMU under test's model on the plant, one sample at a time (thread-safe)."""
+
+    def __init__(self, sim: SimImuRig, clock: SimClock) -> None:
+        self.sim, self.clock = sim, clock
+        self.lock = threading.Lock()
+        self._sensor: SimImu | None = None
+
+    def _model(self) -> SimImu:
+        lever = tuple(self.sim.imu.lever_arm_from_pivot().tolist())
+        if self._sensor is None or self._sensor.model.lever_arm_m != lever:
+            fields = {f.name: getattr(self.sim.model, f.name)
+                      for f in dataclasses.fields(self.sim.model)}
+            model = _FixedModel(**{**fields, "lever_arm_m": lever})
+            self._sensor = SimImu(model, self.sim.imu.rng)
+        return self._sensor
+
+    def __call__(self, _wall_t: float) -> tuple[Any, Any, Any]:
+        alive = getattr(self.clock, "alive", None)
+        if alive is not None:
+            alive("msp")
+        with self.lock:
+            t = self.clock.now() - self.sim.model.clock_offset_s  # the FC's sensor latency
+            truth = self.sim.hexapod.state_at(np.array([t]))
+            gyro, acc = self._model().measure(truth)
+        return tuple(acc[0]), tuple(gyro[0]), tuple(truth.euler_rad[0])
+
+
+def start_msp_peer(sim: SimImuRig, clock: SimClock, *, variant: str = "BTFL",
+                   acc_1g: int = BTFL_ACC_1G) -> Any:
+    """A Betaflight- (or INAV-) like FC on a pty answering from the plant's IMU model."""
+    from drivers.wire_sim.msp_fc import SimFlightController
+
+    class PlantFc(SimFlightController):
+        def _reply(self, m: msp.MspMessage) -> bytes:
+            if isinstance(m, msp.Request) and m.cmd == msp.MSP_FC_VARIANT:
+                return msp.encode_message(msp.FcVariant(variant))
+            return super()._reply(m)
+
+    return PlantFc(_PlantImu(sim, clock), acc_1g=acc_1g).start()
+
+
+def start_gx3_peer(sim: SimImuRig, clock: SimClock) -> Any:
+    """A 3DM-GX3-25 on a pty; its timer and its stream run on the plant's clock."""
+    from drivers.wire_sim.gx3 import SimGx3
+
+    ref = sim.reference_imu
+    period = 1.0 / ref.rate_hz
+    alive = getattr(clock, "alive", None)
+    lock = threading.Lock()
+
+    def sample(t: float) -> tuple[Any, Any, Any]:
+        with lock:
+            s = sim.hexapod.state_at(np.array([t]))
+            att = Rotation.from_euler("xyz", s.euler_rad) * Rotation.from_rotvec(
+                ref.rng.normal(0.0, ref.attitude_noise_rad, (1, 3)))
+            rate = s.omega_b_rad_s[0] + ref.rng.normal(0.0, ref.gyro_noise_rad_s, 3)
+        return (0.0, 0.0, 0.0), tuple(rate), tuple(att.as_euler("xyz")[0])
+
+    class PlantGx3(SimGx3):
+        def _packet(self, cmd: int, t: float | None = None) -> bytes:
+            """The packet of the sample taken at ``t`` (default now), timer included."""
+            t = clock.now() if t is None else t
+            ticks = round(t * gx3.TICKS_PER_SECOND) & 0xFFFFFFFF
+            if cmd != gx3.EULER_RATES:
+                return super()._packet(cmd)
+            _, rate, euler = sample(t)
+            return gx3.encode_reply(gx3.EulerRates(ticks, *euler, rate))
+
+        def handle(self, data: bytes) -> bytes:
+            seen = len(self.requests)
+            out = super().handle(data)
+            if any(r[0] == gx3.SET_CONTINUOUS for r in self.requests[seen:]):
+                self._next = clock.now()  # the stream starts now, on the plant clock
+            return out
+
+        def tick(self) -> bytes:
+            """Every packet due on the plant clock (a late wakeup sends the backlog)."""
+            if self.stream_cmd is None:
+                return b""
+            if alive is not None:
+                alive("gx3")
+            out = bytearray()
+            for _ in range(_MAX_BURST):  # a starved thread writes what it has, then goes on
+                if self.stream_cmd is None or clock.now() < self._next:
+                    break
+                out += self._packet(self.stream_cmd, self._next)  # on the device's grid
+                self._next += self.period_s
+            return bytes(out)
+
+    peer = PlantGx3(lambda t: sample(clock.now()), period_s=period)
+    # wake every 2 ms of wall time at most (fewer wakeups: less GIL traffic for the host)
+    peer.port.tick_s = min(0.002, period / getattr(clock, "time_scale", 1.0) / 2)
+    return peer.start()

@@ -12,12 +12,13 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from bench.rig import load_imu_rig
+from drivers.backends.gx3_imu import Gx3Reference
+from drivers.backends.msp_fc import MspImuSensor
 from drivers.codecs import gx3
-from drivers.contracts import Block
+from drivers.contracts import IMU_CHANNELS, REFERENCE_IMU_CHANNELS, Block, Trajectory
 from drivers.errors import DeviceError
-from drivers.hexapod_contracts import IMU_CHANNELS, REFERENCE_IMU_CHANNELS, Trajectory
-from drivers.imu_factory import open_imu_rig
-from drivers.imu_wire import Gx3Reference, MspImuSensor, PacedClock
+from drivers.factory import open_rig
+from drivers.wire_sim.paced_clock import PacedClock
 
 REPO = Path(__file__).resolve().parents[2]
 WIRE_RIG = REPO / "fixtures" / "rigs" / "sim-imu-wire.toml"
@@ -54,7 +55,7 @@ def _collect(bench, role: str, sim_s: float) -> Block:
 
 @pytest.fixture(scope="module")
 def bench():
-    with open_imu_rig(load_imu_rig(WIRE_RIG)) as b:
+    with open_rig(load_imu_rig(WIRE_RIG)) as b:
         b.imu.read_block()
         b.reference_imu.read_block()
         yield b
@@ -176,7 +177,7 @@ def test_msp_sensor_drops_repeated_stamps() -> None:
 def test_acc_1g_option_scales_the_counts(tmp_path: Path) -> None:
     """The simulated FC counts 2048 per g (its driver); a host told 4096 reads half."""
     path = _rig(tmp_path, "acc_1g = 2048", "acc_1g = 4096, sim_acc_1g = 2048")
-    with open_imu_rig(load_imu_rig(path)) as b:
+    with open_rig(load_imu_rig(path)) as b:
         b.imu.read_block()
         acc = _collect(b, "imu", 1.0)
         norm = np.linalg.norm([acc.values[c] for c in IMU_CHANNELS[3:]], axis=0).mean()
@@ -185,7 +186,7 @@ def test_acc_1g_option_scales_the_counts(tmp_path: Path) -> None:
 
 def test_inav_sends_512_counts_per_g_without_an_option(tmp_path: Path) -> None:
     path = _rig(tmp_path, "acc_1g = 2048", "sim_variant = \"INAV\"")
-    with open_imu_rig(load_imu_rig(path)) as b:
+    with open_rig(load_imu_rig(path)) as b:
         assert "INAV" in b.imu.describe().model
         b.imu.read_block()
         acc = _collect(b, "imu", 1.0)
@@ -208,7 +209,7 @@ def test_inav_sends_512_counts_per_g_without_an_option(tmp_path: Path) -> None:
 def test_bad_wire_rigs_name_file_table_and_field(tmp_path: Path, old, new, match) -> None:
     path = _rig(tmp_path, old, new)
     with pytest.raises(DeviceError, match=match) as exc:
-        open_imu_rig(load_imu_rig(path))
+        open_rig(load_imu_rig(path))
     assert exc.value.exit_code == 2 and str(path) in str(exc.value)
 
 
@@ -227,6 +228,6 @@ def test_a_missing_real_port_is_named(tmp_path: Path) -> None:
         path = tmp_path / "real.toml"
         path.write_text(text, encoding="utf-8")
         with pytest.raises(DeviceError, match=r"\[devices.imu\].*rotorbench-no-such-fc"):
-            open_imu_rig(load_imu_rig(path))
+            open_rig(load_imu_rig(path))
     finally:
         ctl.stop()

@@ -1,0 +1,113 @@
+"""The simulated world behind a rig file's simulated devices, one builder per bench.
+
+``sim://<role>`` devices read a seeded world on its own fast simulated clock; the host
+``sim`` of wire-level URLs (``serial://sim/...``, ``can://sim/...``, ``tcp://sim``) starts
+peers that the same world drives on the wall clock. Each bench brings its world:
+
+* the propulsion stand: :func:`build_sim_rig` (``drivers.sim.rig.SimRig`` from the rig's
+  ``[sim]`` and ``[esc]`` tables); its wire peers run on a
+  :class:`drivers.wire_sim.plant_peers.WirePlant` (:func:`wire_plant`);
+* the IMU bench: :func:`build_sim_imu_rig` (``drivers.sim.imu_rig.SimImuRig``), on a
+  :class:`drivers.wire_sim.paced_clock.PacedClock` when serial peers need the wall clock.
+
+:func:`sim_faults` applies the faults a rig file schedules on a simulated device.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+from drivers.contracts import Fault, HexapodLimits
+from drivers.errors import DeviceError
+from drivers.sim.esc import EscSettings
+from drivers.sim.imu_rig import SimImuRig, imu_model
+from drivers.sim.plant import PlantParams
+from drivers.sim.rig import SimRig
+from drivers.sim.sensors import SensorParams
+
+__all__ = ["PROPULSION_SENSORS", "build_sim_imu_rig", "build_sim_rig", "sim_faults",
+           "wire_plant"]
+
+PROPULSION_SENSORS = ("load_cell", "power", "rpm")
+
+
+def sim_faults(device: Any, options: Mapping[str, Any], role: str, table: str = "") -> None:
+    """Faults scheduled in a rig file: ``options.faults = [{kind = "dropout", at_s = 2}]``.
+
+    ``table`` (``<rig file>: [devices.<role>]``) makes the messages name file and key.
+    """
+    unknown = sorted(set(options) - {"faults"})
+    if unknown:
+        where = f"{table} options.{unknown[0]}" if table else role
+        raise DeviceError(f"{where}: simulated devices take only the option 'faults', "
+                          f"got {', '.join(map(repr, unknown))}")
+    faults = options.get("faults", [])
+    if not isinstance(faults, list | tuple):
+        raise DeviceError(f"{table or role} options.faults: expected a list of tables, "
+                          f"got {faults!r}")
+    for spec in faults:
+        try:
+            kwargs = dict(spec)
+            kind = Fault(kwargs.pop("kind"))
+            device.inject(kind, **kwargs)
+        except (KeyError, ValueError, TypeError) as exc:
+            where = f"{table} options.faults" if table else role
+            raise DeviceError(f"{where}: bad fault spec {spec!r}: {exc}") from None
+
+
+def build_sim_rig(rig: Any, *, seed: int | None = None, urls: dict[str, str] | None = None,
+                  calibrations: bool = False) -> SimRig:
+    """The seeded simulated propulsion rig of a rig file's ``[sim]`` and ``[esc]`` tables.
+
+    ``calibrations``: take the sensors' calibration tables from the rig's devices (the
+    ``sim://`` rig); wire-level peers report calibrated values like their firmware.
+    """
+    try:
+        params = PlantParams.with_overrides(dict(rig.sim.plant))
+        sensor_params = SensorParams.with_overrides(
+            {"noise": bool(rig.sim.noise), **dict(rig.sim.sensors)})
+    except KeyError as exc:
+        raise DeviceError(f"{rig.path}: [sim] unknown plant/sensor parameter {exc}") from None
+    e = rig.esc
+    esc_settings = EscSettings(e.frame_rate_hz, e.min_us, e.max_us, e.idle_us, e.arm_us,
+                               e.timeout_s)
+    devices = rig.devices
+    cal = {role: dict(devices[role].calibration) if calibrations else {}
+           for role in PROPULSION_SENSORS}
+    return SimRig(
+        params=params,
+        sensor_params=sensor_params,
+        esc_settings=esc_settings,
+        esc_mode=rig.sim.esc_mode,
+        seed=int(rig.sim.seed if seed is None else seed),
+        urls=urls,
+        load_cell_cal=cal["load_cell"],
+        power_cal=cal["power"],
+        rpm_cal=cal["rpm"],
+    )
+
+
+def wire_plant(rig: Any, seed: int | None = None) -> Any:
+    """The propulsion plant on the wall clock, owner of the rig's wire-level peers."""
+    from drivers.wire_sim.plant_peers import WirePlant, WireSims
+
+    return WireSims(WirePlant(build_sim_rig(rig, seed=seed)))
+
+
+def build_sim_imu_rig(rig: Any, seed: int | None, time_scale: float | None) -> SimImuRig:
+    """The seeded simulated IMU bench; on the wall clock (``time_scale``) if not None."""
+    try:
+        model = imu_model({**dict(rig.imu.params), **dict(rig.sim.imu)}, noise=rig.sim.noise)
+    except KeyError as exc:
+        raise DeviceError(f"{rig.path}: unknown IMU parameter {exc}") from None
+    clock = None
+    if time_scale is not None:
+        from drivers.wire_sim.paced_clock import PacedClock
+
+        clock = PacedClock(time_scale)
+    hx = rig.hexapod
+    return SimImuRig(model, HexapodLimits(**dict(hx.limits)), seed=int(
+        rig.sim.seed if seed is None else seed), log_rate_hz=hx.log_rate_hz,
+        cg_m=tuple(rig.sim.cg_m) if rig.sim.cg_m is not None else tuple(hx.pivot_m),
+        reference=dict(rig.reference_imu), clock=clock)
