@@ -2,7 +2,8 @@
 
 ``open_rig(rig)`` takes a validated rig config (``bench.rig.RigConfig``, of either bench,
 used duck-typed so ``drivers`` does not import ``bench``) and returns an :class:`OpenRig`:
-the clock and the devices by role (``esc``, ``load_cell``, ``power``, ``rpm``; ``hexapod``, ``imu``, ``reference_imu``).
+the clock and the devices by role (``esc``, ``load_cell``, ``power``, ``rpm``; ``hexapod``,
+``imu``, ``reference_imu``).
 Each device is opened by its entry in the protocol registry (``drivers.registry``, entries
 in ``drivers.protocols``): a lookup by URL scheme, ``protocol`` option and role.
 
