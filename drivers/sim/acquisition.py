@@ -73,8 +73,18 @@ class ColumnBuffer:
         return self.first + self._end - self._start
 
     def restart(self, n: int) -> None:
-        """Forget everything; the next append starts at sample index ``n``."""
+        """Forget everything; the next append starts at sample index ``n`` (in a new
+        buffer: a snapshot may still refer to the old one)."""
+        self._buf = np.empty_like(self._buf)
         self.first, self._start, self._end = n, 0, 0
+
+    def snapshot(self) -> tuple[object, ...]:
+        """O(1): columns before ``_end`` are never written again (appends go after it or
+        into a new buffer), so the buffer is kept by reference."""
+        return self._buf, self.first, self._start, self._end
+
+    def restore(self, snap: tuple[object, ...]) -> None:
+        self._buf, self.first, self._start, self._end = snap  # type: ignore[assignment]
 
     def append(self, rows: np.ndarray) -> None:
         k = rows.shape[1]
@@ -127,6 +137,16 @@ class Acquisition:
         self._count = 0  # magnet edges seen so far
         self._last_edge = -math.inf
         self._period = math.inf
+
+    def snapshot(self) -> tuple[object, ...]:
+        return (self.buffer.snapshot(), self.rng.bit_generator.state, self._cell.snapshot(),
+                self._count, self._last_edge, self._period)
+
+    def restore(self, snap: tuple[object, ...]) -> None:
+        buffer, rng, cell, self._count, self._last_edge, self._period = snap  # type: ignore[assignment]
+        self.buffer.restore(buffer)  # type: ignore[arg-type]
+        self.rng.bit_generator.state = rng
+        self._cell.restore(cell)  # type: ignore[arg-type]
 
     def acquire_to(self, n1: int, now_ns: int, n_floor: int) -> None:
         """Sample every channel up to (not including) index ``n1``."""
@@ -194,16 +214,28 @@ class Acquisition:
 
     def _counter(self, t: np.ndarray) -> np.ndarray:
         """Hall sensor + FPGA period counter: at each magnet edge the counter latches the
-        time since the previous edge (in counter ticks); the DAQ reads the latest latch."""
+        time since the previous edge (in counter ticks); the DAQ reads the latest latch.
+
+        A read takes the edges latched at or before its last sample. Which magnets those
+        are is decided on the edge times themselves (the rotor's quadratic angle between
+        integration points), not on the linearly interpolated angle at the last sample:
+        the two differ by a hair, and an edge in between used to be seen one read late,
+        so the samples depended on how the run sliced its reads."""
         p = self.params
         traj = self.plant.traj
         pitch = 2.0 * math.pi / p.magnets
-        theta_end = float(np.interp(t[-1], traj.column("t"), traj.column("theta")))
-        count_end = math.floor(theta_end / pitch)
+        th_tr = traj.column("theta")
+        theta_end = float(np.interp(t[-1], traj.column("t"), th_tr))
+        count_end = min(math.floor(theta_end / pitch) + 1,  # one edge more, if reached
+                        math.floor(float(th_tr[-1]) / pitch))
+        t_edge = np.empty(0)
         if count_end > self._count:
             angles = np.arange(self._count + 1, count_end + 1) * pitch
             tick = 1.0 / p.counter_hz
             t_edge = np.round(self._crossing_times(angles) / tick) * tick
+            t_edge = t_edge[: int(np.searchsorted(t_edge, t[-1], side="right"))]
+            count_end = self._count + t_edge.size
+        if t_edge.size:
             edges = np.concatenate(([self._last_edge], t_edge))
             gaps = np.diff(edges)
             periods = np.concatenate(([self._period], gaps))

@@ -179,6 +179,17 @@ class Plant:
         self.traj = Trajectory()
         self._append(self.latency_ns * 1e-9)
 
+    _STATE = ("k", "omega", "theta", "i_w", "i_bus", "v_bus", "duty")
+
+    def snapshot(self) -> tuple[object, ...]:
+        return (*(getattr(self, name) for name in self._STATE), self.traj.snapshot())
+
+    def restore(self, snap: tuple[object, ...]) -> None:
+        """Back to a ``snapshot`` (a simulated rig's checkpoint)."""
+        for name, value in zip(self._STATE, snap[:-1], strict=True):
+            setattr(self, name, value)
+        self.traj.restore(snap[-1])  # type: ignore[arg-type]
+
     # ------------------------------------------------------------------------------------
     def _append(self, t: float) -> None:
         self.traj.pending.append(

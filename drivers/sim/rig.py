@@ -158,6 +158,37 @@ class SimRig:
         self.rpm = SimRpmSensor(self.daq, urls["rpm"], seeds[4], magnets)
         self.sensors = {"load_cell": self.load_cell, "power": self.power, "rpm": self.rpm}
 
+    def checkpoint(self) -> tuple[object, ...]:
+        """The whole simulated state (clock, ESC, plant, acquisition, devices) for
+        ``restore``: a runner can run ticks ahead and take them back. O(1) in the length
+        of the run (sample and trajectory buffers are kept by reference)."""
+        return (self.clock.snapshot(), self.esc_model.snapshot(), self.plant.snapshot(),
+                self.acquisition.snapshot(), self.esc.snapshot(),
+                tuple(s.snapshot() for s in self.sensors.values()))
+
+    def restore(self, checkpoint: tuple[object, ...]) -> None:
+        """Back to the state of a ``checkpoint``; what ran since never happened."""
+        clock, esc_model, plant, acquisition, esc, sensors = checkpoint
+        self.clock.restore(clock)  # type: ignore[arg-type]
+        self.esc_model.restore(esc_model)  # type: ignore[arg-type]
+        self.plant.restore(plant)  # type: ignore[arg-type]
+        self.acquisition.restore(acquisition)  # type: ignore[arg-type]
+        self.esc.restore(esc)  # type: ignore[arg-type]
+        for sensor, snap in zip(self.sensors.values(), sensors, strict=True):  # type: ignore[call-overload]
+            sensor.restore(snap)
+
+    def samples_taken(self) -> int:
+        """How many samples the DAQ has taken by now (every sensor is on its clock)."""
+        return self.sample_clock.index_end(self.clock.now_ns())
+
+    def runs_alone(self, clock: object, devices: list[object]) -> bool:
+        """Whether these are this rig's own clock and devices, none of them closed and no
+        fault switched on: then ``checkpoint`` covers everything a run touches."""
+        own = [self.esc, *self.sensors.values()]
+        if clock is not self.clock or any(not any(d is o for o in own) for d in devices):
+            return False
+        return not any(d.closed or d.faults.switches for d in own)
+
     def trim(self) -> None:
         """Forget what every sensor has read (see ``SimDaq.trim``)."""
         self.daq.trim()

@@ -147,6 +147,13 @@ class SimSensor:
     def close(self) -> None:
         self.closed = True
 
+    def snapshot(self) -> tuple[object, ...]:
+        return self.next_n, self.closed, self.faults.snapshot()
+
+    def restore(self, snap: tuple[object, ...]) -> None:
+        self.next_n, self.closed, faults = snap  # type: ignore[assignment]
+        self.faults.restore(faults)  # type: ignore[arg-type]
+
     def inject(self, fault: Fault | str, **kwargs: float) -> None:
         """Switch a fault on for a window of sim time, see ``FaultSwitches.inject``."""
         self.faults.inject(fault, **kwargs)
