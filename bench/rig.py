@@ -12,6 +12,7 @@ run output folder (``map_goes_to_copy``, ``save_thrust_map(..., dest_dir=...)``)
 from __future__ import annotations
 
 import csv
+import functools
 import io
 import json
 import math
@@ -172,14 +173,24 @@ class ThrustMap:
     thrust_n: tuple[float, ...]
     path: Path | None = None
 
-    def command_for(self, thrust_n: float | np.ndarray) -> np.ndarray | float:
-        """ESC command that gives ``thrust_n`` in steady state (monotone interpolation)."""
+    @functools.cached_property
+    def _monotone(self) -> tuple[np.ndarray, np.ndarray]:
+        """(thrust, command) with thrust strictly rising; built once, not per setpoint (a
+        100000-repeat plan spent 35 s here before its length was refused)."""
         cmd = np.asarray(self.command_us)
         thr = np.maximum.accumulate(np.asarray(self.thrust_n))  # enforce monotone
         keep = np.concatenate(([True], np.diff(thr) > 0))
-        thr, cmd = thr[keep], cmd[keep]
+        return thr[keep], cmd[keep]
+
+    def command_for(self, thrust_n: float | np.ndarray) -> np.ndarray | float:
+        """ESC command that gives ``thrust_n`` in steady state (monotone interpolation)."""
+        thr, cmd = self._monotone
         t = np.asarray(thrust_n, dtype=float)
-        if np.any(t < thr[0]) or np.any(t > thr[-1]):
+        if t.ndim == 0:
+            bad = float(t) < thr[0] or float(t) > thr[-1]  # NaN passes, as with arrays
+        else:
+            bad = bool(np.any(t < thr[0]) or np.any(t > thr[-1]))
+        if bad:
             raise ThrustOutsideMap(
                 f"{self.path or 'thrust map'}: thrust {thrust_n} N outside the measured "
                 f"range {thr[0]:.3f}-{thr[-1]:.3f} N", float(thr[0]), float(thr[-1]))
