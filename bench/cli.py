@@ -1,5 +1,10 @@
 """The ``rotorbench`` command: discovers subcommands in ``bench.commands``.
 
+Start-up matters (a 20-repeat simulated step takes about as long as importing every
+command with its numpy/scipy/pandas/matplotlib dependencies), so ``main`` imports only the
+module of the command it was given when that module is named like the command; ``--help``,
+an unknown command or a command named unlike its module builds the full parser.
+
 Errors caused by the user's input (bad file, rig, catalog, device bytes) are
 exceptions with an ``exit_code`` attribute; they are printed as one line and
 the process exits with that code, without a traceback. Anything else is a bug
@@ -19,7 +24,14 @@ from bench import commands
 __all__ = ["build_parser", "main"]
 
 
-def build_parser() -> argparse.ArgumentParser:
+def _command_modules() -> list[str]:
+    """The subcommand modules, by name, without importing them."""
+    return sorted(m.name for m in pkgutil.iter_modules(commands.__path__)
+                  if not m.name.startswith("_"))
+
+
+def build_parser(only: str | None = None) -> argparse.ArgumentParser:
+    """The CLI parser with every subcommand, or with the one of module ``only``."""
     parser = argparse.ArgumentParser(
         prog="rotorbench",
         description="Multirotor propulsion and IMU test bench: run, fit, optimize.",
@@ -32,16 +44,30 @@ def build_parser() -> argparse.ArgumentParser:
         ver = "unknown"
     parser.add_argument("--version", action="version", version=f"rotorbench {ver}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for info in sorted(pkgutil.iter_modules(commands.__path__), key=lambda m: m.name):
-        if info.name.startswith("_"):
-            continue
-        module = importlib.import_module(f"{commands.__name__}.{info.name}")
+    for name in [only] if only is not None else _command_modules():
+        module = importlib.import_module(f"{commands.__name__}.{name}")
         module.register(sub)
     return parser
 
 
+def _parser_for(argv: Sequence[str]) -> argparse.ArgumentParser:
+    """A parser holding only the given command when its module is named like it (the
+    command's own ``--help`` and errors are the same either way), else the full one."""
+    if argv and not argv[0].startswith("-"):
+        first = argv[0]
+        name = first.replace("-", "_")
+        if name in _command_modules():
+            parser = build_parser(only=name)
+            sub = next(a for a in parser._actions
+                       if isinstance(a, argparse._SubParsersAction))
+            if first in sub.choices:
+                return parser
+    return build_parser()
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = _parser_for(argv)
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()

@@ -34,6 +34,18 @@ class _Role:
     longest_gap_s: float = 0.0
 
 
+def _all_nan_rows(values: Mapping[str, np.ndarray]) -> int:
+    """Rows whose values are all NaN. A column whose sum is a number has no NaN, so the
+    usual block costs one sum."""
+    cols = [np.asarray(v, float) for v in values.values()]
+    if not cols or any(not np.isnan(np.add.reduce(c)) for c in cols):
+        return 0
+    nan = np.isnan(cols[0])
+    for c in cols[1:]:
+        nan &= np.isnan(c)
+    return int(np.count_nonzero(nan))
+
+
 class DropCounter:
     """Per-role drop counts; ``update`` on every block read, ``summary`` at the end."""
 
@@ -51,13 +63,15 @@ class DropCounter:
         t = np.asarray(t_s, float)
         if t.size == 0:
             return
-        r = self._roles.setdefault(role, _Role())
-        cols = [np.asarray(v, float) for v in values.values()]
-        if cols:
-            r.nan_rows += int(np.all(np.isnan(np.vstack(cols)), axis=0).sum())
-        edges = t if r.last_t is None else np.concatenate(([r.last_t], t))
-        if edges.size > 1:
-            r.longest_gap_s = max(r.longest_gap_s, float(np.diff(edges).max()))
+        r = self._roles.get(role)
+        if r is None:
+            r = self._roles[role] = _Role()
+        r.nan_rows += _all_nan_rows(values)
+        # this runs on every block of every device: no concatenation, no temporary stack
+        if r.last_t is not None:
+            r.longest_gap_s = max(r.longest_gap_s, float(t[0]) - r.last_t)
+        if t.size > 1:
+            r.longest_gap_s = max(r.longest_gap_s, float(np.subtract(t[1:], t[:-1]).max()))
         if r.first_t is None:
             r.first_t = float(t[0])
         r.last_t = float(t[-1])

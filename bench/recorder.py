@@ -93,6 +93,24 @@ def _jsonable(obj: Any) -> Any:
     return str(obj)
 
 
+def _arrow(values: np.ndarray) -> pa.Array:
+    """A numpy column as an Arrow array without copying. ``pa.array`` would import pandas
+    (about 0.3 s of a command's start-up) to ask whether the column is a pandas object;
+    numeric columns are wrapped as they are, anything else goes through ``pa.array``."""
+    v = np.asarray(values)
+    if v.dtype.kind in "iuf" and v.dtype.isnative and v.flags.c_contiguous:
+        return pa.Array.from_buffers(pa.from_numpy_dtype(v.dtype), len(v),
+                                     [None, pa.py_buffer(v)])
+    return pa.array(v)
+
+
+def _table(cols: Mapping[str, np.ndarray], schema: pa.Schema | None = None) -> pa.Table:
+    arrays = [_arrow(v) for v in cols.values()]
+    if schema is None:
+        return pa.Table.from_arrays(arrays, names=list(cols))
+    return pa.Table.from_arrays(arrays, schema=schema)
+
+
 class RunRecorder:
     """Writes one run folder; ``append`` columns as they come, ``finish`` once at the end."""
 
@@ -117,7 +135,7 @@ class RunRecorder:
         self.failure: str | None = None  # the first write that failed, if any
         # The first Parquet write initialises pyarrow's writer (~0.3 s); do it now, not
         # inside the command loop where it would look like a stalled host.
-        pq.write_table(pa.table({"t_s": np.zeros(1)}), io.BytesIO(), compression=compression)
+        pq.write_table(_table({"t_s": np.zeros(1)}), io.BytesIO(), compression=compression)
         self.meta.setdefault("id", self.run_dir.name)
         self.meta.update(status="running", reason="", started_utc=utc_now(), ended_utc=None,
                          software_version=software_version(), host=socket.gethostname(),
@@ -183,11 +201,10 @@ class RunRecorder:
 
     def _write_part(self, cols: Mapping[str, np.ndarray]) -> None:
         if self._schema is None:
-            table = pa.table(dict(cols))
+            table = _table(cols)
             self._schema = table.schema
         else:  # the buffers keep their dtypes, so every part has the first one's schema
-            table = pa.Table.from_arrays([pa.array(v) for v in cols.values()],
-                                         schema=self._schema)
+            table = _table(cols, self._schema)
         name = f"part-{self.parts:06d}.parquet"
         final = self.run_dir / SAMPLES_DIR / name
         tmp = final.with_name(f".{name}.tmp")

@@ -200,7 +200,7 @@ def _esc(t: RigTable | None) -> EscConfig:
 
 def _sim(t: RigTable | None, esc_mode: str) -> SimConfig:
     from drivers.sim.plant import PlantParams
-    from drivers.sim.sensors import SensorParams
+    from drivers.sim.sensor_params import SensorParams
 
     if t is None:
         return SimConfig(esc_mode=esc_mode)

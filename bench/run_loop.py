@@ -8,6 +8,15 @@ or SIGTERM held until that is done and the record written, then stops the watchd
 records the exit status (``success``, ``abort`` or ``fail``) and the reason.
 :class:`bench.runner.Runner` (ESC) and :class:`bench.runner.HexapodRunner` (hexapod)
 fill in the devices: what to drain, what one segment does, how to read and check a tick.
+
+A simulated rig run flat out (not paced, no live window) is carried out in batches of
+ticks: commands and sleeps tick by tick as always, but the devices are read, checked and
+recorded once per batch (about 1 s of rig time), which is where the time of a tick went.
+The batch is speculative: the rig is checkpointed first, and when anything in it would
+have ended or changed the run (a limit, a silent device, a device error, a stop request,
+the watchdog) the rig is put back and the batch is run again tick by tick, so the run
+ends on the same tick and sample as without batches. The simulation gives the same
+samples however they are sliced into reads, so the record is the same bit for bit.
 """
 
 from __future__ import annotations
@@ -86,6 +95,8 @@ class SafeRunLoop:
 
     safe_stop_label = "safe stop"  # the label of the ``safe_stop`` event
     stale_hint = ""  # appended to the error of a silent device
+    batch_s = 1.0  # rig time per batch of ticks on a simulated rig run flat out
+    batches = False  # a subclass that fills in the batch hooks below sets this
     watchdog: HostWatchdog
 
     def __init__(self, rig: _Clocked, plan: _Plan, recorder: RunRecorder | None,
@@ -107,6 +118,8 @@ class SafeRunLoop:
         self._segment: Any = None
         self._heard: dict[str, float] = {}
         self.drops = DropCounter()  # missed or late samples per role, for run.json
+        # in a batch: the end of each tick and the samples taken by then (see _read_times)
+        self._batch_ticks: tuple[list[float], list[int]] | None = None
 
     # -- what a subclass fills in -------------------------------------------------------
 
@@ -128,6 +141,27 @@ class SafeRunLoop:
     def _safe_stop(self) -> list[str]:
         """Make the actuators safe; never raises, returns the errors."""
         raise NotImplementedError
+
+    # -- batch hooks (with ``batches = True``): _acquire = _process(_read_devices()) -------
+
+    def _read_devices(self) -> dict[str, Block]:
+        """One raw block per device role, as read (no bookkeeping)."""
+        raise NotImplementedError
+
+    def _would_stop(self, raw: Mapping[str, Block]) -> bool:
+        """Whether processing these blocks would end the run (no side effects)."""
+        raise NotImplementedError
+
+    def _process(self, raw: Mapping[str, Block]) -> None:
+        """Everything :meth:`_acquire` does after the reads."""
+        raise NotImplementedError
+
+    def _loop_state(self) -> Any:
+        """What the tick callbacks change in the runner, for a batch taken back."""
+        return None
+
+    def _set_loop_state(self, state: Any) -> None:
+        pass
 
     def _finish_fields(self) -> dict[str, Any]:
         """Extra fields for run.json at the end of the run."""
@@ -196,21 +230,97 @@ class SafeRunLoop:
     def _tick_until(self, end: float, each_tick: Callable[[float], None] | None = None) -> None:
         """Acquire on every tick of the rig clock until ``end`` (s since the start);
         ``each_tick(now)`` runs before each sleep (the ESC command heartbeat)."""
+        sim = self._batch_sim()
+        if sim is None:
+            self._ticks(end, end, each_tick, acquire=True)
+            return
+        while (now := self._now_rel()) < end - EPS:
+            if sim.runs_alone(self.rig.clock, self._devices()):
+                self._batch(sim, min(end, now + self.batch_s), end, each_tick)
+            else:  # a fault was switched on: tick by tick from here
+                self._ticks(end, end, each_tick, acquire=True)
+
+    def _ticks(self, stop: float, end: float, each_tick: Callable[[float], None] | None,
+               acquire: bool, after: Callable[[], None] | None = None) -> None:
+        """Ticks until ``stop``; each one ends at the next multiple of the tick or ``end``.
+        ``acquire`` reads the devices after each sleep, ``after()`` runs there instead."""
         tick = self.options.tick_s
         while True:
             now = self._now_rel()
-            if now >= end - EPS:
+            if now >= stop - EPS:
                 break
             deadline = min((math.floor((now + EPS) / tick) + 1) * tick, end)
             if each_tick is not None:
                 each_tick(now)
             self.rig.clock.sleep(deadline - now)
-            self._acquire()
+            if acquire:
+                self._acquire()
+            elif after is not None:
+                after()
+
+    def _read_times(self, n: int, now: float) -> np.ndarray | float:
+        """When each of the last ``n`` samples read was read: ``now`` tick by tick; in a
+        batch, the end of the tick whose read would have taken it (a command sent at the
+        end of a tick must not reach a sample of that tick stamped a hair after it)."""
+        if self._batch_ticks is None:
+            return now
+        ends, taken = self._batch_ticks
+        first = taken[-1] - n
+        counts = np.diff(np.maximum([first, *taken], first))
+        return np.repeat(np.asarray(ends), counts)
+
+    def _devices(self) -> list[Any]:
+        rig: Any = self.rig
+        return [d for d in (getattr(rig, "esc", None), *getattr(rig, "sensors", {}).values())
+                if d is not None]
+
+    def _batch_sim(self) -> Any:
+        """The simulated rig to run batches of ticks on, or None (tick by tick)."""
+        if not self.batches or self.options.realtime or self.on_rows is not None:
+            return None
+        sim = getattr(self.rig, "sim", None)
+        if sim is None or not hasattr(sim, "checkpoint"):
+            return None
+        return sim if sim.runs_alone(self.rig.clock, self._devices()) else None
+
+    def _batch(self, sim: Any, stop: float, end: float,
+               each_tick: Callable[[float], None] | None) -> None:
+        """Ticks until ``stop`` with one read at the end; taken back and run tick by tick
+        when the read (or anything before it) would have ended the run."""
+        checkpoint, state = sim.checkpoint(), self._loop_state()
+        ends: list[float] = []
+        taken: list[int] = []
+
+        def tick_end() -> None:
+            ends.append(self._now_rel())
+            taken.append(sim.samples_taken())
+
+        try:
+            self._ticks(stop, end, each_tick, acquire=False, after=tick_end)
+            raw = self._read_devices()
+            clean = not (self.stop_event.is_set() or self.watchdog.tripped
+                         or self._would_stop(raw))
+        except Exception:  # the tick-by-tick run raises it on the right tick
+            clean = False
+        if clean:
+            self._batch_ticks = (ends, taken)
+            try:
+                self._process(raw)
+            finally:
+                self._batch_ticks = None
+            return
+        sim.restore(checkpoint)
+        self._set_loop_state(state)
+        self._ticks(stop, end, each_tick, acquire=True)
 
     def _read(self, role: str, read: Callable[[], Block], now: float) -> Block:
         """One block from a device, stamped relative to the run start; a device silent for
         longer than ``stale_s`` ends the run."""
-        b = read()
+        return self._stamp(role, read(), now)
+
+    def _stamp(self, role: str, b: Block, now: float) -> Block:
+        """The bookkeeping of one block read at ``now``: drops, the stale check and the
+        time base relative to the run start."""
         self.drops.update(role, b.t_s, b.values)
         if len(b):
             self._heard[role] = now

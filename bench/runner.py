@@ -47,13 +47,12 @@ from bench.hexapod_parts import (
     RowMerger,
 )
 from bench.recorder import BASE_COLUMNS, RunRecorder
-from bench.run_loop import OperatorStop, RunResult, SafeRunLoop
+from bench.run_loop import EPS, OperatorStop, RunResult, SafeRunLoop
 from bench.safety import SafetySupervisor
 from bench.sequences import Arm, Disarm, EscRange, Plan, Segment, Tare
 from bench.watchdog import GuardedEsc, HostWatchdog
-from drivers.contracts import Block, Clock, Esc, Sensor
+from drivers.contracts import Block, Clock, Esc, Sensor, Trajectory
 from drivers.errors import DeviceError
-from drivers.hexapod_contracts import Trajectory
 
 __all__ = ["RECORD_BASE", "HexapodRunOptions", "HexapodRunner", "ImuBenchLike", "OpenRigLike",
            "OperatorStop", "PlanRunner", "RunOptions", "RunResult", "Runner"]
@@ -152,6 +151,7 @@ class Runner(PlanRunner):
 
     safe_stop_label = "idle + disarm"
     stale_hint = "; limits cannot be checked without data"
+    batches = True  # see bench.run_loop: simulated rigs run whole batches of ticks
     rig: OpenRigLike
     plan: Plan
     options: RunOptions
@@ -251,20 +251,40 @@ class Runner(PlanRunner):
         return out
 
     def _acquire(self) -> None:
-        blocks: dict[str, Block] = {}
+        self._process(self._read_devices())
+
+    def _read_devices(self) -> dict[str, Block]:
+        return {role: sensor.read_block() for role, sensor in self.rig.sensors.items()}
+
+    def _process(self, raw: Mapping[str, Block]) -> None:
         now = self._now_rel()
-        for role, sensor in self.rig.sensors.items():
-            blocks[role] = self._read(role, sensor.read_block, now)
+        blocks = {role: self._stamp(role, b, now) for role, b in raw.items()}
         rows = self.aligner.push(blocks)
         n = len(rows["t_s"])
         if n:
-            self._complete_rows(rows)
+            self._complete_rows(rows, self._read_times(n, now))
         # Limits on every sample of every sensor (tared thrust), before anything else.
-        checked = {r: Block(b.t_s, {**b.values, "thrust_n": b.values["thrust_n"]
-                                    - self.tare_offset_n}) if "thrust_n" in b.values else b
-                   for r, b in blocks.items()}
-        trip = self.supervisor.check(checked)
+        trip = self.supervisor.check(self._tared(blocks))
         self._deliver(rows, trip)
+
+    def _tared(self, blocks: Mapping[str, Block]) -> dict[str, Block]:
+        return {r: Block(b.t_s, {**b.values, "thrust_n": b.values["thrust_n"]
+                                 - self.tare_offset_n}) if "thrust_n" in b.values else b
+                for r, b in blocks.items()}
+
+    def _would_stop(self, raw: Mapping[str, Block]) -> bool:
+        if any(len(b) == 0 for b in raw.values()):
+            return True  # a silent device: the stale check decides, tick by tick
+        latched = self.supervisor.trip
+        trip = self.supervisor.check(self._tared(raw))
+        self.supervisor.trip = latched
+        return trip is not None
+
+    def _loop_state(self) -> tuple[object, ...]:
+        return (self._cmd_t, self._cmd_us, self._cmd_sp, self._cmd_seg, self.esc.last_us)
+
+    def _set_loop_state(self, state: tuple[object, ...]) -> None:
+        self._cmd_t, self._cmd_us, self._cmd_sp, self._cmd_seg, self.esc.last_us = state  # type: ignore[assignment]
 
     def _safe_stop(self) -> list[str]:
         return self.esc.safe_stop()
@@ -272,12 +292,13 @@ class Runner(PlanRunner):
     def _finish_fields(self) -> dict[str, float]:
         return {"tare_offset_n": self.tare_offset_n}
 
-    def _complete_rows(self, rows: dict[str, np.ndarray]) -> None:
+    def _complete_rows(self, rows: dict[str, np.ndarray], read_at: np.ndarray | float) -> None:
         t = rows["t_s"]
         for col in BASE_COLUMNS:  # a rig without some sensor still gives every column
             if col not in rows and col not in _COMMAND_COLUMNS:
                 rows[col] = np.full(t.shape, np.nan)
-        idx = np.searchsorted(self._cmd_t, t, side="right") - 1
+        # the command in force at each sample among those sent before its read
+        idx = np.searchsorted(self._cmd_t, np.minimum(t, read_at - EPS), side="right") - 1
         np.maximum(idx, 0, out=idx)
         rows["throttle_us"] = self._cmd_us[idx]
         rows["thrust_setpoint_n"] = self._cmd_sp[idx]

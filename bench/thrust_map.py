@@ -14,14 +14,16 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 from numpy.polynomial import Polynomial
 
 from bench.errors import RigError, ThrustOutsideMap
 from bench.recorder import atomic_write_json
+
+if TYPE_CHECKING:  # pandas is imported where a sweep is fitted: a step run needs only the map
+    import pandas as pd
 
 __all__ = ["StaticThrustMap", "SweepFit", "fit_sweep", "fit_sweep_run"]
 
@@ -105,6 +107,7 @@ def fit_sweep(samples: pd.DataFrame, bin_us: float = 5.0, degree: int = 3,
               min_thrust_n: float = 0.05, step_us: float = 5.0, source: str = "sweep") -> SweepFit:
     """Fit the static maps from the rising-ramp rows of a sweep (``t_s``, ``throttle_us``,
     ``thrust_n``, ``current_a``, ``rpm``). Rows should already be limited to the ramp."""
+    import pandas as pd
     need = ("throttle_us", "thrust_n", "current_a", "rpm")
     missing = [c for c in need if c not in samples]
     if missing:
@@ -149,6 +152,8 @@ def fit_sweep_run(run_dir: Path) -> SweepFit:
     if not ramps:
         raise RigError(f"{meta_path}: plan.segments has no rising ramp; is this a sweep run?")
     ramp = max(ramps, key=lambda s: s["duration_s"])
+    import pandas as pd
+
     samples = pd.read_parquet(run_dir / meta.get("samples", "samples.parquet"))
     rows = samples[samples["step"] == ramp["index"]]
     fit = fit_sweep(rows, source=str(run_dir))

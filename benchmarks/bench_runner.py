@@ -1,5 +1,7 @@
 """Benchmark: Paper C Step 1 (20 repeats) on the simulated rig at 25 kHz, wall time and
-real-time factor, with and without recording, for several command-loop ticks.
+real-time factor, with and without recording, for several command-loop ticks; also the
+runner without its batches of ticks (``bench.run_loop``: one read per tick, as on
+hardware) to show what the batches gain. ``step_command.py`` times the whole command.
 
 The rig is a temporary copy of the default sim rig; its static thrust map is taken from
 the plant's steady state (no sweep), so only the step run is timed. Prints measured
@@ -52,12 +54,18 @@ def time_recorded(rig, tmp: Path, tick: float) -> tuple[list[float], float, int]
     return walls, out.result.t_end_s, out.result.rows
 
 
-def time_unrecorded(rig, tick: float) -> list[float]:
+class TickByTick(Runner):
+    """The runner reading every device on every tick (no batches of ticks)."""
+
+    batches = False
+
+
+def time_unrecorded(rig, tick: float, runner_class: type[Runner] = Runner) -> list[float]:
     seq = step1(repeats=20)
     walls = []
     for _ in range(REPEATS):
         devices = open_rig(rig)
-        runner = Runner(devices, plan_for(rig, seq), esc_range_of(rig),
+        runner = runner_class(devices, plan_for(rig, seq), esc_range_of(rig),
                         effective_limits(rig.limits, seq.limits), None, RunOptions(tick_s=tick))
         t0 = time.perf_counter()
         result = runner.run()
@@ -149,10 +157,13 @@ def main() -> int:
         for tick in (0.01, 0.02, 0.05):
             walls, t_end, rows = time_recorded(rig, tmp, tick)
             plain = time_unrecorded(rig, tick)
+            ticked = time_unrecorded(rig, tick, TickByTick)
             plant = time_plant_only(rig, duration, tick)
             alone = [time_runner_alone(rig, tick) for _ in range(REPEATS)]
             for what, w in (("runner + recorder (full)", walls), ("runner, no recorder", plain),
-                            ("sim devices only", [plant]), ("runner on null devices", alone)):
+                            ("  same, tick by tick", ticked),
+                            ("sim devices, read per tick", [plant]),
+                            ("runner on null devices", alone)):
                 best, med = min(w), statistics.median(w)
                 print(f"{tick:>7.2f} {what:<28} {best:>7.3f} {med:>8.3f} {duration / best:>10.1f}")
         print(f"rows per run: {rows} ({rows / t_end:.0f} rows/s of rig time)")

@@ -24,7 +24,7 @@ from drivers.sim.esc import EscSettings
 from drivers.sim.imu_rig import SimImuRig, imu_model
 from drivers.sim.plant import PlantParams
 from drivers.sim.rig import SimRig
-from drivers.sim.sensors import SensorParams
+from drivers.sim.sensor_params import SensorParams
 
 __all__ = ["PROPULSION_SENSORS", "build_sim_imu_rig", "build_sim_rig", "sim_faults",
            "wire_plant"]

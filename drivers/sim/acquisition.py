@@ -3,21 +3,26 @@
 Like the thesis' cRIO (Paper C section 2.2) one acquisition samples the load-cell bridge
 and the two AttoPilot outputs as ADC volts and reads the hall period counter, at 25 kHz by
 default. It runs once per read of any sensor, over all samples since the previous one,
-vectorised: interpolation of the plant trajectory, ``scipy.signal.lfilter`` with carried
-state for the load cell's mechanics, noise, quantisation, the counter's edge times.
+vectorised: interpolation of the plant trajectory, the load cell's mechanics as a filter
+with carried state (``drivers.sim.load_cell_filter``), noise, quantisation, the counter's
+edge times.
+
+:class:`SimDaq` is what the sensor drivers hold: the clocks, the acquisition and the trim
+of what every reader has taken. It knows the plant and the sensor models but not the rig
+or the drivers, so the rig builds on the drivers and the drivers on the DAQ, no circle.
 """
 
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
-from scipy import signal
 
-if TYPE_CHECKING:
-    from drivers.sim.rig import SimRig
-    from drivers.sim.sensors import SensorParams
+from drivers.sim.clock import SimClock
+from drivers.sim.load_cell_filter import SecondOrderLowPass, bilinear_low_pass
+from drivers.sim.plant import Plant
+from drivers.sim.sensor_params import SensorParams
 
 
 class SampleClock:
@@ -68,8 +73,18 @@ class ColumnBuffer:
         return self.first + self._end - self._start
 
     def restart(self, n: int) -> None:
-        """Forget everything; the next append starts at sample index ``n``."""
+        """Forget everything; the next append starts at sample index ``n`` (in a new
+        buffer: a snapshot may still refer to the old one)."""
+        self._buf = np.empty_like(self._buf)
         self.first, self._start, self._end = n, 0, 0
+
+    def snapshot(self) -> tuple[object, ...]:
+        """O(1): columns before ``_end`` are never written again (appends go after it or
+        into a new buffer), so the buffer is kept by reference."""
+        return self._buf, self.first, self._start, self._end
+
+    def restore(self, snap: tuple[object, ...]) -> None:
+        self._buf, self.first, self._start, self._end = snap  # type: ignore[assignment]
 
     def append(self, rows: np.ndarray) -> None:
         k = rows.shape[1]
@@ -102,16 +117,16 @@ T_S, BRIDGE_V, CURRENT_OUT_V, VOLTAGE_OUT_V, HALL_PERIOD_S = range(5)
 class Acquisition:
     """The DAQ task: every channel of the rig sampled at once on the sample clock."""
 
-    def __init__(self, rig: SimRig, seed: np.random.SeedSequence) -> None:
-        self.rig = rig
-        p = self.params = rig.sensor_params
+    def __init__(self, params: SensorParams, plant: Plant, sample_clock: SampleClock,
+                 seed: np.random.SeedSequence) -> None:
+        p = self.params = params
+        self.plant = plant
+        self.sample_clock = sample_clock
         self.rng = np.random.Generator(np.random.SFC64(seed))  # fast bit generator
         self.buffer = ColumnBuffer(5)
-        wn = 2.0 * math.pi * p.load_cell_fn_hz
-        b, a = signal.bilinear([wn * wn], [1.0, 2.0 * p.load_cell_zeta * wn, wn * wn],
-                               fs=p.sample_rate_hz)
+        b, a = bilinear_low_pass(p.load_cell_fn_hz, p.load_cell_zeta, p.sample_rate_hz)
         self.cell_b, self.cell_a = b, a
-        self._zi = np.zeros(max(len(a), len(b)) - 1)
+        self._cell = SecondOrderLowPass(b, a)
         self._noise_sigma = np.array([
             [p.load_cell_noise_n * p.load_cell_v_per_n],
             [p.current_noise_a * p.current_mv_per_a * 1e-3],
@@ -123,6 +138,16 @@ class Acquisition:
         self._last_edge = -math.inf
         self._period = math.inf
 
+    def snapshot(self) -> tuple[object, ...]:
+        return (self.buffer.snapshot(), self.rng.bit_generator.state, self._cell.snapshot(),
+                self._count, self._last_edge, self._period)
+
+    def restore(self, snap: tuple[object, ...]) -> None:
+        buffer, rng, cell, self._count, self._last_edge, self._period = snap  # type: ignore[assignment]
+        self.buffer.restore(buffer)  # type: ignore[arg-type]
+        self.rng.bit_generator.state = rng
+        self._cell.restore(cell)  # type: ignore[arg-type]
+
     def acquire_to(self, n1: int, now_ns: int, n_floor: int) -> None:
         """Sample every channel up to (not including) index ``n1``."""
         buf = self.buffer
@@ -132,8 +157,8 @@ class Acquisition:
             n0 = n_floor
         if n1 <= n0:
             return
-        self.rig.plant.advance_to(now_ns)
-        clock = self.rig.sample_clock
+        self.plant.advance_to(now_ns)
+        clock = self.sample_clock
         t = clock.nominal(n0, n1)
         rows = np.empty((5, n1 - n0))
         rows[T_S] = clock.stamps(n0, n1, t)
@@ -143,14 +168,14 @@ class Acquisition:
 
     def _analog(self, t: np.ndarray, rows: np.ndarray) -> None:
         p = self.params
-        plant = self.rig.plant
+        plant = self.plant
         traj = plant.traj
         traj.flush()
         t_tr = traj.column("t")
         omega = np.interp(t, t_tr, traj.column("omega"))
         i_bus = np.interp(t, t_tr, traj.column("i_bus"))
         force = plant.params.thrust_k * omega * omega  # (E.1)
-        felt, self._zi = signal.lfilter(self.cell_b, self.cell_a, force, zi=self._zi)
+        felt = self._cell(force)
         out = rows[BRIDGE_V : VOLTAGE_OUT_V + 1]
         np.multiply(felt, p.load_cell_v_per_n, out=out[0])
         out[0] += p.load_cell_offset_v
@@ -174,7 +199,7 @@ class Acquisition:
     def _crossing_times(self, angles: np.ndarray) -> np.ndarray:
         """When the rotor reaches each angle: omega is linear between integration points
         (the plant integrates theta with the trapezoid rule), so theta is quadratic there."""
-        traj = self.rig.plant.traj
+        traj = self.plant.traj
         t_tr, th_tr, w_tr = traj.column("t"), traj.column("theta"), traj.column("omega")
         k = np.searchsorted(th_tr, angles, side="left") - 1
         np.minimum(np.maximum(k, 0, out=k), t_tr.size - 2, out=k)
@@ -189,16 +214,28 @@ class Acquisition:
 
     def _counter(self, t: np.ndarray) -> np.ndarray:
         """Hall sensor + FPGA period counter: at each magnet edge the counter latches the
-        time since the previous edge (in counter ticks); the DAQ reads the latest latch."""
+        time since the previous edge (in counter ticks); the DAQ reads the latest latch.
+
+        A read takes the edges latched at or before its last sample. Which magnets those
+        are is decided on the edge times themselves (the rotor's quadratic angle between
+        integration points), not on the linearly interpolated angle at the last sample:
+        the two differ by a hair, and an edge in between used to be seen one read late,
+        so the samples depended on how the run sliced its reads."""
         p = self.params
-        traj = self.rig.plant.traj
+        traj = self.plant.traj
         pitch = 2.0 * math.pi / p.magnets
-        theta_end = float(np.interp(t[-1], traj.column("t"), traj.column("theta")))
-        count_end = math.floor(theta_end / pitch)
+        th_tr = traj.column("theta")
+        theta_end = float(np.interp(t[-1], traj.column("t"), th_tr))
+        count_end = min(math.floor(theta_end / pitch) + 1,  # one edge more, if reached
+                        math.floor(float(th_tr[-1]) / pitch))
+        t_edge = np.empty(0)
         if count_end > self._count:
             angles = np.arange(self._count + 1, count_end + 1) * pitch
             tick = 1.0 / p.counter_hz
             t_edge = np.round(self._crossing_times(angles) / tick) * tick
+            t_edge = t_edge[: int(np.searchsorted(t_edge, t[-1], side="right"))]
+            count_end = self._count + t_edge.size
+        if t_edge.size:
             edges = np.concatenate(([self._last_edge], t_edge))
             gaps = np.diff(edges)
             periods = np.concatenate(([self._period], gaps))
@@ -220,3 +257,34 @@ class Acquisition:
                 if stale[-1]:
                     self._period = math.inf
         return period
+
+
+class _Reader(Protocol):
+    @property
+    def next_n(self) -> int: ...
+
+
+class SimDaq:
+    """The rig's DAQ as its sensor drivers see it: the sim clock, the sample clock, the
+    acquisition, and the readers whose cursors decide what may be forgotten."""
+
+    def __init__(self, params: SensorParams, clock: SimClock, plant: Plant,
+                 sample_clock: SampleClock, seed: np.random.SeedSequence) -> None:
+        self.params = params
+        self.clock = clock
+        self.plant = plant
+        self.sample_clock = sample_clock
+        self.acquisition = Acquisition(params, plant, sample_clock, seed)
+        self.readers: list[_Reader] = []
+
+    def trim(self) -> None:
+        """Forget acquired samples every reader has read, and plant history before the
+        acquisition's end (the acquisition never looks back)."""
+        acq = self.acquisition
+        if acq.buffer.end - acq.buffer.first < 8192:
+            return  # amortised: a few hundred ms of samples are cheap to keep
+        n_floor = self.sample_clock.index_end(
+            self.clock.now_ns() - round(self.params.buffer_s * 1e9))
+        cursors = [r.next_n for r in self.readers]
+        acq.buffer.trim_before(max(n_floor, min(cursors)) if cursors else n_floor)
+        self.plant.traj.trim_before((acq.buffer.end - 1) * self.sample_clock.dt_ns * 1e-9)

@@ -32,6 +32,13 @@ class SimClock:
         for listener in self._listeners:
             listener(self._t_ns)
 
+    def snapshot(self) -> int:
+        return self._t_ns
+
+    def restore(self, snap: int) -> None:
+        """Set the time back to a ``snapshot`` (a simulated rig's checkpoint)."""
+        self._t_ns = snap
+
     def on_advance(self, listener: Callable[[int], None]) -> None:
         """Call ``listener(now_ns)`` after every sleep (the rig advances its plant here)."""
         self._listeners.append(listener)

@@ -79,6 +79,18 @@ class EscModel(EscFrameSource):
             end = min(end, (last_ns + self.timeout_ns) // self.frame_ns + 1)
         return max(1, end - k)
 
+    _STATE = ("armed", "pulse_us", "last_ns", "failsafe", "failsafe_count", "duty_filtered",
+              "_duty_cmd")
+
+    def snapshot(self) -> tuple[object, ...]:
+        return (tuple(self.events), *(getattr(self, name) for name in self._STATE))
+
+    def restore(self, snap: tuple[object, ...]) -> None:
+        """Back to a ``snapshot`` (a simulated rig's checkpoint)."""
+        self.events = deque(snap[0])  # type: ignore[call-overload]
+        for name, value in zip(self._STATE, snap[1:], strict=True):
+            setattr(self, name, value)
+
     def push(self, t_ns: int, kind: str, value: float = 0.0) -> None:
         """A command leaves the host at ``t_ns`` ("pulse", "arm" or "disarm")."""
         self.events.append((t_ns, kind, value))
@@ -143,6 +155,13 @@ class SimEsc:
                 "esc_mode": self.model.scheme.value,
             },
         )
+
+    def snapshot(self) -> tuple[object, ...]:
+        return self.last_pulse_us, self.closed, self.faults.snapshot()
+
+    def restore(self, snap: tuple[object, ...]) -> None:
+        self.last_pulse_us, self.closed, faults = snap  # type: ignore[assignment]
+        self.faults.restore(faults)  # type: ignore[arg-type]
 
     def _check(self, what: str) -> None:
         if self.closed:

@@ -68,6 +68,18 @@ class FaultSwitches:
             self.switches = [s for s in self.switches if s.fault is not f]
         self._stuck = None
 
+    def snapshot(self) -> tuple[object, ...]:
+        stuck = None if self._stuck is None else dict(self._stuck)
+        return self.rng.bit_generator.state, list(self.switches), stuck, dict(self._last)
+
+    def restore(self, snap: tuple[object, ...]) -> None:
+        """Back to a ``snapshot`` (a simulated rig's checkpoint)."""
+        rng, switches, stuck, last = snap
+        self.rng.bit_generator.state = rng
+        self.switches = list(switches)  # type: ignore[call-overload]
+        self._stuck = None if stuck is None else dict(stuck)  # type: ignore[call-overload]
+        self._last = dict(last)  # type: ignore[call-overload]
+
     def _find(self, fault: Fault, t: float) -> FaultSwitch | None:
         for s in self.switches:
             if s.fault is fault and s.active(t):

@@ -176,8 +176,20 @@ class Plant:
         self.v_bus = params.supply_v - params.supply_r_ohm * self.i_bus
         self.duty = 0.0
         self._kq = params.torque_k
+        self._offset_cache: dict[tuple[int, float], np.ndarray] = {}
         self.traj = Trajectory()
         self._append(self.latency_ns * 1e-9)
+
+    _STATE = ("k", "omega", "theta", "i_w", "i_bus", "v_bus", "duty")
+
+    def snapshot(self) -> tuple[object, ...]:
+        return (*(getattr(self, name) for name in self._STATE), self.traj.snapshot())
+
+    def restore(self, snap: tuple[object, ...]) -> None:
+        """Back to a ``snapshot`` (a simulated rig's checkpoint)."""
+        for name, value in zip(self._STATE, snap[:-1], strict=True):
+            setattr(self, name, value)
+        self.traj.restore(snap[-1])  # type: ignore[arg-type]
 
     # ------------------------------------------------------------------------------------
     def _append(self, t: float) -> None:
@@ -223,7 +235,7 @@ class Plant:
             b = kt * ke / (r_tot * j)
         c = self._kq / j
         h = self.frame_ns * 1e-9 / self.n_sub
-        m = np.arange(1, n_frames * self.n_sub + 1) * h
+        m = self._offsets(n_frames * self.n_sub, h)
         disc = b * b + 4.0 * a * c
         if disc > 0.0:
             s = math.sqrt(disc)
@@ -238,11 +250,17 @@ class Plant:
             w = g * np.tan(arg) - shift
         if w[-1] <= 0.0 or w.min() <= 0.0:
             return False  # the rotor stops inside the span
+        # the trajectory's rows, written in place (this runs once per command tick)
+        out = np.empty((7, w.size))
+        t_col, w_col, theta, i_w, i_bus, v_bus_out, duty_col = out
+        w_col[:] = w
         if coast:
-            i_w = np.zeros_like(w)
-            i_bus = np.full_like(w, p.esc_quiescent_a)
+            i_w[:] = 0.0
+            i_bus[:] = p.esc_quiescent_a
         else:
-            i_w = (v_drive - ke * w) / r_tot  # (E.4), (E.5)
+            np.multiply(w, ke, out=i_w)
+            np.subtract(v_drive, i_w, out=i_w)
+            i_w /= r_tot  # (E.4), (E.5)
             if self.scheme is not EscScheme.COMPLEMENTARY:
                 emf = ke * np.concatenate(([w0], w))
                 v_bus, v_f = p.supply_v, p.diode_drop_v
@@ -251,17 +269,36 @@ class Plant:
                 i_dcm = dcm * np.maximum(v_bus - emf, 0.0) / (emf + v_f)
                 if np.any(i_all < i_dcm - 1e-12):
                     return False  # discontinuous conduction somewhere: step frame by frame
-            i_bus = d * i_w + p.esc_quiescent_a
-        w_prev = np.concatenate(([w0], w[:-1]))
-        theta = self.theta + np.cumsum(0.5 * h * (w_prev + w))
+            np.multiply(i_w, d, out=i_bus)
+            i_bus += p.esc_quiescent_a
+        # trapezoid rule: theta_k = theta_0 + cumsum(h/2 (w_{k-1} + w_k))
+        theta[1:] = w[:-1]
+        theta[0] = w0
+        theta += w
+        theta *= 0.5 * h
+        np.cumsum(theta, out=theta)
+        theta += self.theta
         t0 = self.k * self.frame_ns * 1e-9 + self.latency_ns * 1e-9
-        v_bus_out = p.supply_v - p.supply_r_ohm * i_bus
-        self.traj.extend(np.vstack((t0 + m, w, theta, i_w, i_bus, v_bus_out,
-                                    np.full_like(w, d))))
+        np.add(m, t0, out=t_col)
+        np.multiply(i_bus, p.supply_r_ohm, out=v_bus_out)
+        np.subtract(p.supply_v, v_bus_out, out=v_bus_out)
+        duty_col[:] = d
+        self.traj.extend(out)
         self.omega, self.theta, self.i_w, self.duty = float(w[-1]), float(theta[-1]), \
             float(i_w[-1]), d
         self.i_bus, self.v_bus = float(i_bus[-1]), float(v_bus_out[-1])
         return True
+
+    def _offsets(self, n: int, h: float) -> np.ndarray:
+        """``h, 2h, ..., n h`` (the substep times of a span), cached: the same few span
+        lengths come back every tick."""
+        key = (n, h)
+        m = self._offset_cache.get(key)
+        if m is None:
+            if len(self._offset_cache) > 64:
+                self._offset_cache.clear()
+            m = self._offset_cache[key] = np.arange(1, n + 1) * h
+        return m
 
     def _integrate_frame(self, duty: float) -> None:
         p = self.params

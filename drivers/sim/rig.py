@@ -12,7 +12,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from drivers.contracts import Fault
-from drivers.sim.acquisition import Acquisition, SampleClock
+from drivers.sim.acquisition import SampleClock, SimDaq
 from drivers.sim.clock import SimClock
 from drivers.sim.esc import EscModel, EscSettings, SimEsc
 from drivers.sim.faults import FaultSwitches
@@ -24,8 +24,8 @@ from drivers.sim.plant import (
     operating_point,
     steady_omega,
 )
+from drivers.sim.sensor_params import SensorParams
 from drivers.sim.sensors import (
-    SensorParams,
     SimLoadCell,
     SimPowerSensor,
     SimRpmSensor,
@@ -140,7 +140,9 @@ class SimRig:
         self.esc_model = EscModel(self.esc_settings, self.scheme, self.params)
         self.plant = Plant(self.params, self.esc_model, self.scheme)
         self.sample_clock = SampleClock(self.sensor_params, int(rngs[0].integers(2**63)))
-        self.acquisition = Acquisition(self, seeds[5])
+        self.daq = SimDaq(self.sensor_params, self.clock, self.plant, self.sample_clock,
+                          seeds[5])
+        self.acquisition = self.daq.acquisition
         self.clock.on_advance(self.plant.advance_to)
         self.esc = SimEsc(urls["esc"], self.esc_model, self.clock,
                           FaultSwitches(urls["esc"], rngs[1], ESC_FAULTS))
@@ -151,21 +153,45 @@ class SimRig:
         pw = {"current_mv_per_a": sp.current_mv_per_a, "voltage_mv_per_v": sp.voltage_mv_per_v,
               "current_offset_mv": 0.0, **(power_cal or {})}
         magnets = int((rpm_cal or {}).get("magnets", sp.magnets))
-        self.load_cell = SimLoadCell(self, urls["load_cell"], seeds[2], **lc)
-        self.power = SimPowerSensor(self, urls["power"], seeds[3], **pw)
-        self.rpm = SimRpmSensor(self, urls["rpm"], seeds[4], magnets)
+        self.load_cell = SimLoadCell(self.daq, urls["load_cell"], seeds[2], **lc)
+        self.power = SimPowerSensor(self.daq, urls["power"], seeds[3], **pw)
+        self.rpm = SimRpmSensor(self.daq, urls["rpm"], seeds[4], magnets)
         self.sensors = {"load_cell": self.load_cell, "power": self.power, "rpm": self.rpm}
 
+    def checkpoint(self) -> tuple[object, ...]:
+        """The whole simulated state (clock, ESC, plant, acquisition, devices) for
+        ``restore``: a runner can run ticks ahead and take them back. O(1) in the length
+        of the run (sample and trajectory buffers are kept by reference)."""
+        return (self.clock.snapshot(), self.esc_model.snapshot(), self.plant.snapshot(),
+                self.acquisition.snapshot(), self.esc.snapshot(),
+                tuple(s.snapshot() for s in self.sensors.values()))
+
+    def restore(self, checkpoint: tuple[object, ...]) -> None:
+        """Back to the state of a ``checkpoint``; what ran since never happened."""
+        clock, esc_model, plant, acquisition, esc, sensors = checkpoint
+        self.clock.restore(clock)  # type: ignore[arg-type]
+        self.esc_model.restore(esc_model)  # type: ignore[arg-type]
+        self.plant.restore(plant)  # type: ignore[arg-type]
+        self.acquisition.restore(acquisition)  # type: ignore[arg-type]
+        self.esc.restore(esc)  # type: ignore[arg-type]
+        for sensor, snap in zip(self.sensors.values(), sensors, strict=True):  # type: ignore[call-overload]
+            sensor.restore(snap)
+
+    def samples_taken(self) -> int:
+        """How many samples the DAQ has taken by now (every sensor is on its clock)."""
+        return self.sample_clock.index_end(self.clock.now_ns())
+
+    def runs_alone(self, clock: object, devices: list[object]) -> bool:
+        """Whether these are this rig's own clock and devices, none of them closed and no
+        fault switched on: then ``checkpoint`` covers everything a run touches."""
+        own = [self.esc, *self.sensors.values()]
+        if clock is not self.clock or any(not any(d is o for o in own) for d in devices):
+            return False
+        return not any(d.closed or d.faults.switches for d in own)
+
     def trim(self) -> None:
-        """Forget acquired samples every sensor has read, and plant history before the
-        acquisition's end (the acquisition never looks back)."""
-        acq = self.acquisition
-        if acq.buffer.end - acq.buffer.first < 8192:
-            return  # amortised: a few hundred ms of samples are cheap to keep
-        n_floor = self.sample_clock.index_end(
-            self.clock.now_ns() - round(self.sensor_params.buffer_s * 1e9))
-        acq.buffer.trim_before(max(n_floor, min(s.next_n for s in self.sensors.values())))
-        self.plant.traj.trim_before((acq.buffer.end - 1) * self.sample_clock.dt_ns * 1e-9)
+        """Forget what every sensor has read (see ``SimDaq.trim``)."""
+        self.daq.trim()
 
     def truth(self) -> PlantTruth:
         self.plant.advance_to(self.clock.now_ns())

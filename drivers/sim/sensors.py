@@ -11,52 +11,24 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, fields, replace
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from drivers.contracts import Block, ChannelInfo, DeviceInfo, Fault
 from drivers.errors import DeviceError
-from drivers.sim.acquisition import BRIDGE_V, CURRENT_OUT_V, HALL_PERIOD_S, T_S, VOLTAGE_OUT_V
+from drivers.sim.acquisition import (
+    BRIDGE_V,
+    CURRENT_OUT_V,
+    HALL_PERIOD_S,
+    T_S,
+    VOLTAGE_OUT_V,
+    SimDaq,
+)
 from drivers.sim.faults import FaultSwitches
+from drivers.sim.sensor_params import SensorParams
 
-if TYPE_CHECKING:
-    from drivers.sim.rig import SimRig
-
-
-@dataclass(frozen=True)
-class SensorParams:
-    """Sensor models of the simulated rig; sources in docs/sim-rig.md."""
-
-    sample_rate_hz: float = 25_000.0  # load cell and current sampled at 25 kHz (Paper C 2.2)
-    jitter_s: float = 1e-6  # timestamp jitter, uniform +-sqrt(3) sigma (assumption)
-    noise: bool = True  # master switch for every random noise term
-    load_cell_fn_hz: float = 150.0  # mechanical natural frequency, cell + mount (assumption)
-    load_cell_zeta: float = 0.25  # its damping ratio (assumption)
-    load_cell_v_per_n: float = 0.1  # bridge + amplifier sensitivity (assumption)
-    load_cell_offset_v: float = 0.012  # zero offset of the bridge (so a tare matters)
-    load_cell_noise_n: float = 0.03  # white force noise at 25 kHz (assumption, ~3 g)
-    load_cell_range_n: float = 49.0  # Phidget micro load cell 0-5 kg (Paper C 2.2)
-    current_mv_per_a: float = 36.60  # AttoPilot 90 A current scale (issue 3 / datasheet)
-    voltage_mv_per_v: float = 63.69  # AttoPilot 90 A voltage scale (issue 3 / datasheet)
-    sensor_out_max_v: float = 3.3  # AttoPilot output swing, unidirectional (0-3.3 V)
-    current_noise_a: float = 0.15  # PWM ripple + sensor noise at 25 kHz (assumption)
-    voltage_noise_v: float = 0.02  # (assumption)
-    adc_bits: int = 16  # NI 9215-class ADC, 16 bit (assumption)
-    adc_range_v: float = 10.0  # +-10 V input range
-    magnets: int = 14  # hall sensor sees the 14 rotor magnets (Paper C 2.2)
-    counter_hz: float = 40e6  # FPGA counter timebase of the cRIO (NI-9401 on a 40 MHz FPGA)
-    rpm_timeout_s: float = 0.1  # no hall edge for this long -> the counter reports 0 rpm
-    buffer_s: float = 30.0  # DAQ buffer: a sensor not read for this long overruns
-
-    @classmethod
-    def with_overrides(cls, overrides: dict[str, float]) -> SensorParams:
-        known = {f.name for f in fields(cls)}
-        for name in overrides:
-            if name not in known:
-                raise KeyError(name)
-        return replace(cls(), **overrides)
+__all__ = ["CALIBRATION_KEYS", "SensorParams", "SimLoadCell", "SimPowerSensor", "SimRpmSensor",
+           "SimSensor", "check_calibration"]
 
 
 def _positive(v: float) -> bool:
@@ -117,15 +89,16 @@ class SimSensor:
     model = "simulated"
     allowed_faults = (Fault.DROPOUT, Fault.SPIKES, Fault.STUCK, Fault.TIMEOUT, Fault.DISCONNECT)
 
-    def __init__(self, rig: SimRig, url: str, seed: np.random.SeedSequence) -> None:
-        self.rig = rig
+    def __init__(self, daq: SimDaq, url: str, seed: np.random.SeedSequence) -> None:
+        self.daq = daq
         self.url = url
-        self.params = rig.sensor_params
+        self.params = daq.params
         self.faults = FaultSwitches(url, np.random.default_rng(seed), self.allowed_faults)
         self.next_n = 0
         self.closed = False
         self._channels = self.channels()
         self._names = tuple(c.name for c in self._channels)
+        daq.readers.append(self)
 
     # subclasses fill these
     def channels(self) -> tuple[ChannelInfo, ...]:
@@ -144,11 +117,11 @@ class SimSensor:
     def read_block(self) -> Block:
         if self.closed:
             raise DeviceError(f"{self.url}: sensor is closed")
-        rig = self.rig
-        now_ns = rig.clock.now_ns()
-        n1 = rig.sample_clock.index_end(now_ns)
+        daq = self.daq
+        now_ns = daq.clock.now_ns()
+        n1 = daq.sample_clock.index_end(now_ns)
         n0 = self.next_n
-        n_floor = rig.sample_clock.index_end(now_ns - round(self.params.buffer_s * 1e9))
+        n_floor = daq.sample_clock.index_end(now_ns - round(self.params.buffer_s * 1e9))
         if n0 < n_floor:
             self.next_n = n_floor
             raise DeviceError(
@@ -162,17 +135,24 @@ class SimSensor:
             raise
         if n1 <= n0:
             return Block.empty(self._names)
-        rig.acquisition.acquire_to(n1, now_ns, n_floor)
-        raw = rig.acquisition.buffer.window(n0, n1)
+        daq.acquisition.acquire_to(n1, now_ns, n_floor)
+        raw = daq.acquisition.buffer.window(n0, n1)
         block = Block(raw[T_S].copy(), self.convert(raw))
         self.next_n = n1
-        rig.trim()
+        daq.trim()
         if not self.faults.switches:
             return block
         return self.faults.apply(block, {c.name: c.high for c in self._channels})
 
     def close(self) -> None:
         self.closed = True
+
+    def snapshot(self) -> tuple[object, ...]:
+        return self.next_n, self.closed, self.faults.snapshot()
+
+    def restore(self, snap: tuple[object, ...]) -> None:
+        self.next_n, self.closed, faults = snap  # type: ignore[assignment]
+        self.faults.restore(faults)  # type: ignore[arg-type]
 
     def inject(self, fault: Fault | str, **kwargs: float) -> None:
         """Switch a fault on for a window of sim time, see ``FaultSwitches.inject``."""
@@ -188,9 +168,9 @@ class SimLoadCell(SimSensor):
     kind = "load_cell"
     model = "simulated Phidget micro load cell 5 kg"
 
-    def __init__(self, rig: SimRig, url: str, seed: np.random.SeedSequence,
+    def __init__(self, daq: SimDaq, url: str, seed: np.random.SeedSequence,
                  scale_n_per_v: float, offset_v: float) -> None:
-        super().__init__(rig, url, seed)
+        super().__init__(daq, url, seed)
         self.scale_n_per_v = scale_n_per_v
         self.offset_v = offset_v
 
@@ -208,13 +188,13 @@ class SimPowerSensor(SimSensor):
     kind = "power_sensor"
     model = "simulated AttoPilot 90 A"
 
-    def __init__(self, rig: SimRig, url: str, seed: np.random.SeedSequence,
+    def __init__(self, daq: SimDaq, url: str, seed: np.random.SeedSequence,
                  current_mv_per_a: float, voltage_mv_per_v: float,
                  current_offset_mv: float = 0.0) -> None:
         self.current_mv_per_a = current_mv_per_a
         self.voltage_mv_per_v = voltage_mv_per_v
         self.current_offset_mv = current_offset_mv
-        super().__init__(rig, url, seed)
+        super().__init__(daq, url, seed)
 
     def channels(self) -> tuple[ChannelInfo, ...]:
         fs = self.params.sample_rate_hz
@@ -238,11 +218,11 @@ class SimRpmSensor(SimSensor):
     kind = "rpm_sensor"
     model = "simulated hall sensor + period counter"
 
-    def __init__(self, rig: SimRig, url: str, seed: np.random.SeedSequence, magnets: int) -> None:
+    def __init__(self, daq: SimDaq, url: str, seed: np.random.SeedSequence, magnets: int) -> None:
         if magnets < 1:
             raise DeviceError(f"{url}: magnets must be >= 1, got {magnets}")
         self.magnets = magnets
-        super().__init__(rig, url, seed)
+        super().__init__(daq, url, seed)
 
     def channels(self) -> tuple[ChannelInfo, ...]:
         return (ChannelInfo("rpm", "rpm", self.params.sample_rate_hz, 0.0, 60_000.0),)

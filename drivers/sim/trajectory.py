@@ -66,6 +66,16 @@ class Trajectory:
     def size(self) -> int:
         return self._end - self._start + len(self.pending)
 
+    def snapshot(self) -> tuple[object, ...]:
+        """O(1): points before ``_end`` are never written again (appends go after it or
+        into a new buffer, trims only move ``_start``), so the buffer is kept by reference."""
+        return self._buf, self._start, self._end, list(self.pending)
+
+    def restore(self, snap: tuple[object, ...]) -> None:
+        buf, start, end, pending = snap
+        self._buf, self._start, self._end = buf, start, end  # type: ignore[assignment]
+        self.pending = list(pending)  # type: ignore[call-overload]
+
     def trim_before(self, t: float) -> None:
         """Drop points not needed to interpolate at times >= t (keeps one point before t)."""
         self.flush()

@@ -12,7 +12,7 @@ from drivers.contracts import Fault
 from drivers.errors import DeviceError
 from drivers.factory import open_rig
 from drivers.sim.rig import SimRig
-from drivers.sim.sensors import SensorParams
+from drivers.sim.sensor_params import SensorParams
 
 QUIET = SensorParams(noise=False)
 

@@ -8,7 +8,7 @@ import pytest
 from drivers.sim.esc import EscSettings
 from drivers.sim.plant import EscScheme
 from drivers.sim.rig import SimRig
-from drivers.sim.sensors import SensorParams
+from drivers.sim.sensor_params import SensorParams
 
 QUIET = SensorParams(noise=False)
 

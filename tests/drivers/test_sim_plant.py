@@ -11,7 +11,7 @@ import pytest
 from drivers.sim.esc import EscSettings
 from drivers.sim.plant import EscScheme, PlantParams, operating_point, steady_omega
 from drivers.sim.rig import SimRig
-from drivers.sim.sensors import SensorParams
+from drivers.sim.sensor_params import SensorParams
 
 QUIET = SensorParams(noise=False)
 

@@ -10,7 +10,7 @@ import pytest
 
 from drivers.errors import DeviceError
 from drivers.sim.rig import SimRig
-from drivers.sim.sensors import SensorParams
+from drivers.sim.sensor_params import SensorParams
 
 QUIET = SensorParams(noise=False)
 LSB_V = 20.0 / 2**16

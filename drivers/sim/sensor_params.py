@@ -1,0 +1,45 @@
+"""The sensor models of the simulated rig: what the DAQ, the load cell, the AttoPilot and the
+hall counter are like (rates, noise, ranges, buffer), with their sources.
+
+Its own module because the acquisition (``drivers.sim.acquisition``) and the sensor drivers
+(``drivers.sim.sensors``) both need it and the drivers build on the acquisition: here
+neither has to import the other's home.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields, replace
+
+
+@dataclass(frozen=True)
+class SensorParams:
+    """Sensor models of the simulated rig; sources in docs/sim-rig.md."""
+
+    sample_rate_hz: float = 25_000.0  # load cell and current sampled at 25 kHz (Paper C 2.2)
+    jitter_s: float = 1e-6  # timestamp jitter, uniform +-sqrt(3) sigma (assumption)
+    noise: bool = True  # master switch for every random noise term
+    load_cell_fn_hz: float = 150.0  # mechanical natural frequency, cell + mount (assumption)
+    load_cell_zeta: float = 0.25  # its damping ratio (assumption)
+    load_cell_v_per_n: float = 0.1  # bridge + amplifier sensitivity (assumption)
+    load_cell_offset_v: float = 0.012  # zero offset of the bridge (so a tare matters)
+    load_cell_noise_n: float = 0.03  # white force noise at 25 kHz (assumption, ~3 g)
+    load_cell_range_n: float = 49.0  # Phidget micro load cell 0-5 kg (Paper C 2.2)
+    current_mv_per_a: float = 36.60  # AttoPilot 90 A current scale (issue 3 / datasheet)
+    voltage_mv_per_v: float = 63.69  # AttoPilot 90 A voltage scale (issue 3 / datasheet)
+    sensor_out_max_v: float = 3.3  # AttoPilot output swing, unidirectional (0-3.3 V)
+    current_noise_a: float = 0.15  # PWM ripple + sensor noise at 25 kHz (assumption)
+    voltage_noise_v: float = 0.02  # (assumption)
+    adc_bits: int = 16  # NI 9215-class ADC, 16 bit (assumption)
+    adc_range_v: float = 10.0  # +-10 V input range
+    magnets: int = 14  # hall sensor sees the 14 rotor magnets (Paper C 2.2)
+    counter_hz: float = 40e6  # FPGA counter timebase of the cRIO (NI-9401 on a 40 MHz FPGA)
+    rpm_timeout_s: float = 0.1  # no hall edge for this long -> the counter reports 0 rpm
+    buffer_s: float = 30.0  # DAQ buffer: a sensor not read for this long overruns
+
+    @classmethod
+    def with_overrides(cls, overrides: dict[str, float]) -> SensorParams:
+        known = {f.name for f in fields(cls)}
+        for name in overrides:
+            if name not in known:
+                raise KeyError(name)
+        return replace(cls(), **overrides)
