@@ -14,14 +14,13 @@ import sys
 import threading
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 from bench.calibration_sequences import HexapodSegment
-from bench.calibration_stages import CalibrationRun, run_calibration
 from bench.cli_support import check_writable
 from bench.errors import RecordingError
 from bench.indexed_run import RunInterrupted, RunRecordingFailed
@@ -31,6 +30,9 @@ from bench.safety import effective_limits
 from bench.sequences import Plan, Segment
 from bench.sequences import Sequence as PlanSequence
 from bench.session import RunOutcome, plan_for, run_sequence
+
+if TYPE_CHECKING:  # the calibration stages (pandas, the IMU fits) load only for a calibration
+    from bench.calibration_stages import CalibrationRun
 
 __all__ = [
     "check_budget_of",
@@ -113,6 +115,8 @@ def run_calibration_with_progress(rig: Any, plans: Sequence[Plan], runs: Path, *
                                   extra_meta: Mapping[str, Any] | None = None
                                   ) -> CalibrationRun:
     """Every stage of an IMU calibration with one progress bar over all stages."""
+    from bench.calibration_stages import run_calibration
+
     total = sum(p.duration_s for p in plans)
     offsets = np.concatenate([[0.0], np.cumsum([p.duration_s for p in plans])])
     progress = _progress_bar()

@@ -10,10 +10,13 @@ is device-free physics shared by the simulated hexapod and any real backend.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.interpolate import CubicSpline
+
+if TYPE_CHECKING:  # scipy is imported where a spline is built: rig files of either
+    from scipy.interpolate import CubicSpline  # bench load this module's neighbours
 
 __all__ = ["GRAVITY_M_S2", "HexapodState", "body_frame_state", "body_rates", "euler_to_matrix",
            "follower_spline", "motion_peaks", "spline_peaks"]
@@ -97,6 +100,8 @@ def motion_peaks(pose: Array, vel: Array, acc: Array, state: HexapodState) -> di
 def follower_spline(t_s: ArrayLike, poses: ArrayLike) -> CubicSpline:
     """The path a platform runs through sampled ``(n, 6)`` poses: the clamped cubic spline
     (at rest at both ends), as the simulated hexapod follows it."""
+    from scipy.interpolate import CubicSpline
+
     return CubicSpline(np.asarray(t_s, float), np.asarray(poses, float), axis=0,
                        bc_type="clamped")
 

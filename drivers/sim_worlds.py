@@ -16,15 +16,17 @@ peers that the same world drives on the wall clock. Each bench brings its world:
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from drivers.contracts import Fault, HexapodLimits
 from drivers.errors import DeviceError
 from drivers.sim.esc import EscSettings
-from drivers.sim.imu_rig import SimImuRig, imu_model
 from drivers.sim.plant import PlantParams
 from drivers.sim.rig import SimRig
 from drivers.sim.sensor_params import SensorParams
+
+if TYPE_CHECKING:  # the IMU world (scipy splines) loads only for an IMU bench
+    from drivers.sim.imu_rig import SimImuRig
 
 __all__ = ["PROPULSION_SENSORS", "build_sim_imu_rig", "build_sim_rig", "sim_faults",
            "wire_plant"]
@@ -97,6 +99,8 @@ def wire_plant(rig: Any, seed: int | None = None) -> Any:
 
 def build_sim_imu_rig(rig: Any, seed: int | None, time_scale: float | None) -> SimImuRig:
     """The seeded simulated IMU bench; on the wall clock (``time_scale``) if not None."""
+    from drivers.sim.imu_rig import SimImuRig, imu_model
+
     try:
         model = imu_model({**dict(rig.imu.params), **dict(rig.sim.imu)}, noise=rig.sim.noise)
     except KeyError as exc:

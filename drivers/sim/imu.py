@@ -18,7 +18,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
 
 from drivers.sim.hexapod import HexapodState
 
@@ -66,6 +65,9 @@ class ImuModel:
 
     def mounting(self) -> Array:
         """IMU→body rotation C of (A.15): ``Rz(ψ)·Ry(θ)·Rx(φ)``."""
+        from scipy.spatial.transform import Rotation  # here: a propulsion run loads this
+        # module through the rig file's IMU section, and scipy outlasts a short sim run
+
         return Rotation.from_euler("xyz", self.mounting_deg, degrees=True).as_matrix()
 
     def forward_gyro(self) -> Array:
