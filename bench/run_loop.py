@@ -366,6 +366,29 @@ class SafeRunLoop:
         if self.recorder is not None:
             self.recorder.event(self._now_rel(), kind, step, label, detail)
 
+    def _add_link_errors(self, drops: dict[str, Any]) -> None:
+        """Frames lost on each device's link (bad checksums, truncated frames, CAN
+        transfer-id gaps: ``link_errors()`` of the backends that decode a byte or frame
+        stream) beside the samples missing from the time stamps; ``link_errors`` is the
+        total in ``run.json``."""
+        total = 0
+        devices = getattr(self.rig, "devices", None)
+        if not isinstance(devices, Mapping):
+            devices = {"esc": getattr(self.rig, "esc", None),
+                       **dict(getattr(self.rig, "sensors", {}) or {})}
+        for role, dev in devices.items():
+            count = getattr(dev, "link_errors", None)
+            if not callable(count):
+                continue
+            try:
+                errors = {k: int(v) for k, v in count().items() if v}
+            except Exception:  # a counter must never cost the run its record
+                continue
+            if errors:
+                drops["drops"].setdefault(role, {})["link_errors"] = errors
+                total += sum(errors.values())
+        drops["link_errors"] = total
+
     def _finish_record(self, trip: Trip | None, errors: list[str]) -> None:
         res = self.result
         assert res is not None
@@ -377,7 +400,8 @@ class SafeRunLoop:
             self._event("run_end", label=res.status, detail={"reason": res.reason})
         finally:
             drops = self.drops.summary()
-            marks = ["drops"] if drops["dropped_samples"] else []
+            self._add_link_errors(drops)
+            marks = ["drops"] if drops["dropped_samples"] or drops["link_errors"] else []
             self.recorder.finish(res.status, res.reason, trip=trip.to_dict() if trip else None,
                                  safe_stop_errors=errors, duration_s=res.t_end_s,
                                  **drops, marks=marks, **self._finish_fields())

@@ -91,6 +91,9 @@ def build(args: argparse.Namespace, out: Path, console: Console) -> dict[str, An
             notes.append(f"{rec.id}: {rec.meta['dropped_samples']} samples missed or late "
                          f"(longest gap {rec.meta.get('longest_gap_s') or 0:.3f} s; run.json "
                          "drops)")
+        if rec.meta.get("link_errors"):
+            notes.append(f"{rec.id}: {rec.meta['link_errors']} frames lost on device links "
+                         "(run.json drops.<role>.link_errors)")
 
     tau_par = None
     if motor is not None:

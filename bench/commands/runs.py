@@ -24,7 +24,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def drops_text(run_dir: Path) -> str:
-    """``0``, ``! 12 (gap 0.040 s)`` for a run with drops, ``-`` for a record without the
+    """``0``, ``! 12 (gap 0.040 s)`` for a run with drops (``, ! 3 link errors`` when frames
+    were lost on a device's link), ``-`` for a record without the
     count (older runs, killed runs); from the run's ``run.json``."""
     try:
         meta = json.loads((run_dir / "run.json").read_text(encoding="utf-8"))
@@ -33,7 +34,9 @@ def drops_text(run_dir: Path) -> str:
     n = meta.get("dropped_samples")
     if n is None:
         return "-"
-    return f"! {n} (gap {meta.get('longest_gap_s') or 0:.3f} s)" if n else "0"
+    link = meta.get("link_errors") or 0
+    text = f"! {n} (gap {meta.get('longest_gap_s') or 0:.3f} s)" if n else "0"
+    return f"{text}, ! {link} link errors" if link else text
 
 
 def handler(args: argparse.Namespace) -> int:

@@ -23,6 +23,7 @@ from drivers.backends.can_link import CanLink
 from drivers.backends.row_stream import block_from_rows
 from drivers.codecs import dronecan as dc
 from drivers.codecs.can_log import CanFrame
+from drivers.codecs.stream import link_losses
 from drivers.contracts import Block, ChannelInfo, Clock, DeviceInfo, MonotonicClock
 from drivers.errors import DeviceError
 
@@ -111,6 +112,8 @@ class DroneCanEscTelemetry:
         self.stale_s = stale_s
         self.url = url
         self.decoder = dc.DroneCanDecoder()
+        self._last_tid: dict[int, int] = {}  # esc.Status transfer id per source node
+        self.transfer_id_gaps = 0  # esc.Status transfers missing from the sequence
         self._rows: list[tuple[float, ...]] = []
         self._opened = self.clock.now()
         self._last: float | None = None
@@ -128,11 +131,29 @@ class DroneCanEscTelemetry:
         with self._lock:
             for rx in self.decoder.feed(frame):
                 m = rx.message
+                if isinstance(m, dc.EscStatus):
+                    self._count_gap(rx.source_node_id, rx.transfer_id)
                 if isinstance(m, dc.EscStatus) and m.esc_index == self.esc_index:
                     now = self.clock.now()
                     self._rows.append((now, float(m.rpm), m.current_a, m.voltage_v,
                                        m.temperature_k - KELVIN_AT_0C, float(m.error_count)))
                     self._last = now
+
+    def _count_gap(self, node: int, tid: int) -> None:
+        """A node numbers its esc.Status transfers (all ESC indexes) 0..31 cyclically; a
+        jump counts the transfers lost (a gap of a full 32 cannot be seen)."""
+        last = self._last_tid.get(node)
+        if last is not None and tid != last:  # the same id again: a repeated transfer
+            self.transfer_id_gaps += (tid - last - 1) % 32
+        self._last_tid[node] = tid
+
+    def link_errors(self) -> dict[str, int]:
+        """Transfers lost on the bus: decoder losses and transfer-id gaps."""
+        with self._lock:
+            out = link_losses(self.decoder.stats)
+            if self.transfer_id_gaps:
+                out["transfer_id_gaps"] = self.transfer_id_gaps
+        return out
 
     def read_block(self) -> Block:
         now = self.clock.now()

@@ -129,6 +129,9 @@ class Gx3Reference:
         self._offsets: deque[tuple[float, float]] = deque()  # (arrival, min offset)
         self._last_t = -math.inf
 
+    def link_errors(self) -> dict[str, int]:
+        return self.dev.link_errors()
+
     def describe(self) -> DeviceInfo:
         info = self.dev.describe()
         chans = tuple(ChannelInfo(c, "1" if c.startswith("ref_q") else "rad/s", 0.0)

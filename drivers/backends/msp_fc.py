@@ -33,6 +33,7 @@ import numpy as np
 
 from drivers.backends.serial_link import Deadline, read_some, write_all
 from drivers.codecs import msp
+from drivers.codecs.stream import link_losses
 from drivers.contracts import IMU_CHANNELS as BENCH_IMU_CHANNELS
 from drivers.contracts import Block, ChannelInfo, Clock, DeviceInfo, MonotonicClock
 from drivers.errors import DeviceError
@@ -170,6 +171,10 @@ class MspImu:
                 self._rows.append((stamp, *acc, *gyro, att.roll_rad, att.pitch_rad,
                                    att.yaw_rad))
 
+    def link_errors(self) -> dict[str, int]:
+        """Replies lost on the serial link (bad checksums, truncated, malformed frames)."""
+        return link_losses(self.client.decoder.stats)
+
     def read_block(self) -> Block:
         with self._lock:
             rows, self._rows = self._rows, []
@@ -279,6 +284,9 @@ class MspImuSensor:
                       for c in BENCH_IMU_CHANNELS)
         return DeviceInfo("imu", info.model, info.url, chans,
                           {"time_stamps": "host clock at reply arrival (RAW_IMU has none)"})
+
+    def link_errors(self) -> dict[str, int]:
+        return self.imu.link_errors()
 
     def read_block(self) -> Block:
         """The rows since the previous call; a row not later than the one before (two

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from drivers.backends.serial_link import read_some
+from drivers.codecs.stream import link_losses
 from drivers.contracts import Block, Clock, MonotonicClock
 from drivers.errors import DeviceError
 
@@ -76,6 +77,11 @@ class SerialStreamSensor:
                 with self._lock:
                     self._rows += rows
                     self._last = now
+
+    def link_errors(self) -> dict[str, int]:
+        """Frames lost on the link so far (bad checksums, truncated, malformed ...)."""
+        decoder = getattr(self, "decoder", None)
+        return link_losses(decoder.stats) if decoder is not None else {}
 
     def read_block(self) -> Block:
         now = self.clock.now()

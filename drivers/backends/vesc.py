@@ -25,6 +25,7 @@ from drivers.backends.can_link import CanLink
 from drivers.backends.row_stream import block_from_rows
 from drivers.codecs import vesc_can as vc
 from drivers.codecs.can_log import CanFrame
+from drivers.codecs.stream import link_losses
 from drivers.contracts import Block, ChannelInfo, Clock, DeviceInfo, MonotonicClock
 from drivers.errors import DeviceError
 
@@ -99,6 +100,10 @@ class VescTelemetry:
         self._last_status: float | None = None
         self._closed = False
         link.subscribe(self._on_frame)
+
+    def link_errors(self) -> dict[str, int]:
+        """Frames of this VESC lost on the bus (malformed status frames)."""
+        return link_losses(self.decoder.stats)
 
     def describe(self) -> DeviceInfo:
         units = {"rpm": "rpm", "current_a": "A", "voltage_v": "V", "motor_current_a": "A",

@@ -22,6 +22,7 @@ from drivers.backends.can_esc_guard import DutyEsc
 from drivers.backends.row_stream import block_from_rows
 from drivers.backends.serial_link import Deadline, read_some, write_all
 from drivers.codecs import vesc_uart as vu
+from drivers.codecs.stream import link_losses
 from drivers.contracts import Block, ChannelInfo, Clock, DeviceInfo, MonotonicClock
 from drivers.errors import DeviceError
 
@@ -131,6 +132,10 @@ class VescUartTelemetry:
                    v.motor_current_a, v.duty, v.temp_fet_c, v.temp_motor_c)
             with self._lock:
                 self._rows.append(row)
+
+    def link_errors(self) -> dict[str, int]:
+        """Replies lost on the serial link (bad CRC16, truncated, malformed frames)."""
+        return link_losses(self.link.decoder.stats)
 
     def read_block(self) -> Block:
         with self._lock:

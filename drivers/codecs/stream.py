@@ -33,6 +33,19 @@ from typing import Generic, TypeVar
 
 M = TypeVar("M")
 
+#: Decoder counters that mean data was lost on the link (every codec's stats use these
+#: names; CAN decoders: ``bad_crc``, ``orphan_frames``; DroneCAN telemetry adds the
+#: transfers missing from its transfer-id sequence). Garbage bytes and resyncs are not
+#: losses on their own: a link that drops a frame also shows up in these.
+LOSS_COUNTERS = ("bad_checksums", "bad_crc", "truncated", "malformed", "orphan_frames",
+                 "transfer_id_gaps")
+
+
+def link_losses(stats: object) -> dict[str, int]:
+    """The non-zero loss counters of a decoder's ``stats`` (``run.json``: ``link_errors``)."""
+    out = {k: int(getattr(stats, k)) for k in LOSS_COUNTERS if getattr(stats, k, 0)}
+    return out
+
 
 @dataclass
 class DecoderStats:

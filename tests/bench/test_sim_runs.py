@@ -191,3 +191,36 @@ def test_stalled_host_is_stopped_by_the_watchdog_on_the_sim_rig(mapped, tmp_path
     assert holder["w"].seen == [True]  # disarmed while the loop was still stalled
     assert result.status == "abort" and "watchdog" in result.reason
     assert disarmed(devices, rig)
+
+
+class _LossyLink:
+    """Wraps a sensor as a backend whose decoder saw damaged frames on its link."""
+
+    def __init__(self, sensor):
+        self.sensor = sensor
+
+    def describe(self):
+        return self.sensor.describe()
+
+    def read_block(self):
+        return self.sensor.read_block()
+
+    def close(self):
+        self.sensor.close()
+
+    def link_errors(self):
+        return {"bad_checksums": 3, "truncated": 1}
+
+
+def test_link_errors_are_recorded_and_mark_the_run(mapped, tmp_path):
+    from bench.commands.runs import drops_text
+
+    rig = mapped[0]
+    runner, devices = _run(rig, step1(repeats=1), tmp_path,
+                           wrap=lambda sensor, _devices: _LossyLink(sensor))
+    runner.run()
+    meta = json.loads((tmp_path / "run" / "run.json").read_text())
+    assert meta["status"] == "success" and meta["dropped_samples"] == 0
+    assert meta["drops"]["load_cell"]["link_errors"] == {"bad_checksums": 3, "truncated": 1}
+    assert meta["link_errors"] == 4 and "drops" in meta["marks"]
+    assert drops_text(tmp_path / "run") == "0, ! 4 link errors"
