@@ -1,7 +1,10 @@
-"""A bring-up report of a propulsion rig (``rotorbench check --deep``).
+"""A bring-up report of any rig (``rotorbench check --deep``): a propulsion stand or an
+IMU bench, one device list by role.
 
-Everything at rest (nothing armed): per device its identity and firmware (what its
-backend's ``describe()`` reports), the limits the device states against the rig file's,
+Everything at rest (nothing armed, nothing moved): per device its identity and firmware
+(what its backend's ``describe()`` reports), the limits the device states against the rig
+file's (the hexapod: the motion limits it reports and its controller state, servo,
+referenced and travel from ``SVO?``/``FRF?``/``TMN?``/``TMX?``),
 the achieved sample rate with missed or late samples (``bench``'s counting rule, here on
 the read blocks), the noise floor (mean and RMS about the mean of every column: load
 cell N RMS, current offset A) and the clock skew between devices: each sensor's stamp lag
@@ -18,7 +21,7 @@ import numpy as np
 
 from bench.drops import DropCounter  # the run's counting rule, the same numbers
 from drivers.contracts import Block
-from drivers.factory import SENSOR_ROLES, open_rig
+from drivers.factory import open_rig
 
 __all__ = ["bringup_report"]
 
@@ -55,14 +58,46 @@ def _stats(blocks: list[Block]) -> dict[str, dict[str, float]]:
     return out
 
 
+def _rig_limits(rig: Any) -> dict[str, float]:
+    """The rig file's limits by channel name: the propulsion stand's limits, or the IMU
+    bench's datasheet ranges of the IMU under test (the hexapod's limits are reported
+    with the hexapod)."""
+    imu = getattr(rig, "imu", None)
+    if imu is not None and getattr(rig, "hexapod", None) is not None:  # the IMU's ranges
+        gyro, acc = imu.value("gyro_range_rad_s"), imu.value("acc_range_m_s2")
+        return {f"imu_{kind}_{axis}_{unit}": rng for kind, unit, rng in
+                (("gyro", "rad_s", gyro), ("acc", "m_s2", acc)) for axis in "xyz"}
+    lim, esc = getattr(rig, "limits", None), getattr(rig, "esc", None)
+    if lim is None or esc is None:
+        return {}
+    return {"thrust_n": lim.thrust_n, "current_a": lim.current_a, "rpm": lim.rpm,
+            "voltage_v": lim.voltage_max_v, "throttle_us": esc.max_us}
+
+
+def _actuator(role: str, dev: Any, rig: Any) -> dict[str, Any]:
+    """The ESC or the hexapod: identity and limits, device against rig file."""
+    info = dev.describe()
+    entry: dict[str, Any] = {"role": role, "url": rig.devices[role].url,
+                             "identity": _identity(info)}
+    if role == "hexapod":
+        stated = dict(info.extra.get("limits") or {})
+        file_limits = dict(getattr(getattr(rig, "hexapod", None), "limits", {}) or {})
+        entry["limits"] = {k: {"device": stated.get(k), "rig": file_limits.get(k)}
+                           for k in sorted(set(stated) | set(file_limits))}
+        if "controller" in info.extra:
+            entry["controller"] = info.extra["controller"]
+    else:
+        entry["limits"] = _limits(info, {"throttle_us": rig.esc.max_us})
+    return entry
+
+
 def bringup_report(rig: Any, seconds: float = 2.0) -> dict[str, Any]:
     """Open the rig, listen ``seconds`` at rest, return the report (JSON-ready)."""
-    rig_limits = {"thrust_n": rig.limits.thrust_n, "current_a": rig.limits.current_a,
-                  "rpm": rig.limits.rpm, "voltage_v": rig.limits.voltage_max_v,
-                  "throttle_us": rig.esc.max_us}
+    rig_limits = _rig_limits(rig)
     with open_rig(rig) as r:
-        esc_info = r.esc.describe()
-        roles = [role for role in SENSOR_ROLES if role in r.sensors]
+        actuators = [_actuator(role, r.devices[role], rig)
+                     for role in ("esc", "hexapod") if role in r.devices]
+        roles = list(r.sensors)
         for role in roles:
             r.sensors[role].read_block()  # what came while opening
         blocks: dict[str, list[Block]] = {role: [] for role in roles}
@@ -86,8 +121,7 @@ def bringup_report(rig: Any, seconds: float = 2.0) -> dict[str, Any]:
                     drops.update(role, b.t_s, b.values)
         span = max(r.clock.now() - t0, 1e-9)
     summary = drops.summary()["drops"]
-    devices = [{"role": "esc", "url": rig.devices["esc"].url, "identity": _identity(esc_info),
-                "limits": _limits(esc_info, {"throttle_us": rig.esc.max_us})}]
+    devices = list(actuators)
     ref_lag = None
     for role in roles:
         n = sum(len(b) for b in blocks[role])

@@ -44,11 +44,11 @@ def deep(args: argparse.Namespace, path: Path) -> int:
     """``--deep``: the bring-up report (bench/bringup.py), printed and saved."""
     from bench.bringup import bringup_report
     from bench.recorder import atomic_write_json
-    from bench.rig import load_rig
+    from bench.rig import load_any_rig
 
     if not (math.isfinite(args.seconds) and 0 < args.seconds <= 600):
         raise RigError(f"--seconds: expected 0 < seconds <= 600, got {args.seconds:g}")
-    report = bringup_report(load_rig(path), args.seconds)
+    report = bringup_report(load_any_rig(path), args.seconds)
     out = args.save or path.with_name(f"{path.stem}.bringup.json")
     atomic_write_json(out, report)
     if args.json:
@@ -60,7 +60,9 @@ def deep(args: argparse.Namespace, path: Path) -> int:
             print(f"{d['role']:<10} {d['url']}  {ident}")
             for name, lim in d["limits"].items():
                 print(f"{'':<10}   limit {name}: device {lim['device']}, rig {lim['rig']}")
-            if d["role"] == "esc":
+            if "controller" in d:
+                print(f"{'':<10}   controller {json.dumps(d['controller'])}")
+            if d["role"] in ("esc", "hexapod"):
                 continue
             print(f"{'':<10}   rate {d['rate_hz']:.1f} samples/s (stated {d['stated_rate_hz']}),"
                   f" dropped {d['dropped']}, longest gap {d['longest_gap_s']} s, lag "
@@ -78,9 +80,6 @@ def handler(args: argparse.Namespace) -> int:
         raise RigError(f"--timeout: expected seconds > 0 per device, got {args.timeout:g}")
     path = args.rig or default_rig_path()
     if args.deep:
-        if is_imu_rig(path):
-            raise RigError(f"{path}: check --deep covers propulsion rigs; for an IMU bench "
-                           "use check (without --deep)")
         return deep(args, path)
     from drivers.check import check_rig
 

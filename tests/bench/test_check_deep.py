@@ -56,9 +56,30 @@ def test_deep_report_over_the_wire_as_json(tmp_path, capsys):
     assert json.loads(save.read_text())["devices"] == devices
 
 
-def test_deep_refuses_an_imu_rig_and_bad_seconds(tmp_path, capsys):
-    assert main(["check", "--deep", "--rig", str(RIGS / "sim-imu.toml")]) == 2
-    assert "check --deep covers propulsion rigs" in capsys.readouterr().err
+def test_deep_report_of_an_imu_bench_reads_the_controller(tmp_path, capsys):
+    save = tmp_path / "imu.bringup.json"
+    assert main(["check", "--deep", "--rig", str(RIGS / "sim-imu-tcp.toml"), "--seconds", "1",
+                 "--save", str(save)]) == 0
+    out = capsys.readouterr().out
+    assert "controller {" in out
+    dev = {d["role"]: d for d in json.loads(save.read_text())["devices"]}
+    assert list(dev) == ["hexapod", "imu", "reference_imu"]
+    hexapod = dev["hexapod"]
+    assert hexapod["identity"]["model"].startswith("C-887")
+    # the motion limits the controller reports against the rig file's, and its state
+    # read before any motion (SVO?, FRF?, TMN?, TMX?)
+    assert hexapod["limits"]["velocity_m_s"] == {"device": 0.6, "rig": 0.6}
+    ctl = hexapod["controller"]
+    assert all(ctl["servo"].values()) and all(ctl["referenced"].values())
+    assert ctl["travel"]["X"] == pytest.approx([-0.25, 0.25])
+    imu = dev["imu"]
+    assert imu["rate_hz"] == pytest.approx(100, rel=0.1) and imu["dropped"] == 0
+    lim = imu["limits"]["imu_gyro_x_rad_s"]
+    assert lim["rig"] == pytest.approx(lim["device"][1])  # datasheet range = device range
+    assert abs(imu["noise"]["imu_acc_z_m_s2"]["mean"] - 9.81) < 0.2  # at rest, level
+
+
+def test_deep_refuses_bad_seconds(tmp_path, capsys):
     rig = _copy(tmp_path, "sim")
     assert main(["check", "--deep", "--rig", str(rig), "--seconds", "0"]) == 2
     assert "--seconds" in capsys.readouterr().err

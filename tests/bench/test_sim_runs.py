@@ -216,7 +216,7 @@ def test_link_errors_are_recorded_and_mark_the_run(mapped, tmp_path):
     from bench.commands.runs import drops_text
 
     rig = mapped[0]
-    runner, devices = _run(rig, step1(repeats=1), tmp_path,
+    runner, _ = _run(rig, step1(repeats=1), tmp_path,
                            wrap=lambda sensor, _devices: _LossyLink(sensor))
     runner.run()
     meta = json.loads((tmp_path / "run" / "run.json").read_text())
