@@ -22,6 +22,7 @@ import json
 import math
 import os
 import socket
+import threading
 import time
 from collections.abc import Mapping
 from datetime import UTC, datetime
@@ -111,6 +112,14 @@ def _table(cols: Mapping[str, np.ndarray], schema: pa.Schema | None = None) -> p
     return pa.Table.from_arrays(arrays, schema=schema)
 
 
+class _PartFailed(Exception):
+    """A part written in the background failed (see ``RunRecorder.write_behind``)."""
+
+    def __init__(self, what: str, exc: OSError, rows: int) -> None:
+        super().__init__(what)
+        self.what, self.exc, self.rows = what, exc, rows
+
+
 class RunRecorder:
     """Writes one run folder; ``append`` columns as they come, ``finish`` once at the end."""
 
@@ -133,6 +142,11 @@ class RunRecorder:
         self.rows_written = 0
         self.closed = False
         self.failure: str | None = None  # the first write that failed, if any
+        # write-behind (see ``write_behind``): the part being written in the background
+        self._writer: threading.Thread | None = None
+        self._writer_error: BaseException | None = None
+        self._rows_failed = 0  # rows of a part whose background write failed
+        self._behind = False
         # The first Parquet write initialises pyarrow's writer (~0.3 s); do it now, not
         # inside the command loop where it would look like a stalled host.
         pq.write_table(_table({"t_s": np.zeros(1)}), io.BytesIO(), compression=compression)
@@ -183,9 +197,21 @@ class RunRecorder:
         while self._n and tb[self._n - 1] - tb[0] >= self.chunk_s:
             self._flush_until(tb[0] + self.chunk_s)
 
+    def write_behind(self) -> None:
+        """Write each part in a background thread while the run goes on (pyarrow lets go
+        of the GIL while it encodes and compresses), one part at a time.
+
+        For simulated rigs run flat out, where the Parquet writing was a sixth of the
+        command's time. The price: a failed write (disk full) is noticed when the next
+        part is handed over or at ``finish``, one part later, and a crash may lose the
+        part in flight as well as the buffered rows. A rig with hardware keeps writing in
+        line, so a full disk stops the motor at once."""
+        self._behind = True
+
     def flush(self) -> None:
         """Write everything buffered (used at the end of a run)."""
         self._flush_until(math.inf)
+        self._wait_writer()
 
     def _flush_until(self, t_cut: float) -> None:
         n = self._n
@@ -194,10 +220,42 @@ class RunRecorder:
         cut = int(np.searchsorted(self._buf["t_s"][:n], t_cut, side="left"))
         if cut == 0:  # a single sample at the cut; never loop forever
             cut = 1
+        self._wait_writer()
+        if self._behind:
+            # the part keeps the buffers it was cut from; the rest moves to new ones
+            part = {c: v[:cut] for c, v in self._buf.items()}
+            fresh = {c: np.empty_like(v) for c, v in self._buf.items()}
+            for c, v in fresh.items():
+                v[:n - cut] = self._buf[c][cut:n]
+            self._buf = fresh
+            self._n = n - cut
+            self._writer = threading.Thread(target=self._write_part_behind, args=(part,),
+                                            name="run-recorder", daemon=True)
+            self._writer.start()
+            return
         self._write_part({c: v[:cut] for c, v in self._buf.items()})
         for v in self._buf.values():  # the rest moves to the front (less than one batch)
             v[:n - cut] = v[cut:n].copy()
         self._n = n - cut
+
+    def _wait_writer(self) -> None:
+        """Wait for the part written in the background; raise its failure here."""
+        if self._writer is None:
+            return
+        self._writer.join()
+        self._writer = None
+        err, self._writer_error = self._writer_error, None
+        if isinstance(err, _PartFailed):
+            self._rows_failed += err.rows
+            self._failed(err.what, err.exc)
+        if err is not None:
+            raise err
+
+    def _write_part_behind(self, cols: Mapping[str, np.ndarray]) -> None:
+        try:
+            self._write_part(cols)
+        except BaseException as exc:  # raised in the run's thread by _wait_writer
+            self._writer_error = exc
 
     def _write_part(self, cols: Mapping[str, np.ndarray]) -> None:
         if self._schema is None:
@@ -215,7 +273,10 @@ class RunRecorder:
         except OSError as exc:
             with contextlib.suppress(OSError):
                 tmp.unlink(missing_ok=True)
-            self._failed(f"cannot write samples to {final.parent}", exc)
+            what = f"cannot write samples to {final.parent}"
+            if threading.current_thread() is self._writer:
+                raise _PartFailed(what, exc, table.num_rows) from None
+            self._failed(what, exc)
         self.parts += 1
         self.rows_written += table.num_rows
 
@@ -259,7 +320,8 @@ class RunRecorder:
             if self.failure is not None:
                 if self.meta["status"] == "success":  # the last flush failed
                     self.meta.update(status="abort", reason=f"recording failed: {self.failure}")
-                self.meta.update(recording_error=self.failure, rows_lost=self._n)
+                self.meta.update(recording_error=self.failure,
+                                 rows_lost=self._n + self._rows_failed)
                 self._n = 0
                 with contextlib.suppress(OSError):  # run.json may keep "running"
                     atomic_write_json(self.run_dir / "run.json", self.meta)
