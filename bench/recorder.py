@@ -62,12 +62,20 @@ def new_run_id(name: str) -> str:
     return f"{stamp}-{name}"
 
 
-def atomic_write_json(path: Path, data: Mapping[str, Any]) -> None:
-    """Write JSON to a temporary file next to ``path`` and rename it into place."""
+def atomic_write_json(path: Path, data: Mapping[str, Any],
+                      cache: dict[str, tuple[Any, str]] | None = None) -> None:
+    """Write JSON to a temporary file next to ``path`` and rename it into place.
+
+    ``cache`` (kept by the caller between writes of the same file) holds the text of
+    each top-level value that is a dict or list: written again unchanged (the same
+    object), it is not converted again. ``run.json`` is written at the start and at the
+    end of a run with the same plan and sequence, about 0.2 MB for a 200-repeat step,
+    and the indented encoder is pure Python. The values must not be changed in place in
+    between (the recorder's callers never do: they replace them)."""
     tmp = path.with_name(f".{path.name}.tmp")
     try:
         with open(tmp, "w", encoding="utf-8") as fh:
-            json.dump(_jsonable(data), fh, indent=2, allow_nan=False)
+            fh.write(_json_text(data, cache))
             fh.write("\n")
             fh.flush()
             os.fsync(fh.fileno())
@@ -76,6 +84,25 @@ def atomic_write_json(path: Path, data: Mapping[str, Any]) -> None:
         with contextlib.suppress(OSError):
             tmp.unlink(missing_ok=True)
         raise
+
+
+def _json_text(data: Mapping[str, Any], cache: dict[str, tuple[Any, str]] | None) -> str:
+    """``json.dumps(_jsonable(data), indent=2, allow_nan=False)``, built one top-level
+    value at a time: a value nested one level down is its own indented text with two
+    more spaces after every line break (strings never hold a raw one)."""
+    if not data:
+        return "{}"
+    items = []
+    for key, value in data.items():
+        hit = cache.get(str(key)) if cache is not None else None
+        if hit is not None and hit[0] is value:
+            text = hit[1]
+        else:
+            text = json.dumps(_jsonable(value), indent=2, allow_nan=False).replace("\n", "\n  ")
+            if cache is not None and isinstance(value, Mapping | list | tuple):
+                cache[str(key)] = (value, text)
+        items.append(f"  {json.dumps(str(key))}: {text}")
+    return "{\n" + ",\n".join(items) + "\n}"
 
 
 def _jsonable(obj: Any) -> Any:
@@ -147,6 +174,7 @@ class RunRecorder:
         self._writer_error: BaseException | None = None
         self._rows_failed = 0  # rows of a part whose background write failed
         self._behind = False
+        self._json_cache: dict[str, tuple[Any, str]] = {}  # run.json's plan, sequence...
         # The first Parquet write initialises pyarrow's writer (~0.3 s); do it now, not
         # inside the command loop where it would look like a stalled host.
         pq.write_table(_table({"t_s": np.zeros(1)}), io.BytesIO(), compression=compression)
@@ -157,7 +185,7 @@ class RunRecorder:
         try:
             self.run_dir.mkdir(parents=True, exist_ok=False)
             (self.run_dir / SAMPLES_DIR).mkdir()
-            atomic_write_json(self.run_dir / "run.json", self.meta)
+            atomic_write_json(self.run_dir / "run.json", self.meta, self._json_cache)
             self._events = open(self.run_dir / "events.csv", "w", newline="", encoding="utf-8")
             self._events_csv = csv.writer(self._events)
             self._events_csv.writerow(EVENT_FIELDS)
@@ -324,7 +352,7 @@ class RunRecorder:
                                  rows_lost=self._n + self._rows_failed)
                 self._n = 0
                 with contextlib.suppress(OSError):  # run.json may keep "running"
-                    atomic_write_json(self.run_dir / "run.json", self.meta)
+                    atomic_write_json(self.run_dir / "run.json", self.meta, self._json_cache)
             else:
-                atomic_write_json(self.run_dir / "run.json", self.meta)
+                atomic_write_json(self.run_dir / "run.json", self.meta, self._json_cache)
         return self.meta
