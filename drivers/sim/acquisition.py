@@ -15,6 +15,7 @@ or the drivers, so the rig builds on the drivers and the drivers on the DAQ, no 
 from __future__ import annotations
 
 import math
+import threading
 from typing import Protocol
 
 import numpy as np
@@ -123,6 +124,10 @@ class Acquisition:
         self.plant = plant
         self.sample_clock = sample_clock
         self.rng = np.random.Generator(np.random.SFC64(seed))  # fast bit generator
+        # noise rows drawn ahead of need (see ``_noise``); the rng's state is after them
+        self._ahead = np.empty((0, 3))
+        self._drawing: threading.Thread | None = None
+        self._drawn: np.ndarray | BaseException | None = None
         self.buffer = ColumnBuffer(5)
         b, a = bilinear_low_pass(p.load_cell_fn_hz, p.load_cell_zeta, p.sample_rate_hz)
         self.cell_b, self.cell_a = b, a
@@ -139,14 +144,57 @@ class Acquisition:
         self._period = math.inf
 
     def snapshot(self) -> tuple[object, ...]:
-        return (self.buffer.snapshot(), self.rng.bit_generator.state, self._cell.snapshot(),
-                self._count, self._last_edge, self._period)
+        self._collect()
+        return (self.buffer.snapshot(), self.rng.bit_generator.state, self._ahead,
+                self._cell.snapshot(), self._count, self._last_edge, self._period)
 
     def restore(self, snap: tuple[object, ...]) -> None:
-        buffer, rng, cell, self._count, self._last_edge, self._period = snap  # type: ignore[assignment]
+        self._collect()
+        buffer, rng, self._ahead, cell, self._count, self._last_edge, self._period = snap  # type: ignore[assignment]
         self.buffer.restore(buffer)  # type: ignore[arg-type]
         self.rng.bit_generator.state = rng
         self._cell.restore(cell)  # type: ignore[arg-type]
+
+    # Reads at least this long (samples) draw the next read's noise in the background.
+    DRAW_AHEAD = 4096
+
+    def _noise(self, n: int) -> np.ndarray:
+        """The next ``n`` rows of the noise stream (one row per sample, every channel).
+
+        The rows are the same however they are drawn: in one go, in pieces, or partly
+        ahead. A long read (a batch of ticks: 25,000 samples, 1 ms of the generator on the
+        development machine) has the next read's rows drawn meanwhile in a thread, since
+        numpy's generator lets go of the GIL while it fills an array. The rows drawn ahead
+        are part of ``snapshot`` and are never written to."""
+        self._collect()
+        ahead = self._ahead
+        if len(ahead) >= n:
+            rows, self._ahead = ahead[:n], ahead[n:]
+        else:
+            rows = np.concatenate((ahead, self.rng.standard_normal((n - len(ahead), 3))))
+            self._ahead = ahead[:0]
+        if n >= self.DRAW_AHEAD and len(self._ahead) < n:
+            self._drawing = threading.Thread(target=self._draw, args=(n - len(self._ahead),),
+                                             name="sim-noise", daemon=True)
+            self._drawing.start()
+        return rows
+
+    def _draw(self, n: int) -> None:
+        try:
+            self._drawn = self.rng.standard_normal((n, 3))
+        except BaseException as exc:  # raised in the reading thread by _collect
+            self._drawn = exc
+
+    def _collect(self) -> None:
+        """Wait for the rows being drawn ahead and queue them."""
+        if self._drawing is None:
+            return
+        self._drawing.join()
+        self._drawing = None
+        drawn, self._drawn = self._drawn, None
+        if not isinstance(drawn, np.ndarray):
+            raise drawn if drawn is not None else RuntimeError("sim DAQ: no noise drawn")
+        self._ahead = np.concatenate((self._ahead, drawn)) if len(self._ahead) else drawn
 
     def acquire_to(self, n1: int, now_ns: int, n_floor: int) -> None:
         """Sample every channel up to (not including) index ``n1``."""
@@ -185,8 +233,7 @@ class Acquisition:
         np.multiply(i_bus, -pp.supply_r_ohm * p.voltage_mv_per_v * 1e-3, out=out[2])
         out[2] += pp.supply_v * p.voltage_mv_per_v * 1e-3
         if p.noise:  # one draw per sample for all channels: independent of read slicing
-            noise = self.rng.standard_normal((t.size, 3))
-            noise *= self._noise_sigma_row
+            noise = self._noise(t.size) * self._noise_sigma_row
             out += noise.T
         # AttoPilot outputs swing 0-3.3 V only (unidirectional); then the ADC
         lsb = self._lsb
