@@ -105,7 +105,17 @@ def _json_text(data: Mapping[str, Any], cache: dict[str, tuple[Any, str]] | None
     return "{\n" + ",\n".join(items) + "\n}"
 
 
+_PLAIN = frozenset((str, int, bool, type(None)))
+
+
 def _jsonable(obj: Any) -> Any:
+    kind = type(obj)  # the common exact types first: a 200-repeat plan has 12k values
+    if kind is float:
+        return obj if math.isfinite(obj) else None
+    if kind in _PLAIN:
+        return obj
+    if kind is dict:
+        return {str(k): _jsonable(v) for k, v in obj.items()}
     if isinstance(obj, Mapping):
         return {str(k): _jsonable(v) for k, v in obj.items()}
     if isinstance(obj, list | tuple):
