@@ -22,7 +22,6 @@ import json
 import math
 import os
 import socket
-import threading
 import time
 from collections.abc import Mapping
 from datetime import UTC, datetime
@@ -34,6 +33,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from bench.errors import RecordingError, RigError
+from drivers.worker import Worker
 
 __all__ = ["BASE_COLUMNS", "RunRecorder", "atomic_write_json", "new_run_id",
            "software_version", "utc_now"]
@@ -179,11 +179,9 @@ class RunRecorder:
         self.rows_written = 0
         self.closed = False
         self.failure: str | None = None  # the first write that failed, if any
-        # write-behind (see ``write_behind``): the part being written in the background
-        self._writer: threading.Thread | None = None
-        self._writer_error: BaseException | None = None
+        # write-behind (see ``write_behind``): the thread writing the parts, if any
+        self._writer: Worker | None = None
         self._rows_failed = 0  # rows of a part whose background write failed
-        self._behind = False
         self._json_cache: dict[str, tuple[Any, str]] = {}  # run.json's plan, sequence...
         # The first Parquet write initialises pyarrow's writer (~0.3 s); do it now, not
         # inside the command loop where it would look like a stalled host.
@@ -244,7 +242,7 @@ class RunRecorder:
         part is handed over or at ``finish``, one part later, and a crash may lose the
         part in flight as well as the buffered rows. A rig with hardware keeps writing in
         line, so a full disk stops the motor at once."""
-        self._behind = True
+        self._writer = Worker("run-recorder")
 
     def flush(self) -> None:
         """Write everything buffered (used at the end of a run)."""
@@ -259,7 +257,7 @@ class RunRecorder:
         if cut == 0:  # a single sample at the cut; never loop forever
             cut = 1
         self._wait_writer()
-        if self._behind:
+        if self._writer is not None:
             # the part keeps the buffers it was cut from; the rest moves to new ones
             part = {c: v[:cut] for c, v in self._buf.items()}
             fresh = {c: np.empty_like(v) for c, v in self._buf.items()}
@@ -267,9 +265,7 @@ class RunRecorder:
                 v[:n - cut] = self._buf[c][cut:n]
             self._buf = fresh
             self._n = n - cut
-            self._writer = threading.Thread(target=self._write_part_behind, args=(part,),
-                                            name="run-recorder", daemon=True)
-            self._writer.start()
+            self._writer.submit(self._write_part, part, True)
             return
         self._write_part({c: v[:cut] for c, v in self._buf.items()})
         for v in self._buf.values():  # the rest moves to the front (less than one batch)
@@ -278,24 +274,15 @@ class RunRecorder:
 
     def _wait_writer(self) -> None:
         """Wait for the part written in the background; raise its failure here."""
-        if self._writer is None:
+        if self._writer is None or not self._writer.pending:
             return
-        self._writer.join()
-        self._writer = None
-        err, self._writer_error = self._writer_error, None
-        if isinstance(err, _PartFailed):
+        try:
+            self._writer.result()
+        except _PartFailed as err:
             self._rows_failed += err.rows
             self._failed(err.what, err.exc)
-        if err is not None:
-            raise err
 
-    def _write_part_behind(self, cols: Mapping[str, np.ndarray]) -> None:
-        try:
-            self._write_part(cols)
-        except BaseException as exc:  # raised in the run's thread by _wait_writer
-            self._writer_error = exc
-
-    def _write_part(self, cols: Mapping[str, np.ndarray]) -> None:
+    def _write_part(self, cols: Mapping[str, np.ndarray], behind: bool = False) -> None:
         if self._schema is None:
             table = _table(cols)
             self._schema = table.schema
@@ -312,7 +299,7 @@ class RunRecorder:
             with contextlib.suppress(OSError):
                 tmp.unlink(missing_ok=True)
             what = f"cannot write samples to {final.parent}"
-            if threading.current_thread() is self._writer:
+            if behind:  # in the writer's thread: _wait_writer raises it in the run's
                 raise _PartFailed(what, exc, table.num_rows) from None
             self._failed(what, exc)
         self.parts += 1

@@ -15,7 +15,6 @@ or the drivers, so the rig builds on the drivers and the drivers on the DAQ, no 
 from __future__ import annotations
 
 import math
-import threading
 from typing import Protocol
 
 import numpy as np
@@ -24,6 +23,7 @@ from drivers.sim.clock import SimClock
 from drivers.sim.load_cell_filter import SecondOrderLowPass, bilinear_low_pass
 from drivers.sim.plant import Plant
 from drivers.sim.sensor_params import SensorParams
+from drivers.worker import Worker
 
 
 class SampleClock:
@@ -126,8 +126,7 @@ class Acquisition:
         self.rng = np.random.Generator(np.random.SFC64(seed))  # fast bit generator
         # noise rows drawn ahead of need (see ``_noise``); the rng's state is after them
         self._ahead = np.empty((0, 3))
-        self._drawing: threading.Thread | None = None
-        self._drawn: np.ndarray | BaseException | None = None
+        self._drawing = Worker("sim-noise")
         self.buffer = ColumnBuffer(5)
         b, a = bilinear_low_pass(p.load_cell_fn_hz, p.load_cell_zeta, p.sample_rate_hz)
         self.cell_b, self.cell_a = b, a
@@ -174,26 +173,14 @@ class Acquisition:
             rows = np.concatenate((ahead, self.rng.standard_normal((n - len(ahead), 3))))
             self._ahead = ahead[:0]
         if n >= self.DRAW_AHEAD and len(self._ahead) < n:
-            self._drawing = threading.Thread(target=self._draw, args=(n - len(self._ahead),),
-                                             name="sim-noise", daemon=True)
-            self._drawing.start()
+            self._drawing.submit(self.rng.standard_normal, (n - len(self._ahead), 3))
         return rows
-
-    def _draw(self, n: int) -> None:
-        try:
-            self._drawn = self.rng.standard_normal((n, 3))
-        except BaseException as exc:  # raised in the reading thread by _collect
-            self._drawn = exc
 
     def _collect(self) -> None:
         """Wait for the rows being drawn ahead and queue them."""
-        if self._drawing is None:
+        if not self._drawing.pending:
             return
-        self._drawing.join()
-        self._drawing = None
-        drawn, self._drawn = self._drawn, None
-        if not isinstance(drawn, np.ndarray):
-            raise drawn if drawn is not None else RuntimeError("sim DAQ: no noise drawn")
+        drawn = self._drawing.result()
         self._ahead = np.concatenate((self._ahead, drawn)) if len(self._ahead) else drawn
 
     def acquire_to(self, n1: int, now_ns: int, n_floor: int) -> None:
