@@ -127,6 +127,7 @@ class Acquisition:
         # noise rows drawn ahead of need (see ``_noise``); the rng's state is after them
         self._ahead = np.empty((0, 3))
         self._drawing = Worker("sim-noise")
+        self._rng_before: dict[str, object] = {}  # the state before the rows being drawn
         self.buffer = ColumnBuffer(5)
         b, a = bilinear_low_pass(p.load_cell_fn_hz, p.load_cell_zeta, p.sample_rate_hz)
         self.cell_b, self.cell_a = b, a
@@ -143,12 +144,15 @@ class Acquisition:
         self._period = math.inf
 
     def snapshot(self) -> tuple[object, ...]:
-        self._collect()
-        return (self.buffer.snapshot(), self.rng.bit_generator.state, self._ahead,
-                self._cell.snapshot(), self._count, self._last_edge, self._period)
+        # rows still being drawn are not waited for: the generator's state before them
+        # goes into the snapshot, and a restore draws them again if they are needed
+        rng = self._rng_before if self._drawing.pending else self.rng.bit_generator.state
+        return (self.buffer.snapshot(), rng, self._ahead, self._cell.snapshot(),
+                self._count, self._last_edge, self._period)
 
     def restore(self, snap: tuple[object, ...]) -> None:
-        self._collect()
+        if self._drawing.pending:
+            self._drawing.result()  # the thread must be done with the generator
         buffer, rng, self._ahead, cell, self._count, self._last_edge, self._period = snap  # type: ignore[assignment]
         self.buffer.restore(buffer)  # type: ignore[arg-type]
         self.rng.bit_generator.state = rng
@@ -163,25 +167,22 @@ class Acquisition:
         The rows are the same however they are drawn: in one go, in pieces, or partly
         ahead. A long read (a batch of ticks: 25,000 samples, 1 ms of the generator on the
         development machine) has the next read's rows drawn meanwhile in a thread, since
-        numpy's generator lets go of the GIL while it fills an array. The rows drawn ahead
-        are part of ``snapshot`` and are never written to."""
-        self._collect()
+        numpy's generator lets go of the GIL while it fills an array; they are collected
+        when that read needs them. The rows drawn ahead are part of ``snapshot`` and are
+        never written to."""
+        if len(self._ahead) < n and self._drawing.pending:
+            drawn = self._drawing.result()
+            self._ahead = np.concatenate((self._ahead, drawn)) if len(self._ahead) else drawn
         ahead = self._ahead
         if len(ahead) >= n:
             rows, self._ahead = ahead[:n], ahead[n:]
         else:
             rows = np.concatenate((ahead, self.rng.standard_normal((n - len(ahead), 3))))
             self._ahead = ahead[:0]
-        if n >= self.DRAW_AHEAD and len(self._ahead) < n:
+        if n >= self.DRAW_AHEAD and len(self._ahead) < n and not self._drawing.pending:
+            self._rng_before = self.rng.bit_generator.state
             self._drawing.submit(self.rng.standard_normal, (n - len(self._ahead), 3))
         return rows
-
-    def _collect(self) -> None:
-        """Wait for the rows being drawn ahead and queue them."""
-        if not self._drawing.pending:
-            return
-        drawn = self._drawing.result()
-        self._ahead = np.concatenate((self._ahead, drawn)) if len(self._ahead) else drawn
 
     def acquire_to(self, n1: int, now_ns: int, n_floor: int) -> None:
         """Sample every channel up to (not including) index ``n1``."""
