@@ -2,9 +2,12 @@
 
 One seeded plant per simulated rig. The ESC model (``drivers.sim.esc``) hands the plant one
 duty cycle per PWM frame; the plant integrates the rotor speed (and, optionally, the winding
-current with inductance, C.1) over the frame in a few fixed substeps with scalar float
-arithmetic, and stores the trajectory at the substep points. Sensors then sample that
-trajectory at 25 kHz with vectorised interpolation, so no Python loop ever runs per sample.
+current with inductance, C.1) over the frame in a few fixed substeps, and stores the
+trajectory at the substep points. While the duty holds, the frames are one closed-form run
+continued from call to call (numpy for long runs), so the plant can integrate lazily, when
+the trajectory is looked at, with the same numbers wherever it is split. Sensors then sample
+that trajectory at 25 kHz with vectorised interpolation, so no Python loop ever runs per
+sample.
 
 Every default parameter carries its source; ``docs/sim-rig.md`` lists them in a table.
 """
