@@ -180,6 +180,8 @@ class SafeRunLoop:
         status, reason, trip = "fail", "run did not start", None
         pending: BaseException | None = None
         try:
+            if self.recorder is not None and self._batch_sim() is not None:
+                self.recorder.write_behind()  # nothing real spins: see write_behind
             self._drain()
             for role, rate in self._expected_rates().items():
                 self.drops.expect(role, rate)

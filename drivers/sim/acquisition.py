@@ -23,6 +23,7 @@ from drivers.sim.clock import SimClock
 from drivers.sim.load_cell_filter import SecondOrderLowPass, bilinear_low_pass
 from drivers.sim.plant import Plant
 from drivers.sim.sensor_params import SensorParams
+from drivers.worker import Worker
 
 
 class SampleClock:
@@ -123,6 +124,10 @@ class Acquisition:
         self.plant = plant
         self.sample_clock = sample_clock
         self.rng = np.random.Generator(np.random.SFC64(seed))  # fast bit generator
+        # noise rows drawn ahead of need (see ``_noise``); the rng's state is after them
+        self._ahead = np.empty((0, 3))
+        self._drawing = Worker("sim-noise")
+        self._rng_before: dict[str, object] = {}  # the state before the rows being drawn
         self.buffer = ColumnBuffer(5)
         b, a = bilinear_low_pass(p.load_cell_fn_hz, p.load_cell_zeta, p.sample_rate_hz)
         self.cell_b, self.cell_a = b, a
@@ -139,14 +144,45 @@ class Acquisition:
         self._period = math.inf
 
     def snapshot(self) -> tuple[object, ...]:
-        return (self.buffer.snapshot(), self.rng.bit_generator.state, self._cell.snapshot(),
+        # rows still being drawn are not waited for: the generator's state before them
+        # goes into the snapshot, and a restore draws them again if they are needed
+        rng = self._rng_before if self._drawing.pending else self.rng.bit_generator.state
+        return (self.buffer.snapshot(), rng, self._ahead, self._cell.snapshot(),
                 self._count, self._last_edge, self._period)
 
     def restore(self, snap: tuple[object, ...]) -> None:
-        buffer, rng, cell, self._count, self._last_edge, self._period = snap  # type: ignore[assignment]
+        if self._drawing.pending:
+            self._drawing.result()  # the thread must be done with the generator
+        buffer, rng, self._ahead, cell, self._count, self._last_edge, self._period = snap  # type: ignore[assignment]
         self.buffer.restore(buffer)  # type: ignore[arg-type]
         self.rng.bit_generator.state = rng
         self._cell.restore(cell)  # type: ignore[arg-type]
+
+    # Reads at least this long (samples) draw the next read's noise in the background.
+    DRAW_AHEAD = 4096
+
+    def _noise(self, n: int) -> np.ndarray:
+        """The next ``n`` rows of the noise stream (one row per sample, every channel).
+
+        The rows are the same however they are drawn: in one go, in pieces, or partly
+        ahead. A long read (a batch of ticks: 25,000 samples, 1 ms of the generator on the
+        development machine) has the next read's rows drawn meanwhile in a thread, since
+        numpy's generator lets go of the GIL while it fills an array; they are collected
+        when that read needs them. The rows drawn ahead are part of ``snapshot`` and are
+        never written to."""
+        if len(self._ahead) < n and self._drawing.pending:
+            drawn = self._drawing.result()
+            self._ahead = np.concatenate((self._ahead, drawn)) if len(self._ahead) else drawn
+        ahead = self._ahead
+        if len(ahead) >= n:
+            rows, self._ahead = ahead[:n], ahead[n:]
+        else:
+            rows = np.concatenate((ahead, self.rng.standard_normal((n - len(ahead), 3))))
+            self._ahead = ahead[:0]
+        if n >= self.DRAW_AHEAD and len(self._ahead) < n and not self._drawing.pending:
+            self._rng_before = self.rng.bit_generator.state
+            self._drawing.submit(self.rng.standard_normal, (n - len(self._ahead), 3))
+        return rows
 
     def acquire_to(self, n1: int, now_ns: int, n_floor: int) -> None:
         """Sample every channel up to (not including) index ``n1``."""
@@ -185,8 +221,7 @@ class Acquisition:
         np.multiply(i_bus, -pp.supply_r_ohm * p.voltage_mv_per_v * 1e-3, out=out[2])
         out[2] += pp.supply_v * p.voltage_mv_per_v * 1e-3
         if p.noise:  # one draw per sample for all channels: independent of read slicing
-            noise = self.rng.standard_normal((t.size, 3))
-            noise *= self._noise_sigma_row
+            noise = self._noise(t.size) * self._noise_sigma_row
             out += noise.T
         # AttoPilot outputs swing 0-3.3 V only (unidirectional); then the ADC
         lsb = self._lsb

@@ -40,5 +40,6 @@ class SimClock:
         self._t_ns = snap
 
     def on_advance(self, listener: Callable[[int], None]) -> None:
-        """Call ``listener(now_ns)`` after every sleep (the rig advances its plant here)."""
+        """Call ``listener(now_ns)`` after every sleep (the rig tells its plant the time
+        here; the plant integrates when it is looked at)."""
         self._listeners.append(listener)

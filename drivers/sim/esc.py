@@ -166,7 +166,8 @@ class SimEsc:
     def _check(self, what: str) -> None:
         if self.closed:
             raise DeviceError(f"{self.url}: ESC is closed ({what})")
-        self.faults.check(self.clock.now(), what)
+        if self.faults.switches:  # none switched on: nothing to check (every tick)
+            self.faults.check(self.clock.now(), what)
 
     def arm(self) -> None:
         self._check("arm")

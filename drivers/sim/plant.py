@@ -2,9 +2,12 @@
 
 One seeded plant per simulated rig. The ESC model (``drivers.sim.esc``) hands the plant one
 duty cycle per PWM frame; the plant integrates the rotor speed (and, optionally, the winding
-current with inductance, C.1) over the frame in a few fixed substeps with scalar float
-arithmetic, and stores the trajectory at the substep points. Sensors then sample that
-trajectory at 25 kHz with vectorised interpolation, so no Python loop ever runs per sample.
+current with inductance, C.1) over the frame in a few fixed substeps, and stores the
+trajectory at the substep points. While the duty holds, the frames are one closed-form run
+continued from call to call (numpy for long runs), so the plant can integrate lazily, when
+the trajectory is looked at, with the same numbers wherever it is split. Sensors then sample
+that trajectory at 25 kHz with vectorised interpolation, so no Python loop ever runs per
+sample.
 
 Every default parameter carries its source; ``docs/sim-rig.md`` lists them in a table.
 """
@@ -176,30 +179,55 @@ class Plant:
         self.v_bus = params.supply_v - params.supply_r_ohm * self.i_bus
         self.duty = 0.0
         self._kq = params.torque_k
-        self._offset_cache: dict[tuple[int, float], np.ndarray] = {}
-        self.traj = Trajectory()
+        # the closed-form run in progress (see ``_continue_run``), None after a stepped frame
+        self._run: tuple[float, ...] | None = None
+        self._due_ns = 0  # where the clock is: the plant integrates up to it when looked at
+        self._traj = Trajectory()
         self._append(self.latency_ns * 1e-9)
 
-    _STATE = ("k", "omega", "theta", "i_w", "i_bus", "v_bus", "duty")
+    # The clock may run ahead of the plant by this much before a sleep integrates; the
+    # result is the same wherever the integration is split, this only bounds the memory.
+    MAX_LAG_NS = 2_000_000_000
+    # Closed-form runs this short (substeps) are stepped in Python floats rather than numpy
+    # arrays: the same operations in the same order, so the same numbers, only cheaper.
+    SCALAR_RUN = 16
+
+    _STATE = ("k", "omega", "theta", "i_w", "i_bus", "v_bus", "duty", "_run", "_due_ns")
 
     def snapshot(self) -> tuple[object, ...]:
-        return (*(getattr(self, name) for name in self._STATE), self.traj.snapshot())
+        return (*(getattr(self, name) for name in self._STATE), self._traj.snapshot())
 
     def restore(self, snap: tuple[object, ...]) -> None:
         """Back to a ``snapshot`` (a simulated rig's checkpoint)."""
         for name, value in zip(self._STATE, snap[:-1], strict=True):
             setattr(self, name, value)
-        self.traj.restore(snap[-1])  # type: ignore[arg-type]
+        self._traj.restore(snap[-1])  # type: ignore[arg-type]
 
     # ------------------------------------------------------------------------------------
     def _append(self, t: float) -> None:
-        self.traj.pending.append(
+        self._traj.pending.append(
             (t, self.omega, self.theta, self.i_w, self.i_bus, self.v_bus, self.duty))
+
+    @property
+    def traj(self) -> Trajectory:
+        """The state history, integrated up to where the clock is (see ``due``)."""
+        if self._due_ns > self.t_ns:
+            self.advance_to(self._due_ns)
+        return self._traj
 
     @property
     def t_ns(self) -> int:
         """Time up to which the plant state is known."""
         return self.k * self.frame_ns + self.latency_ns
+
+    def due(self, t_ns: int) -> None:
+        """The clock reached ``t_ns`` (its listener). The integration waits until someone
+        looks (``traj``, ``advance_to``): a simulated run sends commands every tick but
+        reads once per batch, and one integration per read costs far less than one per
+        tick. It gives the same numbers wherever it is split (see ``_continue_run``)."""
+        self._due_ns = t_ns
+        if t_ns - self.t_ns > self.MAX_LAG_NS:  # commands pile up in the ESC meanwhile
+            self.advance_to(t_ns)
 
     def advance_to(self, t_ns: int) -> None:
         """Integrate frame by frame until the state is known at ``t_ns`` (or later)."""
@@ -208,50 +236,110 @@ class Plant:
         while self.t_ns < t_ns:
             duty = self.esc.latch(self.k)
             remaining = -(-(t_ns - self.t_ns) // self.frame_ns)
-            span = self.esc.steady_frames(self.k, remaining) if remaining > 2 else 1
-            if span > 2 and self._integrate_span(duty, span):
-                self.k += span
-            else:
+            span = self.esc.steady_frames(self.k, remaining) if remaining > 1 else 1
+            n = self._continue_run(duty, span)
+            if n == 0:
                 self._integrate_frame(duty)
-                self.k += 1
+                self._run = None
+                n = 1
+            self.k += n
 
-    def _integrate_span(self, duty: float, n_frames: int) -> bool:
-        """Many frames at one duty in one vectorised closed-form step (the Riccati solution
-        of ``_integrate_frame``). Returns False where that does not apply (inductance,
-        rotor at or reaching rest, discontinuous conduction); the caller then steps."""
+    def _new_run(self, duty: float) -> tuple[float, ...] | None:
+        """The constants of the closed-form solution at a latched duty from the current
+        state, or None where it does not apply (inductance, rotor at rest)."""
         p = self.params
         w0 = self.omega
         if p.use_inductance or w0 <= 0.0:
-            return False
+            return None
         coast = duty <= 0.0
         d = 0.0 if coast else duty
         kt, ke, j = p.kt_nm_a, p.ke_v_s_rad, p.j_kg_m2
         r_tot = p.r_ohm + d * d * p.supply_r_ohm
-        v_drive = d * p.supply_v
         if coast:
             a, b = -p.friction_nm / j, 0.0
         else:
-            a = (kt * v_drive / r_tot - p.friction_nm) / j
+            a = (kt * d * p.supply_v / r_tot - p.friction_nm) / j
             b = kt * ke / (r_tot * j)
         c = self._kq / j
         h = self.frame_ns * 1e-9 / self.n_sub
-        m = self._offsets(n_frames * self.n_sub, h)
         disc = b * b + 4.0 * a * c
-        if disc > 0.0:
+        if disc > 0.0:  # w = (w1 - u w2) / (1 - u), u shrinking by exp(-s h) per substep
             s = math.sqrt(disc)
             w1, w2 = (-b + s) / (2.0 * c), (-b - s) / (2.0 * c)
-            u = (w0 - w1) / (w0 - w2) * np.exp(-s * m)
-            w = (w1 - u * w2) / (1.0 - u)
+            return (duty, 0.0, w1, w2, math.exp(-s * h), (w0 - w1) / (w0 - w2))
+        # no real equilibrium: the rotor decelerates on a tangent curve, w = g tan(arg) - shift
+        shift, g = b / (2.0 * c), math.sqrt(-disc) / (2.0 * c)
+        return (duty, 1.0, shift, g, c * g * h, math.atan((w0 + shift) / g))
+
+    def _continue_run(self, duty: float, n_frames: int) -> int:
+        """Up to ``n_frames`` frames at one duty in closed form (the Riccati solution of
+        ``_integrate_frame``); returns how many it integrated (0: the caller steps one).
+
+        A run of frames at one duty continues one sequence, ``u_k = u_(k-1) q`` or
+        ``arg_k = arg_(k-1) - step`` and the angle summed substep by substep, however the
+        calls split the run: so a run read once per batch gives the same numbers, bit for
+        bit, as one read every tick, and the plant may integrate lazily. A frame where the
+        closed form does not hold (the rotor stops in it, discontinuous conduction) ends
+        the frames taken; the caller steps it and a new run starts after it."""
+        run = self._run
+        if run is None or run[0] != duty:
+            run = self._new_run(duty)
+            if run is None:
+                return 0
+        p = self.params
+        coast = duty <= 0.0
+        d = 0.0 if coast else duty
+        ke = p.ke_v_s_rad
+        r_tot = p.r_ohm + d * d * p.supply_r_ohm
+        v_drive = d * p.supply_v
+        n_sub = self.n_sub
+        h = self.frame_ns * 1e-9 / n_sub
+        dcm_check = not coast and self.scheme is not EscScheme.COMPLEMENTARY
+        n = n_frames * n_sub
+        if run[1] == 0.0 and n <= self.SCALAR_RUN:
+            return self._continue_run_scalar(run, n_frames, d, r_tot, v_drive, h, dcm_check)
+        _, kind, c1, c2, step, phase = run
+        w0 = self.omega
+        x = np.empty(n)
+        if kind == 0.0:
+            x.fill(step)
+            x[0] = phase * step
+            np.multiply.accumulate(x, out=x)  # u_k, one product after the other
+            phase_end = x
+            w = x * c2
+            np.subtract(c1, w, out=w)
+            w /= np.subtract(1.0, x)
         else:
-            shift, g = b / (2.0 * c), math.sqrt(-disc) / (2.0 * c)
-            arg = math.atan((w0 + shift) / g) - c * g * m
-            if arg[-1] <= -math.pi / 2:
-                return False
-            w = g * np.tan(arg) - shift
-        if w[-1] <= 0.0 or w.min() <= 0.0:
-            return False  # the rotor stops inside the span
-        # the trajectory's rows, written in place (this runs once per command tick)
-        out = np.empty((7, w.size))
+            x.fill(-step)
+            x[0] = phase - step
+            np.add.accumulate(x, out=x)  # arg_k, one step after the other
+            phase_end = x
+            w = np.tan(x)
+            w *= c2
+            w -= c1
+        bad = w <= 0.0  # the rotor stops
+        if kind != 0.0:
+            bad |= x <= -math.pi / 2
+        frames = n_frames
+        hit = np.flatnonzero(bad)
+        if hit.size:
+            frames = int(hit[0]) // n_sub
+        if dcm_check:  # continuous conduction at every point, the frame's start included
+            emf = ke * np.concatenate(([w0], w))
+            v_bus, v_f = p.supply_v, p.diode_drop_v
+            i_all = (v_drive - emf) / r_tot
+            dcm = d * d * p.pwm_period_for(self.scheme) * (v_bus + v_f) / (2.0 * p.l_h)
+            i_dcm = dcm * np.maximum(v_bus - emf, 0.0) / (emf + v_f)
+            hit = np.flatnonzero(i_all < i_dcm - 1e-12)
+            if hit.size:
+                first = int(hit[0])
+                frames = min(frames, 0 if first == 0 else (first - 1) // n_sub)
+        if frames == 0:
+            return 0
+        m = frames * n_sub
+        w = w[:m]
+        # the trajectory's rows, written in place
+        out = np.empty((7, m))
         t_col, w_col, theta, i_w, i_bus, v_bus_out, duty_col = out
         w_col[:] = w
         if coast:
@@ -261,44 +349,75 @@ class Plant:
             np.multiply(w, ke, out=i_w)
             np.subtract(v_drive, i_w, out=i_w)
             i_w /= r_tot  # (E.4), (E.5)
-            if self.scheme is not EscScheme.COMPLEMENTARY:
-                emf = ke * np.concatenate(([w0], w))
-                v_bus, v_f = p.supply_v, p.diode_drop_v
-                i_all = (v_drive - emf) / r_tot
-                dcm = d * d * p.pwm_period_for(self.scheme) * (v_bus + v_f) / (2.0 * p.l_h)
-                i_dcm = dcm * np.maximum(v_bus - emf, 0.0) / (emf + v_f)
-                if np.any(i_all < i_dcm - 1e-12):
-                    return False  # discontinuous conduction somewhere: step frame by frame
             np.multiply(i_w, d, out=i_bus)
             i_bus += p.esc_quiescent_a
-        # trapezoid rule: theta_k = theta_0 + cumsum(h/2 (w_{k-1} + w_k))
+        # trapezoid rule, summed from theta_0 one substep after the other
         theta[1:] = w[:-1]
         theta[0] = w0
         theta += w
         theta *= 0.5 * h
-        np.cumsum(theta, out=theta)
-        theta += self.theta
-        t0 = self.k * self.frame_ns * 1e-9 + self.latency_ns * 1e-9
-        np.add(m, t0, out=t_col)
+        theta[0] += self.theta
+        np.add.accumulate(theta, out=theta)
+        ks = np.arange(self.k, self.k + frames) * self.frame_ns * 1e-9 + self.latency_ns * 1e-9
+        if n_sub == 1:
+            np.add(ks, h, out=t_col)
+        else:
+            t_col.reshape(frames, n_sub)[:] = ks[:, None] + np.arange(1, n_sub + 1) * h
         np.multiply(i_bus, p.supply_r_ohm, out=v_bus_out)
         np.subtract(p.supply_v, v_bus_out, out=v_bus_out)
         duty_col[:] = d
-        self.traj.extend(out)
+        self._traj.extend(out)
+        self._run = (*run[:5], float(phase_end[m - 1]))
         self.omega, self.theta, self.i_w, self.duty = float(w[-1]), float(theta[-1]), \
             float(i_w[-1]), d
         self.i_bus, self.v_bus = float(i_bus[-1]), float(v_bus_out[-1])
-        return True
+        return frames
 
-    def _offsets(self, n: int, h: float) -> np.ndarray:
-        """``h, 2h, ..., n h`` (the substep times of a span), cached: the same few span
-        lengths come back every tick."""
-        key = (n, h)
-        m = self._offset_cache.get(key)
-        if m is None:
-            if len(self._offset_cache) > 64:
-                self._offset_cache.clear()
-            m = self._offset_cache[key] = np.arange(1, n + 1) * h
-        return m
+    def _continue_run_scalar(self, run: tuple[float, ...], n_frames: int, d: float,
+                             r_tot: float, v_drive: float, h: float, dcm_check: bool) -> int:
+        """``_continue_run`` for a few substeps of the ``u`` form in Python floats: the
+        same operations in the same order as the numpy version, so the same numbers and
+        the same frames taken."""
+        p = self.params
+        duty, _, w1, w2, q, u = run
+        coast = duty <= 0.0
+        ke, quiescent = p.ke_v_s_rad, p.esc_quiescent_a
+        v_bus, v_f = p.supply_v, p.diode_drop_v
+        dcm = d * d * p.pwm_period_for(self.scheme) * (v_bus + v_f) / (2.0 * p.l_h)
+
+        def discontinuous(w: float) -> bool:
+            emf = ke * w
+            return (v_drive - emf) / r_tot < dcm * max(v_bus - emf, 0.0) / (emf + v_f) - 1e-12
+
+        omega, theta = self.omega, self.theta
+        if dcm_check and discontinuous(omega):
+            return 0
+        pts: list[tuple[float, ...]] = []
+        n_sub, frames = self.n_sub, 0
+        while frames < n_frames:
+            t0 = (self.k + frames) * self.frame_ns * 1e-9 + self.latency_ns * 1e-9
+            frame: list[tuple[float, ...]] = []
+            for m in range(1, n_sub + 1):
+                u = u * q
+                w = (w1 - u * w2) / (1.0 - u)
+                if w <= 0.0 or (dcm_check and discontinuous(w)):
+                    break  # the closed form does not hold in this frame: step it
+                theta = theta + (omega + w) * (0.5 * h)
+                omega = w
+                i_w = 0.0 if coast else (v_drive - w * ke) / r_tot
+                i_bus = quiescent if coast else i_w * d + quiescent
+                frame.append((t0 + m * h, w, theta, i_w, i_bus,
+                              p.supply_v - i_bus * p.supply_r_ohm, d, u))
+            if len(frame) < n_sub:
+                break
+            pts += frame
+            frames += 1
+        if frames == 0:
+            return 0
+        self._traj.pending.extend(pt[:7] for pt in pts)
+        _, self.omega, self.theta, self.i_w, self.i_bus, self.v_bus, self.duty, u = pts[-1]
+        self._run = (*run[:5], u)
+        return frames
 
     def _integrate_frame(self, duty: float) -> None:
         p = self.params

@@ -143,7 +143,7 @@ class SimRig:
         self.daq = SimDaq(self.sensor_params, self.clock, self.plant, self.sample_clock,
                           seeds[5])
         self.acquisition = self.daq.acquisition
-        self.clock.on_advance(self.plant.advance_to)
+        self.clock.on_advance(self.plant.due)
         self.esc = SimEsc(urls["esc"], self.esc_model, self.clock,
                           FaultSwitches(urls["esc"], rngs[1], ESC_FAULTS))
         sp = self.sensor_params

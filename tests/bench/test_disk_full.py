@@ -84,3 +84,26 @@ def test_last_flush_failing_turns_a_complete_run_into_an_abort(tmp_path: Path,
     meta = json.loads((tmp_path / "r" / "run.json").read_text())
     assert meta["status"] == "abort" and meta["rows_lost"] == 6 and meta["rows"] == 0
     assert rec.finish("success", "again") is rec.meta  # idempotent, no second raise
+
+
+def test_write_behind_reports_a_failed_part_when_the_next_one_is_handed_over(
+        tmp_path: Path, disk_fills_after) -> None:
+    """In the background a failed part cannot raise where it was handed over: the next
+    part (or ``finish``) raises it, and its rows count as lost."""
+    import numpy as np
+
+    rec = RunRecorder(tmp_path / "r", {"kind": "x"})
+    rec.write_behind()
+    disk_fills_after(1)
+
+    def rows(t0: float) -> dict:
+        return {c: t0 + np.arange(500) / 1000.0 for c in recorder_module.BASE_COLUMNS}
+
+    for t0 in (0.0, 0.5, 1.0, 1.5, 2.0, 2.5):  # parts 0 (written) and 1 (fails) handed over
+        rec.append(rows(t0))
+    with pytest.raises(RecordingError, match="No space left on device"):
+        rec.append(rows(3.0))  # hands part 2 over: part 1's failure comes out here
+    meta = rec.finish("abort", "recording failed")
+    assert (meta["parts"], meta["rows"], meta["rows_lost"]) == (1, 1000, 2500)
+    assert meta["status"] == "abort" and "No space left" in meta["recording_error"]
+    assert not list((tmp_path / "r" / "samples.parquet").glob(".*"))

@@ -104,3 +104,31 @@ def test_index_lists_runs_and_flags_killed_ones(tmp_path):
     assert listed["b"].status == "killed"
     (tmp_path / "runs.sqlite").unlink()
     assert RunIndex(tmp_path).rebuild() == 1
+
+
+def test_run_json_text_is_the_indented_dump_and_reuses_unchanged_values(tmp_path):
+    """run.json is built one top-level value at a time (the plan's text is kept from the
+    first write for the last): byte for byte what ``json.dump(indent=2)`` writes."""
+    from pathlib import Path
+
+    from bench.recorder import _json_text, _jsonable, atomic_write_json
+
+    plan = {"segments": [{"index": i, "label": "step\nup", "us": 1000.0 + i, "sp": None,
+                          "nan": float("nan"), "x": np.float64(1.5), "e": [], "d": {}}
+                         for i in range(3)], "duration_s": 2.5}
+    meta = {"kind": "step1", "plan": plan, "empty": {}, "none": None, 3: (1, "é"),
+            "path": Path("/x"), "n": np.int32(7)}
+    want = json.dumps(_jsonable(meta), indent=2, allow_nan=False)
+    assert _json_text(meta, None) == want
+    assert _json_text({}, None) == json.dumps({}, indent=2)
+    cache: dict = {}
+    path = tmp_path / "run.json"
+    atomic_write_json(path, meta, cache)
+    assert path.read_text(encoding="utf-8") == want + "\n"
+    assert cache["plan"][0] is plan
+    meta = {**meta, "kind": "changed", "plan": plan}
+    atomic_write_json(path, meta, cache)  # the plan's text again from the cache
+    assert path.read_text(encoding="utf-8") == json.dumps(_jsonable(meta), indent=2) + "\n"
+    meta["plan"] = {**plan, "duration_s": 3.0}  # a new object is converted again
+    atomic_write_json(path, meta, cache)
+    assert json.loads(path.read_text(encoding="utf-8"))["plan"]["duration_s"] == 3.0

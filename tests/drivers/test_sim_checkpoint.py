@@ -78,3 +78,22 @@ def test_runs_alone_only_without_faults_and_foreign_devices() -> None:
     assert not rig.runs_alone(rig.clock, [*devices, object()])
     rig.power.inject("spikes", at_s=10.0)
     assert not rig.runs_alone(rig.clock, devices)
+
+
+def test_a_checkpoint_taken_while_the_next_noise_is_drawn_ahead() -> None:
+    """A long read has the next read's noise drawn in a thread; a checkpoint taken
+    meanwhile does not wait for it, and going back gives the same samples again (and the
+    same as reads of one tick each, which draw nothing ahead)."""
+    rig = SimRig(seed=7)
+    rig.esc.arm()
+    _drive(rig, range(60), 60)  # one read of 1.2 s: the next read's rows are being drawn
+    assert rig.acquisition._drawing.pending
+    checkpoint = rig.checkpoint()
+    first = _drive(rig, range(60, 120), 60)
+    rig.restore(checkpoint)
+    again = _drive(rig, range(60, 120), 60)
+    _same(first, again)
+    ref = SimRig(seed=7)
+    ref.esc.arm()
+    _drive(ref, range(60), 1)
+    _same(first, _drive(ref, range(60, 120), 1))
