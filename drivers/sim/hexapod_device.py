@@ -58,7 +58,11 @@ class _Run:
 
     @property
     def t_end(self) -> float:
-        return self.t0 + min(self.duration, self.stopped_at - self.t0)
+        # the earlier of the two end times, not t0 + min(duration, stopped_at - t0): in
+        # floating point t0 + (stopped_at - t0) can exceed stopped_at by an ulp (t0 =
+        # 1.08231501, stopped at 3.883613346 gives 3.8836133460000006), and a platform
+        # stopped at X then still "moved" at X, which a paused bench clock reads again
+        return min(self.t0 + self.duration, self.stopped_at)
 
 
 class SimHexapodDevice:

@@ -124,6 +124,19 @@ def test_stop_freezes_the_platform_and_is_always_allowed(bench) -> None:
     assert np.allclose(log.values["ref_omega_x_rad_s"][late], 0.0)
 
 
+def test_a_stopped_run_ends_exactly_where_it_was_stopped() -> None:
+    """Seen in a loaded test run: started at 1.08231501 s, stopped at 3.883613346 s, and
+    t0 + (stop - t0) = 3.8836133460000006, so the hexapod still reported motion at the
+    stop time, which a paused bench clock read again."""
+    from drivers.sim.hexapod_device import _Run
+
+    run = _Run("wave", 1.08231501, None, 22.0)  # type: ignore[arg-type]
+    run.stopped_at = 3.883613346
+    assert run.t_end == 3.883613346
+    assert not run.t0 <= 3.883613346 < run.t_end  # is_moving's test at the stop time
+    assert _Run("w", 1.0, None, 2.0).t_end == 3.0  # type: ignore[arg-type]
+
+
 def test_pivot_and_start_are_refused_while_moving(bench) -> None:
     hx = bench.hexapod
     hx.upload(Trajectory.from_motion(gyro_sines(beats=1), 200.0))
