@@ -16,7 +16,7 @@ from typing import Any
 
 from optimizer.errors import CatalogError
 
-__all__ = ["SHIPPED_CATALOGS", "default_catalog", "load", "shipped_catalog"]
+__all__ = ["SHIPPED_CATALOGS", "default_catalog", "load", "shipped_catalog", "with_current_model"]
 
 SHIPPED_CATALOGS = Path(__file__).resolve().parents[1] / "fixtures" / "catalogs"
 
@@ -43,8 +43,27 @@ def _shipped_name(path: Path) -> Path:
     return path
 
 
-def load(path: Path | None) -> Any:
-    """Load a catalog; a missing default catalog is a clear error, not a traceback."""
+def load(path: Path | None, current_model: str | None = None) -> Any:
+    """Load a catalog; a missing default catalog is a clear error, not a traceback.
+
+    ``current_model`` (``--current-model``) replaces the catalog's ``current_model``
+    constant for this run (``optimizer.model_constants``); None keeps the catalog's.
+    """
+    catalog = _load(path)
+    return with_current_model(catalog, current_model)
+
+
+def with_current_model(catalog: Any, current_model: str | None) -> Any:
+    """``catalog`` with its current definition replaced (None: unchanged)."""
+    import dataclasses
+
+    if current_model is None or current_model == catalog.constants.current_model:
+        return catalog
+    constants = catalog.constants.with_updates(current_model=current_model)
+    return dataclasses.replace(catalog, constants=constants)
+
+
+def _load(path: Path | None) -> Any:
     from optimizer.catalog import load_catalog
 
     folder = _shipped_name(path) if path is not None else default_catalog()

@@ -204,6 +204,15 @@ def add_catalog_args(p: argparse.ArgumentParser) -> None:
              "default: fixtures/catalogs/thesis-e)",
     )
     p.add_argument("--payload-kg", type=float, default=0.0, help="payload mass (default 0)")
+    p.add_argument(
+        "--current-model",
+        choices=("thesis", "drive"),
+        default=None,
+        help="what the battery delivers, for every current, power and flight time of the "
+             "run: 'thesis' = the propellers' shaft power (E.67, Papers D and E), 'drive' = "
+             "the motors' electric power with winding loss (eCalc-like); default: the "
+             "catalog's current_model (thesis unless catalog.toml says otherwise)",
+    )
     p.add_argument("--json", action="store_true", help="print one JSON object")
 
 

@@ -11,10 +11,12 @@ on one propeller and motor at any thrust (what a bench measurement is compared w
 
 Metric definitions (all at hover, the operating point of Paper E's flight time):
 - ``propeller_power_w``: power of one propeller, x17 (E.61-E.63).
-- ``power_w``: total hover power of all N propellers, N x17 = B_V x18. This is what the
-  "min power" objective minimises. Table E.2 literally minimises x17; for a fixed actuator
-  count (each thesis MILP has a fixed N) both pick the same design.
-- ``current_a``: battery current, x18 (E.67-E.69).
+- ``power_w``: total hover power drawn from the battery, B_V x18: N x17 with the thesis'
+  current (E.67), the motors' electric power with ``current_model = "drive"``. This is
+  what the "min power" objective minimises. Table E.2 literally minimises x17; for a
+  fixed actuator count (each thesis MILP has a fixed N) both pick the same design.
+- ``current_a``: battery current, x18 (E.67-E.69), or N V_m I_w / B_V with
+  ``current_model = "drive"`` (``ModelConstants.current_model``: one definition per run).
 - ``extras["motor_current_a"]``: winding current per motor, Q / K_t + I_0 with the
   hover torque Q = W / omega (E.3), (E.5)-(E.7); checked against the motor's
   ``max_current_a`` ("motor winding current") unless ``motor_current = "battery"``.
@@ -113,32 +115,47 @@ class HoverActuator:
     ct: Any  # C_t at that speed (the constant without measured coefficients)
     cp: Any  # C_p at that speed
     propeller_power_w: Any  # (E.60)-(E.63) x17
-    current_a: Any  # (E.67) battery current per actuator, x18 / N_a
+    #: battery current per actuator: (E.67) x18 / N_a, or the drive's (``current_model``)
+    current_a: Any
     torque_nm: Any  # (E.3) shaft torque Q = W / omega
     winding_current_a: Any  # (E.5)-(E.7) Q / K_t + I_0
+    electric_power_w: Any  # V_m I_w, V_m = K_e omega + R I_w (E.4)
     time_constant_s: Any  # (E.34)-(E.35)
 
 
 def hover_actuator(thrust_n: Any, ct: Any, cp: Any, rho: float, diameter_m: Any,
                    resistance_ohm: Any, inertia_kgm2: Any, kt: Any, voltage_v: Any,
                    no_load_current_a: Any = 0.0,
-                   coefficients: Coefficients | None = None) -> HoverActuator:
+                   coefficients: Coefficients | None = None,
+                   current_model: str = "thesis") -> HoverActuator:
     """Paper E's actuator at ``thrust_n``: (E.20) speed, (E.60)-(E.63) power, (E.67)
     current, (E.3), (E.5)-(E.7) torque and winding current, (E.34)-(E.35) time constant.
 
     The one home of that chain: ``evaluate_grid`` runs it on the whole design grid,
     ``actuator_at_thrust`` on one propeller and motor (the demo's model column).
     ``coefficients`` (rpm -> C_t, C_p) replace the constant coefficients at the speed.
+    ``current_model`` (``ModelConstants.current_model``) says what the battery delivers:
+    the shaft power (E.67, "thesis") or the motor's electric power ("drive").
     """
     n_rev_s, ct, cp = speed_for_thrust(thrust_n, ct, cp, rho, diameter_m, coefficients)
     power = physics.propeller_power_w(cp, rho, n_rev_s, diameter_m)  # (E.60)-(E.63)
     torque = physics.hover_torque_nm(power, n_rev_s)  # (E.3) Q = W / omega
     damping = physics.propeller_damping(cp, rho, n_rev_s, diameter_m)  # (E.34)
+    winding = physics.winding_current_a(torque, kt, no_load_current_a)  # (E.5)-(E.7)
+    # (E.4) V_m = K_e omega + R I_w with K_e = K_t in SI units
+    electric = (kt * physics.TWO_PI * n_rev_s + resistance_ohm * winding) * winding
+    if current_model == "thesis":
+        current = power / voltage_v  # (E.67): x18 / N_a per actuator
+    elif current_model == "drive":
+        current = electric / voltage_v  # V_b I_b = V_m I_w (lossless ESC)
+    else:
+        raise ValueError(f"current_model: expected 'thesis' or 'drive', got {current_model!r}")
     return HoverActuator(
         n_rev_s=n_rev_s, ct=ct, cp=cp, propeller_power_w=power,
-        current_a=power / voltage_v,  # (E.67): x18 / N_a per actuator
+        current_a=current,
         torque_nm=torque,
-        winding_current_a=physics.winding_current_a(torque, kt, no_load_current_a),
+        winding_current_a=winding,
+        electric_power_w=electric,
         time_constant_s=physics.time_constant_s(resistance_ohm, inertia_kgm2, kt, damping),
     )
 
@@ -166,7 +183,8 @@ def actuator_at_thrust(catalog: Catalog, propeller: int, motor: int, thrust_n: f
     r = float(mot["resistance_ohm"])
     inertia = propeller_inertia_kgm2(catalog)[propeller] + motor_inertia_kgm2(catalog)[motor]
     no_load = float(np.nan_to_num(float(mot["no_load_current_a"]), nan=0.0))
-    hover = hover_actuator(thrust_n, ct, cp, rho, d, r, inertia, kt, voltage_v, no_load)
+    hover = hover_actuator(thrust_n, ct, cp, rho, d, r, inertia, kt, voltage_v, no_load,
+                           current_model=c.current_model)
     top = physics.full_throttle_thrust_n(voltage_v, kt, r, ct, cp, rho, d)
     return ActuatorPoint(float(thrust_n), float(voltage_v), hover, float(top))
 
@@ -219,7 +237,7 @@ def evaluate_grid(
     hover_thrust = total_mass * g / n  # (E.19)-(E.20), per propeller
     no_load = np.nan_to_num(m_("no_load_current_a"), nan=0.0)  # I_0, 0 where not given
     hover = hover_actuator(hover_thrust, ct, cp, rho, diameter, resistance, j_total, kt,
-                           voltage, no_load, coefficients)
+                           voltage, no_load, coefficients, c.current_model)
     n_rev_s, prop_power, torque = hover.n_rev_s, hover.propeller_power_w, hover.torque_nm
     actuator_current, winding_current = hover.current_a, hover.winding_current_a
     tau = hover.time_constant_s
@@ -306,7 +324,11 @@ def evaluate_grid(
         "battery_voltage": c.battery_voltage,
         "arm_length": c.arm_length,
         "motor_current": c.motor_current,
-        "power_w": "total hover power of all propellers (N x17, Table E.2 'min power')",
+        "current_model": c.current_model,
+        "power_w": ("total hover power of all propellers (N x17, Table E.2 'min power')"
+                    if c.current_model == "thesis" else
+                    "total electric hover power of all motors (N V_m I_w, winding loss "
+                    "included)"),
         "total_mass_kg": "take-off mass including payload",
     }
     if np.any(

@@ -20,6 +20,7 @@ from optimizer.errors import CatalogError
 BATTERY_VOLTAGE_CHOICES = ("in_flight", "nominal")
 ARM_LENGTH_CHOICES = ("radius", "diagonal")
 MOTOR_CURRENT_CHOICES = ("winding", "battery")
+CURRENT_MODEL_CHOICES = ("thesis", "drive")
 
 
 @dataclass(frozen=True)
@@ -62,6 +63,13 @@ class ModelConstants:
     #: current") besides the thesis' per-actuator battery current x18 / N (E.67,
     #: "motor current"); "battery": only the thesis' check (Papers D and E as printed).
     motor_current: str = "winding"
+    #: What the battery delivers per actuator, the one current definition of a run (design
+    #: current, flight time, power, current limits, the eCalc sheet and its rules):
+    #: "thesis" = the propeller's shaft power at B_V, x18 / N = N x17 / B_V (E.67), a
+    #: loss-free motor and ESC (Papers D and E as printed); "drive" = the motor's electric
+    #: power V_m I_w at B_V, V_m = K_e omega + R I_w, I_w = Q / K_t + I_0 (E.4)-(E.7): the
+    #: winding loss R I_w^2 and the no-load current drawn from the battery (lossless ESC).
+    current_model: str = "thesis"
 
     def with_updates(self, **changes: Any) -> ModelConstants:
         """A copy with some constants replaced (validated like catalog.toml)."""
@@ -75,6 +83,7 @@ _CHOICES = {
     "battery_voltage": BATTERY_VOLTAGE_CHOICES,
     "arm_length": ARM_LENGTH_CHOICES,
     "motor_current": MOTOR_CURRENT_CHOICES,
+    "current_model": CURRENT_MODEL_CHOICES,
 }
 _KNOWN = {f.name for f in fields(ModelConstants)}
 #: Free-text keys allowed in catalog.toml (documentation only).

@@ -9,7 +9,10 @@ and "motor @ maximum" sheets; docs/sizing.md cites them):
   ``I = Q / K_t + I_0``, propeller torque ``Q = W / omega`` (E.3), ``W = C_p rho n^3 D^5``
   (E.2); thrust (E.1);
 * battery current per drive ``I_b = t I`` (a lossless ESC: ``V_b I_b = V_m I``),
-  electric power ``P = V_m I``;
+  electric power ``P = V_m I``; with the thesis' current model (``Drive.current_model =
+  "thesis"``, (E.67)) the battery delivers the shaft power instead: ``I_b = W / V_b``,
+  ``P = W`` (a loss-free motor, the reading of Papers D and E), so a sheet and the design
+  model of one run share one current definition;
 * efficiency in g/W: thrust in grams-force per watt of electric power;
 * hover throttle: ``V_m`` needed at the hover speed over ``V_b``.
 
@@ -50,6 +53,9 @@ class Drive:
     rho: float
     #: rpm -> (C_t, C_p) from measured data; None: the constants ct, cp
     coefficients: Coefficients | None = None
+    #: what the battery delivers: "drive" (V_m I, winding loss included) or "thesis" (the
+    #: shaft power, (E.67)); ``optimizer.model_constants.ModelConstants.current_model``
+    current_model: str = "drive"
 
     def coeffs(self, rpm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(C_t, C_p) at ``rpm`` (the constants without measured data)."""
@@ -105,13 +111,20 @@ def _point(drive: Drive, omega: np.ndarray, ct, cp, v_batt) -> OperatingPoint:
     )
     v_motor = np.where(omega > 0, omega * drive.kt + drive.resistance_ohm * current, 0.0)
     throttle = v_motor / v_batt
+    if drive.current_model == "thesis":
+        power = shaft  # (E.67): x18 = N x17 / B_V, the battery delivers the shaft power
+    elif drive.current_model == "drive":
+        power = v_motor * current  # lossless ESC: V_b I_b = V_m I
+    else:
+        raise ValueError(f"current_model: expected 'thesis' or 'drive', got "
+                         f"{drive.current_model!r}")
     return OperatingPoint(
         throttle=throttle,
         thrust_n=thrust,
         rpm=n * 60.0,
         motor_current_a=current,
-        battery_current_a=throttle * current,
-        power_w=v_motor * current,
+        battery_current_a=power / v_batt,
+        power_w=power,
         shaft_power_w=shaft,
         motor_voltage_v=v_motor,
     )

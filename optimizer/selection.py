@@ -569,6 +569,12 @@ def _select_thesis(
     """Paper E's formulation per actuator count; designs evaluated by the exact model."""
     from optimizer.thesis_formulation import solve_thesis
 
+    if catalog.constants.current_model != "thesis":
+        raise RequestError(
+            "method thesis is Paper E's linearised MILP with its own current (E.67); "
+            "with current model 'drive' use method milp or exact"
+        )
+
     if objective.is_single:
         spec: Any = objective.terms[0][0].name
     elif objective.normalization == "none":

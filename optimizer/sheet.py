@@ -10,6 +10,7 @@ Shepherd-model flight time beside the thesis' constant-voltage one, C-rate check
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -40,6 +41,7 @@ def drive_of(catalog: Catalog, coefficients: ops.Coefficients | None = None) -> 
         no_load_current_a=np.nan_to_num(m_("no_load_current_a"), nan=0.0),
         rho=catalog.constants.air_density_kg_m3,
         coefficients=coefficients,
+        current_model=catalog.constants.current_model,
     )
 
 
@@ -86,15 +88,18 @@ def design_sheet(
     top = ops.at_throttle(drive, 1.0, v_b)
     hover = ops.at_thrust(drive, weight / n, v_b)  # (E.19)-(E.20)
     max_thrust = _one(top.thrust_n)
+    model = drive.current_model
     out: dict[str, Any] = {
+        "current_model": model,
         "max_thrust_n": max_thrust,
         "thrust_to_weight": n * max_thrust / weight,
         "hover_throttle_pct": 100.0 * _one(hover.throttle),
         "efficiency_g_per_w": _one(hover.efficiency_g_per_w),
         "hover_electric_power_w": n * _one(hover.power_w),
         "hover_battery_current_a": n * _one(hover.battery_current_a),
-        # per actuator, battery side, winding losses included (the thesis' x18 / N is not)
+        # per actuator, battery side, the run's current model: the design's x18 / N
         "hover_current_per_actuator_a": _one(hover.battery_current_a),
+        "current_models": _current_models(drive, weight / n, v_b, n, pack["capacity_ah"]),
         "max_rpm": _one(top.rpm),
         "max_motor_current_a": _one(top.motor_current_a),
         "max_battery_current_a": n * _one(top.battery_current_a),
@@ -107,12 +112,14 @@ def design_sheet(
     dis = bat.discharge(
         n * hover.power_w, pack["cells"], pack["capacity_ah"], pack["resistance_ohm"], curve
     )
+    load = ("shaft power, loss-free drive (E.67)" if model == "thesis"
+            else "motor electric power, winding loss included")
     out["battery_model"] = {
         "label": "Shepherd discharge (Tremblay 2007), constant hover power to "
-        f"{curve.cutoff_v:g} V/cell, motor and ESC losses included",
+        f"{curve.cutoff_v:g} V/cell; hover power: {load}",
         "flight_time_min": _one(dis.time_min),
         "thesis_flight_time_min": float(record["flight_time_min"]),
-        "thesis_label": "constant voltage, whole capacity, shaft power (E.67-E.74)",
+        "thesis_label": f"constant voltage, whole capacity (E.67-E.74); hover power: {load}",
         "usable_capacity_pct": 100.0 * _one(dis.used_fraction),
         "start_voltage_v": _one(dis.start_voltage_v),
         "end_voltage_v": _one(dis.end_voltage_v),
@@ -139,6 +146,26 @@ def design_sheet(
     ]
     margins += [_margin(label, unit, v, lim, "<=") for label, unit, v, lim in limits]
     out["limit_margins"] = margins
+    return out
+
+
+CURRENT_MODEL_LABELS = {
+    "thesis": "(E.67): the battery delivers the propeller's shaft power at B_V",
+    "drive": "the motor's electric power V_m I_w at B_V (winding loss R I_w^2 and I_0)",
+}
+
+
+def _current_models(drive: ops.Drive, thrust_n: float, v_b: Any, n: int,
+                    capacity_ah: Any) -> dict[str, dict[str, Any]]:
+    """Both current definitions at hover, side by side: per-actuator battery current and
+    the constant-voltage flight time 60 B_Ah / x18 (E.72) each gives. The run's own model
+    (``current_model``) is the one every other key uses."""
+    out = {}
+    for name, label in CURRENT_MODEL_LABELS.items():
+        hover = ops.at_thrust(replace(drive, current_model=name), thrust_n, v_b)
+        current = _one(hover.battery_current_a)
+        out[name] = {"label": label, "current_per_actuator_a": current,
+                     "flight_time_min": 60.0 * _one(capacity_ah) / (n * current)}
     return out
 
 

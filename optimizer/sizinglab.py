@@ -71,6 +71,8 @@ CONSTANTS = {
     "battery_voltage": "nominal",
     "price_includes_propellers": True,
     "min_thrust_to_weight": 2.0,
+    # real parts: the battery delivers the motors' electric power (winding loss included)
+    "current_model": "drive",
     "description": "SizingLab droneapp-legacy catalogs (Apache-2.0), imported with "
     "documented assumptions (docs/optimizer.md)",
 }

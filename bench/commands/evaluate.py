@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from bench.catalogs import load
+from bench.catalogs import load, with_current_model
 from bench.cli_support import add_catalog_args, add_measured_args, json_default, measured_from_args
 from bench.design_tables import MEASURED_MARK, ROWS, format_cell
 from bench.measured_constants import is_measured
@@ -63,12 +63,13 @@ def _catalog_and_ids(args: argparse.Namespace) -> tuple[Any, tuple[str, str, str
             raise RequestError("evaluate: give catalog ids (--propeller/--motor/--battery) or "
                                "free-form parts (--motor-kv ...), not both")
         constants = load(args.catalog).constants if args.catalog is not None else None
-        return freeform_catalog(vars(args), constants), ("prop", "motor", "battery")
+        catalog = with_current_model(freeform_catalog(vars(args), constants), args.current_model)
+        return catalog, ("prop", "motor", "battery")
     missing = [f for f, i in zip(("--propeller", "--motor", "--battery"), ids, strict=True)
                if i is None]
     if missing:
         raise RequestError(f"evaluate: missing {', '.join(missing)} (or give free-form parts)")
-    catalog = load(args.catalog)
+    catalog = load(args.catalog, args.current_model)
     return _with_pack(catalog, args.battery), (args.propeller, args.motor, args.battery)
 
 
@@ -196,8 +197,12 @@ def print_sheet(record: dict[str, Any]) -> None:
         ("Thrust-to-weight", f"{record['thrust_to_weight']:.2f}"),
         ("Hover throttle (%)", f"{record['hover_throttle_pct']:.0f}"),
         ("Hover efficiency (g/W)", f"{record['efficiency_g_per_w']:.2f}"),
-        ("Hover electric power (W)", f"{record['hover_electric_power_w']:.1f}"),
+        ("Current model (--current-model)", record["current_model"]),
+        ("Hover battery power (W)", f"{record['hover_electric_power_w']:.1f}"),
         ("Hover battery current (A)", f"{record['hover_battery_current_a']:.2f}"),
+        *((f"{name} model: A per actuator / min",
+           f"{m['current_per_actuator_a']:.2f} / {m['flight_time_min']:.1f}")
+          for name, m in record["current_models"].items()),
         ("Full throttle: rpm", f"{record['max_rpm']:.0f}"),
         ("Full throttle: motor current (A)", f"{record['max_motor_current_a']:.2f}"),
         ("Full throttle: battery current (A)", f"{record['max_battery_current_a']:.1f}"),
@@ -221,6 +226,8 @@ def print_sheet(record: dict[str, Any]) -> None:
                       f"{m['value']:.4g} {op} {m['limit']:.4g}{pct}  {verdict}")
     console.print(sheet)
     console.print(f"[1] {bm['thesis_label']}\n[2] {bm['label']}", style="dim")
+    for name, m in record["current_models"].items():
+        console.print(f"current model {name}: {m['label']}", style="dim")
     rules = Table(title="Flyable-design rules (optimize --flyable enforces them)",
                   title_justify="left")
     for head in ("Rule", "Quantity", "Value", "Limit", ""):

@@ -103,7 +103,7 @@ def _check_args(args: argparse.Namespace) -> int:
 
 def handler(args: argparse.Namespace) -> int:
     n = _check_args(args)
-    catalog = load(args.catalog)
+    catalog = load(args.catalog, args.current_model)
     step = step_constants(args.step_run) if args.step_run is not None else None
     grid, measured = _grid(args, catalog, n)
     if args.sweep:

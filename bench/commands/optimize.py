@@ -152,9 +152,9 @@ def handler(args: argparse.Namespace) -> int:
     if args.paper_e_cases:
         if args.max_roll_rise_ms is not None:
             raise RequestError("--max-roll-rise-ms does not apply to --paper-e-cases")
-        return run_paper_e_cases(args, load(args.catalog))
+        return run_paper_e_cases(args, load(args.catalog, args.current_model))
     objective = build_objective(args)
-    catalog = load(args.catalog)
+    catalog = load(args.catalog, args.current_model)
     requirements = Requirements(
         payload_kg=args.payload_kg,
         min_flight_time_min=args.min_flight_time_min,

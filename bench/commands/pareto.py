@@ -66,7 +66,7 @@ def compute(args: argparse.Namespace) -> dict[str, Any]:
     for n in args.actuators:
         if n < 3:
             raise RequestError(f"--actuators: expected counts >= 3, got {n}")
-    catalog = load(args.catalog)
+    catalog = load(args.catalog, args.current_model)
     rules = rules_from_args(args)
     build: Any = evaluate_grid
     if rules is not None:

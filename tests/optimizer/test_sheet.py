@@ -42,19 +42,66 @@ def test_case_i_thrust_to_weight_and_partial_load(case_i) -> None:
         assert key in rows[0]
 
 
-def test_case_i_current_at_hover_thrust(case_i) -> None:
-    rows = case_i["partial_load"]
-    hover = case_i["total_mass_kg"] * 9.81 / 4
+@pytest.mark.parametrize("model", ["thesis", "drive"])
+def test_case_i_current_at_hover_thrust(capsys, fixtures_dir, model) -> None:
+    """One current definition per run: the partial-load table, the hover point and the
+    design's per-actuator current x18 / N agree, whichever model the run uses."""
+    cat = str(fixtures_dir / "catalogs" / "thesis-e")
+    out = evaluate_json(capsys, "--catalog", cat, "--actuators", "4", "--propeller", "P4",
+                        "--motor", "M1", "--battery", "B3", "--current-model", model)
+    assert out["current_model"] == model
+    rows = out["partial_load"]
+    hover = out["total_mass_kg"] * 9.81 / 4
     current = np.interp(hover, [r["thrust_n"] for r in rows], [r["current_a"] for r in rows])
-    # the drive model's own hover point (winding losses included)
-    assert current == pytest.approx(case_i["hover_current_per_actuator_a"], rel=0.05)
-    assert case_i["hover_current_per_actuator_a"] * 4 == pytest.approx(
-        case_i["hover_battery_current_a"])
-    # against the thesis' per-actuator current x18 / N (E.67, shaft power / B_V): the
-    # difference is the copper loss R I_w^2 of the winding current, nothing else
-    thesis = case_i["current_a"] / 4
+    design = out["current_a"] / 4
+    assert current == pytest.approx(design, rel=0.05)  # issue 16's criterion
+    assert out["hover_current_per_actuator_a"] == pytest.approx(design, rel=1e-9)
+    assert out["hover_battery_current_a"] == pytest.approx(out["current_a"], rel=1e-9)
+    assert out["flight_time_min"] == pytest.approx(60 * 16.0 / out["current_a"])  # (E.72)
+    assert out["current_models"][model]["current_per_actuator_a"] == pytest.approx(design)
+    assert out["current_models"][model]["flight_time_min"] == pytest.approx(
+        out["flight_time_min"])
+
+
+def test_the_two_current_models_differ_by_the_copper_loss(case_i) -> None:
+    """(E.67) divides the shaft power by B_V; the drive adds the winding loss R I_w^2
+    (I_0 = 0 in thesis-e): 3.84 A against 4.55 A per actuator for Case I."""
+    models = case_i["current_models"]
+    assert case_i["current_model"] == "thesis"  # the catalog's default: Table E.8 holds
+    assert case_i["flight_time_min"] == pytest.approx(62.5, abs=0.05)
     i_w, r, v = case_i["motor_current_a"], 0.222, 12.0
-    assert case_i["hover_battery_current_a"] / 4 - thesis == pytest.approx(r * i_w**2 / v)
+    diff = models["drive"]["current_per_actuator_a"] - models["thesis"]["current_per_actuator_a"]
+    assert diff == pytest.approx(r * i_w**2 / v)
+    assert models["drive"]["flight_time_min"] < models["thesis"]["flight_time_min"]
+
+
+def test_drive_model_current_is_the_motor_electric_power(fixtures_dir) -> None:
+    """Hand-computed: I_b = (K_e omega + R I_w) I_w / B_V with I_w = Q / K_t + I_0."""
+    from optimizer.design_model import hover_actuator
+
+    kt, r, i0, v = 0.025, 0.1, 0.5, 12.0
+    ct, cp, rho, d, thrust = 0.1, 0.05, 1.225, 0.254, 5.0
+    thesis = hover_actuator(thrust, ct, cp, rho, d, r, 1e-5, kt, v, i0)
+    drive = hover_actuator(thrust, ct, cp, rho, d, r, 1e-5, kt, v, i0, current_model="drive")
+    n = np.sqrt(thrust / (ct * rho * d**4))  # (E.1) solved for n
+    w = cp * rho * n**3 * d**5  # (E.2)
+    i_w = w / (2 * np.pi * n) / kt + i0
+    assert thesis.current_a == pytest.approx(w / v)  # (E.67)
+    assert drive.current_a == pytest.approx((kt * 2 * np.pi * n + r * i_w) * i_w / v)
+    with pytest.raises(ValueError, match="current_model"):
+        hover_actuator(thrust, ct, cp, rho, d, r, 1e-5, kt, v, i0, current_model="eCalc")
+
+
+def test_current_model_choice_and_method_thesis(capsys, fixtures_dir) -> None:
+    cat = str(fixtures_dir / "catalogs" / "thesis-e")
+    with pytest.raises(SystemExit) as bad:
+        main(["optimize", "--catalog", cat, "--actuators", "4", "--current-model", "ecalc"])
+    assert bad.value.code == 2
+    capsys.readouterr()
+    code = main(["optimize", "--catalog", cat, "--actuators", "4", "--current-model", "drive",
+                 "--method", "thesis"])
+    err = capsys.readouterr().err
+    assert code == 2 and "method milp or exact" in err and "Traceback" not in err
 
 
 def test_lossless_motor_matches_the_thesis_current(fixtures_dir) -> None:

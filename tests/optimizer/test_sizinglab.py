@@ -63,6 +63,9 @@ def test_write_folder_round_trip(sizinglab, tmp_path) -> None:
     out = import_to_folder(sizinglab, tmp_path / "sl")
     again = load_catalog(out)
     assert again.motor_ids == import_sizinglab(sizinglab).motor_ids
+    # real parts: the imported catalog draws the motors' electric power (winding loss)
+    assert again.constants.current_model == "drive"
+    assert again.constants == import_sizinglab(sizinglab).constants
     with pytest.raises(CatalogError, match="already exists"):
         import_to_folder(sizinglab, out)
 
