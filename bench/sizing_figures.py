@@ -41,7 +41,8 @@ def partial_load_figure(record: dict[str, Any], path: Path) -> Path:
             ax.axvline(hover, color="grey", ls="--", lw=1)
         axes[0].text(hover, axes[0].get_ylim()[1] * 0.95, " hover", color="grey", va="top")
     fig.suptitle(f"{record['actuators']} x {record['propeller']} / {record['motor']} / "
-                 f"{record['battery']}", fontsize=10)
+                 f"{record['battery']} (current model: {record.get('current_model', 'thesis')})",
+                 fontsize=10)
     fig.tight_layout()
     return _save(fig, path)
 

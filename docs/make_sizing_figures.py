@@ -11,6 +11,7 @@ from __future__ import annotations
 import contextlib
 import io
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -42,38 +43,41 @@ def discharge_figure(path: Path) -> None:
     from optimizer.design_model import evaluate_design, single_design_catalog
     from optimizer.sheet import design_sheet, pack_of
 
-    cat = load_catalog(REPO / "fixtures" / "catalogs" / "thesis-e")
+    base = load_catalog(REPO / "fixtures" / "catalogs" / "thesis-e")
     ids = ("P4", "M1", "B3")
-    one = single_design_catalog(cat, *ids)
-    rec = evaluate_design(cat, 4, *ids)
-    sheet = design_sheet(one, rec)
-    pack = {k: float(np.ravel(v)[0]) for k, v in pack_of(one).items()}
     curve = bat.DEFAULT_CELL
-    p = sheet["hover_electric_power_w"]
-    x = np.linspace(0, sheet["battery_model"]["usable_capacity_pct"] / 100, 400)
-    e = pack["cells"] * curve.open_circuit_v(x)
-    i = bat.load_current_a(p, e, pack["resistance_ohm"])
-    v = e - pack["resistance_ohm"] * i
-    dt = np.diff(x) * pack["capacity_ah"] * 60 * 0.5 * (1 / i[1:] + 1 / i[:-1])
-    t = np.concatenate([[0], np.cumsum(dt)])
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 3.6))
-    a1.plot(t, v, label="battery model (Shepherd, R = "
-            f"{1e3 * pack['resistance_ohm']:.1f} mOhm)")
+    for n, model in enumerate(("thesis", "drive")):
+        cat = replace(base, constants=base.constants.with_updates(current_model=model))
+        one = single_design_catalog(cat, *ids)
+        rec = evaluate_design(cat, 4, *ids)
+        sheet = design_sheet(one, rec)
+        pack = {k: float(np.ravel(v)[0]) for k, v in pack_of(one).items()}
+        p = sheet["hover_electric_power_w"]
+        x = np.linspace(0, sheet["battery_model"]["usable_capacity_pct"] / 100, 400)
+        e = pack["cells"] * curve.open_circuit_v(x)
+        i = bat.load_current_a(p, e, pack["resistance_ohm"])
+        v = e - pack["resistance_ohm"] * i
+        dt = np.diff(x) * pack["capacity_ah"] * 60 * 0.5 * (1 / i[1:] + 1 / i[:-1])
+        t = np.concatenate([[0], np.cumsum(dt)])
+        color = f"C{2 * n}"
+        a1.plot(t, v, color=color, label=f"battery model, current model {model}")
+        a2.plot(t, i, color=color, label=f"{model}: battery model, {p:.0f} W (to "
+                f"{sheet['battery_model']['flight_time_min']:.1f} min)")
+        a2.axhline(rec["current_a"], color=color, ls="--",
+                   label=f"{model}: constant B_V, x18 (to {rec['flight_time_min']:.1f} min)")
     a1.axhline(pack["voltage_v"], color="C1", ls="--", label="thesis: constant B_V (E.67)")
     a1.axhline(pack["cells"] * curve.cutoff_v, color="grey", ls=":", label="cut-off 3.3 V/cell")
     a1.set_xlabel("time (min)")
-    a1.set_ylabel("pack voltage (V)")
+    a1.set_ylabel(f"pack voltage (V), R = {1e3 * pack['resistance_ohm']:.1f} mOhm")
     a1.legend(fontsize=8)
-    a2.plot(t, i, label=f"battery model, {p:.0f} W electric (to "
-            f"{sheet['battery_model']['flight_time_min']:.1f} min)")
-    a2.axhline(rec["current_a"], color="C1", ls="--",
-               label=f"thesis x18, shaft power (to {rec['flight_time_min']:.1f} min)")
     a2.set_xlabel("time (min)")
     a2.set_ylabel("battery current (A)")
     a2.legend(fontsize=8)
     for a in (a1, a2):
         a.grid(alpha=0.3)
-    fig.suptitle("thesis-e, 4 x P4 / M1 / B3 (Case I best): hover discharge", fontsize=10)
+    fig.suptitle("thesis-e, 4 x P4 / M1 / B3 (Case I best): hover discharge, both current "
+                 "models", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
