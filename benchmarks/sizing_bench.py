@@ -89,7 +89,8 @@ def rules(lab) -> None:
         rec = evaluate_design(lab, 4, d.propeller, d.motor, d.battery)
         sheet = design_sheet(one, rec)
         print(f"  best {label}: {d.propeller} / {d.motor} / {d.battery}: "
-              f"{rec['total_mass_kg']:.2f} kg, thesis flight time {rec['flight_time_min']:.0f} "
+              f"{rec['total_mass_kg']:.2f} kg, constant-voltage flight time "
+              f"({lab.constants.current_model} current) {rec['flight_time_min']:.0f} "
               f"min, battery model {sheet['battery_model']['flight_time_min']:.0f} min, "
               f"{rec['time_constant_ms']:.0f} ms, hover throttle "
               f"{sheet['hover_throttle_pct']:.0f} %, T/W {sheet['thrust_to_weight']:.2f}, "
