@@ -313,7 +313,8 @@ _ESC32_MAP = (
 
 
 # the utility writes milliseconds after a colon; a log re-saved elsewhere may use a dot
-_ESC32_STAMPS = ("%Y-%m-%d %H:%M:%S:%f", "%Y-%m-%d %H:%M:%S.%f")
+_ESC32_STAMP = "%Y-%m-%d %H:%M:%S:%f"
+_DOT_MS = re.compile(r"(\d:\d\d)\.(\d+)$")
 
 
 def import_esc32(path: str | Path) -> tuple[pd.DataFrame, dict[str, Any]]:
@@ -332,9 +333,8 @@ def import_esc32(path: str | Path) -> tuple[pd.DataFrame, dict[str, Any]]:
     if stamp_col is None:
         raise LogError(f"{path}: no 'Timestamp' column: not an ESC32 telemetry log")
     raw = df[stamp_col].astype(str).str.strip()
-    stamp = pd.to_datetime(raw, format=_ESC32_STAMPS[0], errors="coerce")
-    for fmt in _ESC32_STAMPS[1:]:
-        stamp = stamp.fillna(pd.to_datetime(raw, format=fmt, errors="coerce"))
+    stamp = pd.to_datetime(raw.str.replace(_DOT_MS, r"\1:\2", regex=True),
+                           format=_ESC32_STAMP, errors="coerce")
     if stamp.isna().any():
         row = int(np.flatnonzero(stamp.isna().to_numpy())[0])
         raise LogError(f"{path}: row {row + _first_line(df)}, column {stamp_col!r}: expected "
