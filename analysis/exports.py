@@ -31,7 +31,13 @@ import numpy as np
 
 from analysis.errors import LogError
 from analysis.run_record import RunRecord
-from analysis.static_curves import RPM_TO_RAD_S, command_curve, fit_static_run
+from analysis.static_curves import (
+    REVERSED_THRUST_NOTE,
+    RPM_TO_RAD_S,
+    command_curve,
+    fit_static_run,
+    thrust_sign,
+)
 
 __all__ = [
     "ThrustCurve",
@@ -56,6 +62,7 @@ class ThrustCurve:
     actuator: np.ndarray
     thrust_n: np.ndarray
     source: str = ""
+    notes: tuple[str, ...] = ()  # carried into the exports' notes
 
     def __post_init__(self) -> None:
         a = np.asarray(self.actuator, float)
@@ -153,7 +160,7 @@ def expo_webtool(c: ThrustCurve, spin_min: float, spin_max: float, step: float =
 def ardupilot_params(c: ThrustCurve, hover_thrust_n: float | None = None) -> dict[str, Any]:
     """MOT_THST_EXPO, MOT_SPIN_MIN/MAX (where supported) and MOT_THST_HOVER (if the hover
     thrust per motor is given), with the fit residual and notes."""
-    notes = []
+    notes = list(c.notes)
     start = _observed_start(c)
     sat = _saturation(c)
     spin_max = sat if sat is not None else SPIN_MAX_DEFAULT
@@ -217,14 +224,14 @@ def px4_params(c: ThrustCurve) -> dict[str, Any]:
     f = float(np.clip(np.sum((r - s) * g) / den, 0.0, 1.0)) if den > 0 else 0.0
     resid = f * s * s + (1 - f) * s - r
     return {"THR_MDL_FAC": round(f, 3), "fit_rms": float(np.sqrt(np.mean(resid**2))),
-            "points": int(a.size), "notes": []}
+            "points": int(a.size), "notes": list(c.notes)}
 
 
 def gazebo_params(k_f: float, moment_constant_m: float, tau_up_s: float | None,
-                  tau_down_s: float | None, omega_max: float, reaches_full_command: bool
-                  ) -> dict[str, Any]:
-    """Parameters of the Gazebo multirotor motor model plugin."""
-    notes = []
+                  tau_down_s: float | None, omega_max: float, reaches_full_command: bool,
+                  notes: tuple[str, ...] = ()) -> dict[str, Any]:
+    """Parameters of the Gazebo multirotor motor model plugin (``notes``: the fit's own)."""
+    notes = list(notes)
     if not (math.isfinite(k_f) and k_f > 0):
         raise LogError("motorConstant: no thrust-vs-speed data")
     if not math.isfinite(moment_constant_m):
@@ -276,8 +283,12 @@ def thrust_curve_from_runs(record: RunRecord, thrust_record: RunRecord | None = 
     act, _ = actuator_of(record)
     cols = record.samples.columns
     if "thrust_n" in cols and np.isfinite(record.column("thrust_n")).any():
-        a, t = command_curve(act, record.column("thrust_n"), bins=bins)
-        return ThrustCurve(a, t, str(record.path))
+        thrust = record.column("thrust_n")
+        notes: tuple[str, ...] = ()
+        if thrust_sign(thrust, act) < 0:
+            thrust, notes = -thrust, (REVERSED_THRUST_NOTE,)
+        a, t = command_curve(act, thrust, bins=bins)
+        return ThrustCurve(a, t, str(record.path), notes)
     if thrust_record is None:
         raise LogError(f"{record.path}: no thrust in this run; give a run with thrust against "
                        "speed of the same actuator (--thrust-run)")
@@ -287,4 +298,4 @@ def thrust_curve_from_runs(record: RunRecord, thrust_record: RunRecord | None = 
     a, rpm = command_curve(act, record.column("rpm"), bins=bins)
     w = rpm * RPM_TO_RAD_S
     t = np.where(rpm > 0, np.maximum(static.thrust_at(w), 0.0), 0.0)
-    return ThrustCurve(a, t, f"{record.path} via {thrust_record.path}")
+    return ThrustCurve(a, t, f"{record.path} via {thrust_record.path}", static.notes)

@@ -57,17 +57,28 @@ _UNITS: dict[str, tuple[str, float]] = {
     "µs": ("pulse", 1.0), "μs": ("pulse", 1.0),
     "n": ("force", 1.0), "gf": ("force", G0 * 1e-3), "g": ("force", G0 * 1e-3),
     "kgf": ("force", G0), "kg": ("force", G0), "lbf": ("force", 4.4482216152605),
-    "ozf": ("force", 0.27801385095378), "mn": ("force", 1e-3),
-    "n·m": ("torque", 1.0), "nm": ("torque", 1.0), "n.m": ("torque", 1.0),
-    "n*m": ("torque", 1.0), "n·mm": ("torque", 1e-3), "nmm": ("torque", 1e-3),
-    "kgf·cm": ("torque", G0 * 1e-2), "gf·cm": ("torque", G0 * 1e-5),
-    "g·cm": ("torque", G0 * 1e-5), "ozf·in": ("torque", 0.00706155181),
+    "lb": ("force", 4.4482216152605), "ozf": ("force", 0.27801385095378),
+    "oz": ("force", 0.27801385095378), "mn": ("force", 1e-3),
+    "n·m": ("torque", 1.0), "nm": ("torque", 1.0), "n·mm": ("torque", 1e-3),
+    "nmm": ("torque", 1e-3), "kgf·m": ("torque", G0), "kgf·cm": ("torque", G0 * 1e-2),
+    "gf·cm": ("torque", G0 * 1e-5), "g·cm": ("torque", G0 * 1e-5),
+    "ozf·in": ("torque", 0.00706155181), "lbf·in": ("torque", 0.112984829),
+    "lbf·ft": ("torque", 1.35581795),
     "a": ("current", 1.0), "ma": ("current", 1e-3),
     "v": ("voltage", 1.0), "mv": ("voltage", 1e-3),
     "rpm": ("speed", 1.0), "rad/s": ("speed", 60.0 / (2.0 * math.pi)), "hz": ("speed", 60.0),
     "rps": ("speed", 60.0), "%": ("percent", 1.0), "w": ("power", 1.0),
     "ºc": ("temperature", 1.0), "°c": ("temperature", 1.0), "c": ("temperature", 1.0),
 }
+# the product dot of a unit is written many ways: 'N·m', 'N⋅m', 'N.m', 'N*m', 'N-m', 'N•m'
+_PRODUCT = re.compile(r"(?<=[a-zµμ])[·⋅•×*.\-](?=[a-z])")
+
+
+def _unit_key(unit: str) -> str:
+    """A unit's lookup key: lower case, no spaces, one spelling of the product dot."""
+    return _PRODUCT.sub("·", unit.lower().replace(" ", ""))
+
+
 # "us" is ambiguous: microseconds of a pulse when the column is a pulse/throttle
 _PULSE_WORDS = ("esc", "throttle", "pulse", "pwm", "servo", "signal")
 
@@ -98,7 +109,7 @@ def _unit_factor(header: str, target: str, source: str) -> float:
                 "mv": "mV", "rpm": "rpm", "nm": "Nm", "w": "W", "pct": "%"}.get(suffix)
         if unit is None:
             return 1.0  # no unit stated: assume the run column's own unit
-    key = unit.lower().replace(" ", "")
+    key = _unit_key(unit)
     if key in ("us", "µs", "μs"):
         if quantity == "pulse" or any(w in name.lower() for w in _PULSE_WORDS):
             return 1.0
@@ -125,7 +136,7 @@ def _read_csv(path: Path, **kwargs: Any) -> pd.DataFrame:
         # every cell as written: errors quote the file's text ('inf', not np.float64(inf)),
         # and only an empty cell means "no value"
         df = pd.read_csv(path, encoding="utf-8-sig", dtype=str, keep_default_na=False,
-                         **kwargs)
+                         skipinitialspace=True, **kwargs)
     except (UnicodeDecodeError, pd.errors.ParserError, csv.Error) as exc:
         reason = " ".join(str(exc).split())  # pandas' messages span lines; one line here
         raise LogError(f"{path}: not a readable CSV ({reason})") from None
@@ -138,6 +149,7 @@ def _read_csv(path: Path, **kwargs: Any) -> pd.DataFrame:
                        "columns must be separated by commas")
     if df.empty:
         raise LogError(f"{path}: no data rows (only a header)")
+    df.columns = [str(c).strip() for c in df.columns]  # 'Time (s), Amps' -> 'Amps'
     df.attrs["first_line"] = 2 + int(kwargs.get("skiprows", 0) or 0)  # file line of row 0
     return df
 
@@ -225,7 +237,9 @@ def _frame(columns: Mapping[str, np.ndarray], path: Path, *, time_col: str = "t_
 
 # --- RCbenchmark --------------------------------------------------------------------------
 
-_RCB_MAP = (  # (header name, run column); the unit comes from the header
+_RCB_MAP = (  # (header name, run column); the unit comes from the header. Names of the
+    # same quantity in other RCbenchmark / Flight Stand versions follow the first spelling;
+    # the first one with data wins
     ("Time", "t_s"),
     ("ESC signal", "throttle_us"),
     ("ESC", "throttle_us"),
@@ -233,7 +247,11 @@ _RCB_MAP = (  # (header name, run column); the unit comes from the header
     ("Torque", "torque_nm"),
     ("Voltage", "voltage_v"),
     ("Current", "current_a"),
+    ("Motor Current", "current_a"),
     ("Motor Electrical Speed", "rpm"),
+    ("Motor Speed", "rpm"),
+    ("Rotation Speed", "rpm"),
+    ("RPM", "rpm"),
     ("Motor Optical Speed", "rpm_optical"),
     ("Electrical Power", "power_w"),
 )
@@ -294,34 +312,48 @@ _ESC32_MAP = (
 )
 
 
+# the utility writes milliseconds after a colon; a log re-saved elsewhere may use a dot
+_ESC32_STAMP = "%Y-%m-%d %H:%M:%S:%f"
+_DOT_MS = re.compile(r"(\d:\d\d)\.(\d+)$")
+
+
 def import_esc32(path: str | Path) -> tuple[pd.DataFrame, dict[str, Any]]:
     """The AutoQuad ESC32 configuration utility's telemetry log.
 
-    Timestamps are ``YYYY-MM-DD HH:MM:SS:mmm`` (milliseconds after a colon); ``t_s``
-    counts from the first row, the absolute start goes into the metadata.
+    Timestamps are ``YYYY-MM-DD HH:MM:SS:mmm`` (milliseconds after a colon; a dot is
+    accepted too); ``t_s`` counts from the first row, the absolute start goes into the
+    metadata. The utility logs the telemetry values the user ticked, in any order: the
+    known ones present (``Amps``, ``Batt. Volts``, ``Motor Volts``, ``RPM``, ``Duty``; names
+    matched without case or a unit in brackets) are imported, at least one is needed.
     """
     path = Path(path)
     df = _read_csv(path)
-    if "Timestamp" not in df.columns:
+    by_name = {parse_header(h)[0].lower(): h for h in df.columns}
+    stamp_col = by_name.get("timestamp")
+    if stamp_col is None:
         raise LogError(f"{path}: no 'Timestamp' column: not an ESC32 telemetry log")
-    stamp = pd.to_datetime(df["Timestamp"].astype(str), format="%Y-%m-%d %H:%M:%S:%f",
-                           errors="coerce")
+    raw = df[stamp_col].astype(str).str.strip()
+    stamp = pd.to_datetime(raw.str.replace(_DOT_MS, r"\1:\2", regex=True),
+                           format=_ESC32_STAMP, errors="coerce")
     if stamp.isna().any():
         row = int(np.flatnonzero(stamp.isna().to_numpy())[0])
-        raise LogError(f"{path}: row {row + _first_line(df)}, column 'Timestamp': expected "
-                       f"'YYYY-MM-DD HH:MM:SS:mmm', got {df['Timestamp'].iloc[row]!r}")
+        raise LogError(f"{path}: row {row + _first_line(df)}, column {stamp_col!r}: expected "
+                       f"'YYYY-MM-DD HH:MM:SS:mmm', got {raw.iloc[row]!r}")
     start = stamp.min()  # the first row may lie a little behind a later one (jitter)
     t = (stamp - start).dt.total_seconds().to_numpy()
     cols: dict[str, np.ndarray] = {"t_s": t}
-    missing = [h for h, _ in _ESC32_MAP if h not in df.columns]
-    if missing:
-        raise LogError(f"{path}: missing ESC32 columns {missing}")
-    for header, target in _ESC32_MAP:
-        cols[target] = _numeric(df, header, path)
-    frame, order = _frame(cols, path, time_col="Timestamp", raw_time=df["Timestamp"],
+    used: dict[str, str] = {"t_s": stamp_col}
+    for name, target in _ESC32_MAP:
+        header = by_name.get(name.lower())
+        if header is not None:
+            cols[target] = _numeric(df, header, path) * _unit_factor(header, target, str(path))
+            used[target] = header
+    if len(cols) == 1:
+        raise LogError(f"{path}: none of the ESC32 telemetry columns "
+                       f"{[h for h, _ in _ESC32_MAP]} (columns: {', '.join(df.columns[:8])})")
+    frame, order = _frame(cols, path, time_col=stamp_col, raw_time=df[stamp_col],
                           first_line=_first_line(df))
-    meta = {"format": "esc32", "source_file": str(path),
-            "columns": {t: h for h, t in _ESC32_MAP} | {"t_s": "Timestamp"},
+    meta = {"format": "esc32", "source_file": str(path), "columns": used,
             "start_time": str(start), "time_order": order}
     return frame, meta
 

@@ -140,6 +140,7 @@ class StaticCurves:
     current_rms_binned: float
     omega_max: float  # highest steady speed in the data (rad/s)
     voltage_v: float  # median supply voltage (V)
+    notes: tuple[str, ...] = ()  # what was done to the data (e.g. the thrust sign flipped)
 
     def thrust_at(self, omega: np.ndarray | float) -> np.ndarray:
         if self.thrust_poly is None:
@@ -192,6 +193,25 @@ class StaticCurves:
         }
 
 
+REVERSED_THRUST_NOTE = ("thrust: the log's thrust falls as the rotor speeds up (load cell "
+                        "mounted the other way, or a pusher propeller): its sign is flipped")
+
+
+def thrust_sign(thrust_n: np.ndarray, drive: np.ndarray) -> float:
+    """+1, or -1 when the thrust falls as ``drive`` (speed or command) rises: the median
+    thrust of the top fifth of the drive below that of the bottom fifth. A stand's sign
+    convention is its mounting's; k_f (E.1) and the thrust curves are for lift > 0."""
+    f, x = np.asarray(thrust_n, float), np.asarray(drive, float)
+    ok = np.isfinite(f) & np.isfinite(x)
+    if ok.sum() < 4:
+        return 1.0
+    f, x = f[ok], x[ok]
+    lo, hi = np.quantile(x, [0.2, 0.8])
+    if not hi > lo:
+        return 1.0
+    return -1.0 if np.median(f[x >= hi]) < np.median(f[x <= lo]) else 1.0
+
+
 def _lsq_through_origin(x: np.ndarray, y: np.ndarray) -> float:
     ok = np.isfinite(x) & np.isfinite(y)
     den = float(np.sum(x[ok] ** 2))
@@ -220,6 +240,9 @@ def fit_static(
     spinning = np.isfinite(rpm) & (rpm > 0)
     if not spinning.any():
         raise LogError(f"{source}: the rotor never turns (no rpm > 0): no static curve")
+    notes: tuple[str, ...] = ()
+    if thrust_sign(th, rpm) < 0:
+        th, notes = -th, (REVERSED_THRUST_NOTE,)
     floor = 0.1 * float(np.max(rpm[spinning])) if min_rpm is None else min_rpm
     use = spinning & (rpm >= floor)
     w, pts = binned_medians(rpm[use] * RPM_TO_RAD_S,
@@ -252,7 +275,7 @@ def fit_static(
         thrust_poly=tp, current_poly=cp, k_f=k_f, k_q=k_q,
         moment_constant_m=k_q / k_f if math.isfinite(k_q) and k_f > 0 else math.nan,
         thrust_rms=trms, current_rms=crms, thrust_rms_binned=trms_b,
-        current_rms_binned=crms_b, omega_max=float(np.max(w)), voltage_v=vmed,
+        current_rms_binned=crms_b, omega_max=float(np.max(w)), voltage_v=vmed, notes=notes,
     )
 
 

@@ -49,6 +49,15 @@ T63 = 1.0 - math.exp(-1.0)  # 0.632: the response of a first-order lag after one
 T28 = 1.0 - math.exp(-1.0 / 3.0)  # 0.283: after tau / 3 (two-point method)
 MIN_BINS = 6  # bins with samples an edge needs for a fit (4 parameters + 2)
 MIN_SAMPLES_PER_TAU = 1.0  # a signal sampled more slowly than tau cannot resolve it
+# A rising edge from a rotor at rest is the ESC's start-up routine (alignment, open-loop
+# ramp: the ESC32 logs State 3 "starting"), not the first-order lag of a turning rotor that
+# Table C.1 describes (a 0 -> 10 % duty start of the shipped F40 log reaches 63 % after
+# 270 ms, its running steps after ~40 ms). Such an edge is listed, not fitted: at rest means
+# every speed sample of the REST_WINDOW_S before the edge at most REST_FRACTION of the top.
+REST_FRACTION = 0.01
+REST_WINDOW_S = 0.1
+START_WHY = ("start from standstill (the ESC's start-up routine, not a first-order lag of "
+             "a turning rotor)")
 
 
 def finite_mean(values: Any) -> float:
@@ -271,6 +280,7 @@ class StepResponse:
     window_s: float
     bin_s: float
     notes: tuple[str, ...] = ()  # e.g. why another signal was not fitted
+    excluded: tuple[tuple[int, str], ...] = ()  # (edge index, why) left out of the fits
 
     def summary(self) -> dict[str, Any]:
         """The JSON of ``rotorbench fit`` (times in ms, signal units otherwise)."""
@@ -319,6 +329,7 @@ class StepResponse:
                                                "gain": num(so.gain), "rms": num(so.rms)}
         used = {i for g in self.groups for i in g.edges}
         fits = {i: f for g in self.groups for i, f in zip(g.edges, g.singles, strict=True)}
+        why_not = dict(self.excluded)
         out["edges"] = [
             {"t_s": round(e.t_s, 6), "direction": e.direction, "u_before": e.u_before,
              "u_after": e.u_after, "step": e.step, "used": i in used,
@@ -327,7 +338,8 @@ class StepResponse:
                  "gain": num(fits[i].gain), "t63_ms": ms(fits[i].t63_s)}
                 if i in fits and fits[i].fitted else {}),
              **({"why": fits[i].why} if i in fits and not fits[i].fitted else {}),
-             **({} if i in used else {"why": "level held too briefly before or after"})}
+             **({} if i in used else
+                {"why": why_not.get(i, "level held too briefly before or after")})}
             for i, e in enumerate(self.edges)
         ]
         return out
@@ -458,12 +470,15 @@ def fit_step_response(
     signal: str = "y",
     command: str = "u",
     gain_unit: str = "",
+    speed: np.ndarray | None = None,
 ) -> StepResponse:
     """Find the edges of ``u`` and fit the response ``y`` around each; see module doc.
 
     Edges whose level was held less than ``min_hold_s`` before or after are listed but
-    not fitted (e.g. the short excursions of Step 2). The fit window is ``window_s`` after
-    the edge, shortened to the shortest hold of the fitted edges.
+    not fitted (e.g. the short excursions of Step 2), and so are rising edges that start
+    the rotor from rest when its ``speed`` (rpm, same rows as ``t``) is known. The fit
+    window is ``window_s`` after the edge, shortened to the shortest hold of the fitted
+    edges.
     """
     t = np.asarray(t, float)
     y = np.asarray(y, float)
@@ -475,6 +490,12 @@ def fit_step_response(
     if not usable:
         raise LogError(f"{command}: {len(edges)} edges found but none held >= {min_hold_s:g} s "
                        "before and after (nothing settles; use Step 1 for the fit)")
+    starts = _starts_from_rest(t, speed, [edges[i] for i in usable])
+    excluded = tuple((i, START_WHY) for i, start in zip(usable, starts, strict=True) if start)
+    usable = [i for i, start in zip(usable, starts, strict=True) if not start]
+    if not usable:
+        raise LogError(f"{command}: every edge held long enough is a {START_WHY}: nothing to "
+                       "fit (step between running levels)")
     post_s = min(window_s, min(edges[i].hold_after_s for i in usable))
     dt = float(np.median(np.diff(t))) if t.size > 1 else 0.0
     if bin_s is None:
@@ -531,7 +552,28 @@ def fit_step_response(
 
     up, down = _headline(groups, "up"), _headline(groups, "down")
     return StepResponse(signal, command, gain_unit, tuple(edges), tuple(groups), up, down,
-                        rise_fall_rms(up, down), post_s, bin_s)
+                        rise_fall_rms(up, down), post_s, bin_s, excluded=excluded)
+
+
+def _starts_from_rest(t: np.ndarray, speed: np.ndarray | None, edges: list[Edge]
+                      ) -> list[bool]:
+    """Per edge: a rising edge whose speed samples of the ``REST_WINDOW_S`` before it (the
+    last sample if none lies there) are all at most ``REST_FRACTION`` of the top speed."""
+    if speed is None:
+        return [False] * len(edges)
+    v = np.abs(np.asarray(speed, float))
+    ok = np.isfinite(v)
+    top = float(np.max(v[ok])) if ok.any() else 0.0
+    if not top > 0:
+        return [False] * len(edges)
+    out = []
+    for e in edges:
+        before = ok & (t < e.t_s)
+        win = before & (t >= e.t_s - REST_WINDOW_S)
+        vals = v[win] if win.any() else v[before][-1:]
+        out.append(e.direction == "up" and vals.size > 0
+                   and bool(np.all(vals <= REST_FRACTION * top)))
+    return out
 
 
 def _headline(groups: list[DirectionFit], direction: str) -> DirectionFit | None:
@@ -663,6 +705,7 @@ def fit_run(record: RunRecord, signal: str = "auto", command: str | None = None,
     t = record.column("t_s")
     u = record.column(cmd)
     sp = record.column("thrust_setpoint_n") if _has_data(record, "thrust_setpoint_n") else None
+    speed = record.column("rpm") if _has_data(record, "rpm") else None
     names = list(SIGNALS) if signal == "auto" else [signal]
     cands = [n for n in names if _has_data(record, SIGNALS[n])]
     if not cands:
@@ -679,7 +722,7 @@ def fit_run(record: RunRecord, signal: str = "auto", command: str | None = None,
         try:
             res = fit_step_response(t, y, u, sp, event_times(record), signal=col, command=cmd,
                                     gain_unit=f"{'N' if col == 'thrust_n' else 'rpm'}/{unit}",
-                                    **kwargs)
+                                    speed=speed, **kwargs)
         except LogError as exc:
             msg = str(exc)
             if "no step edges" in msg or "none held" in msg:

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import pkgutil
 import sys
 from collections.abc import Sequence
@@ -77,6 +78,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("rotorbench: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # the reader went away (`rotorbench export gazebo RUN | head -1`): not a fault of
+        # ours; the rest of the output goes nowhere instead of a traceback at exit
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        except (OSError, ValueError):  # stdout is not a file (e.g. captured in a test)
+            pass
+        return 141  # 128 + SIGPIPE, as a shell reports a process killed by a closed pipe
     except Exception as exc:
         code = getattr(exc, "exit_code", None)
         if code is None:

@@ -87,7 +87,7 @@ def build(args: argparse.Namespace) -> dict[str, Any]:
         except LogError:  # no command column: the top speed is just the highest seen
             full = False
         out = gazebo_params(static.k_f, static.moment_constant_m, tau_up, tau_dn,
-                            omega_max, full)
+                            omega_max, full, static.notes)
     out["target"] = args.target
     out["run"] = str(record.path)
     return out

@@ -75,6 +75,7 @@ def build(args: argparse.Namespace, out: Path, console: Console) -> dict[str, An
         if kind in ("sweep", "import"):
             try:
                 statics.append((rec, fit_static_run(rec)))
+                notes.extend(f"{rec.id}: {n}" for n in statics[-1][1].notes)
             except LogError as exc:
                 notes.append(f"{rec.id}: no static curves ({exc})")
         elif kind == "step2":

@@ -39,14 +39,26 @@ def duty_profile(t: np.ndarray, hold_s: float = 5.0, top: float = 70.0) -> np.nd
     return np.asarray(levels)[k]
 
 
-def rotor_rpm(t: np.ndarray, duty: np.ndarray, tau_s: float) -> np.ndarray:
-    """Exact first-order response of the speed to the piecewise-constant duty."""
+def rotor_rpm(t: np.ndarray, duty: np.ndarray, tau_s: float, startup_s: float = 0.0
+              ) -> np.ndarray:
+    """Exact first-order response of the speed to the piecewise-constant duty; a rotor at
+    rest stays at rest for ``startup_s`` after the duty rises (an ESC's start-up routine)."""
     target = np.where(duty > 2.0, RPM_PER_DUTY * duty, 0.0)
     rpm = np.empty_like(t)
     y = 0.0
     rpm[0] = y
+    start_at = math.inf
     for i in range(1, t.size):  # a few thousand rows: test-data generation only
-        a = math.exp(-(t[i] - t[i - 1]) / tau_s)
+        if y == 0.0 and target[i - 1] > 0 and startup_s > 0:
+            start_at = min(start_at, t[i - 1] + startup_s)
+            if t[i] < start_at:
+                rpm[i] = 0.0
+                continue
+            dt = t[i] - start_at
+        else:
+            dt = t[i] - t[i - 1]
+        start_at = math.inf
+        a = math.exp(-dt / tau_s)
         y = target[i - 1] + (y - target[i - 1]) * a
         rpm[i] = y
     return rpm
@@ -96,13 +108,15 @@ def rcbenchmark_log(path: Path, *, seconds: float = 90.0, seed: int = 0, tau_s: 
 
 
 def esc32_log(path: Path, *, seconds: float = 90.0, seed: int = 0, tau_s: float = 0.06,
-              delay_s: float = 0.0, hold_s: float = 5.0) -> Path:
-    """An ESC32 telemetry log of hand-set duty steps, a row every 15 ms (ms stamps)."""
+              delay_s: float = 0.0, hold_s: float = 5.0, startup_s: float = 0.0) -> Path:
+    """An ESC32 telemetry log of hand-set duty steps, a row every 15 ms (ms stamps); the
+    first step starts the rotor from rest after ``startup_s``."""
     rng = np.random.default_rng(seed)
     t = np.arange(0.0, seconds, 0.015) + rng.uniform(0, 0.002, int(np.ceil(seconds / 0.015)))
     t = np.sort(np.round(t, 3))
     duty = duty_profile(t, hold_s=hold_s)
-    rpm = rotor_rpm(t - delay_s, duty_profile(np.maximum(t - delay_s, 0), hold_s), tau_s)
+    rpm = rotor_rpm(t - delay_s, duty_profile(np.maximum(t - delay_s, 0), hold_s), tau_s,
+                    startup_s)
     rpm = np.maximum(np.round(rpm + rng.normal(0, 10.0, t.size) * (rpm > 0)), 0.0)
     start = datetime(2019, 11, 5, 17, 14, 8, 947000)
     rows = []
