@@ -140,6 +140,27 @@ def test_every_feasible_design_is_stable_for_every_count_and_layout(catalog, n,
         assert r.final_error_pct < 5.0, r
 
 
+def test_every_feasible_design_climbs_1_m_without_large_overshoot(catalog, grid) -> None:
+    """The 1 m altitude step of every thesis-e N = 4 design that hovers: the climb-rate
+    setpoint is limited so the thrust margin can stop the climb (square-root limit);
+    without it a fast actuator's attitude gain asked for metres per second and P1+M3+B1
+    overshot 34 %, P1+M2+B1 32 %."""
+    from optimizer.flight.design import feasible_indices
+
+    flown = 0
+    for index in feasible_indices(grid):
+        vehicle, actuator = setup(catalog, grid, index)
+        if vehicle.hover_shortfall():
+            continue
+        f = fly(vehicle, actuator, MANEUVERS["altitude_step"], gains=gains_for(actuator),
+                record=False).figures
+        assert f["rise_time_ms"] is not None, (index, f)
+        assert f["overshoot_pct"] < 25.0, (index, f)
+        assert f["final_error_pct"] < 2.0, (index, f)
+        flown += 1
+    assert flown >= 40
+
+
 def test_without_quantisation_the_roll_step_settles(catalog, grid) -> None:
     import dataclasses
 
