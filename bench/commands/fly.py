@@ -19,7 +19,13 @@ from pathlib import Path
 from typing import Any
 
 from bench.catalogs import load
-from bench.cli_support import add_catalog_args, add_measured_args, json_default, measured_from_args
+from bench.cli_support import (
+    add_catalog_args,
+    add_measured_args,
+    check_writable,
+    json_default,
+    measured_from_args,
+)
 from optimizer.errors import RequestError
 
 
@@ -103,6 +109,8 @@ def _check_args(args: argparse.Namespace) -> int:
 
 def handler(args: argparse.Namespace) -> int:
     n = _check_args(args)
+    if args.plot is not None:  # refuse before flying, not after (nothing half-written)
+        check_writable(args.plot, "--plot", folder=True)
     catalog = load(args.catalog, args.current_model)
     step = step_constants(args.step_run) if args.step_run is not None else None
     grid, measured = _grid(args, catalog, n)
@@ -159,7 +167,11 @@ def _print_one(report: dict[str, Any]) -> None:
                       _fmt(m["settling_time_ms"]), _fmt(m["saturation_pct"], ".1f"))
     console.print(table)
     console.print(f"hover: {h['rpm']:.0f} rpm (evaluate: {_fmt(h['evaluate_hover_rpm'])} rpm), "
-                  f"throttle {h['throttle']:.2f}, power {_fmt(h['power_w'], '.1f')} W")
+                  f"throttle {h['throttle']:.2f}, power {_fmt(h['power_w'], '.1f')} W "
+                  f"(flown shaft power {_fmt(h['shaft_power_w'], '.1f')} W)")
+    if not h["can_hover"]:
+        console.print(f"{h['note']}: the maneuvers above are a fall, not a flight",
+                      style="red")
     g = report["gains"]
     console.print(f"gains: rate crossover {g['rate_crossover_rad_s']:.1f} rad/s, attitude "
                   f"crossover {g['attitude_crossover_rad_s']:.1f} rad/s (phase margins "

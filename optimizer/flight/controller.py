@@ -12,8 +12,10 @@ m (g + a) / cos(tilt).
 Rate setpoints are limited so that the vehicle can still stop at the setpoint
 (square-root limit): |omega_sp| <= sqrt(2 a |angle error|) per axis, with a =
 ``STOP_SHARE`` of the angular acceleration the mixer can give at hover
-(``mixer.authority`` / inertia). It only bites when the authority is small (yaw,
-designs hovering near full throttle); small steps stay linear.
+(``mixer.authority`` / inertia). The climb-rate setpoint is limited the same way with
+the vertical acceleration the thrust margin gives (``mixer.authority`` / mass). It only
+bites when the authority is small (yaw; designs hovering near full throttle; a 1 m climb
+of a fast actuator, whose attitude gain asks metres per second); small steps stay linear.
 
 Gain rule (every design flies without hand tuning). Each axis, with the actuator's mean
 time constant tau and delay L (latency + half an ESC frame + half a tick), is
@@ -130,12 +132,14 @@ class CascadeController:
 
     def __init__(self, gains: Gains, inertia: tuple[float, float, float], mass: float,
                  gravity: float, dt: float,
-                 authority: tuple[float, float, float] | None = None) -> None:
+                 authority: tuple[float, float, float, float] | None = None) -> None:
         self.g = gains
         big = math.inf
-        self.stop = tuple(2.0 * STOP_SHARE * m / i for m, i in zip(authority, inertia,
-                                                                  strict=True)) \
-            if authority is not None else (big, big, big)
+        # 2 a of the square-root limits: roll, pitch, yaw (moment / inertia), climb
+        # (thrust / mass)
+        self.stop = tuple(2.0 * STOP_SHARE * m / i for m, i in zip(
+            authority, (*inertia, mass), strict=True)) \
+            if authority is not None else (big, big, big, big)
         self.ixx, self.iyy, self.izz = inertia
         self.mass = mass
         self.gravity = gravity
@@ -156,7 +160,7 @@ class CascadeController:
         ey = dw * qy + dx * qz - dy * qw - dz * qx
         ez = dw * qz - dx * qy + dy * qx - dz * qw
         sign = -2.0 if ew >= 0.0 else 2.0  # 2 q_e1:3 ~ angle error (B.26)
-        ka, (sx, sy, sz) = g.k_a, self.stop
+        ka, (sx, sy, sz, sv) = g.k_a, self.stop
         ax, ay, az = sign * ex, sign * ey, sign * ez
         wx, wy, wz = ka * ax, ka * ay, ka * az
         cap = math.sqrt(sx * abs(ax))  # square-root limit, per axis
@@ -180,7 +184,12 @@ class CascadeController:
         my = self.iyy * kp * (er[1] + wi * i_rate[1])
         mz = self.izz * kp * (er[2] + wi * i_rate[2])
         # altitude hold: z error -> climb-rate setpoint -> PI -> vertical acceleration
-        ev = g.k_a * (z_d - s[2]) - s[5]
+        ez_m = z_d - s[2]
+        climb = ka * ez_m
+        cap = math.sqrt(sv * abs(ez_m))  # square-root limit on the climb rate
+        if abs(climb) > cap:
+            climb = math.copysign(cap, climb)
+        ev = climb - s[5]
         if not hold:
             self.i_climb += ev * self.dt
         accel = kp * (ev + wi * self.i_climb)

@@ -93,19 +93,24 @@ def fly_report(vehicle: Vehicle, actuator: ActuatorModel, maneuvers: list[Maneuv
         if keep:
             flights[man.name] = f
     hov = dict(hover.figures)
+    shortfall = vehicle.hover_shortfall()
     report = {
         "design": {key: record.get(key) for key in (
             "actuators", "propeller", "motor", "battery", "feasible", "reason",
             "time_constant_ms", "hover_rpm", "total_mass_kg", "power_w") if key in record},
+        # power_w: evaluate's hover power (the model's shaft power, or electrical where
+        # measured currents replace it); shaft_power_w: the flown hover's N k_m omega^3
         "hover": {"rpm": hov["rpm"], "throttle": hov["throttle"],
-                  "power_w": record.get("power_w"), "model_rpm": hov["model_rpm"],
-                  "evaluate_hover_rpm": record.get("hover_rpm")},
+                  "power_w": record.get("power_w"), "shaft_power_w": hov["shaft_power_w"],
+                  "model_rpm": hov["model_rpm"],
+                  "evaluate_hover_rpm": record.get("hover_rpm"),
+                  "can_hover": not shortfall, "note": shortfall},
         "maneuvers": out_man,
         "vehicle": {
             "layout": vehicle.layout, "mass_kg": vehicle.mass_kg,
             "inertia_kgm2": list(vehicle.inertia_kgm2), "arm_m": vehicle.arm_m,
             "k_f_n_s2": vehicle.k_f, "k_m_nm_s2": vehicle.k_m,
-            "omega_max_rad_s": vehicle.omega_max_rad_s,
+            "omega_max_rad_s": vehicle.omega_max_rad_s, "drag_n_s_m": vehicle.drag_n_s_m,
         },
         "actuator": {
             "tau_up_ms": actuator.tau_up_s * 1e3, "tau_down_ms": actuator.tau_down_s * 1e3,

@@ -11,10 +11,11 @@ thrust = weight) and holds altitude 0 unless it commands height:
   rotor's hover thrust x arm; the figure is how far the attitude is pushed and when it is
   back within 0.2 deg (2 % of the 10 deg step);
 - ``hover``: 3 s from rotors at 90 % of the model's hover speed: the settled rotor speed
-  is the closed loop's hover speed.
+  is the closed loop's hover speed, and N k_m omega^3 its shaft power.
 
 One tick: controller (on the state) -> mixer -> speed commands -> rotors (quantise, ESC
-frame, latency, lag) -> thrusts and moments -> RK4 step of the rigid body.
+frame, latency, lag) -> thrusts and moments -> one step of the rigid body
+(``vehicle.step``).
 """
 
 from __future__ import annotations
@@ -197,8 +198,12 @@ def figures(f: Flight, vehicle: Vehicle, actuator: ActuatorModel,
         last = f.t >= f.t[-1] - 0.5
         w = float(np.mean(f.omega[last])) if f.omega.size else math.nan
         span = rotors.omega_max - rotors.omega_min
+        # (E.60)-(E.63): shaft power of one rotor C_p rho n^3 D^5 = k_m omega^3
+        shaft = float(np.mean(np.sum(vehicle.k_m * f.omega[last] ** 3, axis=1))) \
+            if f.omega.size else math.nan
         out = {"rpm": w * 60.0 / (2.0 * math.pi),
                "throttle": (w - rotors.omega_min) / span,
+               "shaft_power_w": shaft,
                "model_rpm": vehicle.hover_speed_rad_s * 60.0 / (2.0 * math.pi),
                "altitude_error_m": float(abs(f.position[-1, 2]))}
     return metrics.summary(out)

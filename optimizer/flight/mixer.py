@@ -41,12 +41,14 @@ def mixing_matrix(allocation: np.ndarray) -> np.ndarray:
 
 
 def authority(allocation: np.ndarray, f_min: float, f_max: float,
-              f_hover: float) -> tuple[float, float, float]:
-    """Moment each axis can get at hover, thrust unchanged: every rotor moved by the
-    smaller hover margin Delta = min(f_max - f_hover, f_hover - f_min) in the direction of
-    its row of A, sum_i |A_ri| Delta (exact for the symmetric layouts here)."""
+              f_hover: float) -> tuple[float, float, float, float]:
+    """What each row of A (M_x, M_y, M_z, T) can change by from hover, both ways: every
+    rotor moved by the smaller hover margin Delta = min(f_max - f_hover, f_hover - f_min)
+    in the direction of its row of A, sum_i |A_ri| Delta (exact for the symmetric
+    layouts here; for the thrust row, N Delta, up or down)."""
     delta = max(0.0, min(f_max - f_hover, f_hover - f_min))
-    return tuple(float(np.abs(allocation[r]).sum() * delta) for r in range(3))
+    m_x, m_y, m_z, thrust = (float(np.abs(allocation[r]).sum() * delta) for r in range(4))
+    return m_x, m_y, m_z, thrust
 
 
 class Mixer:

@@ -72,11 +72,7 @@ def roll_step(catalog: Any, grid: Any, index: tuple[int, int, int], **kwargs: An
               ) -> FlownDesign:
     """Fly ``roll_step`` for one design of a grid (``kwargs`` go to ``design.setup``)."""
     vehicle, actuator = setup(catalog, grid, index, **kwargs)
-    note = ""
-    if vehicle.hover_speed_rad_s > vehicle.omega_max_rad_s:
-        rpm = 60.0 / (2.0 * math.pi)
-        note = (f"cannot hover: needs {vehicle.hover_speed_rad_s * rpm:.0f} rpm, full "
-                f"throttle {vehicle.omega_max_rad_s * rpm:.0f} rpm")
+    note = vehicle.hover_shortfall()
     f = fly(vehicle, actuator, MANEUVERS["roll_step"], gains=gains_for(actuator), record=False)
     i, j, k = index
     fig = f.figures

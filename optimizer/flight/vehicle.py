@@ -77,6 +77,16 @@ class Vehicle:
         """Rotor speed at which N k_f omega^2 = m g (E.1, E.19-E.20)."""
         return math.sqrt(self.mass_kg * self.gravity_m_s2 / (self.n_rotors * self.k_f))
 
+    def hover_shortfall(self) -> str:
+        """Why the rotors cannot hold the weight (hover speed above full throttle), or ""
+        when they can: a catalog may have no thrust-to-weight check, so a design the
+        optimizer accepts can still be unable to hover."""
+        if self.hover_speed_rad_s <= self.omega_max_rad_s:
+            return ""
+        rpm = 60.0 / (2.0 * math.pi)
+        return (f"cannot hover: needs {self.hover_speed_rad_s * rpm:.0f} rpm, full throttle "
+                f"{self.omega_max_rad_s * rpm:.0f} rpm")
+
     @property
     def torque_ratio_m(self) -> float:
         """T_q of (B.11): drag torque per newton of thrust, k_m / k_f."""

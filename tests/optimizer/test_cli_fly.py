@@ -34,6 +34,49 @@ def test_fly_json_has_the_issue_keys(capsys, tmp_path) -> None:
     assert doc["maneuvers"]["roll_step"]["rise_time_ms"] > 0
     assert sorted(p.name for p in tmp_path.glob("*.png")) == [
         "fly_gust.png", "fly_hover.png", "fly_roll_step.png"]
+    # the flown hover's shaft power is the model's (E.60-E.63) at evaluate's hover speed
+    grid = evaluate_grid(load_catalog(FIXTURES / "catalogs" / "thesis-e"), 4)
+    model_w = 4 * float(grid.metrics["propeller_power_w"][3, 0, 2])  # P4+M1+B3
+    assert doc["hover"]["shaft_power_w"] == pytest.approx(model_w, rel=0.02)
+    assert doc["hover"]["can_hover"] is True and doc["hover"]["note"] == ""
+    assert doc["vehicle"]["drag_n_s_m"] == 0.0
+
+
+def test_a_design_that_cannot_hover_says_so(capsys) -> None:
+    """Case III's pick (P1+M1+B3, thesis-e has no thrust-to-weight check) falls: the
+    report says why instead of only showing empty rise times."""
+    argv = ["fly", "--actuators", "4", "--propeller", "P1", "--motor", "M1", "--battery", "B3",
+            "--maneuver", "roll_step"]
+    doc = _json(capsys, *argv, "--json")
+    assert doc["design"]["feasible"] is True
+    assert doc["hover"]["can_hover"] is False
+    assert doc["hover"]["note"].startswith("cannot hover: needs 4994 rpm")
+    assert doc["maneuvers"]["roll_step"]["rise_time_ms"] is None
+    assert main(argv) == 0
+    assert "cannot hover: needs 4994 rpm" in capsys.readouterr().out
+
+
+def test_drag_reaches_the_vehicle(capsys) -> None:
+    doc = _json(capsys, "fly", *CASE_I, "--maneuver", "gust", "--json", "--drag", "0.5")
+    still = _json(capsys, "fly", *CASE_I, "--maneuver", "gust", "--json")
+    assert doc["vehicle"]["drag_n_s_m"] == 0.5
+    assert doc["maneuvers"]["gust"] != still["maneuvers"]["gust"]
+
+
+def test_the_minimum_time_constant_flyable_design_flies(capsys) -> None:
+    """The MILP's minimum-time-constant design cannot hover on thesis-e (above); with the
+    flyable-design rules (hover throttle band, ...) the fastest design it picks flies every
+    maneuver: hover at evaluate's speed within 2 %, overshoot below 25 %."""
+    best = _json(capsys, "optimize", "--objective", "time-constant", "--actuators", "4",
+                 "--flyable", "--json")["best"]
+    doc = _json(capsys, "fly", "--actuators", "4", "--propeller", best["propeller"],
+                "--motor", best["motor"], "--battery", best["battery"], "--json")
+    assert doc["hover"]["can_hover"]
+    assert doc["hover"]["rpm"] == pytest.approx(doc["design"]["hover_rpm"], rel=0.02)
+    for name in ("roll_step", "pitch_step", "yaw_step", "altitude_step"):
+        m = doc["maneuvers"][name]
+        assert m["rise_time_ms"] is not None and m["overshoot_pct"] < 25.0, (name, m)
+    assert doc["maneuvers"]["gust"]["settling_time_ms"] is not None
 
 
 def test_plus_layout_flies_the_same_roll_step(capsys) -> None:
@@ -99,6 +142,8 @@ def test_optimize_max_roll_rise(capsys) -> None:
     (["fly", "--sweep", "--propeller", "P1"], "--propeller does not apply to --sweep"),
     (["fly", *CASE_I, "--step-run", "/nonexistent/run"], "/nonexistent/run"),
     (["fly", *CASE_I, "--drag", "-1"], "--drag"),
+    (["fly", *CASE_I, "--plot", "pyproject.toml"], "--plot pyproject.toml: is a file"),
+    (["fly", "--sweep", "--plot", "pyproject.toml/figs"], "--plot pyproject.toml/figs"),
     (["optimize", "--max-roll-rise-ms", "-1"], "--max-roll-rise-ms"),
     (["optimize", "--actuators", "3", "--max-roll-rise-ms", "100"], "4, 6 or 8"),
     (["optimize", "--paper-e-cases", "--max-roll-rise-ms", "100"], "--paper-e-cases"),

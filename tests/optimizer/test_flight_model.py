@@ -153,3 +153,28 @@ def test_actuator_quantises_holds_frames_and_limits() -> None:
     for _ in range(3):
         bank.step([100.0, 0.0])
     assert bank.held == pytest.approx([100.0, 100.0])  # idle floor
+
+
+def test_linear_drag_slows_a_free_body_as_its_law_says() -> None:
+    """m v_dot = -c_d v (2.40 with drag, no thrust, no gravity): v(t) = v0 exp(-c_d t / m)."""
+    inertia, m, cd, dt = (0.02, 0.02, 0.04), 1.5, 0.6, 1e-3
+    s = hover_state()
+    s[3:6] = [2.0, -1.0, 0.5]
+    for _ in range(1000):
+        s = step(s, dt, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1 / m, *inertia, 0.0, cd)
+    decay = math.exp(-cd * 1.0 / m)
+    assert s[3:6] == pytest.approx([2.0 * decay, -1.0 * decay, 0.5 * decay], rel=1e-3)
+    # position: the integral of the decaying speed, v0 m / c_d (1 - decay)
+    assert s[0] == pytest.approx(2.0 * m / cd * (1 - decay), rel=1e-3)
+
+
+def test_hover_shortfall_names_the_speeds(catalog) -> None:
+    v = _vehicle(catalog, 4, "x")
+    assert v.hover_shortfall() == ""
+    from dataclasses import replace
+
+    weak = replace(v, omega_max_rad_s=0.9 * v.hover_speed_rad_s)
+    note = weak.hover_shortfall()
+    rpm = 60 / (2 * math.pi)
+    assert note == (f"cannot hover: needs {v.hover_speed_rad_s * rpm:.0f} rpm, full throttle "
+                    f"{0.9 * v.hover_speed_rad_s * rpm:.0f} rpm")
