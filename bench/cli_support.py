@@ -61,6 +61,20 @@ DEFAULT_RUNS_ROOT = DEFAULT_OUT
 EXIT_NO_FEASIBLE = 3
 
 
+#: figure formats a ``--plot FILE`` may name (matplotlib's Agg backend writes them)
+FIGURE_SUFFIXES = (".png", ".pdf", ".svg")
+
+
+def check_figure_path(path: Path, flag: str = "--plot") -> Path:
+    """Refuse, before any work, a figure file that could not be written or whose suffix is
+    no figure format (matplotlib would append ``.png`` to a bare name, or fail late)."""
+    path = Path(path)
+    if path.suffix.lower() not in FIGURE_SUFFIXES:
+        raise RequestError(f"{flag} {path}: expected a file name ending in "
+                           f"{', '.join(FIGURE_SUFFIXES)}")
+    return check_writable(path, flag, folder=False)
+
+
 def check_writable(path: Path, flag: str, *, folder: bool, beside: bool = False,
                    make_parents: bool = True) -> Path:
     """Refuse (``RigError``) an output ``path`` that cannot be written; return it.

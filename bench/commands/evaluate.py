@@ -17,7 +17,13 @@ from pathlib import Path
 from typing import Any
 
 from bench.catalogs import load, with_current_model
-from bench.cli_support import add_catalog_args, add_measured_args, json_default, measured_from_args
+from bench.cli_support import (
+    add_catalog_args,
+    add_measured_args,
+    check_figure_path,
+    json_default,
+    measured_from_args,
+)
 from bench.design_tables import MEASURED_MARK, ROWS, format_cell
 from bench.measured_constants import is_measured
 from optimizer.errors import RequestError
@@ -153,6 +159,8 @@ def flyable_rules(single: Any, n: int, payload_kg: float) -> list[dict[str, Any]
 
 
 def handler(args: argparse.Namespace) -> int:
+    if args.plot is not None:  # refused before the work, not after it
+        check_figure_path(args.plot)
     record = evaluate(args)
     if args.plot is not None:
         from bench.sizing_figures import partial_load_figure

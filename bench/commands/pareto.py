@@ -22,6 +22,7 @@ from bench.cli_support import (
     EXIT_NO_FEASIBLE,
     add_catalog_args,
     add_rule_args,
+    check_figure_path,
     json_default,
     rules_from_args,
 )
@@ -126,6 +127,8 @@ def compute(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def handler(args: argparse.Namespace) -> int:
+    if args.plot is not None:  # refused before the work, not after it
+        check_figure_path(args.plot)
     doc = compute(args)
     if args.plot is not None:
         from bench.sizing_figures import pareto_figure
