@@ -54,12 +54,16 @@ class ImuRecording:
         t = self.t_s
         return float((len(t) - 1) / (t[-1] - t[0])) if len(t) > 1 else float("nan")
 
-    def with_imu(self, t_s: Array, gyro: Array, acc: Array, keep: NDArray[np.bool_]
-                 ) -> ImuRecording:
-        """Copy with corrected IMU samples on the rows ``keep`` (e.g. after a calibration)."""
+    def with_imu(self, t_s: Array, gyro: Array, acc: Array, keep: NDArray[np.bool_],
+                 mag_ut: Array | None = None) -> ImuRecording:
+        """Copy with corrected IMU samples on the rows ``keep`` (e.g. after a calibration).
+
+        ``mag_ut``: corrected magnetometer samples of those rows (default: the rows kept).
+        """
         def sub(a: Array | None) -> Array | None:
             return None if a is None else a[keep]
-        return replace(self, t_s=t_s, gyro_rad_s=gyro, acc_m_s2=acc, mag_ut=sub(self.mag_ut),
+        return replace(self, t_s=t_s, gyro_rad_s=gyro, acc_m_s2=acc,
+                       mag_ut=sub(self.mag_ut) if mag_ut is None else mag_ut,
                        ref_quat=sub(self.ref_quat), movement=sub(self.movement))
 
 
