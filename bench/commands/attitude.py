@@ -26,6 +26,7 @@ from analysis import quaternion as quat
 from analysis.attitude_compare import ComparisonRow, compare, error_figure, score_run
 from analysis.attitude_filters import (
     PAPER_B_TAU_S,
+    PEERS,
     PROJECT_FILTERS,
     FilterRun,
     paper_b,
@@ -61,6 +62,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--json", action="store_true", help="print the scores as JSON only")
     p.add_argument("--compare", action="store_true",
                    help="also run the peers (VQF, Madgwick, Mahony) on the same samples")
+    p.add_argument("--peers", metavar="NAMES",
+                   help="with --compare: only these peers, comma-separated (default all: "
+                        f"{', '.join(PEERS)})")
     p.add_argument("--png", type=Path, metavar="FILE",
                    help="error-over-time figure of --compare (default LOG-stem_errors.png)")
     g = p.add_argument_group("paper-b options")
@@ -92,6 +96,15 @@ def _check_args(args: argparse.Namespace) -> None:
         raise LogError(f"{opt}: a paper-b option; add --filter paper-b")
     if args.png is not None and not args.compare:
         raise LogError("--png: the figure belongs to --compare")
+    if args.peers is not None:
+        if not args.compare:
+            raise LogError("--peers: the peers belong to --compare")
+        names = [n.strip() for n in args.peers.split(",") if n.strip()]
+        unknown = [n for n in names if n not in PEERS]
+        if unknown or not names:
+            raise LogError(f"--peers: unknown peer {unknown[0] if unknown else '(none)'!r}; "
+                           f"known: {', '.join(PEERS)}")
+        args.peers = names
     if args.out is not None and args.out.suffix.lower() not in (".csv", ".parquet"):
         raise LogError(f"{args.out}: output must end in .csv or .parquet")
     if args.png is not None and args.png.suffix.lower() != ".png":
@@ -166,7 +179,8 @@ def handler(args: argparse.Namespace) -> int:
         label = f"{args.filter} ({'9D' if run.nine_d else '6D'})"
         rows.append(ComparisonRow(label, "project", run, score_run(rec, run)))
         if args.compare:
-            rows += [r for r in compare(rec) if r.label != label]
+            rows += [r for r in compare(rec, True if args.peers is None else args.peers)
+                     if r.label != label]
     elif args.out is None:
         console.print("no reference attitude in the log (ref_qw..ref_qz or opt_quat) to "
                       "compare with; --out FILE writes the estimate")

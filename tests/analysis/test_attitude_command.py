@@ -179,6 +179,8 @@ def test_missing_extra_names_it(sim: dict, tmp_path: Path, capsys: pytest.Captur
 @pytest.mark.parametrize(("argv", "message"), [
     (["--gain", "0.01"], "--gain: a paper-b option; add --filter paper-b"),
     (["--png", "x.png"], "--png: the figure belongs to --compare"),
+    (["--peers", "vqf-6d"], "--peers: the peers belong to --compare"),
+    (["--compare", "--peers", "vqf-6d,kalman"], "--peers: unknown peer 'kalman'; known: "),
 ])
 def test_option_misuse_is_one_line(sim: dict, tmp_path: Path, argv: list[str], message: str,
                                    capsys: pytest.CaptureFixture) -> None:
