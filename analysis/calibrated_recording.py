@@ -4,10 +4,8 @@ The calibration chain before any attitude filter: ``ω_b = K_ω(ω̃ - b_ω)`` (
 specific force at the centre of gravity ``f = K_a(ã - b_a) - ω×(ω×R) - α×R`` (A.18), the
 IMU samples moved by the calibration's time offset and put back on the recording's rows
 (:func:`analysis.imu_calibration.apply_to_frame`). K contains the mounting rotation, so the
-result is in the body frame the calibration was made for. Paper A does not calibrate a
-magnetometer, but it sits in the same IMU package: its samples are moved by the same time
-offset and turned by the mounting rotation of K_ω (:func:`analysis.imu_calibration.decompose`),
-else a 9D filter would fuse a body-frame gyro with a sensor-frame field.
+result is in the body frame the calibration was made for; a magnetometer is moved and
+turned with them (see :func:`~analysis.imu_calibration.apply_to_frame`).
 
 A calibration that does not fit the recording's sensor is refused (:class:`LogError`,
 exit 2) before anything is computed: K far from a rotation with unit scale (a unit
@@ -23,8 +21,8 @@ import numpy as np
 import pandas as pd
 
 from analysis.errors import LogError
-from analysis.imu_calibration import Calibration, apply_to_frame, decompose
-from analysis.imu_log import IMU_ACC, IMU_GYRO
+from analysis.imu_calibration import Calibration, apply_to_frame
+from analysis.imu_log import IMU_ACC, IMU_GYRO, MAG_COLUMNS
 from analysis.imu_recording import ImuRecording
 
 __all__ = ["G", "calibrate_recording", "check_fit"]
@@ -65,6 +63,9 @@ def calibrate_recording(rec: ImuRecording, cal: Calibration, cal_path: str | Pat
         cols[c] = rec.gyro_rad_s[:, i]
     for i, c in enumerate(IMU_ACC):
         cols[c] = rec.acc_m_s2[:, i]
+    if rec.mag_ut is not None:
+        for i, c in enumerate(MAG_COLUMNS):
+            cols[c] = rec.mag_ut[:, i]
     out = apply_to_frame(cal, pd.DataFrame(cols))
     if len(out) < 2:
         raise LogError(f"{cal_path}: after its time offset ({cal.time_offset_s:g} s) fewer "
@@ -73,15 +74,5 @@ def calibrate_recording(rec: ImuRecording, cal: Calibration, cal_path: str | Pat
     keep[out["_row"].to_numpy()] = True
     gyro = out[[f"gyro_{a}_rad_s" for a in "xyz"]].to_numpy(dtype=float)
     acc = out[[f"acc_{a}_m_s2" for a in "xyz"]].to_numpy(dtype=float)
-    t = out["t_s"].to_numpy(dtype=float)
-    mag = None if rec.mag_ut is None else _mag_in_body(rec, cal, t)
-    return rec.with_imu(t, gyro, acc, keep, mag_ut=mag)
-
-
-def _mag_in_body(rec: ImuRecording, cal: Calibration, t: np.ndarray) -> np.ndarray:
-    """Magnetometer at the reference times ``t`` (same time offset), in the body frame."""
-    assert rec.mag_ut is not None
-    t_imu = rec.t_s - cal.time_offset_s  # IMU row stamped t was measured at t - offset
-    mag = np.stack([np.interp(t, t_imu, rec.mag_ut[:, i]) for i in range(3)], axis=1)
-    c = np.asarray(decompose(cal.kg)["rotation_imu_to_body"], dtype=float)
-    return mag @ c.T
+    mag = None if rec.mag_ut is None else out[list(MAG_COLUMNS)].to_numpy(dtype=float)
+    return rec.with_imu(out["t_s"].to_numpy(dtype=float), gyro, acc, keep, mag_ut=mag)
