@@ -25,6 +25,7 @@ from rich.table import Table
 from analysis import quaternion as quat
 from analysis.attitude_compare import ComparisonRow, compare, error_figure, score_run
 from analysis.attitude_filters import (
+    PAPER_B_ACC_TAU_S,
     PAPER_B_TAU_S,
     PEERS,
     PROJECT_FILTERS,
@@ -71,7 +72,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     g.add_argument("--gain", type=float, metavar="P",
                    help=f"blend gain P_err per sample, 0..1 (default t_s/{PAPER_B_TAU_S:g} s)")
     g.add_argument("--acc-lowpass", type=float, metavar="G",
-                   help="accelerometer low-pass gain G_a of (B.28), 0..1 (default 0: off)")
+                   help="accelerometer low-pass gain G_a of (B.28), 0..1 (0: off; default "
+                        f"exp(-t_s/{PAPER_B_ACC_TAU_S * 1000:g} ms))")
     g.add_argument("--bias-seconds", type=float, metavar="S",
                    help="fixed gyro bias: the mean of the first S seconds (instead of the "
                         "bias estimated at every rest)")
@@ -118,7 +120,7 @@ def _paper_b_run(rec: ImuRecording, args: argparse.Namespace) -> FilterRun:
     """paper-b with the command's options."""
     start, cpu = time.perf_counter(), time.process_time()
     q = paper_b(rec, gain=args.gain, bias_seconds=args.bias_seconds,
-                acc_lowpass=args.acc_lowpass or 0.0,
+                acc_lowpass=args.acc_lowpass,
                 tilt="yaw-aligned" if args.yaw_aligned else "estimate")
     return FilterRun("paper-b", q, False, time.perf_counter() - start,
                      time.process_time() - cpu)
