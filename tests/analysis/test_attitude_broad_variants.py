@@ -24,6 +24,7 @@ from drivers.sim.imu_disturbances import UNDISTURBED, VARIANTS, make_variant
 
 TRIAL = "07_undisturbed_fast_rotation_B.hdf5"
 vqf = pytest.importorskip("vqf")
+pytestmark = pytest.mark.slow  # ~12 s in all: trial 07 and eight variants through VQF
 
 
 @pytest.fixture(scope="module")
