@@ -39,7 +39,7 @@ from analysis import quaternion as quat
 from analysis.attitude import estimate_attitude
 from analysis.extras import import_extra
 from analysis.gyro_bias import gyro_bias_at_rest
-from analysis.imu_recording import ImuRecording
+from analysis.imu_recording import ImuRecording, uniform_grid
 
 __all__ = [
     "PAPER_B_ACC_TAU_S",
@@ -140,21 +140,39 @@ def _ahrs(name: str, rec: ImuRecording, nine_d: bool) -> Array:
 
 
 Runner = Callable[[ImuRecording, bool], Array]
-# name -> (runner, needs a magnetometer)
+
+
+def _fixed_rate(runner: Runner) -> Runner:
+    """A filter with one sample time, run on a uniform grid if the recording is not uniform
+    (:func:`analysis.imu_recording.uniform_grid`), its output taken back to the rows."""
+    def run(rec: ImuRecording, nine_d: bool) -> Array:
+        grid = uniform_grid(rec)
+        if grid is None:
+            return runner(rec, nine_d)
+        q = quat.normalize(np.asarray(runner(grid.rec, nine_d), dtype=float))
+        return quat.nlerp(q[grid.idx], q[grid.idx + 1], grid.u)
+    return run
+
+
+_offline = _fixed_rate(_offline_vqf)
+_online = _fixed_rate(_online_vqf)
+_madgwick = _fixed_rate(lambda rec, nine: _ahrs("Madgwick", rec, nine))
+_mahony = _fixed_rate(lambda rec, nine: _ahrs("Mahony", rec, nine))
+# name -> (runner, needs a magnetometer); paper-b integrates each sample's own interval
 PROJECT_FILTERS: dict[str, tuple[Runner, bool | None]] = {
-    "default": (_offline_vqf, None),
-    "default-causal": (_online_vqf, None),
+    "default": (_offline, None),
+    "default-causal": (_online, None),
     "paper-b": (lambda rec, nine: paper_b(rec), False),
 }
 PEERS: dict[str, tuple[Runner, bool]] = {
-    "vqf-6d": (_online_vqf, False),
-    "vqf-9d": (_online_vqf, True),
-    "vqf-offline-6d": (_offline_vqf, False),
-    "vqf-offline-9d": (_offline_vqf, True),
-    "madgwick-6d": (lambda rec, nine: _ahrs("Madgwick", rec, nine), False),
-    "madgwick-9d": (lambda rec, nine: _ahrs("Madgwick", rec, nine), True),
-    "mahony-6d": (lambda rec, nine: _ahrs("Mahony", rec, nine), False),
-    "mahony-9d": (lambda rec, nine: _ahrs("Mahony", rec, nine), True),
+    "vqf-6d": (_online, False),
+    "vqf-9d": (_online, True),
+    "vqf-offline-6d": (_offline, False),
+    "vqf-offline-9d": (_offline, True),
+    "madgwick-6d": (_madgwick, False),
+    "madgwick-9d": (_madgwick, True),
+    "mahony-6d": (_mahony, False),
+    "mahony-9d": (_mahony, True),
 }
 
 
