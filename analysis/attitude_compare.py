@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -53,8 +54,12 @@ def _label(name: str, run: FilterRun) -> str:
     return f"{name} ({'9D' if run.nine_d else '6D'})"
 
 
-def compare(rec: ImuRecording, peers: bool = True) -> list[ComparisonRow]:
-    """The project's filters (6D and 9D where possible) and every available peer."""
+def compare(rec: ImuRecording, peers: bool | Sequence[str] = True) -> list[ComparisonRow]:
+    """The project's filters (6D and 9D where possible) and the available peers.
+
+    ``peers``: all (``True``), none (``False``) or these names of :data:`PEERS`, in the
+    table's order.
+    """
     rows: list[ComparisonRow] = []
     seen: set[tuple[str, bool]] = set()
     for name, six_d in COMPARE_PROJECT:
@@ -63,9 +68,13 @@ def compare(rec: ImuRecording, peers: bool = True) -> list[ComparisonRow]:
             continue
         seen.add((name, run.nine_d))
         rows.append(ComparisonRow(_label(name, run), "project", run, score_run(rec, run)))
-    if peers:
+    if peers is not False:
+        wanted = set(PEERS if peers is True else peers)
+        unknown = wanted - set(PEERS)
+        if unknown:
+            raise ValueError(f"unknown peer {sorted(unknown)[0]!r}; known: {', '.join(PEERS)}")
         for name in PEERS:
-            if available(name, rec):
+            if name in wanted and available(name, rec):
                 run = run_filter(name, rec)
                 rows.append(ComparisonRow(name, "peer", run, score_run(rec, run)))
     return rows

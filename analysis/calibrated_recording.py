@@ -4,7 +4,8 @@ The calibration chain before any attitude filter: ``ω_b = K_ω(ω̃ - b_ω)`` (
 specific force at the centre of gravity ``f = K_a(ã - b_a) - ω×(ω×R) - α×R`` (A.18), the
 IMU samples moved by the calibration's time offset and put back on the recording's rows
 (:func:`analysis.imu_calibration.apply_to_frame`). K contains the mounting rotation, so the
-result is in the body frame the calibration was made for.
+result is in the body frame the calibration was made for; a magnetometer is moved and
+turned with them (see :func:`~analysis.imu_calibration.apply_to_frame`).
 
 A calibration that does not fit the recording's sensor is refused (:class:`LogError`,
 exit 2) before anything is computed: K far from a rotation with unit scale (a unit
@@ -21,7 +22,7 @@ import pandas as pd
 
 from analysis.errors import LogError
 from analysis.imu_calibration import Calibration, apply_to_frame
-from analysis.imu_log import IMU_ACC, IMU_GYRO
+from analysis.imu_log import IMU_ACC, IMU_GYRO, MAG_COLUMNS
 from analysis.imu_recording import ImuRecording
 
 __all__ = ["G", "calibrate_recording", "check_fit"]
@@ -62,6 +63,9 @@ def calibrate_recording(rec: ImuRecording, cal: Calibration, cal_path: str | Pat
         cols[c] = rec.gyro_rad_s[:, i]
     for i, c in enumerate(IMU_ACC):
         cols[c] = rec.acc_m_s2[:, i]
+    if rec.mag_ut is not None:
+        for i, c in enumerate(MAG_COLUMNS):
+            cols[c] = rec.mag_ut[:, i]
     out = apply_to_frame(cal, pd.DataFrame(cols))
     if len(out) < 2:
         raise LogError(f"{cal_path}: after its time offset ({cal.time_offset_s:g} s) fewer "
@@ -70,4 +74,5 @@ def calibrate_recording(rec: ImuRecording, cal: Calibration, cal_path: str | Pat
     keep[out["_row"].to_numpy()] = True
     gyro = out[[f"gyro_{a}_rad_s" for a in "xyz"]].to_numpy(dtype=float)
     acc = out[[f"acc_{a}_m_s2" for a in "xyz"]].to_numpy(dtype=float)
-    return rec.with_imu(out["t_s"].to_numpy(dtype=float), gyro, acc, keep)
+    mag = None if rec.mag_ut is None else out[list(MAG_COLUMNS)].to_numpy(dtype=float)
+    return rec.with_imu(out["t_s"].to_numpy(dtype=float), gyro, acc, keep, mag_ut=mag)

@@ -35,6 +35,7 @@ from analysis.errors import CalibrationError, LogError
 from analysis.imu_log import (
     IMU_ACC,
     IMU_GYRO,
+    MAG_COLUMNS,
     REF_ACC,
     REF_ALPHA,
     REF_OMEGA,
@@ -338,12 +339,18 @@ def apply_to_frame(cal: Calibration, df: pd.DataFrame) -> pd.DataFrame:
     Adds/replaces ``gyro_*_rad_s`` (body rate) and ``acc_*_m_s2`` (specific force at the
     centre of gravity, body frame). The IMU data are moved by ``time_offset_s`` and
     linearly interpolated back onto the log's rows; rows the shift leaves without IMU data
-    are dropped. Other columns are copied unchanged.
+    are dropped. A magnetometer (``mag_*_ut``) sits in the same package: Paper A does not
+    calibrate it, but it is moved by the same offset and turned into the body frame by
+    K_ω's mounting rotation (:func:`decompose`), so that a 9D filter fuses one frame.
+    Other columns are copied unchanged.
     """
     gcols, acols = imu_columns(df)
     t = df["t_s"].to_numpy(dtype=float)
+    has_mag = all(c in df.columns for c in MAG_COLUMNS)
+    mag = df[list(MAG_COLUMNS)].to_numpy(float) if has_mag else np.zeros((len(t), 0))
     out_w = np.full((len(t), 3), np.nan)
     out_f = np.full((len(t), 3), np.nan)
+    out_m = np.full(mag.shape, np.nan)
     for seg in _segments(t):
         ts = t[seg]
         if len(ts) < 2:
@@ -351,13 +358,16 @@ def apply_to_frame(cal: Calibration, df: pd.DataFrame) -> pd.DataFrame:
         tr, w, f = apply_calibration(cal, ts, df[list(gcols)].to_numpy(float)[seg],
                                      df[list(acols)].to_numpy(float)[seg])
         ok = (ts >= tr[0]) & (ts <= tr[-1])
-        for i in range(3):
-            out_w[seg, i] = np.where(ok, np.interp(ts, tr, w[:, i]), np.nan)
-            out_f[seg, i] = np.where(ok, np.interp(ts, tr, f[:, i]), np.nan)
+        for out, x in ((out_w, w), (out_f, f), (out_m, mag[seg])):
+            for i in range(out.shape[1]):
+                out[seg, i] = np.where(ok, np.interp(ts, tr, x[:, i]), np.nan)
     res = df.copy()
     for i, a in enumerate(XYZ):
         res[f"gyro_{a}_rad_s"] = out_w[:, i]
         res[f"acc_{a}_m_s2"] = out_f[:, i]
+    if has_mag:
+        c = np.asarray(decompose(cal.kg)["rotation_imu_to_body"], dtype=float)
+        res[list(MAG_COLUMNS)] = out_m @ c.T
     if gcols == IMU_GYRO:
         res = res.drop(columns=list(IMU_GYRO + IMU_ACC))
     keep = np.isfinite(out_w).all(axis=1)

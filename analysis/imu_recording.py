@@ -26,10 +26,14 @@ from analysis.imu_log import (
     load_attitude_log,
 )
 
-__all__ = ["HDF5_SUFFIXES", "ImuRecording", "load_recording", "read_broad"]
+__all__ = ["HDF5_SUFFIXES", "UNIFORM_JITTER", "ImuRecording", "UniformGrid", "load_recording",
+           "read_broad", "uniform_grid"]
 
 Array = NDArray[np.float64]
 HDF5_SUFFIXES = (".hdf5", ".h5")
+# fixed-rate filters (VQF, ahrs) take a recording as it is while every sample interval is
+# within this fraction of the median; otherwise they run on a uniform grid
+UNIFORM_JITTER = 0.1
 
 
 @dataclass(frozen=True)
@@ -54,13 +58,58 @@ class ImuRecording:
         t = self.t_s
         return float((len(t) - 1) / (t[-1] - t[0])) if len(t) > 1 else float("nan")
 
-    def with_imu(self, t_s: Array, gyro: Array, acc: Array, keep: NDArray[np.bool_]
-                 ) -> ImuRecording:
-        """Copy with corrected IMU samples on the rows ``keep`` (e.g. after a calibration)."""
+    def with_imu(self, t_s: Array, gyro: Array, acc: Array, keep: NDArray[np.bool_],
+                 mag_ut: Array | None = None) -> ImuRecording:
+        """Copy with corrected IMU samples on the rows ``keep`` (e.g. after a calibration).
+
+        ``mag_ut``: corrected magnetometer samples of those rows (default: the rows kept).
+        """
         def sub(a: Array | None) -> Array | None:
             return None if a is None else a[keep]
-        return replace(self, t_s=t_s, gyro_rad_s=gyro, acc_m_s2=acc, mag_ut=sub(self.mag_ut),
+        return replace(self, t_s=t_s, gyro_rad_s=gyro, acc_m_s2=acc,
+                       mag_ut=sub(self.mag_ut) if mag_ut is None else mag_ut,
                        ref_quat=sub(self.ref_quat), movement=sub(self.movement))
+
+
+@dataclass(frozen=True)
+class UniformGrid:
+    """A recording's IMU samples on a uniform time grid, and the way back to its rows.
+
+    Row i of the original lies between grid samples ``idx[i]`` and ``idx[i] + 1`` at the
+    fraction ``u[i]``.
+    """
+
+    rec: ImuRecording
+    idx: NDArray[np.intp]
+    u: Array
+
+
+def uniform_grid(rec: ImuRecording, jitter: float = UNIFORM_JITTER) -> UniformGrid | None:
+    """``None`` if the sampling is uniform (within ``jitter``), else the resampled recording.
+
+    Filters with a fixed sample time (VQF, Madgwick, Mahony) integrate every interval as
+    one median interval: dropped rows or a gap in a logged stream would be lost rotation.
+    The grid keeps the median interval; gyro, accelerometer and magnetometer are linearly
+    interpolated onto it (across a gap, the straight line between its ends).
+    """
+    t = rec.t_s
+    d = np.diff(t)
+    dt = float(np.median(d)) if len(d) else 0.0
+    if dt <= 0.0 or np.all(np.abs(d - dt) <= jitter * dt):
+        return None
+    n = int(np.ceil((t[-1] - t[0]) / dt - 1e-9)) + 1
+    tg = t[0] + np.arange(n) * dt
+
+    def on_grid(a: Array | None) -> Array | None:
+        if a is None:
+            return None
+        return np.stack([np.interp(tg, t, a[:, i]) for i in range(a.shape[1])], axis=1)
+
+    grid = ImuRecording(rec.source, tg, on_grid(rec.gyro_rad_s), on_grid(rec.acc_m_s2),
+                        on_grid(rec.mag_ut))
+    idx = np.clip(np.searchsorted(tg, t, side="right") - 1, 0, n - 2)
+    u = np.clip((t - tg[idx]) / dt, 0.0, 1.0)
+    return UniformGrid(grid, idx, u)
 
 
 def _dataset(f, path: Path, name: str, width: int, n: int | None, finite: bool) -> Array:

@@ -4,8 +4,10 @@ Data: BROAD trial 07 (fast rotation, optical truth; CC BY 4.0, Laidig et al., Da
 2021, read from ../shared/data/broad, never copied) over its movement mask; the simulated
 Paper B hexapod test (``drivers.sim.imu_attitude_log``: 0.17 rad roll at 0.2 Hz plus
 pitch, yaw and translations, calibrated IMU at 400 Hz with 0.4 m lever arm, no
-magnetometer); and a simulated IMU tumbling through every orientation
-(``drivers.sim.imu_tumble``, 60 s at 286 Hz, with magnetometer). Peers run with their
+magnetometer); a simulated IMU tumbling through every orientation
+(``drivers.sim.imu_tumble``, 60 s at 286 Hz, with magnetometer); and a tour of 26 held
+orientations covering the sphere, upside down and pitch ±90° included, joined by turns of
+up to 180° (``simulate_orientation_tour``, 81 s at 286 Hz). Peers run with their
 packages' defaults. 6D rows: heading scored after removing its constant offset.
 
 Prints a Markdown table (docs/attitude.md holds its output) with inclination, heading and
@@ -23,7 +25,7 @@ import numpy as np
 from analysis.attitude_compare import compare
 from analysis.imu_recording import ImuRecording, read_broad
 from drivers.sim.imu_attitude_log import simulate_attitude_log
-from drivers.sim.imu_tumble import simulate_tumble
+from drivers.sim.imu_tumble import simulate_orientation_tour, simulate_tumble
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("ROTORBENCH_SHARED_DATA", REPO.parent / "shared" / "data"))
@@ -45,6 +47,9 @@ def _datasets() -> list[tuple[str, ImuRecording]]:
     t = simulate_tumble(duration_s=60.0, seed=0)
     out.append(("simulated tumble, every orientation", ImuRecording(
         "tumble", t["t_s"], t["gyro"], t["acc"], t["mag"], t["quat"], t["movement"])))
+    t = simulate_orientation_tour(seed=0)
+    out.append(("simulated tour of 26 orientations", ImuRecording(
+        "tour", t["t_s"], t["gyro"], t["acc"], t["mag"], t["quat"], t["movement"])))
     return out
 
 

@@ -25,7 +25,9 @@ from rich.table import Table
 from analysis import quaternion as quat
 from analysis.attitude_compare import ComparisonRow, compare, error_figure, score_run
 from analysis.attitude_filters import (
+    PAPER_B_ACC_TAU_S,
     PAPER_B_TAU_S,
+    PEERS,
     PROJECT_FILTERS,
     FilterRun,
     paper_b,
@@ -61,13 +63,17 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--json", action="store_true", help="print the scores as JSON only")
     p.add_argument("--compare", action="store_true",
                    help="also run the peers (VQF, Madgwick, Mahony) on the same samples")
+    p.add_argument("--peers", metavar="NAMES",
+                   help="with --compare: only these peers, comma-separated (default all: "
+                        f"{', '.join(PEERS)})")
     p.add_argument("--png", type=Path, metavar="FILE",
                    help="error-over-time figure of --compare (default LOG-stem_errors.png)")
     g = p.add_argument_group("paper-b options")
     g.add_argument("--gain", type=float, metavar="P",
                    help=f"blend gain P_err per sample, 0..1 (default t_s/{PAPER_B_TAU_S:g} s)")
     g.add_argument("--acc-lowpass", type=float, metavar="G",
-                   help="accelerometer low-pass gain G_a of (B.28), 0..1 (default 0: off)")
+                   help="accelerometer low-pass gain G_a of (B.28), 0..1 (0: off; default "
+                        f"exp(-t_s/{PAPER_B_ACC_TAU_S * 1000:g} ms))")
     g.add_argument("--bias-seconds", type=float, metavar="S",
                    help="fixed gyro bias: the mean of the first S seconds (instead of the "
                         "bias estimated at every rest)")
@@ -92,6 +98,15 @@ def _check_args(args: argparse.Namespace) -> None:
         raise LogError(f"{opt}: a paper-b option; add --filter paper-b")
     if args.png is not None and not args.compare:
         raise LogError("--png: the figure belongs to --compare")
+    if args.peers is not None:
+        if not args.compare:
+            raise LogError("--peers: the peers belong to --compare")
+        names = [n.strip() for n in args.peers.split(",") if n.strip()]
+        unknown = [n for n in names if n not in PEERS]
+        if unknown or not names:
+            raise LogError(f"--peers: unknown peer {unknown[0] if unknown else '(none)'!r}; "
+                           f"known: {', '.join(PEERS)}")
+        args.peers = names
     if args.out is not None and args.out.suffix.lower() not in (".csv", ".parquet"):
         raise LogError(f"{args.out}: output must end in .csv or .parquet")
     if args.png is not None and args.png.suffix.lower() != ".png":
@@ -105,7 +120,7 @@ def _paper_b_run(rec: ImuRecording, args: argparse.Namespace) -> FilterRun:
     """paper-b with the command's options."""
     start, cpu = time.perf_counter(), time.process_time()
     q = paper_b(rec, gain=args.gain, bias_seconds=args.bias_seconds,
-                acc_lowpass=args.acc_lowpass or 0.0,
+                acc_lowpass=args.acc_lowpass,
                 tilt="yaw-aligned" if args.yaw_aligned else "estimate")
     return FilterRun("paper-b", q, False, time.perf_counter() - start,
                      time.process_time() - cpu)
@@ -166,7 +181,8 @@ def handler(args: argparse.Namespace) -> int:
         label = f"{args.filter} ({'9D' if run.nine_d else '6D'})"
         rows.append(ComparisonRow(label, "project", run, score_run(rec, run)))
         if args.compare:
-            rows += [r for r in compare(rec) if r.label != label]
+            rows += [r for r in compare(rec, True if args.peers is None else args.peers)
+                     if r.label != label]
     elif args.out is None:
         console.print("no reference attitude in the log (ref_qw..ref_qz or opt_quat) to "
                       "compare with; --out FILE writes the estimate")

@@ -112,3 +112,68 @@ def simulate_upside_down(duration_s: float = 60.0, rate_hz: float = 285.714, see
     out = simulate_angles(t, ang, de[:, None] * f + e[:, None] * df, seed, **noise)
     out["movement"] = e > 0
     return out
+
+
+def orientation_tour_targets(seed: int = 0) -> Array:
+    """26 orientations whose "up" in the sensor frame covers the sphere evenly: the 6 faces
+    (upside down and pitch ±90° among them), 12 edges and 8 corners of a cube, each with a
+    random heading; scalar-first, sensor to earth."""
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(seed)
+    dirs = [np.array(v, dtype=float) for v in np.ndindex(3, 3, 3)]
+    ups = [(d - 1.0) / np.linalg.norm(d - 1.0) for d in dirs if np.any(d != 1.0)]
+    out = []
+    for up in ups:  # the rotation taking the sensor's `up` to earth z, then a heading
+        tilt, _ = Rotation.align_vectors([[0.0, 0.0, 1.0]], [up])
+        r = Rotation.from_euler("z", rng.uniform(-np.pi, np.pi)) * tilt
+        out.append(r.as_quat()[[3, 0, 1, 2]])
+    return np.array(out)
+
+
+def simulate_orientation_tour(rate_hz: float = 285.714, seed: int = 0, rest_s: float = 3.0,
+                              hold_s: float = 1.5, turn_s: float = 1.5,
+                              targets: Array | None = None,
+                              gyro_bias_rad_s: tuple = (0.01, -0.008, 0.005),
+                              gyro_noise_rad_s: float = 0.004, acc_noise_m_s2: float = 0.03,
+                              mag_noise_ut: float = 0.3) -> dict[str, Array]:
+    """A sensor visiting ``targets`` (default :func:`orientation_tour_targets`) in turn.
+
+    It rests ``rest_s`` level, then turns to each target at a constant body rate in
+    ``turn_s`` (the shortest way, up to 180°) and holds it ``hold_s``. The body rate of a
+    constant-rate turn from q_a to q_b is the rotation vector of q_a* ⊗ q_b over the turn
+    time, so gyro and truth agree exactly. Same arrays as :func:`simulate_tumble`; the
+    movement mask starts with the first turn.
+    """
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(seed)
+    goals = orientation_tour_targets(seed) if targets is None else np.asarray(targets, float)
+    dt = 1.0 / rate_hz
+    n_rest, n_turn, n_hold = round(rest_s * rate_hz), round(turn_s * rate_hz), round(
+        hold_s * rate_hz)
+    rots: list[Rotation] = [Rotation.identity(n_rest)]
+    rates: list[Array] = [np.zeros((n_rest, 3))]
+    cur = Rotation.identity()
+    for g in goals:
+        goal = Rotation.from_quat(np.asarray(g)[[1, 2, 3, 0]])
+        step = (cur.inv() * goal).as_rotvec()  # body-frame turn, |step| <= π
+        s = (np.arange(1, n_turn + 1) / n_turn)[:, None]
+        rots += [cur * Rotation.from_rotvec(s * step), goal * Rotation.identity(n_hold)]
+        rates += [np.tile(step / (n_turn * dt), (n_turn, 1)), np.zeros((n_hold, 3))]
+        cur = goal
+    r = Rotation.concatenate(rots)
+    omega = np.concatenate(rates)
+    n = len(omega)
+    acc = r.inv().apply(np.array([0.0, 0.0, G]))
+    mag = r.inv().apply(EARTH_FIELD_UT)
+    movement = np.arange(n) >= n_rest
+    return {
+        "t_s": np.arange(n) * dt,
+        "gyro": omega + np.asarray(gyro_bias_rad_s)
+        + gyro_noise_rad_s * rng.standard_normal((n, 3)),
+        "acc": acc + acc_noise_m_s2 * rng.standard_normal((n, 3)),
+        "mag": mag + mag_noise_ut * rng.standard_normal((n, 3)),
+        "quat": r.as_quat()[:, [3, 0, 1, 2]],
+        "movement": movement,
+    }

@@ -6,6 +6,11 @@ Paper B's filter within 2 x VQF + 0.2°; VQF is taken as the better of its onlin
 offline forms. The peers' own numbers are pinned to what their packages give with the
 same scoring (VQF offline 0.96°, ahrs Madgwick 2.05°, as measured when the issue was
 filed), which guards the frame conversions and the scoring.
+
+The peers are the VQF forms and Madgwick 6D (``--peers``): ahrs' Python loops take ~15 s
+of CPU for the other three (Madgwick 9D, Mahony 6D/9D), whose frames are checked on a
+static sensor in test_attitude_filters.py::test_peers_are_in_the_enu_frame and whose
+trial-07 scores are in docs/attitude.md (benchmarks/attitude_bench.py).
 """
 
 from __future__ import annotations
@@ -18,6 +23,7 @@ from bench.cli import main
 
 TRIAL = "07_undisturbed_fast_rotation_B.hdf5"
 FOUR_MINUTES_AT_286_HZ = 240 * 285.714
+PEERS_RUN = ("vqf-6d", "vqf-9d", "vqf-offline-6d", "vqf-offline-9d", "madgwick-6d")
 
 
 @pytest.fixture(scope="module")
@@ -37,7 +43,8 @@ def table(tmp_path_factory: pytest.TempPathFactory) -> dict:
 
     buf = io.StringIO()
     with contextlib.redirect_stdout(buf), contextlib.redirect_stderr(io.StringIO()):
-        assert main(["attitude", str(path), "--compare", "--json", "--png", str(png)]) == 0
+        assert main(["attitude", str(path), "--compare", "--json", "--png", str(png),
+                     "--peers", ",".join(PEERS_RUN)]) == 0
     data = json.loads(buf.getvalue())
     data["png"] = png
     data["rows"] = {r["filter"]: r for r in data["scores"]}
@@ -70,8 +77,9 @@ def test_peers_reproduce_their_known_scores(table: dict) -> None:
     rows = table["rows"]
     assert rows["vqf-offline-6d"]["inclination_rmse_deg"] == pytest.approx(0.96, abs=0.02)
     assert rows["madgwick-6d"]["inclination_rmse_deg"] == pytest.approx(2.05, abs=0.05)
-    for name in ("vqf-9d", "madgwick-9d", "mahony-9d"):  # 9D: absolute heading, ENU
-        assert rows[name]["heading_rmse_deg"] < 20.0
+    assert rows["vqf-9d"]["heading_rmse_deg"] < 2.0  # 9D: absolute heading, ENU
+    assert [r["filter"] for r in table["scores"]] == [
+        "default (9D)", "default (6D)", "default-causal (6D)", "paper-b (6D)", *PEERS_RUN]
     assert all(r["samples"] == 33617 for r in table["scores"])
     assert table["png"].stat().st_size > 20_000
 

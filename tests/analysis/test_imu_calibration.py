@@ -19,6 +19,7 @@ import pytest
 from analysis.errors import CalibrationError, LogError
 from analysis.imu_calibration import (
     TABLE_A2,
+    Calibration,
     apply_to_frame,
     calibrate,
     decompose,
@@ -183,3 +184,28 @@ def test_weakly_excited_axis_warns_but_calibrates() -> None:
         cal = calibrate(_frame(phases=phases, seed=1), time_offset_s=MODEL.clock_offset_s)
     assert 3.0 < cal.conditioning["gyro"] < 10.0
     assert any("poorly conditioned" in w for w in cal.warnings)
+
+
+def test_apply_moves_and_turns_the_magnetometer_with_the_imu() -> None:
+    """A magnetometer in the IMU package: same time offset, turned by K_ω's mounting into the
+    body frame (it was copied unchanged, in the IMU frame, next to a body-frame gyro)."""
+    from scipy.spatial.transform import Rotation
+
+    mount = Rotation.from_euler("xyz", [3.0, -2.0, 17.0], degrees=True).as_matrix()
+    k = mount * 1.01  # body = K·(reading - b); a magnetometer's body field = mount·reading
+    t = np.arange(400) / 200.0
+    body_field = np.stack([20 * np.cos(t), 20 * np.sin(t), -44 + 0 * t], axis=1)
+    offset = 0.05  # IMU row stamped t was measured at t - offset
+    reading = np.stack([np.interp(t - offset, t, c) for c in (body_field @ mount).T], axis=1)
+    df = pd.DataFrame({"t_s": t, **{f"imu_gyro_{a}_rad_s": 0.0 for a in "xyz"},
+                       **{f"imu_acc_{a}_m_s2": [0.0, 0.0, 9.8][i] for i, a in enumerate("xyz")},
+                       **{f"mag_{a}_ut": reading[:, i] for i, a in enumerate("xyz")}})
+    cal = Calibration(gyro_bias_rad_s=[0.0] * 3, gyro_bias_stderr_rad_s=[0.0] * 3,
+                      acc_bias_m_s2=[0.0] * 3, k_gyro=k.tolist(), k_acc=k.tolist(),
+                      lever_arm_m=[0.0] * 3, time_offset_s=offset)
+    out = apply_to_frame(cal, df)
+    got = out[[f"mag_{a}_ut" for a in "xyz"]].to_numpy()
+    want = body_field[np.isin(t, out["t_s"].to_numpy())]
+    inner = slice(20, -20)  # the linear interpolations' ends
+    assert np.abs(got - want)[inner].max() < 0.02  # µT of a ~48 µT field
+    assert np.abs(reading[: len(got)] - want).max() > 5.0  # untouched it would be far off

@@ -129,3 +129,14 @@ def test_product_is_associative_and_keeps_unit_length(q: np.ndarray, r: np.ndarr
     v = np.array([0.3, -1.2, 2.0])
     assert math.isclose(float(np.linalg.norm(quat.rotate(q, v))), float(np.linalg.norm(v)),
                         rel_tol=1e-12)
+
+
+def test_nlerp_ends_midpoint_and_short_way() -> None:
+    q = quat.from_axis_angle([0, 0, 1], 0.2)
+    r = quat.from_axis_angle([0, 0, 1], 0.6)
+    np.testing.assert_allclose(quat.nlerp(q, r, 0.0), q, atol=1e-12)
+    np.testing.assert_allclose(quat.nlerp(q, r, 1.0), r, atol=1e-12)
+    np.testing.assert_allclose(quat.nlerp(q, r, 0.5), quat.from_axis_angle([0, 0, 1], 0.4),
+                               atol=1e-12)  # symmetric: the midpoint is exact
+    mid = quat.nlerp(q, -r, 0.5)  # -r is the same rotation: still the short way
+    assert quat.angle_between(mid, quat.from_axis_angle([0, 0, 1], 0.4)) < 1e-9

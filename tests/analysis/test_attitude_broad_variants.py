@@ -1,0 +1,140 @@
+"""The default filter against VQF on the BROAD family's shapes, built from real trial 07.
+
+The issue's held-back check runs the default filter on other BROAD trials (slow rotation,
+translation, breaks, tapping, vibration, magnets); only trial 07 ships. Each variant here
+gives trial 07's real samples one of those shapes (``drivers.sim.imu_disturbances``) and
+checks the issue's bounds against online VQF (the ``vqf`` package's ``VQF``, defaults) on
+the same samples: inclination RMSE <= 1.25 x VQF 6D + 0.1° on every variant, heading
+RMSE <= 1.5 x VQF 9D + 0.5° on the undisturbed ones. The default is VQF's offline form, so
+the second set of tests checks that what the default relies on is really switched on and
+really helps: turned off in the same ``offlineVQF``, each one makes its case worse.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from analysis.attitude_filters import run_filter
+from analysis.attitude_scoring import score
+from analysis.imu_recording import ImuRecording, read_broad
+from drivers.sim.imu_disturbances import UNDISTURBED, VARIANTS, make_variant
+
+TRIAL = "07_undisturbed_fast_rotation_B.hdf5"
+vqf = pytest.importorskip("vqf")
+pytestmark = pytest.mark.slow  # ~12 s in all: trial 07 and eight variants through VQF
+
+
+@pytest.fixture(scope="module")
+def trial() -> dict:
+    from tests.conftest import SHARED_DATA
+
+    path = SHARED_DATA / "broad" / TRIAL
+    if not path.exists():
+        pytest.skip(f"{path} not found")
+    pytest.importorskip("h5py")
+    r = read_broad(path)
+    return {"t_s": r.t_s, "gyro": r.gyro_rad_s, "acc": r.acc_m_s2, "mag": r.mag_ut,
+            "quat": r.ref_quat, "movement": r.movement}
+
+
+def _rec(d: dict) -> ImuRecording:
+    return ImuRecording("variant", d["t_s"], d["gyro"], d["acc"], d["mag"], d["quat"],
+                        d["movement"])
+
+
+def _deg(q: np.ndarray, d: dict, nine_d: bool) -> tuple[float, float]:
+    """Inclination and heading RMSE (deg), BROAD scoring; 6D heading after its offset."""
+    s = score(q, d["quat"], d["movement"], remove_heading_offset=not nine_d)
+    return math.degrees(s.inclination_rad), math.degrees(s.heading_rad)
+
+
+@pytest.mark.parametrize("name", list(VARIANTS))
+def test_default_within_the_issue_bounds_of_vqf(trial: dict, name: str) -> None:
+    d = make_variant(trial, name, seed=0)
+    rec = _rec(d)
+    default = run_filter("default", rec)
+    assert default.nine_d  # a BROAD trial has a magnetometer: the default is 9D
+    incl, head = _deg(default.quat, d, True)
+    vqf6_incl, _ = _deg(run_filter("vqf-6d", rec).quat, d, False)
+    _, vqf9_head = _deg(run_filter("vqf-9d", rec).quat, d, True)
+    assert incl <= 1.25 * vqf6_incl + 0.1, (incl, vqf6_incl)
+    if name in UNDISTURBED:
+        assert head <= 1.5 * vqf9_head + 0.5, (head, vqf9_head)
+
+
+def _offline(d: dict, **params: object) -> dict:
+    c = np.ascontiguousarray
+    return vqf.offlineVQF(c(d["gyro"]), c(d["acc"]), c(d["mag"]),
+                          float(np.median(np.diff(d["t_s"]))), params or None)
+
+
+@pytest.mark.parametrize(("name", "off", "quat", "metric", "worse_by"), [
+    # gyro bias (rest and motion): 6D heading drifts without it (measured 1.1° -> 6.5°,
+    # slowed 1.4° -> 18°)
+    ("base", {"restBiasEstEnabled": False, "motionBiasEstEnabled": False}, "quat6D",
+     "heading", 3.0),
+    ("slow_rotation", {"restBiasEstEnabled": False, "motionBiasEstEnabled": False},
+     "quat6D", "heading", 5.0),
+    # rest detection: with only the motion estimate the bias is found worse (1.4° -> 5.3°)
+    ("slow_rotation", {"restBiasEstEnabled": False}, "quat6D", "heading", 2.0),
+    # magnetic disturbance rejection (measured 1.2° -> 7.9° with a magnet passing by)
+    ("stationary_magnet", {"magDistRejectionEnabled": False}, "quat9D", "heading", 3.0),
+    # accelerometer disturbances are rejected by the 3 s inertial low-pass; a 0.3 s one
+    # lets them through (translation 0.96° -> 8.7°, tapping 1.0° -> 1.75°)
+    ("translation", {"tauAcc": 0.3}, "quat6D", "inclination", 3.0),
+    ("tapping", {"tauAcc": 0.3}, "quat6D", "inclination", 1.4),
+])
+def test_default_chain_is_active_and_helps(trial: dict, name: str, off: dict, quat: str,
+                                           metric: str, worse_by: float) -> None:
+    d = trial if name == "base" else make_variant(trial, name, seed=0)
+    nine_d = quat == "quat9D"
+    default = run_filter("default", _rec(d), six_d=not nine_d)
+    with_it = _deg(default.quat, d, nine_d)
+    # the default is offlineVQF with the package's defaults: identical to calling it
+    np.testing.assert_allclose(default.quat, _offline(d)[quat], atol=1e-9)
+    without = _deg(_offline(d, **off)[quat], d, nine_d)
+    i = 0 if metric == "inclination" else 1
+    assert without[i] > worse_by * with_it[i], (with_it, without)
+
+
+def test_variants_have_the_shapes_they_claim(trial: dict) -> None:
+    """Each variant changes what it says and keeps the rest (a guard on the generator)."""
+    acc0 = trial["acc"]
+    mov = trial["movement"]
+    tap = make_variant(trial, "tapping")
+    spikes = np.linalg.norm(tap["acc"] - acc0, axis=1)
+    assert spikes.max() > 15.0 and np.mean(spikes > 1.0) < 0.1  # short, strong spikes
+    assert np.all(tap["acc"][~mov][:1000] == acc0[~mov][:1000])  # only during movement
+    tr = make_variant(trial, "translation")
+    lin = np.linalg.norm(tr["acc"] - acc0, axis=1)[mov]
+    assert np.sqrt(np.mean(lin**2)) > 1.5  # sustained, m/s² RMS
+    np.testing.assert_array_equal(tr["gyro"], trial["gyro"])
+    mag = make_variant(trial, "stationary_magnet")
+    extra = np.linalg.norm(mag["mag"] - trial["mag"], axis=1)
+    assert 20.0 < extra.max() < 60.0 and np.mean(extra > 5.0) > 0.1  # tens of µT, seconds
+    br = make_variant(trial, "with_breaks")
+    rate = 1.0 / np.median(np.diff(trial["t_s"]))
+    assert len(br["t_s"]) == len(trial["t_s"]) + 3 * round(10.0 * rate)
+    still = np.all(np.diff(br["quat"], axis=0) == 0.0, axis=1) & br["movement"][1:]
+    assert still.sum() >= 3 * (round(10.0 * rate) - 1)  # three 10 s rests, scored
+    slow = make_variant(trial, "slow_rotation")
+    assert len(slow["t_s"]) == pytest.approx(3 * len(trial["t_s"]), abs=3)
+    peak = np.percentile(np.abs(trial["gyro"][mov]), 99)
+    assert np.percentile(np.abs(slow["gyro"][slow["movement"]]), 99) < 0.4 * peak
+    # white noise kept at its measured level in the rest (interpolation would lower it)
+    rest = slice(round(5 * rate), round(15 * rate))
+    assert slow["gyro"][rest].std(axis=0) == pytest.approx(trial["gyro"][rest].std(axis=0),
+                                                           rel=0.15)
+
+
+def test_paper_b_is_not_tilted_by_vibration(trial: dict) -> None:
+    """A zero-mean vibration rectified by the normalisation of the accelerometer tilted
+    Paper B's filter (measured 1.63° -> 2.20° on the vibration variant); the (B.28)
+    low-pass ahead of it (τ_a = 5 ms) removes that (1.64° -> 1.66°)."""
+    still = _deg(run_filter("paper-b", _rec(trial)).quat, trial, False)[0]
+    d = make_variant(trial, "vibration", seed=0)
+    shaken = _deg(run_filter("paper-b", _rec(d)).quat, d, False)[0]
+    assert shaken < 1.1 * still
