@@ -182,3 +182,27 @@ def _margin(label: str, unit: str, value: float, limit: float, sense: str) -> di
     pct = 100.0 * diff / abs(limit) if limit and math.isfinite(limit) else None
     return {"label": label, "unit": unit, "value": value, "limit": limit, "sense": sense,
             "margin": diff, "margin_pct": pct, "ok": bool(diff >= -1e-9 * max(1.0, abs(limit)))}
+
+
+def hover_shortfall(catalog: Catalog, n: int, propeller: str, motor: str, battery: str,
+                    payload_kg: float = 0.0) -> str | None:
+    """Why a design the catalog limits accept cannot hover, or None if it can.
+
+    The thesis' model has no thrust limit, so its optimum can need more speed than its motor
+    reaches on B_V (Table E.10's P1/M1/B3 with 4 actuators: 4994 rpm needed, 4279 rpm at
+    full throttle). Full throttle is the steady state (E.4)-(E.7), the sheet's
+    ``max_thrust_n``.
+    """
+    from optimizer.design_model import evaluate_grid, single_design_catalog
+
+    single = single_design_catalog(catalog, propeller, motor, battery)
+    grid = evaluate_grid(single, n, payload_kg)
+    weight = _one(grid.metrics["total_mass_kg"]) * single.constants.gravity_m_s2
+    v_b = pack_of(single)["voltage_v"]
+    top = ops.at_throttle(drive_of(single), 1.0, v_b)
+    ratio = n * _one(top.thrust_n) / weight
+    if ratio >= 1.0:
+        return None
+    return (f"cannot hover: thrust-to-weight {ratio:.2f} at full throttle (needs "
+            f"{_one(grid.metrics['hover_rpm']):.0f} rpm, the motor reaches "
+            f"{_one(top.rpm):.0f} rpm on {_one(v_b):.3g} V)")

@@ -170,3 +170,21 @@ def test_method_thesis_is_evaluated_exactly(capsys) -> None:
     # Test Case I, 4 actuators: the thesis formulation reaches the exact flight time optimum
     _, exact = run_json(capsys, "optimize", "--method", "exact", "--actuators", "4")
     assert entry["flight_time_min"] == pytest.approx(exact["designs"][0]["flight_time_min"])
+
+
+def test_a_chosen_design_that_cannot_hover_is_said_so(capsys, fixtures_dir) -> None:
+    """Table E.10's 4-actuator pick (P1/M1/B3) needs 4994 rpm; M1 reaches 4279 rpm on
+    12 V. The thesis' limits accept it; optimize says so, and --flyable removes it."""
+    cat = str(fixtures_dir / "catalogs" / "thesis-e")
+    code, doc = run_json(capsys, "optimize", "--catalog", cat, "--actuators", "4",
+                         "--objective", "time-constant")
+    assert code == 0 and doc["best"]["propeller"] == "P1" and doc["best"]["motor"] == "M1"
+    [warning] = doc["warnings"]
+    assert "P1/M1/B3: cannot hover: thrust-to-weight 0.73" in warning
+    assert "needs 4994 rpm" in warning and "4279 rpm" in warning
+    code, doc = run_json(capsys, "optimize", "--catalog", cat, "--actuators", "4")
+    assert doc["warnings"] == []  # Case I's P4/M1/B3 hovers at 74 % throttle
+    code, doc = run_json(capsys, "optimize", "--catalog", cat, "--actuators", "4",
+                         "--objective", "time-constant", "--flyable")
+    assert code == 0 and doc["warnings"] == []
+    assert (doc["best"]["propeller"], doc["best"]["motor"]) != ("P1", "M1")
