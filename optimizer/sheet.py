@@ -189,9 +189,9 @@ def hover_shortfall(catalog: Catalog, n: int, propeller: str, motor: str, batter
     """Why a design the catalog limits accept cannot hover, or None if it can.
 
     The thesis' model has no thrust limit, so its optimum can need more speed than its motor
-    reaches on B_V (Table E.10's P1/M1/B3 with 4 actuators: 4994 rpm needed, 4279 rpm at
-    full throttle). Full throttle is the steady state (E.4)-(E.7), the sheet's
-    ``max_thrust_n``.
+    reaches on B_V (thesis-e's exact Case III optimum P1/M1/B3 with 4 actuators: 4994 rpm
+    needed, 4279 rpm at full throttle; the thesis' own pick P1/M1/B1 hovers). Full
+    throttle is the steady state (E.4)-(E.7), the sheet's ``max_thrust_n``.
     """
     from optimizer.design_model import evaluate_grid, single_design_catalog
 

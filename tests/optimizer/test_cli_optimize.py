@@ -173,8 +173,9 @@ def test_method_thesis_is_evaluated_exactly(capsys) -> None:
 
 
 def test_a_chosen_design_that_cannot_hover_is_said_so(capsys, fixtures_dir) -> None:
-    """Table E.10's 4-actuator pick (P1/M1/B3) needs 4994 rpm; M1 reaches 4279 rpm on
-    12 V. The thesis' limits accept it; optimize says so, and --flyable removes it."""
+    """The exact Case III optimum with 4 actuators (P1/M1/B3; Table E.10 prints B1) needs
+    4994 rpm; M1 reaches 4279 rpm on 12 V. The thesis' limits accept it; optimize says so,
+    and --flyable removes it."""
     cat = str(fixtures_dir / "catalogs" / "thesis-e")
     code, doc = run_json(capsys, "optimize", "--catalog", cat, "--actuators", "4",
                          "--objective", "time-constant")
