@@ -73,7 +73,23 @@ def step_constants(run: Path) -> Any:
     return StepConstants(
         data["tau_up_s"], data["tau_down_s"], max(0.0, data["latency_s"]),
         esc_frame_s(read_run(run)),
-        f"step run {run_id} ({key.motor} / {key.propeller}, {key.esc_mode})")
+        f"step run {run_id} ({key.motor} / {key.propeller}, {key.esc_mode})",
+        motor=key.motor, propeller=key.propeller)
+
+
+def step_run_mismatch(step: Any, propeller: str, motor: str) -> str | None:
+    """A step run of another actuator flies this design's rotors with that actuator's
+    response: allowed (what if), but said, naming both."""
+    if step is None:
+        return None
+    other = [f"{what} {got} (design: {want})"
+             for what, got, want in (("motor", step.motor, motor),
+                                     ("propeller", step.propeller, propeller))
+             if got is not None and got != want]
+    if not other:
+        return None
+    return (f"--step-run measured another actuator: {', '.join(other)}; its time constants "
+            "are flown on this design's rotors")
 
 
 def _grid(args: argparse.Namespace, catalog: Any, n: int) -> Any:
@@ -132,6 +148,8 @@ def _one(args: argparse.Namespace, catalog: Any, grid: Any, step: Any, measured:
     report, flights = fly_report(vehicle, actuator, [maneuver(m) for m in names], record,
                                  keep=args.plot is not None)
     report["catalog"] = catalog.source
+    mismatch = step_run_mismatch(step, args.propeller, args.motor)
+    report["warnings"] = [mismatch] if mismatch else []
     if measured is not None:
         report["measured_store"] = measured.describe()
     if args.plot is not None:
@@ -142,6 +160,8 @@ def _one(args: argparse.Namespace, catalog: Any, grid: Any, step: Any, measured:
         print(json.dumps(report, indent=2, default=json_default))
         return 0
     _print_one(report)
+    for line in report["warnings"]:
+        print(f"warning: {line}")
     return 0
 
 

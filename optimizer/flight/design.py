@@ -32,6 +32,9 @@ class StepConstants:
     latency_s: float
     frame_s: float = math.nan
     source: str = "step run"
+    #: the measured actuator's catalog ids, where the run names them
+    motor: str | None = None
+    propeller: str | None = None
 
 
 def design_index(grid: Any, propeller: str, motor: str, battery: str) -> tuple[int, int, int]:

@@ -119,6 +119,23 @@ def test_step_run_is_fitted_on_the_fly(capsys, tmp_path) -> None:
     assert act["tau_up_ms"] == pytest.approx(data["tau_up_s"] * 1e3)
     assert act["tau_down_ms"] == pytest.approx(data["tau_down_s"] * 1e3)
     assert run.name in act["source"]
+    # the default rig's actuator is no catalog part: the run flies on P4/M1 with a warning
+    key = fit_for_store(run)[0]
+    assert (key.propeller, key.motor) != ("P4", "M1")
+    [warning] = doc["warnings"]
+    assert warning.startswith("--step-run measured another actuator")
+    assert f"motor {key.motor} (design: M1)" in warning
+    assert f"propeller {key.propeller} (design: P4)" in warning
+
+
+def test_step_run_of_the_same_actuator_has_no_warning() -> None:
+    from bench.commands.fly import step_run_mismatch
+    from optimizer.flight.design import StepConstants
+
+    same = StepConstants(0.1, 0.1, 0.01, motor="M1", propeller="P4")
+    assert step_run_mismatch(same, "P4", "M1") is None
+    assert step_run_mismatch(None, "P4", "M1") is None
+    assert "motor M1 (design: M2)" in step_run_mismatch(same, "P4", "M2")
 
 
 def test_optimize_max_roll_rise(capsys) -> None:
