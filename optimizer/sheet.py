@@ -206,3 +206,19 @@ def hover_shortfall(catalog: Catalog, n: int, propeller: str, motor: str, batter
     return (f"cannot hover: thrust-to-weight {ratio:.2f} at full throttle (needs "
             f"{_one(grid.metrics['hover_rpm']):.0f} rpm, the motor reaches "
             f"{_one(top.rpm):.0f} rpm on {_one(v_b):.3g} V)")
+
+
+def hover_warnings(catalog: Catalog, designs: Any, payload_kg: float = 0.0) -> list[str]:
+    """One line per design (``(actuators, propeller, motor, battery)``) that cannot hover;
+    the thesis' limits do not check it (``min_thrust_to_weight`` in catalog.toml or
+    ``--flyable`` make it a limit). Batteries not in the catalog (an S/P pack such as
+    ``B1-4S3P``, built per run) are skipped: ``evaluate --battery`` checks them."""
+    out = []
+    for n, propeller, motor, battery in designs:
+        if battery not in catalog.battery_ids:
+            continue
+        why = hover_shortfall(catalog, n, propeller, motor, battery, payload_kg)
+        if why is not None:
+            out.append(f"{n} actuators, {propeller}/{motor}/{battery}: {why}; "
+                       "min_thrust_to_weight in catalog.toml or --flyable exclude such designs")
+    return out

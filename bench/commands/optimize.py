@@ -182,7 +182,11 @@ def handler(args: argparse.Namespace) -> int:
                                "plain catalog model)")
         result = meet_roll_rise_option(result, catalog, objective, requirements, args.method,
                                        args.max_roll_rise_ms, measured)
-    warnings = hover_warnings(result, catalog, args.payload_kg)
+    from optimizer.sheet import hover_warnings
+
+    warnings = hover_warnings(catalog, [(d.actuators, d.propeller, d.motor, d.battery)
+                                        for d in result.designs if d.feasible],
+                              args.payload_kg)
     if args.json:
         doc = result.to_dict()
         doc["warnings"] = warnings
@@ -210,22 +214,6 @@ def handler(args: argparse.Namespace) -> int:
             print(f"warning: {line}")
     return 0 if result.any_feasible else EXIT_NO_FEASIBLE
 
-
-def hover_warnings(result: Any, catalog: Any, payload_kg: float) -> list[str]:
-    """A chosen design that cannot hover is said so: the thesis' limits do not check it
-    (``min_thrust_to_weight`` in catalog.toml or ``--flyable`` make it a limit)."""
-    from optimizer.sheet import hover_shortfall
-
-    out = []
-    for d in result.designs:
-        if not d.feasible or d.battery not in catalog.battery_ids:
-            continue  # an S/P pack (B1-4S3P) is built per run; evaluate --battery checks it
-        why = hover_shortfall(catalog, d.actuators, d.propeller, d.motor, d.battery,
-                              payload_kg)
-        if why is not None:
-            out.append(f"{d.actuators} actuators, {d.propeller}/{d.motor}/{d.battery}: {why}; "
-                       "min_thrust_to_weight in catalog.toml or --flyable exclude such designs")
-    return out
 
 
 def print_rule_reports(reports: list[dict[str, Any]]) -> None:

@@ -112,6 +112,10 @@ def compute(args: argparse.Namespace) -> dict[str, Any]:
     for d in front:  # solve_time_s here: the whole front of its actuator count
         d.pop("objective_cost", None)
     spec_x, spec_y = ox.terms[0][0], oy.terms[0][0]
+    from optimizer.sheet import hover_warnings
+
+    warnings = hover_warnings(catalog, [(d["actuators"], d["propeller"], d["motor"],
+                                         d["battery"]) for d in front], args.payload_kg)
     return {
         "x": args.x, "y": args.y,
         "x_key": spec_x.metric, "y_key": spec_y.metric,
@@ -119,7 +123,7 @@ def compute(args: argparse.Namespace) -> dict[str, Any]:
         "y_label": f"{spec_y.label} ({spec_y.unit})" if spec_y.unit else spec_y.label,
         "catalog": catalog.source, "catalog_name": Path(str(catalog.source)).name,
         "actuators": list(dict.fromkeys(args.actuators)), "payload_kg": args.payload_kg,
-        "method": args.method, "front": front, "per_actuator": per,
+        "method": args.method, "front": front, "per_actuator": per, "warnings": warnings,
         "rules": None if rules is None else {"enabled": list(rules.enabled),
                                               "removed": [r.to_dict() for r in build.reports]},
         "_cloud": (np.concatenate(cloud_x), np.concatenate(cloud_y)),
@@ -143,6 +147,8 @@ def handler(args: argparse.Namespace) -> int:
         print_front(doc)
         if args.plot is not None:
             print(f"plot: {args.plot}")
+        for line in doc["warnings"]:
+            print(f"warning: {line}")
     return 0 if doc["front"] else EXIT_NO_FEASIBLE
 
 

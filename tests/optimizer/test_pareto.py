@@ -57,6 +57,10 @@ def test_thesis_e_four_actuators_front(capsys, tmp_path) -> None:
         for key in ("propeller", "motor", "battery", "flight_time_min", "time_constant_ms"):
             assert end[key] == best[key]
     assert png.stat().st_size > 1000
+    # the fast end cannot hover on its own datasheet (no thrust limit in the thesis' model)
+    hovering = {(d["propeller"], d["motor"], d["battery"]) for d in front[:2]}
+    assert all(p_m_b not in w for w in doc["warnings"] for p_m_b in map("/".join, hovering))
+    assert any("P1/M1/B3: cannot hover" in w for w in doc["warnings"])
 
 
 def test_merged_front_over_actuator_counts_is_not_dominated(capsys, fixtures_dir) -> None:
