@@ -119,18 +119,29 @@ def run_paper_e_cases(args: argparse.Namespace, catalog: Any) -> int:
             )
             res = solve(catalog, single(objective), tuple(args.actuators), req, args.method,
                         measured)
-            results.append((case, title, res))
+            results.append((case, title, res, _hover_warnings(res, catalog, payload)))
             progress.advance(task)
     if args.json:
-        cases = [{"case": c, "title": t, **r.to_dict()} for c, t, r in results]
+        cases = [{"case": c, "title": t, **r.to_dict(), "warnings": w}
+                 for c, t, r, w in results]
         doc: dict[str, Any] = {"cases": cases}
         if measured is not None:
             doc["measured"] = measured.describe()
         print(json.dumps(doc, indent=2, default=json_default))
     else:
-        for _, title, res in results:
+        for _, title, res, warnings in results:
             print_table(res, title=title)
-    return 0 if all(r.any_feasible for _, _, r in results) else EXIT_NO_FEASIBLE
+            for line in warnings:
+                print(f"warning: {line}")
+    return 0 if all(r.any_feasible for _, _, r, _ in results) else EXIT_NO_FEASIBLE
+
+
+def _hover_warnings(result: Any, catalog: Any, payload_kg: float) -> list[str]:
+    """``optimizer.sheet.hover_warnings`` for the feasible designs of one result."""
+    from optimizer.sheet import hover_warnings
+
+    return hover_warnings(catalog, [(d.actuators, d.propeller, d.motor, d.battery)
+                                    for d in result.designs if d.feasible], payload_kg)
 
 
 def build_objective(args: argparse.Namespace) -> Objective:
@@ -182,11 +193,7 @@ def handler(args: argparse.Namespace) -> int:
                                "plain catalog model)")
         result = meet_roll_rise_option(result, catalog, objective, requirements, args.method,
                                        args.max_roll_rise_ms, measured)
-    from optimizer.sheet import hover_warnings
-
-    warnings = hover_warnings(catalog, [(d.actuators, d.propeller, d.motor, d.battery)
-                                        for d in result.designs if d.feasible],
-                              args.payload_kg)
+    warnings = _hover_warnings(result, catalog, args.payload_kg)
     if args.json:
         doc = result.to_dict()
         doc["warnings"] = warnings

@@ -189,3 +189,13 @@ def test_a_chosen_design_that_cannot_hover_is_said_so(capsys, fixtures_dir) -> N
                          "--objective", "time-constant", "--flyable")
     assert code == 0 and doc["warnings"] == []
     assert (doc["best"]["propeller"], doc["best"]["motor"]) != ("P1", "M1")
+
+
+def test_paper_e_cases_warn_per_case(capsys) -> None:
+    assert main(["optimize", "--paper-e-cases", "--json"]) == 0
+    cases = {c["case"]: c for c in json.loads(capsys.readouterr().out)["cases"]}
+    assert all("warnings" in c for c in cases.values())
+    warned = {(c, w.split(":")[0]) for c, case in cases.items() for w in case["warnings"]}
+    # Case I hovers; Case II's 4-actuator tie pick M1 and Case III's B3 picks do not
+    assert not any(c == "I" for c, _ in warned)
+    assert any("P1/M1/B3" in who for _, who in warned)
