@@ -50,6 +50,7 @@ __all__ = [
     "print_dry_run",
     "rules_from_args",
     "run_options_from_args",
+    "seed_arg",
 ]
 
 #: The output root of every command's runs and runs.sqlite (``--out``).
@@ -65,13 +66,15 @@ EXIT_NO_FEASIBLE = 3
 FIGURE_SUFFIXES = (".png", ".pdf", ".svg")
 
 
-def check_figure_path(path: Path, flag: str = "--plot") -> Path:
+def check_figure_path(path: Path, flag: str = "--plot",
+                      suffixes: tuple[str, ...] = FIGURE_SUFFIXES) -> Path:
     """Refuse, before any work, a figure file that could not be written or whose suffix is
-    no figure format (matplotlib would append ``.png`` to a bare name, or fail late)."""
+    no figure format (matplotlib would append ``.png`` to a bare name, or fail late);
+    ``suffixes``: the formats the writer knows (default: matplotlib's)."""
     path = Path(path)
-    if path.suffix.lower() not in FIGURE_SUFFIXES:
+    if path.suffix.lower() not in suffixes:
         raise RequestError(f"{flag} {path}: expected a file name ending in "
-                           f"{', '.join(FIGURE_SUFFIXES)}")
+                           f"{', '.join(suffixes)}")
     return check_writable(path, flag, folder=False)
 
 
@@ -118,6 +121,18 @@ def _probe(folder: Path) -> str | None:
     return None
 
 
+def seed_arg(text: str) -> int:
+    """argparse ``type`` of every ``--seed``: a whole number >= 0 (numpy's generators refuse
+    a negative seed with a traceback long after the options were read)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}")
+    return value
+
+
 # --- the bench commands' arguments (step, sweep, console) -----------------------------------
 def add_common_arguments(p: argparse.ArgumentParser) -> None:
     from bench.safety import LIMIT_FIELDS
@@ -128,7 +143,7 @@ def add_common_arguments(p: argparse.ArgumentParser) -> None:
                    help="output root for run folders and runs.sqlite (default: ./runs)")
     p.add_argument("--esc-mode", choices=("complementary", "diode", "stock"), default=None,
                    help="ESC switching scheme / firmware (overrides the rig file)")
-    p.add_argument("--seed", type=int, default=None, help="seed of the simulated rig")
+    p.add_argument("--seed", type=seed_arg, default=None, help="seed of the simulated rig")
     p.add_argument("--limit", action="append", default=[], metavar="NAME=VALUE",
                    help=f"tighten a limit for this run ({', '.join(LIMIT_FIELDS)}); "
                         "loosening is refused")

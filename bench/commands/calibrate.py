@@ -33,7 +33,7 @@ from analysis.imu_log import load_calibration_log, load_imu_log, write_table
 from bench.calibration_report import mat, print_calibration, print_stages, print_truth, vec
 from bench.calibration_sequences import format_plan, paper_a_sequences
 from bench.calibration_stages import calibrate_frame, collect_log, plans_for
-from bench.cli_support import check_writable
+from bench.cli_support import check_writable, seed_arg
 from bench.errors import RigError
 from bench.recorder import new_run_id
 from bench.rig import default_imu_rig_path, is_imu_rig, load_imu_rig
@@ -65,7 +65,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         "hexapod, Paper A protocol) and print its true parameters")
     p.add_argument("--short", action="store_true",
                    help="with --simulate-log: shortened protocol (fast, same stages)")
-    p.add_argument("--seed", type=int, default=None,
+    p.add_argument("--seed", type=seed_arg, default=None,
                    help="random seed (--simulate-log: default 0; rig: the rig file's seed)")
     p.add_argument("--rig", type=Path, metavar="FILE",
                    help="IMU-bench rig file ([rig] kind = \"imu\"); default: the simulated "

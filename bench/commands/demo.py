@@ -29,7 +29,7 @@ import numpy as np
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-from bench.cli_support import check_writable
+from bench.cli_support import check_writable, seed_arg
 from bench.errors import RigError
 from optimizer.paper_e_cases import PAPER_E_CASES
 
@@ -54,7 +54,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="output folder (default ./demo-out); an existing one is replaced only "
                         f"if a previous demo wrote it (it holds {MARKER}), else refused")
     p.add_argument("--repeats", type=int, default=3, help="Step 1 repeats per combination")
-    p.add_argument("--seed", type=int, default=1, help="seed of the simulated rig")
+    p.add_argument("--seed", type=seed_arg, default=1, help="seed of the simulated rig")
     p.add_argument("--combos", type=int, default=None,
                    help="only the first N motor x propeller combinations (quick look)")
     p.set_defaults(func=handler)
