@@ -28,6 +28,7 @@ import argparse
 import math
 import os
 import tempfile
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -79,7 +80,7 @@ def check_figure_path(path: Path, flag: str = "--plot",
 
 
 def check_writable(path: Path, flag: str, *, folder: bool, beside: bool = False,
-                   make_parents: bool = True) -> Path:
+                   make_parents: bool = True, inputs: Sequence[Path | None] = ()) -> Path:
     """Refuse (``RigError``) an output ``path`` that cannot be written; return it.
 
     ``folder``: the output is a folder (a run root, a report) rather than a file.
@@ -87,9 +88,15 @@ def check_writable(path: Path, flag: str, *, folder: bool, beside: bool = False,
     its parent must be writable even when the folder exists.
     ``make_parents``: the command creates missing parent folders; if not, the parent
     must exist.
+    ``inputs``: the files the command reads; an output that is one of them is refused
+    (writing it would replace the data it is computed from).
     """
     path = Path(path)
     where = f"{flag} {path}" if flag else str(path)
+    for source in inputs:
+        if source is not None and _same_file(path, Path(source)):
+            raise RigError(f"{where}: is also an input ({source}); choose another name "
+                           "for the output")
     if path.exists() or path.is_symlink():
         if folder and not path.is_dir():
             raise RigError(f"{where}: is a file; expected a folder")
@@ -108,6 +115,14 @@ def check_writable(path: Path, flag: str, *, folder: bool, beside: bool = False,
     if problem is not None:
         raise RigError(f"{where}: cannot write in {anchor} ({problem})")
     return path
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    """Whether ``a`` and ``b`` name the same file (through links, ``..`` and case)."""
+    try:
+        return a.exists() and b.exists() and os.path.samefile(a, b)
+    except OSError:
+        return False
 
 
 def _probe(folder: Path) -> str | None:

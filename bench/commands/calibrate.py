@@ -110,13 +110,17 @@ def handler(args: argparse.Namespace) -> int:
 
 def _check_out(args: argparse.Namespace) -> None:
     if args.out is not None:
-        check_writable(args.out, "--out", folder=False, make_parents=False)
+        check_writable(args.out, "--out", folder=False, make_parents=False,
+                       inputs=(args.from_log,))
     if args.figures is not None:
         check_writable(args.figures, "--figures", folder=True)
     for flag, value in (("--gyro-range-dps", args.gyro_range_dps),
                         ("--acc-range-g", args.acc_range_g), ("--max-lag", args.max_lag)):
         if not (math.isfinite(value) and value > 0):
             raise LogError(f"{flag}: expected a number > 0, got {value:g}")
+    if args.mounting_deg and not all(math.isfinite(v) for v in args.mounting_deg):
+        raise LogError("--mounting-deg: expected three finite angles in degrees, got "
+                       + " ".join(f"{v:g}" for v in args.mounting_deg))
 
 
 def finish(cal: Calibration, df, args: argparse.Namespace, out: Path | None, source: str) -> None:
@@ -134,7 +138,8 @@ def finish(cal: Calibration, df, args: argparse.Namespace, out: Path | None, sou
 
 
 def _apply(args: argparse.Namespace) -> int:
-    check_writable(args.apply_out, "--out", folder=False, make_parents=False)
+    check_writable(args.apply_out, "--out", folder=False, make_parents=False,
+                   inputs=(args.log, args.cal))
     cal = load_calibration(args.cal)
     df = load_imu_log(args.log)
     out = apply_to_frame(cal, df)

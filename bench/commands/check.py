@@ -55,7 +55,7 @@ def deep(args: argparse.Namespace, path: Path) -> int:
         raise RigError(f"--seconds: expected 0 < seconds <= 600, got {seconds:g}")
     out = args.save or path.with_name(f"{path.stem}.bringup.json")
     rig = load_any_rig(path)
-    check_writable(out, "--save", folder=False)  # before listening, not after
+    check_writable(out, "--save", folder=False, inputs=(path,))  # before listening
     report = bringup_report(rig, seconds)
     atomic_write_json(out, report)
     if args.json:
