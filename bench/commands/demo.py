@@ -41,6 +41,9 @@ MARKER_TEXT = "rotorbench demo output; `rotorbench demo --out` may replace this 
 #: Metric keys whose source the designs table reports.
 SOURCE_KEYS = ("time_constant_ms", "current_a", "power_w", "flight_time_min")
 MODES = ("complementary", "diode", "stock")
+#: Step 1 repeats a demo may ask per combination: 100 already take minutes of rig
+#: time per combination; a million ran for days without a word.
+MAX_REPEATS = 100
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -145,8 +148,10 @@ def handler(args: argparse.Namespace) -> int:
     console = Console(width=shutil.get_terminal_size((160, 24)).columns)
     if args.combos is not None and args.combos < 1:
         raise RigError(f"--combos: expected a count >= 1, got {args.combos}")
-    if args.repeats < 1:
-        raise RigError(f"--repeats: expected a count >= 1, got {args.repeats}")
+    if not 1 <= args.repeats <= MAX_REPEATS:
+        raise RigError(f"--repeats: expected a count from 1 to {MAX_REPEATS} (the demo runs "
+                       f"every combination; `rotorbench step --repeats` for long runs), "
+                       f"got {args.repeats}")
     out = check_writable(check_out(args.out), "--out", folder=True, beside=True)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent))
