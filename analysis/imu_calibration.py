@@ -215,7 +215,8 @@ def estimate_time_offset(t: Array, ref_omega: Array, gyro: Array, bias: Array,
     a, b = a - a.mean(), b - b.mean()
     c = correlate(b, a, mode="full", method="fft")
     lags = correlation_lags(len(b), len(a), mode="full")
-    keep = np.abs(lags) <= max(1, round(max_lag_s / dt))
+    # a lag beyond the log is no limit (and 1e308 s / dt would not round to an integer)
+    keep = np.abs(lags) <= max(1, round(min(max_lag_s / dt, len(lags))))
     c, lags = c[keep], lags[keep]
     k = int(np.argmax(c))
     shift = float(lags[k])

@@ -28,6 +28,7 @@ import argparse
 import math
 import os
 import tempfile
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -50,6 +51,7 @@ __all__ = [
     "print_dry_run",
     "rules_from_args",
     "run_options_from_args",
+    "seed_arg",
 ]
 
 #: The output root of every command's runs and runs.sqlite (``--out``).
@@ -65,18 +67,20 @@ EXIT_NO_FEASIBLE = 3
 FIGURE_SUFFIXES = (".png", ".pdf", ".svg")
 
 
-def check_figure_path(path: Path, flag: str = "--plot") -> Path:
+def check_figure_path(path: Path, flag: str = "--plot",
+                      suffixes: tuple[str, ...] = FIGURE_SUFFIXES) -> Path:
     """Refuse, before any work, a figure file that could not be written or whose suffix is
-    no figure format (matplotlib would append ``.png`` to a bare name, or fail late)."""
+    no figure format (matplotlib would append ``.png`` to a bare name, or fail late);
+    ``suffixes``: the formats the writer knows (default: matplotlib's)."""
     path = Path(path)
-    if path.suffix.lower() not in FIGURE_SUFFIXES:
+    if path.suffix.lower() not in suffixes:
         raise RequestError(f"{flag} {path}: expected a file name ending in "
-                           f"{', '.join(FIGURE_SUFFIXES)}")
+                           f"{', '.join(suffixes)}")
     return check_writable(path, flag, folder=False)
 
 
 def check_writable(path: Path, flag: str, *, folder: bool, beside: bool = False,
-                   make_parents: bool = True) -> Path:
+                   make_parents: bool = True, inputs: Sequence[Path | None] = ()) -> Path:
     """Refuse (``RigError``) an output ``path`` that cannot be written; return it.
 
     ``folder``: the output is a folder (a run root, a report) rather than a file.
@@ -84,9 +88,15 @@ def check_writable(path: Path, flag: str, *, folder: bool, beside: bool = False,
     its parent must be writable even when the folder exists.
     ``make_parents``: the command creates missing parent folders; if not, the parent
     must exist.
+    ``inputs``: the files the command reads; an output that is one of them is refused
+    (writing it would replace the data it is computed from).
     """
     path = Path(path)
     where = f"{flag} {path}" if flag else str(path)
+    for source in inputs:
+        if source is not None and _same_file(path, Path(source)):
+            raise RigError(f"{where}: is also an input ({source}); choose another name "
+                           "for the output")
     if path.exists() or path.is_symlink():
         if folder and not path.is_dir():
             raise RigError(f"{where}: is a file; expected a folder")
@@ -107,6 +117,14 @@ def check_writable(path: Path, flag: str, *, folder: bool, beside: bool = False,
     return path
 
 
+def _same_file(a: Path, b: Path) -> bool:
+    """Whether ``a`` and ``b`` name the same file (through links, ``..`` and case)."""
+    try:
+        return a.exists() and b.exists() and os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
 def _probe(folder: Path) -> str | None:
     """Why a new file cannot be created in ``folder`` (None if it can)."""
     try:
@@ -116,6 +134,18 @@ def _probe(folder: Path) -> str | None:
     os.close(fd)
     os.unlink(name)
     return None
+
+
+def seed_arg(text: str) -> int:
+    """argparse ``type`` of every ``--seed``: a whole number >= 0 (numpy's generators refuse
+    a negative seed with a traceback long after the options were read)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}")
+    return value
 
 
 # --- the bench commands' arguments (step, sweep, console) -----------------------------------
@@ -128,7 +158,7 @@ def add_common_arguments(p: argparse.ArgumentParser) -> None:
                    help="output root for run folders and runs.sqlite (default: ./runs)")
     p.add_argument("--esc-mode", choices=("complementary", "diode", "stock"), default=None,
                    help="ESC switching scheme / firmware (overrides the rig file)")
-    p.add_argument("--seed", type=int, default=None, help="seed of the simulated rig")
+    p.add_argument("--seed", type=seed_arg, default=None, help="seed of the simulated rig")
     p.add_argument("--limit", action="append", default=[], metavar="NAME=VALUE",
                    help=f"tighten a limit for this run ({', '.join(LIMIT_FIELDS)}); "
                         "loosening is refused")

@@ -25,6 +25,9 @@ from optimizer.errors import CatalogError
 from optimizer.model_constants import ModelConstants, constants_from_mapping, load_constants
 
 RPM_PER_V_TO_RAD_S_PER_V = 2.0 * math.pi / 60.0
+#: The largest number a catalog cell may hold (the free-form "no limit" stand-in is 1e9;
+#: beyond it no datasheet value lies, and 1e308 made the sheet divide by an underflowed 0).
+MAX_VALUE = 1e9
 
 
 @dataclass(frozen=True)
@@ -146,6 +149,9 @@ def _parse_number(table: _Table, i: int, column: Column, raw: Any, *, allow_empt
         raise CatalogError(f"{table.where(i, column.name)}: expected a finite number, got {text!r}")
     if column.rule == ">0" and value <= 0:
         raise CatalogError(f"{table.where(i, column.name)}: expected a number > 0, got {text}")
+    if abs(value) > MAX_VALUE:
+        raise CatalogError(f"{table.where(i, column.name)}: expected a number <= {MAX_VALUE:g}, "
+                           f"got {text} (larger values overflow the model)")
     if value < 0:
         raise CatalogError(f"{table.where(i, column.name)}: expected a number >= 0, got {text}")
     return value

@@ -12,7 +12,7 @@ from typing import Any
 
 import pandas as pd
 
-from optimizer.catalog import Catalog
+from optimizer.catalog import MAX_VALUE, Catalog
 from optimizer.errors import CatalogError, RequestError
 from optimizer.model_constants import ModelConstants
 from optimizer.sizinglab import PROP_MASS_COEF_G, PROP_MASS_EXPONENT
@@ -69,6 +69,10 @@ def freeform_catalog(values: dict[str, Any], constants: ModelConstants | None = 
         if value is not None:
             rows[part][column] = value
     prop = rows["propeller"]
+    diameter = float(prop["diameter_m"])
+    if not 0 < diameter <= MAX_VALUE:  # before the mass law takes its power (nan fails)
+        raise RequestError(f"--prop-diameter-m: expected a number > 0 and <= {MAX_VALUE:g}, "
+                           f"got {diameter:g}")
     if "mass_g" not in prop:
         d_in = float(prop["diameter_m"]) / 0.0254
         prop["mass_g"] = round(PROP_MASS_COEF_G * d_in**PROP_MASS_EXPONENT, 2)

@@ -319,7 +319,7 @@ def test_fit_window_must_be_positive(tmp_path: Path, capsys, value: str) -> None
     assert "--window: expected seconds > 0 after each edge" in err
 
 
-@pytest.mark.parametrize("value", ["0", "-1", "nan"])
+@pytest.mark.parametrize("value", ["0", "-1", "nan", "1e308"])
 def test_check_timeout_must_be_positive(capsys, value: str) -> None:
     err = run_bad(capsys, "check", f"--timeout={value}")
     assert "--timeout: expected seconds > 0 per device" in err
@@ -517,7 +517,7 @@ def test_robot_example_given_as_a_catalog(capsys, fixtures_dir: Path) -> None:
     assert "mobile-robot example (robot.toml), not a multirotor catalog" in err
 
 
-@pytest.mark.parametrize("value", ["-1", "0", "nan"])
+@pytest.mark.parametrize("value", ["-1", "0", "nan", "1e308"])  # 1e308 overflowed time_t
 def test_devices_can_timeout_must_be_positive(capsys, value: str) -> None:
     err = run_bad(capsys, "devices", f"--can-timeout={value}")
     assert "--can-timeout: expected seconds > 0" in err
@@ -572,3 +572,127 @@ def test_sizing_plot_writes_a_new_folder_and_file(tmp_path: Path, capsys, comman
     assert main([*SIZING_PLOTS[command], "--plot", str(out)]) == 0
     capsys.readouterr()
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+# --- found by the careless-input hunt (negative seeds, --save, same-path outputs, ...) ------
+
+
+@pytest.mark.parametrize("argv", [
+    ["step", "--repeats", "1"], ["sweep", "--duration", "1"], ["demo"],
+    ["calibrate", "--simulate-log", "x.csv", "--short"], ["console", "--selftest"],
+])
+def test_negative_seed_is_refused_when_parsed(tmp_path: Path, capsys, monkeypatch,
+                                              argv: list[str]) -> None:
+    """--seed -1 ended in numpy's 'ValueError: expected non-negative integer' traceback."""
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as exc:
+        main([*argv, "--seed", "-1"])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "argument --seed: expected a whole number >= 0, got '-1'" in err
+    assert "Traceback" not in err and list(tmp_path.iterdir()) == []
+
+
+def test_check_deep_save_is_checked_before_listening(tmp_path: Path, capsys,
+                                                     fixtures_dir: Path) -> None:
+    """A folder, a path below a file or the rig itself as --save were tracebacks (or
+    replaced the rig file) after the listening."""
+    rig = tmp_path / "rig.toml"
+    rig.write_text((fixtures_dir / "rigs" / "sim.toml").read_text())
+    (tmp_path / "sim.thrust_map.csv").write_text(
+        (fixtures_dir / "rigs" / "sim.thrust_map.csv").read_text())
+    (tmp_path / "folder").mkdir()
+    base = ["check", "--rig", str(rig), "--deep", "--seconds", "0.2", "--save"]
+    err = run_bad(capsys, *base, str(tmp_path / "folder"))
+    assert "--save" in err and "is a folder; expected the name of the file" in err
+    err = run_bad(capsys, *base, str(rig / "report.json"))
+    assert "rig.toml is a file, not a folder" in err
+    text = rig.read_text()
+    err = run_bad(capsys, *base, str(rig))
+    assert "is also an input" in err and rig.read_text() == text
+    err = run_bad(capsys, "check", "--rig", str(rig), "--save", str(tmp_path / "r.json"))
+    assert "--save: only applies with --deep" in err
+
+
+def test_output_that_is_the_input_is_refused(tmp_path: Path, capsys) -> None:
+    """calibrate apply --out LOG LOG replaced the log with its corrected copy (exit 0)."""
+    log = _imu_log(tmp_path / "imu.csv")
+    text = log.read_text()
+    cal = tmp_path / "cal.json"
+    cal.write_text("{}")
+    err = run_bad(capsys, "calibrate", "apply", "--cal", str(cal), "--out", str(log), str(log))
+    assert f"--out {log}: is also an input" in err
+    err = run_bad(capsys, "calibrate", "apply", "--cal", str(cal), "--out",
+                  str(tmp_path / ".." / tmp_path.name / "cal.json"), str(log))
+    assert "is also an input" in err
+    err = run_bad(capsys, "attitude", str(log), "--out", str(log))
+    assert "is also an input" in err
+    err = run_bad(capsys, "calibrate", "--from-log", str(log), "--out", str(log))
+    assert "is also an input" in err
+    assert log.read_text() == text and cal.read_text() == "{}"
+
+
+@pytest.mark.parametrize("angles", [["nan", "0", "0"], ["0", "inf", "0"]])
+def test_calibrate_mounting_angles_must_be_finite(tmp_path: Path, capsys,
+                                                  angles: list[str]) -> None:
+    """nan ended in scipy's 'Found zero norm quaternions in `quat`' traceback."""
+    log = _imu_log(tmp_path / "imu.csv")
+    err = run_bad(capsys, "calibrate", "--from-log", str(log), "--mounting-deg", *angles)
+    assert "--mounting-deg: expected three finite angles in degrees" in err
+
+
+@pytest.mark.parametrize(("extra", "expected"), [
+    (["--window", "nan"], "--window nan: expected 0 < seconds <= 60"),  # NaN to integer
+    (["--selftest", "--min-fps", "inf"], "--min-fps inf: expected a refresh rate"),
+    (["--selftest", "--min-fps", "-1"], "--min-fps -1: expected a refresh rate"),
+    (["--selftest", "--screenshot", "shot.txt"], "expected a file name ending in .png"),
+    (["--selftest", "--screenshot", "afile/shot.png"], "afile is a file, not a folder"),
+    (["--selftest", "--out", "afile"], "--out afile: is a file; expected a folder"),
+    (["--min-fps", "3"], "--min-fps: only applies with --selftest"),  # opened the window
+    (["--screenshot", "shot.png"], "--screenshot: only applies with --selftest"),
+])
+def test_console_options_are_checked_before_the_window(tmp_path: Path, capsys, monkeypatch,
+                                                       extra: list[str],
+                                                       expected: str) -> None:
+    """The self-test reported bad paths as FAIL (exit 1) after running the rig."""
+    monkeypatch.chdir(tmp_path)
+    Path("afile").write_text("x")
+    err = run_bad(capsys, "console", *extra)
+    assert expected in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile"]
+
+
+@pytest.mark.parametrize(("flag", "value", "expected"), [
+    ("--prop-diameter-m", "-1", "--prop-diameter-m: expected a number > 0"),  # complex mass
+    ("--prop-ct", "1e308", "--prop-ct: expected a number <= 1e+09"),  # ZeroDivisionError
+    ("--battery-cells", "1e308", "--battery-cells: expected a number <= 1e+09"),
+])
+def test_free_form_numbers_out_of_range(capsys, flag: str, value: str, expected: str) -> None:
+    parts = {"--prop-diameter-m": "0.2", "--prop-ct": "0.1", "--prop-cp": "0.05",
+             "--motor-kv": "900", "--motor-resistance": "0.1", "--motor-mass-g": "50",
+             "--battery-cells": "3", "--battery-mah": "2200", "--battery-mass-g": "180"}
+    parts[flag] = value
+    argv = [x for kv in parts.items() for x in kv]
+    err = run_bad(capsys, "evaluate", "--actuators", "4", *argv)
+    assert expected in err
+
+
+def test_catalog_cell_beyond_1e9_is_refused(tmp_path: Path, capsys, fixtures_dir: Path) -> None:
+    import shutil
+
+    cat = tmp_path / "cat"
+    shutil.copytree(fixtures_dir / "catalogs" / "thesis-e", cat)
+    lines = (cat / "propellers.csv").read_text().splitlines()
+    header = lines[0].split(",")
+    row = lines[1].split(",")
+    row[header.index("ct")] = "1e308"
+    (cat / "propellers.csv").write_text("\n".join([lines[0], ",".join(row), *lines[2:]]) + "\n")
+    err = run_bad(capsys, "optimize", "--catalog", str(cat))
+    assert "propellers.csv" in err and "column 'ct': expected a number <= 1e+09" in err
+
+
+def test_demo_repeats_beyond_the_cap_is_refused(tmp_path: Path, capsys) -> None:
+    """--repeats 1000000 ran for days without a word."""
+    err = run_bad(capsys, "demo", "--out", str(tmp_path / "d"), "--repeats", "1000000")
+    assert "--repeats: expected a count from 1 to 100" in err
+    assert not (tmp_path / "d").exists()

@@ -113,7 +113,8 @@ def _check_args(args: argparse.Namespace) -> None:
         raise LogError(f"{args.png}: the figure is a PNG; name it *.png")
     for path, flag in ((args.out, "--out"), (args.png, "--png")):
         if path is not None:
-            check_writable(path, flag, folder=False, make_parents=False)
+            check_writable(path, flag, folder=False, make_parents=False,
+                           inputs=(args.log, args.cal))
 
 
 def _paper_b_run(rec: ImuRecording, args: argparse.Namespace) -> FilterRun:

@@ -33,7 +33,7 @@ from analysis.imu_log import load_calibration_log, load_imu_log, write_table
 from bench.calibration_report import mat, print_calibration, print_stages, print_truth, vec
 from bench.calibration_sequences import format_plan, paper_a_sequences
 from bench.calibration_stages import calibrate_frame, collect_log, plans_for
-from bench.cli_support import check_writable
+from bench.cli_support import check_writable, seed_arg
 from bench.errors import RigError
 from bench.recorder import new_run_id
 from bench.rig import default_imu_rig_path, is_imu_rig, load_imu_rig
@@ -65,7 +65,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         "hexapod, Paper A protocol) and print its true parameters")
     p.add_argument("--short", action="store_true",
                    help="with --simulate-log: shortened protocol (fast, same stages)")
-    p.add_argument("--seed", type=int, default=None,
+    p.add_argument("--seed", type=seed_arg, default=None,
                    help="random seed (--simulate-log: default 0; rig: the rig file's seed)")
     p.add_argument("--rig", type=Path, metavar="FILE",
                    help="IMU-bench rig file ([rig] kind = \"imu\"); default: the simulated "
@@ -110,13 +110,17 @@ def handler(args: argparse.Namespace) -> int:
 
 def _check_out(args: argparse.Namespace) -> None:
     if args.out is not None:
-        check_writable(args.out, "--out", folder=False, make_parents=False)
+        check_writable(args.out, "--out", folder=False, make_parents=False,
+                       inputs=(args.from_log,))
     if args.figures is not None:
         check_writable(args.figures, "--figures", folder=True)
     for flag, value in (("--gyro-range-dps", args.gyro_range_dps),
                         ("--acc-range-g", args.acc_range_g), ("--max-lag", args.max_lag)):
         if not (math.isfinite(value) and value > 0):
             raise LogError(f"{flag}: expected a number > 0, got {value:g}")
+    if args.mounting_deg and not all(math.isfinite(v) for v in args.mounting_deg):
+        raise LogError("--mounting-deg: expected three finite angles in degrees, got "
+                       + " ".join(f"{v:g}" for v in args.mounting_deg))
 
 
 def finish(cal: Calibration, df, args: argparse.Namespace, out: Path | None, source: str) -> None:
@@ -134,7 +138,8 @@ def finish(cal: Calibration, df, args: argparse.Namespace, out: Path | None, sou
 
 
 def _apply(args: argparse.Namespace) -> int:
-    check_writable(args.apply_out, "--out", folder=False, make_parents=False)
+    check_writable(args.apply_out, "--out", folder=False, make_parents=False,
+                   inputs=(args.log, args.cal))
     cal = load_calibration(args.cal)
     df = load_imu_log(args.log)
     out = apply_to_frame(cal, df)

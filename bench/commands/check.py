@@ -7,7 +7,11 @@ import json
 import math
 from pathlib import Path
 
+from bench.cli_support import check_writable
 from bench.errors import RigError
+
+#: the longest wait for one device a user may ask (time arithmetic overflows on 1e308)
+MAX_TIMEOUT_S = 3600.0
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -29,7 +33,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="bring-up report at rest: identity and firmware, limits stated by the "
                         "device against the rig file's, achieved rate and drops, noise floor, "
                         "clock skew; saved as <rig>.bringup.json beside the rig file")
-    p.add_argument("--seconds", type=float, default=2.0,
+    p.add_argument("--seconds", type=float, default=None,
                    help="--deep: seconds to listen at rest (default 2)")
     p.add_argument("--save", type=Path, default=None,
                    help="--deep: where to save the report (default: beside the rig file)")
@@ -46,10 +50,13 @@ def deep(args: argparse.Namespace, path: Path) -> int:
     from bench.recorder import atomic_write_json
     from bench.rig import load_any_rig
 
-    if not (math.isfinite(args.seconds) and 0 < args.seconds <= 600):
-        raise RigError(f"--seconds: expected 0 < seconds <= 600, got {args.seconds:g}")
-    report = bringup_report(load_any_rig(path), args.seconds)
+    seconds = 2.0 if args.seconds is None else args.seconds
+    if not (math.isfinite(seconds) and 0 < seconds <= 600):
+        raise RigError(f"--seconds: expected 0 < seconds <= 600, got {seconds:g}")
     out = args.save or path.with_name(f"{path.stem}.bringup.json")
+    rig = load_any_rig(path)
+    check_writable(out, "--save", folder=False, inputs=(path,))  # before listening
+    report = bringup_report(rig, seconds)
     atomic_write_json(out, report)
     if args.json:
         for d in report["devices"]:
@@ -76,11 +83,15 @@ def deep(args: argparse.Namespace, path: Path) -> int:
 def handler(args: argparse.Namespace) -> int:
     from bench.rig import default_rig_path, is_imu_rig, load_imu_rig, load_rig
 
-    if not (math.isfinite(args.timeout) and args.timeout > 0):
-        raise RigError(f"--timeout: expected seconds > 0 per device, got {args.timeout:g}")
+    if not (math.isfinite(args.timeout) and 0 < args.timeout <= MAX_TIMEOUT_S):
+        raise RigError(f"--timeout: expected seconds > 0 per device (at most "
+                       f"{MAX_TIMEOUT_S:g}), got {args.timeout:g}")
     path = args.rig or default_rig_path()
     if args.deep:
         return deep(args, path)
+    for flag, value in (("--seconds", args.seconds), ("--save", args.save)):
+        if value is not None:
+            raise RigError(f"{flag}: only applies with --deep")
     from drivers.check import check_rig
 
     rig = load_imu_rig(path) if is_imu_rig(path) else load_rig(path)

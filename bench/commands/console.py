@@ -29,7 +29,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="rig file (TOML); default: the simulated rig fixtures/rigs/sim.toml")
     p.add_argument("--out", type=Path, default=cli.DEFAULT_OUT,
                    help="output root for run folders and runs.sqlite (default: ./runs)")
-    p.add_argument("--seed", type=int, default=None, help="seed of the simulated rig")
+    p.add_argument("--seed", type=cli.seed_arg, default=None, help="seed of the simulated rig")
     p.add_argument("--limit", action="append", default=[], metavar="NAME=VALUE",
                    help="start with a tighter limit (loosening is refused)")
     p.add_argument("--rate", type=float, default=None,
@@ -41,9 +41,23 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         "print the plot refresh rate; exit 0 if all worked")
     p.add_argument("--screenshot", type=Path, default=None,
                    help="with --selftest: where to save the window (PNG)")
-    p.add_argument("--min-fps", type=float, default=SELFTEST_MIN_FPS,
+    p.add_argument("--min-fps", type=float, default=None,
                    help="with --selftest: the plot refresh rate it must reach (default 30)")
     p.set_defaults(func=handler, esc_mode=None)
+
+
+def _check_selftest_args(args: argparse.Namespace) -> None:
+    """``--screenshot`` and ``--min-fps`` belong to ``--selftest``; a rate is a number >= 0."""
+    if not args.selftest:
+        for flag, value in (("--screenshot", args.screenshot), ("--min-fps", args.min_fps)):
+            if value is not None:
+                raise RigError(f"{flag}: only applies with --selftest")
+        return
+    if args.min_fps is None:
+        args.min_fps = SELFTEST_MIN_FPS
+    if not 0 <= args.min_fps < 1000:  # nan and inf fail too
+        raise RigError(f"--min-fps {args.min_fps:g}: expected a refresh rate in frames/s, "
+                       "0 <= rate < 1000")
 
 
 def handler(args: argparse.Namespace) -> int:
@@ -62,13 +76,16 @@ def handler(args: argparse.Namespace) -> int:
     limits = {} if imu else _tightened(rig, cli.parse_limits(args.limit))
     if args.rate is not None and not (args.rate > 0 and args.rate < 1e5):
         raise RigError(f"--rate {args.rate:g}: expected a rate limit in us/s > 0")
-    if args.window <= 0 or args.window > 60:
+    if not 0 < args.window <= 60:  # written so that nan fails too
         raise RigError(f"--window {args.window:g}: expected 0 < seconds <= 60")
+    _check_selftest_args(args)
     options = RunOptions(tick_s=args.tick, realtime=True)
+    cli.check_writable(args.out, "--out", folder=True)
     if args.selftest:
         os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
         if args.screenshot is None:
             args.screenshot = args.out / "console-selftest.png"
+        cli.check_figure_path(args.screenshot, "--screenshot", suffixes=(".png",))
     check_display("console", "")
     problem = _qt_binding_missing()
     if problem is not None:

@@ -29,7 +29,7 @@ import numpy as np
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-from bench.cli_support import check_writable
+from bench.cli_support import check_writable, seed_arg
 from bench.errors import RigError
 from optimizer.paper_e_cases import PAPER_E_CASES
 
@@ -41,6 +41,9 @@ MARKER_TEXT = "rotorbench demo output; `rotorbench demo --out` may replace this 
 #: Metric keys whose source the designs table reports.
 SOURCE_KEYS = ("time_constant_ms", "current_a", "power_w", "flight_time_min")
 MODES = ("complementary", "diode", "stock")
+#: Step 1 repeats a demo may ask per combination: 100 already take minutes of rig
+#: time per combination; a million ran for days without a word.
+MAX_REPEATS = 100
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -54,7 +57,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="output folder (default ./demo-out); an existing one is replaced only "
                         f"if a previous demo wrote it (it holds {MARKER}), else refused")
     p.add_argument("--repeats", type=int, default=3, help="Step 1 repeats per combination")
-    p.add_argument("--seed", type=int, default=1, help="seed of the simulated rig")
+    p.add_argument("--seed", type=seed_arg, default=1, help="seed of the simulated rig")
     p.add_argument("--combos", type=int, default=None,
                    help="only the first N motor x propeller combinations (quick look)")
     p.set_defaults(func=handler)
@@ -145,8 +148,10 @@ def handler(args: argparse.Namespace) -> int:
     console = Console(width=shutil.get_terminal_size((160, 24)).columns)
     if args.combos is not None and args.combos < 1:
         raise RigError(f"--combos: expected a count >= 1, got {args.combos}")
-    if args.repeats < 1:
-        raise RigError(f"--repeats: expected a count >= 1, got {args.repeats}")
+    if not 1 <= args.repeats <= MAX_REPEATS:
+        raise RigError(f"--repeats: expected a count from 1 to {MAX_REPEATS} (the demo runs "
+                       f"every combination; `rotorbench step --repeats` for long runs), "
+                       f"got {args.repeats}")
     out = check_writable(check_out(args.out), "--out", folder=True, beside=True)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent))

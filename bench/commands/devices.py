@@ -28,8 +28,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def handler(args: argparse.Namespace) -> int:
     from drivers.discovery import can_configs, serial_ports
 
-    if not (math.isfinite(args.can_timeout) and args.can_timeout > 0):
-        raise RigError(f"--can-timeout: expected seconds > 0, got {args.can_timeout:g}")
+    if not (math.isfinite(args.can_timeout) and 0 < args.can_timeout <= 3600):
+        raise RigError(f"--can-timeout: expected seconds > 0 (at most 3600), "
+                       f"got {args.can_timeout:g}")
     ports, port_note = serial_ports()
     cans, can_note = ([], "skipped (--no-can)") if args.no_can else \
         can_configs(timeout_s=args.can_timeout)

@@ -209,3 +209,15 @@ def test_apply_moves_and_turns_the_magnetometer_with_the_imu() -> None:
     inner = slice(20, -20)  # the linear interpolations' ends
     assert np.abs(got - want)[inner].max() < 0.02  # µT of a ~48 µT field
     assert np.abs(reading[: len(got)] - want).max() > 5.0  # untouched it would be far off
+
+
+def test_time_offset_with_a_huge_max_lag_is_unbounded_not_an_overflow() -> None:
+    """--max-lag 1e308 ended in 'OverflowError: cannot convert float infinity to integer'."""
+    from analysis.imu_calibration import estimate_time_offset
+
+    t = np.arange(400) * 0.01
+    ref = np.zeros((400, 3))
+    ref[150:250, 2] = 1.0  # one rotation pulse
+    gyro = np.roll(ref, 3, axis=0)  # 30 ms behind
+    lag = estimate_time_offset(t, ref, gyro, np.zeros(3), max_lag_s=1e308)
+    assert lag == pytest.approx(0.03, abs=0.01)
