@@ -63,6 +63,15 @@ DEFAULT_RUNS_ROOT = DEFAULT_OUT
 EXIT_NO_FEASIBLE = 3
 
 
+def check_folder_to_read(path: Path, flag: str = "--out") -> Path:
+    """A folder a command lists (runs, constants): a file there is a mistake said now,
+    a folder not made yet simply holds nothing."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise RigError(f"{flag} {path}: is a file; expected a folder of runs")
+    return path
+
+
 #: figure formats a ``--plot FILE`` may name (matplotlib's Agg backend writes them)
 FIGURE_SUFFIXES = (".png", ".pdf", ".svg")
 

@@ -58,6 +58,10 @@ class ModelGrid(DesignGrid):
     overrides: dict[tuple[int, int], MeasuredActuator] = field(default_factory=dict)
 
 
+#: A payload beyond this is a typo, not a multirotor (1e308 kg overflowed numpy on the way).
+MAX_PAYLOAD_KG = 1e4
+
+
 def _check_request(n_actuators: Any, payload_kg: Any) -> tuple[int, float]:
     if isinstance(n_actuators, bool) or not isinstance(n_actuators, int | np.integer):
         raise RequestError(f"actuators: expected a whole number >= 3, got {n_actuators!r}")
@@ -67,8 +71,9 @@ def _check_request(n_actuators: Any, payload_kg: Any) -> tuple[int, float]:
         payload = float(payload_kg)
     except (TypeError, ValueError):
         raise RequestError(f"payload: expected a number of kg >= 0, got {payload_kg!r}") from None
-    if not math.isfinite(payload) or payload < 0:
-        raise RequestError(f"payload: expected a number of kg >= 0, got {payload_kg!r}")
+    if not math.isfinite(payload) or not 0 <= payload <= MAX_PAYLOAD_KG:
+        raise RequestError(f"payload: expected a number of kg from 0 to {MAX_PAYLOAD_KG:g}, "
+                           f"got {payload_kg!r}")
     return int(n_actuators), payload
 
 

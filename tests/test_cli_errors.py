@@ -696,3 +696,24 @@ def test_demo_repeats_beyond_the_cap_is_refused(tmp_path: Path, capsys) -> None:
     err = run_bad(capsys, "demo", "--out", str(tmp_path / "d"), "--repeats", "1000000")
     assert "--repeats: expected a count from 1 to 100" in err
     assert not (tmp_path / "d").exists()
+
+
+@pytest.mark.parametrize("command", ["runs", "constants"])
+def test_a_file_given_as_the_folder_to_list_is_refused(tmp_path: Path, capsys,
+                                                       command: str) -> None:
+    """`runs --out FILE` said "no runs recorded under FILE" with exit 0."""
+    afile = tmp_path / "runs.txt"
+    afile.write_text("not a folder")
+    line = run_bad(capsys, command, "--out", str(afile))
+    assert str(afile) in line and "is a file" in line
+
+
+@pytest.mark.parametrize("command", [
+    ["optimize", "--actuators", "4"],
+    ["pareto", "--actuators", "4", "--x", "flight-time", "--y", "price"],
+    ["evaluate", "--actuators", "4", "--propeller", "P4", "--motor", "M1", "--battery", "B3"],
+])
+def test_absurd_payload_is_refused_without_numpy_warnings(capsys, command: list[str]) -> None:
+    """1e308 kg passed as finite and overflowed numpy (RuntimeWarning lines, then exit 3)."""
+    line = run_bad(capsys, *command, "--payload-kg", "1e308")
+    assert "payload" in line and "10000" in line

@@ -16,7 +16,7 @@ from pathlib import Path
 from rich.console import Console
 from rich.table import Table
 
-from bench.cli_support import DEFAULT_RUNS_ROOT, check_writable
+from bench.cli_support import DEFAULT_RUNS_ROOT, check_folder_to_read, check_writable
 from bench.constants_fit import fit_for_store
 from bench.constants_store import ConstantsStore
 
@@ -35,6 +35,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def handler(args: argparse.Namespace) -> int:
+    check_folder_to_read(args.out)
     if args.add:
         check_writable(args.out, "--out", folder=True)
     store = ConstantsStore(args.out)

@@ -10,7 +10,7 @@ from pathlib import Path
 from rich.console import Console
 from rich.table import Table
 
-from bench.cli_support import check_writable
+from bench.cli_support import check_folder_to_read, check_writable
 from bench.run_index import INDEX_NAME, RunIndex
 
 
@@ -40,6 +40,7 @@ def drops_text(run_dir: Path) -> str:
 
 
 def handler(args: argparse.Namespace) -> int:
+    check_folder_to_read(args.out)
     if not (args.out / INDEX_NAME).exists() and not args.rebuild:
         print(f"no runs recorded under {args.out} (no {INDEX_NAME})")
         return 0
