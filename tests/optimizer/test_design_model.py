@@ -160,8 +160,11 @@ def test_thrust_to_weight_check(cat):
 def test_request_errors(cat):
     with pytest.raises(RequestError, match="actuators: expected a whole number >= 3, got 2"):
         evaluate_grid(cat, 2)
-    with pytest.raises(RequestError, match="payload: expected a number of kg >= 0, got -1"):
+    with pytest.raises(RequestError, match="payload: expected a number of kg from 0 to 10000, "
+                                           "got -1"):
         evaluate_grid(cat, 4, -1)
+    with pytest.raises(RequestError, match="got 1e"):
+        evaluate_grid(cat, 4, 1e308)
     with pytest.raises(RequestError, match="unknown propeller id 'P0'"):
         evaluate_design(cat, 4, "P0", "M1", "B1")
     with pytest.raises(RequestError, match="unknown battery id 'B7'"):
