@@ -16,7 +16,8 @@ from typing import Any
 
 from optimizer.errors import CatalogError
 
-__all__ = ["SHIPPED_CATALOGS", "default_catalog", "load", "shipped_catalog", "with_current_model"]
+__all__ = ["SHIPPED_CATALOGS", "default_catalog", "load", "shipped_catalog", "with_current_model",
+           "with_min_thrust_to_weight"]
 
 SHIPPED_CATALOGS = Path(__file__).resolve().parents[1] / "fixtures" / "catalogs"
 
@@ -60,6 +61,20 @@ def with_current_model(catalog: Any, current_model: str | None) -> Any:
     if current_model is None or current_model == catalog.constants.current_model:
         return catalog
     constants = catalog.constants.with_updates(current_model=current_model)
+    return dataclasses.replace(catalog, constants=constants)
+
+
+def with_min_thrust_to_weight(catalog: Any, ratio: float | None) -> Any:
+    """``catalog`` whose designs must reach full-throttle thrust-to-weight ``ratio`` (None:
+    unchanged). The catalog's own ``min_thrust_to_weight``, where higher, stays: a design
+    must meet both. The limit is then a check of every grid built from the catalog, so the
+    MILP, enumeration, Pareto fronts and the flight sweep all see it."""
+    import dataclasses
+
+    own = catalog.constants.min_thrust_to_weight
+    if ratio is None or (own is not None and own >= ratio):
+        return catalog
+    constants = catalog.constants.with_updates(min_thrust_to_weight=float(ratio))
     return dataclasses.replace(catalog, constants=constants)
 
 

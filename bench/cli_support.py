@@ -5,7 +5,8 @@ them (the rig, the limits, the loop options) and the dry-run listing; and the ou
 check every writing command makes on its output path before any work.
 
 And the option groups the sizing commands (``optimize``, ``evaluate``, ``pareto``, ``fly``)
-share: the catalog (:func:`add_catalog_args`), the measured constants
+share: the catalog (:func:`add_catalog_args`), the hover margin (:func:`add_hover_args`,
+:func:`hover_margin_from_args`), the measured constants
 (:func:`add_measured_args`, :func:`measured_from_args`) and the flyable-design rules
 (:func:`add_rule_args`, :func:`rules_from_args`), plus their JSON encoder
 (:func:`json_default`) and the exit status when nothing is feasible. The work behind
@@ -29,6 +30,7 @@ import math
 import os
 import tempfile
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -41,9 +43,11 @@ __all__ = [
     "EXIT_NO_FEASIBLE",
     "add_catalog_args",
     "add_common_arguments",
+    "add_hover_args",
     "add_measured_args",
     "add_rule_args",
     "check_writable",
+    "hover_margin_from_args",
     "json_default",
     "load_rig_from_args",
     "measured_from_args",
@@ -267,6 +271,75 @@ def add_catalog_args(p: argparse.ArgumentParser) -> None:
              "catalog's current_model (thesis unless catalog.toml says otherwise)",
     )
     p.add_argument("--json", action="store_true", help="print one JSON object")
+
+
+def add_hover_args(p: argparse.ArgumentParser) -> None:
+    """``--min-thrust-to-weight`` and ``--thesis-rules``: which designs a command may offer."""
+    from optimizer.model_constants import DEFAULT_MIN_THRUST_TO_WEIGHT
+
+    g = p.add_argument_group("hover margin (docs/optimizer.md)")
+    g.add_argument("--min-thrust-to-weight", type=float, default=None, metavar="R",
+                   help="every design offered must reach a full-throttle thrust of all "
+                   f"actuators >= R x its weight (default {DEFAULT_MIN_THRUST_TO_WEIGHT:g}: "
+                   "hover with control margin; a catalog's own higher min_thrust_to_weight "
+                   "stays)")
+    g.add_argument("--thesis-rules", action="store_true",
+                   help="the thesis' model as printed: no hover check (Tables E.8-E.10 are "
+                   "reproduced under it; designs that cannot hover are named in warnings)")
+
+
+@dataclass(frozen=True)
+class HoverMargin:
+    """The hover margin of one run: the thrust-to-weight every offered design reaches, or
+    None under the thesis' rules, and what decided it (for the output)."""
+
+    ratio: float | None
+    source: str
+
+    def apply(self, catalog: Any) -> Any:
+        """``catalog`` with the margin as its ``min_thrust_to_weight`` check."""
+        from bench.catalogs import with_min_thrust_to_weight
+
+        return with_min_thrust_to_weight(catalog, self.ratio)
+
+    def to_dict(self, catalog: Any) -> dict[str, Any]:
+        """JSON: ``min_thrust_to_weight`` in force (the catalog's own included), rules."""
+        return {"min_thrust_to_weight": catalog.constants.min_thrust_to_weight,
+                "thesis_rules": self.ratio is None, "source": self.source}
+
+    def describe(self, catalog: Any) -> str:
+        """One line for the text output."""
+        own = catalog.constants.min_thrust_to_weight
+        if self.ratio is None:
+            line = (f"thesis rules ({self.source}): no hover check, as in Papers D and E; "
+                    "warnings name chosen designs that cannot hover")
+            if own is not None:
+                line += f"; the catalog's own min_thrust_to_weight {own:g} applies"
+            return line
+        return (f"hover margin: every design reaches full-throttle thrust-to-weight >= "
+                f"{own:g} ({self.source}; --thesis-rules for the thesis' model)")
+
+
+def hover_margin_from_args(args: argparse.Namespace,
+                           implied_by: str | None = None) -> HoverMargin:
+    """The run's :class:`HoverMargin`. ``implied_by`` names an option that means the thesis'
+    rules unless ``--min-thrust-to-weight`` is given (``--paper-e-cases``)."""
+    from optimizer.model_constants import DEFAULT_MIN_THRUST_TO_WEIGHT
+
+    given = getattr(args, "min_thrust_to_weight", None)
+    if given is not None and not (math.isfinite(given) and given >= 1.0):
+        raise RequestError(f"--min-thrust-to-weight: expected a number >= 1 (below 1 a design "
+                           f"cannot hover; --thesis-rules drops the check), got {given:g}")
+    if getattr(args, "thesis_rules", False):
+        if given is not None:
+            raise RequestError("--min-thrust-to-weight does not combine with --thesis-rules "
+                               "(the thesis' model has no hover check)")
+        return HoverMargin(None, "--thesis-rules")
+    if given is not None:
+        return HoverMargin(given, "--min-thrust-to-weight")
+    if implied_by is not None:
+        return HoverMargin(None, f"implied by {implied_by}")
+    return HoverMargin(DEFAULT_MIN_THRUST_TO_WEIGHT, "default")
 
 
 def add_measured_args(p: argparse.ArgumentParser) -> None:

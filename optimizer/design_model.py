@@ -39,7 +39,7 @@ from optimizer.catalog import Catalog
 from optimizer.errors import RequestError
 from optimizer.grid import METRIC_KEYS, Check, DesignGrid
 from optimizer.measured import MeasuredActuator, select_overrides
-from optimizer.operating_points import Coefficients, speed_for_thrust
+from optimizer.operating_points import Coefficients, Drive, at_throttle, speed_for_thrust
 
 
 @dataclass(frozen=True)
@@ -316,9 +316,12 @@ def evaluate_grid(
         "motor_current_a": winding_current,
     }
     if c.min_thrust_to_weight is not None:
-        max_thrust = physics.full_throttle_thrust_n(voltage, kt, resistance, ct, cp, rho,
-                                                    diameter)
-        ratio = full(max_thrust / hover_thrust)
+        # full throttle (E.4)-(E.7) with I_0, thrust (E.1): the point of ``evaluate``'s
+        # sheet, so the limit and the sheet's thrust_to_weight are one number
+        drive = Drive(ct=ct, cp=cp, diameter_m=diameter, kt=kt, resistance_ohm=resistance,
+                      no_load_current_a=no_load, rho=rho, coefficients=coefficients,
+                      current_model=c.current_model)
+        ratio = full(at_throttle(drive, 1.0, voltage).thrust_n / hover_thrust)
         extras["thrust_to_weight"] = ratio
         checks.append(
             Check("thrust to weight", "", ratio, np.asarray(c.min_thrust_to_weight), ">=")

@@ -23,6 +23,12 @@ MOTOR_CURRENT_CHOICES = ("winding", "battery")
 CURRENT_MODEL_CHOICES = ("thesis", "drive")
 
 
+#: Full-throttle thrust of all actuators over the weight that every design a sizing command
+#: offers must reach (``--min-thrust-to-weight``): hover plus a control margin of 20 %, the
+#: least a controller needs to hold attitude at hover. The thesis' model has no such check.
+DEFAULT_MIN_THRUST_TO_WEIGHT = 1.2
+
+
 @dataclass(frozen=True)
 class ModelConstants:
     """Physical constants and model readings used by ``optimizer.design_model``.
@@ -57,6 +63,8 @@ class ModelConstants:
     price_includes_propellers: bool = True
     #: If set, a design must reach this max-thrust / weight ratio at full battery voltage
     #: (steady state of eqs. (E.4)-(E.7)); None disables the check (the thesis has none).
+    #: The sizing commands raise it to ``DEFAULT_MIN_THRUST_TO_WEIGHT`` unless run with
+    #: ``--thesis-rules`` (``bench.catalogs.with_min_thrust_to_weight``).
     min_thrust_to_weight: float | None = None
     #: Which current the motor's ``max_current_a`` limits. "winding": the torque current
     #: I_w = Q / K_t + I_0 at hover, Q = W / omega (E.3), is checked ("motor winding

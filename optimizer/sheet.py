@@ -210,9 +210,10 @@ def hover_shortfall(catalog: Catalog, n: int, propeller: str, motor: str, batter
 
 def hover_warnings(catalog: Catalog, designs: Any, payload_kg: float = 0.0) -> list[str]:
     """One line per design (``(actuators, propeller, motor, battery)``) that cannot hover;
-    the thesis' limits do not check it (``min_thrust_to_weight`` in catalog.toml or
-    ``--flyable`` make it a limit). Batteries not in the catalog (an S/P pack such as
-    ``B1-4S3P``, built per run) are skipped: ``evaluate --battery`` checks them."""
+    the thesis' limits do not check it (the sizing commands' default
+    ``--min-thrust-to-weight``, or ``min_thrust_to_weight`` in catalog.toml, make it a
+    limit). Batteries not in the catalog (an S/P pack such as ``B1-4S3P``, built per run)
+    are skipped: ``evaluate --battery`` checks them."""
     out = []
     for n, propeller, motor, battery in designs:
         if battery not in catalog.battery_ids:
@@ -220,5 +221,6 @@ def hover_warnings(catalog: Catalog, designs: Any, payload_kg: float = 0.0) -> l
         why = hover_shortfall(catalog, n, propeller, motor, battery, payload_kg)
         if why is not None:
             out.append(f"{n} actuators, {propeller}/{motor}/{battery}: {why}; "
-                       "min_thrust_to_weight in catalog.toml or --flyable exclude such designs")
+                       "--min-thrust-to-weight (the default without --thesis-rules) excludes "
+                       "such designs")
     return out

@@ -5,6 +5,11 @@ per actuator count, the best column marked) or, with ``--json``, one JSON object
 with a ``designs`` list and a ``best`` entry. Exit status: 0 when at least one
 actuator count has a feasible design (infeasible columns carry a reason), 3 when
 none has (the output still explains why), 2 for bad input.
+
+Every design offered hovers with control margin (``--min-thrust-to-weight``, default 1.2:
+a limit of the grid, so the MILP never selects a design below it). ``--thesis-rules`` is
+the thesis' model without that check; ``--paper-e-cases`` and ``--method thesis`` (Paper
+E's own linearised MILP, which has no thrust limit) imply it and say so.
 """
 
 from __future__ import annotations
@@ -16,9 +21,12 @@ from typing import Any
 from bench.catalogs import load
 from bench.cli_support import (
     EXIT_NO_FEASIBLE,
+    HoverMargin,
     add_catalog_args,
+    add_hover_args,
     add_measured_args,
     add_rule_args,
+    hover_margin_from_args,
     json_default,
     measured_from_args,
     rules_from_args,
@@ -87,6 +95,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="keep only designs whose closed-loop 10 deg roll step rises (10-90 %%) within T "
         "ms: the MILP's pick is flown, then the others in objective order (rotorbench fly)",
     )
+    add_hover_args(p)
     add_measured_args(p)
     add_rule_args(p)
     p.add_argument("--series", default=None, metavar="S",
@@ -100,13 +109,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=handler)
 
 
-def run_paper_e_cases(args: argparse.Namespace, catalog: Any) -> int:
-    """The three test cases of Paper E with a progress bar on stderr."""
+def run_paper_e_cases(args: argparse.Namespace, catalog: Any, margin: HoverMargin) -> int:
+    """The three test cases of Paper E with a progress bar on stderr (the thesis' rules
+    unless ``--min-thrust-to-weight`` is given)."""
     from rich.console import Console
     from rich.progress import Progress
 
     from optimizer.selection import Requirements
 
+    catalog = margin.apply(catalog)
     measured = measured_from_args(args, catalog)
     results = []
     with Progress(console=Console(stderr=True), transient=True) as progress:
@@ -124,7 +135,7 @@ def run_paper_e_cases(args: argparse.Namespace, catalog: Any) -> int:
     if args.json:
         cases = [{"case": c, "title": t, **r.to_dict(), "warnings": w}
                  for c, t, r, w in results]
-        doc: dict[str, Any] = {"cases": cases}
+        doc: dict[str, Any] = {"cases": cases, "hover_margin": margin.to_dict(catalog)}
         if measured is not None:
             doc["measured"] = measured.describe()
         print(json.dumps(doc, indent=2, default=json_default))
@@ -133,6 +144,7 @@ def run_paper_e_cases(args: argparse.Namespace, catalog: Any) -> int:
             print_table(res, title=title)
             for line in warnings:
                 print(f"warning: {line}")
+        print(margin.describe(catalog))
     return 0 if all(r.any_feasible for _, _, r, _ in results) else EXIT_NO_FEASIBLE
 
 
@@ -160,12 +172,19 @@ def handler(args: argparse.Namespace) -> int:
     for n in args.actuators:
         if n < 3:
             raise RequestError(f"--actuators: expected counts >= 3, got {n}")
+    if args.method == "thesis" and args.min_thrust_to_weight is not None:
+        raise RequestError("--min-thrust-to-weight does not apply to --method thesis (Paper "
+                           "E's linearised MILP has no thrust limit); use --method milp")
     if args.paper_e_cases:
         if args.max_roll_rise_ms is not None:
             raise RequestError("--max-roll-rise-ms does not apply to --paper-e-cases")
-        return run_paper_e_cases(args, load(args.catalog, args.current_model))
+        implied = "--method thesis" if args.method == "thesis" else "--paper-e-cases"
+        margin = hover_margin_from_args(args, implied_by=implied)
+        return run_paper_e_cases(args, load(args.catalog, args.current_model), margin)
     objective = build_objective(args)
-    catalog = load(args.catalog, args.current_model)
+    margin = hover_margin_from_args(
+        args, implied_by="--method thesis" if args.method == "thesis" else None)
+    catalog = margin.apply(load(args.catalog, args.current_model))
     requirements = Requirements(
         payload_kg=args.payload_kg,
         min_flight_time_min=args.min_flight_time_min,
@@ -196,6 +215,7 @@ def handler(args: argparse.Namespace) -> int:
     warnings = _hover_warnings(result, catalog, args.payload_kg)
     if args.json:
         doc = result.to_dict()
+        doc["hover_margin"] = margin.to_dict(catalog)
         doc["warnings"] = warnings
         if measured is not None:
             doc["measured"] = measured.describe()
@@ -217,6 +237,7 @@ def handler(args: argparse.Namespace) -> int:
                   f"{', '.join(rep['missed']) or 'none'}")
         if rules is not None:
             print_rule_reports(result.rule_reports)
+        print(margin.describe(catalog))
         for line in warnings:
             print(f"warning: {line}")
     return 0 if result.any_feasible else EXIT_NO_FEASIBLE
