@@ -8,9 +8,11 @@ three ESC modes. Every run is fitted and its constants stored; then Paper E's th
 cases are optimized with the datasheet model and with the measured constants, and the
 tables (Table C.1, E.8-E.10-like selections, E.11, E.13, E.14) and figures are written.
 The designs come from the real optimizer (``optimizer.selection.optimize``, exact MILP,
-the CLI's tie rules). The output folder is built beside its final name and renamed into
-place at the end; an existing ``--out`` is only replaced when it holds the marker file a
-previous demo wrote (anything else, e.g. ``--out .``, is refused with exit status 2).
+the CLI's tie rules) with ``optimize``'s hover margin (``--min-thrust-to-weight``, default
+1.2; ``--thesis-rules`` for the thesis' model, where some exact optima cannot hover).
+The output folder is built beside its final name and renamed into place at the end; an
+existing ``--out`` is only replaced when it holds the marker file a previous demo wrote
+(anything else, e.g. ``--out .``, is refused with exit status 2).
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ import numpy as np
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-from bench.cli_support import check_writable, seed_arg
+from bench.cli_support import add_hover_args, check_writable, hover_margin_from_args, seed_arg
 from bench.errors import RigError
 from optimizer.paper_e_cases import PAPER_E_CASES
 
@@ -60,6 +62,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=seed_arg, default=1, help="seed of the simulated rig")
     p.add_argument("--combos", type=int, default=None,
                    help="only the first N motor x propeller combinations (quick look)")
+    add_hover_args(p)
     p.set_defaults(func=handler)
 
 
@@ -90,7 +93,8 @@ def combo_rig(base: Any, catalog: Any, i: int, j: int, mode: str, seed: int) -> 
 
 def _optimize_cases(catalog: Any, measured: Any, progress: Any, task: Any) -> list[Any]:
     """Paper E's test cases by the real optimizer (exact MILP, the CLI's tie rules), with
-    the datasheet model and with the measured constants where the store has them."""
+    the datasheet model and with the measured constants where the store has them
+    (``catalog`` carries the run's hover margin)."""
     from optimizer.objectives import single
     from optimizer.selection import Requirements
     from optimizer.selection_options import solve
@@ -148,6 +152,7 @@ def handler(args: argparse.Namespace) -> int:
     console = Console(width=shutil.get_terminal_size((160, 24)).columns)
     if args.combos is not None and args.combos < 1:
         raise RigError(f"--combos: expected a count >= 1, got {args.combos}")
+    margin = hover_margin_from_args(args)
     if not 1 <= args.repeats <= MAX_REPEATS:
         raise RigError(f"--repeats: expected a count from 1 to {MAX_REPEATS} (the demo runs "
                        f"every combination; `rotorbench step --repeats` for long runs), "
@@ -209,7 +214,7 @@ def handler(args: argparse.Namespace) -> int:
                         r, step2(repeats=2, hold_s=1.0, settle_s=1.0, band_n=band),
                         f"{name} {mode} step2")
             measured = MeasuredSet(runs_root, MODES[0], load_measured(runs_root, "thesis-e"))
-            cases = _optimize_cases(catalog, measured, progress, task)
+            cases = _optimize_cases(margin.apply(catalog), measured, progress, task)
         summary = _tables_and_figures(
             console, catalog, fits, statics, step2_runs, measured, cases, mode_combo, figs, tabs,
             dict(plot_static=plot_static, plot_steps=plot_steps, plot_validation=plot_validation,
@@ -217,6 +222,8 @@ def handler(args: argparse.Namespace) -> int:
                  table_e14=table_e14, write_csv=write_csv, Table=Table, read_run=read_run,
                  validate_run=validate_run, hover_current_a=hover_current_a,
                  flight_time_min=flight_time_min))
+        summary["hover_margin"] = margin.to_dict(margin.apply(catalog))
+        console.print(margin.describe(margin.apply(catalog)))
         summary["wall_time_s"] = time.monotonic() - wall0
         with open(tmp / "demo.json", "w", encoding="utf-8") as fh:
             json.dump(summary, fh, indent=2, default=str)

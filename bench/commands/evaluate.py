@@ -4,8 +4,10 @@ Reports the same keys as an ``optimize --json`` design entry for one actuator co
 propeller, motor and battery (catalog ids, or free-form datasheet numbers without a
 catalog), every limit check, and what eCalc shows: maximum thrust, thrust-to-weight,
 hover throttle, efficiency, the partial-load table, the Shepherd-model flight time beside
-the thesis' constant-voltage one, C-rate checks and limit margins. Exit 0 whether or not
-the design is feasible (``feasible`` and ``reason`` say), 2 for bad input.
+the thesis' constant-voltage one, C-rate checks and limit margins. ``feasible`` means what
+``optimize`` would offer: the hover margin (``--min-thrust-to-weight``, default 1.2) is one
+of the limits unless ``--thesis-rules``. Exit 0 whether or not the design is feasible
+(``feasible`` and ``reason`` say), 2 for bad input.
 """
 
 from __future__ import annotations
@@ -19,8 +21,10 @@ from typing import Any
 from bench.catalogs import load, with_current_model
 from bench.cli_support import (
     add_catalog_args,
+    add_hover_args,
     add_measured_args,
     check_figure_path,
+    hover_margin_from_args,
     json_default,
     measured_from_args,
 )
@@ -57,12 +61,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--plot", type=Path, default=None, metavar="PNG",
                    help="draw the partial-load curves to this PNG")
     add_measured_args(p)
+    add_hover_args(p)
     p.set_defaults(func=handler)
 
 
 def _catalog_and_ids(args: argparse.Namespace) -> tuple[Any, tuple[str, str, str]]:
     from optimizer.freeform import freeform_catalog, given
 
+    margin = hover_margin_from_args(args)
     ids = (args.propeller, args.motor, args.battery)
     if given(vars(args)):
         if any(i is not None for i in ids):
@@ -70,12 +76,12 @@ def _catalog_and_ids(args: argparse.Namespace) -> tuple[Any, tuple[str, str, str
                                "free-form parts (--motor-kv ...), not both")
         constants = load(args.catalog).constants if args.catalog is not None else None
         catalog = with_current_model(freeform_catalog(vars(args), constants), args.current_model)
-        return catalog, ("prop", "motor", "battery")
+        return margin.apply(catalog), ("prop", "motor", "battery")
     missing = [f for f, i in zip(("--propeller", "--motor", "--battery"), ids, strict=True)
                if i is None]
     if missing:
         raise RequestError(f"evaluate: missing {', '.join(missing)} (or give free-form parts)")
-    catalog = load(args.catalog, args.current_model)
+    catalog = margin.apply(load(args.catalog, args.current_model))
     return _with_pack(catalog, args.battery), (args.propeller, args.motor, args.battery)
 
 

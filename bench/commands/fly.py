@@ -6,7 +6,9 @@ One design (``--actuators --propeller --motor --battery``): hover and the maneuv
 measured store's (``--measured DIR``, as ``optimize``) or a step run fitted now
 (``--step-run RUN``). ``--sweep`` flies every feasible design of the catalog for one
 actuator count through ``roll_step`` and reports how well the time constant ranks the
-closed-loop roll rise time (Spearman rho, a table, with ``--plot`` a scatter PNG).
+closed-loop roll rise time (Spearman rho, a table, with ``--plot`` a scatter PNG); feasible
+includes the hover margin of ``--min-thrust-to-weight`` (default 1.2; ``--thesis-rules``
+flies the thesis' feasible set, designs that cannot hover included and left out of rho).
 Exit 0, 2 for bad input.
 """
 
@@ -21,8 +23,10 @@ from typing import Any
 from bench.catalogs import load
 from bench.cli_support import (
     add_catalog_args,
+    add_hover_args,
     add_measured_args,
     check_writable,
+    hover_margin_from_args,
     json_default,
     measured_from_args,
 )
@@ -58,6 +62,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--sweep", action="store_true",
                    help="fly every feasible design (roll_step) and rank time constant vs "
                    "roll rise time")
+    add_hover_args(p)
     p.set_defaults(func=handler)
 
 
@@ -127,11 +132,12 @@ def handler(args: argparse.Namespace) -> int:
     n = _check_args(args)
     if args.plot is not None:  # refuse before flying, not after (nothing half-written)
         check_writable(args.plot, "--plot", folder=True)
-    catalog = load(args.catalog, args.current_model)
+    margin = hover_margin_from_args(args)
+    catalog = margin.apply(load(args.catalog, args.current_model))
     step = step_constants(args.step_run) if args.step_run is not None else None
     grid, measured = _grid(args, catalog, n)
     if args.sweep:
-        return _sweep(args, catalog, grid, step, measured)
+        return _sweep(args, catalog, grid, step, measured, margin)
     return _one(args, catalog, grid, step, measured)
 
 
@@ -203,7 +209,8 @@ def _print_one(report: dict[str, Any]) -> None:
         console.print(f"wrote {p}", style="dim")
 
 
-def _sweep(args: argparse.Namespace, catalog: Any, grid: Any, step: Any, measured: Any) -> int:
+def _sweep(args: argparse.Namespace, catalog: Any, grid: Any, step: Any, measured: Any,
+           margin: Any) -> int:
     from rich.console import Console
     from rich.progress import Progress
 
@@ -216,6 +223,7 @@ def _sweep(args: argparse.Namespace, catalog: Any, grid: Any, step: Any, measure
                        layout=args.layout, step=step, drag_n_s_m=args.drag)
     doc = ranking.to_dict()
     doc["catalog"] = catalog.source
+    doc["hover_margin"] = margin.to_dict(catalog)
     if measured is not None:
         doc["measured_store"] = measured.describe()
     if args.plot is not None:
@@ -226,6 +234,7 @@ def _sweep(args: argparse.Namespace, catalog: Any, grid: Any, step: Any, measure
         print(json.dumps(doc, indent=2, default=json_default))
         return 0
     print_ranking(ranking, Console(soft_wrap=False))
+    print(margin.describe(catalog))
     for p in doc.get("plots", []):
         print(f"wrote {p}")
     return 0

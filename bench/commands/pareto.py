@@ -1,7 +1,9 @@
 """``rotorbench pareto``: the exact front of two objectives (e.g. flight time vs time constant).
 
 Per actuator count the epsilon-constraint MILP (``optimizer.pareto``) walks the
-non-dominated designs; the fronts of several counts are merged by dominance. ``--check``
+non-dominated designs; the fronts of several counts are merged by dominance. Every design
+hovers with the margin of ``--min-thrust-to-weight`` (default 1.2; ``--thesis-rules``
+drops it), a check of the grid the front is solved on. ``--check``
 also enumerates every design and says whether the two fronts agree. ``front`` lists
 designs with the keys of an ``optimize --json`` design. Exit 0 with a front, 3 when no
 design is feasible, 2 for bad input.
@@ -21,8 +23,10 @@ from bench.catalogs import load
 from bench.cli_support import (
     EXIT_NO_FEASIBLE,
     add_catalog_args,
+    add_hover_args,
     add_rule_args,
     check_figure_path,
+    hover_margin_from_args,
     json_default,
     rules_from_args,
 )
@@ -52,6 +56,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="also enumerate and report whether both fronts agree")
     p.add_argument("--plot", type=Path, default=None, metavar="PNG",
                    help="draw the front over all feasible designs (grey) to this PNG")
+    add_hover_args(p)
     add_rule_args(p)
     p.set_defaults(func=handler)
 
@@ -67,7 +72,8 @@ def compute(args: argparse.Namespace) -> dict[str, Any]:
     for n in args.actuators:
         if n < 3:
             raise RequestError(f"--actuators: expected counts >= 3, got {n}")
-    catalog = load(args.catalog, args.current_model)
+    margin = hover_margin_from_args(args)
+    catalog = margin.apply(load(args.catalog, args.current_model))
     rules = rules_from_args(args)
     build: Any = evaluate_grid
     if rules is not None:
@@ -124,6 +130,7 @@ def compute(args: argparse.Namespace) -> dict[str, Any]:
         "catalog": catalog.source, "catalog_name": Path(str(catalog.source)).name,
         "actuators": list(dict.fromkeys(args.actuators)), "payload_kg": args.payload_kg,
         "method": args.method, "front": front, "per_actuator": per, "warnings": warnings,
+        "hover_margin": margin.to_dict(catalog), "hover_margin_text": margin.describe(catalog),
         "rules": None if rules is None else {"enabled": list(rules.enabled),
                                               "removed": [r.to_dict() for r in build.reports]},
         "_cloud": (np.concatenate(cloud_x), np.concatenate(cloud_y)),
@@ -141,12 +148,14 @@ def handler(args: argparse.Namespace) -> int:
         step = max(1, -(-cx.size // PLOT_CLOUD_MAX))
         pareto_figure({**doc, "_cloud": (cx[::step], cy[::step])}, args.plot)
     doc.pop("_cloud")
+    text = doc.pop("hover_margin_text")
     if args.json:
         print(json.dumps(doc, indent=2, default=json_default))
     else:
         print_front(doc)
         if args.plot is not None:
             print(f"plot: {args.plot}")
+        print(text)
         for line in doc["warnings"]:
             print(f"warning: {line}")
     return 0 if doc["front"] else EXIT_NO_FEASIBLE
