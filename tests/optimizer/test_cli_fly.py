@@ -43,12 +43,15 @@ def test_fly_json_has_the_issue_keys(capsys, tmp_path) -> None:
 
 
 def test_a_design_that_cannot_hover_says_so(capsys) -> None:
-    """Case III's pick (P1+M1+B3, thesis-e has no thrust-to-weight check) falls: the
-    report says why instead of only showing empty rise times."""
+    """Case III's pick under the thesis' rules (P1+M1+B3, no thrust-to-weight check) falls:
+    the report says why instead of only showing empty rise times."""
     argv = ["fly", "--actuators", "4", "--propeller", "P1", "--motor", "M1", "--battery", "B3",
             "--maneuver", "roll_step"]
-    doc = _json(capsys, *argv, "--json")
+    doc = _json(capsys, *argv, "--json", "--thesis-rules")
     assert doc["design"]["feasible"] is True
+    margin = _json(capsys, *argv, "--json")  # the default hover margin names it infeasible
+    assert margin["design"]["feasible"] is False
+    assert "thrust to weight 0.734" in margin["design"]["reason"]
     assert doc["hover"]["can_hover"] is False
     assert doc["hover"]["note"].startswith("cannot hover: needs 4994 rpm")
     assert doc["maneuvers"]["roll_step"]["rise_time_ms"] is None
@@ -64,7 +67,7 @@ def test_drag_reaches_the_vehicle(capsys) -> None:
 
 
 def test_the_minimum_time_constant_flyable_design_flies(capsys) -> None:
-    """The MILP's minimum-time-constant design cannot hover on thesis-e (above); with the
+    """The minimum-time-constant design of the thesis' rules cannot hover (above); with the
     flyable-design rules (hover throttle band, ...) the fastest design it picks flies every
     maneuver: hover at evaluate's speed within 2 %, overshoot below 25 %."""
     best = _json(capsys, "optimize", "--objective", "time-constant", "--actuators", "4",

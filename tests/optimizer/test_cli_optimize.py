@@ -174,19 +174,20 @@ def test_method_thesis_is_evaluated_exactly(capsys) -> None:
 
 def test_a_chosen_design_that_cannot_hover_is_said_so(capsys, fixtures_dir) -> None:
     """The exact Case III optimum with 4 actuators (P1/M1/B3; Table E.10 prints B1) needs
-    4994 rpm; M1 reaches 4279 rpm on 12 V. The thesis' limits accept it; optimize says so,
-    and --flyable removes it."""
+    4994 rpm; M1 reaches 4279 rpm on 12 V. The thesis' limits (--thesis-rules) accept it;
+    optimize says so, and --flyable removes it."""
     cat = str(fixtures_dir / "catalogs" / "thesis-e")
     code, doc = run_json(capsys, "optimize", "--catalog", cat, "--actuators", "4",
-                         "--objective", "time-constant")
+                         "--objective", "time-constant", "--thesis-rules")
     assert code == 0 and doc["best"]["propeller"] == "P1" and doc["best"]["motor"] == "M1"
     [warning] = doc["warnings"]
     assert "P1/M1/B3: cannot hover: thrust-to-weight 0.73" in warning
     assert "needs 4994 rpm" in warning and "4279 rpm" in warning
-    code, doc = run_json(capsys, "optimize", "--catalog", cat, "--actuators", "4")
+    code, doc = run_json(capsys, "optimize", "--catalog", cat, "--actuators", "4",
+                         "--thesis-rules")
     assert doc["warnings"] == []  # Case I's P4/M1/B3 hovers at 74 % throttle
     code, doc = run_json(capsys, "optimize", "--catalog", cat, "--actuators", "4",
-                         "--objective", "time-constant", "--flyable")
+                         "--objective", "time-constant", "--flyable", "--thesis-rules")
     assert code == 0 and doc["warnings"] == []
     assert (doc["best"]["propeller"], doc["best"]["motor"]) != ("P1", "M1")
 

@@ -57,10 +57,13 @@ def test_thesis_e_four_actuators_front(capsys, tmp_path) -> None:
         for key in ("propeller", "motor", "battery", "flight_time_min", "time_constant_ms"):
             assert end[key] == best[key]
     assert png.stat().st_size > 1000
-    # the fast end cannot hover on its own datasheet (no thrust limit in the thesis' model)
-    hovering = {(d["propeller"], d["motor"], d["battery"]) for d in front[:2]}
-    assert all(p_m_b not in w for w in doc["warnings"] for p_m_b in map("/".join, hovering))
-    assert any("P1/M1/B3: cannot hover" in w for w in doc["warnings"])
+    # by default every design of the front hovers with margin; under the thesis' rules (no
+    # thrust limit) the fast end P1/M1/B3 cannot hover on its own datasheet
+    assert doc["warnings"] == [] and doc["hover_margin"]["min_thrust_to_weight"] == 1.2
+    thesis = run(capsys, "--actuators", "4", "--thesis-rules")
+    hovering = {(d["propeller"], d["motor"], d["battery"]) for d in thesis["front"][:2]}
+    assert all(p_m_b not in w for w in thesis["warnings"] for p_m_b in map("/".join, hovering))
+    assert any("P1/M1/B3: cannot hover" in w for w in thesis["warnings"])
 
 
 def test_merged_front_over_actuator_counts_is_not_dominated(capsys, fixtures_dir) -> None:
