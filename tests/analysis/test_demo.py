@@ -30,3 +30,15 @@ def test_demo_one_combination(tmp_path, capsys):
     measured = [d for d in summary["designs"] if d["constants"] == "measured"]
     assert len(measured) == 9 and any(d["measured metrics"] != "datasheet" for d in measured)
     assert not any(p.name.startswith(".") for p in tmp_path.iterdir())
+    # the design tables offer what `optimize` offers: designs that hover with margin (issue
+    # 20); under the thesis' rules Case III would pick P1/M1/B3, which cannot hover
+    assert summary["hover_margin"]["min_thrust_to_weight"] == 1.2
+    assert "hover margin: every design reaches full-throttle thrust-to-weight >= 1.2" in printed
+    [case3] = [c for c in summary["cases"] if c["case"] == "III" and c["constants"] == "model"]
+    for rules, equal in (([], True), (["--thesis-rules"], False)):
+        assert main(["optimize", "--catalog", "thesis-e", "--objective", "time-constant",
+                     "--json", *rules]) == 0
+        picks = json.loads(capsys.readouterr().out)["designs"]
+        ids = [[(d["actuators"], d["propeller"], d["motor"], d["battery"]) for d in ds]
+               for ds in (picks, case3["designs"])]
+        assert (ids[0] == ids[1]) is equal, rules
