@@ -198,15 +198,18 @@ def test_pareto_front_and_fly_sweep_honour_the_margin(capsys) -> None:
 
 
 def test_which_thesis_designs_cannot_hover() -> None:
-    """docs/thesis-reproduction.md: every design printed in Tables E.8-E.10 hovers (lowest
-    thrust-to-weight 1.55 >= 1.2); of the thesis' model's own exact optima (Paper E's cases
+    """docs/thesis-reproduction.md: every design printed in Tables E.8-E.10 and D.5-D.6
+    hovers with margin (lowest thrust-to-weight 1.55 >= 1.2); of the thesis' model's own exact optima (Paper E's cases
     under --thesis-rules) Case II with 4 actuators and Case III with 4 and 6 cannot hover,
     and Case III with 8 hovers below the 1.2 margin."""
-    from tests.optimizer.test_thesis_tables import PAPER_E
+    from tests.optimizer.test_thesis_tables import D_PAYLOAD_KG, PAPER_D, PAPER_E
 
     cat = shipped_catalog("thesis-e")
     printed = [sheet_ratio(cat, n, p, m, b, pay) for _, n, pay, p, m, b, *_ in PAPER_E]
     assert min(printed) == pytest.approx(1.55, abs=0.005)
+    cat_d = shipped_catalog("thesis-d")  # Tables D.5-D.6 too: lowest 4.69
+    assert min(sheet_ratio(cat_d, n, p, m, b, D_PAYLOAD_KG) for _, n, p, m, b, *_ in PAPER_D
+               ) == pytest.approx(4.69, abs=0.005)
     below = {}
     for case, _, objective, payload in PAPER_E_CASES:
         res = optimize(cat, single(objective), (4, 6, 8), Requirements(payload_kg=payload))
