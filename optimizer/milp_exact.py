@@ -7,7 +7,13 @@ it only chooses, and every metric of a combination is a constant coefficient.
 
 Before building, combinations that violate a physical limit or a requirement
 (or whose cost is not finite) are dropped: they can never be chosen, so no
-constraint row is needed for them. Three formulations of the choice
+constraint row is needed for them. This is how every per-combination constraint
+is written, the hover margin (full-throttle thrust-to-weight ``TW_c >= R``, the
+sizing commands' default) included: ``(TW_c - R) u_c >= 0`` with ``u_c`` the
+combination's 0/1 choice is ``u_c = 0`` where ``TW_c < R``, i.e. the column is
+fixed to zero, which presolve would do anyway. An aggregate row
+``sum_c TW_c u_c >= R`` would not be equivalent in the block formulation, whose
+weights are continuous: a mix of designs could meet it. Three formulations of the choice
 (``docs/optimizer.md`` has the measured times):
 
 ``block`` (default)

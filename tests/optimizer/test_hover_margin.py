@@ -199,9 +199,9 @@ def test_pareto_front_and_fly_sweep_honour_the_margin(capsys) -> None:
 
 def test_which_thesis_designs_cannot_hover() -> None:
     """docs/thesis-reproduction.md: every design printed in Tables E.8-E.10 and D.5-D.6
-    hovers with margin (lowest thrust-to-weight 1.55 >= 1.2); of the thesis' model's own exact optima (Paper E's cases
-    under --thesis-rules) Case II with 4 actuators and Case III with 4 and 6 cannot hover,
-    and Case III with 8 hovers below the 1.2 margin."""
+    hovers with margin (lowest thrust-to-weight 1.55 >= 1.2); of the thesis' model's own
+    exact optima (Paper E's cases under --thesis-rules) Case II with 4 actuators and Case
+    III with 4 and 6 cannot hover, and Case III with 8 hovers below the 1.2 margin."""
     from tests.optimizer.test_thesis_tables import D_PAYLOAD_KG, PAPER_D, PAPER_E
 
     cat = shipped_catalog("thesis-e")
