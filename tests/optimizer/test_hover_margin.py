@@ -218,3 +218,26 @@ def test_which_thesis_designs_cannot_hover() -> None:
             if ratio < DEFAULT_MIN_THRUST_TO_WEIGHT:
                 below[(case, d.actuators)] = round(ratio, 2)
     assert below == {("II", 4): 0.93, ("III", 4): 0.73, ("III", 6): 0.95, ("III", 8): 1.10}
+
+
+def test_margin_counts_the_no_load_current() -> None:
+    """The limit's thrust is the sheet's full-throttle point with I_0 (SizingLab motors have
+    one; thesis-e's do not): with 1.5 A per motor the two agree design by design, and both
+    are below the loss-free full-throttle thrust the check used before."""
+    import dataclasses
+
+    from optimizer import physics
+
+    base = shipped_catalog("thesis-e")
+    cat = dataclasses.replace(base, motors=base.motors.assign(no_load_current_a=1.5))
+    grid = evaluate_grid(with_min_thrust_to_weight(cat, 1.2), 4)
+    ratio = grid.extras["thrust_to_weight"]
+    for i, p in enumerate(cat.propeller_ids):
+        for j, m in enumerate(cat.motor_ids):
+            assert ratio[i, j, 0] == pytest.approx(sheet_ratio(cat, 4, p, m, "B1", 0.0), rel=1e-9)
+    prop, mot = cat.propellers.iloc[0], cat.motors.iloc[0]
+    loss_free = physics.full_throttle_thrust_n(
+        grid.extras["voltage_v"][0, 0, 0], physics.torque_constant(mot["kv_rad_s_per_v"]),
+        mot["resistance_ohm"], prop["ct"], prop["cp"], cat.constants.air_density_kg_m3,
+        prop["diameter_m"]) / grid.extras["hover_thrust_n"][0, 0, 0]
+    assert ratio[0, 0, 0] < loss_free
