@@ -58,14 +58,14 @@ def roll_pulse(catalog, grid) -> None:
 def rotor_lead() -> None:
     dt, tau, ticks = 1e-3, 0.040, 400
     for latency in (0.0, 5e-3):
-        model = ActuatorModel(tau, tau, latency_s=latency, frame_s=0.0, levels=10**9,
+        model = ActuatorModel(tau, tau, latency_s=latency, frame_s=0.0, levels=1001,
                               idle_fraction=0.0)
         bank = RotorBank(model, 1, 1000.0, dt, 400.0)
         applied = np.array([bank.step([600.0])[0] for _ in range(ticks)])
         cont = lag_mean(ticks, dt, 400.0, 600.0, tau, latency)
         lead = float(np.sum(applied - cont)) * dt / (600.0 - 400.0)
         print(f"rotor lag (tau {tau * 1e3:.0f} ms, latency {latency * 1e3:.0f} ms): applied "
-              f"speeds lead the continuous response by {lead * 1e3:.4f} ms "
+              f"speeds lead the continuous response by {lead * 1e3:.2e} ms "
               f"(largest tick difference {np.max(np.abs(applied - cont)):.2e} rad/s)")
 
 
