@@ -111,13 +111,15 @@ class RotorBank:
         else:
             target = self.held
         omega = self.omega
-        mean = [0.0] * self.n
-        for i in range(self.n):
-            w, c = omega[i], target[i]
-            if c > w:
-                omega[i] = w + (c - w) * self.a_up
-                mean[i] = w + (c - w) * self.m_up
+        a_up, a_down, m_up, m_down = self.a_up, self.a_down, self.m_up, self.m_down
+        mean = []
+        for i, c in enumerate(target):
+            w = omega[i]
+            d = c - w
+            if d > 0.0:
+                omega[i] = w + d * a_up
+                mean.append(w + d * m_up)
             else:
-                omega[i] = w + (c - w) * self.a_down
-                mean[i] = w + (c - w) * self.m_down
+                omega[i] = w + d * a_down
+                mean.append(w + d * m_down)
         return mean

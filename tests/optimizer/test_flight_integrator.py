@@ -4,6 +4,7 @@ rigid-body step's order, the rotor lag's timing, the hover figure."""
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 
 import numpy as np
@@ -42,7 +43,7 @@ def _roll_pulse(catalog, grid):
 
 
 def _ratios(errors: list[float]) -> list[float]:
-    return [a / b for a, b in zip(errors, errors[1:], strict=False)]
+    return [a / b for a, b in itertools.pairwise(errors)]
 
 
 def test_roll_pulse_lateral_velocity_is_second_order(catalog, grid) -> None:
