@@ -19,17 +19,12 @@ from optimizer.flight.reference import integrate_held, lag_mean, step_held
 from optimizer.flight.vehicle import hover_state
 from tests.conftest import FIXTURES
 
-CATALOG = FIXTURES / "catalogs" / "thesis-e"
-
 
 @pytest.fixture(scope="module")
-def catalog():
-    return load_catalog(CATALOG)
-
-
-@pytest.fixture(scope="module")
-def grid(catalog):
-    return evaluate_grid(catalog, 4)
+def thesis_e():
+    """thesis-e and its N = 4 model grid."""
+    catalog = load_catalog(FIXTURES / "catalogs" / "thesis-e")
+    return catalog, evaluate_grid(catalog, 4)
 
 
 def _roll_pulse(catalog, grid):
@@ -46,11 +41,11 @@ def _ratios(errors: list[float]) -> list[float]:
     return [a / b for a, b in itertools.pairwise(errors)]
 
 
-def test_roll_pulse_lateral_velocity_is_second_order(catalog, grid) -> None:
+def test_roll_pulse_lateral_velocity_is_second_order(thesis_e) -> None:
     """The error in lateral velocity against solve_ivp of the model's own derivative falls
     4x per halving of dt (it fell 2x while the step took the start's attitude), and is
     within 1e-3 at 1 kHz (was 7.5e-3)."""
-    segments, params = _roll_pulse(catalog, grid)
+    segments, params = _roll_pulse(*thesis_e)
     ref = integrate_held(hover_state(), segments, params)[-1, 4]
     errors = {dt: abs(step_held(hover_state(), segments, params, dt)[-1, 4] / ref - 1)
               for dt in (2e-3, 1e-3, 5e-4)}
@@ -100,10 +95,11 @@ HOVER_DESIGNS = {
 
 
 @pytest.mark.parametrize("which", HOVER_DESIGNS)
-def test_hover_figure_is_the_settled_hover(catalog, grid, which) -> None:
+def test_hover_figure_is_the_settled_hover(thesis_e, which) -> None:
     """The reported hover speed, throttle and shaft power are where 30 s of closed-loop
     hover settle (its last 5 s), not where 3 s have got to (+4.2e-4 on Case I)."""
     ids, actuator_changes = HOVER_DESIGNS[which]
+    catalog, grid = thesis_e
     vehicle, actuator = setup(catalog, grid, design_index(grid, *ids))
     if actuator_changes:
         actuator = dataclasses.replace(actuator, **actuator_changes)
@@ -120,7 +116,8 @@ def test_hover_figure_is_the_settled_hover(catalog, grid, which) -> None:
         (settled - omega_min) / (vehicle.omega_max_rad_s - omega_min), abs=6e-5)
 
 
-def test_a_design_that_cannot_hover_reports_full_throttle(catalog, grid) -> None:
+def test_a_design_that_cannot_hover_reports_full_throttle(thesis_e) -> None:
+    catalog, grid = thesis_e
     vehicle, actuator = setup(catalog, grid, design_index(grid, "P1", "M1", "B3"))
     assert vehicle.hover_shortfall()
     fig = fly(vehicle, actuator, HOVER).figures
