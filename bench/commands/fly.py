@@ -194,7 +194,7 @@ def _print_one(report: dict[str, Any]) -> None:
     console.print(table)
     console.print(f"hover: {h['rpm']:.0f} rpm (evaluate: {_fmt(h['evaluate_hover_rpm'])} rpm), "
                   f"throttle {h['throttle']:.2f}, power {_fmt(h['power_w'], '.1f')} W "
-                  f"(flown shaft power {_fmt(h['shaft_power_w'], '.1f')} W)")
+                  f"(shaft power {_fmt(h['shaft_power_w'], '.1f')} W at the trim)")
     if not h["can_hover"]:
         console.print(f"{h['note']}: the maneuvers above are a fall, not a flight",
                       style="red")

@@ -5,6 +5,7 @@ the 6-DOF equations of motion, thesis 2.39-2.43 / B.7-B.11), ``actuators`` (Pape
 first-order-plus-delay rotor), ``mixer`` (B.27 for any layout, saturation rule),
 ``controller`` (quaternion attitude -> rate -> mixer cascade, altitude hold, gain rule),
 ``maneuvers`` (the closed-loop simulation and the named maneuvers), ``metrics`` (rise,
-overshoot, settling) and ``ranking`` (time constant vs closed-loop rise time). Plain
+overshoot, settling), ``ranking`` (time constant vs closed-loop rise time) and
+``reference`` (tight integrations the step and the rotor lag are checked against). Plain
 numbers in, plain numbers out: no device code.
 """

@@ -10,7 +10,9 @@ commanded speed through, in order:
 2. the ESC frame: a new command is taken only every ``frame_s`` (sample and hold);
 3. the latency L: a pure delay, whole control ticks;
 4. the lag: d omega / dt = (omega_cmd - omega) / tau, tau = ``tau_up_s`` while speeding
-   up, ``tau_down_s`` while slowing down, discretised exactly over a tick;
+   up, ``tau_down_s`` while slowing down, discretised exactly over a tick. The speed a
+   tick applies (held by the rigid-body step) is the exact mean of the response over the
+   tick, not its end value: the end value leads the continuous lag by half a tick;
 5. speed limits: idle ``omega_min`` .. full throttle ``omega_max``.
 
 The lag acts on the rotor speed as (E.35) does; for a measured time constant (fitted on
@@ -82,6 +84,10 @@ class RotorBank:
         self.omega_min = model.idle_fraction * omega_max
         self.a_up = -math.expm1(-dt / model.tau_up_s)
         self.a_down = -math.expm1(-dt / model.tau_down_s)
+        # share of the tick's approach to the target that its mean speed makes:
+        # 1/dt int_0^dt (1 - exp(-t / tau)) dt = 1 - tau a / dt (about dt / (2 tau))
+        self.m_up = 1.0 - model.tau_up_s * self.a_up / dt
+        self.m_down = 1.0 - model.tau_down_s * self.a_down / dt
         self.quantum = (self.omega_max - self.omega_min) / (model.levels - 1)
         self.frame_ticks = max(1, round(model.frame_s / dt))
         self.delay = max(0, round(model.latency_s / dt))
@@ -92,7 +98,8 @@ class RotorBank:
         self.tick = 0
 
     def step(self, command: list[float]) -> list[float]:
-        """Advance one tick with the commanded speeds; returns the rotor speeds."""
+        """Advance one tick with the commanded speeds; returns each rotor's mean speed
+        over the tick (``self.omega`` holds the speeds at its end)."""
         if self.tick % self.frame_ticks == 0:  # the ESC takes a new frame
             lo, q = self.omega_min, self.quantum
             hi = self.omega_max
@@ -104,8 +111,15 @@ class RotorBank:
         else:
             target = self.held
         omega = self.omega
-        a_up, a_down = self.a_up, self.a_down
-        for i in range(self.n):
-            w, c = omega[i], target[i]
-            omega[i] = w + (c - w) * (a_up if c > w else a_down)
-        return omega
+        a_up, a_down, m_up, m_down = self.a_up, self.a_down, self.m_up, self.m_down
+        mean = []
+        for i, c in enumerate(target):
+            w = omega[i]
+            d = c - w
+            if d > 0.0:
+                omega[i] = w + d * a_up
+                mean.append(w + d * m_up)
+            else:
+                omega[i] = w + d * a_down
+                mean.append(w + d * m_down)
+        return mean

@@ -102,7 +102,8 @@ def fly_report(vehicle: Vehicle, actuator: ActuatorModel, maneuvers: list[Maneuv
             "actuators", "propeller", "motor", "battery", "feasible", "reason",
             "time_constant_ms", "hover_rpm", "total_mass_kg", "power_w") if key in record},
         # power_w: evaluate's hover power (the model's shaft power, or electrical where
-        # measured currents replace it); shaft_power_w: the flown hover's N k_m omega^3
+        # measured currents replace it); shaft_power_w: N k_m omega^3 at the trim, where
+        # the flown hover settles
         "hover": {"rpm": hov["rpm"], "throttle": hov["throttle"],
                   "power_w": record.get("power_w"), "shaft_power_w": hov["shaft_power_w"],
                   "model_rpm": hov["model_rpm"],

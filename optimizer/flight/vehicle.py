@@ -15,8 +15,8 @@ because one step is sequential and tiny (numpy's per-call cost would dominate):
   ``optimizer.flight.mixer`` plus the rotors' drag torques (T_q = k_m / k_f).
 
 Like Paper B, the reaction torque of accelerating rotors and rotor gyroscopic torques
-are neglected. Integration: ``step``, second order, with the rotor thrusts held over a
-tick.
+are neglected. Integration: ``step``, second order in dt, with the rotor thrusts held over
+a tick (its order is tested against ``optimizer.flight.reference``).
 
 Design parameters come from the optimizer's model (``optimizer.design_model.evaluate_grid``):
 take-off mass, roll and pitch inertia (E.58-E.59), arm length (D.4), hover speed; rotor
@@ -193,12 +193,13 @@ def step(s: list[float], dt: float, thrust: float, mx: float, my: float, mz: flo
          fx: float, fy: float, fz: float, inv_m: float, ixx: float, iyy: float,
          izz: float, g: float, cd: float) -> list[float]:
     """One integration step with the inputs held (second order, cheap for 1 kHz):
-    translation exact for the acceleration at the step's start, Euler's equation (2.42)
-    by the explicit midpoint rule, attitude (2.39) by the exact quaternion exponential of
-    the mean body rate over the step."""
+    Euler's equation (2.42) by the explicit midpoint rule, attitude (2.39) by the exact
+    quaternion exponential of the mean body rate over the step, translation (2.40)-(2.41)
+    by the trapezoid rule (Heun) on the accelerations at the step's start and end (the
+    thrust turns with the attitude during the step: the start's alone is first order)."""
     qw, qx, qy, qz = s[6], s[7], s[8], s[9]
     vx, vy, vz = s[3], s[4], s[5]
-    # (2.40)-(2.41) as in ``derivative``
+    # (2.40)-(2.41) as in ``derivative``, at the step's start
     ax = (thrust * 2.0 * (qx * qz + qw * qy) + fx - cd * vx) * inv_m
     ay = (thrust * 2.0 * (qy * qz - qw * qx) + fy - cd * vy) * inv_m
     az = (thrust * (1.0 - 2.0 * (qx * qx + qy * qy)) + fz - cd * vz) * inv_m - g
@@ -223,10 +224,20 @@ def step(s: list[float], dt: float, thrust: float, mx: float, my: float, mz: flo
     py = qw * ry - qx * rz + qy * c + qz * rx
     pz = qw * rz + qx * ry - qy * rx + qz * c
     norm = 1.0 / math.sqrt(pw * pw + px * px + py * py + pz * pz)
-    hh = h * dt
-    return [s[0] + dt * vx + hh * ax, s[1] + dt * vy + hh * ay, s[2] + dt * vz + hh * az,
-            vx + dt * ax, vy + dt * ay, vz + dt * az,
-            pw * norm, px * norm, py * norm, pz * norm, nx, ny, nz]
+    pw, px, py, pz = pw * norm, px * norm, py * norm, pz * norm
+    # (2.40)-(2.41) at the step's end: the new attitude, drag on the Euler-predicted velocity
+    ex = vx + dt * ax
+    ey = vy + dt * ay
+    ez = vz + dt * az
+    bx = (thrust * 2.0 * (px * pz + pw * py) + fx - cd * ex) * inv_m
+    by = (thrust * 2.0 * (py * pz - pw * px) + fy - cd * ey) * inv_m
+    bz = (thrust * (1.0 - 2.0 * (px * px + py * py)) + fz - cd * ez) * inv_m - g
+    # v: trapezoid; p: exact for an acceleration linear over the step
+    d6 = dt * dt / 6.0
+    return [s[0] + dt * vx + d6 * (2.0 * ax + bx), s[1] + dt * vy + d6 * (2.0 * ay + by),
+            s[2] + dt * vz + d6 * (2.0 * az + bz),
+            vx + h * (ax + bx), vy + h * (ay + by), vz + h * (az + bz),
+            pw, px, py, pz, nx, ny, nz]
 
 
 def euler_angles(q: np.ndarray) -> np.ndarray:

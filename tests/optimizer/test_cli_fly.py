@@ -34,7 +34,7 @@ def test_fly_json_has_the_issue_keys(capsys, tmp_path) -> None:
     assert doc["maneuvers"]["roll_step"]["rise_time_ms"] > 0
     assert sorted(p.name for p in tmp_path.glob("*.png")) == [
         "fly_gust.png", "fly_hover.png", "fly_roll_step.png"]
-    # the flown hover's shaft power is the model's (E.60-E.63) at evaluate's hover speed
+    # the hover's shaft power is the model's (E.60-E.63) at evaluate's hover speed
     grid = evaluate_grid(load_catalog(FIXTURES / "catalogs" / "thesis-e"), 4)
     model_w = 4 * float(grid.metrics["propeller_power_w"][3, 0, 2])  # P4+M1+B3
     assert doc["hover"]["shaft_power_w"] == pytest.approx(model_w, rel=0.02)
