@@ -9,18 +9,25 @@ always points to the pivot wins), and the estimate tilts by 10-20° over a long 
 
 The literature's remedy, here as VQF does it (Laidig & Seel, "VQF: Highly accurate IMU
 orientation estimation with bias estimation and magnetic disturbance rejection",
-Information Fusion 91, 2023, section 3.2 "Inclination correction", eq. 12-15): express the
-specific force in the earth frame of the estimate, ``a_E = q^g ⊗ a ⊗ q^g*``, low-pass it
-there (time constant ``tau_lp_s``; the true acceleration of a sensor that stays in the room
-averages to zero, gravity does not), and only then take its direction. The correction
-quaternion is Paper B's shortest arc (B.15-B.16), written in the earth frame from the
-filtered direction ``u`` to z, ``c = [1 + u_z, u_y, -u_x, 0] / sqrt(2(1 + u_z))`` (VQF's
-eq. 14 is the same formula), blended with gain ``P`` as (B.17-B.19), ``d = 1 + P(c - 1)``,
+Information Fusion 91, 2023, doi:10.1016/j.inffus.2022.10.014; reference code
+``vqf.PyVQF.updateAcc``, "filter acc in inertial frame"): express the specific force in
+the earth frame of the estimate, ``a_E = q^g ⊗ a ⊗ q^g*``, low-pass it there (time
+constant ``tau_lp_s``; the true acceleration of a sensor that stays in the room averages
+to zero, gravity does not), and only then take its direction. The correction quaternion
+is Paper B's shortest arc (B.15-B.16), written in the earth frame from the filtered
+direction ``u`` to z, ``c = [1 + u_z, u_y, -u_x, 0] / sqrt(2(1 + u_z))`` (VQF's
+inclination correction is the same formula), blended with gain ``P`` as (B.17-B.19),
+``d = 1 + P(c - 1)``,
 and applied on the earth side, ``q = d ⊗ q^g`` (B.20 normalises). The filtered vector is
 turned by the same ``d``, so that it stays expressed in the corrected frame: this is VQF's
 split ``q = δ ⊗ q_gyr`` with the low-pass in the gyro-only frame, without keeping
 ``q_gyr``. The low-pass and the blend are two first-order poles (VQF: a second-order
 Butterworth low-pass and a full correction). Heading is never corrected (6D).
+
+Gating the printed correction by ``||a| - g|/g`` instead (the adaptive gain of Valenti,
+Dryanovski & Xiao, "Keeping a good attitude", Sensors 15(8), 2015: full gain below 0.1,
+none above 0.2) did not do it here: it drops the samples in which the tangential
+acceleration cancels the centripetal one and keeps the others (docs/attitude.md).
 """
 
 from __future__ import annotations

@@ -9,7 +9,8 @@ its constant offset) of the default (9D), default-causal, paper-b and paper-b-pr
 online VQF 6D/9D, offline VQF 6D and ahrs' Madgwick 6D; the bounds of the issues (default:
 inclination <= 1.25 x VQF 6D + 0.1°, heading <= 1.5 x VQF 9D + 0.5° on undisturbed
 variants; paper-b: inclination <= 2 x VQF 6D + 0.5°, VQF the better of online and offline)
-and whether they hold. Prints a Markdown table (docs/attitude.md holds its output).
+and whether they hold. Prints a Markdown table (docs/attitude.md holds its output);
+``--png FILE`` also draws the error over time on the ``combined_with_breaks`` variant.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ import os
 import sys
 from pathlib import Path
 
+from analysis.attitude_compare import ComparisonRow, error_figure, score_run
 from analysis.attitude_filters import run_filter
 from analysis.attitude_scoring import score
 from analysis.imu_recording import ImuRecording, read_broad
@@ -44,9 +46,23 @@ def _scores(d: dict) -> dict[str, tuple[float, float]]:
     return out
 
 
+def _figure(d: dict, png: Path) -> None:
+    rec = ImuRecording("combined_with_breaks", d["t_s"], d["gyro"], d["acc"], d["mag"],
+                       d["quat"], d["movement"])
+    rows = []
+    for name in ("paper-b-printed", "paper-b", "vqf-offline-6d", "madgwick-6d"):
+        run = run_filter(name, rec, six_d=True)
+        kind = "project" if name.startswith("paper-b") else "peer"
+        rows.append(ComparisonRow(f"{name} (6D)" if kind == "project" else name, kind, run,
+                                  score_run(rec, run)))
+    error_figure(rec, rows, png, title="trial 07 as combined_with_breaks: fast rotation at "
+                 "a 12 cm lever arm, translation, 10 s rests (scored)")
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--png", type=Path, help="error-over-time figure of combined_with_breaks")
     args = ap.parse_args(argv)
     if not BROAD.exists():
         print(f"BROAD trial 07 not found at {BROAD}", file=sys.stderr)
@@ -72,6 +88,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"| {name} | {' | '.join(cells)} | {incl_bound:.2f} | "
               f"{f'{head_bound:.2f}' if checks_heading else '-'} | {'yes' if ok else 'NO'} | "
               f"{pb_bound:.2f} | {'yes' if pb_ok else 'NO'} |", flush=True)
+    if args.png:
+        _figure(make_variant(trial, "combined_with_breaks", args.seed), args.png)
     print("\ninclination / heading RMSE (deg); * 6D: heading relative, scored after removing "
           "its constant offset; VQF = vqf.VQF (online) and vqf.offlineVQF with the package's "
           "defaults; Madgwick = ahrs' with its defaults")
