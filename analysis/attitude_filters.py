@@ -68,8 +68,10 @@ Array = NDArray[np.float64]
 PAPER_B_PRINTED_TAU_S = 3.0
 # paper-b: blend τ and earth-frame low-pass τ, two first-order poles (VQF: a 3 s
 # second-order low-pass). Measured on trial 07, its BROAD-shaped variants and the
-# simulations (docs/attitude.md): 1.5 s + 1.5 s was as good as 3 + 1, 1 + 2 and 2 + 1 on
-# BROAD and the best of them on the simulated hexapod, tumble and tour.
+# simulations (docs/attitude.md, benchmarks/attitude_paper_b_tuning.py): 3 s + 3 s is best
+# on the lively variants but worse than the printed form on the simulated hexapod and
+# tour; 1.5 s + 1.5 s is within the bound everywhere and better than the printed form on
+# every recording.
 PAPER_B_TAU_S = 1.5
 PAPER_B_EARTH_LP_S = 1.5
 # Accelerometer low-pass (B.28) ahead of the normalisation: G_a = exp(-t_s/τ_a). A zero-mean
