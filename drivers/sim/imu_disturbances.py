@@ -25,8 +25,8 @@ real sensor noise, bias and motion:
 A recording is a dict of arrays as :mod:`drivers.sim.imu_tumble` returns: ``t_s``,
 ``gyro`` (rad/s), ``acc`` (m/s²), ``mag`` (µT), ``quat`` (truth, scalar-first, sensor to
 ENU earth, NaN rows where the reference lost track) and ``movement`` (bool). No function
-changes its input. Used by ``tests/analysis/test_attitude_broad_variants.py`` and
-``benchmarks/attitude_broad_variants.py``.
+changes its input. Used by ``tests/analysis/test_attitude_broad_variants.py``,
+``benchmarks/attitude_broad_variants.py`` and ``benchmarks/attitude_paper_b_tuning.py``.
 """
 
 from __future__ import annotations
