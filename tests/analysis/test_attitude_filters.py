@@ -10,6 +10,7 @@ import pytest
 from analysis import quaternion as quat
 from analysis.attitude import estimate_attitude
 from analysis.attitude_filters import PEERS, paper_b_printed, run_filter
+from analysis.attitude_inertial import estimate_attitude_inertial
 from analysis.attitude_scoring import error_angles, error_quaternion_earth, score
 from analysis.gyro_bias import detect_rest, gyro_bias_at_rest
 from analysis.imu_recording import ImuRecording, uniform_grid
@@ -172,6 +173,22 @@ def test_paper_b_printed_is_the_printed_correction(tumble: ImuRecording) -> None
     b = tumble.gyro_rad_s[tumble.t_s <= tumble.t_s[0] + 2.0].mean(axis=0)
     np.testing.assert_array_equal(fixed, estimate_attitude(tumble.t_s, tumble.gyro_rad_s - b,
                                                            tumble.acc_m_s2, gain=0.002))
+
+
+@pytest.mark.parametrize("angle_deg", [170.0, 180.0])
+def test_earth_frame_correction_from_an_upside_down_start(angle_deg: float) -> None:
+    """paper-b's loop started 170° and exactly 180° (the arc's half-turn branch) from the
+    truth converges, finite all the way, and never touches the heading."""
+    n = 6000
+    t = np.arange(n) / 300.0
+    q_true = quat.from_axis_angle([1.0, 0.0, 0.0], math.radians(angle_deg))
+    acc = np.tile(quat.rotate(quat.conjugate(q_true), [0, 0, 9.81]), (n, 1))
+    q = estimate_attitude_inertial(t, np.zeros((n, 3)), acc, gain=0.01, tau_lp_s=0.5,
+                                   q0=[1, 0, 0, 0])
+    assert np.all(np.isfinite(q))
+    _, head, incl = error_angles(error_quaternion_earth(q, q_true))
+    assert math.degrees(incl[0]) > 169 and math.degrees(incl[-1]) < 0.01
+    assert math.degrees(head[-1]) < 0.01
 
 
 def test_rest_bias_is_estimated_and_turning_is_not_rest() -> None:
