@@ -22,7 +22,7 @@ __all__ = ["COMPARE_PROJECT", "ComparisonRow", "compare", "error_figure", "score
 
 # the project's rows of a comparison: the default in 9D (if there is a magnetometer) and 6D
 COMPARE_PROJECT = (("default", False), ("default", True), ("default-causal", True),
-                   ("paper-b", True))
+                   ("paper-b", True), ("paper-b-printed", True))
 
 
 @dataclass(frozen=True)

@@ -26,11 +26,14 @@ from analysis import quaternion as quat
 from analysis.attitude_compare import ComparisonRow, compare, error_figure, score_run
 from analysis.attitude_filters import (
     PAPER_B_ACC_TAU_S,
+    PAPER_B_EARTH_LP_S,
+    PAPER_B_PRINTED_TAU_S,
     PAPER_B_TAU_S,
     PEERS,
     PROJECT_FILTERS,
     FilterRun,
     paper_b,
+    paper_b_printed,
     run_filter,
 )
 from analysis.calibrated_recording import calibrate_recording
@@ -40,7 +43,8 @@ from analysis.imu_log import write_table
 from analysis.imu_recording import ImuRecording, load_recording
 from bench.cli_support import check_writable
 
-_PAPER_B_OPTIONS = ("gain", "acc_lowpass", "bias_seconds", "yaw_aligned")
+_PAPER_B_FILTERS = ("paper-b", "paper-b-printed")
+_PAPER_B_OPTIONS = ("gain", "acc_lowpass", "bias_seconds")
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -53,7 +57,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    "(.csv/.parquet)")
     p.add_argument("--filter", choices=tuple(PROJECT_FILTERS), default="default",
                    help="default: VQF offline (6D/9D); default-causal: VQF sample by sample; "
-                        "paper-b: Paper B's filter (6D)")
+                        "paper-b: Paper B's filter, accelerometer low-passed in the earth "
+                        "frame (6D); paper-b-printed: Paper B's correction as printed (6D)")
     p.add_argument("--6d", dest="six_d", action="store_true",
                    help="ignore the magnetometer (6D estimate, heading not absolute)")
     p.add_argument("--cal", type=Path, metavar="CAL.json",
@@ -68,18 +73,23 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         f"{', '.join(PEERS)})")
     p.add_argument("--png", type=Path, metavar="FILE",
                    help="error-over-time figure of --compare (default LOG-stem_errors.png)")
-    g = p.add_argument_group("paper-b options")
+    g = p.add_argument_group("paper-b and paper-b-printed options")
     g.add_argument("--gain", type=float, metavar="P",
-                   help=f"blend gain P_err per sample, 0..1 (default t_s/{PAPER_B_TAU_S:g} s)")
+                   help=f"blend gain P_err per sample, 0..1 (default t_s/{PAPER_B_TAU_S:g} s; "
+                        f"printed: t_s/{PAPER_B_PRINTED_TAU_S:g} s)")
     g.add_argument("--acc-lowpass", type=float, metavar="G",
                    help="accelerometer low-pass gain G_a of (B.28), 0..1 (0: off; default "
-                        f"exp(-t_s/{PAPER_B_ACC_TAU_S * 1000:g} ms))")
+                        f"paper-b off, printed exp(-t_s/{PAPER_B_ACC_TAU_S * 1000:g} ms))")
     g.add_argument("--bias-seconds", type=float, metavar="S",
                    help="fixed gyro bias: the mean of the first S seconds (instead of the "
                         "bias estimated at every rest)")
+    g.add_argument("--earth-lowpass", type=float, metavar="S",
+                   help="paper-b: time constant of the earth-frame accelerometer low-pass, "
+                        f"seconds (default {PAPER_B_EARTH_LP_S:g}; 0: none)")
     g.add_argument("--yaw-aligned", action="store_true",
-                   help="Paper B's body-frame accelerometer quaternion given the heading "
-                        "(not valid upside down; default: the estimate-frame form)")
+                   help="paper-b-printed: Paper B's body-frame accelerometer quaternion given "
+                        "the heading (not valid upside down; default: the estimate-frame "
+                        "form)")
     p.set_defaults(func=handler)
 
 
@@ -92,10 +102,19 @@ def _check_args(args: argparse.Namespace) -> None:
                                               and args.bias_seconds >= 0):
         raise LogError(f"--bias-seconds: expected a number of seconds >= 0, "
                        f"got {args.bias_seconds:g}")
-    used = [o for o in _PAPER_B_OPTIONS if getattr(args, o) not in (None, False)]
-    if used and args.filter != "paper-b":
+    if args.earth_lowpass is not None and not (math.isfinite(args.earth_lowpass)
+                                               and args.earth_lowpass >= 0):
+        raise LogError(f"--earth-lowpass: expected a number of seconds >= 0, "
+                       f"got {args.earth_lowpass:g}")
+    used = [o for o in _PAPER_B_OPTIONS if getattr(args, o) is not None]
+    if used and args.filter not in _PAPER_B_FILTERS:
         opt = "--" + used[0].replace("_", "-")
-        raise LogError(f"{opt}: a paper-b option; add --filter paper-b")
+        raise LogError(f"{opt}: a paper-b option; add --filter paper-b (or paper-b-printed)")
+    if args.earth_lowpass is not None and args.filter != "paper-b":
+        raise LogError("--earth-lowpass: a paper-b option; add --filter paper-b")
+    if args.yaw_aligned and args.filter != "paper-b-printed":
+        raise LogError("--yaw-aligned: an option of Paper B's printed correction; add "
+                       "--filter paper-b-printed")
     if args.png is not None and not args.compare:
         raise LogError("--png: the figure belongs to --compare")
     if args.peers is not None:
@@ -118,12 +137,17 @@ def _check_args(args: argparse.Namespace) -> None:
 
 
 def _paper_b_run(rec: ImuRecording, args: argparse.Namespace) -> FilterRun:
-    """paper-b with the command's options."""
+    """paper-b or paper-b-printed with the command's options."""
     start, cpu = time.perf_counter(), time.process_time()
-    q = paper_b(rec, gain=args.gain, bias_seconds=args.bias_seconds,
-                acc_lowpass=args.acc_lowpass,
-                tilt="yaw-aligned" if args.yaw_aligned else "estimate")
-    return FilterRun("paper-b", q, False, time.perf_counter() - start,
+    common = {"gain": args.gain, "bias_seconds": args.bias_seconds,
+              "acc_lowpass": args.acc_lowpass}
+    if args.filter == "paper-b":
+        lp = PAPER_B_EARTH_LP_S if args.earth_lowpass is None else args.earth_lowpass
+        q = paper_b(rec, earth_lowpass_s=lp, **common)
+    else:
+        q = paper_b_printed(rec, tilt="yaw-aligned" if args.yaw_aligned else "estimate",
+                            **common)
+    return FilterRun(args.filter, q, False, time.perf_counter() - start,
                      time.process_time() - cpu)
 
 
@@ -169,7 +193,7 @@ def handler(args: argparse.Namespace) -> int:
         raise LogError(f"{args.log}: --compare needs a reference orientation (BROAD opt_quat "
                        "or ref_qw..ref_qz) to score against")
     console = Console(file=sys.stderr if args.json else sys.stdout, width=120)
-    if args.filter == "paper-b":
+    if args.filter in _PAPER_B_FILTERS:
         run = _paper_b_run(rec, args)
     else:
         run = run_filter(args.filter, rec, six_d=args.six_d)

@@ -10,6 +10,9 @@ real sensor noise, bias and motion:
   directions with a zero-mean gyro jolt (no net rotation: the truth does not move).
 * :func:`add_translation`: sustained linear acceleration, an earth-frame sum of sines
   (0.25-0.8 Hz, ~3 m/s² horizontal) seen by the accelerometer as ``Rᵀ·a``.
+* :func:`add_swing`: the recording's fast rotation made about a pivot ``lever_m`` away
+  from the sensor (a hand turning a sensor it holds at the wrist or forearm): the sensor
+  translates on a sphere and feels ``α×r + ω×(ω×r)``, the lever-arm terms of (A.18).
 * :func:`add_vibration`: a vibrating phone, bursts of a 173 Hz sine (aliased at 286 Hz)
   on accelerometer and gyro.
 * :func:`add_magnet_near`: a magnet passed near the sensor, an earth-frame field of tens
@@ -22,8 +25,8 @@ real sensor noise, bias and motion:
 A recording is a dict of arrays as :mod:`drivers.sim.imu_tumble` returns: ``t_s``,
 ``gyro`` (rad/s), ``acc`` (m/s²), ``mag`` (µT), ``quat`` (truth, scalar-first, sensor to
 ENU earth, NaN rows where the reference lost track) and ``movement`` (bool). No function
-changes its input. Used by ``tests/analysis/test_attitude_broad_variants.py`` and
-``benchmarks/attitude_broad_variants.py``.
+changes its input. Used by ``tests/analysis/test_attitude_broad_variants.py``,
+``benchmarks/attitude_broad_variants.py`` and ``benchmarks/attitude_paper_b_tuning.py``.
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.signal import savgol_filter
 from scipy.spatial.transform import Rotation, Slerp
 
 __all__ = [
@@ -39,6 +43,7 @@ __all__ = [
     "VARIANTS",
     "add_magnet_attached",
     "add_magnet_near",
+    "add_swing",
     "add_tapping",
     "add_translation",
     "add_vibration",
@@ -137,6 +142,24 @@ def add_translation(rec: Recording, seed: int = 0, horizontal_m_s2: float = 3.0,
             a[:, axis] += amp / 2 * np.sin(2 * np.pi * f * t + rng.uniform(0, 2 * np.pi))
     a *= _movement_gate(rec)[:, None]
     return _copy(rec, acc=rec["acc"] + _to_sensor(rec["quat"], a))
+
+
+def add_swing(rec: Recording, lever_m: tuple[float, float, float] = (0.0, 0.1, 0.0),
+              window: int = 15) -> Recording:
+    """The motion about a pivot at ``-lever_m`` (sensor frame, m): add ``α×r + ω×(ω×r)``.
+
+    The sensor then sits at ``R·r`` from a fixed pivot, a bounded position, so the added
+    earth-frame acceleration averages to zero over the motion, but it is large (ω of
+    5-20 rad/s: ω²r of 2.5-40 m/s² at 10 cm) and its centripetal part always points to the
+    pivot. ω and α are the gyro smoothed and differentiated by a Savitzky-Golay filter
+    (``window`` samples, quadratic; 52 ms at 286 Hz), so the gyro's noise is not
+    differentiated; the gyro itself is kept.
+    """
+    dt = float(np.median(np.diff(rec["t_s"])))
+    w = savgol_filter(rec["gyro"], window, 2, axis=0)
+    alpha = savgol_filter(rec["gyro"], window, 2, deriv=1, delta=dt, axis=0)
+    r = np.asarray(lever_m, dtype=float)
+    return _copy(rec, acc=rec["acc"] + np.cross(alpha, r) + np.cross(w, np.cross(w, r)))
 
 
 def add_vibration(rec: Recording, seed: int = 0, freq_hz: float = 173.0,
@@ -281,19 +304,31 @@ def _mixed(rec: Recording, seed: int) -> Recording:
     return add_magnet_near(out, seed + 3)
 
 
-# name -> builder (recording, seed); BROAD's groups: undisturbed (slow, breaks, translation)
-# and disturbed (tapping, vibration, stationary and attached magnet, mixed)
+def _combined_with_breaks(rec: Recording, seed: int) -> Recording:
+    """Fast rotation at a 12 cm lever arm with strong translation (6 m/s² horizontal,
+    3 m/s² vertical), in four ~30 s movement phases split by 10 s rests."""
+    out = add_translation(add_swing(rec, (0.07, 0.07, -0.07)), seed, 6.0, 3.0)
+    return insert_breaks(out, at_fraction=(0.25, 0.5, 0.75))
+
+
+# name -> builder (recording, seed); BROAD's groups: undisturbed (slow, breaks, translation,
+# fast rotation combined with translation) and disturbed (tapping, vibration, stationary
+# and attached magnet, mixed)
 VARIANTS: dict[str, Callable[[Recording, int], Recording]] = {
     "slow_rotation": lambda r, s: slow_down(r, 3.0, s),
     "with_breaks": lambda r, s: insert_breaks(r),
     "translation": add_translation,
+    "swing_wrist": lambda r, s: add_swing(r, (0.0, 0.1, 0.0)),
+    "swing_forearm": lambda r, s: add_swing(r, (0.12, 0.12, -0.1)),
+    "combined_with_breaks": _combined_with_breaks,
     "tapping": add_tapping,
     "vibration": add_vibration,
     "stationary_magnet": add_magnet_near,
     "attached_magnet": lambda r, s: add_magnet_attached(r),
     "mixed": _mixed,
 }
-UNDISTURBED = ("slow_rotation", "with_breaks", "translation")
+UNDISTURBED = ("slow_rotation", "with_breaks", "translation", "swing_wrist", "swing_forearm",
+               "combined_with_breaks")
 
 
 def make_variant(rec: Recording, name: str, seed: int = 0) -> Recording:

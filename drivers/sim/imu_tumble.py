@@ -14,7 +14,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["EARTH_FIELD_UT", "simulate_angles", "simulate_tumble", "simulate_upside_down"]
+__all__ = ["EARTH_FIELD_UT", "simulate_angles", "simulate_tumble", "simulate_upside_down",
+           "simulate_wrist_turns"]
 
 G = 9.80665
 EARTH_FIELD_UT = np.array([0.0, 20.0, -44.0])  # ENU, mid-latitude north, dip ≈ 65°
@@ -110,6 +111,25 @@ def simulate_upside_down(duration_s: float = 60.0, rate_hz: float = 285.714, see
                    np.full_like(t, yaw_rate_rad_s)], axis=1)
     ang = e[:, None] * f + [np.pi, 0.0, 0.0]
     out = simulate_angles(t, ang, de[:, None] * f + e[:, None] * df, seed, **noise)
+    out["movement"] = e > 0
+    return out
+
+
+def simulate_wrist_turns(duration_s: float = 40.0, rate_hz: float = 285.714, seed: int = 0,
+                         rest_s: float = 3.0, amp_rad: tuple[float, float, float] = (1.0, 0.7,
+                                                                                 1.5),
+                         freq_hz: tuple[float, float, float] = (1.3, 0.9, 0.6), **noise
+                         ) -> dict[str, Array]:
+    """Fast hand-like turning: roll, pitch, yaw swinging by ``amp_rad`` at ``freq_hz``
+    (random phases), 7 rad/s typical, 12 rad/s peak, after a rest of ``rest_s``. The sensor
+    turns about itself; :func:`drivers.sim.imu_disturbances.add_swing` moves the pivot."""
+    t = np.arange(round(duration_s * rate_hz)) / rate_hz
+    e, de = _envelope(t, rest_s, 2.0)
+    phase = np.random.default_rng(seed).uniform(0.0, 2 * np.pi, 3)
+    amp, w = np.asarray(amp_rad), 2 * np.pi * np.asarray(freq_hz)
+    f = amp * np.sin(w * t[:, None] + phase)
+    df = amp * w * np.cos(w * t[:, None] + phase)
+    out = simulate_angles(t, e[:, None] * f, de[:, None] * f + e[:, None] * df, seed, **noise)
     out["movement"] = e > 0
     return out
 

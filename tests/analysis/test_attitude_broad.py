@@ -79,7 +79,8 @@ def test_peers_reproduce_their_known_scores(table: dict) -> None:
     assert rows["madgwick-6d"]["inclination_rmse_deg"] == pytest.approx(2.05, abs=0.05)
     assert rows["vqf-9d"]["heading_rmse_deg"] < 2.0  # 9D: absolute heading, ENU
     assert [r["filter"] for r in table["scores"]] == [
-        "default (9D)", "default (6D)", "default-causal (6D)", "paper-b (6D)", *PEERS_RUN]
+        "default (9D)", "default (6D)", "default-causal (6D)", "paper-b (6D)",
+        "paper-b-printed (6D)", *PEERS_RUN]
     assert all(r["samples"] == 33617 for r in table["scores"])
     assert table["png"].stat().st_size > 20_000
 

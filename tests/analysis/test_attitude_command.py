@@ -13,7 +13,8 @@ import pytest
 from analysis import quaternion as quat
 from analysis.imu_calibration import Calibration, save_calibration
 from bench.cli import main
-from drivers.sim.imu_tumble import simulate_tumble
+from drivers.sim.imu_disturbances import add_swing
+from drivers.sim.imu_tumble import simulate_tumble, simulate_wrist_turns
 
 h5py = pytest.importorskip("h5py")
 pytest.importorskip("vqf")
@@ -26,14 +27,14 @@ def sim() -> dict:
     return simulate_tumble(duration_s=25.0, rate_hz=RATE, seed=4)
 
 
-def _broad(path: Path, c: dict) -> Path:
+def _broad(path: Path, c: dict, rate: float = RATE) -> Path:
     with h5py.File(path, "w") as f:
         f.create_dataset("imu_gyr", data=c["gyro"])
         f.create_dataset("imu_acc", data=c["acc"])
         f.create_dataset("imu_mag", data=c["mag"])
         f.create_dataset("opt_quat", data=c["quat"])
         f.create_dataset("movement", data=c["movement"].astype(np.uint8))
-        f.attrs["sampling_rate"] = RATE
+        f.attrs["sampling_rate"] = rate
     return path
 
 
@@ -94,7 +95,7 @@ def _cal(path: Path, k: np.ndarray, bias: np.ndarray) -> Path:
     return save_calibration(cal, path)
 
 
-@pytest.mark.parametrize("flt", ["default", "default-causal", "paper-b"])
+@pytest.mark.parametrize("flt", ["default", "default-causal", "paper-b", "paper-b-printed"])
 def test_cal_moves_a_mounted_imu_into_the_body_frame(sim: dict, tmp_path: Path, flt: str,
                                                      capsys: pytest.CaptureFixture) -> None:
     """IMU mounted turned 17° about z and tilted 3° (Paper A's ψ = 17°), 0.5 % scale."""
@@ -111,6 +112,23 @@ def test_cal_moves_a_mounted_imu_into_the_body_frame(sim: dict, tmp_path: Path, 
 
     with_cal, without = incl(["--cal", str(cal)]), incl([])
     assert with_cal < 1.0 < 2.0 < without  # the 3° mounting tilt is removed
+
+
+def test_paper_b_on_a_swung_sensor(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """Issue 20 as a user meets it: a BROAD-format file of fast turns about a pivot 17 cm
+    away. ``--filter paper-b`` stays within 2 x VQF + 0.5° (measured 0.72° vs VQF offline
+    0.58°); Paper B's printed correction, still there as ``paper-b-printed``, tilts (3.5°);
+    ``--earth-lowpass 0`` (no low-pass) brings the tilt back (5.8°)."""
+    trial = _broad(tmp_path / "swing.hdf5",
+                   add_swing(simulate_wrist_turns(seed=0), (0.1, 0.1, -0.1)), 285.714)
+
+    def incl(*args: str) -> float:
+        assert main(["attitude", str(trial), "--json", *args]) == 0
+        return json.loads(capsys.readouterr().out)["scores"][0]["inclination_rmse_deg"]
+
+    bound = 2.0 * incl("--6d") + 0.5  # the default 6D is VQF's offline form
+    assert incl("--filter", "paper-b") <= bound < incl("--filter", "paper-b-printed")
+    assert incl("--filter", "paper-b", "--earth-lowpass", "0") > bound
 
 
 def test_cal_turns_the_magnetometer_with_the_mounting(sim: dict, tmp_path: Path,
@@ -178,6 +196,12 @@ def test_missing_extra_names_it(sim: dict, tmp_path: Path, capsys: pytest.Captur
 
 @pytest.mark.parametrize(("argv", "message"), [
     (["--gain", "0.01"], "--gain: a paper-b option; add --filter paper-b"),
+    (["--filter", "paper-b", "--yaw-aligned"],
+     "--yaw-aligned: an option of Paper B's printed correction; add --filter paper-b-printed"),
+    (["--filter", "paper-b-printed", "--earth-lowpass", "2"],
+     "--earth-lowpass: a paper-b option; add --filter paper-b"),
+    (["--filter", "paper-b", "--earth-lowpass", "-1"],
+     "--earth-lowpass: expected a number of seconds >= 0, got -1"),
     (["--png", "x.png"], "--png: the figure belongs to --compare"),
     (["--peers", "vqf-6d"], "--peers: the peers belong to --compare"),
     (["--compare", "--peers", "vqf-6d,kalman"], "--peers: unknown peer 'kalman'; known: "),

@@ -54,10 +54,10 @@ def test_attitude_with_reference_prints_rms(tmp_path: Path,
                                             capsys: pytest.CaptureFixture) -> None:
     path = tmp_path / "att.csv"
     pd.DataFrame(simulate_attitude_log()).to_csv(path, index=False)
-    assert main(["attitude", str(path), "--filter", "paper-b", "--gain", "0.002",
+    assert main(["attitude", str(path), "--filter", "paper-b-printed", "--gain", "0.002",
                  "--yaw-aligned"]) == 0
     out = capsys.readouterr().out
-    assert "inclination" in out and "heading" in out and "paper-b (6D)" in out
+    assert "inclination" in out and "heading" in out and "paper-b-printed (6D)" in out
 
 
 def test_calibrate_on_a_propulsion_rig_says_what_is_missing(
