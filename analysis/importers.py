@@ -2,10 +2,11 @@
 
 Each importer returns a DataFrame whose columns carry the run's names and SI units
 (``t_s``, ``throttle_us``, ``thrust_n``, ``torque_nm``, ``current_a``, ``voltage_v``,
-``rpm``, ``acc_x_m_s2``, ``vibration_m_s2``, ...) and the metadata to put in ``run.json``; ``rotorbench import`` writes them
-into a run folder. Units are taken from the column names: a header ``Thrust (gf)`` or
-``thrust [kgf]`` is converted to newtons by its unit, and a column already named like a
-run column (``thrust_n``) is taken as it is. An acceleration in ``(g)`` is standard gravity,
+``rpm``, ``acc_x_m_s2``, ``vibration_m_s2``, ...) and the metadata to put in
+``run.json``; ``rotorbench import`` writes them into a run folder. Units are taken from
+the column names: a header ``Thrust (gf)`` or ``thrust [kgf]`` is converted to newtons by
+its unit, and a column already named like a run column (``thrust_n``) is taken as it is. An
+acceleration in ``(g)`` is standard gravity,
 not gram-force: the unit is read for the quantity of the run column it fills.
 ``detect_format`` names the format from the header, so ``import`` needs no ``--format``.
 
@@ -114,8 +115,9 @@ def _unit_factor(header: str, target: str, source: str) -> float:
         # a bare name in run style ("thrust_n", "t_ms"): take the unit from the suffix
         suffix = header.rsplit("_", 1)[-1].lower() if "_" in header else ""
         unit = {"ms": "ms", "us": "µs" if quantity == "pulse" else "us", "s": "s",
-                "s2": "m/s2", "n": "N", "g": "g", "gf": "gf", "kgf": "kgf", "a": "A", "ma": "mA", "v": "V",
-                "mv": "mV", "rpm": "rpm", "nm": "Nm", "w": "W", "pct": "%"}.get(suffix)
+                "s2": "m/s2", "n": "N", "g": "g", "gf": "gf", "kgf": "kgf", "a": "A",
+                "ma": "mA", "v": "V", "mv": "mV", "rpm": "rpm", "nm": "Nm", "w": "W",
+                "pct": "%"}.get(suffix)
         if unit is None:
             return 1.0  # no unit stated: assume the run column's own unit
     key = _unit_key(unit)
