@@ -6,8 +6,8 @@ Each importer returns a DataFrame whose columns carry the run's names and SI uni
 ``run.json``; ``rotorbench import`` writes them into a run folder. Units are taken from
 the column names: a header ``Thrust (gf)`` or ``thrust [kgf]`` is converted to newtons by
 its unit, and a column already named like a run column (``thrust_n``) is taken as it is. An
-acceleration in ``(g)`` is standard gravity,
-not gram-force: the unit is read for the quantity of the run column it fills.
+acceleration in ``(g)`` is standard gravity, not gram-force: the unit is read for the
+quantity of the run column it fills.
 ``detect_format`` names the format from the header, so ``import`` needs no ``--format``.
 
 Rows are put in time order: a real stand's log can step back in time by a fraction of a
