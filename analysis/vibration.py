@@ -35,7 +35,7 @@ ACC_COLUMNS = ("acc_x_m_s2", "acc_y_m_s2", "acc_z_m_s2")
 LEVEL_COLUMN = "vibration_m_s2"
 RATE_MARGIN = 2.5  # sample rate >= 2.5 x blade pass: the line sits below 0.4 fs (Nyquist 0.5)
 MIN_RPM = 300.0  # slower is "not turning" for vibration purposes
-HOLD_TOL = 0.02  # a steady hold: speed within +-2 % of the target
+HOLD_TOL = 0.01  # a steady hold: speed within +-1 % of the target (a ramp is no hold)
 MIN_HOLD_S = 0.5  # and at least this long (2 Hz resolution with one Welch segment)
 MAX_JITTER = 0.1  # evenly sampled: every step within 10 % of the median step
 
@@ -138,7 +138,7 @@ def _longest_true(mask: np.ndarray) -> tuple[int, int]:
 def vibration_spectrum(samples: pd.DataFrame, blades: int,
                        column: str | None = None) -> VibrationSpectrum:
     """Welch PSD of an acceleration column over the longest hold at the run's top steady
-    speed (the 90th percentile of the turning speeds, +-2 %). ``LogError`` says why not:
+    speed (the 90th percentile of the turning speeds, +-1 %). ``LogError`` says why not:
     no accelerometer, no hold of ``MIN_HOLD_S``, uneven sampling, or a rate below
     ``RATE_MARGIN`` x the blade-pass frequency."""
     if blades < 1:
