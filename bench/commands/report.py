@@ -76,6 +76,8 @@ def build(args: argparse.Namespace, out: Path, console: Console) -> dict[str, An
 
     records = [read_run(p) for p in args.runs]
     motor = _motor(args, records)
+    if args.blades is not None and not 1 <= args.blades <= 12:
+        raise RigError(f"--blades: expected a whole number 1-12, got {args.blades}")
     fits, statics, step2s, notes = [], [], [], []
     for rec in records:
         kind = str(rec.meta.get("kind", ""))
@@ -171,8 +173,6 @@ def build(args: argparse.Namespace, out: Path, console: Console) -> dict[str, An
 def _blades(args: argparse.Namespace, rec: Any) -> tuple[int, str]:
     """The blade count and where it came from: --blades, the sim rig's, or assumed 2."""
     if args.blades is not None:
-        if not 1 <= args.blades <= 12:
-            raise RigError(f"--blades: expected a whole number 1-12, got {args.blades}")
         return args.blades, "--blades"
     sensors = ((rec.meta.get("rig") or {}).get("sim") or {}).get("sensors") or {}
     if "vibration_blades" in sensors:
@@ -213,6 +213,8 @@ def _vibration(args: argparse.Namespace, records: list[Any], out: Path, console:
         rows.append((rec.id, curve.source, curve.rpm[0], curve.level_m_s2[0], curve.rpm[-1],
                      curve.level_m_s2[-1], curve.rpm[i], curve.level_m_s2[i], peak, rotor, bp))
         summary.setdefault("vibration", {})[rec.id] = entry
+    if not rows and args.blades is not None:
+        notes.append("--blades: no run has a vibration column (acc_*_m_s2, vibration_m_s2)")
     if rows:
         t = Table("Vibration against speed",
                   ("run", "source", "rpm low", "vib. low [m/s2]", "rpm high",

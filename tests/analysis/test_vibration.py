@@ -169,3 +169,13 @@ def test_report_blades_out_of_range_is_one_line(shipped_step, tmp_path, capsys):
     err = capsys.readouterr().err
     assert "--blades: expected a whole number 1-12, got 0" in err
     assert "Traceback" not in err and not (tmp_path / "r").exists()
+
+
+def test_report_blades_without_a_vibration_run_says_so(fixtures_dir, tmp_path, capsys):
+    assert main(["sweep", "--out", str(tmp_path / "runs")]) == 0
+    run = next((tmp_path / "runs").glob("*-sweep"))
+    capsys.readouterr()
+    assert main(["report", str(run), "--blades", "3", "--out", str(tmp_path / "rep")]) == 0
+    out = " ".join(capsys.readouterr().out.split())
+    assert "--blades: no run has a vibration column" in out
+    assert "Vibration against speed" not in out
