@@ -39,6 +39,9 @@ def _save(fig: plt.Figure, path: Path, dpi: int = 90) -> Path:
     return path
 
 
+save_figure = _save  # the other figure modules (analysis.vibration_figures) write alike
+
+
 def plot_steps(fits: Sequence[tuple[str, StepResponse]], path: Path, title: str = "") -> Path:
     """Fig. C.9-C.12: |change of thrust| after the command edge, per ESC setting."""
     fig, ax = plt.subplots(figsize=(7, 4.2))

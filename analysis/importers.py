@@ -2,10 +2,13 @@
 
 Each importer returns a DataFrame whose columns carry the run's names and SI units
 (``t_s``, ``throttle_us``, ``thrust_n``, ``torque_nm``, ``current_a``, ``voltage_v``,
-``rpm``, ...) and the metadata to put in ``run.json``; ``rotorbench import`` writes them
-into a run folder. Units are taken from the column names: a header ``Thrust (gf)`` or
-``thrust [kgf]`` is converted to newtons by its unit, and a column already named like a
-run column (``thrust_n``) is taken as it is.
+``rpm``, ``acc_x_m_s2``, ``vibration_m_s2``, ...) and the metadata to put in
+``run.json``; ``rotorbench import`` writes them into a run folder. Units are taken from
+the column names: a header ``Thrust (gf)`` or ``thrust [kgf]`` is converted to newtons by
+its unit, and a column already named like a run column (``thrust_n``) is taken as it is. An
+acceleration in ``(g)`` is standard gravity, not gram-force: the unit is read for the
+quantity of the run column it fills.
+``detect_format`` names the format from the header, so ``import`` needs no ``--format``.
 
 Rows are put in time order: a real stand's log can step back in time by a fraction of a
 sample period where two boards interleave their rows. A step back of at most
@@ -29,8 +32,8 @@ import pandas as pd
 
 from analysis.errors import LogError
 
-__all__ = ["FORMATS", "RUN_COLUMNS", "import_csv", "import_esc32", "import_log",
-           "import_rcbenchmark", "parse_header"]
+__all__ = ["FORMATS", "RUN_COLUMNS", "detect_format", "import_csv", "import_esc32",
+           "import_log", "import_rcbenchmark", "parse_header"]
 
 G0 = 9.80665  # standard gravity (gram-force -> newton)
 
@@ -49,6 +52,10 @@ RUN_COLUMNS: dict[str, str] = {
     "duty_pct": "percent",
     "power_w": "power",
     "temperature_c": "temperature",
+    "acc_x_m_s2": "acceleration",
+    "acc_y_m_s2": "acceleration",
+    "acc_z_m_s2": "acceleration",
+    "vibration_m_s2": "acceleration",
 }
 
 # unit spelling (lower case, spaces removed) -> (quantity, factor to the run column's unit)
@@ -70,6 +77,9 @@ _UNITS: dict[str, tuple[str, float]] = {
     "rps": ("speed", 60.0), "%": ("percent", 1.0), "w": ("power", 1.0),
     "ºc": ("temperature", 1.0), "°c": ("temperature", 1.0), "c": ("temperature", 1.0),
 }
+# acceleration units: the same spellings as force units ('g', 'mg'), so looked up apart
+_ACC_UNITS: dict[str, float] = {"g": G0, "mg": G0 * 1e-3, "m/s²": 1.0, "m/s^2": 1.0,
+                                "m/s2": 1.0, "m·s-2": 1.0, "m/s/s": 1.0}
 # the product dot of a unit is written many ways: 'N·m', 'N⋅m', 'N.m', 'N*m', 'N-m', 'N•m'
 _PRODUCT = re.compile(r"(?<=[a-zµμ])[·⋅•×*.\-](?=[a-z])")
 
@@ -105,8 +115,9 @@ def _unit_factor(header: str, target: str, source: str) -> float:
         # a bare name in run style ("thrust_n", "t_ms"): take the unit from the suffix
         suffix = header.rsplit("_", 1)[-1].lower() if "_" in header else ""
         unit = {"ms": "ms", "us": "µs" if quantity == "pulse" else "us", "s": "s",
-                "n": "N", "g": "g", "gf": "gf", "kgf": "kgf", "a": "A", "ma": "mA", "v": "V",
-                "mv": "mV", "rpm": "rpm", "nm": "Nm", "w": "W", "pct": "%"}.get(suffix)
+                "s2": "m/s2", "n": "N", "g": "g", "gf": "gf", "kgf": "kgf", "a": "A",
+                "ma": "mA", "v": "V", "mv": "mV", "rpm": "rpm", "nm": "Nm", "w": "W",
+                "pct": "%"}.get(suffix)
         if unit is None:
             return 1.0  # no unit stated: assume the run column's own unit
     key = _unit_key(unit)
@@ -115,7 +126,8 @@ def _unit_factor(header: str, target: str, source: str) -> float:
             return 1.0
         if quantity == "time":
             return 1e-6
-    found = _UNITS.get(key)
+    found = ((quantity, _ACC_UNITS[key]) if key in _ACC_UNITS else None) \
+        if quantity == "acceleration" else _UNITS.get(key)
     if found is None or found[0] != quantity:
         raise LogError(f"{source}: column {header!r}: unit {unit!r} is not a {quantity} "
                        f"unit for {target}")
@@ -254,6 +266,12 @@ _RCB_MAP = (  # (header name, run column); the unit comes from the header. Names
     ("RPM", "rpm"),
     ("Motor Optical Speed", "rpm_optical"),
     ("Electrical Power", "power_w"),
+    # the stand's accelerometer (1585/1780 boards): three axes and the board's vibration
+    # level, all in g; taken in m/s^2
+    ("AccX", "acc_x_m_s2"),
+    ("AccY", "acc_y_m_s2"),
+    ("AccZ", "acc_z_m_s2"),
+    ("Vibration", "vibration_m_s2"),
 )
 
 
@@ -393,6 +411,59 @@ def import_csv(path: str | Path, mapping: Mapping[str, str] | None = None
 
 
 FORMATS = ("rcbenchmark", "esc32", "csv")
+
+# Header names (without unit, lower case) only an RCbenchmark / Flight Stand log carries:
+# 'Time (s)' and 'Thrust (N)' alone could be anyone's CSV.
+_RCB_MARKERS = frozenset({
+    "esc signal", "esc", "servo 1", "servo 2", "servo 3", "servo", "accx", "accy", "accz",
+    "vibration", "app message", "motor electrical speed", "motor optical speed",
+    "electrical power", "mechanical power", "motor efficiency",
+    "propeller mech. efficiency", "overall efficiency"})
+# the ESC32 utility's telemetry names beside its 'Timestamp'
+_ESC32_MARKERS = frozenset({h.lower() for h, _ in _ESC32_MAP} | {
+    "comm. period", "bad detects", "adc window", "idle time", "state", "phase a avg.",
+    "phase b avg.", "phase c avg.", "composite avg.", "fet step"})
+_HEADER_BYTES = 1 << 16  # a header longer than this is no log of these formats
+
+
+def _header_cells(path: Path) -> tuple[list[str], bool]:
+    """The header's cells as written, and whether a 'Control protocol' line precedes it
+    (RCbenchmark control-board logs)."""
+    _check_file(path)
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(_HEADER_BYTES)
+    except OSError as exc:
+        raise LogError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    lines = head.decode("utf-8-sig", errors="replace").splitlines()
+    protocol = bool(lines) and lines[0].lower().startswith("control protocol")
+    line = lines[1 if protocol else 0] if len(lines) > int(protocol) else ""
+    cells = next(csv.reader([line], skipinitialspace=True), [])
+    return [c.strip() for c in cells], protocol
+
+
+def detect_format(path: str | Path) -> str:
+    """The log format its header shows: ``rcbenchmark`` ('Time (s)' with the stand's own
+    columns, or a 'Control protocol' line first), ``esc32`` ('Timestamp' with the
+    utility's telemetry names) or ``csv`` (run column names: ``t_s`` ...). ``LogError``
+    naming the file and the formats tried when none, or more than one, fits."""
+    path = Path(path)
+    cells, protocol = _header_cells(path)
+    found = {parse_header(c)[0].strip().lower() for c in cells}
+    fits = [fmt for fmt, ok in (
+        ("rcbenchmark", protocol or ("time" in found and bool(found & _RCB_MARKERS))),
+        ("esc32", "timestamp" in found and bool(found & _ESC32_MARKERS)),
+        ("csv", "t_s" in found)) if ok]
+    if len(fits) == 1:
+        return fits[0]
+    shown = ", ".join(c[:40] for c in cells[:6] if c) + (" ..." if len(cells) > 6 else "")
+    if fits:
+        raise LogError(f"{path}: the header fits {' and '.join(fits)} (columns: {shown}); "
+                       "choose with --format")
+    raise LogError(f"{path}: no known log format in its header (columns: {shown or 'none'}); "
+                   "tried rcbenchmark ('Time (s)' with the stand's columns), esc32 "
+                   "('Timestamp' with the utility's telemetry) and csv (run column names, "
+                   "t_s ...); pass --format csv --map RUNCOL=FILECOL for another layout")
 
 
 def import_log(path: str | Path, fmt: str, mapping: Mapping[str, str] | None = None

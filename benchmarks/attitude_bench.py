@@ -1,7 +1,7 @@
 """Every project filter and peer side by side, scored as BROAD does, on the same samples.
 
 Data: BROAD trial 07 (fast rotation, optical truth; CC BY 4.0, Laidig et al., Data 6(7),
-2021, read from ../shared/data/broad, never copied) over its movement mask; the simulated
+2021, shipped in fixtures/data/broad) over its movement mask; the simulated
 Paper B hexapod test (``drivers.sim.imu_attitude_log``: 0.17 rad roll at 0.2 Hz plus
 pitch, yaw and translations, calibrated IMU at 400 Hz with 0.4 m lever arm, no
 magnetometer); a simulated IMU tumbling through every orientation
@@ -16,7 +16,6 @@ total RMSE in degrees and the wall and CPU time of each filter.
 
 from __future__ import annotations
 
-import os
 import sys
 from pathlib import Path
 
@@ -28,8 +27,7 @@ from drivers.sim.imu_attitude_log import simulate_attitude_log
 from drivers.sim.imu_tumble import simulate_orientation_tour, simulate_tumble
 
 REPO = Path(__file__).resolve().parents[1]
-SHARED = Path(os.environ.get("ROTORBENCH_SHARED_DATA", REPO.parent / "shared" / "data"))
-BROAD = SHARED / "broad" / "07_undisturbed_fast_rotation_B.hdf5"
+BROAD = REPO / "fixtures" / "data" / "broad" / "07_undisturbed_fast_rotation_B.hdf5"
 
 
 def _datasets() -> list[tuple[str, ImuRecording]]:

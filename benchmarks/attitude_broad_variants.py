@@ -1,6 +1,6 @@
 """The project's filters and VQF on BROAD-family variants of trial 07, with the issue's bounds.
 
-Only BROAD trial 07 ships (../shared/data/broad, CC BY 4.0, never copied); the variants
+Only BROAD trial 07 ships (fixtures/data/broad, CC BY 4.0); the variants
 give its real samples the shapes of the other trials (``drivers.sim.imu_disturbances``:
 slow rotation, breaks with a bias drift, translation, fast rotation at a lever arm combined
 with translation, tapping, vibration, a magnet passing or attached, all mixed). For each:
@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
 import sys
 from pathlib import Path
 
@@ -28,8 +27,7 @@ from analysis.imu_recording import ImuRecording, read_broad
 from drivers.sim.imu_disturbances import UNDISTURBED, VARIANTS, make_variant
 
 REPO = Path(__file__).resolve().parents[1]
-SHARED = Path(os.environ.get("ROTORBENCH_SHARED_DATA", REPO.parent / "shared" / "data"))
-BROAD = SHARED / "broad" / "07_undisturbed_fast_rotation_B.hdf5"
+BROAD = REPO / "fixtures" / "data" / "broad" / "07_undisturbed_fast_rotation_B.hdf5"
 ROWS = (("default", False), ("default-causal", True), ("paper-b", True),
         ("paper-b-printed", True), ("vqf-6d", True), ("vqf-9d", False),
         ("vqf-offline-6d", True), ("madgwick-6d", True))

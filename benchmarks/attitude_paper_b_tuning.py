@@ -12,7 +12,6 @@ Prints a Markdown table (docs/attitude.md holds its output).
 from __future__ import annotations
 
 import math
-import os
 import sys
 from pathlib import Path
 
@@ -26,8 +25,7 @@ from drivers.sim.imu_disturbances import VARIANTS, make_variant
 from drivers.sim.imu_tumble import simulate_orientation_tour, simulate_tumble
 
 REPO = Path(__file__).resolve().parents[1]
-SHARED = Path(os.environ.get("ROTORBENCH_SHARED_DATA", REPO.parent / "shared" / "data"))
-BROAD = SHARED / "broad" / "07_undisturbed_fast_rotation_B.hdf5"
+BROAD = REPO / "fixtures" / "data" / "broad" / "07_undisturbed_fast_rotation_B.hdf5"
 PAIRS = ((3.0, 0.0), (3.0, 1.0), (3.0, 3.0), (2.0, 1.0), (1.5, 1.5), (1.0, 2.0))
 
 

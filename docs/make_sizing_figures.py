@@ -89,7 +89,7 @@ def run() -> None:
            "B3", "--plot", str(IMG / "sizing_partial_load.png")])
     quiet(["pareto", "--actuators", "4", "--x", "flight-time", "--y", "time-constant",
            "--plot", str(IMG / "sizing_pareto_thesis_e.png")])
-    lab = REPO.parent / "shared" / "data" / "sizinglab"
+    lab = REPO / "fixtures" / "data" / "sizinglab"
     if lab.is_dir():
         import tempfile
 

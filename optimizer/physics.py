@@ -2,7 +2,8 @@
 
 Every function takes SI arrays of any broadcastable shape, so ``optimizer.design_model`` can
 evaluate the whole (propeller, motor, battery) product at once. Equation numbers refer to
-the thesis (reference/000_e15d712adc6c55bf.txt).
+the thesis: Øyvind Magnussen, "Multirotor Design Optimization: The Mechatronic Approach",
+PhD thesis, University of Agder, 2015.
 """
 
 from __future__ import annotations

@@ -201,11 +201,7 @@ def compare_for_design(single: Catalog, record: dict[str, Any], curve: Any) -> d
 
 
 def data_folder() -> Path:
-    """The SizingLab folder: $ROTORBENCH_SHARED_DATA/sizinglab, else beside the project
-    (``optimizer.sizinglab.DEFAULT_FOLDER``, as tests/conftest.py finds shared/data)."""
-    import os
-
+    """The SizingLab folder the repository ships (``optimizer.sizinglab.DEFAULT_FOLDER``)."""
     from optimizer.sizinglab import DEFAULT_FOLDER
 
-    env = os.environ.get("ROTORBENCH_SHARED_DATA")
-    return Path(env) / "sizinglab" if env else DEFAULT_FOLDER
+    return DEFAULT_FOLDER

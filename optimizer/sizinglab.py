@@ -54,8 +54,8 @@ import pandas as pd
 from optimizer.catalog import Catalog
 from optimizer.errors import CatalogError
 
-#: Where the shared data lives in the project's layout (tests use the shared_data fixture).
-DEFAULT_FOLDER = Path(__file__).resolve().parents[2] / "shared" / "data" / "sizinglab"
+#: The Apache-2.0 copies shipped in the repository (fixtures/data/sizinglab, see its SOURCE.md).
+DEFAULT_FOLDER = Path(__file__).resolve().parents[1] / "fixtures" / "data" / "sizinglab"
 
 PROP_MASS_COEF_G = 0.0641
 PROP_MASS_EXPONENT = 2.26

@@ -1,24 +1,16 @@
-"""Shared test fixtures: paths to the repo's fixtures and to ../shared/data."""
+"""Shared test fixtures: paths to the repo's fixtures and to the open data sets it ships."""
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 FIXTURES = REPO / "fixtures"
-
-
-def _shared_data() -> Path:
-    env = os.environ.get("ROTORBENCH_SHARED_DATA")
-    if env:
-        return Path(env)
-    return REPO.parent / "shared" / "data"
-
-
-SHARED_DATA = _shared_data()
+#: The open data sets (SizingLab, BROAD trial 07, esc_test logs), each with LICENSE and SOURCE.md.
+#: The name is historical: they lived in a folder beside the repository before they shipped.
+SHARED_DATA = FIXTURES / "data"
 
 
 @pytest.fixture
@@ -28,8 +20,7 @@ def fixtures_dir() -> Path:
 
 @pytest.fixture
 def shared_data() -> Path:
-    if not SHARED_DATA.is_dir():
-        pytest.skip(f"shared data folder not found at {SHARED_DATA}")
+    """fixtures/data: shipped, so a test that needs it fails (never skips) when it is gone."""
     return SHARED_DATA
 
 

@@ -1,4 +1,7 @@
-"""``rotorbench import FILE --format F --out DIR``: another bench's log as a run folder.
+"""``rotorbench import FILE [--format F] --out DIR``: another bench's log as a run folder.
+
+The format is read from the header unless ``--format`` forces it (``--map`` implies csv);
+the output line says which was taken and how.
 
 Parsing lives in ``analysis.importers``; this is the glue that writes the run folder with
 ``bench.recorder.RunRecorder`` into a temporary folder beside ``DIR`` and renames it into
@@ -25,10 +28,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description="Reads another bench's log and writes a run folder with the run's column "
                     "names and SI units (units from the file's column names). A CSV whose "
                     "columns already carry run names (t_s, throttle_us, thrust_n, rpm, ...) "
-                    "needs no --map.")
+                    "needs no --map. The format is detected from the header; --format "
+                    "forces one, --map implies csv.")
     p.add_argument("file", type=Path, help="log file")
     p.add_argument("--format", dest="fmt", choices=("rcbenchmark", "esc32", "csv"),
-                   required=True)
+                   default=None, help="force the format (default: detected from the header)")
     p.add_argument("--map", dest="mapping", action="append", default=[],
                    metavar="RUNCOL=FILECOL", help="csv only: take a run column from a file "
                                                   "column (repeatable)")
@@ -88,17 +92,26 @@ def write_run(out: Path, samples, meta: dict) -> Path:
 
 
 def handler(args: argparse.Namespace) -> int:
-    from analysis.importers import JITTER_MAX_PERIODS, import_log
+    from analysis.importers import JITTER_MAX_PERIODS, detect_format, import_log
     from bench.cli_support import check_writable
 
     if args.out.exists():
         raise RigError(f"--out {args.out}: already exists (choose a new run folder)")
     check_writable(args.out, "--out", folder=True, beside=True)
-    samples, meta = import_log(args.file, args.fmt, parse_mapping(args.mapping) or None)
+    mapping = parse_mapping(args.mapping) or None
+    if args.fmt:
+        fmt, how = args.fmt, "--format"
+    elif mapping:
+        fmt, how = "csv", "--map"
+    else:
+        fmt, how = detect_format(args.file), "detected from the header"
+    samples, meta = import_log(args.file, fmt, mapping)
+    meta["format_taken"] = how
     meta = {"kind": "import", "components": {}, "import": meta}
     out = write_run(args.out, samples, meta)
     cols = ", ".join(c for c in samples.columns)
-    print(f"{out}: imported {len(samples)} rows from {args.file} ({args.fmt}); columns {cols}")
+    print(f"{out}: imported {len(samples)} rows from {args.file} ({fmt}, {how}); "
+          f"columns {cols}")
     order = meta["import"].get("time_order") or {}
     if order.get("reordered_rows"):
         print(f"time order: {order['reordered_rows']} rows reordered where the time stepped "

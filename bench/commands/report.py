@@ -1,6 +1,11 @@
 """``rotorbench report RUN [RUN ...] [--out DIR]``: Table C.1, static curves, Step 2
 validation and their figures for a set of runs.
 
+Every run with a vibration column (a stand's logged level or accelerometer axes) gets
+vibration against speed (a figure and a line of the vibration table), and a spectrum with
+the rotor and blade-pass frequencies marked where its sampling allows one
+(``analysis.vibration``).
+
 Step runs are fitted (Table C.1, Fig. C.9-C.12), sweeps and imported stand logs give the
 static curves (Fig. C.13-C.14), and Step 2 runs are simulated with the fitted models of
 the Step 1 run of the same ESC mode (Fig. C.16-C.19). The folder is built beside ``DIR``
@@ -37,6 +42,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--kv", type=float, default=None, help="motor K_V (rpm/V) for (C.3)")
     p.add_argument("--r-ohm", type=float, default=None, help="winding resistance (ohm)")
     p.add_argument("--j-kg-m2", type=float, default=None, help="inertia motor + propeller")
+    p.add_argument("--blades", type=int, default=None,
+                   help="propeller blades for the blade-pass frequency (default: the "
+                        "simulated rig's vibration_blades, else 2)")
     p.set_defaults(func=handler)
 
 
@@ -68,6 +76,8 @@ def build(args: argparse.Namespace, out: Path, console: Console) -> dict[str, An
 
     records = [read_run(p) for p in args.runs]
     motor = _motor(args, records)
+    if args.blades is not None and not 1 <= args.blades <= 12:
+        raise RigError(f"--blades: expected a whole number 1-12, got {args.blades}")
     fits, statics, step2s, notes = [], [], [], []
     for rec in records:
         kind = str(rec.meta.get("kind", ""))
@@ -154,9 +164,66 @@ def build(args: argparse.Namespace, out: Path, console: Console) -> dict[str, An
             console.print(tv.to_rich())
             write_csv(tv, out / "validation.csv")
             summary["validation"] = [dict(zip(tv.columns, r, strict=True)) for r in rows]
+    _vibration(args, records, out, console, notes, summary)
     for n in notes:
         console.print(f"note: {n}")
     return summary
+
+
+def _blades(args: argparse.Namespace, rec: Any) -> tuple[int, str]:
+    """The blade count and where it came from: --blades, the sim rig's, or assumed 2."""
+    if args.blades is not None:
+        return args.blades, "--blades"
+    sensors = ((rec.meta.get("rig") or {}).get("sim") or {}).get("sensors") or {}
+    if "vibration_blades" in sensors:
+        return int(sensors["vibration_blades"]), "rig"
+    return 2, "assumed"
+
+
+def _vibration(args: argparse.Namespace, records: list[Any], out: Path, console: Console,
+               notes: list[str], summary: dict[str, Any]) -> None:
+    """Vibration against speed for every run that logs it; a spectrum where the rate allows."""
+    from analysis.errors import LogError
+    from analysis.report import Table, write_csv
+    from analysis.vibration import vibration_spectrum, vibration_vs_speed
+    from analysis.vibration_figures import plot_vibration_spectrum, plot_vibration_speed
+
+    rows = []
+    for rec in records:
+        curve = vibration_vs_speed(rec.samples)
+        if curve is None:
+            continue
+        plot_vibration_speed(curve, out / f"vibration_{rec.id}.png",
+                             title=f"Vibration against speed: {rec.id}")
+        entry: dict[str, Any] = {"against_speed": curve.summary()}
+        blades, source = _blades(args, rec)
+        peak = rotor = bp = None
+        try:
+            spec = vibration_spectrum(rec.samples, blades)
+        except LogError as exc:
+            notes.append(f"{rec.id}: no vibration spectrum ({exc})")
+        else:
+            plot_vibration_spectrum(spec, out / f"vibration_psd_{rec.id}.png")
+            peak, rotor, bp = spec.peak_hz, spec.rotor_hz, spec.blade_pass_hz
+            entry["spectrum"] = {**spec.summary(), "blades_from": source}
+            if source == "assumed":
+                notes.append(f"{rec.id}: blade-pass frequency for 2 blades (assumed; "
+                             "--blades N)")
+        i = int(curve.level_m_s2.argmax())
+        rows.append((rec.id, curve.source, curve.rpm[0], curve.level_m_s2[0], curve.rpm[-1],
+                     curve.level_m_s2[-1], curve.rpm[i], curve.level_m_s2[i], peak, rotor, bp))
+        summary.setdefault("vibration", {})[rec.id] = entry
+    if not rows and args.blades is not None:
+        notes.append("--blades: no run has a vibration column (acc_*_m_s2, vibration_m_s2)")
+    if rows:
+        t = Table("Vibration against speed",
+                  ("run", "source", "rpm low", "vib. low [m/s2]", "rpm high",
+                   "vib. high [m/s2]", "rpm at max", "vib. max [m/s2]", "PSD peak [Hz]",
+                   "rotor [Hz]", "blade pass [Hz]"), tuple(rows),
+                  note="vibration: the logged level (median per speed bin) or the rms of the "
+                       "acceleration about its mean; PSD: Welch over the top steady hold")
+        console.print(t.to_rich())
+        write_csv(t, out / "vibration.csv")
 
 
 def handler(args: argparse.Namespace) -> int:

@@ -22,7 +22,7 @@ import numpy as np
 from drivers.sim.clock import SimClock
 from drivers.sim.load_cell_filter import SecondOrderLowPass, bilinear_low_pass
 from drivers.sim.plant import Plant
-from drivers.sim.sensor_params import SensorParams
+from drivers.sim.sensor_params import VIBRATION_REF_RPM, SensorParams
 from drivers.worker import Worker
 
 
@@ -111,8 +111,8 @@ class ColumnBuffer:
             self.first += cut
 
 
-# rows of the shared acquisition
-T_S, BRIDGE_V, CURRENT_OUT_V, VOLTAGE_OUT_V, HALL_PERIOD_S = range(5)
+# rows of the shared acquisition (ACC_X_M_S2 only when the rig has the vibration channel)
+T_S, BRIDGE_V, CURRENT_OUT_V, VOLTAGE_OUT_V, HALL_PERIOD_S, ACC_X_M_S2 = range(6)
 
 
 class Acquisition:
@@ -128,7 +128,13 @@ class Acquisition:
         self._ahead = np.empty((0, 3))
         self._drawing = Worker("sim-noise")
         self._rng_before: dict[str, object] = {}  # the state before the rows being drawn
-        self.buffer = ColumnBuffer(5)
+        self.rows = 6 if p.vibration else 5
+        self.buffer = ColumnBuffer(self.rows)
+        # the accelerometer's noise by sample index (a table drawn once, like the clock's
+        # jitter): the same whatever the read slicing, and the other channels' noise stream
+        # is not touched, so a rig without vibration samples exactly as before
+        self._acc_noise = np.random.default_rng(seed.spawn(1)[0]).standard_normal(
+            SampleClock.TABLE) if p.vibration else np.empty(0)
         b, a = bilinear_low_pass(p.load_cell_fn_hz, p.load_cell_zeta, p.sample_rate_hz)
         self.cell_b, self.cell_a = b, a
         self._cell = SecondOrderLowPass(b, a)
@@ -196,10 +202,12 @@ class Acquisition:
         self.plant.advance_to(now_ns)
         clock = self.sample_clock
         t = clock.nominal(n0, n1)
-        rows = np.empty((5, n1 - n0))
+        rows = np.empty((self.rows, n1 - n0))
         rows[T_S] = clock.stamps(n0, n1, t)
         self._analog(t, rows)
         rows[HALL_PERIOD_S] = self._counter(t)
+        if self.rows > ACC_X_M_S2:
+            rows[ACC_X_M_S2] = self._vibration(n0, n1, t)
         buf.append(rows)
 
     def _analog(self, t: np.ndarray, rows: np.ndarray) -> None:
@@ -230,6 +238,22 @@ class Acquisition:
         np.minimum(np.maximum(pos, 0.0, out=pos), top, out=pos)
         np.minimum(np.maximum(bridge, -p.adc_range_v, out=bridge), p.adc_range_v - lsb, out=bridge)
         np.multiply(np.rint(out * (1.0 / lsb), out=out), lsb, out=out)
+
+    def _vibration(self, n0: int, n1: int, t: np.ndarray) -> np.ndarray:
+        """Radial acceleration of the mount: imbalance at the rotor angle, the blades' pass
+        at ``blades`` x the angle, both growing with speed^2, plus the accelerometer's noise."""
+        p = self.params
+        traj = self.plant.traj
+        t_tr = traj.column("t")
+        theta = np.interp(t, t_tr, traj.column("theta"))
+        omega = np.interp(t, t_tr, traj.column("omega"))
+        scale = (omega * (30.0 / math.pi / VIBRATION_REF_RPM)) ** 2
+        acc = scale * (p.vibration_imbalance_m_s2 * np.sin(theta)
+                       + p.vibration_blade_pass_m_s2 * np.sin(int(p.vibration_blades) * theta))
+        if p.noise and p.vibration_noise_m_s2 > 0:
+            acc += p.vibration_noise_m_s2 * np.take(self._acc_noise, np.arange(n0, n1),
+                                                    mode="wrap")
+        return acc
 
     def _crossing_times(self, angles: np.ndarray) -> np.ndarray:
         """When the rotor reaches each angle: omega is linear between integration points

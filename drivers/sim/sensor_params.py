@@ -10,6 +10,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, fields, replace
 
+VIBRATION_REF_RPM = 10_000.0  # speed at which the vibration amplitudes are given
+
 
 @dataclass(frozen=True)
 class SensorParams:
@@ -35,6 +37,14 @@ class SensorParams:
     counter_hz: float = 40e6  # FPGA counter timebase of the cRIO (NI-9401 on a 40 MHz FPGA)
     rpm_timeout_s: float = 0.1  # no hall edge for this long -> the counter reports 0 rpm
     buffer_s: float = 30.0  # DAQ buffer: a sensor not read for this long overruns
+    # Optional accelerometer on the load-cell mount (channel acc_x_m_s2, radial, at the
+    # sample rate): a rotor imbalance at the rotor frequency and the blades' pass at blades x
+    # rotor frequency, amplitudes at VIBRATION_REF_RPM growing with speed^2 (a centrifugal
+    # force m e w^2), plus white noise. Both amplitudes 0 (the default): no channel.
+    vibration_imbalance_m_s2: float = 0.0  # (assumption; a few m/s^2 is a typical stand)
+    vibration_blade_pass_m_s2: float = 0.0  # (assumption)
+    vibration_noise_m_s2: float = 0.05  # accelerometer noise per sample (assumption)
+    vibration_blades: int = 2  # propeller blades: blade-pass = blades x rotor frequency
 
     @classmethod
     def with_overrides(cls, overrides: dict[str, float]) -> SensorParams:
@@ -43,3 +53,8 @@ class SensorParams:
             if name not in known:
                 raise KeyError(name)
         return replace(cls(), **overrides)
+
+    @property
+    def vibration(self) -> bool:
+        """Whether the load cell has the vibration (accelerometer) channel."""
+        return self.vibration_imbalance_m_s2 > 0.0 or self.vibration_blade_pass_m_s2 > 0.0

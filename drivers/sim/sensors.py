@@ -17,6 +17,7 @@ import numpy as np
 from drivers.contracts import Block, ChannelInfo, DeviceInfo, Fault
 from drivers.errors import DeviceError
 from drivers.sim.acquisition import (
+    ACC_X_M_S2,
     BRIDGE_V,
     CURRENT_OUT_V,
     HALL_PERIOD_S,
@@ -176,10 +177,18 @@ class SimLoadCell(SimSensor):
 
     def channels(self) -> tuple[ChannelInfo, ...]:
         r = self.params.load_cell_range_n
-        return (ChannelInfo("thrust_n", "N", self.params.sample_rate_hz, -r, r),)
+        fs = self.params.sample_rate_hz
+        thrust = ChannelInfo("thrust_n", "N", fs, -r, r)
+        if not self.params.vibration:
+            return (thrust,)
+        # the optional accelerometer on the mount, +-16 g (drivers.sim.sensor_params)
+        return thrust, ChannelInfo("acc_x_m_s2", "m/s²", fs, -16 * 9.80665, 16 * 9.80665)
 
     def convert(self, raw: np.ndarray) -> dict[str, np.ndarray]:
-        return {"thrust_n": (raw[BRIDGE_V] - self.offset_v) * self.scale_n_per_v}
+        out = {"thrust_n": (raw[BRIDGE_V] - self.offset_v) * self.scale_n_per_v}
+        if raw.shape[0] > ACC_X_M_S2:
+            out["acc_x_m_s2"] = raw[ACC_X_M_S2].copy()
+        return out
 
 
 class SimPowerSensor(SimSensor):

@@ -1,7 +1,7 @@
 """Test helper: synthetic logs shaped like the esc_test collection (RCbenchmark 1580, ESC32).
 
 The column layout, units, empty cells and rates copy the structure of the shipped files
-(``../shared/data/esc_test``): the RCbenchmark stand logs a row every ~24 ms, thrust and
+(``fixtures/data/esc_test``): the RCbenchmark stand logs a row every ~24 ms, thrust and
 torque only every ~150 ms (6.6 Hz, the other cells empty), the ESC signal column empty
 (the ESC was driven by hand); the ESC32 utility logs duty, amps, volts and RPM every
 15 ms with millisecond timestamps. The plant is a first-order rotor (speed time constant

@@ -110,7 +110,7 @@ def test_the_docs_show_what_importing_the_jittery_log_prints(fixtures_dir, tmp_p
     summary; run the shown command verbatim (from the repository root) and compare."""
     root = fixtures_dir.parent
     text = (root / doc).read_text(encoding="utf-8")
-    cmd = "$ rotorbench import fixtures/logs/rcbenchmark_jitter.csv --format rcbenchmark " \
+    cmd = "$ rotorbench import fixtures/logs/rcbenchmark_jitter.csv " \
           "--out out/real/jitter\n"
     block = text[text.index(cmd) + len(cmd):]
     shown = block[:block.index("```")].rstrip("\n").split("\n")

@@ -96,8 +96,6 @@ def test_project_log_with_magnetometer_and_movement(tmp_path: Path) -> None:
 
 def test_shipped_broad_trial_07(shared_data: Path) -> None:
     path = shared_data / "broad" / "07_undisturbed_fast_rotation_B.hdf5"
-    if not path.exists():
-        pytest.skip(f"{path} not found")
     rec = read_broad(path)
     assert len(rec.t_s) == 52518 and rec.rate_hz == pytest.approx(285.714, abs=1e-3)
     assert rec.movement.sum() == 33617

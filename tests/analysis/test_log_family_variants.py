@@ -193,3 +193,19 @@ def test_output_into_a_closed_pipe_is_no_traceback():
     assert code == 141
     assert first.startswith(b"rig sim")
     assert "Traceback" not in err and "BrokenPipeError" not in err
+
+
+@pytest.mark.parametrize(("family", "name"), [*(("rcbenchmark", n) for n in RCB_VARIANTS),
+                                              *(("esc32", n) for n in ESC32_VARIANTS)])
+def test_import_detects_the_format_of_every_variant(logfamily, rcb_base, esc32_base, tmp_path,
+                                                    capsys, family, name):
+    """`rotorbench import FILE --out DIR`, no --format: the header names the family."""
+    src = rcb_base[0] if family == "rcbenchmark" else esc32_base[0]
+    edit = (RCB_VARIANTS if family == "rcbenchmark" else ESC32_VARIANTS)[name]
+    log = _rewrite(src, tmp_path / "log.csv", edit)
+    assert main(["import", str(log), "--out", str(tmp_path / "auto")]) == 0
+    assert f"({family}, detected from the header)" in capsys.readouterr().out
+    assert main(["import", str(log), "--format", family, "--out", str(tmp_path / "forced")]) == 0
+    assert f"({family}, --format)" in capsys.readouterr().out
+    auto, forced = (pd.read_parquet(tmp_path / d / "samples.parquet") for d in ("auto", "forced"))
+    pd.testing.assert_frame_equal(auto, forced)

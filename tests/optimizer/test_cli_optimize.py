@@ -148,8 +148,6 @@ def test_paper_e_cases(capsys) -> None:
 
 def test_import_sizinglab_command(capsys, shared_data, tmp_path) -> None:
     source = shared_data / "sizinglab"
-    if not source.is_dir():
-        pytest.skip("no sizinglab data")
     out = tmp_path / "sl"
     assert main(["import-sizinglab", "--source", str(source), "--out", str(out)]) == 0
     assert "204 motors" in capsys.readouterr().out

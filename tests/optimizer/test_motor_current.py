@@ -227,8 +227,6 @@ def test_sizinglab_maps_no_load_and_continuous_current(shared_data) -> None:
     from optimizer.sizinglab import import_sizinglab
 
     folder = shared_data / "sizinglab"
-    if not folder.is_dir():
-        pytest.skip("no sizinglab folder in the shared data")
     raw = pd.read_csv(folder / "Motors_Data.csv", sep=";")
     motors = import_sizinglab(folder).motors
     assert motors["no_load_current_a"].to_numpy() == pytest.approx(raw["Io_A"].to_numpy())

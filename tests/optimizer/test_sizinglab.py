@@ -21,8 +21,6 @@ from optimizer.sizinglab import (
 @pytest.fixture
 def sizinglab(shared_data):
     folder = shared_data / "sizinglab"
-    if not folder.is_dir():
-        pytest.skip("no sizinglab folder in the shared data")
     return folder
 
 
