@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -17,11 +18,17 @@ from bench.errors import RigError
 from bench.store.lab_catalog import LabCatalog, StoredConstants
 from bench.store.lab_publish import Publisher, pending_runs
 from bench.store.run_data import DataLocation
+from bench.store.run_summary import RunSummary
 from bench.store.store_url import redact
 
 __all__ = ["DATA_SETTING", "LabStore", "PushReport", "SyncReport", "default_spool", "open_lab"]
 
 DATA_SETTING = "data"
+
+
+def default_cache() -> Path:
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "rotorbench" / "runs"
 
 
 def default_spool() -> Path:
@@ -54,6 +61,62 @@ class LabStore:
     @property
     def publisher(self) -> Publisher:
         return Publisher(self.catalog, self.data)
+
+    # -- the Store interface (bench.store.stores) -----------------------------------------
+    def describe(self) -> str:
+        return f"{redact(self.catalog.dsn)} ({self.data.uri})"
+
+    def record_root(self) -> Path:
+        """Runs are recorded into the spool first, whatever the network does."""
+        return self.spool
+
+    def check_can_record(self) -> None:
+        """Before anything spins: a reader-only login is refused; a catalog that cannot be
+        reached is not (the run is spooled and synced later)."""
+        from bench.store.lab_catalog import CatalogUnavailable
+
+        try:
+            self.catalog.check_can_record()
+        except CatalogUnavailable:
+            return
+
+    def after_run(self, run_dir: Path) -> str | None:
+        """Publish the run; a server that is away leaves it spooled, said in one line."""
+        try:
+            uri = self.publisher.publish(run_dir)
+        except RigError as exc:
+            return (f"spooled: {run_dir} waits for the lab store ({exc}); deliver it with "
+                    f"`rotorbench store sync --store {redact(self.catalog.dsn)} --spool "
+                    f"{self.spool}`")
+        return f"stored in {redact(self.catalog.dsn)}: {uri}"
+
+    def list_runs(self, *, bench: str | None = None, status: str | None = None,
+                  sequence: str | None = None, limit: int | None = None,
+                  offset: int = 0) -> list[RunSummary]:
+        return [RunSummary(run_id=r.run_id, bench=r.bench, sequence=r.sequence,
+                           status=r.status, samples=r.samples, data=r.data,
+                           started_utc=r.started_utc, ended_utc=r.ended_utc, rig=r.rig,
+                           reason=r.reason, operator=r.operator, components=r.components)
+                for r in self.catalog.list_runs(bench=bench, status=status,
+                                                sequence=sequence, limit=limit,
+                                                offset=offset)]
+
+    def run_folder(self, run_id: str) -> Path:
+        """The run as a local folder: the spool's copy, else a download into the cache."""
+        local = self.spool / run_id
+        if (local / "run.json").exists():
+            return local
+        row = self.catalog.get_run(run_id)
+        if row is None:
+            raise RigError(f"run {run_id}: not in the store {redact(self.catalog.dsn)}")
+        where = DataLocation(row.data.rsplit("/", 1)[0]) if row.data else self.data
+        return where.download(run_id, default_cache())
+
+    def add_constants(self, rows: Sequence[StoredConstants]) -> int:
+        return self.catalog.add_constants(rows)
+
+    def constants(self) -> list[StoredConstants]:
+        return self.catalog.constants()
 
     def sync(self) -> SyncReport:
         """Publish every ended run waiting in the spool; a second call adds nothing."""

@@ -1,0 +1,135 @@
+"""One ``Store`` interface for runs and constants, with its two implementations.
+
+* ``FolderStore``: the embedded default, a folder of run folders with ``runs.sqlite`` and
+  ``constants.sqlite`` beside them (``bench.run_index``, ``bench.constants_store``).
+* ``LabStore`` (``bench.store.lab_store``): the PostgreSQL catalog with the run folders in
+  a shared folder or an S3 bucket, runs recorded into a local spool first.
+
+Commands ask ``open_store(--store)`` for one and use only what is here: where a new run
+is recorded, what happens after it, the list of runs, a run as a local folder, and the
+constants. The web view and the optimizer's ``--measured`` read through the same calls.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Protocol
+
+from bench.errors import RigError
+from bench.store.run_summary import RunSummary
+
+__all__ = ["FolderStore", "RunSummary", "Store", "open_store"]
+
+
+class Store(Protocol):
+    """What a command may ask of a store."""
+
+    def describe(self) -> str: ...
+    def record_root(self) -> Path: ...
+    def check_can_record(self) -> None: ...
+    def after_run(self, run_dir: Path) -> str | None: ...
+    def list_runs(self, *, bench: str | None = None, status: str | None = None,
+                  sequence: str | None = None, limit: int | None = None,
+                  offset: int = 0) -> list[RunSummary]: ...
+    def run_folder(self, run_id: str) -> Path: ...
+    def add_constants(self, rows: Sequence[Any]) -> int: ...
+    def constants(self) -> list[Any]: ...
+
+
+@dataclass(frozen=True)
+class FolderStore:
+    """The embedded store at ``root`` (today's ``--out`` folder)."""
+
+    root: Path
+
+    def describe(self) -> str:
+        return str(self.root)
+
+    def record_root(self) -> Path:
+        return self.root
+
+    def check_can_record(self) -> None:
+        """Nothing to ask: the recording commands check ``--out`` is writable."""
+
+    def after_run(self, run_dir: Path) -> str | None:
+        return None  # recorded in place, indexed as it ran
+
+    def list_runs(self, *, bench: str | None = None, status: str | None = None,
+                  sequence: str | None = None, limit: int | None = None,
+                  offset: int = 0) -> list[RunSummary]:
+        from bench.run_index import INDEX_NAME, RunIndex
+
+        if not (self.root / INDEX_NAME).exists():
+            return []
+        out = []
+        for r in reversed(RunIndex(self.root).list()):  # newest first, as the catalog
+            meta = _read_meta(self.root / r.path)
+            summary = RunSummary(
+                run_id=r.id, bench=_bench(meta, r.rig), sequence=r.sequence, status=r.status,
+                samples=int(meta.get("rows") or 0), data=str((self.root / r.path).resolve()),
+                started_utc=r.started_utc or None, ended_utc=r.ended_utc, rig=r.rig,
+                reason=r.reason, operator=str(meta.get("operator") or ""),
+                components=dict(r.components))
+            if ((bench is None or summary.bench == bench)
+                    and (status is None or summary.status == status)
+                    and (sequence is None or summary.sequence == sequence)):
+                out.append(summary)
+        end = None if limit is None else offset + limit
+        return out[offset:end]
+
+    def run_folder(self, run_id: str) -> Path:
+        from bench.run_index import INDEX_NAME, RunIndex
+
+        if (self.root / INDEX_NAME).exists():
+            for r in RunIndex(self.root).list():
+                if r.id == run_id:
+                    return self.root / r.path
+        raise RigError(f"run {run_id}: not in the store {self.root}")
+
+    def add_constants(self, rows: Sequence[Any]) -> int:
+        from bench.constants_store import ActuatorKey, ConstantsStore
+
+        store = ConstantsStore(self.root)
+        for r in rows:
+            store.put(ActuatorKey(r.motor, r.propeller, r.esc, r.esc_mode, r.battery,
+                                  r.catalog), r.kind, r.run_id, r.run_path, r.data)
+        return len(rows)
+
+    def constants(self) -> list[Any]:
+        from bench.constants_store import ConstantsStore
+        from bench.store.lab_catalog import StoredConstants
+
+        return [StoredConstants(r.key.motor, r.key.propeller, r.key.esc, r.key.esc_mode,
+                                r.key.battery, r.kind, r.key.catalog, r.run_id, r.run_path,
+                                r.fitted_utc, r.data) for r in ConstantsStore(self.root).rows()]
+
+
+def _read_meta(run_dir: Path) -> Mapping[str, Any]:
+    try:
+        meta = json.loads((run_dir / "run.json").read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError):
+        return {}
+    return meta if isinstance(meta, Mapping) else {}
+
+
+def _bench(meta: Mapping[str, Any], rig: str) -> str:
+    from bench.store.lab_publish import bench_name
+
+    return bench_name({**meta, "rig": meta.get("rig") or rig}) if meta else rig
+
+
+def open_store(text: str | Path | None, *, data: str | None = None,
+               spool: Path | None = None, default: str = "runs") -> Store:
+    """The store ``--store`` names (``$ROTORBENCH_STORE``, else ``default``)."""
+    from bench.store.store_url import parse_store
+
+    url = parse_store(text, default=default)
+    if url.folder is not None:
+        return FolderStore(url.folder)
+    from bench.store.lab_store import open_lab
+
+    assert url.dsn is not None
+    return open_lab(url.dsn, data=data, spool=spool)
