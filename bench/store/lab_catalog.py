@@ -18,6 +18,7 @@ from typing import Any
 
 from bench.errors import RigError
 from bench.store.pg_schema import READER_ROLE, SCHEMA_VERSION, WRITER_ROLE, schema_version
+from bench.store.run_summary import RunFilter
 from bench.store.store_url import redact, scrub
 
 __all__ = ["CatalogRun", "CatalogUnavailable", "LabCatalog", "StoredConstants"]
@@ -181,12 +182,11 @@ class LabCatalog:
             con.execute(f"INSERT INTO runs ({cols}) VALUES ({marks}) ON CONFLICT (run_id) DO "
                         f"UPDATE SET {updates}, updated_utc = now()", values)
 
-    def list_runs(self, *, bench: str | None = None, status: str | None = None,
-                  sequence: str | None = None, limit: int | None = None,
+    def list_runs(self, where: RunFilter | None = None, *, limit: int | None = None,
                   offset: int = 0) -> list[CatalogRun]:
-        """Runs newest first, filtered; every value is a bound parameter."""
-        where, params = _filters(bench=bench, status=status, sequence=sequence)
-        sql = (f"SELECT {', '.join(RUN_FIELDS[:-1])} FROM runs {where} "
+        """Runs newest first, narrowed by ``where``; every value is a bound parameter."""
+        clause, params = _filters(where or RunFilter())
+        sql = (f"SELECT {', '.join(RUN_FIELDS[:-1])} FROM runs {clause} "
                "ORDER BY started_utc DESC NULLS LAST, run_id DESC")
         if limit is not None:
             sql += " LIMIT %s OFFSET %s"
@@ -195,11 +195,10 @@ class LabCatalog:
             rows = con.execute(sql, params).fetchall()
         return [_run(r) for r in rows]
 
-    def count_runs(self, *, bench: str | None = None, status: str | None = None,
-                   sequence: str | None = None) -> int:
-        where, params = _filters(bench=bench, status=status, sequence=sequence)
+    def count_runs(self, where: RunFilter | None = None) -> int:
+        clause, params = _filters(where or RunFilter())
         with self.connect() as con:
-            return int(con.execute(f"SELECT count(*) FROM runs {where}", params).fetchone()[0])
+            return int(con.execute(f"SELECT count(*) FROM runs {clause}", params).fetchone()[0])
 
     def get_run(self, run_id: str) -> CatalogRun | None:
         with self.connect() as con:
@@ -233,9 +232,23 @@ class LabCatalog:
                                 str(r[11])) for r in rows]
 
 
-def _filters(**eq: str | None) -> tuple[str, list[Any]]:
-    clauses = [f"{k} = %s" for k, v in eq.items() if v is not None]
-    params: list[Any] = [v for v in eq.values() if v is not None]
+def _filters(where: RunFilter) -> tuple[str, list[Any]]:
+    clauses: list[str] = []
+    params: list[Any] = []
+    for col in ("bench", "status", "sequence"):
+        if getattr(where, col) is not None:
+            clauses.append(f"{col} = %s")
+            params.append(getattr(where, col))
+    for key in ("motor", "propeller", "esc_mode"):
+        if getattr(where, key) is not None:
+            clauses.append("components->>%s = %s")
+            params += [key, getattr(where, key)]
+    if where.since is not None:
+        clauses.append("started_utc >= %s::timestamptz")
+        params.append(where.since)
+    if where.until is not None:
+        clauses.append("started_utc < %s::timestamptz")
+        params.append(where.until)
     return (("WHERE " + " AND ".join(clauses)) if clauses else ""), params
 
 

@@ -18,7 +18,7 @@ from bench.errors import RigError
 from bench.store.lab_catalog import LabCatalog, StoredConstants
 from bench.store.lab_publish import Publisher, pending_runs
 from bench.store.run_data import DataLocation
-from bench.store.run_summary import RunSummary
+from bench.store.run_summary import RunFilter, RunSummary
 from bench.store.store_url import redact
 
 __all__ = ["DATA_SETTING", "LabStore", "PushReport", "SyncReport", "default_spool", "open_lab"]
@@ -90,16 +90,16 @@ class LabStore:
                     f"{self.spool}`")
         return f"stored in {redact(self.catalog.dsn)}: {uri}"
 
-    def list_runs(self, *, bench: str | None = None, status: str | None = None,
-                  sequence: str | None = None, limit: int | None = None,
+    def list_runs(self, where: RunFilter | None = None, *, limit: int | None = None,
                   offset: int = 0) -> list[RunSummary]:
         return [RunSummary(run_id=r.run_id, bench=r.bench, sequence=r.sequence,
                            status=r.status, samples=r.samples, data=r.data,
                            started_utc=r.started_utc, ended_utc=r.ended_utc, rig=r.rig,
                            reason=r.reason, operator=r.operator, components=r.components)
-                for r in self.catalog.list_runs(bench=bench, status=status,
-                                                sequence=sequence, limit=limit,
-                                                offset=offset)]
+                for r in self.catalog.list_runs(where, limit=limit, offset=offset)]
+
+    def count_runs(self, where: RunFilter | None = None) -> int:
+        return self.catalog.count_runs(where)
 
     def run_folder(self, run_id: str) -> Path:
         """The run as a local folder: the spool's copy, else a download into the cache."""

@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from bench.errors import RigError
-from bench.store.run_summary import RunSummary
+from bench.store.run_summary import RunFilter, RunSummary
 
 __all__ = ["FolderStore", "RunSummary", "Store", "open_store"]
 
@@ -31,9 +31,9 @@ class Store(Protocol):
     def record_root(self) -> Path: ...
     def check_can_record(self) -> None: ...
     def after_run(self, run_dir: Path) -> str | None: ...
-    def list_runs(self, *, bench: str | None = None, status: str | None = None,
-                  sequence: str | None = None, limit: int | None = None,
+    def list_runs(self, where: RunFilter | None = None, *, limit: int | None = None,
                   offset: int = 0) -> list[RunSummary]: ...
+    def count_runs(self, where: RunFilter | None = None) -> int: ...
     def run_folder(self, run_id: str) -> Path: ...
     def add_constants(self, rows: Sequence[Any]) -> int: ...
     def constants(self) -> list[Any]: ...
@@ -57,28 +57,31 @@ class FolderStore:
     def after_run(self, run_dir: Path) -> str | None:
         return None  # recorded in place, indexed as it ran
 
-    def list_runs(self, *, bench: str | None = None, status: str | None = None,
-                  sequence: str | None = None, limit: int | None = None,
+    def list_runs(self, where: RunFilter | None = None, *, limit: int | None = None,
                   offset: int = 0) -> list[RunSummary]:
+        runs = [r for r in self._all() if where is None or where.matches(r)]
+        end = None if limit is None else offset + limit
+        return runs[offset:end]
+
+    def count_runs(self, where: RunFilter | None = None) -> int:
+        return sum(1 for r in self._all() if where is None or where.matches(r))
+
+    def _all(self) -> list[RunSummary]:
+        """Every indexed run, newest first (as the catalog lists them)."""
         from bench.run_index import INDEX_NAME, RunIndex
 
         if not (self.root / INDEX_NAME).exists():
             return []
         out = []
-        for r in reversed(RunIndex(self.root).list()):  # newest first, as the catalog
+        for r in reversed(RunIndex(self.root).list()):
             meta = _read_meta(self.root / r.path)
-            summary = RunSummary(
+            out.append(RunSummary(
                 run_id=r.id, bench=_bench(meta, r.rig), sequence=r.sequence, status=r.status,
                 samples=int(meta.get("rows") or 0), data=str((self.root / r.path).resolve()),
                 started_utc=r.started_utc or None, ended_utc=r.ended_utc, rig=r.rig,
                 reason=r.reason, operator=str(meta.get("operator") or ""),
-                components=dict(r.components))
-            if ((bench is None or summary.bench == bench)
-                    and (status is None or summary.status == status)
-                    and (sequence is None or summary.sequence == sequence)):
-                out.append(summary)
-        end = None if limit is None else offset + limit
-        return out[offset:end]
+                components=dict(r.components)))
+        return out
 
     def run_folder(self, run_id: str) -> Path:
         from bench.run_index import INDEX_NAME, RunIndex

@@ -10,6 +10,7 @@ import pytest
 from bench.errors import RigError
 from bench.store.lab_catalog import CatalogUnavailable, LabCatalog, StoredConstants, run_from_meta
 from bench.store.pg_schema import SCHEMA_VERSION
+from bench.store.run_summary import RunFilter
 
 
 def _meta(i: int, status: str = "ok") -> dict:
@@ -45,11 +46,11 @@ def test_runs_upsert_by_id_and_filter(pg_url: str) -> None:
     three = cat.get_run(_meta(3)["id"])
     assert three is not None and three.status == "trip" and three.samples == 1234
     assert three.meta["host"] == "bench-a"
-    assert {r.bench for r in cat.list_runs(bench="A")} == {"A"}
-    assert cat.count_runs(status="running") == 4
+    assert {r.bench for r in cat.list_runs(RunFilter(bench="A"))} == {"A"}
+    assert cat.count_runs(RunFilter(status="running")) == 4
     assert len(cat.list_runs(limit=2, offset=4)) == 1
     # a hostile value is a bound parameter, not SQL
-    assert cat.list_runs(bench="x' OR '1'='1") == []
+    assert cat.list_runs(RunFilter(bench="x' OR '1'='1")) == []
 
 
 def test_concurrent_benches_lose_and_duplicate_nothing(pg_url: str) -> None:
@@ -75,7 +76,7 @@ def test_concurrent_benches_lose_and_duplicate_nothing(pg_url: str) -> None:
         t.join(60)
     assert not errors
     assert cat.count_runs() == 120
-    assert {cat.count_runs(bench=n) for n in "ABC"} == {40}
+    assert {cat.count_runs(RunFilter(bench=n)) for n in "ABC"} == {40}
 
 
 def test_constants_keep_their_history(pg_url: str) -> None:

@@ -10,6 +10,7 @@ import pytest
 
 from bench.cli import main
 from bench.store.lab_catalog import StoredConstants
+from bench.store.run_summary import RunFilter
 from bench.store.stores import open_store
 
 
@@ -45,7 +46,7 @@ def test_record_list_and_read_back(store: object, tmp_path: Path,
     assert all(r.samples == len(pd.read_parquet(d / "samples.parquet"))
                for r, d in zip(runs, (b, a), strict=True))
     assert [r.run_id for r in store.list_runs(limit=1, offset=1)] == [a.name]
-    assert store.list_runs(status="trip") == []
+    assert store.list_runs(RunFilter(status="trip")) == []
     folder = store.run_folder(a.name)
     pd.testing.assert_frame_equal(pd.read_parquet(folder / "samples.parquet"),
                                   pd.read_parquet(a / "samples.parquet"))
