@@ -174,3 +174,43 @@ def s3_server(port: int | None = None) -> Iterator[S3Server]:
         yield server
     finally:
         server.stop()
+
+
+# -- fixtures (the root conftest loads this module, so every folder shares one cluster) ---
+_count = __import__("itertools").count()
+
+
+@pytest.fixture(scope="session")
+def pg_cluster() -> Iterator[Postgres]:
+    """One PostgreSQL cluster per test session (per xdist worker)."""
+    with postgres_cluster() as pg:
+        yield pg
+
+
+@pytest.fixture
+def pg_url(pg_cluster: Postgres) -> str:
+    """A superuser URL of a new empty database."""
+    import psycopg
+
+    name = f"lab_{os.getpid()}_{next(_count)}"
+    with psycopg.connect(pg_cluster.url(), autocommit=True) as con:
+        con.execute(f"DROP DATABASE IF EXISTS {name}")
+        con.execute(f"CREATE DATABASE {name}")
+    return pg_cluster.url(db=name)
+
+
+@pytest.fixture(scope="session")
+def s3() -> Iterator[S3Server]:
+    with s3_server() as server:
+        yield server
+
+
+@pytest.fixture
+def s3_env(s3: S3Server, monkeypatch: pytest.MonkeyPatch) -> S3Server:
+    """The AWS_* variables of the S3 server set for this test, and a fresh bucket."""
+    for k, v in s3.env.items():
+        monkeypatch.setenv(k, v)
+    bucket = f"lab{os.getpid()}x{next(_count)}"
+    s3.create_bucket(bucket)
+    s3.bucket = bucket  # type: ignore[attr-defined]
+    return s3

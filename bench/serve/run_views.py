@@ -179,3 +179,10 @@ def step_traces(record: RunRecord, pre_s: float = 0.05, post_s: float = 0.5,
         return {"run_id": record.id, "why": "rising edges without a response"}
     return {"run_id": record.id, "signal": signal, "edges": len(traces),
             "t": _json_list(grid), "y": _json_list(np.mean(traces, axis=0))}
+
+
+def export_of(record: RunRecord, target: str) -> dict[str, Any]:
+    """What ``rotorbench export TARGET RUN --json`` prints, for one run folder."""
+    from analysis.exports import export_params
+
+    return _clean(export_params(target, record))

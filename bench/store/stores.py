@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -59,29 +59,38 @@ class FolderStore:
 
     def list_runs(self, where: RunFilter | None = None, *, limit: int | None = None,
                   offset: int = 0) -> list[RunSummary]:
-        runs = [r for r in self._all() if where is None or where.matches(r)]
         end = None if limit is None else offset + limit
-        return runs[offset:end]
+        return [self._complete(r) for r in self._matching(where)[offset:end]]
 
     def count_runs(self, where: RunFilter | None = None) -> int:
-        return sum(1 for r in self._all() if where is None or where.matches(r))
+        return len(self._matching(where))
 
-    def _all(self) -> list[RunSummary]:
-        """Every indexed run, newest first (as the catalog lists them)."""
+    def _matching(self, where: RunFilter | None) -> list[RunSummary]:
+        """Index rows, newest first, narrowed by ``where``; run.json is read only where a
+        filter needs what the index lacks (the bench), and then for the page's rows."""
         from bench.run_index import INDEX_NAME, RunIndex
 
         if not (self.root / INDEX_NAME).exists():
             return []
-        out = []
-        for r in reversed(RunIndex(self.root).list()):
-            meta = _read_meta(self.root / r.path)
-            out.append(RunSummary(
-                run_id=r.id, bench=_bench(meta, r.rig), sequence=r.sequence, status=r.status,
-                samples=int(meta.get("rows") or 0), data=str((self.root / r.path).resolve()),
-                started_utc=r.started_utc or None, ended_utc=r.ended_utc, rig=r.rig,
-                reason=r.reason, operator=str(meta.get("operator") or ""),
-                components=dict(r.components)))
-        return out
+        rows = [RunSummary(run_id=r.id, bench=r.rig, sequence=r.sequence, status=r.status,
+                           samples=0, data=str(self.root / r.path),
+                           started_utc=r.started_utc or None, ended_utc=r.ended_utc,
+                           rig=r.rig, reason=r.reason, components=dict(r.components))
+                for r in reversed(RunIndex(self.root).list())]
+        if where is None:
+            return rows
+        if where.bench is not None:
+            rows = [self._complete(r) for r in rows]
+        return [r for r in rows if where.matches(r)]
+
+    def _complete(self, r: RunSummary) -> RunSummary:
+        """The summary with what only run.json holds: bench, operator, sample count."""
+        if r.samples or r.operator:
+            return r
+        meta = _read_meta(Path(r.data))
+        return replace(r, bench=_bench(meta, r.rig), samples=int(meta.get("rows") or 0),
+                       operator=str(meta.get("operator") or ""),
+                       data=str(Path(r.data).resolve()))
 
     def run_folder(self, run_id: str) -> Path:
         from bench.run_index import INDEX_NAME, RunIndex
