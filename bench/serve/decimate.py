@@ -1,8 +1,8 @@
 """Min/max decimation per pixel column, so a 25 kHz x 200 s run paints at once.
 
 For each of ``columns`` equal time bins the minimum and the maximum of the signal are
-kept (two points per bin, the max first where the bin falls), which draws the same envelope as every sample
-would: spikes and trips stay visible, unlike plain striding. One pass of
+kept (two points per bin, the max first where the bin falls), which draws the same
+envelope as every sample would: spikes and trips stay visible, unlike plain striding. One pass of
 ``numpy.fmin.reduceat``/``fmax.reduceat`` over the sorted samples; NaNs are skipped.
 """
 
