@@ -35,9 +35,9 @@ from analysis.errors import LogError
 from bench.errors import RigError
 from bench.serve.run_views import (
     RecordCache,
+    SeriesCache,
     export_of,
     fits_of,
-    series_of,
     static_points,
     step_traces,
 )
@@ -65,6 +65,7 @@ def create_app(store: Store, *, token: str | None = None, title: str = "rotorben
     app = FastAPI(title=f"{title} runs", version="1", docs_url=None, redoc_url=None)
     templates = Jinja2Templates(directory=str(HERE / "templates"))
     cache = RecordCache()
+    series_cache = SeriesCache()
     app.state.store = store
 
     def run_or_404(run_id: str) -> Path:
@@ -111,7 +112,10 @@ def create_app(store: Store, *, token: str | None = None, title: str = "rotorben
     @app.get("/api/runs/{run_id}/series", summary="time plots, min/max per pixel column")
     def api_series(run_id: str, columns: Annotated[int, Query(ge=10, le=10000)] = 1500
                    ) -> dict[str, Any]:
-        return series_of(record_of(run_id), columns)
+        try:
+            return series_cache.get(run_or_404(run_id), columns)
+        except LogError as exc:
+            raise HTTPException(422, f"run {run_id}: {exc}") from None
 
     @app.get("/api/runs/{run_id}/fits", summary="step fit and static curves of a run")
     def api_fits(run_id: str) -> dict[str, Any]:
@@ -197,10 +201,17 @@ def create_app(store: Store, *, token: str | None = None, title: str = "rotorben
 
     @app.get("/runs/{run_id}", response_class=HTMLResponse, include_in_schema=False)
     def page_run(request: Request, run_id: str) -> Any:
-        rec = record_of(run_id)
-        meta = rec.meta
+        from analysis.run_record import read_meta, sample_count
+
+        folder = run_or_404(run_id)
+        try:  # the page needs the metadata; the samples come with the plots
+            meta = read_meta(folder)
+            rows = sample_count(folder, meta)
+        except LogError as exc:
+            raise HTTPException(422, f"run {run_id}: {exc}") from None
         return templates.TemplateResponse(request, "run.html", {
-            "run_id": rec.id, "meta": meta, "rows": len(rec.samples), "title": title,
+            "run_id": str(meta.get("id") or run_id), "meta": meta, "rows": rows,
+            "title": title,
             "meta_text": json.dumps(_finite(_short_meta(meta)), indent=2),
             "limits": meta.get("limits") or {}, "trip": meta.get("trip"),
             "drops": {k: meta.get(k) for k in ("dropped_samples", "longest_gap_s", "drops",

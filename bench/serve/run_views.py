@@ -21,7 +21,8 @@ from analysis.errors import LogError
 from analysis.run_record import RunRecord, read_run
 from bench.serve.decimate import minmax_decimate
 
-__all__ = ["PLOTS", "RecordCache", "fits_of", "series_of", "static_points", "step_traces"]
+__all__ = ["PLOTS", "RecordCache", "SeriesCache", "export_of", "fits_of", "series_of",
+           "static_points", "step_traces"]
 
 G0 = 9.80665
 #: the time plots of a run page: (key, title, unit)
@@ -65,27 +66,56 @@ def _stamp(folder: Path) -> float:
         return math.nan
 
 
-def _efficiency(record: RunRecord) -> np.ndarray | None:
-    cols = record.samples.columns
-    if not {"thrust_n", "current_a", "voltage_v"} <= set(cols):
-        return None
-    p = record.column("voltage_v") * record.column("current_a")
+def _efficiency_of(thrust: np.ndarray, current: np.ndarray, voltage: np.ndarray
+                  ) -> np.ndarray:
+    """Thrust per electric power in g/W, where the power is above 1 W."""
+    p = voltage * current
     with np.errstate(invalid="ignore", divide="ignore"):
-        eff = np.where(p > 1.0, record.column("thrust_n") / G0 * 1e3 / p, np.nan)
-    return eff
+        return np.where(p > 1.0, thrust / G0 * 1e3 / p, np.nan)
 
 
-def series_of(record: RunRecord, columns: int = 1500) -> dict[str, Any]:
-    """Every time plot of ``PLOTS`` the run has, min/max-decimated to ``columns`` bins."""
-    t = record.column("t_s")
+def _efficiency(record: RunRecord) -> np.ndarray | None:
+    if not {"thrust_n", "current_a", "voltage_v"} <= set(record.samples.columns):
+        return None
+    return _efficiency_of(record.column("thrust_n"), record.column("current_a"),
+                          record.column("voltage_v"))
+
+
+class SeriesCache:
+    """Decimated time plots by (folder, its stamp, columns): a long run is read once."""
+
+    def __init__(self, size: int = 32) -> None:
+        self.size = size
+        self._items: OrderedDict[tuple[Path, float, int], dict[str, Any]] = OrderedDict()
+        self._lock = threading.Lock()
+
+    def get(self, folder: Path, columns: int) -> dict[str, Any]:
+        key = (Path(folder).resolve(), _stamp(Path(folder).resolve()), columns)
+        with self._lock:
+            if key in self._items:
+                self._items.move_to_end(key)
+                return self._items[key]
+        out = series_of(key[0], columns)
+        with self._lock:
+            self._items[key] = out
+            while len(self._items) > self.size:
+                self._items.popitem(last=False)
+        return out
+
+
+def series_of(folder: Path, columns: int = 1500) -> dict[str, Any]:
+    """Every time plot of ``PLOTS`` the run has, min/max-decimated to ``columns`` bins;
+    reads only those columns (``analysis.run_record.read_columns``)."""
+    from analysis.run_record import read_columns
+
+    data = read_columns(folder, [k for k, _, _ in PLOTS if k != "efficiency_g_w"])
+    if {"thrust_n", "current_a", "voltage_v"} <= set(data):
+        data["efficiency_g_w"] = _efficiency_of(data["thrust_n"], data["current_a"],
+                                                data["voltage_v"])
+    t = data["t_s"]
     out: dict[str, Any] = {"rows": int(t.size), "columns": columns, "plots": []}
     for key, title, unit in PLOTS:
-        if key == "efficiency_g_w":
-            y = _efficiency(record)
-        elif key in record.samples.columns:
-            y = record.column(key)
-        else:
-            y = None
+        y = data.get(key)
         if y is None or not np.isfinite(y).any():
             continue
         tt, yy = minmax_decimate(t, y, columns)

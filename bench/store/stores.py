@@ -59,29 +59,66 @@ class FolderStore:
 
     def list_runs(self, where: RunFilter | None = None, *, limit: int | None = None,
                   offset: int = 0) -> list[RunSummary]:
-        end = None if limit is None else offset + limit
-        return [self._complete(r) for r in self._matching(where)[offset:end]]
+        if where is not None and where.bench is not None:  # the bench is in run.json
+            runs = [r for r in map(self._complete, self._query(where)) if where.matches(r)]
+            end = None if limit is None else offset + limit
+            return runs[offset:end]
+        return [self._complete(r) for r in self._query(where, limit, offset)]
 
     def count_runs(self, where: RunFilter | None = None) -> int:
-        return len(self._matching(where))
+        if where is not None and where.bench is not None:
+            return len(self.list_runs(where))
+        return self._query(where, count=True)  # type: ignore[return-value]
 
-    def _matching(self, where: RunFilter | None) -> list[RunSummary]:
-        """Index rows, newest first, narrowed by ``where``; run.json is read only where a
-        filter needs what the index lacks (the bench), and then for the page's rows."""
+    def _query(self, where: RunFilter | None, limit: int | None = None, offset: int = 0,
+               count: bool = False) -> Any:
+        """Index rows newest first, filtered and paged in SQL (10,000 runs list at once);
+        opening the index first marks runs whose recording process died."""
+        import sqlite3
+
         from bench.run_index import INDEX_NAME, RunIndex
 
         if not (self.root / INDEX_NAME).exists():
-            return []
-        rows = [RunSummary(run_id=r.id, bench=r.rig, sequence=r.sequence, status=r.status,
-                           samples=0, data=str(self.root / r.path),
-                           started_utc=r.started_utc or None, ended_utc=r.ended_utc,
-                           rig=r.rig, reason=r.reason, components=dict(r.components))
-                for r in reversed(RunIndex(self.root).list())]
-        if where is None:
-            return rows
-        if where.bench is not None:
-            rows = [self._complete(r) for r in rows]
-        return [r for r in rows if where.matches(r)]
+            return 0 if count else []
+        RunIndex(self.root)
+        w = where or RunFilter()
+        clauses, params = [], []
+        for col in ("status", "sequence"):
+            if getattr(w, col) is not None:
+                clauses.append(f"{col} = ?")
+                params.append(getattr(w, col))
+        for key in ("motor", "propeller", "esc_mode"):
+            if getattr(w, key) is not None:
+                clauses.append("json_extract(components, ?) = ?")
+                params += [f"$.{key}", getattr(w, key)]
+        if w.since is not None:
+            clauses.append("started_utc >= ?")
+            params.append(w.since)
+        if w.until is not None:
+            clauses.append("started_utc < ?")
+            params.append(w.until)
+        sql_where = ("WHERE " + " AND ".join(clauses)) if clauses else ""
+        con = sqlite3.connect(f"file:{self.root / INDEX_NAME}?mode=ro", uri=True, timeout=10)
+        try:
+            if count:
+                return int(con.execute(f"SELECT count(*) FROM runs {sql_where}",
+                                       params).fetchone()[0])
+            sql = (f"SELECT id, path, rig, components, sequence, started_utc, ended_utc, "
+                   f"status, reason FROM runs {sql_where} ORDER BY started_utc DESC, id DESC")
+            if limit is not None:
+                sql += " LIMIT ? OFFSET ?"
+                params += [int(limit), int(offset)]
+            rows = con.execute(sql, params).fetchall()
+        except sqlite3.DatabaseError as exc:
+            raise RigError(f"{self.root / INDEX_NAME}: cannot read the run index ({exc})"
+                           ) from None
+        finally:
+            con.close()
+        return [RunSummary(run_id=rid, bench=rig or "", sequence=seq or "", status=st or "",
+                           samples=0, data=str(self.root / path), started_utc=start or None,
+                           ended_utc=end, rig=rig or "", reason=reason or "",
+                           components=_components(comps))
+                for rid, path, rig, comps, seq, start, end, st, reason in rows]
 
     def _complete(self, r: RunSummary) -> RunSummary:
         """The summary with what only run.json holds: bench, operator, sample count."""
@@ -117,6 +154,14 @@ class FolderStore:
         return [StoredConstants(r.key.motor, r.key.propeller, r.key.esc, r.key.esc_mode,
                                 r.key.battery, r.kind, r.key.catalog, r.run_id, r.run_path,
                                 r.fitted_utc, r.data) for r in ConstantsStore(self.root).rows()]
+
+
+def _components(text: str | None) -> dict[str, Any]:
+    try:
+        value = json.loads(text or "{}")
+    except ValueError:
+        return {}
+    return value if isinstance(value, dict) else {}
 
 
 def _read_meta(run_dir: Path) -> Mapping[str, Any]:
