@@ -45,7 +45,8 @@ def make_folder_store(root: Path, n: int) -> None:
     RunIndex(root)  # creates runs.sqlite
     rows = []
     for i in range(n):
-        rid = f"2026{(i // 28800) % 12 + 1:02d}{(i // 960) % 28 + 1:02d}T{i % 24:02d}0000_{i:06d}Z-step1"
+        month, day = (i // 28800) % 12 + 1, (i // 960) % 28 + 1
+        rid = f"2026{month:02d}{day:02d}T{i % 24:02d}0000_{i:06d}Z-step1"
         run = root / rid
         run.mkdir(parents=True)
         meta = {"id": rid, "rig": {"name": f"bench-{i % 3}"}, "sequence": {"name": "step1"},
