@@ -45,6 +45,7 @@ __all__ = [
     "ardupilot_params",
     "expo_least_squares",
     "expo_webtool",
+    "export_params",
     "gazebo_params",
     "px4_params",
     "thrust_curve_from_runs",
@@ -299,3 +300,40 @@ def thrust_curve_from_runs(record: RunRecord, thrust_record: RunRecord | None = 
     w = rpm * RPM_TO_RAD_S
     t = np.where(rpm > 0, np.maximum(static.thrust_at(w), 0.0), 0.0)
     return ThrustCurve(a, t, f"{record.path} via {thrust_record.path}", static.notes)
+
+
+def export_params(target: str, record: RunRecord, thrust_record: RunRecord | None = None,
+                  step_record: RunRecord | None = None,
+                  hover_thrust_n: float | None = None) -> dict[str, Any]:
+    """The parameters of one export target (``ardupilot``, ``px4``, ``gazebo``) from a
+    run with static data: what ``rotorbench export`` and the web view's download give."""
+    from analysis.step_response import fit_run
+
+    if target in ("ardupilot", "px4"):
+        curve = thrust_curve_from_runs(record, thrust_record)
+        out = ardupilot_params(curve, hover_thrust_n) if target == "ardupilot" \
+            else px4_params(curve)
+        out["command_axis"] = actuator_of(record)[1]
+    elif target == "gazebo":
+        static = fit_static_run(thrust_record or record)
+        tau_up = tau_dn = None
+        if step_record is not None:
+            fit = fit_run(step_record, signal="rpm")
+            tau_up = fit.up.tau.value if fit.up else None
+            tau_dn = fit.down.tau.value if fit.down else None
+        omega_max = static.omega_max
+        try:
+            act = actuator_of(record)[0]
+            full = bool(np.nanmax(act) >= 0.99)
+            if "rpm" in record.samples.columns:  # steady top speed of the run itself
+                _, rpm = command_curve(act, record.column("rpm"))
+                omega_max = float(np.max(rpm)) * RPM_TO_RAD_S
+        except LogError:  # no command column: the top speed is just the highest seen
+            full = False
+        out = gazebo_params(static.k_f, static.moment_constant_m, tau_up, tau_dn,
+                            omega_max, full, static.notes)
+    else:
+        raise LogError(f"export target {target!r}: expected ardupilot, px4 or gazebo")
+    out["target"] = target
+    out["run"] = str(record.path)
+    return out

@@ -20,7 +20,8 @@ import pandas as pd
 
 from analysis.errors import LogError
 
-__all__ = ["RunRecord", "esc_frame_s", "event_times", "read_run"]
+__all__ = ["RunRecord", "esc_frame_s", "event_times", "read_columns", "read_meta", "read_run",
+           "sample_count"]
 
 SAMPLES_DEFAULT = "samples.parquet"
 EVENTS_DEFAULT = "events.csv"
@@ -66,6 +67,59 @@ def read_run(path: str | Path) -> RunRecord:
     samples = _read_samples(run_dir / _samples_name(meta))
     events = _read_events(run_dir / str(meta.get("events") or EVENTS_DEFAULT))
     return RunRecord(run_dir, meta, samples, events)
+
+
+def read_meta(run_dir: str | Path) -> dict[str, Any]:
+    """Only a run folder's ``run.json`` (a page that shows the metadata needs no samples)."""
+    return _read_meta(Path(run_dir) / "run.json")
+
+
+def sample_count(run_dir: str | Path, meta: dict[str, Any] | None = None) -> int:
+    """Rows of a run's samples from the Parquet footers, without reading the data."""
+    import pyarrow.dataset as ds
+
+    run_dir = Path(run_dir)
+    path = run_dir / _samples_name(meta if meta is not None else read_meta(run_dir))
+    try:
+        return int(ds.dataset(path, format="parquet", exclude_invalid_files=True).count_rows())
+    except Exception as exc:  # pyarrow raises several types for damaged files
+        raise LogError(f"{path}: not readable as Parquet ({type(exc).__name__}: {exc})") from None
+
+
+def read_columns(run_dir: str | Path, columns: list[str]) -> dict[str, np.ndarray]:
+    """Some sample columns of a run as float arrays sorted by ``t_s`` (which is always
+    read): a long run's plots need a few columns, not the whole table. Columns the run
+    lacks are left out; the same checks as ``read_run`` on ``t_s``."""
+    import pyarrow.parquet as pq
+
+    run_dir = Path(run_dir)
+    path = run_dir / _samples_name(read_meta(run_dir))
+    if not path.exists():
+        raise LogError(f"{path}: missing (the run's samples)")
+    try:
+        schema = pq.read_schema(next(p for p in sorted(path.glob("*.parquet"))
+                                     if not p.name.startswith((".", "_")))
+                                if path.is_dir() else path)
+        want = ["t_s", *[c for c in columns if c in schema.names and c != "t_s"]]
+        table = pq.read_table(path, columns=want)
+    except StopIteration:
+        raise LogError(f"{path}: no sample parts in the folder (the run recorded nothing)"
+                       ) from None
+    except Exception as exc:  # pyarrow raises several types for damaged files
+        raise LogError(f"{path}: not readable as Parquet ({type(exc).__name__}: {exc})") from None
+    if "t_s" not in table.column_names:
+        raise LogError(f"{path}: no 't_s' column")
+    out = {c: table.column(c).to_numpy().astype(float, copy=False) for c in table.column_names}
+    t = out["t_s"]
+    if t.size == 0:
+        raise LogError(f"{path}: no samples")
+    if not np.all(np.isfinite(t)):
+        bad = int(np.flatnonzero(~np.isfinite(t))[0])
+        raise LogError(f"{path}: row {bad}: t_s is not a finite number")
+    if np.any(t[1:] < t[:-1]):
+        order = np.argsort(t, kind="stable")
+        out = {c: v[order] for c, v in out.items()}
+    return out
 
 
 def _read_meta(path: Path) -> dict[str, Any]:

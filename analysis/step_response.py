@@ -108,9 +108,10 @@ class Edge:
     @property
     def step(self) -> float:
         """Size of the step in setpoint units if known, else in command units."""
-        if math.isfinite(self.setpoint_before) and math.isfinite(self.setpoint_after):
+        if (math.isfinite(self.setpoint_before) and math.isfinite(self.setpoint_after)
+                and self.setpoint_after != self.setpoint_before):
             return self.setpoint_after - self.setpoint_before
-        return self.u_after - self.u_before
+        return self.u_after - self.u_before  # no setpoint, or one that did not move
 
 
 def detect_edges(

@@ -2,9 +2,22 @@
 
 from __future__ import annotations
 
+import importlib.util
+import sys
 from pathlib import Path
 
 import pytest
+
+# the real services (PostgreSQL, S3) of the lab-store and web-view tests: one module,
+# importable by the tests as ``rotorbench_tests_services``
+_SERVICES = "rotorbench_tests_services"
+if _SERVICES not in sys.modules:
+    _spec = importlib.util.spec_from_file_location(_SERVICES, Path(__file__).with_name(
+        "services.py"))
+    assert _spec and _spec.loader
+    sys.modules[_SERVICES] = importlib.util.module_from_spec(_spec)
+    _spec.loader.exec_module(sys.modules[_SERVICES])
+from rotorbench_tests_services import pg_cluster, pg_url, s3, s3_env  # noqa: E402, F401
 
 REPO = Path(__file__).resolve().parents[1]
 FIXTURES = REPO / "fixtures"

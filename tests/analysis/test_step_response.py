@@ -169,3 +169,28 @@ def test_paper_e_tables_and_csv(tmp_path):
     assert (tmp_path / "e14.csv").read_text(encoding="utf-8").splitlines() == [
         "design,T_e [min],T_o [min]", "I-4,66.6,62.5"]
     assert "Table E.14" in str(e14.to_rich().title)
+
+
+def test_a_setpoint_column_that_never_moves_falls_back_to_the_command(tmp_path) -> None:
+    """A log whose thrust_setpoint_n is all zero (a stand that logs the column but not the
+    setpoint) divided by a zero step; the gain is per command unit instead."""
+    import json
+
+    import pandas as pd
+
+    from analysis.run_record import read_run
+    from analysis.step_response import fit_run
+
+    t = np.arange(0, 8, 1e-3)
+    u = np.where((t // 1) % 2 == 1, 1500.0, 1200.0)
+    lvl = np.where(u > 1300, 5.0, 2.0)
+    y = lvl.copy()
+    for k in range(1, t.size):  # first-order lag, tau 50 ms
+        y[k] = y[k - 1] + (lvl[k - 1] - y[k - 1]) * (1e-3 / 0.05)
+    run = tmp_path / "run"
+    run.mkdir()
+    pd.DataFrame({"t_s": t, "throttle_us": u, "thrust_setpoint_n": 0.0,
+                  "thrust_n": y}).to_parquet(run / "samples.parquet")
+    (run / "run.json").write_text(json.dumps({"id": "zero-setpoint"}))
+    fit = fit_run(read_run(run))
+    assert fit.up is not None and abs(fit.up.tau.value - 0.05) < 0.01

@@ -1,0 +1,314 @@
+"""The read-only web app over a ``Store`` (FastAPI + Jinja2; plots by plotly.js).
+
+Pages: ``/`` (runs, filtered and paged; running runs refresh themselves), ``/runs/{id}``
+(time plots decimated on the server, fits, limits, trips, drops, run.json, downloads),
+``/compare?runs=a,b`` (static curves and step responses overlaid), ``/constants``. The
+same data as JSON under ``/api/``; the OpenAPI description is ``/openapi.json``.
+
+A run id is only ever looked up in the store (``Store.run_folder``): no path is built
+from a request, so ``../`` and friends have nothing to reach. The store's SQL binds
+every value.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+import re
+import time
+from pathlib import Path
+from typing import Annotated, Any
+
+from fastapi import FastAPI, HTTPException, Query, Request
+from fastapi.responses import (
+    FileResponse,
+    HTMLResponse,
+    JSONResponse,
+    RedirectResponse,
+    Response,
+    StreamingResponse,
+)
+from fastapi.templating import Jinja2Templates
+
+from analysis.errors import LogError
+from bench.errors import RigError
+from bench.serve.run_views import (
+    RecordCache,
+    SeriesCache,
+    export_of,
+    fits_of,
+    static_points,
+    step_traces,
+)
+from bench.serve.security import COOKIE, Guard
+from bench.store.run_summary import RunFilter, RunSummary
+from bench.store.stores import Store
+
+__all__ = ["create_app"]
+
+HERE = Path(__file__).parent
+RUN_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.:+-]{0,127}$")
+PAGE_SIZES = (25, 50, 100, 200)
+EXPORTS = ("ardupilot", "px4", "gazebo")
+Text = Annotated[str | None, Query(max_length=128)]
+
+
+def _plotly_js() -> Path:
+    import plotly
+
+    return Path(plotly.__file__).parent / "package_data" / "plotly.min.js"
+
+
+def create_app(store: Store, *, token: str | None = None, title: str = "rotorbench") -> Any:
+    """The ASGI app (wrapped in the guard) serving ``store``."""
+    app = FastAPI(title=f"{title} runs", version="1", docs_url=None, redoc_url=None)
+    templates = Jinja2Templates(directory=str(HERE / "templates"))
+    cache = RecordCache()
+    series_cache = SeriesCache()
+    app.state.store = store
+
+    def run_or_404(run_id: str) -> Path:
+        if not RUN_ID.match(run_id) or ".." in run_id:
+            raise HTTPException(404, f"no run {run_id[:64]!r}")
+        try:
+            return store.run_folder(run_id)
+        except RigError:
+            raise HTTPException(404, f"no run {run_id!r}") from None
+
+    def record_of(run_id: str) -> Any:
+        try:
+            return cache.get(run_or_404(run_id))
+        except LogError as exc:
+            raise HTTPException(422, f"run {run_id}: {exc}") from None
+
+    def filters(bench: str | None, motor: str | None, propeller: str | None,
+                esc_mode: str | None, sequence: str | None, status: str | None,
+                since: str | None, until: str | None) -> RunFilter:
+        for name, value in (("since", since), ("until", until)):
+            if value and not re.fullmatch(r"\d{4}-\d{2}-\d{2}(T[\d:.]+Z?)?", value):
+                raise HTTPException(422, f"{name}: expected a date YYYY-MM-DD, got {value[:40]!r}")
+        return RunFilter(bench=bench or None, status=status or None, sequence=sequence or None,
+                         motor=motor or None, propeller=propeller or None,
+                         esc_mode=esc_mode or None, since=since or None, until=until or None)
+
+    # -- JSON ----------------------------------------------------------------------------
+    @app.get("/api/runs", summary="runs, newest first, filtered and paged")
+    def api_runs(response: Response, bench: Text = None, motor: Text = None,
+                 propeller: Text = None, esc_mode: Text = None, sequence: Text = None,
+                 status: Text = None, since: Text = None, until: Text = None,
+                 limit: Annotated[int, Query(ge=1, le=1000)] = 100,
+                 offset: Annotated[int, Query(ge=0, le=10_000_000)] = 0) -> list[dict[str, Any]]:
+        where = filters(bench, motor, propeller, esc_mode, sequence, status, since, until)
+        response.headers["X-Total-Count"] = str(store.count_runs(where))
+        return [_row(r) for r in store.list_runs(where, limit=limit, offset=offset)]
+
+    @app.get("/api/runs/{run_id}", summary="one run: its run.json")
+    def api_run(run_id: str) -> dict[str, Any]:
+        rec = record_of(run_id)
+        return {"run_id": rec.id, "meta": _finite(rec.meta), "rows": len(rec.samples),
+                "columns": [str(c) for c in rec.samples.columns]}
+
+    @app.get("/api/runs/{run_id}/series", summary="time plots, min/max per pixel column")
+    def api_series(run_id: str, columns: Annotated[int, Query(ge=10, le=10000)] = 1500
+                   ) -> dict[str, Any]:
+        try:
+            return series_cache.get(run_or_404(run_id), columns)
+        except LogError as exc:
+            raise HTTPException(422, f"run {run_id}: {exc}") from None
+
+    @app.get("/api/runs/{run_id}/fits", summary="step fit and static curves of a run")
+    def api_fits(run_id: str) -> dict[str, Any]:
+        return fits_of(record_of(run_id))
+
+    @app.get("/api/compare", summary="static curves and step responses of several runs")
+    def api_compare(runs: Annotated[str, Query(max_length=1200)]) -> dict[str, Any]:
+        ids = [r for r in runs.split(",") if r][:12]
+        if not ids:
+            raise HTTPException(422, "runs: give run ids separated by commas")
+        recs = [record_of(r) for r in ids]
+        return {"static": [static_points(r) for r in recs],
+                "steps": [step_traces(r) for r in recs]}
+
+    @app.get("/api/constants", summary="measured constants with their provenance")
+    def api_constants() -> list[dict[str, Any]]:
+        return [_finite(c.__dict__) for c in store.constants()]
+
+    @app.get("/api/live", summary="running runs: status, elapsed time, latest values")
+    def api_live() -> list[dict[str, Any]]:
+        out = []
+        for r in store.list_runs(RunFilter(status="running"), limit=50):
+            row = _row(r) | {"elapsed_s": _elapsed(r.started_utc), "latest": {}}
+            try:
+                rec = cache.get(store.run_folder(r.run_id))
+                last = rec.samples.iloc[-1]
+                row["latest"] = {k: _num(last[k]) for k in ("t_s", "thrust_n", "current_a",
+                                                            "rpm") if k in last.index}
+            except (RigError, LogError):
+                pass  # recorded elsewhere, or no part written yet
+            out.append(row)
+        return out
+
+    # -- downloads -----------------------------------------------------------------------
+    @app.get("/runs/{run_id}/run.json")
+    def download_meta(run_id: str) -> FileResponse:
+        return FileResponse(run_or_404(run_id) / "run.json", media_type="application/json",
+                            filename=f"{run_id}.json")
+
+    @app.get("/runs/{run_id}/samples.parquet")
+    def download_parquet(run_id: str) -> Response:
+        buf = io.BytesIO()
+        record_of(run_id).samples.to_parquet(buf, index=False)
+        return Response(buf.getvalue(), media_type="application/vnd.apache.parquet",
+                        headers=_attachment(f"{run_id}.parquet"))
+
+    @app.get("/runs/{run_id}/samples.csv")
+    def download_csv(run_id: str) -> StreamingResponse:
+        df = record_of(run_id).samples
+
+        def chunks() -> Any:
+            for start in range(0, max(len(df), 1), 200_000):
+                yield df.iloc[start:start + 200_000].to_csv(index=False, header=start == 0)
+        return StreamingResponse(chunks(), media_type="text/csv",
+                                 headers=_attachment(f"{run_id}.csv"))
+
+    @app.get("/runs/{run_id}/export/{target}")
+    def download_export(run_id: str, target: str) -> Response:
+        if target not in EXPORTS:
+            raise HTTPException(404, f"no export {target[:20]!r} (ardupilot, px4, gazebo)")
+        try:
+            out = export_of(record_of(run_id), target)
+        except (LogError, RigError) as exc:
+            raise HTTPException(422, f"export {target}: {exc}") from None
+        return Response(json.dumps(out, indent=2), media_type="application/json",
+                        headers=_attachment(f"{run_id}-{target}.json"))
+
+    # -- pages ---------------------------------------------------------------------------
+    @app.get("/", response_class=HTMLResponse, include_in_schema=False)
+    def page_runs(request: Request, bench: Text = None, motor: Text = None,
+                  propeller: Text = None, esc_mode: Text = None, sequence: Text = None,
+                  status: Text = None, since: Text = None, until: Text = None,
+                  page: Annotated[int, Query(ge=1, le=1_000_000)] = 1,
+                  per_page: Annotated[int, Query(ge=1, le=200)] = 50) -> Any:
+        where = filters(bench, motor, propeller, esc_mode, sequence, status, since, until)
+        total = store.count_runs(where)
+        runs = store.list_runs(where, limit=per_page, offset=(page - 1) * per_page)
+        params = {k: v for k, v in where.__dict__.items() if v}
+        return templates.TemplateResponse(request, "runs.html", {
+            "runs": [_row(r) for r in runs], "total": total, "page": page,
+            "per_page": per_page, "pages": max(1, math.ceil(total / per_page)),
+            "filters": params, "store": store.describe(), "title": title})
+
+    @app.get("/runs/{run_id}", response_class=HTMLResponse, include_in_schema=False)
+    def page_run(request: Request, run_id: str) -> Any:
+        from analysis.run_record import read_meta, sample_count
+
+        folder = run_or_404(run_id)
+        try:  # the page needs the metadata; the samples come with the plots
+            meta = read_meta(folder)
+            rows = sample_count(folder, meta)
+        except LogError as exc:
+            raise HTTPException(422, f"run {run_id}: {exc}") from None
+        return templates.TemplateResponse(request, "run.html", {
+            "run_id": str(meta.get("id") or run_id), "meta": meta, "rows": rows,
+            "title": title,
+            "meta_text": json.dumps(_finite(_short_meta(meta)), indent=2),
+            "limits": meta.get("limits") or {}, "trip": meta.get("trip"),
+            "drops": {k: meta.get(k) for k in ("dropped_samples", "longest_gap_s", "drops",
+                                               "link_errors") if meta.get(k) is not None},
+            "exports": EXPORTS})
+
+    @app.get("/compare", response_class=HTMLResponse, include_in_schema=False)
+    def page_compare(request: Request, runs: Annotated[str, Query(max_length=1200)] = ""
+                     ) -> Any:
+        ids = [r for r in runs.split(",") if r][:12]
+        for r in ids:
+            run_or_404(r)
+        return templates.TemplateResponse(request, "compare.html", {
+            "runs": ids, "runs_param": ",".join(ids), "title": title})
+
+    @app.get("/constants", response_class=HTMLResponse, include_in_schema=False)
+    def page_constants(request: Request) -> Any:
+        rows = store.constants()
+        return templates.TemplateResponse(request, "constants.html", {
+            "rows": rows, "store": store.describe(), "title": title})
+
+    @app.get("/login", include_in_schema=False)
+    def login(token: Annotated[str, Query(max_length=512)] = "") -> Response:
+        resp = RedirectResponse("/", status_code=303)
+        resp.set_cookie(COOKIE, token, httponly=True, samesite="strict")
+        return resp
+
+    @app.get("/static/plotly.min.js", include_in_schema=False)
+    def plotly_js() -> FileResponse:
+        return FileResponse(_plotly_js(), media_type="text/javascript",
+                            headers={"Cache-Control": "public, max-age=86400"})
+
+    @app.get("/static/{name}", include_in_schema=False)
+    def static(name: str) -> FileResponse:
+        files = {p.name: p for p in (HERE / "static").iterdir()}
+        if name not in files:
+            raise HTTPException(404, "no such file")
+        return FileResponse(files[name])
+
+    @app.exception_handler(RigError)
+    def store_error(request: Request, exc: RigError) -> JSONResponse:
+        return JSONResponse({"detail": str(exc)}, status_code=503)
+
+    return Guard(app, token)
+
+
+def _row(r: RunSummary) -> dict[str, Any]:
+    d = r.as_dict()
+    d["duration_s"] = _duration(r.started_utc, r.ended_utc)
+    return _finite(d)
+
+
+def _parse(ts: str | None) -> float | None:
+    from datetime import datetime
+
+    if not ts:
+        return None
+    try:
+        return datetime.fromisoformat(ts.replace("Z", "+00:00")).timestamp()
+    except ValueError:
+        return None
+
+
+def _duration(start: str | None, end: str | None) -> float | None:
+    a, b = _parse(start), _parse(end)
+    return None if a is None or b is None else round(b - a, 3)
+
+
+def _elapsed(start: str | None) -> float | None:
+    a = _parse(start)
+    return None if a is None else round(time.time() - a, 1)
+
+
+def _num(v: Any) -> float | None:
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        return None
+    return f if math.isfinite(f) else None
+
+
+def _finite(obj: Any) -> Any:
+    if isinstance(obj, dict):
+        return {str(k): _finite(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_finite(v) for v in obj]
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj
+
+
+def _short_meta(meta: dict[str, Any]) -> dict[str, Any]:
+    """run.json without the long plan lists (they are in the download)."""
+    return {k: (f"[{len(v)} entries: download run.json]" if isinstance(v, list) and len(v) > 40
+                else v) for k, v in meta.items()}
+
+
+def _attachment(name: str) -> dict[str, str]:
+    safe = re.sub(r"[^A-Za-z0-9_.+-]", "_", name)
+    return {"Content-Disposition": f'attachment; filename="{safe}"'}

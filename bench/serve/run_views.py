@@ -1,0 +1,218 @@
+"""What the web view shows of a run, computed by ``analysis/`` from the run folder.
+
+Nothing here reads a file another way than ``analysis.run_record.read_run``; fits are the
+same calls ``rotorbench fit``/``report`` make, so the page and the terminal agree.
+Records are kept in a small cache (a run folder does not change once ended; a running one
+is re-read when its row count moves).
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections import OrderedDict
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from analysis.errors import LogError
+from analysis.run_record import RunRecord, read_run
+from bench.serve.decimate import minmax_decimate
+
+__all__ = ["PLOTS", "RecordCache", "SeriesCache", "export_of", "fits_of", "series_of",
+           "static_points", "step_traces"]
+
+G0 = 9.80665
+#: the time plots of a run page: (key, title, unit)
+PLOTS = (("throttle_us", "command", "us"), ("thrust_n", "thrust", "N"),
+         ("torque_nm", "torque", "N m"), ("current_a", "current", "A"),
+         ("voltage_v", "voltage", "V"), ("rpm", "speed", "rpm"),
+         ("efficiency_g_w", "efficiency", "g/W"))
+
+
+class RecordCache:
+    """The last few ``RunRecord``s read, by folder (bounded: a 5 M-row run is ~300 MB)."""
+
+    def __init__(self, size: int = 4) -> None:
+        self.size = size
+        self._items: OrderedDict[Path, tuple[float, RunRecord]] = OrderedDict()
+        self._lock = threading.Lock()
+
+    def get(self, folder: Path) -> RunRecord:
+        key = Path(folder).resolve()
+        stamp = _stamp(key)
+        with self._lock:
+            hit = self._items.get(key)
+            if hit is not None and hit[0] == stamp:
+                self._items.move_to_end(key)
+                return hit[1]
+        record = read_run(key)
+        with self._lock:
+            self._items[key] = (stamp, record)
+            while len(self._items) > self.size:
+                self._items.popitem(last=False)
+        return record
+
+
+def _stamp(folder: Path) -> float:
+    """Changes when the run gains a part or its run.json is rewritten."""
+    try:
+        parts = folder / "samples.parquet"
+        n = sum(1 for _ in parts.iterdir()) if parts.is_dir() else 0
+        return (folder / "run.json").stat().st_mtime_ns + n
+    except OSError:
+        return math.nan
+
+
+def _efficiency_of(thrust: np.ndarray, current: np.ndarray, voltage: np.ndarray
+                  ) -> np.ndarray:
+    """Thrust per electric power in g/W, where the power is above 1 W."""
+    p = voltage * current
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(p > 1.0, thrust / G0 * 1e3 / p, np.nan)
+
+
+def _efficiency(record: RunRecord) -> np.ndarray | None:
+    if not {"thrust_n", "current_a", "voltage_v"} <= set(record.samples.columns):
+        return None
+    return _efficiency_of(record.column("thrust_n"), record.column("current_a"),
+                          record.column("voltage_v"))
+
+
+class SeriesCache:
+    """Decimated time plots by (folder, its stamp, columns): a long run is read once."""
+
+    def __init__(self, size: int = 32) -> None:
+        self.size = size
+        self._items: OrderedDict[tuple[Path, float, int], dict[str, Any]] = OrderedDict()
+        self._lock = threading.Lock()
+
+    def get(self, folder: Path, columns: int) -> dict[str, Any]:
+        key = (Path(folder).resolve(), _stamp(Path(folder).resolve()), columns)
+        with self._lock:
+            if key in self._items:
+                self._items.move_to_end(key)
+                return self._items[key]
+        out = series_of(key[0], columns)
+        with self._lock:
+            self._items[key] = out
+            while len(self._items) > self.size:
+                self._items.popitem(last=False)
+        return out
+
+
+def series_of(folder: Path, columns: int = 1500) -> dict[str, Any]:
+    """Every time plot of ``PLOTS`` the run has, min/max-decimated to ``columns`` bins;
+    reads only those columns (``analysis.run_record.read_columns``)."""
+    from analysis.run_record import read_columns
+
+    data = read_columns(folder, [k for k, _, _ in PLOTS if k != "efficiency_g_w"])
+    if {"thrust_n", "current_a", "voltage_v"} <= set(data):
+        data["efficiency_g_w"] = _efficiency_of(data["thrust_n"], data["current_a"],
+                                                data["voltage_v"])
+    t = data["t_s"]
+    out: dict[str, Any] = {"rows": int(t.size), "columns": columns, "plots": []}
+    for key, title, unit in PLOTS:
+        y = data.get(key)
+        if y is None or not np.isfinite(y).any():
+            continue
+        tt, yy = minmax_decimate(t, y, columns)
+        out["plots"].append({"key": key, "title": title, "unit": unit,
+                             "t": _json_list(tt), "y": _json_list(yy)})
+    return out
+
+
+def _json_list(a: np.ndarray) -> list[float | None]:
+    a = np.round(np.asarray(a, dtype=float), 6)
+    return [None if not math.isfinite(v) else v for v in a.tolist()]
+
+
+def _clean(obj: Any) -> Any:
+    if isinstance(obj, Mapping):
+        return {str(k): _clean(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_clean(v) for v in obj]
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    if isinstance(obj, np.generic):
+        return _clean(obj.item())
+    return obj
+
+
+def fits_of(record: RunRecord) -> dict[str, Any]:
+    """The run's step fit (first-order-plus-delay per edge) and static curves, each with
+    the reason when it does not apply (a sweep has no steps, a step run few speeds)."""
+    from analysis.static_curves import fit_static_run
+    from analysis.step_response import fit_run
+
+    out: dict[str, Any] = {}
+    try:
+        out["step"] = _clean(fit_run(record).summary())
+    except LogError as exc:
+        out["step_why"] = str(exc)
+    try:
+        out["static"] = _clean(fit_static_run(record).summary())
+    except LogError as exc:
+        out["static_why"] = str(exc)
+    return out
+
+
+def static_points(record: RunRecord, bins: int = 40) -> dict[str, Any]:
+    """Binned static curves for overlays: thrust vs speed, current and efficiency vs thrust."""
+    from analysis.static_curves import binned_medians
+
+    cols = set(record.samples.columns)
+    out: dict[str, Any] = {"run_id": record.id}
+    if {"thrust_n", "rpm"} <= cols:
+        x, ys = binned_medians(record.column("rpm"), {"thrust_n": record.column("thrust_n")},
+                               bins)
+        out["thrust_vs_rpm"] = {"x": _json_list(x), "y": _json_list(ys["thrust_n"])}
+    if "thrust_n" in cols:
+        ys_in = {k: record.column(k) for k in ("current_a",) if k in cols}
+        eff = _efficiency(record)
+        if eff is not None:
+            ys_in["efficiency_g_w"] = eff
+        if ys_in:
+            x, ys = binned_medians(record.column("thrust_n"), ys_in, bins)
+            for k, v in ys.items():
+                out[f"{k}_vs_thrust"] = {"x": _json_list(x), "y": _json_list(v)}
+    return out
+
+
+def step_traces(record: RunRecord, pre_s: float = 0.05, post_s: float = 0.5,
+                columns: int = 400) -> dict[str, Any]:
+    """The mean rising-edge response of the run, normalised 0 -> 1, for overlays."""
+    from analysis.run_record import event_times
+    from analysis.step_response import detect_edges
+
+    cols = record.samples.columns
+    signal = "thrust_n" if "thrust_n" in cols else "rpm" if "rpm" in cols else None
+    command = next((c for c in ("throttle_us", "thrust_setpoint_n", "duty_pct") if c in cols),
+                   None)
+    if signal is None or command is None:
+        return {"run_id": record.id, "why": "no command and response columns"}
+    t, y = record.column("t_s"), record.column(signal)
+    edges = [e for e in detect_edges(t, record.column(command), None, event_times(record))
+             if e.direction == "up"]
+    if not edges:
+        return {"run_id": record.id, "why": "no rising command edge (not a step run)"}
+    grid = np.linspace(-pre_s, post_s, columns)
+    traces = []
+    for e in edges[:50]:
+        seg = np.interp(e.t_s + grid, t, y)
+        lo, hi = np.median(seg[grid < 0]), np.median(seg[-columns // 10:])
+        if abs(hi - lo) > 1e-9:
+            traces.append((seg - lo) / (hi - lo))
+    if not traces:
+        return {"run_id": record.id, "why": "rising edges without a response"}
+    return {"run_id": record.id, "signal": signal, "edges": len(traces),
+            "t": _json_list(grid), "y": _json_list(np.mean(traces, axis=0))}
+
+
+def export_of(record: RunRecord, target: str) -> dict[str, Any]:
+    """What ``rotorbench export TARGET RUN --json`` prints, for one run folder."""
+    from analysis.exports import export_params
+
+    return _clean(export_params(target, record))

@@ -1,0 +1,139 @@
+// rotorbench serve: the pages' behaviour. Served by the app itself (CSP script-src 'self').
+"use strict";
+
+const LAYOUT = {margin: {l: 60, r: 20, t: 30, b: 40}, height: 230,
+                font: {size: 11}, showlegend: false};
+const CONFIG = {displaylogo: false, responsive: true};
+
+async function getJSON(url) {
+  const resp = await fetch(url, {credentials: "same-origin"});
+  if (!resp.ok) throw new Error(`${url}: ${resp.status} ${await resp.text()}`);
+  return resp.json();
+}
+
+function el(tag, attrs = {}, text = "") {
+  const e = document.createElement(tag);
+  for (const [k, v] of Object.entries(attrs)) e.setAttribute(k, v);
+  if (text) e.textContent = text;
+  return e;
+}
+
+function fail(box, err) {
+  box.replaceChildren(el("p", {class: "error"}, String(err)));
+}
+
+async function runPage() {
+  const box = document.getElementById("plots");
+  if (!box) return;
+  try {
+    const data = await getJSON(box.dataset.series + "?columns=" +
+                               Math.max(200, Math.min(4000, Math.round(box.clientWidth || 1200))));
+    box.replaceChildren();
+    for (const p of data.plots) {
+      const div = el("div", {class: "plot", id: "plot-" + p.key});
+      box.appendChild(div);
+      await Plotly.newPlot(div, [{x: p.t, y: p.y, type: "scatter", mode: "lines",
+                                  line: {width: 1}, name: p.title}],
+                           {...LAYOUT, title: {text: `${p.title} (${p.unit})`},
+                            xaxis: {title: {text: "t (s)"}}}, CONFIG);
+    }
+    box.dataset.painted = String(data.plots.length);
+  } catch (err) { fail(box, err); }
+  const fits = document.getElementById("fits");
+  try {
+    const f = await getJSON(fits.dataset.fits);
+    fits.replaceChildren(fitTable(f));
+    fits.dataset.done = "1";
+  } catch (err) { fail(fits, err); }
+}
+
+function fmt(v, digits = 4) {
+  return (typeof v === "number") ? Number(v.toPrecision(digits)).toString() : String(v);
+}
+
+function fitTable(f) {
+  const wrap = el("div");
+  if (f.step) {
+    wrap.appendChild(el("h3", {}, `step response (${f.step.signal}, first-order plus delay)`));
+    const t = el("table", {class: "kv", id: "fit-step"});
+    for (const k of ["latency_up_ms", "tau_up_ms", "t63_up_ms", "latency_down_ms",
+                     "tau_down_ms", "t63_down_ms", "gain_up", "gain_down"]) {
+      if (f.step[k] === undefined || f.step[k] === null) continue;
+      const tr = el("tr"); tr.append(el("th", {}, k), el("td", {}, fmt(f.step[k])));
+      t.appendChild(tr);
+    }
+    wrap.appendChild(t);
+    const n = (f.step.edges || []).length;
+    wrap.appendChild(el("p", {}, `${n} edges fitted one by one`));
+  } else {
+    wrap.appendChild(el("p", {}, "step fit: " + (f.step_why || "n/a")));
+  }
+  if (f.static) {
+    wrap.appendChild(el("h3", {}, "static curves"));
+    const t = el("table", {class: "kv", id: "fit-static"});
+    for (const [k, v] of Object.entries(f.static)) {
+      if (v === null || typeof v === "object") continue;
+      const tr = el("tr"); tr.append(el("th", {}, k), el("td", {}, fmt(v)));
+      t.appendChild(tr);
+    }
+    wrap.appendChild(t);
+  } else {
+    wrap.appendChild(el("p", {}, "static curves: " + (f.static_why || "n/a")));
+  }
+  return wrap;
+}
+
+async function comparePage() {
+  const box = document.getElementById("compare");
+  if (!box) return;
+  try {
+    const d = await getJSON(box.dataset.compare);
+    const curves = [["thrust_vs_rpm", "thrust vs speed", "rpm", "N"],
+                    ["current_a_vs_thrust", "current vs thrust", "N", "A"],
+                    ["efficiency_g_w_vs_thrust", "efficiency vs thrust", "N", "g/W"]];
+    for (const [key, title, xu, yu] of curves) {
+      const traces = d.static.filter(s => s[key]).map(s => (
+        {x: s[key].x, y: s[key].y, type: "scatter", mode: "lines+markers", name: s.run_id}));
+      await Plotly.newPlot(document.getElementById(key), traces,
+        {...LAYOUT, height: 300, showlegend: true, title: {text: title},
+         xaxis: {title: {text: xu}}, yaxis: {title: {text: yu}}}, CONFIG);
+    }
+    const steps = d.steps.filter(s => s.t).map(s => (
+      {x: s.t, y: s.y, type: "scatter", mode: "lines", name: `${s.run_id} (${s.edges} edges)`}));
+    await Plotly.newPlot(document.getElementById("steps"), steps,
+      {...LAYOUT, height: 300, showlegend: true, title: {text: "mean rising step (normalised)"},
+       xaxis: {title: {text: "t after the command edge (s)"}}}, CONFIG);
+    const why = d.steps.filter(s => s.why).map(s => `${s.run_id}: ${s.why}`);
+    document.getElementById("compare-notes").textContent = why.join("; ");
+    box.dataset.painted = String(d.static.length);
+  } catch (err) { fail(box, err); }
+}
+
+function runsPage() {
+  const table = document.getElementById("runs");
+  if (!table) return;
+  const form = document.getElementById("compare-form");
+  form.addEventListener("submit", () => {
+    const ids = [...document.querySelectorAll("input.pick:checked")].map(c => c.value);
+    document.getElementById("compare-runs").value = ids.join(",");
+  });
+  async function poll() {
+    try {
+      const live = await getJSON(table.dataset.live);
+      for (const r of live) {
+        const row = table.querySelector(`tr[data-run="${CSS.escape(r.run_id)}"]`);
+        if (!row) continue;
+        row.querySelector(".status").textContent = r.status;
+        const latest = Object.entries(r.latest || {}).filter(([k]) => k !== "t_s")
+          .map(([k, v]) => `${k} ${fmt(v, 3)}`).join(", ");
+        row.querySelector(".live").textContent =
+          `${r.elapsed_s === null ? "" : fmt(r.elapsed_s, 3) + " s"} ${latest}`;
+      }
+      table.dataset.polled = String(Number(table.dataset.polled || 0) + 1);
+    } catch (err) { /* the next poll tries again */ }
+  }
+  poll();
+  setInterval(poll, 2000);
+}
+
+document.addEventListener("DOMContentLoaded", () => { runsPage(); runPage(); comparePage(); });

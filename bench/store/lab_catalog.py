@@ -1,0 +1,283 @@
+"""The lab catalog's index in PostgreSQL (psycopg 3): runs and constants of every bench.
+
+Every call opens a short connection (a bench PC may lose the network between two calls)
+and turns the server's answers into one-line ``RigError``s with the password scrubbed:
+a missing schema says to run ``store init``, a missing privilege names it and the role
+that has it. Run rows are upserted by id (a retried upload never duplicates a run);
+constants are appended in one transaction per ``add_constants`` and never changed.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from bench.errors import RigError
+from bench.store.pg_schema import READER_ROLE, SCHEMA_VERSION, WRITER_ROLE, schema_version
+from bench.store.run_summary import RunFilter
+from bench.store.store_url import redact, scrub
+
+__all__ = ["CatalogRun", "CatalogUnavailable", "LabCatalog", "StoredConstants"]
+
+RUN_FIELDS = ("run_id", "bench", "operator", "host", "rig", "rig_sha256", "software_version",
+              "sequence", "components", "status", "reason", "started_utc", "ended_utc",
+              "samples", "data", "meta")
+
+
+class CatalogUnavailable(RigError):
+    """The database could not be reached (network, server down): a bench spools instead."""
+
+
+@dataclass(frozen=True)
+class CatalogRun:
+    """One run as the catalog lists it (``data``: where its run folder lives)."""
+
+    run_id: str
+    bench: str
+    operator: str
+    host: str
+    rig: str
+    rig_sha256: str
+    software_version: str
+    sequence: str
+    components: dict[str, Any]
+    status: str
+    reason: str
+    started_utc: str | None
+    ended_utc: str | None
+    samples: int
+    data: str
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    def as_dict(self) -> dict[str, Any]:
+        out = {k: getattr(self, k) for k in RUN_FIELDS if k != "meta"}
+        return out
+
+
+@dataclass(frozen=True)
+class StoredConstants:
+    """One fitted constants row (as ``constants_store.ConstantsRow``, plus who and when)."""
+
+    motor: str
+    propeller: str
+    esc: str
+    esc_mode: str
+    battery: str
+    kind: str
+    catalog: str
+    run_id: str
+    run_path: str
+    fitted_utc: str
+    data: dict[str, Any]
+    recorded_by: str = ""
+
+
+def _finite(obj: Any) -> Any:
+    if isinstance(obj, Mapping):
+        return {str(k): _finite(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_finite(v) for v in obj]
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj
+
+
+class LabCatalog:
+    """The PostgreSQL index at ``dsn`` (a URL or libpq string; libpq options pass through)."""
+
+    def __init__(self, dsn: str, connect_timeout_s: float = 5.0) -> None:
+        self.dsn = dsn
+        self.connect_timeout_s = connect_timeout_s
+
+    def __repr__(self) -> str:  # never the password, even in a traceback's locals
+        return f"LabCatalog({redact(self.dsn)!r})"
+
+    # -- connections --------------------------------------------------------------------
+    @contextlib.contextmanager
+    def connect(self, *, check_schema: bool = True) -> Iterator[Any]:
+        """A short autocommit connection; server errors become one-line ``RigError``s."""
+        import psycopg
+
+        try:
+            con = psycopg.connect(self.dsn, autocommit=True,
+                                  connect_timeout=max(1, math.ceil(self.connect_timeout_s)),
+                                  application_name="rotorbench")
+        except psycopg.OperationalError as exc:
+            raise CatalogUnavailable(f"store {redact(self.dsn)}: cannot connect "
+                                     f"({scrub(_first_line(exc), self.dsn)})") from None
+        except psycopg.ProgrammingError as exc:  # malformed connection string
+            raise RigError(f"store {redact(self.dsn)}: {scrub(_first_line(exc), self.dsn)}"
+                           ) from None
+        try:
+            if check_schema:
+                have = schema_version(con)
+                if have == 0:
+                    raise RigError(f"store {redact(self.dsn)}: no rotorbench catalog in this "
+                                   "database; create it with `rotorbench store init URL`")
+                if have < SCHEMA_VERSION:
+                    raise RigError(f"store {redact(self.dsn)}: catalog schema {have} is older "
+                                   f"than this rotorbench's {SCHEMA_VERSION}; upgrade it with "
+                                   "`rotorbench store init URL`")
+                if have > SCHEMA_VERSION:
+                    raise RigError(f"store {redact(self.dsn)}: catalog schema {have} is newer "
+                                   f"than this rotorbench's {SCHEMA_VERSION}; upgrade rotorbench")
+            yield con
+        except psycopg.errors.InsufficientPrivilege as exc:
+            raise RigError(f"store {redact(self.dsn)}: permission denied "
+                           f"({scrub(_first_line(exc), self.dsn)}); recording needs the "
+                           f"{WRITER_ROLE} role, reading {READER_ROLE}") from None
+        except psycopg.OperationalError as exc:
+            raise CatalogUnavailable(f"store {redact(self.dsn)}: connection lost "
+                                     f"({scrub(_first_line(exc), self.dsn)})") from None
+        except psycopg.Error as exc:
+            raise RigError(f"store {redact(self.dsn)}: {scrub(_first_line(exc), self.dsn)}"
+                           ) from None
+        finally:
+            con.close()
+
+    def init(self) -> tuple[int, int]:
+        """Create or upgrade the schema and roles; (version before, version after)."""
+        from bench.store.pg_schema import init_schema
+
+        with self.connect(check_schema=False) as con:
+            return init_schema(con)
+
+    def check_can_record(self) -> None:
+        """Refuse (exit 2, naming the permission) a login that cannot insert runs; called
+        before anything spins."""
+        with self.connect() as con:
+            ok = con.execute("SELECT has_table_privilege(current_user, 'runs', 'INSERT'), "
+                             "current_user").fetchone()
+        if not ok[0]:
+            raise RigError(f"store {redact(self.dsn)}: user {ok[1]} may not record runs "
+                           f"(no INSERT on table runs); grant it the {WRITER_ROLE} role")
+
+    # -- settings -----------------------------------------------------------------------
+    def setting(self, key: str) -> str | None:
+        with self.connect() as con:
+            row = con.execute("SELECT value FROM settings WHERE key = %s", (key,)).fetchone()
+        return None if row is None else str(row[0])
+
+    def set_setting(self, key: str, value: str) -> None:
+        with self.connect() as con:
+            con.execute("INSERT INTO settings (key, value) VALUES (%s, %s) ON CONFLICT (key) "
+                        "DO UPDATE SET value = EXCLUDED.value", (key, value))
+
+    # -- runs ---------------------------------------------------------------------------
+    def upsert_run(self, run: CatalogRun) -> None:
+        """Insert the run or update its row (same id): retries never duplicate a run."""
+        from psycopg.types.json import Jsonb
+
+        values = [getattr(run, k) for k in RUN_FIELDS]
+        values[RUN_FIELDS.index("components")] = Jsonb(_finite(run.components))
+        values[RUN_FIELDS.index("meta")] = Jsonb(_finite(run.meta))
+        cols = ", ".join(RUN_FIELDS)
+        marks = ", ".join(["%s"] * len(RUN_FIELDS))
+        updates = ", ".join(f"{k} = EXCLUDED.{k}" for k in RUN_FIELDS if k != "run_id")
+        with self.connect() as con:
+            con.execute(f"INSERT INTO runs ({cols}) VALUES ({marks}) ON CONFLICT (run_id) DO "
+                        f"UPDATE SET {updates}, updated_utc = now()", values)
+
+    def list_runs(self, where: RunFilter | None = None, *, limit: int | None = None,
+                  offset: int = 0) -> list[CatalogRun]:
+        """Runs newest first, narrowed by ``where``; every value is a bound parameter."""
+        clause, params = _filters(where or RunFilter())
+        sql = (f"SELECT {', '.join(RUN_FIELDS[:-1])} FROM runs {clause} "
+               "ORDER BY started_utc DESC NULLS LAST, run_id DESC")
+        if limit is not None:
+            sql += " LIMIT %s OFFSET %s"
+            params += [int(limit), int(offset)]
+        with self.connect() as con:
+            rows = con.execute(sql, params).fetchall()
+        return [_run(r) for r in rows]
+
+    def count_runs(self, where: RunFilter | None = None) -> int:
+        clause, params = _filters(where or RunFilter())
+        with self.connect() as con:
+            return int(con.execute(f"SELECT count(*) FROM runs {clause}", params).fetchone()[0])
+
+    def get_run(self, run_id: str) -> CatalogRun | None:
+        with self.connect() as con:
+            row = con.execute(f"SELECT {', '.join(RUN_FIELDS)} FROM runs WHERE run_id = %s",
+                              (run_id,)).fetchone()
+        return None if row is None else _run(row[:-1], meta=row[-1])
+
+    # -- constants ----------------------------------------------------------------------
+    def add_constants(self, rows: Sequence[StoredConstants]) -> int:
+        """Append ``rows`` in one transaction (all or none); returns how many."""
+        from psycopg.types.json import Jsonb
+
+        with self.connect() as con, con.transaction():
+            for r in rows:
+                con.execute(
+                    "INSERT INTO constants (motor, propeller, esc, esc_mode, battery, kind, "
+                    "catalog, run_id, run_path, data) VALUES (%s,%s,%s,%s,%s,%s,%s,%s,%s,%s)",
+                    (r.motor, r.propeller, r.esc, r.esc_mode, r.battery, r.kind, r.catalog,
+                     r.run_id, r.run_path, Jsonb(_finite(r.data))))
+        return len(rows)
+
+    def constants(self, *, history: bool = False) -> list[StoredConstants]:
+        """The newest constants per actuator and kind, or every row ever added."""
+        table = "constants" if history else "constants_current"
+        with self.connect() as con:
+            rows = con.execute(
+                "SELECT motor, propeller, esc, esc_mode, battery, kind, catalog, run_id, "
+                f"run_path, fitted_utc, data, recorded_by FROM {table} ORDER BY motor, "
+                "propeller, esc, esc_mode, battery, kind, id").fetchall()
+        return [StoredConstants(*r[:9], r[9].isoformat(timespec="seconds"), dict(r[10]),
+                                str(r[11])) for r in rows]
+
+
+def _filters(where: RunFilter) -> tuple[str, list[Any]]:
+    clauses: list[str] = []
+    params: list[Any] = []
+    for col in ("bench", "status", "sequence"):
+        if getattr(where, col) is not None:
+            clauses.append(f"{col} = %s")
+            params.append(getattr(where, col))
+    for key in ("motor", "propeller", "esc_mode"):
+        if getattr(where, key) is not None:
+            clauses.append("components->>%s = %s")
+            params += [key, getattr(where, key)]
+    if where.since is not None:
+        clauses.append("started_utc >= %s::timestamptz")
+        params.append(where.since)
+    if where.until is not None:
+        clauses.append("started_utc < %s::timestamptz")
+        params.append(where.until)
+    return (("WHERE " + " AND ".join(clauses)) if clauses else ""), params
+
+
+def _run(row: Sequence[Any], meta: Any = None) -> CatalogRun:
+    vals = list(row)
+    for i in (RUN_FIELDS.index("started_utc"), RUN_FIELDS.index("ended_utc")):
+        vals[i] = vals[i].isoformat(timespec="milliseconds") if vals[i] is not None else None
+    vals[RUN_FIELDS.index("components")] = dict(vals[RUN_FIELDS.index("components")] or {})
+    return CatalogRun(*vals, meta=dict(meta or {}))
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else type(exc).__name__
+
+
+def run_from_meta(meta: Mapping[str, Any], *, data: str, samples: int,
+                  bench: str, operator: str) -> CatalogRun:
+    """A catalog row from a run's ``run.json`` content."""
+    rig = meta.get("rig")
+    seq = meta.get("sequence")
+    return CatalogRun(
+        run_id=str(meta["id"]), bench=bench, operator=operator,
+        host=str(meta.get("host") or ""),
+        rig=str(rig.get("name", "") if isinstance(rig, Mapping) else rig or ""),
+        rig_sha256=str(meta.get("rig_sha256") or ""),
+        software_version=str(meta.get("software_version") or ""),
+        sequence=str(seq.get("name", "") if isinstance(seq, Mapping) else seq or ""),
+        components=dict(meta.get("components") or {}),
+        status=str(meta.get("status") or "unknown"), reason=str(meta.get("reason") or ""),
+        started_utc=meta.get("started_utc"), ended_utc=meta.get("ended_utc"),
+        samples=int(samples), data=data, meta=json.loads(json.dumps(meta, default=str)))

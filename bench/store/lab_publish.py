@@ -1,0 +1,115 @@
+"""Deliver recorded runs to the lab catalog, behind the run: upload, then index.
+
+A bench records every run into a local folder store first (the spool). Publishing a run
+copies its folder to the data location and upserts its catalog row; only then is a
+``.published`` marker written beside it. A run whose upload or index entry failed keeps
+no marker and stays in the spool; ``store sync`` publishes what is waiting, and running
+it twice adds nothing (the marker, the upsert by id and the same object keys).
+"""
+
+from __future__ import annotations
+
+import getpass
+import json
+import socket
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from bench.errors import RigError
+from bench.store.lab_catalog import LabCatalog, run_from_meta
+from bench.store.run_data import DataLocation
+from bench.store.store_url import redact
+
+__all__ = ["MARKER", "Publisher", "bench_name", "operator_name", "pending_runs"]
+
+MARKER = ".published"
+
+
+def bench_name(meta: Mapping[str, Any]) -> str:
+    """The run's bench: ``--bench``, else the rig file's name, else the host."""
+    rig = meta.get("rig")
+    rig_name = rig.get("name") if isinstance(rig, Mapping) else rig
+    return str(meta.get("bench") or rig_name or meta.get("host") or socket.gethostname())
+
+
+def operator_name(meta: Mapping[str, Any]) -> str:
+    if meta.get("operator"):
+        return str(meta["operator"])
+    try:
+        return getpass.getuser()
+    except (KeyError, OSError):  # no passwd entry in a container
+        return "unknown"
+
+
+def _rows(run_dir: Path, meta: Mapping[str, Any]) -> int:
+    import pyarrow.parquet as pq
+
+    if isinstance(meta.get("rows"), int):
+        return int(meta["rows"])
+    try:
+        return int(pq.read_table(
+            run_dir / str(meta.get("samples") or "samples.parquet"), columns=[]).num_rows)
+    except Exception:  # no parts yet, damaged part: count what the catalog can say
+        return 0
+
+
+@dataclass(frozen=True)
+class Publisher:
+    """Publishes run folders of a spool into ``catalog`` + ``data``."""
+
+    catalog: LabCatalog
+    data: DataLocation
+
+    def store_key(self) -> str:
+        return redact(self.catalog.dsn)
+
+    def is_published(self, run_dir: Path) -> bool:
+        try:
+            mark = json.loads((Path(run_dir) / MARKER).read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            return False
+        return mark.get("store") == self.store_key()
+
+    def publish(self, run_dir: Path) -> str:
+        """Upload and index one ended run; returns its data URI. Raises ``RigError``
+        (``CatalogUnavailable``/``DataUnavailable`` when a server is away)."""
+        run_dir = Path(run_dir)
+        try:
+            meta = json.loads((run_dir / "run.json").read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, ValueError) as exc:
+            raise RigError(f"{run_dir / 'run.json'}: unreadable ({exc})") from None
+        run_id = str(meta.get("id") or run_dir.name)
+        uri = self.data.upload(run_dir, run_id)
+        self.catalog.upsert_run(run_from_meta(meta, data=uri, samples=_rows(run_dir, meta),
+                                              bench=bench_name(meta),
+                                              operator=operator_name(meta)))
+        (run_dir / MARKER).write_text(json.dumps({"store": self.store_key(), "data": uri}),
+                                      encoding="utf-8")
+        return uri
+
+    def announce(self, meta: Mapping[str, Any], run_dir: Path) -> bool:
+        """Index a run that just started (status running) so the lab sees it; a server
+        that is away costs nothing here (False), the run goes on."""
+        try:
+            self.catalog.upsert_run(run_from_meta(meta, data=self.data.run_uri(
+                str(meta.get("id") or run_dir.name)), samples=0, bench=bench_name(meta),
+                operator=operator_name(meta)))
+        except RigError:
+            return False
+        return True
+
+
+def pending_runs(spool: Path, publisher: Publisher) -> list[Path]:
+    """Ended runs in ``spool`` not yet published to ``publisher``'s store, oldest first."""
+    out = []
+    for meta_path in sorted(Path(spool).glob("*/run.json")):
+        try:
+            meta = json.loads(meta_path.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, ValueError):
+            continue
+        if meta.get("status") == "running" or publisher.is_published(meta_path.parent):
+            continue
+        out.append(meta_path.parent)
+    return out

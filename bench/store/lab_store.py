@@ -1,0 +1,192 @@
+"""The lab store as commands use it: catalog + data location + spool, from one URL.
+
+``open_lab(url, data=...)`` resolves the data location (``--out s3://...``, else the one
+``store init --data`` saved in the catalog) and the spool (``--spool``, else a folder per
+user: ``$XDG_DATA_HOME/rotorbench/spool``). ``push`` copies a laptop's folder store
+(its runs and constants) into the catalog and skips what is there already.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from bench.errors import RigError
+from bench.store.lab_catalog import LabCatalog, StoredConstants
+from bench.store.lab_publish import Publisher, pending_runs
+from bench.store.run_data import DataLocation
+from bench.store.run_summary import RunFilter, RunSummary
+from bench.store.store_url import redact
+
+__all__ = ["DATA_SETTING", "LabStore", "PushReport", "SyncReport", "default_spool", "open_lab"]
+
+DATA_SETTING = "data"
+
+
+def default_cache() -> Path:
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "rotorbench" / "runs"
+
+
+def default_spool() -> Path:
+    base = os.environ.get("XDG_DATA_HOME") or str(Path.home() / ".local" / "share")
+    return Path(base) / "rotorbench" / "spool"
+
+
+@dataclass(frozen=True)
+class SyncReport:
+    delivered: list[str]
+    failed: list[tuple[str, str]]
+    waiting_before: int
+
+
+@dataclass(frozen=True)
+class PushReport:
+    pushed: list[str]
+    skipped: list[str]
+    failed: list[tuple[str, str]]
+    constants_added: int
+    constants_skipped: int
+
+
+@dataclass(frozen=True)
+class LabStore:
+    catalog: LabCatalog
+    data: DataLocation
+    spool: Path
+
+    @property
+    def publisher(self) -> Publisher:
+        return Publisher(self.catalog, self.data)
+
+    # -- the Store interface (bench.store.stores) -----------------------------------------
+    def describe(self) -> str:
+        return f"{redact(self.catalog.dsn)} ({self.data.uri})"
+
+    def record_root(self) -> Path:
+        """Runs are recorded into the spool first, whatever the network does."""
+        return self.spool
+
+    def check_can_record(self) -> None:
+        """Before anything spins: a reader-only login is refused; a catalog that cannot be
+        reached is not (the run is spooled and synced later)."""
+        from bench.store.lab_catalog import CatalogUnavailable
+
+        try:
+            self.catalog.check_can_record()
+        except CatalogUnavailable:
+            return
+
+    def after_run(self, run_dir: Path) -> str | None:
+        """Publish the run; a server that is away leaves it spooled, said in one line."""
+        try:
+            uri = self.publisher.publish(run_dir)
+        except RigError as exc:
+            return (f"spooled: {run_dir} waits for the lab store ({exc}); deliver it with "
+                    f"`rotorbench store sync --store {redact(self.catalog.dsn)} --spool "
+                    f"{self.spool}`")
+        return f"stored in {redact(self.catalog.dsn)}: {uri}"
+
+    def list_runs(self, where: RunFilter | None = None, *, limit: int | None = None,
+                  offset: int = 0) -> list[RunSummary]:
+        return [RunSummary(run_id=r.run_id, bench=r.bench, sequence=r.sequence,
+                           status=r.status, samples=r.samples, data=r.data,
+                           started_utc=r.started_utc, ended_utc=r.ended_utc, rig=r.rig,
+                           reason=r.reason, operator=r.operator, components=r.components)
+                for r in self.catalog.list_runs(where, limit=limit, offset=offset)]
+
+    def count_runs(self, where: RunFilter | None = None) -> int:
+        return self.catalog.count_runs(where)
+
+    def run_folder(self, run_id: str) -> Path:
+        """The run as a local folder: the spool's copy, else a download into the cache."""
+        local = self.spool / run_id
+        if (local / "run.json").exists():
+            return local
+        row = self.catalog.get_run(run_id)
+        if row is None:
+            raise RigError(f"run {run_id}: not in the store {redact(self.catalog.dsn)}")
+        where = DataLocation(row.data.rsplit("/", 1)[0]) if row.data else self.data
+        return where.download(run_id, default_cache())
+
+    def add_constants(self, rows: Sequence[StoredConstants]) -> int:
+        return self.catalog.add_constants(rows)
+
+    def constants(self) -> list[StoredConstants]:
+        return self.catalog.constants()
+
+    def sync(self) -> SyncReport:
+        """Publish every ended run waiting in the spool; a second call adds nothing."""
+        waiting = pending_runs(self.spool, self.publisher)
+        delivered, failed = [], []
+        for run_dir in waiting:
+            try:
+                self.publisher.publish(run_dir)
+            except RigError as exc:
+                failed.append((run_dir.name, str(exc)))
+            else:
+                delivered.append(run_dir.name)
+        return SyncReport(delivered, failed, len(waiting))
+
+    def push(self, folder: Path) -> PushReport:
+        """Copy the ended runs and the constants of a folder store into the lab."""
+        pushed, skipped, failed = [], [], []
+        for meta_path in sorted(Path(folder).glob("*/run.json")):
+            run_dir = meta_path.parent
+            try:
+                meta = json.loads(meta_path.read_text(encoding="utf-8"))
+            except (OSError, UnicodeDecodeError, ValueError) as exc:
+                failed.append((run_dir.name, f"unreadable run.json ({exc})"))
+                continue
+            run_id = str(meta.get("id") or run_dir.name)
+            if meta.get("status") == "running":
+                failed.append((run_id, "still running (or killed: `rotorbench runs` marks it)"))
+                continue
+            if self.catalog.get_run(run_id) is not None and self.data.has_run(run_id):
+                skipped.append(run_id)
+                continue
+            try:
+                self.publisher.publish(run_dir)
+            except RigError as exc:
+                failed.append((run_id, str(exc)))
+            else:
+                pushed.append(run_id)
+        added, same = self._push_constants(Path(folder))
+        return PushReport(pushed, skipped, failed, added, same)
+
+    def _push_constants(self, folder: Path) -> tuple[int, int]:
+        from bench.constants_store import STORE_NAME, ConstantsStore
+
+        if not (folder / STORE_NAME).exists():
+            return 0, 0
+        have = {_ckey(c) for c in self.catalog.constants(history=True)}
+        new = []
+        for r in ConstantsStore(folder).rows():
+            row = StoredConstants(r.key.motor, r.key.propeller, r.key.esc, r.key.esc_mode,
+                                  r.key.battery, r.kind, r.key.catalog, r.run_id,
+                                  self.data.run_uri(r.run_id), r.fitted_utc, r.data)
+            if _ckey(row) not in have:
+                new.append(row)
+        total = len(ConstantsStore(folder).rows())
+        if new:
+            self.catalog.add_constants(new)
+        return len(new), total - len(new)
+
+
+def _ckey(c: StoredConstants) -> tuple[str, ...]:
+    return (c.motor, c.propeller, c.esc, c.esc_mode, c.battery, c.kind, c.run_id,
+            json.dumps(c.data, sort_keys=True))
+
+
+def open_lab(dsn: str, *, data: str | None = None, spool: Path | None = None) -> LabStore:
+    """The lab store at ``dsn``; ``data`` overrides the catalog's data location."""
+    catalog = LabCatalog(dsn)
+    where = data or catalog.setting(DATA_SETTING)
+    if not where:
+        raise RigError(f"store {redact(dsn)}: no data location; give --out s3://bucket/prefix "
+                       "(or a shared folder), or save one with `rotorbench store init URL "
+                       "--data LOCATION`")
+    return LabStore(catalog, DataLocation(where), Path(spool) if spool else default_spool())

@@ -1,0 +1,106 @@
+"""Where the lab keeps run folders: a local or shared folder, or ``s3://bucket/prefix``.
+
+pyarrow's file systems do the work (``pyarrow.fs.S3FileSystem`` reads the standard
+``AWS_*`` variables, ``AWS_ENDPOINT_URL`` included, so MinIO, Ceph or moto work as AWS
+does). A run folder is copied whole (``run.json``, ``events.csv``, ``samples.parquet/``
+parts) under ``<location>/<run id>/``; ``run.json`` goes last, so a run whose upload
+broke off has no ``run.json`` there and is uploaded again by ``store sync``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from bench.errors import RigError
+
+__all__ = ["DataLocation", "DataUnavailable"]
+
+
+class DataUnavailable(RigError):
+    """The object store or shared folder could not be reached: a bench spools instead."""
+
+
+@dataclass(frozen=True)
+class DataLocation:
+    """``uri``: a folder path or ``s3://bucket/prefix``."""
+
+    uri: str
+
+    @property
+    def is_s3(self) -> bool:
+        return self.uri.startswith("s3://")
+
+    def _fs(self) -> tuple[Any, str]:
+        import pyarrow.fs as pafs
+
+        if self.is_s3:
+            try:
+                fs, root = pafs.FileSystem.from_uri(self.uri)
+            except (OSError, ValueError) as exc:
+                raise DataUnavailable(f"data location {self.uri}: {exc}") from None
+            return fs, root.rstrip("/")
+        return pafs.LocalFileSystem(), str(Path(self.uri).expanduser().resolve())
+
+    def run_uri(self, run_id: str) -> str:
+        return f"{self.uri.rstrip('/')}/{run_id}"
+
+    def upload(self, run_dir: Path, run_id: str) -> str:
+        """Copy ``run_dir`` to ``<location>/<run_id>`` (parts first, ``run.json`` last);
+        returns the run's data URI. Raises ``DataUnavailable`` when the store fails."""
+        import pyarrow.fs as pafs
+
+        fs, root = self._fs()
+        dest = f"{root}/{run_id}"
+        local = pafs.LocalFileSystem()
+        files = sorted(p for p in Path(run_dir).rglob("*")
+                       if p.is_file() and not p.name.startswith("."))
+        files.sort(key=lambda p: p.name == "run.json")  # run.json last: the upload's seal
+        try:
+            fs.create_dir(dest, recursive=True)
+            for p in files:
+                rel = p.relative_to(run_dir).as_posix()
+                if "/" in rel:
+                    fs.create_dir(f"{dest}/{rel.rsplit('/', 1)[0]}", recursive=True)
+                pafs.copy_files(str(p), f"{dest}/{rel}", source_filesystem=local,
+                                destination_filesystem=fs)
+        except OSError as exc:
+            raise DataUnavailable(f"data location {self.uri}: upload of {run_id} failed "
+                                  f"({_short(exc)})") from None
+        return self.run_uri(run_id)
+
+    def has_run(self, run_id: str) -> bool:
+        """True when ``<location>/<run_id>/run.json`` exists (a whole upload)."""
+        import pyarrow.fs as pafs
+
+        fs, root = self._fs()
+        try:
+            info = fs.get_file_info(f"{root}/{run_id}/run.json")
+        except OSError as exc:
+            raise DataUnavailable(f"data location {self.uri}: {_short(exc)}") from None
+        return info.type == pafs.FileType.File
+
+    def download(self, run_id: str, dest: Path) -> Path:
+        """Copy ``<location>/<run_id>`` into ``dest/<run_id>`` (a cache) and return it."""
+        import pyarrow.fs as pafs
+
+        fs, root = self._fs()
+        target = Path(dest) / run_id
+        if (target / "run.json").exists():
+            return target
+        tmp = Path(dest) / f".{run_id}.part"
+        try:
+            tmp.mkdir(parents=True, exist_ok=True)
+            pafs.copy_files(f"{root}/{run_id}", str(tmp), source_filesystem=fs,
+                            destination_filesystem=pafs.LocalFileSystem())
+            tmp.rename(target)
+        except OSError as exc:
+            raise DataUnavailable(f"data location {self.uri}: download of {run_id} failed "
+                                  f"({_short(exc)})") from None
+        return target
+
+
+def _short(exc: BaseException) -> str:
+    text = str(exc).strip().splitlines()
+    return text[0][:300] if text else type(exc).__name__

@@ -1,0 +1,192 @@
+"""One ``Store`` interface for runs and constants, with its two implementations.
+
+* ``FolderStore``: the embedded default, a folder of run folders with ``runs.sqlite`` and
+  ``constants.sqlite`` beside them (``bench.run_index``, ``bench.constants_store``).
+* ``LabStore`` (``bench.store.lab_store``): the PostgreSQL catalog with the run folders in
+  a shared folder or an S3 bucket, runs recorded into a local spool first.
+
+Commands ask ``open_store(--store)`` for one and use only what is here: where a new run
+is recorded, what happens after it, the list of runs, a run as a local folder, and the
+constants. The web view and the optimizer's ``--measured`` read through the same calls.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any, Protocol
+
+from bench.errors import RigError
+from bench.store.run_summary import RunFilter, RunSummary
+
+__all__ = ["FolderStore", "RunSummary", "Store", "open_store"]
+
+
+class Store(Protocol):
+    """What a command may ask of a store."""
+
+    def describe(self) -> str: ...
+    def record_root(self) -> Path: ...
+    def check_can_record(self) -> None: ...
+    def after_run(self, run_dir: Path) -> str | None: ...
+    def list_runs(self, where: RunFilter | None = None, *, limit: int | None = None,
+                  offset: int = 0) -> list[RunSummary]: ...
+    def count_runs(self, where: RunFilter | None = None) -> int: ...
+    def run_folder(self, run_id: str) -> Path: ...
+    def add_constants(self, rows: Sequence[Any]) -> int: ...
+    def constants(self) -> list[Any]: ...
+
+
+@dataclass(frozen=True)
+class FolderStore:
+    """The embedded store at ``root`` (today's ``--out`` folder)."""
+
+    root: Path
+
+    def describe(self) -> str:
+        return str(self.root)
+
+    def record_root(self) -> Path:
+        return self.root
+
+    def check_can_record(self) -> None:
+        """Nothing to ask: the recording commands check ``--out`` is writable."""
+
+    def after_run(self, run_dir: Path) -> str | None:
+        return None  # recorded in place, indexed as it ran
+
+    def list_runs(self, where: RunFilter | None = None, *, limit: int | None = None,
+                  offset: int = 0) -> list[RunSummary]:
+        if where is not None and where.bench is not None:  # the bench is in run.json
+            runs = [r for r in map(self._complete, self._query(where)) if where.matches(r)]
+            end = None if limit is None else offset + limit
+            return runs[offset:end]
+        return [self._complete(r) for r in self._query(where, limit, offset)]
+
+    def count_runs(self, where: RunFilter | None = None) -> int:
+        if where is not None and where.bench is not None:
+            return len(self.list_runs(where))
+        return self._query(where, count=True)  # type: ignore[return-value]
+
+    def _query(self, where: RunFilter | None, limit: int | None = None, offset: int = 0,
+               count: bool = False) -> Any:
+        """Index rows newest first, filtered and paged in SQL (10,000 runs list at once);
+        opening the index first marks runs whose recording process died."""
+        import sqlite3
+
+        from bench.run_index import INDEX_NAME, RunIndex
+
+        if not (self.root / INDEX_NAME).exists():
+            return 0 if count else []
+        RunIndex(self.root)
+        w = where or RunFilter()
+        clauses, params = [], []
+        for col in ("status", "sequence"):
+            if getattr(w, col) is not None:
+                clauses.append(f"{col} = ?")
+                params.append(getattr(w, col))
+        for key in ("motor", "propeller", "esc_mode"):
+            if getattr(w, key) is not None:
+                clauses.append("json_extract(components, ?) = ?")
+                params += [f"$.{key}", getattr(w, key)]
+        if w.since is not None:
+            clauses.append("started_utc >= ?")
+            params.append(w.since)
+        if w.until is not None:
+            clauses.append("started_utc < ?")
+            params.append(w.until)
+        sql_where = ("WHERE " + " AND ".join(clauses)) if clauses else ""
+        con = sqlite3.connect(f"file:{self.root / INDEX_NAME}?mode=ro", uri=True, timeout=10)
+        try:
+            if count:
+                return int(con.execute(f"SELECT count(*) FROM runs {sql_where}",
+                                       params).fetchone()[0])
+            sql = (f"SELECT id, path, rig, components, sequence, started_utc, ended_utc, "
+                   f"status, reason FROM runs {sql_where} ORDER BY started_utc DESC, id DESC")
+            if limit is not None:
+                sql += " LIMIT ? OFFSET ?"
+                params += [int(limit), int(offset)]
+            rows = con.execute(sql, params).fetchall()
+        except sqlite3.DatabaseError as exc:
+            raise RigError(f"{self.root / INDEX_NAME}: cannot read the run index ({exc})"
+                           ) from None
+        finally:
+            con.close()
+        return [RunSummary(run_id=rid, bench=rig or "", sequence=seq or "", status=st or "",
+                           samples=0, data=str(self.root / path), started_utc=start or None,
+                           ended_utc=end, rig=rig or "", reason=reason or "",
+                           components=_components(comps))
+                for rid, path, rig, comps, seq, start, end, st, reason in rows]
+
+    def _complete(self, r: RunSummary) -> RunSummary:
+        """The summary with what only run.json holds: bench, operator, sample count."""
+        if r.samples or r.operator:
+            return r
+        meta = _read_meta(Path(r.data))
+        return replace(r, bench=_bench(meta, r.rig), samples=int(meta.get("rows") or 0),
+                       operator=str(meta.get("operator") or ""),
+                       data=str(Path(r.data).resolve()))
+
+    def run_folder(self, run_id: str) -> Path:
+        from bench.run_index import INDEX_NAME, RunIndex
+
+        if (self.root / INDEX_NAME).exists():
+            for r in RunIndex(self.root).list():
+                if r.id == run_id:
+                    return self.root / r.path
+        raise RigError(f"run {run_id}: not in the store {self.root}")
+
+    def add_constants(self, rows: Sequence[Any]) -> int:
+        from bench.constants_store import ActuatorKey, ConstantsStore
+
+        store = ConstantsStore(self.root)
+        for r in rows:
+            store.put(ActuatorKey(r.motor, r.propeller, r.esc, r.esc_mode, r.battery,
+                                  r.catalog), r.kind, r.run_id, r.run_path, r.data)
+        return len(rows)
+
+    def constants(self) -> list[Any]:
+        from bench.constants_store import ConstantsStore
+        from bench.store.lab_catalog import StoredConstants
+
+        return [StoredConstants(r.key.motor, r.key.propeller, r.key.esc, r.key.esc_mode,
+                                r.key.battery, r.kind, r.key.catalog, r.run_id, r.run_path,
+                                r.fitted_utc, r.data) for r in ConstantsStore(self.root).rows()]
+
+
+def _components(text: str | None) -> dict[str, Any]:
+    try:
+        value = json.loads(text or "{}")
+    except ValueError:
+        return {}
+    return value if isinstance(value, dict) else {}
+
+
+def _read_meta(run_dir: Path) -> Mapping[str, Any]:
+    try:
+        meta = json.loads((run_dir / "run.json").read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError):
+        return {}
+    return meta if isinstance(meta, Mapping) else {}
+
+
+def _bench(meta: Mapping[str, Any], rig: str) -> str:
+    from bench.store.lab_publish import bench_name
+
+    return bench_name({**meta, "rig": meta.get("rig") or rig}) if meta else rig
+
+
+def open_store(text: str | Path | None, *, data: str | None = None,
+               spool: Path | None = None, default: str = "runs") -> Store:
+    """The store ``--store`` names (``$ROTORBENCH_STORE``, else ``default``)."""
+    from bench.store.store_url import parse_store
+
+    url = parse_store(text, default=default)
+    if url.folder is not None:
+        return FolderStore(url.folder)
+    from bench.store.lab_store import open_lab
+
+    assert url.dsn is not None
+    return open_lab(url.dsn, data=data, spool=spool)

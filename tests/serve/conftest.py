@@ -1,0 +1,54 @@
+"""Fixtures of the web-view tests: a small lab of recorded runs, as a folder store and as
+the lab catalog (PostgreSQL + S3), and the app over each."""
+
+from __future__ import annotations
+
+import shutil
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from bench.cli import main
+
+
+@pytest.fixture(scope="session")
+def recorded(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A folder store: a short sweep, two step runs (two ESC modes), stored constants."""
+    out = tmp_path_factory.mktemp("served") / "runs"
+    assert main(["sweep", "--duration", "4", "--out", str(out), "--no-save-map"]) == 0
+    assert main(["step", "--repeats", "2", "--out", str(out)]) == 0
+    assert main(["step", "--repeats", "2", "--esc-mode", "diode", "--out", str(out)]) == 0
+    steps = sorted(p.parent for p in out.glob("*-step1/run.json"))
+    assert main(["constants", "--out", str(out), "--add", str(steps[0])]) == 0
+    return out
+
+
+@pytest.fixture(params=["folder", "lab"])
+def store(request: pytest.FixtureRequest, recorded: Path, tmp_path: Path,
+          monkeypatch: pytest.MonkeyPatch) -> Iterator[object]:
+    """The recorded runs behind either store."""
+    from bench.store.stores import open_store
+
+    if request.param == "folder":
+        copy = tmp_path / "runs"
+        shutil.copytree(recorded, copy)
+        yield open_store(str(copy))
+        return
+    pg_url = request.getfixturevalue("pg_url")
+    s3 = request.getfixturevalue("s3_env")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    data = f"s3://{s3.bucket}/runs"
+    assert main(["store", "init", pg_url, "--data", data]) == 0
+    assert main(["store", "push", str(recorded), "--store", pg_url]) == 0
+    yield open_store(pg_url, spool=tmp_path / "spool")
+
+
+@pytest.fixture
+def client(store: object) -> Iterator[object]:
+    from fastapi.testclient import TestClient
+
+    from bench.serve.app import create_app
+
+    with TestClient(create_app(store)) as c:
+        yield c

@@ -1,0 +1,1 @@
+"""The lab-store tests use the real services of tests/services.py (root conftest)."""

@@ -1,0 +1,103 @@
+"""Runs recorded into a local spool reach the lab (PostgreSQL + S3 on moto) behind the run,
+and wait in the spool while a server is away."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pandas as pd
+import pytest
+from rotorbench_tests_services import s3_server
+
+from bench.cli import main
+from bench.store.lab_catalog import CatalogUnavailable, LabCatalog
+from bench.store.lab_publish import Publisher, pending_runs
+from bench.store.run_data import DataLocation, DataUnavailable
+
+
+@pytest.fixture(scope="module")
+def spool_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """One short simulated Step 1 run recorded into a spool folder."""
+    spool = tmp_path_factory.mktemp("spool")
+    assert main(["step", "--repeats", "2", "--out", str(spool)]) == 0
+    (run,) = [p.parent for p in spool.glob("*/run.json")]
+    return run
+
+
+def _fresh_spool(run: Path, tmp_path: Path) -> Path:
+    import shutil
+
+    spool = tmp_path / "spool"
+    shutil.copytree(run, spool / run.name)
+    return spool
+
+
+def test_publish_to_s3_and_postgres(spool_run: Path, tmp_path: Path, pg_url: str,
+                                    s3_env: object) -> None:
+    cat = LabCatalog(pg_url)
+    cat.init()
+    data = DataLocation(f"s3://{s3_env.bucket}/runs")
+    pub = Publisher(cat, data)
+    spool = _fresh_spool(spool_run, tmp_path)
+    assert pending_runs(spool, pub) == [spool / spool_run.name]
+    uri = pub.publish(spool / spool_run.name)
+    assert pending_runs(spool, pub) == []
+    run_id = json.loads((spool_run / "run.json").read_text())["id"]
+    assert uri == f"s3://{s3_env.bucket}/runs/{run_id}" and data.has_run(run_id)
+    (row,) = cat.list_runs()
+    local = pd.read_parquet(spool_run / "samples.parquet")
+    assert row.run_id == run_id and row.samples == len(local) and row.data == uri
+    assert row.bench == "sim" and row.sequence == "step1" and row.status == "success"
+    back = data.download(run_id, tmp_path / "cache")
+    pd.testing.assert_frame_equal(pd.read_parquet(back / "samples.parquet"), local)
+    assert (back / "events.csv").read_bytes() == (spool_run / "events.csv").read_bytes()
+    pub.publish(spool / spool_run.name)  # again: nothing duplicated
+    assert cat.count_runs() == 1
+
+
+def test_object_store_outage_then_sync(spool_run: Path, tmp_path: Path, pg_url: str,
+                                       s3_env: object, monkeypatch: pytest.MonkeyPatch) -> None:
+    cat = LabCatalog(pg_url)
+    cat.init()
+    spool = _fresh_spool(spool_run, tmp_path)
+    with s3_server() as own:
+        monkeypatch.setenv("AWS_ENDPOINT_URL", own.endpoint)
+        own.create_bucket("lab")
+        port = own.port
+    # the server is gone now
+    pub = Publisher(cat, DataLocation("s3://lab/runs"))
+    with pytest.raises(DataUnavailable, match=r"upload of .* failed"):
+        pub.publish(spool / spool_run.name)
+    assert pending_runs(spool, pub) == [spool / spool_run.name]
+    assert cat.count_runs() == 0
+    with s3_server(port) as back:
+        back.create_bucket("lab")
+        assert [pub.publish(p) for p in pending_runs(spool, pub)]
+        assert pending_runs(spool, pub) == []
+        assert cat.count_runs() == 1
+
+
+def test_database_outage_then_sync(spool_run: Path, tmp_path: Path, pg_cluster: object,
+                                   pg_url: str, s3_env: object) -> None:
+    cat = LabCatalog(pg_url, connect_timeout_s=2)
+    cat.init()
+    spool = _fresh_spool(spool_run, tmp_path)
+    pub = Publisher(cat, DataLocation(f"s3://{s3_env.bucket}/runs"))
+    pg_cluster.stop()
+    try:
+        with pytest.raises(CatalogUnavailable):
+            pub.publish(spool / spool_run.name)
+        assert pending_runs(spool, pub) == [spool / spool_run.name]
+    finally:
+        pg_cluster.start()
+    for p in pending_runs(spool, pub):
+        pub.publish(p)
+    assert pending_runs(spool, pub) == [] and cat.count_runs() == 1
+
+
+def test_folder_data_location(spool_run: Path, tmp_path: Path) -> None:
+    data = DataLocation(str(tmp_path / "share"))
+    uri = data.upload(spool_run, "r1")
+    assert data.has_run("r1") and uri.endswith("/r1")
+    assert (tmp_path / "share" / "r1" / "samples.parquet").is_dir()
