@@ -159,23 +159,44 @@ def fits_of(record: RunRecord) -> dict[str, Any]:
     return out
 
 
+def _steady(record: RunRecord, command: str, settle_s: float = 0.3) -> np.ndarray:
+    """Samples that are not within ``settle_s`` after a command jump: the plateaus of a
+    step run after its transients, and all of a slow sweep (a ramp has no jumps)."""
+    from analysis.run_record import event_times
+    from analysis.step_response import detect_edges
+
+    t = record.column("t_s")
+    keep = np.ones(t.size, bool)
+    for e in detect_edges(t, record.column(command), None, event_times(record)):
+        keep[(t >= e.t_s) & (t < e.t_s + settle_s)] = False
+    return keep
+
+
 def static_points(record: RunRecord, bins: int = 40) -> dict[str, Any]:
-    """Binned static curves for overlays: thrust vs speed, current and efficiency vs thrust."""
+    """Binned static curves for overlays: thrust vs speed, current and efficiency vs thrust,
+    from the steady samples only (a step run's transients are not a static curve)."""
     from analysis.static_curves import binned_medians
 
     cols = set(record.samples.columns)
     out: dict[str, Any] = {"run_id": record.id}
+    command = next((c for c in ("throttle_us", "duty_pct") if c in cols), None)
+    t = record.column("t_s")
+    keep = _steady(record, command) if command else np.ones(t.size, bool)
+    out["steady_samples"] = int(keep.sum())
+
+    def col(name: str) -> np.ndarray:
+        return record.column(name)[keep]
+
     if {"thrust_n", "rpm"} <= cols:
-        x, ys = binned_medians(record.column("rpm"), {"thrust_n": record.column("thrust_n")},
-                               bins)
+        x, ys = binned_medians(col("rpm"), {"thrust_n": col("thrust_n")}, bins)
         out["thrust_vs_rpm"] = {"x": _json_list(x), "y": _json_list(ys["thrust_n"])}
     if "thrust_n" in cols:
-        ys_in = {k: record.column(k) for k in ("current_a",) if k in cols}
+        ys_in = {k: col(k) for k in ("current_a",) if k in cols}
         eff = _efficiency(record)
         if eff is not None:
-            ys_in["efficiency_g_w"] = eff
+            ys_in["efficiency_g_w"] = eff[keep]
         if ys_in:
-            x, ys = binned_medians(record.column("thrust_n"), ys_in, bins)
+            x, ys = binned_medians(col("thrust_n"), ys_in, bins)
             for k, v in ys.items():
                 out[f"{k}_vs_thrust"] = {"x": _json_list(x), "y": _json_list(v)}
     return out
@@ -183,7 +204,7 @@ def static_points(record: RunRecord, bins: int = 40) -> dict[str, Any]:
 
 def step_traces(record: RunRecord, pre_s: float = 0.05, post_s: float = 0.5,
                 columns: int = 400) -> dict[str, Any]:
-    """The mean rising-edge response of the run, normalised 0 -> 1, for overlays."""
+    """The mean rising and falling responses of the run, each normalised 0 -> 1."""
     from analysis.run_record import event_times
     from analysis.step_response import detect_edges
 
@@ -194,21 +215,22 @@ def step_traces(record: RunRecord, pre_s: float = 0.05, post_s: float = 0.5,
     if signal is None or command is None:
         return {"run_id": record.id, "why": "no command and response columns"}
     t, y = record.column("t_s"), record.column(signal)
-    edges = [e for e in detect_edges(t, record.column(command), None, event_times(record))
-             if e.direction == "up"]
-    if not edges:
-        return {"run_id": record.id, "why": "no rising command edge (not a step run)"}
+    edges = detect_edges(t, record.column(command), None, event_times(record))
     grid = np.linspace(-pre_s, post_s, columns)
-    traces = []
-    for e in edges[:50]:
-        seg = np.interp(e.t_s + grid, t, y)
-        lo, hi = np.median(seg[grid < 0]), np.median(seg[-columns // 10:])
-        if abs(hi - lo) > 1e-9:
-            traces.append((seg - lo) / (hi - lo))
-    if not traces:
-        return {"run_id": record.id, "why": "rising edges without a response"}
-    return {"run_id": record.id, "signal": signal, "edges": len(traces),
-            "t": _json_list(grid), "y": _json_list(np.mean(traces, axis=0))}
+    out: dict[str, Any] = {"run_id": record.id, "signal": signal, "t": _json_list(grid)}
+    for direction in ("up", "down"):
+        traces = []
+        for e in [e for e in edges if e.direction == direction][:50]:
+            seg = np.interp(e.t_s + grid, t, y)
+            lo, hi = np.median(seg[grid < 0]), np.median(seg[-columns // 10:])
+            if abs(hi - lo) > 1e-9:
+                traces.append((seg - lo) / (hi - lo))
+        if traces:
+            out[direction] = _json_list(np.mean(traces, axis=0))
+            out[f"{direction}_edges"] = len(traces)
+    if "up" not in out and "down" not in out:
+        return {"run_id": record.id, "why": "no command edges with a response (not a step run)"}
+    return out
 
 
 def export_of(record: RunRecord, target: str) -> dict[str, Any]:

@@ -59,7 +59,11 @@ def test_compare_and_constants(client: object) -> None:
     d = client.get("/api/compare", params={"runs": f"{a},{sweep}"}).json()
     assert [s["run_id"] for s in d["static"]] == [a, sweep]
     assert len(d["static"][1]["thrust_vs_rpm"]["x"]) > 10
-    assert d["steps"][0]["edges"] >= 2 and "why" in d["steps"][1]  # a sweep has no steps
+    assert d["steps"][0]["up_edges"] >= 2 and d["steps"][0]["down_edges"] >= 2
+    assert "why" in d["steps"][1]  # a sweep has no steps
+    # a step run's static points are its plateaus: current rises with thrust there
+    cur = d["static"][0]["current_a_vs_thrust"]["y"]
+    assert all(b >= a - 0.05 for a, b in zip(cur, cur[1:], strict=False))
     assert client.get(f"/compare?runs={a},{b}").status_code == 200
     (c,) = client.get("/api/constants").json()
     assert c["kind"] == "step" and c["data"]["tau_up_s"] > 0

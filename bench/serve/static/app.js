@@ -98,10 +98,15 @@ async function comparePage() {
         {...LAYOUT, height: 300, showlegend: true, title: {text: title},
          xaxis: {title: {text: xu}}, yaxis: {title: {text: yu}}}, CONFIG);
     }
-    const steps = d.steps.filter(s => s.t).map(s => (
-      {x: s.t, y: s.y, type: "scatter", mode: "lines", name: `${s.run_id} (${s.edges} edges)`}));
+    const steps = [];
+    for (const s of d.steps.filter(s => s.t)) {
+      if (s.up) steps.push({x: s.t, y: s.up, type: "scatter", mode: "lines",
+                            name: `${s.run_id} rising (${s.up_edges})`});
+      if (s.down) steps.push({x: s.t, y: s.down, type: "scatter", mode: "lines",
+                              line: {dash: "dash"}, name: `${s.run_id} falling (${s.down_edges})`});
+    }
     await Plotly.newPlot(document.getElementById("steps"), steps,
-      {...LAYOUT, height: 300, showlegend: true, title: {text: "mean rising step (normalised)"},
+      {...LAYOUT, height: 300, showlegend: true, title: {text: "mean step responses, normalised (solid rising, dashed falling)"},
        xaxis: {title: {text: "t after the command edge (s)"}}}, CONFIG);
     const why = d.steps.filter(s => s.why).map(s => `${s.run_id}: ${s.why}`);
     document.getElementById("compare-notes").textContent = why.join("; ");
