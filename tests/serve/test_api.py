@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+import itertools
 
 import pandas as pd
 import pytest
@@ -63,7 +64,7 @@ def test_compare_and_constants(client: object) -> None:
     assert "why" in d["steps"][1]  # a sweep has no steps
     # a step run's static points are its plateaus: current rises with thrust there
     cur = d["static"][0]["current_a_vs_thrust"]["y"]
-    assert all(b >= a - 0.05 for a, b in zip(cur, cur[1:], strict=False))
+    assert all(hi >= lo - 0.05 for lo, hi in itertools.pairwise(cur))
     assert client.get(f"/compare?runs={a},{b}").status_code == 200
     (c,) = client.get("/api/constants").json()
     assert c["kind"] == "step" and c["data"]["tau_up_s"] > 0
