@@ -42,3 +42,23 @@ def test_demo_one_combination(tmp_path, capsys):
         ids = [[(d["actuators"], d["propeller"], d["motor"], d["battery"]) for d in ds]
                for ds in (picks, case3["designs"])]
         assert (ids[0] == ids[1]) is equal, rules
+    # the web view over the demo's output shows every run, its fits and a comparison
+    # (issue 24); the same demo run, to keep the suite short
+    from fastapi.testclient import TestClient
+
+    from bench.serve.app import create_app
+    from bench.store.stores import open_store
+
+    recorded = sorted(p.parent.name for p in (out / "runs").glob("*/run.json"))
+    with TestClient(create_app(open_store(str(out / "runs")))) as web:
+        listed = web.get("/api/runs", params={"limit": 1000}).json()
+        assert sorted(r["run_id"] for r in listed) == recorded and len(recorded) >= 5
+        for rid in recorded:
+            fits = web.get(f"/api/runs/{rid}/fits").json()
+            assert "step" in fits or "static" in fits, (rid, fits)
+            assert web.get(f"/runs/{rid}").status_code == 200
+        steps = [r["run_id"] for r in listed if r["sequence"] == "step1"][:2]
+        both = web.get("/api/compare", params={"runs": ",".join(steps)}).json()
+        assert [s["run_id"] for s in both["steps"]] == steps
+        assert all(s.get("up_edges", 0) >= 2 for s in both["steps"])
+        assert len(web.get("/api/constants").json()) == len(rows)
