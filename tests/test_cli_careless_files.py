@@ -51,3 +51,50 @@ def test_sequence_toml_not_utf8(tmp_path: Path, capsys) -> None:
     seq.write_bytes(b'name = "x"\n' + NOT_UTF8)
     err = run_bad(capsys, "step", "--sequence", str(seq), "--dry-run")
     assert f"{seq}: not a readable JSON/TOML sequence" in err
+
+
+# --- row 11: a run.json that is not UTF-8 --------------------------------------------------
+
+
+def _bad_run(folder: Path) -> Path:
+    folder.mkdir(parents=True)
+    (folder / "run.json").write_bytes(b'\xff\xfe{"id": "x"}')
+    return folder
+
+
+@pytest.mark.parametrize("argv", [
+    ["fit", "{run}"], ["report", "{run}", "--out", "{tmp}/rep"],
+    ["constants", "--add", "{run}", "--out", "{tmp}/runs"],
+    ["export", "gazebo", "{run}"], ["export", "px4", "{run}"], ["export", "ardupilot", "{run}"],
+    ["fly", "--actuators", "4", "--propeller", "P4", "--motor", "M1", "--battery", "B3",
+     "--step-run", "{run}"],
+])
+def test_run_json_not_utf8(tmp_path: Path, capsys, argv: list[str]) -> None:
+    """Each reader of a run folder ended in a UnicodeDecodeError traceback."""
+    run = _bad_run(tmp_path / "bad")
+    argv = [a.format(run=run, tmp=tmp_path) for a in argv]
+    err = run_bad(capsys, *argv)
+    assert f"{run / 'run.json'}: not UTF-8 text (byte 0xff at offset 0)" in err
+    assert not (tmp_path / "rep").exists() and not (tmp_path / "runs").exists()
+
+
+def test_runs_rebuild_skips_a_bad_run_json_and_says_so(tmp_path: Path, capsys) -> None:
+    """`runs --rebuild` stopped at the first bad folder; now it indexes the others."""
+    from bench.cli import main
+
+    root = tmp_path / "runs"
+    log = tmp_path / "stand.csv"
+    log.write_text("t_s,throttle_us,thrust_n\n0,1000,0\n0.1,1100,0.5\n0.2,1200,1\n")
+    assert main(["import", str(log), "--format", "csv", "--out", str(root / "good")]) == 0
+    _bad_run(root / "bad")
+    (root / "list").mkdir()
+    (root / "list" / "run.json").write_text("[1, 2]")
+    capsys.readouterr()
+    assert main(["runs", "--rebuild", "--out", str(root)]) == 0
+    out, err = capsys.readouterr()
+    good_id = __import__("json").loads((root / "good" / "run.json").read_text())["id"]
+    assert good_id in out
+    lines = err.splitlines()
+    assert len(lines) == 2, err
+    assert f"{root / 'bad' / 'run.json'}: unreadable run.json" in lines[0]
+    assert f"{root / 'list' / 'run.json'}: expected a JSON object" in lines[1]
