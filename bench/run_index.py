@@ -97,7 +97,8 @@ class RunIndex:
                 meta = json.loads((run_dir / "run.json").read_text(encoding="utf-8"))
             except (OSError, ValueError):  # ValueError: not UTF-8, not JSON
                 continue
-            if not isinstance(meta, dict) or meta.get("status") != "running" or meta.get("pid") != pid:
+            if (not isinstance(meta, dict) or meta.get("status") != "running"
+                    or meta.get("pid") != pid):
                 continue
             last_t, rows_on_disk = _last_sample(run_dir / str(meta.get("samples")
                                                               or "samples.parquet"))
