@@ -166,3 +166,102 @@ def test_imu_log_whose_movement_column_is_all_zero(tmp_path: Path, capsys) -> No
                    "acc_z_m_s2,ref_qw,ref_qx,ref_qy,ref_qz,movement\n" + "\n".join(rows) + "\n")
     err = run_bad(capsys, "attitude", str(log))
     assert f"{log}: column movement: every sample is 0" in err
+
+
+# --- row 13: a log cut in the middle of its last line -------------------------------------
+
+RCB_HEADER = ("Time (s),ESC signal (µs),Thrust (gf),Voltage (V),Current (A),"
+              "Motor Electrical Speed (RPM),App message,")
+RCB_ROWS = [f"{0.1 * i:.1f},{1100 + 10 * i},{50 + i},16.0,{1.5 + 0.1 * i:.4f},{3000 + 100 * i},,"
+            for i in range(6)]
+ESC32_ROWS = ["Timestamp,Amps,Batt. Volts,RPM"] + [
+    f"2019-11-05 17:16:0{i}:000,{0.5 + i:.4f},15.8,{1000 * i}" for i in range(6)]
+
+
+@pytest.mark.parametrize(("fmt", "lines", "cut_after"), [
+    ("rcbenchmark", [RCB_HEADER, *RCB_ROWS], "16.0,"),   # cut before the current's cell
+    ("esc32", ESC32_ROWS, ",5."),                          # cut inside the current's cell
+    ("csv", ["t_s,thrust_n,current_a"] + [f"{0.1 * i:.1f},{i},{1.5 + i}" for i in range(6)],
+     "0.5,5"),                                             # a hand-made CSV: fields missing
+])
+def test_import_drops_a_last_line_cut_mid_write(tmp_path: Path, capsys, fmt: str,
+                                                lines: list[str], cut_after: str) -> None:
+    """The partial row was imported (current_a = 0.0 from '0.'); now it is dropped and
+    the import says so, on screen and in run.json."""
+    import pandas as pd
+
+    from bench.cli import main
+
+    whole = "\n".join(lines)
+    text = whole[:whole.rindex(cut_after) + len(cut_after)]
+    log = tmp_path / "log.csv"
+    log.write_text(text, encoding="utf-8")
+    out = tmp_path / "run"
+    assert main(["import", str(log), "--format", fmt, "--out", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert f"dropped line {len(lines)} (" in said and "the file ends inside it" in said
+    df = pd.read_parquet(out / "samples.parquet")
+    assert len(df) == len(lines) - 2  # the header and the cut line
+    meta = json.loads((out / "run.json").read_text())
+    assert meta["import"]["cut_last_line"]["line"] == len(lines)
+    # the same log whole (with its final line break) keeps every row and says nothing
+    log.write_text(whole + "\n", encoding="utf-8")
+    assert main(["import", str(log), "--format", fmt, "--out", str(tmp_path / "whole")]) == 0
+    assert "dropped" not in capsys.readouterr().out
+    assert len(pd.read_parquet(tmp_path / "whole" / "samples.parquet")) == len(lines) - 1
+
+
+def test_hand_made_csv_without_a_final_line_break_keeps_its_last_row(tmp_path: Path,
+                                                                    capsys) -> None:
+    """An editor may omit the last line break: a row with every field is kept (only the
+    loggers' formats, which end every line, treat a missing break alone as a cut)."""
+    import pandas as pd
+
+    from bench.cli import main
+
+    log = tmp_path / "hand.csv"
+    log.write_text("t_s,thrust_n\n0,1\n0.1,2", encoding="utf-8")
+    assert main(["import", str(log), "--format", "csv", "--out", str(tmp_path / "r")]) == 0
+    assert "dropped" not in capsys.readouterr().out
+    assert pd.read_parquet(tmp_path / "r" / "samples.parquet")["thrust_n"].tolist() == [1, 2]
+
+
+def test_a_log_whose_only_row_is_cut(tmp_path: Path, capsys) -> None:
+    log = tmp_path / "log.csv"
+    log.write_text(RCB_HEADER + "\n" + RCB_ROWS[0][:12], encoding="utf-8")
+    err = run_bad(capsys, "import", str(log), "--format", "rcbenchmark", "--out",
+                  str(tmp_path / "r"))
+    assert "no data rows (the only one, line 2, is cut" in err
+    assert not (tmp_path / "r").exists()
+
+
+# --- row 16: one enormous line ------------------------------------------------------------
+
+BIG = 20_000_000  # the 20 MB line of the report
+
+
+@pytest.mark.parametrize(("fmt", "text", "expected"), [
+    ("csv", "t_s,thrust_n\n0,1\n0.1,{big}\n0.2,3\n",
+     "row 3, column 'thrust_n': expected a number, got 'xxxxx"),
+    ("csv", "t_s,thrust_n\n0,1\n{big}\n0.2,3\n", "row 3, column 't_s': expected a number"),
+    ("rcbenchmark", "t_s,{big}\n0,1\n", "no 'Time (s)' column: not an RCbenchmark log"),
+])
+def test_import_quotes_a_short_excerpt_of_a_huge_cell(tmp_path: Path, capsys, fmt: str,
+                                                     text: str, expected: str) -> None:
+    """The error line held the whole 20 MB cell."""
+    log = tmp_path / "big.csv"
+    log.write_text(text.format(big="x" * BIG))
+    err = run_bad(capsys, "import", str(log), "--format", fmt, "--out", str(tmp_path / "r"))
+    assert expected in err and f"({BIG} characters)" in err
+    assert len(err) < 400
+
+
+def test_every_error_line_is_capped(tmp_path: Path, capsys, fixtures_dir: Path) -> None:
+    """The net under the readers that quote a value whole: a rig file's 3 MB URL."""
+    text = (fixtures_dir / "rigs" / "sim.toml").read_text(encoding="utf-8")
+    rig = tmp_path / "rig.toml"
+    rig.write_text(text.replace('url = "sim://esc"', f'url = "sim://esc{"z" * 3_000_000}"'),
+                   encoding="utf-8")
+    err = run_bad(capsys, "step", "--rig", str(rig), "--dry-run")
+    assert err.startswith(f"rotorbench: error: {rig}: [devices.esc] url: ")
+    assert "characters left out" in err and len(err) < 1100
