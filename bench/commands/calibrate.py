@@ -150,9 +150,11 @@ def _apply(args: argparse.Namespace) -> int:
 
 
 def _simulate(args: argparse.Namespace) -> int:
+    import pandas as pd
+
     from drivers.hexapod_motions import paper_a_protocol
     from drivers.sim.imu import ADIS16400
-    from drivers.sim.imu_calibration_log import simulate_calibration_log, write_calibration_log
+    from drivers.sim.imu_calibration_log import simulate_calibration_log
 
     if args.simulate_log.suffix.lower() not in (".csv", ".parquet"):
         raise LogError(f"{args.simulate_log}: simulated log must end in .csv or .parquet")
@@ -161,7 +163,7 @@ def _simulate(args: argparse.Namespace) -> int:
     seed = 0 if args.seed is None else args.seed
     cols = simulate_calibration_log(m, paper_a_protocol(m.rate_hz, short=args.short),
                                     seed=seed)
-    write_calibration_log(args.simulate_log, cols)
+    write_table(pd.DataFrame(cols), args.simulate_log, float_format="%.9g")
     console = Console()
     console.print(f"wrote {args.simulate_log}: {len(cols['t_s'])} rows at {m.rate_hz:g} Hz "
                   f"(seed {seed})")
