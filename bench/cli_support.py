@@ -238,7 +238,8 @@ def print_dry_run(rig: Any, seq: Any) -> None:
     from bench.sequences import format_plan
     from bench.session import plan_for
 
-    effective_limits(rig.limits, seq.limits, source=f"sequence {seq.name!r}")
+    effective_limits(rig.limits, seq.limits, source=f"sequence {seq.name!r}",
+                     thrust_setpoints_n=seq.thrust_setpoints_n)
     plan = plan_for(rig, seq, dry_run=True)
     print(f"rig {rig.name} ({rig.path}); ESC {rig.esc.idle_us:g} us idle, "
           f"{rig.esc.min_us:g}-{rig.esc.max_us:g} us at {rig.esc.frame_rate_hz:g} Hz")
