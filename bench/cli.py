@@ -73,6 +73,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    from bench.cli_support import option_defaults
+
+    args._defaults = option_defaults(parser, args)  # for cli_support.refuse_unused
     try:
         return int(args.func(args) or 0)
     except KeyboardInterrupt:

@@ -16,11 +16,13 @@ from typing import Any
 from bench.catalogs import load
 from bench.cli_support import (
     EXIT_NO_FEASIBLE,
+    RULE_FLAGS,
     add_catalog_args,
     add_measured_args,
     add_rule_args,
     json_default,
     measured_from_args,
+    refuse_unused,
     rules_from_args,
 )
 from bench.design_tables import print_table
@@ -163,6 +165,11 @@ def handler(args: argparse.Namespace) -> int:
     if args.paper_e_cases:
         if args.max_roll_rise_ms is not None:
             raise RequestError("--max-roll-rise-ms does not apply to --paper-e-cases")
+        # each case brings its own objective and payload; rules, packs and propeller data
+        # are not part of Paper E's runs
+        refuse_unused(args, ("--objective", "--weights", "--normalize", "--payload-kg",
+                             "--flyable", *RULE_FLAGS, "--series", "--parallel",
+                             "--prop-data"), "with --paper-e-cases")
         return run_paper_e_cases(args, load(args.catalog, args.current_model))
     objective = build_objective(args)
     catalog = load(args.catalog, args.current_model)

@@ -28,6 +28,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def build(args: argparse.Namespace) -> Sequence:
+    if args.sequence not in ("step1", "step2"):  # a file's steps carry their own holds
+        cli.refuse_unused(args, ("--repeats", "--hold"),
+                          f"with --sequence {args.sequence} (a sequence file's steps set "
+                          "their own repeats and holds)")
     return named_step_sequence(args.sequence, args.repeats, args.hold,
                                cli.parse_limits(args.limit))
 
