@@ -49,6 +49,7 @@ def handler(args: argparse.Namespace) -> int:
     rig = cli.load_rig_from_args(args, prefer_out_copy=True)
     seq = build(args)
     check_limits(rig, seq)  # before a sweep for a missing map could start
+    options = cli.run_options_from_args(args)  # a bad --tick: the dry run says so too
     if args.dry_run:
         if rig.thrust_map is None and seq.needs_thrust_map:
             print("no static thrust map in the rig yet: a sweep would run first "
@@ -56,7 +57,6 @@ def handler(args: argparse.Namespace) -> int:
         cli.print_dry_run(rig, seq)
         return 0
     check_budget_of(rig, seq, args.yes)  # before a sweep for a missing map could start
-    options = cli.run_options_from_args(args)
     if rig.thrust_map is None and seq.needs_thrust_map:
         err_console().print(
             f"rig {rig.name} has no static thrust map yet: measuring one with a sweep first")

@@ -64,9 +64,12 @@ def test_run_that_could_only_trip_is_refused_before_arming(tmp_path: Path, capsy
     assert not out.exists()  # no run folder, no index: nothing was opened or armed
 
 
-def test_limit_dry_run_says_the_same(capsys) -> None:
+def test_limit_and_tick_dry_run_says_the_same(capsys) -> None:
     err = run_bad(capsys, "step", "--limit", "thrust_n=1", "--dry-run")
     assert "leaves no room for the plan's thrust setpoint" in err
+    for command in ("step", "sweep"):
+        err = run_bad(capsys, command, "--tick", "0.2", "--dry-run")
+        assert "--tick 0.2: expected 0.001 <= tick <= 0.1 s" in err
 
 
 @pytest.mark.parametrize("name", ["thrust_n", "current_a", "rpm", "voltage_max_v"])
