@@ -30,7 +30,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from analysis.errors import LogError
+from analysis.csv_tail import cut_last_line
+from analysis.errors import LogError, excerpt
 
 __all__ = ["FORMATS", "RUN_COLUMNS", "detect_format", "import_csv", "import_esc32",
            "import_log", "import_rcbenchmark", "parse_header"]
@@ -129,9 +130,16 @@ def _unit_factor(header: str, target: str, source: str) -> float:
     found = ((quantity, _ACC_UNITS[key]) if key in _ACC_UNITS else None) \
         if quantity == "acceleration" else _UNITS.get(key)
     if found is None or found[0] != quantity:
-        raise LogError(f"{source}: column {header!r}: unit {unit!r} is not a {quantity} "
-                       f"unit for {target}")
+        raise LogError(f"{source}: column {excerpt(header)}: unit {excerpt(unit)} is not a "
+                       f"{quantity} unit for {target}")
     return found[1]
+
+
+def _names(names: Any, limit: int) -> str:
+    """The first ``limit`` column names of a header for a message, each cut short."""
+    names = [str(n) for n in names]
+    shown = [n if len(n) <= 40 else excerpt(n) for n in names[:limit]]
+    return ", ".join(shown) + (f", ... ({len(names)} columns)" if len(names) > limit else "")
 
 
 def _check_file(path: Path) -> None:
@@ -142,7 +150,10 @@ def _check_file(path: Path) -> None:
         raise LogError(f"{path}: not a file (expected a CSV log)")
 
 
-def _read_csv(path: Path, **kwargs: Any) -> pd.DataFrame:
+def _read_csv(path: Path, *, logger: bool = False, **kwargs: Any) -> pd.DataFrame:
+    """The cells as text; a last line cut mid-write is dropped and noted in
+    ``attrs["cut_last_line"]`` (``logger``: the file is a logging program's own format,
+    see ``analysis.csv_tail``)."""
     _check_file(path)
     try:
         # every cell as written: errors quote the file's text ('inf', not np.float64(inf)),
@@ -159,10 +170,19 @@ def _read_csv(path: Path, **kwargs: Any) -> pd.DataFrame:
     if len(df.columns) == 1 and any(c in str(df.columns[0]) for c in ";\t"):
         raise LogError(f"{path}: the header is one field ({str(df.columns[0])[:40]!r}...): "
                        "columns must be separated by commas")
+    first_line = 2 + int(kwargs.get("skiprows", 0) or 0)  # file line of row 0
+    cut = None if df.empty else cut_last_line(path, len(df.columns), logger=logger)
+    if cut is not None:
+        line = first_line + len(df) - 1
+        df = df.iloc[:-1]
+        if df.empty:
+            raise LogError(f"{path}: no data rows (the only one, line {line}, is cut: no "
+                           "line break at its end)")
+        df.attrs["cut_last_line"] = {"line": line, "text": cut[:80]}
     if df.empty:
         raise LogError(f"{path}: no data rows (only a header)")
     df.columns = [str(c).strip() for c in df.columns]  # 'Time (s), Amps' -> 'Amps'
-    df.attrs["first_line"] = 2 + int(kwargs.get("skiprows", 0) or 0)  # file line of row 0
+    df.attrs["first_line"] = first_line
     return df
 
 
@@ -177,8 +197,8 @@ def _numeric(df: pd.DataFrame, header: str, path: Path) -> np.ndarray:
         row = int(np.flatnonzero(bad)[0])
         what = "a number" if math.isnan(values[row]) and raw.iloc[row].lower() != "nan" \
             else "a finite number (leave the cell empty for no value)"
-        raise LogError(f"{path}: row {row + _first_line(df)}, column {header!r}: expected "
-                       f"{what}, got {raw.iloc[row]!r}")
+        raise LogError(f"{path}: row {row + _first_line(df)}, column {excerpt(header)}: "
+                       f"expected {what}, got {excerpt(raw.iloc[row])}")
     return values
 
 
@@ -199,7 +219,7 @@ def _order_time(t: np.ndarray, path: Path, time_col: str, raw: pd.Series | None,
     back or (``allow_repeats`` False) for a repeated timestamp."""
 
     def cell(i: int) -> str:
-        return repr(str(raw.iloc[i]).strip()) if raw is not None else repr(f"{t[i]:g}")
+        return excerpt(str(raw.iloc[i]).strip()) if raw is not None else repr(f"{t[i]:g}")
 
     dt = np.diff(t)
     pos = dt[dt > 0]
@@ -209,18 +229,18 @@ def _order_time(t: np.ndarray, path: Path, time_col: str, raw: pd.Series | None,
     far = np.flatnonzero(back > bound)
     if far.size:
         i = int(far[0]) + 1
-        raise LogError(f"{path}: row {i + first_line}, column {time_col!r}: time jumps back "
-                       f"{back[i - 1]:.6g} s (to {cell(i)}), more than the jitter bound of "
-                       f"{JITTER_MAX_PERIODS:g} sample periods ({bound:.3g} s): two logs in "
-                       "one file? split it")
+        raise LogError(f"{path}: row {i + first_line}, column {excerpt(time_col)}: time "
+                       f"jumps back {back[i - 1]:.6g} s (to {cell(i)}), more than the jitter "
+                       f"bound of {JITTER_MAX_PERIODS:g} sample periods ({bound:.3g} s): two "
+                       "logs in one file? split it")
     order = np.argsort(t, kind="stable")
     if not allow_repeats:
         ts = t[order]
         rep = np.flatnonzero(ts[1:] == ts[:-1])
         if rep.size:
             i = int(np.min(order[rep + 1]))
-            raise LogError(f"{path}: row {i + first_line}, column {time_col!r}: repeated "
-                           f"timestamp {cell(i)} (each row needs its own time)")
+            raise LogError(f"{path}: row {i + first_line}, column {excerpt(time_col)}: "
+                           f"repeated timestamp {cell(i)} (each row needs its own time)")
     moved = int(np.count_nonzero(order != np.arange(t.size)))
     info: dict[str, Any] = {"reordered_rows": moved, "time_steps_back": int(np.sum(dt < 0)),
                             "max_step_back_s": float(np.max(back, initial=0.0)),
@@ -238,9 +258,10 @@ def _frame(columns: Mapping[str, np.ndarray], path: Path, *, time_col: str = "t_
     t = out["t_s"].to_numpy()
     if not np.isfinite(t).all():
         row = int(np.flatnonzero(~np.isfinite(t))[0])
-        got = f", got {str(raw_time.iloc[row]).strip()!r}" if raw_time is not None else ""
-        raise LogError(f"{path}: row {row + first_line}, column {time_col!r}: time is empty "
-                       f"or not a number{got}")
+        got = (f", got {excerpt(str(raw_time.iloc[row]).strip())}" if raw_time is not None
+               else "")
+        raise LogError(f"{path}: row {row + first_line}, column {excerpt(time_col)}: time is "
+                       f"empty or not a number{got}")
     order, info = _order_time(t, path, time_col, raw_time, first_line, allow_repeats)
     if info["reordered_rows"]:
         out = out.iloc[order].reset_index(drop=True)
@@ -287,11 +308,11 @@ def import_rcbenchmark(path: str | Path) -> tuple[pd.DataFrame, dict[str, Any]]:
     _check_file(path)
     first = path.read_bytes()[:200].decode("utf-8-sig", errors="replace").splitlines()
     skip = 1 if first and first[0].lower().startswith("control protocol") else 0
-    df = _read_csv(path, skiprows=skip)
+    df = _read_csv(path, logger=True, skiprows=skip)
     by_name = {parse_header(h)[0].lower(): h for h in df.columns}
     if "time" not in by_name:
         raise LogError(f"{path}: no 'Time (s)' column: not an RCbenchmark log "
-                       f"(columns: {', '.join(df.columns[:6])} ...)")
+                       f"(columns: {_names(df.columns, 6)})")
     cols: dict[str, np.ndarray] = {}
     used: dict[str, str] = {}
     for name, target in _RCB_MAP:
@@ -315,7 +336,8 @@ def import_rcbenchmark(path: str | Path) -> tuple[pd.DataFrame, dict[str, Any]]:
     frame, order = _frame(cols, path, time_col=used["t_s"], raw_time=df[used["t_s"]],
                           first_line=_first_line(df))
     meta = {"format": "rcbenchmark", "source_file": str(path), "columns": used,
-            "control_protocol": first[0].strip() if skip else None, "time_order": order}
+            "control_protocol": first[0].strip() if skip else None, "time_order": order,
+            "cut_last_line": df.attrs.get("cut_last_line")}
     return frame, meta
 
 
@@ -345,7 +367,7 @@ def import_esc32(path: str | Path) -> tuple[pd.DataFrame, dict[str, Any]]:
     matched without case or a unit in brackets) are imported, at least one is needed.
     """
     path = Path(path)
-    df = _read_csv(path)
+    df = _read_csv(path, logger=True)
     by_name = {parse_header(h)[0].lower(): h for h in df.columns}
     stamp_col = by_name.get("timestamp")
     if stamp_col is None:
@@ -355,8 +377,8 @@ def import_esc32(path: str | Path) -> tuple[pd.DataFrame, dict[str, Any]]:
                            format=_ESC32_STAMP, errors="coerce")
     if stamp.isna().any():
         row = int(np.flatnonzero(stamp.isna().to_numpy())[0])
-        raise LogError(f"{path}: row {row + _first_line(df)}, column {stamp_col!r}: expected "
-                       f"'YYYY-MM-DD HH:MM:SS:mmm', got {raw.iloc[row]!r}")
+        raise LogError(f"{path}: row {row + _first_line(df)}, column {excerpt(stamp_col)}: "
+                       f"expected 'YYYY-MM-DD HH:MM:SS:mmm', got {excerpt(raw.iloc[row])}")
     start = stamp.min()  # the first row may lie a little behind a later one (jitter)
     t = (stamp - start).dt.total_seconds().to_numpy()
     cols: dict[str, np.ndarray] = {"t_s": t}
@@ -368,11 +390,12 @@ def import_esc32(path: str | Path) -> tuple[pd.DataFrame, dict[str, Any]]:
             used[target] = header
     if len(cols) == 1:
         raise LogError(f"{path}: none of the ESC32 telemetry columns "
-                       f"{[h for h, _ in _ESC32_MAP]} (columns: {', '.join(df.columns[:8])})")
+                       f"{[h for h, _ in _ESC32_MAP]} (columns: {_names(df.columns, 8)})")
     frame, order = _frame(cols, path, time_col=stamp_col, raw_time=df[stamp_col],
                           first_line=_first_line(df))
     meta = {"format": "esc32", "source_file": str(path), "columns": used,
-            "start_time": str(start), "time_order": order}
+            "start_time": str(start), "time_order": order,
+            "cut_last_line": df.attrs.get("cut_last_line")}
     return frame, meta
 
 
@@ -394,7 +417,7 @@ def import_csv(path: str | Path, mapping: Mapping[str, str] | None = None
                            f"(one of {', '.join(RUN_COLUMNS)})")
         if file_col not in df.columns:
             raise LogError(f"{path}: --map {run_col}={file_col}: no column {file_col!r} in the "
-                           f"file (columns: {', '.join(map(str, df.columns))})")
+                           f"file (columns: {_names(df.columns, 20)})")
     for name in df.columns:
         if name in RUN_COLUMNS and name not in mapping and name not in mapping.values():
             mapping[name] = name
@@ -406,7 +429,7 @@ def import_csv(path: str | Path, mapping: Mapping[str, str] | None = None
     frame, order = _frame(cols, path, time_col=mapping["t_s"], raw_time=df[mapping["t_s"]],
                           first_line=_first_line(df), allow_repeats=False)
     meta = {"format": "csv", "source_file": str(path), "columns": dict(mapping),
-            "time_order": order}
+            "time_order": order, "cut_last_line": df.attrs.get("cut_last_line")}
     return frame, meta
 
 

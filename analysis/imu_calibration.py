@@ -16,8 +16,6 @@ from __future__ import annotations
 import itertools
 import json
 import math
-import os
-import tempfile
 import warnings
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -31,6 +29,7 @@ from scipy.optimize import minimize_scalar
 from scipy.signal import correlate, correlation_lags, savgol_filter
 from scipy.spatial.transform import Rotation
 
+from analysis.atomic_files import write_atomically
 from analysis.errors import CalibrationError, LogError
 from analysis.imu_log import (
     IMU_ACC,
@@ -483,16 +482,8 @@ def calibrate(
 def save_calibration(cal: Calibration, path: str | Path) -> Path:
     """Write the calibration JSON atomically (temp file in the same folder, then rename)."""
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            json.dump(cal.to_dict(), fh, indent=2, ensure_ascii=False)
-            fh.write("\n")
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+    text = json.dumps(cal.to_dict(), indent=2, ensure_ascii=False) + "\n"
+    return write_atomically(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
 
 
 def _field(data: dict[str, Any], path: Path, name: str, shape: tuple[int, ...]) -> Any:

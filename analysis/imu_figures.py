@@ -7,8 +7,6 @@ offset is visible.
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import matplotlib
@@ -18,6 +16,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
+from analysis.atomic_files import write_atomically
 from analysis.imu_calibration import Calibration, aligned_phase, apply_calibration
 
 __all__ = ["verification_figures"]
@@ -26,17 +25,10 @@ _XYZ = ("x", "y", "z")
 
 
 def _save(fig: plt.Figure, path: Path) -> Path:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".png")
-    os.close(fd)
     try:
-        fig.savefig(tmp, dpi=110)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+        return write_atomically(path, lambda tmp: fig.savefig(tmp, dpi=110), suffix=".png")
     finally:
         plt.close(fig)
-    return path
 
 
 def _panel(ax: plt.Axes, t: np.ndarray, truth: np.ndarray, cor: np.ndarray, raw: np.ndarray,

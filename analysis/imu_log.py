@@ -186,10 +186,10 @@ def load_attitude_log(path: str | Path) -> pd.DataFrame:
     return df
 
 
-def write_table(df: pd.DataFrame, path: str | Path) -> Path:
-    """Write a DataFrame to ``.csv`` or ``.parquet`` atomically (temp file, then rename)."""
-    import os
-    import tempfile
+def write_table(df: pd.DataFrame, path: str | Path, float_format: str | None = None) -> Path:
+    """Write a DataFrame to ``.csv`` or ``.parquet`` atomically (temp file, then rename);
+    ``float_format``: the CSV's number format (default: every digit)."""
+    from analysis.atomic_files import write_atomically
 
     path = Path(path)
     suffix = path.suffix.lower()
@@ -199,15 +199,12 @@ def write_table(df: pd.DataFrame, path: str | Path) -> Path:
         raise LogError(f"{path}: folder {path.parent} does not exist")
     if path.is_dir():
         raise LogError(f"{path}: is a folder; expected the name of the file to write")
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    os.close(fd)
-    try:
+
+    def write(tmp: Path) -> None:
         if suffix == ".csv":
-            df.to_csv(tmp, index=False)
+            df.to_csv(tmp, index=False, float_format=float_format)
         else:
             df.to_parquet(tmp, index=False)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+
+    write_atomically(path, write)
     return path

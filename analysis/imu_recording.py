@@ -116,7 +116,14 @@ def _dataset(f, path: Path, name: str, width: int, n: int | None, finite: bool) 
     if name not in f:
         raise LogError(f"{path}: dataset {name}: missing (a BROAD trial has imu_acc, imu_gyr, "
                        "imu_mag, opt_quat, movement)")
-    arr = np.asarray(f[name][()], dtype=float)
+    node = f[name]
+    kind = getattr(getattr(node, "dtype", None), "kind", None)
+    if kind is None:  # a group (or a link to one), not a dataset
+        raise LogError(f"{path}: {name}: expected a dataset of numbers, got a "
+                       f"{type(node).__name__.lower()}")
+    if kind not in "biuf":  # strings, compounds, references: no numbers to read
+        raise LogError(f"{path}: dataset {name}: expected numbers, got {node.dtype} values")
+    arr = np.asarray(node[()], dtype=float)
     if width == 1 and arr.ndim == 2 and 1 in arr.shape:
         arr = arr.reshape(-1)  # MAT-style column vectors
     want = (n if n is not None else arr.shape[0],) + ((width,) if width > 1 else ())
@@ -163,8 +170,26 @@ def read_broad(path: str | Path) -> ImuRecording:
     if mov is not None and not np.isin(mov, (0.0, 1.0)).all():
         i = int(np.flatnonzero(~np.isin(mov, (0.0, 1.0)))[0])
         raise LogError(f"{path}: dataset movement, sample {i}: expected 0 or 1, got {mov[i]!r}")
-    return ImuRecording(str(path), np.arange(n) / rate, gyr, acc, mag, ref,
-                        None if mov is None else mov.astype(bool))
+    rec = ImuRecording(str(path), np.arange(n) / rate, gyr, acc, mag, ref,
+                       None if mov is None else mov.astype(bool))
+    return _check_scorable(rec, "dataset opt_quat", "dataset movement")
+
+
+def _check_scorable(rec: ImuRecording, ref_name: str, mov_name: str) -> ImuRecording:
+    """Refuse a reference that leaves nothing to score: every quaternion NaN (the optical
+    system lost track throughout) or no movement sample where it is finite. The scores
+    would be the RMSE of an empty set; the file is what is wrong, so it is named."""
+    if rec.ref_quat is None:
+        return rec
+    finite = np.isfinite(rec.ref_quat).all(axis=1)
+    if not finite.any():
+        raise LogError(f"{rec.source}: {ref_name}: no sample has a finite reference "
+                       "quaternion (all NaN); nothing to score")
+    if rec.movement is not None and not (rec.movement & finite).any():
+        what = ("every sample is 0" if not rec.movement.any()
+                else "no sample marked 1 has a finite reference")
+        raise LogError(f"{rec.source}: {mov_name}: {what}; no sample to score")
+    return rec
 
 
 def load_recording(path: str | Path) -> ImuRecording:
@@ -182,5 +207,7 @@ def load_recording(path: str | Path) -> ImuRecording:
         return df[list(names)].to_numpy(dtype=float) if names[0] in df.columns else None
 
     mov = df[MOVEMENT_COLUMN].to_numpy() > 0.5 if MOVEMENT_COLUMN in df.columns else None
-    return ImuRecording(str(path), df["t_s"].to_numpy(dtype=float), cols(gyro), cols(acc),
-                        cols(MAG_COLUMNS), cols(REF_QUAT_COLUMNS), mov)
+    rec = ImuRecording(str(path), df["t_s"].to_numpy(dtype=float), cols(gyro), cols(acc),
+                       cols(MAG_COLUMNS), cols(REF_QUAT_COLUMNS), mov)
+    return _check_scorable(rec, f"columns {','.join(REF_QUAT_COLUMNS)}",
+                           f"column {MOVEMENT_COLUMN}")

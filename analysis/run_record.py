@@ -129,6 +129,9 @@ def _read_meta(path: Path) -> dict[str, Any]:
         raise LogError(f"{path}: missing (every run folder has a run.json)") from None
     except OSError as exc:
         raise LogError(f"{path}: cannot read ({exc})") from None
+    except UnicodeDecodeError as exc:
+        raise LogError(f"{path}: not UTF-8 text (byte {exc.object[exc.start]:#04x} at "
+                       f"offset {exc.start})") from None
     try:
         meta = json.loads(text)
     except json.JSONDecodeError as exc:

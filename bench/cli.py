@@ -73,6 +73,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    from bench.cli_support import option_defaults
+
+    args._defaults = option_defaults(parser, args)  # for cli_support.refuse_unused
     try:
         return int(args.func(args) or 0)
     except KeyboardInterrupt:
@@ -90,8 +93,22 @@ def main(argv: Sequence[str] | None = None) -> int:
         code = getattr(exc, "exit_code", None)
         if code is None:
             raise
-        print(f"rotorbench: error: {exc}", file=sys.stderr)
+        print(f"rotorbench: error: {short_message(str(exc))}", file=sys.stderr)
         return int(code)
+
+
+#: longest error line printed; a message quoting the user's input (a cell, a TOML value,
+#: a file's line) is cut in its middle beyond this, keeping where (the start) and why (the
+#: end). The readers quote short excerpts themselves; this is the net under all of them.
+MESSAGE_MAX_CHARS = 1000
+
+
+def short_message(text: str, limit: int = MESSAGE_MAX_CHARS) -> str:
+    """``text`` if short, else its start and end around a note of what was left out."""
+    if len(text) <= limit:
+        return text
+    head, tail = text[: limit * 3 // 4], text[-(limit // 5):]
+    return f"{head} ... ({len(text) - len(head) - len(tail)} characters left out) ... {tail}"
 
 
 if __name__ == "__main__":

@@ -41,18 +41,22 @@ __all__ = [
     "DEFAULT_OUT",
     "DEFAULT_RUNS_ROOT",
     "EXIT_NO_FEASIBLE",
+    "RULE_FLAGS",
     "add_catalog_args",
     "add_common_arguments",
     "add_hover_args",
     "add_measured_args",
     "add_rule_args",
     "check_writable",
+    "given_options",
     "hover_margin_from_args",
     "json_default",
     "load_rig_from_args",
     "measured_from_args",
+    "option_defaults",
     "parse_limits",
     "print_dry_run",
+    "refuse_unused",
     "rules_from_args",
     "run_options_from_args",
     "seed_arg",
@@ -149,6 +153,52 @@ def _probe(folder: Path) -> str | None:
     return None
 
 
+def option_defaults(parser: argparse.ArgumentParser, args: argparse.Namespace) -> dict:
+    """The argparse defaults of every option of the command (and sub-command) that
+    ``args`` ran, by ``dest``: what an option holds when the user did not give it.
+    ``bench.cli.main`` keeps them in ``args._defaults`` for :func:`given_options`."""
+    defaults: dict = {}
+    while True:
+        defaults.update({a.dest: a.default for a in parser._actions
+                         if a.dest != argparse.SUPPRESS})
+        sub = next((a for a in parser._actions if isinstance(a, argparse._SubParsersAction)),
+                   None)
+        name = getattr(args, sub.dest, None) if sub is not None else None
+        if sub is None or name not in sub.choices:
+            return defaults
+        parser = sub.choices[name]
+
+
+def given_options(args: argparse.Namespace, *flags: str) -> list[str]:
+    """Which of ``flags`` (``--tip-speed-max``) the user gave: the option's value differs
+    from its argparse default. Without ``args._defaults`` (:func:`option_defaults`; a
+    handler called as a library) nothing is known to be given."""
+    defaults = getattr(args, "_defaults", None) or {}
+    out = []
+    for flag in flags:
+        dest = flag.lstrip("-").replace("-", "_")
+        if dest not in defaults:
+            continue
+        value, default = getattr(args, dest, None), defaults[dest]
+        if not (value is default or (value == default and not _is_nan(value))):
+            out.append(flag)
+    return out
+
+
+def refuse_unused(args: argparse.Namespace, flags: Sequence[str], context: str) -> None:
+    """Refuse (exit 2) options that would be silently ignored: ``context`` says when they
+    have no effect, e.g. ``"without --flyable"`` or ``"for export px4"``. One place for
+    every command's "option X only with Y" rule, so none of them just drops an option."""
+    unused = given_options(args, *flags)
+    if unused:
+        verb = "has" if len(unused) == 1 else "have"
+        raise RequestError(f"{', '.join(unused)} {verb} no effect {context}")
+
+
+def _is_nan(value: Any) -> bool:
+    return isinstance(value, float) and math.isnan(value)
+
+
 def seed_arg(text: str) -> int:
     """argparse ``type`` of every ``--seed``: a whole number >= 0 (numpy's generators refuse
     a negative seed with a traceback long after the options were read)."""
@@ -242,7 +292,8 @@ def print_dry_run(rig: Any, seq: Any) -> None:
     from bench.sequences import format_plan
     from bench.session import plan_for
 
-    effective_limits(rig.limits, seq.limits, source=f"sequence {seq.name!r}")
+    effective_limits(rig.limits, seq.limits, source=f"sequence {seq.name!r}",
+                     thrust_setpoints_n=seq.thrust_setpoints_n)
     plan = plan_for(rig, seq, dry_run=True)
     print(f"rig {rig.name} ({rig.path}); ESC {rig.esc.idle_us:g} us idle, "
           f"{rig.esc.min_us:g}-{rig.esc.max_us:g} us at {rig.esc.frame_rate_hz:g} Hz")
@@ -375,6 +426,11 @@ def measured_from_args(args: argparse.Namespace, catalog: Any) -> Any:
     return load_measured_set(args.measured, catalog, args.esc_mode)
 
 
+#: the rule switches that only act with --flyable
+RULE_FLAGS = ("--no-rule", "--tip-speed-max", "--max-wheelbase-m", "--hover-throttle",
+              "--rule-max-time-constant-ms")
+
+
 def add_rule_args(p: argparse.ArgumentParser) -> None:
     """``--flyable`` and its rule switches (optimizer.flyable)."""
     from optimizer.flyable import RULE_NAMES, Rules
@@ -404,8 +460,7 @@ def rules_from_args(args: argparse.Namespace) -> Any:
     from optimizer.flyable import RULE_NAMES, Rules
 
     if not getattr(args, "flyable", False):
-        if getattr(args, "no_rule", None):
-            raise RequestError("--no-rule only applies with --flyable")
+        refuse_unused(args, RULE_FLAGS, "without --flyable")
         return None
     return Rules(
         enabled=tuple(r for r in RULE_NAMES if r not in args.no_rule),

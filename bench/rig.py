@@ -20,12 +20,12 @@ from __future__ import annotations
 import json
 import os
 import re
-import tempfile
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
+from analysis.atomic_files import write_atomically
 from bench import rig_imu, rig_propulsion
 from bench.errors import RigError
 from bench.rig_devices import REPO, URL_SCHEMES, DeviceConfig
@@ -197,16 +197,8 @@ def load_any_rig(path: str | os.PathLike[str]) -> RigConfig:
 # --- writing the thrust map ---------------------------------------------------------------
 def _atomic_write(path: Path, text: str) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    write_atomically(path, lambda tmp: tmp.write_text(text, encoding="utf-8", newline=""),
+                     fsync=True)
 
 
 def _copy_text(rig: RigConfig, map_name: str) -> str:

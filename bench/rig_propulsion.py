@@ -168,6 +168,10 @@ def _limits(path: Path, t: RigTable) -> Limits:
         "temperature_c": t.number("temperature_c", None, lo=-50.0, hi=hi["temperature_c"],
                                   unit="C"),
     }
+    for key in ("thrust_n", "current_a", "rpm", "voltage_max_v"):
+        if vals[key] == 0:  # idle already reaches 0: every run would arm, then trip at t = 0
+            t.fail(key, "0: expected a limit > 0 (the idle reading already reaches 0, so "
+                        "every run would trip at t = 0)")
     if vals["voltage_min_v"] >= vals["voltage_max_v"]:  # type: ignore[operator]
         t.fail("voltage_min_v", f"{vals['voltage_min_v']} V must be below voltage_max_v "
                                 f"{vals['voltage_max_v']} V")

@@ -22,7 +22,7 @@ from typing import Any
 from bench.errors import RigError
 from bench.sqlite_store import connect, writing
 
-__all__ = ["INDEX_NAME", "RunIndex", "RunRow"]
+__all__ = ["INDEX_NAME", "Rebuilt", "RunIndex", "RunRow"]
 
 INDEX_NAME = "runs.sqlite"
 _SCHEMA = """
@@ -53,6 +53,15 @@ class RunRow:
     ended_utc: str | None
     status: str
     reason: str
+
+
+@dataclass(frozen=True)
+class Rebuilt:
+    """What ``RunIndex.rebuild`` did: how many runs it indexed, which folders it skipped
+    (one line each, naming the file and why)."""
+
+    indexed: int
+    skipped: tuple[str, ...] = ()
 
 
 class RunIndex:
@@ -86,9 +95,10 @@ class RunIndex:
             run_dir = self.root / rel
             try:
                 meta = json.loads((run_dir / "run.json").read_text(encoding="utf-8"))
-            except (OSError, json.JSONDecodeError):
+            except (OSError, ValueError):  # ValueError: not UTF-8, not JSON
                 continue
-            if meta.get("status") != "running" or meta.get("pid") != pid:
+            if (not isinstance(meta, dict) or meta.get("status") != "running"
+                    or meta.get("pid") != pid):
                 continue
             last_t, rows_on_disk = _last_sample(run_dir / str(meta.get("samples")
                                                               or "samples.parquet"))
@@ -147,17 +157,24 @@ class RunIndex:
                               start or "", end, status or "", reason or ""))
         return out
 
-    def rebuild(self) -> int:
-        """Re-index every run folder with a ``run.json`` under the root; returns the count."""
-        count = 0
+    def rebuild(self) -> Rebuilt:
+        """Re-index every run folder with a ``run.json`` under the root.
+
+        One damaged ``run.json`` (not UTF-8, not JSON, not an object) must not keep the
+        others out of the index: it is skipped and named in ``Rebuilt.skipped``."""
+        count, skipped = 0, []
         for meta_path in sorted(self.root.glob("*/run.json")):
             try:
                 meta = json.loads(meta_path.read_text(encoding="utf-8"))
-            except (OSError, json.JSONDecodeError) as exc:
-                raise RigError(f"{meta_path}: unreadable run.json ({exc})") from None
+            except (OSError, ValueError) as exc:  # ValueError: not UTF-8, not JSON
+                skipped.append(f"{meta_path}: unreadable run.json ({exc})")
+                continue
+            if not isinstance(meta, dict):
+                skipped.append(f"{meta_path}: expected a JSON object at the top level")
+                continue
             self.upsert(meta, meta_path.parent)
             count += 1
-        return count
+        return Rebuilt(count, tuple(skipped))
 
 
 def _utc_now() -> str:

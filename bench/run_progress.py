@@ -60,7 +60,8 @@ def _progress_bar() -> Progress:
 def check_limits(rig: Any, seq: PlanSequence) -> None:
     """Refuse a sequence (or --limit) that would loosen the rig's limits before anything
     is shown or opened: the dry run says what the run would say."""
-    effective_limits(rig.limits, seq.limits, source=f"sequence {seq.name!r}")
+    effective_limits(rig.limits, seq.limits, source=f"sequence {seq.name!r}",
+                     thrust_setpoints_n=seq.thrust_setpoints_n)
 
 
 def check_budget_of(rig: Any, seq: PlanSequence, confirmed: bool) -> Budget:

@@ -70,6 +70,26 @@ class OpenRigLike(Protocol):
     sensors: Mapping[str, Sensor]
 
 
+#: the shortest command/read period: the loop is Python on a desktop OS, which does not
+#: keep a period below about 1 ms (the sensors' samples come in blocks either way); a
+#: shorter tick only starves the host watchdog (``--tick 1e-9`` armed, then aborted)
+MIN_TICK_S = 1e-3
+#: the longest: the ESC failsafe wants a command at least this often
+MAX_TICK_S = 0.1
+
+
+def check_tick(tick_s: float, watchdog_timeout_s: float) -> None:
+    """Refuse a loop period outside [MIN_TICK_S, MAX_TICK_S] or longer than the host
+    watchdog's timeout (the loop checks in once per tick: it would trip every time)."""
+    if not MIN_TICK_S <= tick_s <= MAX_TICK_S:
+        raise RigError(f"--tick {tick_s:g}: expected {MIN_TICK_S:g} <= tick <= {MAX_TICK_S:g} s "
+                       "(the loop must keep its period, react to limits and feed the ESC "
+                       "failsafe)")
+    if tick_s > watchdog_timeout_s:
+        raise RigError(f"--tick {tick_s:g}: expected at most the watchdog timeout "
+                       f"{watchdog_timeout_s:g} s")
+
+
 @dataclass(frozen=True)
 class RunOptions:
     """Loop settings. ``tick_s`` is the command/read period on the rig clock; limits are
@@ -83,9 +103,7 @@ class RunOptions:
     stale_s: float = 0.25  # a sensor silent this long (rig time) ends the run: limits blind
 
     def __post_init__(self) -> None:
-        if not 0.0 < self.tick_s <= 0.1:
-            raise RigError(f"--tick {self.tick_s}: expected 0 < tick <= 0.1 s (the loop "
-                           "must react to limits and feed the ESC failsafe)")
+        check_tick(self.tick_s, self.watchdog_timeout_s)
         if self.stale_s <= self.tick_s:
             raise RigError(f"stale_s {self.stale_s} must exceed the tick {self.tick_s}")
 
@@ -104,8 +122,7 @@ class HexapodRunOptions:
     motion_end_timeout_s: float = 5.0  # a motion still running this long after its end
 
     def __post_init__(self) -> None:
-        if not 0.0 < self.tick_s <= 0.1:
-            raise RigError(f"--tick {self.tick_s}: expected 0 < tick <= 0.1 s")
+        check_tick(self.tick_s, self.watchdog_timeout_s)
         if self.stale_s <= self.tick_s:
             raise RigError(f"stale_s {self.stale_s} must exceed the tick {self.tick_s}")
         if not self.motion_end_timeout_s > 0:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -18,7 +18,8 @@ import numpy as np
 from bench.errors import RigError
 from drivers.contracts import Block
 
-__all__ = ["LIMIT_FIELDS", "LimitTrip", "SafetySupervisor", "Trip", "effective_limits",
+__all__ = ["LIMIT_FIELDS", "LimitTrip", "SafetySupervisor", "Trip", "check_room",
+           "effective_limits",
            "limits_dict"]
 
 # channel -> (limit field, test). "abs_above": |x| > limit; "above": x > limit; "below": x < limit.
@@ -32,6 +33,9 @@ _CHECKS: dict[str, tuple[tuple[str, str], ...]] = {
 LIMIT_FIELDS = ("thrust_n", "current_a", "rpm", "voltage_min_v", "voltage_max_v", "temperature_c")
 _LOWEST_LIMIT = {"temperature_c": -50.0}  # every other limit is >= 0 (as in a rig file)
 _LOWER_BOUNDS = {"voltage_min_v"}  # tightening raises these; every other limit is lowered
+#: limits on a magnitude that is about 0 at idle (the ESC armed, the motor still): 0 would
+#: trip on the first sample, so the run would arm the ESC only to stop at t = 0
+_ABOVE_IDLE = {"thrust_n": "N", "current_a": "A", "rpm": "rpm"}
 
 
 @dataclass(frozen=True)
@@ -80,11 +84,13 @@ def limits_dict(limits: Any) -> dict[str, float]:
 
 
 def effective_limits(rig_limits: Any, sequence_limits: Mapping[str, float],
-                     source: str = "sequence") -> dict[str, float]:
+                     source: str = "sequence",
+                     thrust_setpoints_n: Iterable[float] = ()) -> dict[str, float]:
     """The rig's limits tightened by the sequence's; loosening raises RigError.
 
     Uses the rig's own ``Limits.tightened`` when it has one (the rig file's rule), and
-    checks the result again here, so a sequence can never widen a limit.
+    checks the result again here, so a sequence can never widen a limit. The result must
+    leave the plan room (:func:`check_room`; ``thrust_setpoints_n``: the plan's targets).
     """
     base = limits_dict(rig_limits)
     for key, value in sequence_limits.items():
@@ -112,7 +118,29 @@ def effective_limits(rig_limits: Any, sequence_limits: Mapping[str, float],
         if looser:
             raise RigError(f"{source}: limits.{key} = {value:g} would loosen the rig's "
                            f"limit {base[key]:g}; a sequence may only tighten limits")
+    check_room(merged, source, thrust_setpoints_n)
     return merged
+
+
+def check_room(limits: Mapping[str, float], source: str,
+               thrust_setpoints_n: Iterable[float] = ()) -> None:
+    """Refuse limits under which the run could only trip, before anything is armed: a
+    magnitude limit of 0 (idle already reaches it), an undervoltage bound at or above the
+    overvoltage bound (no supply voltage passes both), a thrust limit at or below a
+    thrust setpoint of the plan (the step would trip as it reaches its target)."""
+    for key, unit in _ABOVE_IDLE.items():
+        if key in limits and limits[key] <= 0:
+            raise RigError(f"{source}: limits.{key} = {limits[key]:g}: expected > 0 {unit}; "
+                           "the idle reading already reaches it (the run would trip at t = 0)")
+    lo, hi = limits.get("voltage_min_v"), limits.get("voltage_max_v")
+    if lo is not None and hi is not None and lo >= hi:
+        raise RigError(f"{source}: limits.voltage_min_v = {lo:g} V is not below "
+                       f"voltage_max_v = {hi:g} V: no supply voltage passes both")
+    top = max((abs(float(t)) for t in thrust_setpoints_n), default=None)
+    if top is not None and "thrust_n" in limits and limits["thrust_n"] <= top:
+        raise RigError(f"{source}: limits.thrust_n = {limits['thrust_n']:g} N leaves no room "
+                       f"for the plan's thrust setpoint {top:g} N (the step would trip on "
+                       "reaching it); raise the limit above the setpoints or lower them")
 
 
 class SafetySupervisor:

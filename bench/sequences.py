@@ -146,6 +146,11 @@ class Sequence:
     source: str = field(default="", compare=False)  # the file it was read from, if any
 
     @property
+    def thrust_setpoints_n(self) -> tuple[float, ...]:
+        """The thrust targets of its thrust steps (the limits must leave them room)."""
+        return tuple(float(s.thrust_n) for s in self.steps if isinstance(s, ThrustStep))
+
+    @property
     def where(self) -> str:
         """How messages name it: ``sequence 'name'``, with its file when it has one."""
         return f"sequence {self.name!r}" + (f" ({self.source})" if self.source else "")

@@ -142,7 +142,8 @@ def run_sequence(
     """
     options = options or RunOptions()
     plan = plan_for(rig, seq)
-    limits = effective_limits(rig.limits, seq.limits, source=f"sequence {seq.name!r}")
+    limits = effective_limits(rig.limits, seq.limits, source=f"sequence {seq.name!r}",
+                              thrust_setpoints_n=getattr(seq, "thrust_setpoints_n", ()))
     meta = {
         "kind": seq.name,
         "rig": rig_summary(rig),
@@ -158,26 +159,25 @@ def run_sequence(
         **dict(extra_meta or {}),
     }
 
-    def run(recorder: RunRecorder) -> RunResult:
-        try:
-            devices = open_rig(rig, seed=seed)
-        except BaseException as exc:
-            recorder.event(float("nan"), "device_error", label="open", detail={"error": str(exc)})
-            recorder.finish("fail", f"could not open the rig: {exc}")
-            raise
-        try:
+    # the devices open before the run folder exists: a rig that cannot be opened (an
+    # option misspelt, a port missing) is refused with nothing written, however often it
+    # is tried; opening arms nothing (the runner arms the ESC), and the devices are closed
+    # whatever happens after
+    devices = open_rig(rig, seed=seed)
+    try:
+        def run(recorder: RunRecorder) -> RunResult:
             try:
-                runner = runner_factory(devices, plan, esc_range_of(rig), limits, recorder, options,
-                                        on_rows=on_rows, on_progress=on_progress,
+                runner = runner_factory(devices, plan, esc_range_of(rig), limits, recorder,
+                                        options, on_rows=on_rows, on_progress=on_progress,
                                         stop_event=stop_event)
             except BaseException as exc:
                 recorder.finish("fail", f"runner did not start: {exc}")
                 raise
             return runner.run()
-        finally:
-            devices.close()
 
-    return record_plan(out_root, seq.name, meta, plan, run)
+        return record_plan(out_root, seq.name, meta, plan, run)
+    finally:
+        devices.close()
 
 
 # --- the IMU bench --------------------------------------------------------------------------

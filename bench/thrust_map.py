@@ -145,7 +145,7 @@ def fit_sweep_run(run_dir: Path) -> SweepFit:
     meta_path = run_dir / "run.json"
     try:
         meta = json.loads(meta_path.read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError) as exc:
+    except (OSError, ValueError) as exc:  # ValueError: not UTF-8, not JSON
         raise RigError(f"{meta_path}: cannot read the run record ({exc})") from None
     segments = meta.get("plan", {}).get("segments", [])
     ramps = [s for s in segments if s.get("kind") == "ramp" and s["us_end"] > s["us_start"]]

@@ -8,6 +8,7 @@ limits not given are :data:`NO_LIMIT` (reported as "not given", never violated).
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import pandas as pd
@@ -57,6 +58,11 @@ def freeform_catalog(values: dict[str, Any], constants: ModelConstants | None = 
     missing = [f for _, _, f, req in FIELDS if req and values.get(flag_dest(f)) is None]
     if missing:
         raise RequestError(f"free-form design: missing {', '.join(missing)}")
+    for _, _, flag, _ in FIELDS:  # NaN is no "not given": the catalog reader would read it
+        value = values.get(flag_dest(flag))  # as an empty cell and drop an optional part
+        if value is not None and not math.isfinite(float(value)):
+            raise RequestError(f"{flag}: expected a finite number, got {float(value):g} "
+                               "(leave the option out for no value)")
     rows: dict[str, dict[str, Any]] = {
         "propeller": {"id": "prop", "name": "free-form propeller", "price": 0.0},
         "motor": {"id": "motor", "name": "free-form motor", "price": 0.0,

@@ -150,7 +150,7 @@ def load_constants(path: Path) -> ModelConstants:
     try:
         with path.open("rb") as fh:
             data = tomllib.load(fh)
-    except tomllib.TOMLDecodeError as exc:
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:  # bytes that are not text
         raise CatalogError(f"{path}: invalid TOML: {exc}") from None
     except OSError as exc:
         raise CatalogError(f"{path}: cannot read: {exc.strerror}") from None

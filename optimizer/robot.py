@@ -82,8 +82,10 @@ def load_robot(folder: str | Path) -> RobotProblem:
     folder = Path(folder)
     path = folder / "batteries.csv"
     try:
-        with path.open(newline="") as fh:
+        with path.open(newline="", encoding="utf-8") as fh:
             rows = list(csv.DictReader(fh))
+    except UnicodeDecodeError as exc:
+        raise CatalogError(f"{path}: not UTF-8 text ({exc})") from None
     except OSError as exc:
         raise CatalogError(f"{path}: cannot read ({exc.strerror})") from None
     if not rows:
@@ -112,9 +114,11 @@ def load_robot(folder: str | Path) -> RobotProblem:
     toml_path = folder / "robot.toml"
     if toml_path.exists():
         try:
-            raw = tomllib.loads(toml_path.read_text())
-        except tomllib.TOMLDecodeError as exc:
+            raw = tomllib.loads(toml_path.read_text(encoding="utf-8"))
+        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:  # bytes that are not text
             raise CatalogError(f"{toml_path}: not valid TOML ({exc})") from None
+        except OSError as exc:
+            raise CatalogError(f"{toml_path}: cannot read ({exc.strerror})") from None
         for key, value in raw.items():
             if key not in _CONSTANTS:
                 raise CatalogError(f"{toml_path}: unknown key {key!r}")

@@ -270,14 +270,17 @@ def import_sizinglab(folder: str | Path = DEFAULT_FOLDER) -> Catalog:
 def write_catalog(catalog: Catalog, frames: tuple[pd.DataFrame, ...], out: str | Path) -> Path:
     """Write catalog CSVs + catalog.toml to ``out`` atomically (temp folder, then rename)."""
     import os
+    import secrets
     import shutil
-    import tempfile
 
     out = Path(out)
     if out.exists():
         raise CatalogError(f"{out}: already exists; choose a new folder")
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}-", dir=out.parent))
+    # a plain mkdir (not tempfile.mkdtemp, which makes it 0700): the catalog folder
+    # gets the mode the user's umask gives, as a folder made by hand would
+    tmp = out.parent / f".{out.name}-{secrets.token_hex(4)}"
+    tmp.mkdir()
     try:
         for name, frame in zip(
             ("propellers.csv", "motors.csv", "batteries.csv"), frames, strict=True

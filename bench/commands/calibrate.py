@@ -33,7 +33,7 @@ from analysis.imu_log import load_calibration_log, load_imu_log, write_table
 from bench.calibration_report import mat, print_calibration, print_stages, print_truth, vec
 from bench.calibration_sequences import format_plan, paper_a_sequences
 from bench.calibration_stages import calibrate_frame, collect_log, plans_for
-from bench.cli_support import check_writable, seed_arg
+from bench.cli_support import check_writable, refuse_unused, seed_arg
 from bench.errors import RigError
 from bench.recorder import new_run_id
 from bench.rig import default_imu_rig_path, is_imu_rig, load_imu_rig
@@ -91,13 +91,30 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=handler)
 
 
+#: the options of each way to run the command (an option of another way is refused: it
+#: would be ignored)
+_RIG_ONLY = ("--rig", "--quick", "--runs", "--dry-run", "--tick", "--realtime")
+_CALIBRATION = ("--out", "--figures", "--mounting-deg", "--gyro-range-dps", "--acc-range-g",
+                "--max-lag")
+
+
 def handler(args: argparse.Namespace) -> int:
     if getattr(args, "calibrate_action", None) == "apply":
+        refuse_unused(args, ("--from-log", "--simulate-log", "--short", "--seed", *_RIG_ONLY,
+                             "--figures", "--mounting-deg", "--gyro-range-dps",
+                             "--acc-range-g", "--max-lag"),
+                      "with calibrate apply")
         return _apply(args)
     if args.simulate_log is not None:
+        refuse_unused(args, ("--from-log", *_RIG_ONLY, *_CALIBRATION),
+                      "with --simulate-log (it writes the simulated log and calibrates "
+                      "nothing; calibrate from it with a second command)")
         return _simulate(args)
+    refuse_unused(args, ("--short",), "without --simulate-log (--quick shortens the stages "
+                                      "on the rig)")
     if args.from_log is None:
         return run_on_rig(args)
+    refuse_unused(args, ("--seed", *_RIG_ONLY), "with --from-log")
     _check_out(args)
     df = load_calibration_log(args.from_log)
     mounting = tuple(args.mounting_deg) if args.mounting_deg else None
@@ -150,9 +167,11 @@ def _apply(args: argparse.Namespace) -> int:
 
 
 def _simulate(args: argparse.Namespace) -> int:
+    import pandas as pd
+
     from drivers.hexapod_motions import paper_a_protocol
     from drivers.sim.imu import ADIS16400
-    from drivers.sim.imu_calibration_log import simulate_calibration_log, write_calibration_log
+    from drivers.sim.imu_calibration_log import simulate_calibration_log
 
     if args.simulate_log.suffix.lower() not in (".csv", ".parquet"):
         raise LogError(f"{args.simulate_log}: simulated log must end in .csv or .parquet")
@@ -161,7 +180,7 @@ def _simulate(args: argparse.Namespace) -> int:
     seed = 0 if args.seed is None else args.seed
     cols = simulate_calibration_log(m, paper_a_protocol(m.rate_hz, short=args.short),
                                     seed=seed)
-    write_calibration_log(args.simulate_log, cols)
+    write_table(pd.DataFrame(cols), args.simulate_log, float_format="%.9g")
     console = Console()
     console.print(f"wrote {args.simulate_log}: {len(cols['t_s'])} rows at {m.rate_hz:g} Hz "
                   f"(seed {seed})")

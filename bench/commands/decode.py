@@ -43,6 +43,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def handler(args: argparse.Namespace) -> int:
+    from bench.cli_support import refuse_unused
+
+    if args.protocol != "gcs":  # the other protocols tell host and device frames apart
+        refuse_unused(args, ("--side",), f"for --protocol {args.protocol} (only gcs has sides)")
     out = sys.stdout
     if args.protocol in ("vesc-can", "dronecan"):
         records, stats = _decode_can(args.protocol, args.file)

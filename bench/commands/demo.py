@@ -22,7 +22,6 @@ import dataclasses
 import json
 import os
 import shutil
-import tempfile
 import time
 from pathlib import Path
 from typing import Any
@@ -31,6 +30,7 @@ import numpy as np
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
+from analysis.atomic_files import temp_beside
 from bench.cli_support import add_hover_args, check_writable, hover_margin_from_args, seed_arg
 from bench.errors import RigError
 from optimizer.paper_e_cases import PAPER_E_CASES
@@ -159,7 +159,7 @@ def handler(args: argparse.Namespace) -> int:
                        f"got {args.repeats}")
     out = check_writable(check_out(args.out), "--out", folder=True, beside=True)
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent))
+    tmp = temp_beside(out, ".tmp", folder=True)  # the umask's mode, not mkdtemp's 0700
     runs_root, figs, tabs = tmp / "runs", tmp / "figures", tmp / "tables"
     for d in (runs_root, figs, tabs):
         d.mkdir(parents=True)
@@ -231,7 +231,7 @@ def handler(args: argparse.Namespace) -> int:
         old = None
         if out.exists():
             check_out(out)  # still a previous demo's output
-            old = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".old", dir=out.parent))
+            old = temp_beside(out, ".old", folder=True)
             os.replace(out, old)  # onto the empty placeholder
         os.replace(tmp, out)
         if old is not None:

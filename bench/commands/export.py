@@ -61,7 +61,14 @@ def build(args: argparse.Namespace) -> dict[str, Any]:
     from analysis.run_record import read_run
     from analysis.static_curves import RPM_TO_RAD_S, command_curve, fit_static_run
     from analysis.step_response import fit_run
+    from bench.cli_support import refuse_unused
 
+    if args.target != "ardupilot":  # MOT_THST_HOVER is ArduPilot's; PX4, Gazebo have none
+        refuse_unused(args, ("--hover-thrust", "--auw-kg", "--motors"),
+                      f"for export {args.target} (only ardupilot uses a hover thrust)")
+    if args.target != "gazebo":  # the time constants go into Gazebo's motor model only
+        refuse_unused(args, ("--step-run",),
+                      f"for export {args.target} (only gazebo uses time constants)")
     hover = _hover(args)  # options first: a bad one is named before any fit
     record = read_run(args.run)
     thrust_record = read_run(args.thrust_run) if args.thrust_run else None

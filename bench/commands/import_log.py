@@ -119,4 +119,9 @@ def handler(args: argparse.Namespace) -> int:
               f"{order['max_step_back_s'] * 1e3:.3g} ms; bound {JITTER_MAX_PERIODS:g} sample "
               f"periods = {order['jitter_bound_s'] * 1e3:.3g} ms); recorded in run.json "
               "import.time_order")
+    cut = meta["import"].get("cut_last_line")
+    if cut:
+        print(f"dropped line {cut['line']} ({cut['text'][:40]!r}): the file ends inside it "
+              "(no line break; the logger stopped mid-line?); recorded in run.json "
+              "import.cut_last_line")
     return 0

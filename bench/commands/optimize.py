@@ -21,6 +21,7 @@ from typing import Any
 from bench.catalogs import load
 from bench.cli_support import (
     EXIT_NO_FEASIBLE,
+    RULE_FLAGS,
     HoverMargin,
     add_catalog_args,
     add_hover_args,
@@ -29,6 +30,7 @@ from bench.cli_support import (
     hover_margin_from_args,
     json_default,
     measured_from_args,
+    refuse_unused,
     rules_from_args,
 )
 from bench.design_tables import print_table
@@ -178,6 +180,11 @@ def handler(args: argparse.Namespace) -> int:
     if args.paper_e_cases:
         if args.max_roll_rise_ms is not None:
             raise RequestError("--max-roll-rise-ms does not apply to --paper-e-cases")
+        # each case brings its own objective and payload; rules, packs and propeller data
+        # are not part of Paper E's runs
+        refuse_unused(args, ("--objective", "--weights", "--normalize", "--payload-kg",
+                             "--flyable", *RULE_FLAGS, "--series", "--parallel",
+                             "--prop-data"), "with --paper-e-cases")
         implied = "--method thesis" if args.method == "thesis" else "--paper-e-cases"
         margin = hover_margin_from_args(args, implied_by=implied)
         return run_paper_e_cases(args, load(args.catalog, args.current_model), margin)

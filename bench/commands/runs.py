@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import shutil
+import sys
 from pathlib import Path
 
 from rich.console import Console
@@ -47,8 +48,9 @@ def handler(args: argparse.Namespace) -> int:
     if args.rebuild:
         check_writable(args.out, "--out", folder=True)
     index = RunIndex(args.out)
+    skipped: tuple[str, ...] = ()
     if args.rebuild:
-        index.rebuild()
+        skipped = index.rebuild().skipped
     rows = index.list()
     table = Table(title=f"runs in {args.out}")
     for col in ("id", "sequence", "rig", "esc mode", "started (UTC)", "status", "drops",
@@ -58,4 +60,6 @@ def handler(args: argparse.Namespace) -> int:
         table.add_row(r.id, r.sequence, r.rig, str(r.components.get("esc_mode", "")),
                       r.started_utc[:19], r.status, drops_text(args.out / r.path), r.reason)
     Console(width=shutil.get_terminal_size((160, 24)).columns).print(table)
+    for line in skipped:  # after the table, so the last thing read is what is missing
+        print(f"rotorbench: skipped {line}", file=sys.stderr)
     return 0

@@ -28,6 +28,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def build(args: argparse.Namespace) -> Sequence:
+    if args.sequence not in ("step1", "step2"):  # a file's steps carry their own holds
+        cli.refuse_unused(args, ("--repeats", "--hold"),
+                          f"with --sequence {args.sequence} (a sequence file's steps set "
+                          "their own repeats and holds)")
     return named_step_sequence(args.sequence, args.repeats, args.hold,
                                cli.parse_limits(args.limit))
 
@@ -45,6 +49,7 @@ def handler(args: argparse.Namespace) -> int:
     rig = cli.load_rig_from_args(args, prefer_out_copy=True)
     seq = build(args)
     check_limits(rig, seq)  # before a sweep for a missing map could start
+    options = cli.run_options_from_args(args)  # a bad --tick: the dry run says so too
     if args.dry_run:
         if rig.thrust_map is None and seq.needs_thrust_map:
             print("no static thrust map in the rig yet: a sweep would run first "
@@ -52,7 +57,6 @@ def handler(args: argparse.Namespace) -> int:
         cli.print_dry_run(rig, seq)
         return 0
     check_budget_of(rig, seq, args.yes)  # before a sweep for a missing map could start
-    options = cli.run_options_from_args(args)
     if rig.thrust_map is None and seq.needs_thrust_map:
         err_console().print(
             f"rig {rig.name} has no static thrust map yet: measuring one with a sweep first")

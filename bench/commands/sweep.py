@@ -35,12 +35,13 @@ def handler(args: argparse.Namespace) -> int:
     from bench.map_sweep import measure_map
 
     rig = cli.load_rig_from_args(args, prefer_out_copy=True)
+    options = cli.run_options_from_args(args)  # a bad --tick: the dry run says so too
     if args.dry_run:
         cli.print_dry_run(rig, build(args))
         return 0
     _, code = measure_map(rig, args.out, start_us=args.start_us, end_us=args.end_us,
                           duration_s=args.duration, limits=cli.parse_limits(args.limit),
                           save=not args.no_save_map, seed=args.seed,
-                          options=cli.run_options_from_args(args), live=args.live,
+                          options=options, live=args.live,
                           confirmed=args.yes)
     return code

@@ -1,4 +1,5 @@
-"""Write a full simulated hexapod calibration log in the analysis' log format.
+"""Simulate a full hexapod calibration log in the analysis' log format (the columns;
+``rotorbench calibrate --simulate-log`` writes them with ``analysis.imu_log.write_table``).
 
 Columns: ``t_s, phase, ref_omega_{x,y,z}_rad_s, ref_alpha_{x,y,z}_rad_s2,
 ref_acc_{x,y,z}_m_s2`` (body-frame specific force at the centre of gravity, gravity
@@ -9,10 +10,6 @@ sample the IMU took at hexapod time ``t - clock_offset_s``.
 
 from __future__ import annotations
 
-import os
-import tempfile
-from pathlib import Path
-
 import numpy as np
 from numpy.typing import NDArray
 
@@ -20,7 +17,7 @@ from drivers.hexapod_motions import Phase, paper_a_protocol
 from drivers.sim.hexapod import SimHexapod
 from drivers.sim.imu import ADIS16400, ImuModel, SimImu
 
-__all__ = ["LOG_COLUMNS", "simulate_calibration_log", "write_calibration_log"]
+__all__ = ["LOG_COLUMNS", "simulate_calibration_log"]
 
 _XYZ = ("x", "y", "z")
 LOG_COLUMNS = (
@@ -64,44 +61,3 @@ def simulate_calibration_log(
             parts[f"imu_acc_{a}_m_s2"].append(acc[:, i])
         start += n * dt
     return {c: np.concatenate(v) for c, v in parts.items()}
-
-
-def write_calibration_log(path: str | Path, columns: dict[str, NDArray]) -> Path:
-    """Write the columns to ``.csv`` or ``.parquet`` atomically (temp file, then rename)."""
-    path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix not in (".csv", ".parquet"):
-        raise ValueError(f"{path}: log files end in .csv or .parquet")
-    fd, tmp = tempfile.mkstemp(dir=path.parent or ".", prefix=f".{path.name}.", suffix=".tmp")
-    os.close(fd)
-    try:
-        if suffix == ".csv":
-            _write_csv(Path(tmp), columns)
-        else:
-            import pyarrow as pa  # file-format boundary only
-            import pyarrow.parquet as pq
-
-            table = pa.table({c: (v.astype(str) if v.dtype == object else v)
-                              for c, v in columns.items()})
-            pq.write_table(table, tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
-
-
-def _write_csv(path: Path, columns: dict[str, NDArray]) -> None:
-    names = list(columns)
-    n = len(columns[names[0]])
-    cells = []
-    for c in names:
-        v = columns[c]
-        if v.dtype == object:
-            cells.append(v.astype(str))
-        else:
-            cells.append(np.char.mod("%.9g", v))
-    with open(path, "w", encoding="utf-8", newline="") as fh:
-        fh.write(",".join(names) + "\n")
-        rows = np.stack(cells, axis=1) if n else np.empty((0, len(names)), dtype=str)
-        fh.writelines(",".join(row) + "\n" for row in rows)

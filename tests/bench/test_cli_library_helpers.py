@@ -17,6 +17,7 @@ from bench.cli_support import (
     add_rule_args,
     json_default,
     measured_from_args,
+    option_defaults,
     rules_from_args,
 )
 from bench.constants_fit import fit_for_store
@@ -57,7 +58,9 @@ def _parse(*argv):
     p = argparse.ArgumentParser()
     add_measured_args(p)
     add_rule_args(p)
-    return p.parse_args(list(argv))
+    args = p.parse_args(list(argv))
+    args._defaults = option_defaults(p, args)  # as bench.cli.main keeps them
+    return args
 
 
 def test_measured_and_rule_options():
@@ -66,7 +69,7 @@ def test_measured_and_rule_options():
     assert str(_parse("--measured").measured) == "runs"
     with pytest.raises(RequestError, match="--esc-mode only applies with --measured"):
         measured_from_args(_parse("--esc-mode", "diode"), None)
-    with pytest.raises(RequestError, match="--no-rule only applies with --flyable"):
+    with pytest.raises(RequestError, match="--no-rule has no effect without --flyable"):
         rules_from_args(_parse("--no-rule", "frame"))
     rules = rules_from_args(_parse("--flyable", "--no-rule", "frame", "--tip-speed-max", "200"))
     assert "frame" not in rules.enabled and rules.tip_speed_m_s == 200.0

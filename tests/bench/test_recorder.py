@@ -103,7 +103,7 @@ def test_index_lists_runs_and_flags_killed_ones(tmp_path):
     assert listed["a"].components == {"esc_mode": "diode"} and listed["a"].rig == "sim"
     assert listed["b"].status == "killed"
     (tmp_path / "runs.sqlite").unlink()
-    assert RunIndex(tmp_path).rebuild() == 1
+    assert RunIndex(tmp_path).rebuild().indexed == 1
 
 
 def test_run_json_text_is_the_indented_dump_and_reuses_unchanged_values(tmp_path):

@@ -86,12 +86,14 @@ def test_unreachable_thrust_names_the_sequence_step(sim_rig_mapped_path: Path, t
                                                     capsys) -> None:
     seq = tmp_path / "high.json"
     seq.write_text(json.dumps({"name": "too-high", "steps": [
-        {"kind": "arm"}, {"kind": "thrust_step", "thrust_n": 50.0, "hold_s": 1.0},
+        # 6 N: above the map (5.2 N) but below the rig's thrust limit (7 N); a setpoint
+        # at or above the limit is refused first (tests/bench/test_refused_before_run.py)
+        {"kind": "arm"}, {"kind": "thrust_step", "thrust_n": 6.0, "hold_s": 1.0},
         {"kind": "disarm"}]}))
     for extra in ([], ["--dry-run"]):
         err = run_bad(capsys, "step", "--rig", str(sim_rig_mapped_path), "--sequence", str(seq),
                       "--out", str(tmp_path / "runs"), *extra)
         assert err.startswith(f"rotorbench: error: sequence 'too-high' ({seq}): steps[1]."
-                              "thrust_n: 50 N is outside the rig's static thrust map (")
+                              "thrust_n: 6 N is outside the rig's static thrust map (")
         assert "thrust_map.csv" not in err and "choose a setpoint inside it" in err
     assert not (tmp_path / "runs").exists()
