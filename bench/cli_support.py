@@ -218,7 +218,9 @@ def add_common_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--rig", type=Path, default=None,
                    help="rig file (TOML); default: the simulated rig fixtures/rigs/sim.toml")
     p.add_argument("--out", type=Path, default=DEFAULT_OUT,
-                   help="output root for run folders and runs.sqlite (default: ./runs)")
+                   help="output root for run folders and runs.sqlite (default: ./runs); with "
+                        "a lab --store, the data location (s3://bucket/prefix or a shared "
+                        "folder)")
     p.add_argument("--esc-mode", choices=("complementary", "diode", "stock"), default=None,
                    help="ESC switching scheme / firmware (overrides the rig file)")
     p.add_argument("--seed", type=seed_arg, default=None, help="seed of the simulated rig")
@@ -237,6 +239,7 @@ def add_common_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--tick", type=float, default=0.02,
                    help="command/read period in seconds; limits are checked on every "
                         "sample, the reaction comes within one tick (default 0.02)")
+    add_store_args(p, records=True)
 
 
 def load_rig_from_args(args: argparse.Namespace, prefer_out_copy: bool = False) -> Any:
@@ -398,13 +401,14 @@ def add_measured_args(p: argparse.ArgumentParser) -> None:
     measured overrides (``bench.measured_constants``)."""
     p.add_argument(
         "--measured",
-        type=Path,
+        type=str,
         nargs="?",
-        const=DEFAULT_RUNS_ROOT,
+        const="",
         default=None,
-        metavar="DIR",
+        metavar="DIR|URL",
         help="use measured time constants and hover currents from DIR/constants.sqlite "
-        "where a combination has them (default DIR: ./runs; a demo output folder works)",
+        "where a combination has them (default DIR: $ROTORBENCH_STORE, else ./runs; a demo "
+        "output folder works), or from the lab catalog postgresql://...",
     )
     p.add_argument(
         "--esc-mode",
@@ -421,9 +425,20 @@ def measured_from_args(args: argparse.Namespace, catalog: Any) -> Any:
         if getattr(args, "esc_mode", None) is not None:
             raise RequestError("--esc-mode only applies with --measured")
         return None
+    from bench.constants_store import ActuatorKey, ConstantsRow
     from bench.measured_constants import load_measured_set
+    from bench.store.store_url import STORE_ENV, parse_store
 
-    return load_measured_set(args.measured, catalog, args.esc_mode)
+    url = parse_store(args.measured or os.environ.get(STORE_ENV) or str(DEFAULT_RUNS_ROOT))
+    if url.folder is not None:
+        return load_measured_set(url.folder, catalog, args.esc_mode)
+    from bench.store.lab_catalog import LabCatalog
+
+    assert url.dsn is not None
+    rows = [ConstantsRow(ActuatorKey(c.motor, c.propeller, c.esc, c.esc_mode, c.battery,
+                                     c.catalog), c.kind, c.run_id, c.run_path, c.fitted_utc,
+                         c.data) for c in LabCatalog(url.dsn).constants()]
+    return load_measured_set(url.shown(), catalog, args.esc_mode, rows=rows)
 
 
 #: the rule switches that only act with --flyable
@@ -478,3 +493,91 @@ def json_default(obj: Any) -> Any:
     if isinstance(obj, tuple | set):
         return list(obj)
     raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
+
+
+# -- where runs and constants live (--store; bench/store, docs/lab.md) -----------------------
+def add_store_args(p: argparse.ArgumentParser, *, records: bool = False) -> None:
+    """``--store`` (a folder or the lab catalog); recording commands also get ``--spool``
+    and ``--bench``."""
+    p.add_argument("--store", metavar="DIR|URL", default=None,
+                   help="where runs and constants live: a folder (default: --out, or "
+                        "$ROTORBENCH_STORE) or the lab catalog postgresql://user@host/db "
+                        "(docs/lab.md)")
+    if records:
+        p.add_argument("--spool", type=Path, default=None,
+                       help="lab catalog: where runs are recorded first, on this machine "
+                            "(default ~/.local/share/rotorbench/spool)")
+        p.add_argument("--bench", default=None,
+                       help="this bench's name in the lab catalog (default: the rig file's "
+                            "name, else the host name)")
+
+
+def data_location_text(value: str | os.PathLike[str]) -> str:
+    """``--out`` as a data location: ``s3://bucket/prefix`` survives being a ``Path``
+    (which folds ``//``) or a folder path."""
+    text = os.fspath(value)
+    if text.startswith("s3:/") and not text.startswith("s3://"):
+        return "s3://" + text[len("s3:/"):]
+    return text
+
+
+def store_from_args(args: argparse.Namespace, *, records: bool = False) -> Any:
+    """The store of a command: ``--store`` or ``$ROTORBENCH_STORE``, else the folder
+    ``--out``. With the lab catalog, ``--out`` names the data location (``s3://...`` or a
+    shared folder) and a recording command records into the spool: ``args.out`` becomes
+    the spool, so everything the command writes beside its runs stays on this machine."""
+    from bench.store.store_url import STORE_ENV, parse_store
+    from bench.store.stores import FolderStore, open_store
+
+    text = getattr(args, "store", None) or os.environ.get(STORE_ENV)
+    out = getattr(args, "out", None)
+    if not text:
+        if out is not None and data_location_text(out).startswith("s3://"):
+            raise RequestError(f"--out {data_location_text(out)}: an object store holds the "
+                               "lab catalog's runs; give the catalog with --store "
+                               "postgresql://... (docs/lab.md)")
+        return FolderStore(Path(out if out is not None else DEFAULT_RUNS_ROOT))
+    url = parse_store(text)
+    if url.folder is not None:
+        if out is not None and given_options(args, "--out") and \
+                Path(out).resolve() != url.folder.resolve():
+            raise RequestError(f"--out {out} and --store {url.folder} name two folder "
+                               "stores; give one")
+        if out is not None:
+            args.out = url.folder
+        return FolderStore(url.folder)
+    data = data_location_text(out) if out is not None and given_options(args, "--out") \
+        else None
+    store = open_store(text, data=data, spool=getattr(args, "spool", None))
+    if records:
+        args.out = store.record_root()
+    return store
+
+
+def recording_store(args: argparse.Namespace) -> Any:
+    """The store a recording command writes to, checked before anything spins (a
+    reader-only lab login is refused here); ``--bench`` names the bench in run.json."""
+    store = store_from_args(args, records=True)
+    if getattr(args, "bench", None):
+        os.environ["ROTORBENCH_BENCH"] = str(args.bench)
+    if not getattr(args, "dry_run", False):
+        store.check_can_record()
+    return store
+
+
+def publish_runs(store: Any, run_dir: Path | None = None) -> None:
+    """After a recording command: the lab store publishes what the spool holds (this run,
+    a map sweep before it) and says where each went, or that it waits for ``store sync``."""
+    note = store.after_run(run_dir)
+    if note:
+        print(note)
+
+
+def run_folder_arg(args: argparse.Namespace, value: str | os.PathLike[str]) -> Path:
+    """A RUN argument: a run folder, or a run id of ``--store``/``$ROTORBENCH_STORE``
+    (a lab run is fetched into the local cache)."""
+    path = Path(value)
+    if path.exists() or not (getattr(args, "store", None) or
+                             os.environ.get("ROTORBENCH_STORE")):
+        return path
+    return Path(store_from_args(args).run_folder(str(value)))

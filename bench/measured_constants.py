@@ -28,7 +28,8 @@ from optimizer.errors import RequestError
 __all__ = ["MeasuredSet", "find_store", "is_measured", "load_measured", "load_measured_set"]
 
 
-def load_measured(root: Path, catalog: str | None = None) -> list[Any]:
+def load_measured(root: Path, catalog: str | None = None,
+                  rows: list[ConstantsRow] | None = None) -> list[Any]:
     """The stored constants as ``optimizer.measured.MeasuredActuator`` overrides: the time
     constant is the mean of the rising and falling ones (Table E.13 compares that mean
     with the model), the current from the static curves; one per (propeller, motor, ESC
@@ -37,7 +38,7 @@ def load_measured(root: Path, catalog: str | None = None) -> list[Any]:
     from optimizer.measured import MeasuredActuator
 
     by: dict[tuple[str, str, str], dict[str, ConstantsRow]] = {}
-    for row in ConstantsStore(root).rows():
+    for row in (rows if rows is not None else ConstantsStore(root).rows()):
         if catalog is not None and row.key.catalog != catalog:
             continue
         slot = by.setdefault((row.key.propeller, row.key.motor, row.key.esc_mode), {})
@@ -94,7 +95,7 @@ def _flight_extras(step: ConstantsRow | None, static: ConstantsRow | None) -> di
 class MeasuredSet:
     """The overrides of one store for one catalog and ESC mode."""
 
-    store: Path
+    store: Path | str  # a folder, or the lab catalog's (redacted) URL
     esc_mode: str
     overrides: list[Any]
     grids: dict[int, Any] = field(default_factory=dict)
@@ -139,14 +140,16 @@ def find_store(folder: Path) -> Path:
     )
 
 
-def load_measured_set(folder: Path, catalog: Any, esc_mode: str | None) -> MeasuredSet:
+def load_measured_set(folder: Path | str, catalog: Any, esc_mode: str | None,
+                      rows: list[ConstantsRow] | None = None) -> MeasuredSet:
     """Overrides for ``catalog`` (matched by its folder name) and one ESC mode (None: the
     mode stored for the most combinations; a tie is refused)."""
-    root = find_store(folder)
+    root = folder if rows is not None else find_store(Path(folder))  # rows: the lab's
     name = Path(str(catalog.source)).name
-    overrides = load_measured(root, catalog=name)
+    overrides = load_measured(root, catalog=name, rows=rows)
     if not overrides:
-        others = sorted({o.propeller_id + "/" + o.motor_id for o in load_measured(root)})
+        others = sorted({o.propeller_id + "/" + o.motor_id
+                         for o in load_measured(root, rows=rows)})
         raise RequestError(
             f"--measured {root}: no constants stored for catalog {name!r} "
             f"(stored actuators of other rigs/catalogs: {', '.join(others[:8]) or 'none'})"

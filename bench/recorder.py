@@ -58,8 +58,27 @@ def software_version() -> str:
 
 
 def new_run_id(name: str) -> str:
+    """``<UTC stamp>-<8 hex>-<name>``: sorts by start time, says what the run is, and stays
+    unique across benches that start runs in the same microsecond (the hex digits are
+    random bits of a UUIDv7, ``bench.run_ids``)."""
+    from bench.run_ids import uuid7
+
     stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%S_%fZ")
-    return f"{stamp}-{name}"
+    return f"{stamp}-{uuid7().hex[-8:]}-{name}"
+
+
+def operator() -> str:
+    """Who runs the bench: ``$ROTORBENCH_OPERATOR``, else the login name. (The bench's
+    name is ``--bench`` or ``$ROTORBENCH_BENCH``; the lab catalog falls back to the rig's.)"""
+    import getpass
+
+    name = os.environ.get("ROTORBENCH_OPERATOR")
+    if name:
+        return name
+    try:
+        return getpass.getuser()
+    except (KeyError, OSError):  # no passwd entry (a container)
+        return "unknown"
 
 
 def atomic_write_json(path: Path, data: Mapping[str, Any],
@@ -189,6 +208,8 @@ class RunRecorder:
         self.meta.setdefault("id", self.run_dir.name)
         self.meta.update(status="running", reason="", started_utc=utc_now(), ended_utc=None,
                          software_version=software_version(), host=socket.gethostname(),
+                         operator=self.meta.get("operator") or operator(),
+                         bench=self.meta.get("bench") or os.environ.get("ROTORBENCH_BENCH"),
                          pid=os.getpid(), samples=SAMPLES_DIR, events="events.csv")
         try:
             self.run_dir.mkdir(parents=True, exist_ok=False)

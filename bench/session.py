@@ -116,6 +116,14 @@ def rig_summary(rig: Any) -> dict[str, Any]:
     for key in ("path", "devices", "esc", "sim"):
         if getattr(rig, key, None) is not None:
             out[key] = _plain(getattr(rig, key))
+    path = getattr(rig, "path", None)
+    if path is not None:  # which rig file exactly: the lab catalog lists runs by it
+        import hashlib
+
+        try:
+            out["sha256"] = hashlib.sha256(Path(path).read_bytes()).hexdigest()
+        except OSError:
+            pass
     return out
 
 

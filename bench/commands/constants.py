@@ -16,9 +16,16 @@ from pathlib import Path
 from rich.console import Console
 from rich.table import Table
 
-from bench.cli_support import DEFAULT_RUNS_ROOT, check_folder_to_read, check_writable
+from bench.cli_support import (
+    DEFAULT_RUNS_ROOT,
+    add_store_args,
+    check_folder_to_read,
+    check_writable,
+    run_folder_arg,
+    store_from_args,
+)
 from bench.constants_fit import fit_for_store
-from bench.constants_store import ConstantsStore
+from bench.store.lab_catalog import StoredConstants
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -30,25 +37,36 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, default=DEFAULT_RUNS_ROOT,
                    help="output root holding runs.sqlite (default: ./runs)")
     p.add_argument("--add", type=Path, nargs="+", default=[], metavar="RUN",
-                   help="fit these run folders and store their constants")
+                   help="fit these run folders (or run ids of --store) and store their "
+                        "constants")
+    add_store_args(p)
     p.set_defaults(func=handler)
 
 
 def handler(args: argparse.Namespace) -> int:
-    check_folder_to_read(args.out)
-    if args.add:
-        check_writable(args.out, "--out", folder=True)
-    store = ConstantsStore(args.out)
+    store = store_from_args(args)
+    if hasattr(store, "root"):  # a folder store: the folder must be readable/writable
+        check_folder_to_read(store.root)
+        if args.add:
+            check_writable(store.root, "--out", folder=True)
+    fitted = []
     for run in args.add:
-        key, kind, run_id, data = fit_for_store(run)
-        store.put(key, kind, run_id, str(run), data)
-        print(f"stored {kind} constants of {run_id} for {key.motor} / {key.propeller} / "
-              f"{key.esc} ({key.esc_mode}) / {key.battery}")
-    rows = store.rows()
+        folder = run_folder_arg(args, run)
+        key, kind, run_id, data = fit_for_store(folder)
+        fitted.append(StoredConstants(key.motor, key.propeller, key.esc, key.esc_mode,
+                                      key.battery, kind, key.catalog, run_id, str(folder), "",
+                                      data))
+    if fitted:  # all or none: the lab catalog adds them in one transaction
+        store.add_constants(fitted)
+    for c in fitted:
+        print(f"stored {c.kind} constants of {c.run_id} for {c.motor} / {c.propeller} / "
+              f"{c.esc} ({c.esc_mode}) / {c.battery}")
+    rows = store.constants()
     if not rows:
-        print(f"no constants stored under {args.out}")
+        print(f"no constants stored under {store.describe()}")
         return 0
-    table = Table(title=f"measured constants in {store.path}")
+    where = store.path if hasattr(store, "root") else store.describe()
+    table = Table(title=f"measured constants in {where}")
     for col in ("motor", "propeller", "esc (mode)", "battery", "kind", "values", "run"):
         table.add_column(col, overflow="fold")
     for r in rows:
@@ -59,7 +77,7 @@ def handler(args: argparse.Namespace) -> int:
         else:
             vals = (f"k_f {d.get('k_f_n_s2') or float('nan'):.3g}, {len(d['hover_thrust_n'])} "
                     f"current points up to {max(d['hover_thrust_n'], default=0):.2f} N")
-        table.add_row(r.key.motor, r.key.propeller, f"{r.key.esc} ({r.key.esc_mode})",
-                      r.key.battery, r.kind, vals, r.run_id)
+        table.add_row(r.motor, r.propeller, f"{r.esc} ({r.esc_mode})", r.battery, r.kind, vals,
+                      r.run_id)
     Console(width=shutil.get_terminal_size((160, 24)).columns).print(table)
     return 0

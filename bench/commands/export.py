@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from analysis.errors import LogError
+from bench.cli_support import add_store_args, run_folder_arg
 from bench.errors import RigError
 
 G0 = 9.80665
@@ -24,7 +25,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "a sweep or an imported stand log with command and thrust (or rpm with "
                     "--thrust-run).")
     p.add_argument("target", choices=("ardupilot", "px4", "gazebo"))
-    p.add_argument("run", type=Path, help="run folder with the static data")
+    p.add_argument("run", type=Path, help="run folder (or run id of --store) with the static "
+                   "data")
+    add_store_args(p)
     p.add_argument("--thrust-run", type=Path, default=None,
                    help="run with thrust against rpm, if RUN logs rpm but no thrust")
     p.add_argument("--step-run", type=Path, default=None,
@@ -101,6 +104,9 @@ def build(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def handler(args: argparse.Namespace) -> int:
+    for name in ("run", "thrust_run", "step_run"):
+        if getattr(args, name) is not None:
+            setattr(args, name, run_folder_arg(args, getattr(args, name)))
     out = build(args)
     if args.json:
         print(json.dumps(out, indent=2, allow_nan=False))

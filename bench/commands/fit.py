@@ -11,6 +11,7 @@ from typing import Any
 
 from rich.console import Console
 
+from bench.cli_support import add_store_args, run_folder_arg
 from bench.errors import RigError
 
 
@@ -20,7 +21,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description="Finds the command edges of a run (e.g. `rotorbench step`), fits a "
                     "first-order-plus-delay model to every edge and to the mean of the "
                     "repeats, separately for rising and falling edges (Paper C Table C.1).")
-    p.add_argument("run", type=Path, help="run folder")
+    p.add_argument("run", type=Path, help="run folder, or a run id of --store")
     p.add_argument("--json", action="store_true", help="print the results as JSON")
     p.add_argument("--signal", choices=("auto", "thrust", "rpm"), default="auto",
                    help="response to fit: load-cell thrust or rotor speed (auto: thrust if "
@@ -32,6 +33,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="seconds after each edge to fit (default 0.5, shortened to the hold)")
     p.add_argument("--second-order", action="store_true",
                    help="also fit delay + two real poles (the form of C.1)")
+    add_store_args(p)
     p.set_defaults(func=handler)
 
 
@@ -42,7 +44,7 @@ def handler(args: argparse.Namespace) -> int:
 
     if not (math.isfinite(args.window) and args.window > 0):
         raise RigError(f"--window: expected seconds > 0 after each edge, got {args.window:g}")
-    record = read_run(args.run)
+    record = read_run(run_folder_arg(args, args.run))
     fit = fit_run(record, signal=args.signal, command=args.command, window_s=args.window,
                   second_order=args.second_order)
     summary = fit.summary()

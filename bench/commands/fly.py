@@ -25,10 +25,12 @@ from bench.cli_support import (
     add_catalog_args,
     add_hover_args,
     add_measured_args,
+    add_store_args,
     check_writable,
     hover_margin_from_args,
     json_default,
     measured_from_args,
+    run_folder_arg,
 )
 from optimizer.errors import RequestError
 
@@ -54,6 +56,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--drag", type=float, default=0.0, metavar="N_S_M",
                    help="linear air drag coefficient, N per m/s (default 0)")
     add_measured_args(p)
+    add_store_args(p)
     p.add_argument("--step-run", type=Path, default=None, metavar="RUN",
                    help="fit this step run now and fly with its rising/falling time "
                    "constants, latency and ESC frame")
@@ -134,7 +137,8 @@ def handler(args: argparse.Namespace) -> int:
         check_writable(args.plot, "--plot", folder=True)
     margin = hover_margin_from_args(args)
     catalog = margin.apply(load(args.catalog, args.current_model))
-    step = step_constants(args.step_run) if args.step_run is not None else None
+    step = (step_constants(run_folder_arg(args, args.step_run))
+            if args.step_run is not None else None)
     grid, measured = _grid(args, catalog, n)
     if args.sweep:
         return _sweep(args, catalog, grid, step, measured, margin)

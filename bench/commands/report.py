@@ -24,7 +24,7 @@ from typing import Any
 
 from rich.console import Console
 
-from bench.cli_support import check_writable
+from bench.cli_support import add_store_args, check_writable, run_folder_arg
 from bench.errors import RigError
 
 G0 = 9.80665
@@ -36,7 +36,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description="Fits every step run (Table C.1), the static curves of every sweep or "
                     "imported log (Fig. C.13-C.14) and simulates the fitted models on every "
                     "Step 2 run (Fig. C.16-C.19); writes PNG figures and CSV tables.")
-    p.add_argument("runs", type=Path, nargs="+", metavar="RUN", help="run folders")
+    p.add_argument("runs", type=Path, nargs="+", metavar="RUN",
+                   help="run folders, or run ids of --store")
+    add_store_args(p)
     p.add_argument("--out", type=Path, default=None,
                    help="output folder (default: ./report-<first run id>)")
     p.add_argument("--kv", type=float, default=None, help="motor K_V (rpm/V) for (C.3)")
@@ -229,6 +231,7 @@ def _vibration(args: argparse.Namespace, records: list[Any], out: Path, console:
 def handler(args: argparse.Namespace) -> int:
     from analysis.run_record import read_run
 
+    args.runs = [run_folder_arg(args, r) for r in args.runs]
     out = args.out or Path(f"report-{read_run(args.runs[0]).id}")
     if out.exists() and not (out.is_dir() and (out / "report.json").is_file()):
         # only an earlier report (it holds report.json) is replaced: never a run root,

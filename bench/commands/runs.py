@@ -1,4 +1,5 @@
-"""``rotorbench runs``: list the recorded runs from the SQLite index of an output root."""
+"""``rotorbench runs``: list the recorded runs of a store (the folder's SQLite index, or
+the lab catalog with ``--store postgresql://...``), as a table or ``--json``."""
 
 from __future__ import annotations
 
@@ -11,7 +12,8 @@ from pathlib import Path
 from rich.console import Console
 from rich.table import Table
 
-from bench.cli_support import check_folder_to_read, check_writable
+from bench.cli_support import add_store_args, check_folder_to_read, check_writable, store_from_args
+from bench.errors import RigError
 from bench.run_index import INDEX_NAME, RunIndex
 
 
@@ -20,7 +22,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, default=Path("runs"),
                    help="output root of the runs (default: ./runs)")
     p.add_argument("--rebuild", action="store_true",
-                   help="re-index every run folder's run.json first")
+                   help="re-index every run folder's run.json first (folder stores)")
+    p.add_argument("--json", action="store_true",
+                   help="print the runs as JSON (run_id, bench, sequence, status, samples, "
+                        "data, ...), newest first")
+    p.add_argument("--bench", default=None, help="only the runs of this bench")
+    p.add_argument("--status", default=None, help="only runs with this status (e.g. trip)")
+    p.add_argument("--limit", type=int, default=None, help="at most this many runs")
+    add_store_args(p)
     p.set_defaults(func=handler)
 
 
@@ -40,8 +49,42 @@ def drops_text(run_dir: Path) -> str:
     return f"{text}, ! {link} link errors" if link else text
 
 
+def _lab_listing(args: argparse.Namespace, store: object) -> int:
+    from bench.store.run_summary import RunFilter
+
+    if args.rebuild:
+        raise RigError("--rebuild re-indexes a folder store; the lab catalog is indexed as "
+                       "runs are published (`rotorbench store sync` delivers waiting ones)")
+    where = RunFilter(bench=args.bench, status=args.status)
+    runs = store.list_runs(where, limit=args.limit)
+    if args.json:
+        print(json.dumps([r.as_dict() for r in runs], indent=1))
+        return 0
+    table = Table(title=f"runs in {store.describe()}")
+    for col in ("id", "bench", "sequence", "esc mode", "started (UTC)", "status", "samples",
+                "reason"):
+        table.add_column(col, overflow="fold")
+    for r in runs:
+        table.add_row(r.run_id, r.bench, r.sequence, str(r.components.get("esc_mode", "")),
+                      (r.started_utc or "")[:19], r.status, str(r.samples), r.reason)
+    Console(width=shutil.get_terminal_size((160, 24)).columns).print(table)
+    return 0
+
+
 def handler(args: argparse.Namespace) -> int:
+    if args.limit is not None and args.limit < 1:
+        raise RigError(f"--limit {args.limit}: expected at least 1")
+    store = store_from_args(args)
+    if not hasattr(store, "root"):
+        return _lab_listing(args, store)
+    args.out = store.root
     check_folder_to_read(args.out)
+    if args.json or args.bench or args.status or args.limit:
+        if args.rebuild:
+            check_writable(args.out, "--out", folder=True)
+            for line in RunIndex(args.out).rebuild().skipped:
+                print(f"rotorbench: skipped {line}", file=sys.stderr)
+        return _lab_listing(argparse.Namespace(**{**vars(args), "rebuild": False}), store)
     if not (args.out / INDEX_NAME).exists() and not args.rebuild:
         print(f"no runs recorded under {args.out} (no {INDEX_NAME})")
         return 0

@@ -46,6 +46,7 @@ def handler(args: argparse.Namespace) -> int:
         run_with_progress,
     )
 
+    store = cli.recording_store(args)  # before the rig: a lab store records into the spool
     rig = cli.load_rig_from_args(args, prefer_out_copy=True)
     seq = build(args)
     check_limits(rig, seq)  # before a sweep for a missing map could start
@@ -64,7 +65,10 @@ def handler(args: argparse.Namespace) -> int:
                                 seed=args.seed, options=options, live=args.live,
                                 confirmed=args.yes)
         if code:
+            cli.publish_runs(store)
             return code
     outcome = run_with_progress(rig, seq, args.out, seed=args.seed, options=options,
                                 live=args.live, confirmed=args.yes)
-    return report(outcome)
+    code = report(outcome)
+    cli.publish_runs(store, outcome.run_dir)
+    return code

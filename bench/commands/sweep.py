@@ -34,6 +34,7 @@ def build(args: argparse.Namespace) -> Sequence:
 def handler(args: argparse.Namespace) -> int:
     from bench.map_sweep import measure_map
 
+    store = cli.recording_store(args)  # before the rig: a lab store records into the spool
     rig = cli.load_rig_from_args(args, prefer_out_copy=True)
     options = cli.run_options_from_args(args)  # a bad --tick: the dry run says so too
     if args.dry_run:
@@ -44,4 +45,5 @@ def handler(args: argparse.Namespace) -> int:
                           save=not args.no_save_map, seed=args.seed,
                           options=options, live=args.live,
                           confirmed=args.yes)
+    cli.publish_runs(store)
     return code

@@ -35,6 +35,7 @@ def bench_name(meta: Mapping[str, Any]) -> str:
 
 
 def operator_name(meta: Mapping[str, Any]) -> str:
+    """The run's operator (the recorder writes it), else whoever publishes it."""
     if meta.get("operator"):
         return str(meta["operator"])
     try:

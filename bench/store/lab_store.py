@@ -80,15 +80,16 @@ class LabStore:
         except CatalogUnavailable:
             return
 
-    def after_run(self, run_dir: Path) -> str | None:
-        """Publish the run; a server that is away leaves it spooled, said in one line."""
-        try:
-            uri = self.publisher.publish(run_dir)
-        except RigError as exc:
-            return (f"spooled: {run_dir} waits for the lab store ({exc}); deliver it with "
-                    f"`rotorbench store sync --store {redact(self.catalog.dsn)} --spool "
-                    f"{self.spool}`")
-        return f"stored in {redact(self.catalog.dsn)}: {uri}"
+    def after_run(self, run_dir: Path | None = None) -> str | None:
+        """Publish every ended run the spool holds (this one, a map sweep before it); a
+        server that is away leaves them spooled, said in one line each."""
+        rep = self.sync()
+        lines = [f"stored in {redact(self.catalog.dsn)}: {self.data.run_uri(rid)}"
+                 for rid in rep.delivered]
+        lines += [f"spooled: {self.spool / rid} waits for the lab store ({why}); deliver it "
+                  f"with `rotorbench store sync --store {redact(self.catalog.dsn)} --spool "
+                  f"{self.spool}`" for rid, why in rep.failed]
+        return "\n".join(lines) or None
 
     def list_runs(self, where: RunFilter | None = None, *, limit: int | None = None,
                   offset: int = 0) -> list[RunSummary]:

@@ -30,7 +30,7 @@ class Store(Protocol):
     def describe(self) -> str: ...
     def record_root(self) -> Path: ...
     def check_can_record(self) -> None: ...
-    def after_run(self, run_dir: Path) -> str | None: ...
+    def after_run(self, run_dir: Path | None = None) -> str | None: ...
     def list_runs(self, where: RunFilter | None = None, *, limit: int | None = None,
                   offset: int = 0) -> list[RunSummary]: ...
     def count_runs(self, where: RunFilter | None = None) -> int: ...
@@ -45,6 +45,13 @@ class FolderStore:
 
     root: Path
 
+    @property
+    def path(self) -> Path:
+        """The constants store's file (what the constants table is titled with)."""
+        from bench.constants_store import STORE_NAME
+
+        return self.root / STORE_NAME
+
     def describe(self) -> str:
         return str(self.root)
 
@@ -54,7 +61,7 @@ class FolderStore:
     def check_can_record(self) -> None:
         """Nothing to ask: the recording commands check ``--out`` is writable."""
 
-    def after_run(self, run_dir: Path) -> str | None:
+    def after_run(self, run_dir: Path | None = None) -> str | None:
         return None  # recorded in place, indexed as it ran
 
     def list_runs(self, where: RunFilter | None = None, *, limit: int | None = None,

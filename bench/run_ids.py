@@ -1,8 +1,9 @@
 """Run ids that are unique across benches and sort by start time (UUIDv7, RFC 9562).
 
 Two benches that start a run in the same microsecond still get different ids: 74 of the
-128 bits are random. The text form keeps the readable stamp and name in front so a run
-folder still says when and what: ``20261127T081500_123456Z-step1-0193f1c2``.
+128 bits are random. A run id keeps the readable stamp in front and the name at the end
+and carries 8 hex digits of the UUID between them (``bench.recorder.new_run_id``):
+``20261127T081500_123456Z-9f3c01d2-step1``.
 """
 
 from __future__ import annotations
