@@ -72,6 +72,14 @@ def check_budget_of(rig: Any, seq: PlanSequence, confirmed: bool) -> Budget:
     return budget
 
 
+def command_line() -> list[str]:
+    """This command as run.json records it, every URL's password replaced by ``***`` (a
+    ``--store postgresql://user:pw@...`` must not reach a run record or the catalog)."""
+    from bench.store.store_url import redact
+
+    return ["rotorbench", *(redact(a) for a in sys.argv[1:])]
+
+
 def run_with_progress(rig: Any, seq: PlanSequence, out: Path, *, seed: int | None = None,
                       options: RunOptions | None = None, live: bool = False,
                       confirmed: bool = False,
@@ -92,7 +100,7 @@ def run_with_progress(rig: Any, seq: PlanSequence, out: Path, *, seed: int | Non
     def on_progress(t: float, _total: float, seg: Segment) -> None:
         progress.update(task, completed=t, description=f"{seq.name} [{seg.label}]")
 
-    meta = {"command_line": ["rotorbench", *sys.argv[1:]], **dict(extra_meta or {})}
+    meta = {"command_line": command_line(), **dict(extra_meta or {})}
 
     def work(on_rows: Callable | None) -> RunOutcome:
         return run_sequence(rig, seq, out, open_rig, seed=seed, options=options,
@@ -137,7 +145,7 @@ def run_calibration_with_progress(rig: Any, plans: Sequence[Plan], runs: Path, *
                                     f"[{seg.phase}: {seg.label}]")
 
     seqs: list[PlanSequence] = [p.sequence for p in plans]
-    meta = {"command_line": ["rotorbench", *sys.argv[1:]], **dict(extra_meta or {})}
+    meta = {"command_line": command_line(), **dict(extra_meta or {})}
     with say_where_an_interrupted_run_went("calibration stage", "hexapod stopped"), \
             progress, sigterm_as_interrupt(stop), erase_on_user_error(progress):
         return run_calibration(rig, runs, quick=quick, options=options, sequences=seqs,

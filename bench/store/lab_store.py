@@ -55,8 +55,17 @@ class PushReport:
 @dataclass(frozen=True)
 class LabStore:
     catalog: LabCatalog
-    data: DataLocation
+    location: DataLocation | None  # None: the catalog names none and no --out was given
     spool: Path
+
+    @property
+    def data(self) -> DataLocation:
+        """Where new runs go; asked for only when something is uploaded."""
+        if self.location is None:
+            raise RigError(f"store {redact(self.catalog.dsn)}: no data location; give --out "
+                           "s3://bucket/prefix (or a shared folder), or save one with "
+                           "`rotorbench store init URL --data LOCATION`")
+        return self.location
 
     @property
     def publisher(self) -> Publisher:
@@ -64,7 +73,8 @@ class LabStore:
 
     # -- the Store interface (bench.store.stores) -----------------------------------------
     def describe(self) -> str:
-        return f"{redact(self.catalog.dsn)} ({self.data.uri})"
+        where = self.location.uri if self.location else "no data location"
+        return f"{redact(self.catalog.dsn)} ({where})"
 
     def record_root(self) -> Path:
         """Runs are recorded into the spool first, whatever the network does."""
@@ -121,6 +131,7 @@ class LabStore:
 
     def sync(self) -> SyncReport:
         """Publish every ended run waiting in the spool; a second call adds nothing."""
+        self.data  # noqa: B018 - no data location: said before anything is tried
         waiting = pending_runs(self.spool, self.publisher)
         delivered, failed = [], []
         for run_dir in waiting:
@@ -134,6 +145,7 @@ class LabStore:
 
     def push(self, folder: Path) -> PushReport:
         """Copy the ended runs and the constants of a folder store into the lab."""
+        self.data  # noqa: B018 - no data location: said before anything is tried
         pushed, skipped, failed = [], [], []
         for meta_path in sorted(Path(folder).glob("*/run.json")):
             run_dir = meta_path.parent
@@ -186,8 +198,5 @@ def open_lab(dsn: str, *, data: str | None = None, spool: Path | None = None) ->
     """The lab store at ``dsn``; ``data`` overrides the catalog's data location."""
     catalog = LabCatalog(dsn)
     where = data or catalog.setting(DATA_SETTING)
-    if not where:
-        raise RigError(f"store {redact(dsn)}: no data location; give --out s3://bucket/prefix "
-                       "(or a shared folder), or save one with `rotorbench store init URL "
-                       "--data LOCATION`")
-    return LabStore(catalog, DataLocation(where), Path(spool) if spool else default_spool())
+    return LabStore(catalog, DataLocation(where) if where else None,
+                    Path(spool) if spool else default_spool())
