@@ -521,43 +521,47 @@ def data_location_text(value: str | os.PathLike[str]) -> str:
     return text
 
 
-def store_from_args(args: argparse.Namespace, *, records: bool = False) -> Any:
+def store_from_args(args: argparse.Namespace, *, records: bool = False,
+                    out_attr: str = "out") -> Any:
     """The store of a command: ``--store`` or ``$ROTORBENCH_STORE``, else the folder
     ``--out``. With the lab catalog, ``--out`` names the data location (``s3://...`` or a
     shared folder) and a recording command records into the spool: ``args.out`` becomes
-    the spool, so everything the command writes beside its runs stays on this machine."""
+    the spool, so everything the command writes beside its runs stays on this machine.
+    ``out_attr`` names the run-root option where it is not ``--out`` (calibrate's
+    ``--runs``)."""
     from bench.store.store_url import STORE_ENV, parse_store
     from bench.store.stores import FolderStore, open_store
 
     text = getattr(args, "store", None) or os.environ.get(STORE_ENV)
-    out = getattr(args, "out", None)
+    flag = "--" + out_attr.replace("_", "-")
+    out = getattr(args, out_attr, None)
     if not text:
         if out is not None and data_location_text(out).startswith("s3://"):
-            raise RequestError(f"--out {data_location_text(out)}: an object store holds the "
+            raise RequestError(f"{flag} {data_location_text(out)}: an object store holds the "
                                "lab catalog's runs; give the catalog with --store "
                                "postgresql://... (docs/lab.md)")
         return FolderStore(Path(out if out is not None else DEFAULT_RUNS_ROOT))
     url = parse_store(text)
     if url.folder is not None:
-        if out is not None and given_options(args, "--out") and \
+        if out is not None and given_options(args, flag) and \
                 Path(out).resolve() != url.folder.resolve():
-            raise RequestError(f"--out {out} and --store {url.folder} name two folder "
+            raise RequestError(f"{flag} {out} and --store {url.folder} name two folder "
                                "stores; give one")
         if out is not None:
-            args.out = url.folder
+            setattr(args, out_attr, url.folder)
         return FolderStore(url.folder)
-    data = data_location_text(out) if out is not None and given_options(args, "--out") \
+    data = data_location_text(out) if out is not None and given_options(args, flag) \
         else None
     store = open_store(text, data=data, spool=getattr(args, "spool", None))
     if records:
-        args.out = store.record_root()
+        setattr(args, out_attr, store.record_root())
     return store
 
 
-def recording_store(args: argparse.Namespace) -> Any:
+def recording_store(args: argparse.Namespace, out_attr: str = "out") -> Any:
     """The store a recording command writes to, checked before anything spins (a
     reader-only lab login is refused here); ``--bench`` names the bench in run.json."""
-    store = store_from_args(args, records=True)
+    store = store_from_args(args, records=True, out_attr=out_attr)
     if getattr(args, "bench", None):
         os.environ["ROTORBENCH_BENCH"] = str(args.bench)
     if not getattr(args, "dry_run", False):

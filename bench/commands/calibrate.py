@@ -33,7 +33,14 @@ from analysis.imu_log import load_calibration_log, load_imu_log, write_table
 from bench.calibration_report import mat, print_calibration, print_stages, print_truth, vec
 from bench.calibration_sequences import format_plan, paper_a_sequences
 from bench.calibration_stages import calibrate_frame, collect_log, plans_for
-from bench.cli_support import check_writable, refuse_unused, seed_arg
+from bench.cli_support import (
+    add_store_args,
+    check_writable,
+    publish_runs,
+    recording_store,
+    refuse_unused,
+    seed_arg,
+)
 from bench.errors import RigError
 from bench.recorder import new_run_id
 from bench.rig import default_imu_rig_path, is_imu_rig, load_imu_rig
@@ -78,6 +85,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--dry-run", action="store_true",
                    help="on the rig: print every stage's steps, times and motion peaks; "
                         "touch no device")
+    add_store_args(p, records=True)
     p.add_argument("--tick", type=float, default=0.05,
                    help="on the rig: read period in seconds (default 0.05)")
     p.add_argument("--realtime", action="store_true",
@@ -93,7 +101,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 #: the options of each way to run the command (an option of another way is refused: it
 #: would be ignored)
-_RIG_ONLY = ("--rig", "--quick", "--runs", "--dry-run", "--tick", "--realtime")
+_RIG_ONLY = ("--rig", "--quick", "--runs", "--dry-run", "--tick", "--realtime", "--store",
+             "--spool", "--bench")
 _CALIBRATION = ("--out", "--figures", "--mounting-deg", "--gyro-range-dps", "--acc-range-g",
                 "--max-lag")
 
@@ -221,6 +230,7 @@ def _check_toml(path) -> None:
 
 
 def run_on_rig(args: argparse.Namespace) -> int:
+    store = recording_store(args, out_attr="runs")  # a lab store records into the spool
     rig = _load(args)
     options = HexapodRunOptions(tick_s=args.tick, realtime=bool(args.realtime),
                                 trajectory_rate_hz=rig.hexapod.trajectory_rate_hz)
@@ -252,6 +262,7 @@ def run_on_rig(args: argparse.Namespace) -> int:
         print(f"calibration stopped at stage {len(run.stages)}/{run.planned}: "
               f"{failed.status + ': ' + failed.reason if failed else 'no stage ran'}; "
               "no calibration written", file=sys.stderr)
+        publish_runs(store)
         return 1
     log_path = collect_log([s.run_dir for s in run.stages], args.runs / f"{session}.parquet")
     print(f"wrote {log_path}", file=sys.stderr)
@@ -263,4 +274,5 @@ def run_on_rig(args: argparse.Namespace) -> int:
     if run.truth is not None:
         print_truth(cal, run.truth, console)
     finish(cal, df, args, out, str(log_path))
+    publish_runs(store)
     return 0

@@ -28,7 +28,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--rig", type=Path, default=None,
                    help="rig file (TOML); default: the simulated rig fixtures/rigs/sim.toml")
     p.add_argument("--out", type=Path, default=cli.DEFAULT_OUT,
-                   help="output root for run folders and runs.sqlite (default: ./runs)")
+                   help="output root for run folders and runs.sqlite (default: ./runs); with "
+                        "a lab --store, the data location")
+    cli.add_store_args(p, records=True)
     p.add_argument("--seed", type=cli.seed_arg, default=None, help="seed of the simulated rig")
     p.add_argument("--limit", action="append", default=[], metavar="NAME=VALUE",
                    help="start with a tighter limit (loosening is refused)")
@@ -68,6 +70,7 @@ def handler(args: argparse.Namespace) -> int:
     from bench.rig import is_imu_rig, load_imu_rig
     from bench.runner import RunOptions
 
+    store = cli.recording_store(args)  # a lab store records into the spool, published at exit
     imu = args.rig is not None and is_imu_rig(args.rig)
     rig = load_imu_rig(args.rig) if imu else cli.load_rig_from_args(args)
     if imu and (args.limit or args.selftest):
@@ -110,6 +113,7 @@ def handler(args: argparse.Namespace) -> int:
         if proc.is_alive():
             proc.terminate()
             proc.join(3)
+    cli.publish_runs(store)
     if bench.fatal:
         raise RigError(bench.fatal)
     for info in bench.finished:
