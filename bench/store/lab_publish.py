@@ -73,8 +73,9 @@ class Publisher:
             return False
         return mark.get("store") == self.store_key()
 
-    def publish(self, run_dir: Path) -> str:
-        """Upload and index one ended run; returns its data URI. Raises ``RigError``
+    def publish(self, run_dir: Path, done: set[str] | None = None) -> str:
+        """Upload and index one ended run (``done``: its files a ``TrailingUpload`` sent
+        already); returns its data URI. Raises ``RigError``
         (``CatalogUnavailable``/``DataUnavailable`` when a server is away)."""
         run_dir = Path(run_dir)
         try:
@@ -82,7 +83,7 @@ class Publisher:
         except (OSError, UnicodeDecodeError, ValueError) as exc:
             raise RigError(f"{run_dir / 'run.json'}: unreadable ({exc})") from None
         run_id = str(meta.get("id") or run_dir.name)
-        uri = self.data.upload(run_dir, run_id)
+        uri = self.data.upload(run_dir, run_id, done=done)
         self.catalog.upsert_run(run_from_meta(meta, data=uri, samples=_rows(run_dir, meta),
                                               bench=bench_name(meta),
                                               operator=operator_name(meta)))

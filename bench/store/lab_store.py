@@ -20,6 +20,7 @@ from bench.store.lab_publish import Publisher, pending_runs
 from bench.store.run_data import DataLocation
 from bench.store.run_summary import RunFilter, RunSummary
 from bench.store.store_url import redact
+from bench.store.trailing_upload import TrailingUpload
 
 __all__ = ["DATA_SETTING", "LabStore", "PushReport", "SyncReport", "default_spool", "open_lab"]
 
@@ -52,11 +53,12 @@ class PushReport:
     constants_skipped: int
 
 
-@dataclass(frozen=True)
+@dataclass
 class LabStore:
     catalog: LabCatalog
     location: DataLocation | None  # None: the catalog names none and no --out was given
     spool: Path
+    trailing: TrailingUpload | None = None
 
     @property
     def data(self) -> DataLocation:
@@ -82,13 +84,16 @@ class LabStore:
 
     def check_can_record(self) -> None:
         """Before anything spins: a reader-only login is refused; a catalog that cannot be
-        reached is not (the run is spooled and synced later)."""
+        reached is not (the run is spooled and synced later). Then the parts of the runs
+        about to be recorded start trailing to the data location."""
         from bench.store.lab_catalog import CatalogUnavailable
 
         try:
             self.catalog.check_can_record()
         except CatalogUnavailable:
             return
+        if self.location is not None and self.trailing is None:
+            self.trailing = TrailingUpload(self.spool, self.location).start()
 
     def after_run(self, run_dir: Path | None = None) -> str | None:
         """Publish every ended run the spool holds (this one, a map sweep before it); a
@@ -132,11 +137,13 @@ class LabStore:
     def sync(self) -> SyncReport:
         """Publish every ended run waiting in the spool; a second call adds nothing."""
         self.data  # noqa: B018 - no data location: said before anything is tried
+        sent = self.trailing.stop() if self.trailing is not None else {}
+        self.trailing = None
         waiting = pending_runs(self.spool, self.publisher)
         delivered, failed = [], []
         for run_dir in waiting:
             try:
-                self.publisher.publish(run_dir)
+                self.publisher.publish(run_dir, done=sent.get(run_dir.name))
             except RigError as exc:
                 failed.append((run_dir.name, str(exc)))
             else:

@@ -46,29 +46,47 @@ class DataLocation:
     def run_uri(self, run_id: str) -> str:
         return f"{self.uri.rstrip('/')}/{run_id}"
 
-    def upload(self, run_dir: Path, run_id: str) -> str:
-        """Copy ``run_dir`` to ``<location>/<run_id>`` (parts first, ``run.json`` last);
-        returns the run's data URI. Raises ``DataUnavailable`` when the store fails."""
+    def upload(self, run_dir: Path, run_id: str, *, done: set[str] | None = None,
+               threads: int = 8) -> str:
+        """Copy ``run_dir`` to ``<location>/<run_id>``: the files not in ``done`` (relative
+        paths already uploaded, e.g. by ``TrailingUpload`` during the run) in parallel,
+        then ``run.json`` last; returns the run's data URI. Raises ``DataUnavailable``
+        when the store fails."""
+        files = sorted(p for p in Path(run_dir).rglob("*")
+                       if p.is_file() and not p.name.startswith("."))
+        rels = [p.relative_to(run_dir).as_posix() for p in files]
+        todo = [r for r in rels if r != "run.json" and r not in (done or set())]
+        self.put_files(run_dir, run_id, todo, threads=threads)
+        if "run.json" in rels:  # the seal: a run without it is not whole
+            self.put_files(run_dir, run_id, ["run.json"], threads=1)
+        return self.run_uri(run_id)
+
+    def put_files(self, run_dir: Path, run_id: str, rels: list[str], threads: int = 8) -> None:
+        """Upload ``rels`` (paths relative to ``run_dir``) under ``<location>/<run_id>/``."""
+        from concurrent.futures import ThreadPoolExecutor
+
         import pyarrow.fs as pafs
 
+        if not rels:
+            return
         fs, root = self._fs()
         dest = f"{root}/{run_id}"
         local = pafs.LocalFileSystem()
-        files = sorted(p for p in Path(run_dir).rglob("*")
-                       if p.is_file() and not p.name.startswith("."))
-        files.sort(key=lambda p: p.name == "run.json")  # run.json last: the upload's seal
+
+        def put(rel: str) -> None:
+            pafs.copy_files(str(Path(run_dir) / rel), f"{dest}/{rel}", source_filesystem=local,
+                            destination_filesystem=fs)
+
         try:
-            fs.create_dir(dest, recursive=True)
-            for p in files:
-                rel = p.relative_to(run_dir).as_posix()
-                if "/" in rel:
-                    fs.create_dir(f"{dest}/{rel.rsplit('/', 1)[0]}", recursive=True)
-                pafs.copy_files(str(p), f"{dest}/{rel}", source_filesystem=local,
-                                destination_filesystem=fs)
+            if not self.is_s3:  # a folder needs its folders; S3 keys do not
+                for sub in sorted({f"{dest}/{r.rsplit('/', 1)[0]}" if "/" in r else dest
+                                   for r in rels}):
+                    fs.create_dir(sub, recursive=True)
+            with ThreadPoolExecutor(max_workers=max(1, min(threads, len(rels)))) as pool:
+                list(pool.map(put, rels))
         except OSError as exc:
             raise DataUnavailable(f"data location {self.uri}: upload of {run_id} failed "
                                   f"({_short(exc)})") from None
-        return self.run_uri(run_id)
 
     def has_run(self, run_id: str) -> bool:
         """True when ``<location>/<run_id>/run.json`` exists (a whole upload)."""

@@ -101,3 +101,34 @@ def test_folder_data_location(spool_run: Path, tmp_path: Path) -> None:
     uri = data.upload(spool_run, "r1")
     assert data.has_run("r1") and uri.endswith("/r1")
     assert (tmp_path / "share" / "r1" / "samples.parquet").is_dir()
+
+
+def test_parts_trail_the_run_and_run_json_seals_it(spool_run: Path, tmp_path: Path,
+                                                   s3_env: object) -> None:
+    """While a run records (this process, status running) its whole parts go up; run.json
+    and events.csv wait for the publish at the end, which skips what was sent."""
+    import os
+
+    from bench.store.trailing_upload import TrailingUpload
+
+    spool = _fresh_spool(spool_run, tmp_path)
+    run = spool / spool_run.name
+    meta = json.loads((run / "run.json").read_text())
+    meta.update(status="running", pid=os.getpid())
+    (run / "run.json").write_text(json.dumps(meta))
+    (run / "samples.parquet" / ".part-99999.parquet.tmp").write_bytes(b"half a part")
+    data = DataLocation(f"s3://{s3_env.bucket}/runs")
+    trailing = TrailingUpload(spool, data)
+    trailing.send_new()
+    parts = sorted(p.name for p in (run / "samples.parquet").glob("part-*.parquet"))
+    assert sorted(r.split("/")[-1] for r in trailing.done[run.name]) == parts
+    assert not data.has_run(meta["id"])  # no run.json up there yet: not a whole run
+    (run / "samples.parquet" / ".part-99999.parquet.tmp").unlink()
+    meta["status"] = "success"
+    (run / "run.json").write_text(json.dumps(meta))
+    trailing.send_new()  # an ended run is not trailed any more
+    data.upload(run, meta["id"], done=trailing.done[run.name])
+    assert data.has_run(meta["id"])
+    back = data.download(meta["id"], tmp_path / "cache")
+    pd.testing.assert_frame_equal(pd.read_parquet(back / "samples.parquet"),
+                                  pd.read_parquet(run / "samples.parquet"))

@@ -1,0 +1,73 @@
+"""Upload a run's sample parts while it records, so the run is in the lab store moments
+after it ends ("uploaded behind the run").
+
+The recorder writes each part under a hidden name and renames it into place, so a visible
+``samples.parquet/part-*.parquet`` is whole and never changes: a thread polls the spool
+for the runs this process is recording and sends their new parts. ``run.json`` and
+``events.csv`` are left for the publish at the end (``run.json`` last, the seal). The
+bench never waits for the network: an upload that fails stops the trailing quietly and
+the end-of-run publish (or ``store sync``) does the rest.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import threading
+from pathlib import Path
+
+from bench.errors import RigError
+from bench.store.run_data import DataLocation
+
+__all__ = ["TrailingUpload"]
+
+
+class TrailingUpload:
+    """A daemon thread sending the finished parts of this process's running runs."""
+
+    def __init__(self, spool: Path, data: DataLocation, period_s: float = 0.25) -> None:
+        self.spool = Path(spool)
+        self.data = data
+        self.period_s = period_s
+        self.done: dict[str, set[str]] = {}  # run folder name -> relative paths sent
+        self.failed: str | None = None
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._loop, name="rotorbench-trailing-upload",
+                                        daemon=True)
+
+    def start(self) -> TrailingUpload:
+        self._thread.start()
+        return self
+
+    def stop(self) -> dict[str, set[str]]:
+        """Stop after the pass under way; the parts sent, per run folder."""
+        self._stop.set()
+        self._thread.join(60)
+        return self.done
+
+    def _loop(self) -> None:
+        while not self._stop.wait(self.period_s):
+            try:
+                self.send_new()
+            except RigError as exc:  # the store went away: the publish at the end decides
+                self.failed = str(exc)
+                return
+
+    def send_new(self) -> None:
+        """One pass: new whole parts of the runs this process records."""
+        for meta_path in self.spool.glob("*/run.json"):
+            run_dir = meta_path.parent
+            try:
+                meta = json.loads(meta_path.read_text(encoding="utf-8"))
+            except (OSError, UnicodeDecodeError, ValueError):
+                continue  # being replaced right now: the next pass reads it
+            if meta.get("pid") != os.getpid() or meta.get("status") != "running":
+                continue
+            parts = run_dir / str(meta.get("samples") or "samples.parquet")
+            sent = self.done.setdefault(run_dir.name, set())
+            new = sorted(p.relative_to(run_dir).as_posix() for p in parts.glob("*.parquet")
+                         if not p.name.startswith("."))
+            new = [r for r in new if r not in sent]
+            if new:
+                self.data.put_files(run_dir, str(meta.get("id") or run_dir.name), new)
+                sent.update(new)
