@@ -111,9 +111,31 @@ def test_report_replaces_an_earlier_report(tmp_path: Path, capsys) -> None:
     run = _imported_run(tmp_path)
     out = tmp_path / "rep"
     assert main(["report", str(run), "--out", str(out)]) == 0
-    (out / "stale.txt").write_text("old")
+    first = sorted(p.name for p in out.iterdir())
+    (out / "report.json").write_text("{}")  # its own files are replaced
     assert main(["report", str(run), "--out", str(out)]) == 0
-    assert (out / "report.json").is_file() and not (out / "stale.txt").exists()
+    assert sorted(p.name for p in out.iterdir()) == first
+    assert (out / "report.json").read_text() != "{}"
+
+
+@pytest.mark.parametrize("manifest", [True, False], ids=["report", "older report"])
+def test_report_keeps_the_users_files_in_its_folder(tmp_path: Path, capsys,
+                                                     manifest: bool) -> None:
+    """Audit row 1: a second `report --out rep` deleted rep/NOTES.txt and rep/mydata/."""
+    run = _imported_run(tmp_path)
+    out = tmp_path / "rep"
+    assert main(["report", str(run), "--out", str(out)]) == 0
+    if not manifest:  # a report folder written before the manifest existed
+        (out / ".rotorbench-files").unlink()
+    (out / "NOTES.txt").write_text("mine")
+    (out / "mydata").mkdir()
+    (out / "mydata" / "x.csv").write_text("1\n")
+    capsys.readouterr()
+    err = run_bad(capsys, "report", str(run), "--out", str(out))
+    assert "holds files `rotorbench report` did not write (NOTES.txt, mydata/)" in err
+    assert (out / "NOTES.txt").read_text() == "mine"
+    assert (out / "mydata" / "x.csv").read_text() == "1\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["rep", "run", "stand.csv"]
 
 
 # --- the SQLite stores beside the runs -----------------------------------------------------
