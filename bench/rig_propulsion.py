@@ -268,7 +268,11 @@ def read_thrust_map(path: Path) -> ThrustMap:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise RigError(f"{path}: cannot read thrust map: {exc}") from None
-    rows = list(csv.DictReader(io.StringIO(text)))
+    reader = csv.DictReader(io.StringIO(text))
+    names = [n.strip() for n in reader.fieldnames or []]
+    if twice := sorted({n for n in names if n and names.count(n) > 1}):
+        raise RigError(f"{path}: the header names column {twice[0]!r} twice; rename one")
+    rows = list(reader)
     if not rows or not {"command_us", "thrust_n"} <= set(rows[0]):
         raise RigError(f"{path}: thrust map needs columns command_us,thrust_n")
     cmd, thr = [], []

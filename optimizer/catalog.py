@@ -112,6 +112,17 @@ class _Table:
         return f"{self.label}: {row}, column '{column}'"
 
 
+def check_unique_header(path: Path, sep: str = ",") -> None:
+    """Refuse a table whose header names a column twice: pandas renames the second to
+    'X.1' and the reader would take one of them silently."""
+    raw = pd.read_csv(path, sep=sep, dtype=str, keep_default_na=False, header=None, nrows=1,
+                      skipinitialspace=True).iloc[0].tolist()
+    names = [str(c).strip() for c in raw]
+    twice = sorted({n for n in names if n and names.count(n) > 1})
+    if twice:
+        raise CatalogError(f"{path}: the header names column {twice[0]!r} twice; rename one")
+
+
 def _read_csv(path: Path) -> _Table:
     label = str(path)
     if not path.is_file():
@@ -120,6 +131,7 @@ def _read_csv(path: Path) -> _Table:
         frame = pd.read_csv(
             path, dtype=str, keep_default_na=False, skip_blank_lines=False, skipinitialspace=True
         )
+        check_unique_header(path)
     except pd.errors.EmptyDataError:
         raise CatalogError(f"{label}: file is empty (expected a header and data rows)") from None
     except (pd.errors.ParserError, UnicodeDecodeError) as exc:

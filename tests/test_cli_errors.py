@@ -49,6 +49,75 @@ def test_import_header_only(tmp_path: Path, capsys) -> None:
     assert not (tmp_path / "o").exists()
 
 
+_RCB_ROWS = "".join(f"{0.1 * i:.1f},{1100 + 10 * i},{100 + 5 * i},16.0,{0.5 * i},{900 * i}\n"
+                   for i in range(10))
+
+
+@pytest.mark.parametrize(("fmt", "header", "twice"), [
+    # the audit's case: 'Thrust (gf)' renamed to 'Voltage (V)'; voltage_v took the thrust
+    ("rcbenchmark", "Time (s),ESC signal (µs),Voltage (V),Voltage (V),Current (A),"
+                    "Motor Electrical Speed (RPM)", "'Voltage (V)' twice (columns 3 and 4)"),
+    ("rcbenchmark", "Time (s),ESC signal (µs),Thrust (gf),Voltage (V),Current (A),"
+                    "Thrust (N)", "'Thrust (N)' twice (columns 3 and 6)"),
+    ("esc32", "Timestamp,Amps,Batt. Volts,Amps,RPM,Duty", "'Amps' twice (columns 2 and 4)"),
+    ("csv", "t_s,throttle_us,thrust_n,voltage_v,current_a,thrust_n",
+     "'thrust_n' twice (columns 3 and 6)"),
+])
+def test_import_refuses_a_column_named_twice(tmp_path: Path, capsys, fmt: str, header: str,
+                                             twice: str) -> None:
+    """Audit row 3: pandas renames a repeated header to 'X.1' and the importer took it."""
+    f = tmp_path / "log.csv"
+    rows = _RCB_ROWS if fmt != "esc32" else "".join(
+        f"2019-11-05 17:14:08:{100 * i:03d},{0.5 * i},16.0,0.1,{900 * i},{10 * i}\n"
+        for i in range(10))
+    f.write_text(header + "\n" + rows, encoding="utf-8")
+    err = run_bad(capsys, "import", str(f), "--format", fmt, "--out", str(tmp_path / "o"))
+    assert f"log.csv: the header names column {twice}; rename one" in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_sizinglab_import_refuses_a_column_named_twice(tmp_path: Path, capsys,
+                                                      shared_data: Path) -> None:
+    """Audit row 3's sibling in the SizingLab importer."""
+    import shutil
+
+    src = tmp_path / "sizinglab"
+    shutil.copytree(shared_data / "sizinglab", src)
+    motors = src / "Motors_Data.csv"
+    motors.write_text(motors.read_text(encoding="utf-8").replace("Pole_number", "Kv_rpm_v", 1),
+                      encoding="utf-8")
+    err = run_bad(capsys, "import-sizinglab", "--source", str(src), "--out", str(tmp_path / "cat"))
+    assert "Motors_Data.csv: the header names column 'Kv_rpm_v' twice" in err
+    assert not (tmp_path / "cat").exists()
+
+
+def test_other_tables_refuse_a_column_named_twice(tmp_path: Path, capsys,
+                                                  fixtures_dir: Path) -> None:
+    """Audit row 3's siblings: every reader of a CSV header (catalog tables, a rig's
+    thrust map, an IMU log) refuses a repeated name."""
+    import shutil
+
+    cat = tmp_path / "thesis-e"
+    shutil.copytree(fixtures_dir / "catalogs" / "thesis-e", cat)
+    motors = cat / "motors.csv"
+    motors.write_text(motors.read_text(encoding="utf-8").replace(",price,", ",mass_g,", 1),
+                      encoding="utf-8")
+    err = run_bad(capsys, "optimize", "--catalog", str(cat))
+    assert "motors.csv: the header names column 'mass_g' twice" in err
+
+    rig = tmp_path / "rig" / "sim.toml"
+    shutil.copytree(fixtures_dir / "rigs", rig.parent)
+    (rig.parent / "sim.thrust_map.csv").write_text("command_us,thrust_n,thrust_n\n"
+                                                   "1000,0,1\n2000,8,9\n", encoding="utf-8")
+    err = run_bad(capsys, "step", "--rig", str(rig), "--dry-run")
+    assert "sim.thrust_map.csv: the header names column 'thrust_n' twice" in err
+
+    log = tmp_path / "imu.csv"
+    log.write_text("t_s,gyr_x,gyr_x\n0,1,2\n", encoding="utf-8")
+    err = run_bad(capsys, "calibrate", "--from-log", str(log), "--out", str(tmp_path / "c.json"))
+    assert "imu.csv: the header names column 'gyr_x' twice" in err
+
+
 def test_import_map_twice_is_refused(tmp_path: Path, capsys) -> None:
     f = tmp_path / "log.csv"
     f.write_text("a,b\n0,1\n0.1,2\n")
