@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.errors import RigError, ThrustOutsideMap
+from bench.run_budget import check_duration
 
 G0 = 9.80665  # standard gravity, m/s^2 (grams-force -> newtons)
 
@@ -144,6 +145,12 @@ class Sequence:
     description: str = ""
     needs_thrust_map: bool = False
     source: str = field(default="", compare=False)  # the file it was read from, if any
+
+    @property
+    def duration_s(self) -> float:
+        """The rig time of the compiled plan (the sum of the steps' times), without
+        compiling it."""
+        return float(sum(map(_step_s, self.steps)))
 
     @property
     def where(self) -> str:
@@ -279,9 +286,14 @@ def step1(
     low, high = band_n or hover_band_n()
     _check_repeats(repeats)
     _check_hold(hold_s)
+
+    def repeat(i: int) -> list[Step]:
+        return [Checkpoint(f"repeat {i + 1}"), ThrustStep(high, hold_s), ThrustStep(low, hold_s)]
+
+    _check_length("step1", _spin_up(low, settle_s), repeat(0), repeats, _spin_down())
     steps: list[Step] = _spin_up(low, settle_s)
     for i in range(repeats):
-        steps += [Checkpoint(f"repeat {i + 1}"), ThrustStep(high, hold_s), ThrustStep(low, hold_s)]
+        steps += repeat(i)
     steps += _spin_down()
     return Sequence(
         name="step1",
@@ -312,18 +324,20 @@ def step2(
     _check_repeats(repeats)
     _check_hold(hold_s)
     span = high - low
-    steps: list[Step] = _spin_up(low, settle_s)
-    for i in range(repeats):
-        steps.append(Checkpoint(f"repeat {i + 1} rising"))
-        steps.append(ThrustStep(high, dwell_s))
+
+    def repeat(i: int) -> list[Step]:
+        steps: list[Step] = [Checkpoint(f"repeat {i + 1} rising"), ThrustStep(high, dwell_s)]
         for f in fractions:
             steps += [ThrustStep(high - f * span, dwell_s), ThrustStep(high, dwell_s)]
-        steps.append(Hold(hold_s))
-        steps.append(Checkpoint(f"repeat {i + 1} falling"))
-        steps.append(ThrustStep(low, dwell_s))
+        steps += [Hold(hold_s), Checkpoint(f"repeat {i + 1} falling"), ThrustStep(low, dwell_s)]
         for f in fractions:
             steps += [ThrustStep(low + f * span, dwell_s), ThrustStep(low, dwell_s)]
-        steps.append(Hold(hold_s))
+        return [*steps, Hold(hold_s)]
+
+    _check_length("step2", _spin_up(low, settle_s), repeat(0), repeats, _spin_down())
+    steps: list[Step] = _spin_up(low, settle_s)
+    for i in range(repeats):
+        steps += repeat(i)
     steps += _spin_down()
     return Sequence(
         name="step2",
@@ -362,6 +376,22 @@ def sweep(start_us: float = 1100.0, end_us: float = 1900.0, duration_s: float = 
         steps=steps,
         description=f"slow ramp {start_us:g} -> {end_us:g} us over {duration_s:g} s",
     )
+
+
+def _step_s(step: Step) -> float:
+    """The rig time one step takes (its hold, duration and soft-start ramp)."""
+    return float(sum(getattr(step, name, 0.0) or 0.0
+                     for name in ("hold_s", "duration_s", "ramp_s")))
+
+
+def _check_length(name: str, head: list[Step], one: list[Step], repeats: int,
+                  tail: list[Step]) -> None:
+    """Refuse a repeated sequence longer than a run may last before its steps exist: the
+    length is projected from one repeat, in constant memory (``--repeats 100000000``
+    built 16 GB of steps before the budget check could refuse it)."""
+    duration = (sum(map(_step_s, head)) + repeats * sum(map(_step_s, one))
+                + sum(map(_step_s, tail)))
+    check_duration(duration, f"sequence {name!r} ({repeats} repeats)")
 
 
 def _check_repeats(repeats: int) -> None:
