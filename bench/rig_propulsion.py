@@ -21,6 +21,7 @@ from urllib.parse import urlsplit
 import numpy as np
 
 from bench.errors import RigError, ThrustOutsideMap
+from bench.input_paths import check_input
 from bench.rig_devices import REPO, DeviceConfig, parse_device
 from bench.rig_table import RigTable
 
@@ -264,6 +265,7 @@ def make_thrust_map(where: Path | str, command_us: Sequence[float], thrust_n: Se
 
 
 def read_thrust_map(path: Path) -> ThrustMap:
+    check_input(path, "thrust map")
     try:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
@@ -323,7 +325,7 @@ def parse(path: Path, top: RigTable) -> dict[str, Any]:
     tm = top.table("thrust_map", required=False)
     if tm is not None:
         tm.only("file")
-        tm_path = (path.parent / tm.text("file")).resolve()
+        tm_path = check_input(path.parent / tm.text("file"), "thrust map").resolve()
         if tm_path.is_file():
             thrust_map = read_thrust_map(tm_path)
     return {"path": path, "name": name, "devices": devices, "limits": limits,

@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.errors import RigError, ThrustOutsideMap
+from bench.input_paths import check_input
 from bench.run_budget import check_duration
 
 G0 = 9.80665  # standard gravity, m/s^2 (grams-force -> newtons)
@@ -238,6 +239,7 @@ def load_sequence(path: Path) -> Sequence:
     import json
     import tomllib
 
+    check_input(path, "--sequence")
     try:
         text = Path(path).read_text(encoding="utf-8")
         data = tomllib.loads(text) if Path(path).suffix == ".toml" else json.loads(text)

@@ -827,3 +827,66 @@ def test_absurd_payload_is_refused_without_numpy_warnings(capsys, command: list[
     """1e308 kg passed as finite and overflowed numpy (RuntimeWarning lines, then exit 3)."""
     line = run_bad(capsys, *command, "--payload-kg", "1e308")
     assert "payload" in line and "10000" in line
+
+
+# --- input paths that are not files: a symlink loop, a device, a FIFO ---------------------
+
+
+_LOOP_ARGV = [  # every command with an input path; LOOP is replaced by the looping link
+    ["step", "--rig", "LOOP", "--dry-run"], ["sweep", "--rig", "LOOP", "--dry-run"],
+    ["check", "--rig", "LOOP"], ["calibrate", "--rig", "LOOP", "--dry-run"],
+    ["console", "--rig", "LOOP", "--selftest"], ["step", "--sequence", "LOOP", "--dry-run"],
+    ["fit", "LOOP"], ["report", "LOOP"], ["export", "ardupilot", "LOOP"],
+    ["constants", "--add", "LOOP"], ["import", "LOOP", "--format", "csv", "--out", "o"],
+    ["decode", "--protocol", "msp", "LOOP"], ["attitude", "LOOP"],
+    ["calibrate", "--from-log", "LOOP", "--out", "c.json"],
+    ["optimize", "--catalog", "LOOP"], ["optimize", "--measured", "LOOP"],
+    ["import-sizinglab", "--source", "LOOP", "--out", "q"],
+]
+
+
+@pytest.mark.parametrize("argv", _LOOP_ARGV, ids=lambda a: " ".join(a[:2]))
+def test_a_symlink_loop_as_input_is_one_line(tmp_path: Path, capsys, monkeypatch,
+                                             argv: list[str]) -> None:
+    """Audit row 9: a rig file that is a symlink loop gave a RuntimeError traceback from
+    Path.resolve (and 'not found' elsewhere: exists() is False for a loop)."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "a").symlink_to("b")
+    (tmp_path / "b").symlink_to("a")
+    argv = [a.replace("LOOP", "a") for a in argv]
+    err = run_bad(capsys, *argv)
+    assert "a: a loop of symbolic links" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a", "b"]  # nothing written
+
+
+def test_a_rigs_thrust_map_that_loops_is_one_line(tmp_path: Path, capsys,
+                                                  fixtures_dir: Path) -> None:
+    rig = tmp_path / "sim.toml"
+    rig.write_text((fixtures_dir / "rigs" / "sim.toml").read_text(encoding="utf-8"))
+    map_link = tmp_path / "sim.thrust_map.csv"
+    map_link.symlink_to(map_link.name)
+    err = run_bad(capsys, "step", "--rig", str(rig), "--dry-run")
+    assert "thrust map" in err and "a loop of symbolic links" in err
+
+
+@pytest.mark.parametrize("argv", [
+    ["decode", "--protocol", "msp", "SPECIAL"], ["decode", "--protocol", "gcs", "SPECIAL"],
+    ["decode", "--protocol", "vesc-can", "SPECIAL"],
+    ["import", "SPECIAL", "--format", "rcbenchmark", "--out", "o"],
+    ["calibrate", "--from-log", "SPECIAL", "--out", "c.json"],
+    ["step", "--rig", "SPECIAL", "--dry-run"], ["step", "--sequence", "SPECIAL", "--dry-run"],
+], ids=lambda a: " ".join(a[:3]))
+@pytest.mark.parametrize("special", ["/dev/zero", "fifo"])
+def test_a_device_or_fifo_as_input_is_refused(tmp_path: Path, capsys, monkeypatch,
+                                              argv: list[str], special: str) -> None:
+    """Audit row 5: `decode --protocol msp /dev/zero` read 18 GB in 20 s (a FIFO blocks
+    forever): a path that is not a regular file is refused before it is opened."""
+    import os
+
+    monkeypatch.chdir(tmp_path)
+    if special == "fifo":
+        os.mkfifo(tmp_path / "fifo")
+    argv = [a.replace("SPECIAL", special) for a in argv]
+    err = run_bad(capsys, *argv)
+    kind = "a character device" if special == "/dev/zero" else "a FIFO (named pipe)"
+    assert f"{special}: is {kind}, not a regular file; save the data to a file" in err
