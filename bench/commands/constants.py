@@ -44,6 +44,8 @@ def handler(args: argparse.Namespace) -> int:
         store.put(key, kind, run_id, str(run), data)
         print(f"stored {kind} constants of {run_id} for {key.motor} / {key.propeller} / "
               f"{key.esc} ({key.esc_mode}) / {key.battery}")
+        for note in data.get("notes", []):
+            print(f"note: {note}")
     rows = store.rows()
     if not rows:
         print(f"no constants stored under {args.out}")

@@ -88,6 +88,7 @@ def build(args: argparse.Namespace, out: Path, console: Console) -> dict[str, An
         else:
             try:
                 fits.append((rec, label, fit_run(rec)))
+                notes.extend(f"{rec.id}: {n}" for n in fits[-1][2].notes)
             except LogError as exc:
                 notes.append(f"{rec.id}: no step fit ({exc})")
     summary: dict[str, Any] = {"runs": [str(r.path) for r in records], "notes": notes}
