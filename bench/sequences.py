@@ -380,6 +380,11 @@ def sweep(start_us: float = 1100.0, end_us: float = 1900.0, duration_s: float = 
     )
 
 
+#: The most steps a repeated sequence may build: a day of Step 1 at its 0.5 s holds is
+#: 259 000; --repeats 3000000 --hold 1e-3 (under 2 h) used to take 2.6 GB.
+MAX_PLAN_STEPS = 300_000
+
+
 def _step_s(step: Step) -> float:
     """The rig time one step takes (its hold, duration and soft-start ramp)."""
     return float(sum(getattr(step, name, 0.0) or 0.0
@@ -394,6 +399,11 @@ def _check_length(name: str, head: list[Step], one: list[Step], repeats: int,
     duration = (sum(map(_step_s, head)) + repeats * sum(map(_step_s, one))
                 + sum(map(_step_s, tail)))
     check_duration(duration, f"sequence {name!r} ({repeats} repeats)")
+    steps = len(head) + repeats * len(one) + len(tail)
+    if steps > MAX_PLAN_STEPS:  # short holds: a short plan of very many steps
+        raise RigError(f"sequence {name!r} ({repeats} repeats): {steps} steps, more than "
+                       f"the {MAX_PLAN_STEPS} a plan may hold (about 1.4 kB of memory each "
+                       "with its segment); lower --repeats or split it into several runs")
 
 
 def _check_repeats(repeats: int) -> None:

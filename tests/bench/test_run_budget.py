@@ -79,6 +79,14 @@ def test_a_huge_repeat_count_is_refused_in_constant_memory(sim_rig_mapped_path: 
     assert not out.exists()
 
 
+def test_many_short_repeats_are_refused_by_their_step_count(sim_rig_mapped_path: Path,
+                                                            capsys) -> None:
+    """A short plan of very many steps (--hold 1e-3): 2.6 GB and no end before."""
+    err = run_bad(capsys, "step", "--repeats", "3000000", "--hold", "1e-3", "--dry-run",
+                  "--rig", str(sim_rig_mapped_path))
+    assert "(3000000 repeats): 9000007 steps, more than the 300000 a plan may hold" in err
+
+
 def test_a_console_plan_with_a_huge_repeat_count_is_refused() -> None:
     """The console's plans share the sequence builders (bench.plan_specs)."""
     from bench.errors import RigError
