@@ -125,6 +125,11 @@ def check_unique_header(path: Path, sep: str = ",") -> None:
 
 def _read_csv(path: Path) -> _Table:
     label = str(path)
+    if path.is_symlink() and not path.exists():
+        raise CatalogError(f"{path}: a symbolic link that leads nowhere (a loop or a "
+                           "missing target)")
+    if path.exists() and not path.is_file():  # a folder, a FIFO (blocks), a device
+        raise CatalogError(f"{path}: not a regular file")
     if not path.is_file():
         raise CatalogError(f"{path.parent}: missing file {path.name}")
     try:

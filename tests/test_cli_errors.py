@@ -890,3 +890,27 @@ def test_a_device_or_fifo_as_input_is_refused(tmp_path: Path, capsys, monkeypatc
     err = run_bad(capsys, *argv)
     kind = "a character device" if special == "/dev/zero" else "a FIFO (named pipe)"
     assert f"{special}: is {kind}, not a regular file; save the data to a file" in err
+
+
+@pytest.mark.parametrize(("name", "kind", "says"), [
+    ("catalog.toml", "loop", "catalog.toml: cannot read: Too many levels of symbolic links"),
+    ("catalog.toml", "fifo", "catalog.toml: not a regular file"),
+    ("motors.csv", "loop", "motors.csv: a symbolic link that leads nowhere"),
+    ("motors.csv", "fifo", "motors.csv: not a regular file"),
+])
+def test_a_catalog_file_that_loops_or_blocks(tmp_path: Path, capsys, fixtures_dir: Path,
+                                            name: str, kind: str, says: str) -> None:
+    """Row 9's sibling inside a catalog folder: a looping catalog.toml was taken as absent
+    (the default constants, silently), a looping table as 'missing'; a FIFO blocked."""
+    import os
+    import shutil
+
+    cat = tmp_path / "cat"
+    shutil.copytree(fixtures_dir / "catalogs" / "thesis-e", cat)
+    (cat / name).unlink()
+    if kind == "loop":
+        (cat / name).symlink_to(name)
+    else:
+        os.mkfifo(cat / name)
+    err = run_bad(capsys, "optimize", "--catalog", str(cat))
+    assert says in err
