@@ -914,3 +914,18 @@ def test_a_catalog_file_that_loops_or_blocks(tmp_path: Path, capsys, fixtures_di
         os.mkfifo(cat / name)
     err = run_bad(capsys, "optimize", "--catalog", str(cat))
     assert says in err
+
+
+@pytest.mark.parametrize("command", [["fit"], ["report"], ["export", "ardupilot"],
+                                     ["constants", "--add"]])
+def test_a_run_json_that_is_a_fifo_is_refused(tmp_path: Path, capsys,
+                                              command: list[str]) -> None:
+    """Row 5's sibling inside a run folder: a FIFO as run.json blocked every reader."""
+    import os
+
+    run = _imported_run(tmp_path)
+    (run / "run.json").unlink()
+    os.mkfifo(run / "run.json")
+    capsys.readouterr()
+    err = run_bad(capsys, *command, str(run))
+    assert f"{run / 'run.json'}: not a regular file" in err
