@@ -28,6 +28,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+import pandas as pd
 
 from analysis.errors import LogError
 from analysis.run_record import RunRecord
@@ -276,12 +277,53 @@ def actuator_of(record: RunRecord) -> tuple[np.ndarray, str]:
                    "autopilot export")
 
 
+#: A command is "steady" where it stayed within STEADY_SPREAD of the output range for
+#: the last STEADY_WINDOW_S: three time constants of a slow rotor (0.1 s; Table C.1's run
+#: from 30 to 80 ms), so a level held that long has settled to 95 % and a ramp that slow
+#: (under 5 % of the range per 0.3 s) lags the command by under 2 % of the range.
+STEADY_WINDOW_S = 0.3
+STEADY_SPREAD = 0.05
+#: The widest stretch of the commanded range that may hold no steady command (a 5 % duty
+#: staircase leaves 5 %; a Step 1 run leaves idle to its low level, over 40 %).
+MAX_UNCOVERED = 0.15
+
+
+def check_static_coverage(record: RunRecord, act: np.ndarray) -> None:
+    """Refuse a run whose steady commands do not cover its command range (LogError).
+
+    A command-to-thrust curve is only the static curve where the thrust had time to
+    follow the command: a sweep or a staircase. A step run holds two levels and moves
+    between them (and from idle) in a second, so its binned medians are lagging
+    transients: exporting them gave MOT_THST_EXPO 0.71 where the sweep of the same rig
+    gives 0.385."""
+    t = record.column("t_s")
+    ok = np.isfinite(act) & np.isfinite(t)
+    a, t = act[ok], t[ok] - t[ok][0] if ok.any() else t[ok]
+    if a.size < 2:
+        return  # ThrustCurve refuses too few points with its own message
+    window = pd.Series(a, index=pd.to_timedelta(t, unit="s")).rolling(
+        pd.Timedelta(seconds=STEADY_WINDOW_S))
+    spread = (window.max() - window.min()).to_numpy()
+    steady = np.unique(a[(spread <= STEADY_SPREAD) & (t >= STEADY_WINDOW_S)])
+    edges = np.concatenate([[a.min()], steady, [a.max()]])
+    k = int(np.argmax(np.diff(edges)))
+    gap = float(edges[k + 1] - edges[k])
+    if gap > MAX_UNCOVERED:
+        raise LogError(f"{record.path}: not a static sweep: its command never holds still "
+                       f"(within {STEADY_SPREAD:.0%} of the range for {STEADY_WINDOW_S:g} s) "
+                       f"between {edges[k]:.2f} and {edges[k + 1]:.2f} of the output range, "
+                       f"so the thrust there is a transient; export from a slow sweep "
+                       "(`rotorbench sweep`) or a stand log that steps the command slowly")
+
+
 def thrust_curve_from_runs(record: RunRecord, thrust_record: RunRecord | None = None,
                            bins: int = 40) -> ThrustCurve:
     """Steady thrust per command level of ``record``; if that run has no thrust (e.g. an
     ESC telemetry log), the speed per command level goes through the thrust-vs-speed
-    curve fitted on ``thrust_record`` (e.g. the stand log of the same test)."""
+    curve fitted on ``thrust_record`` (e.g. the stand log of the same test). ``record``
+    must cover its command range slowly (:func:`check_static_coverage`)."""
     act, _ = actuator_of(record)
+    check_static_coverage(record, act)
     cols = record.samples.columns
     if "thrust_n" in cols and np.isfinite(record.column("thrust_n")).any():
         thrust = record.column("thrust_n")

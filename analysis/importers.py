@@ -23,7 +23,7 @@ from __future__ import annotations
 import csv
 import math
 import re
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -160,6 +160,10 @@ def _read_csv(path: Path, *, logger: bool = False, **kwargs: Any) -> pd.DataFram
         # and only an empty cell means "no value"
         df = pd.read_csv(path, encoding="utf-8-sig", dtype=str, keep_default_na=False,
                          skipinitialspace=True, **kwargs)
+        # the header as written: pandas renames a repeated name to 'X.1' silently
+        raw = pd.read_csv(path, encoding="utf-8-sig", dtype=str, keep_default_na=False,
+                          skipinitialspace=True, header=None, nrows=1,
+                          **kwargs).iloc[0].tolist()
     except (UnicodeDecodeError, pd.errors.ParserError, csv.Error) as exc:
         reason = " ".join(str(exc).split())  # pandas' messages span lines; one line here
         raise LogError(f"{path}: not a readable CSV ({reason})") from None
@@ -181,9 +185,31 @@ def _read_csv(path: Path, *, logger: bool = False, **kwargs: Any) -> pd.DataFram
         df.attrs["cut_last_line"] = {"line": line, "text": cut[:80]}
     if df.empty:
         raise LogError(f"{path}: no data rows (only a header)")
+    _check_unique([str(c).strip() for c in raw], path, lambda h: h)
     df.columns = [str(c).strip() for c in df.columns]  # 'Time (s), Amps' -> 'Amps'
     df.attrs["first_line"] = first_line
     return df
+
+
+def _check_unique(headers: list[str], path: Path, key: Callable[[str], str]) -> None:
+    """Refuse a header naming one column twice (by ``key``): which one is meant is a guess,
+    and taking either silently puts the wrong channel in a run column."""
+    seen: dict[str, int] = {}
+    for i, h in enumerate(headers):
+        k = key(h)
+        if not k:  # unnamed (a trailing comma): nothing is taken from it by name
+            continue
+        if k in seen:
+            raise LogError(f"{path}: the header names column {h!r} twice (columns "
+                           f"{seen[k] + 1} and {i + 1}); rename one")
+        seen[k] = i
+
+
+def _by_name(df: pd.DataFrame, path: Path) -> dict[str, str]:
+    """Stand-log headers by name without unit, lower case ('Thrust (gf)' and 'thrust (N)'
+    are one channel twice)."""
+    _check_unique(list(df.columns), path, lambda h: parse_header(h)[0].lower())
+    return {parse_header(h)[0].lower(): h for h in df.columns}
 
 
 def _numeric(df: pd.DataFrame, header: str, path: Path) -> np.ndarray:
@@ -309,7 +335,7 @@ def import_rcbenchmark(path: str | Path) -> tuple[pd.DataFrame, dict[str, Any]]:
     first = path.read_bytes()[:200].decode("utf-8-sig", errors="replace").splitlines()
     skip = 1 if first and first[0].lower().startswith("control protocol") else 0
     df = _read_csv(path, logger=True, skiprows=skip)
-    by_name = {parse_header(h)[0].lower(): h for h in df.columns}
+    by_name = _by_name(df, path)
     if "time" not in by_name:
         raise LogError(f"{path}: no 'Time (s)' column: not an RCbenchmark log "
                        f"(columns: {_names(df.columns, 6)})")
@@ -368,7 +394,7 @@ def import_esc32(path: str | Path) -> tuple[pd.DataFrame, dict[str, Any]]:
     """
     path = Path(path)
     df = _read_csv(path, logger=True)
-    by_name = {parse_header(h)[0].lower(): h for h in df.columns}
+    by_name = _by_name(df, path)
     stamp_col = by_name.get("timestamp")
     if stamp_col is None:
         raise LogError(f"{path}: no 'Timestamp' column: not an ESC32 telemetry log")

@@ -61,6 +61,7 @@ def read_table(path: str | Path) -> pd.DataFrame:
     try:
         if suffix == ".csv":
             df = pd.read_csv(path, dtype={"phase": str})
+            header = pd.read_csv(path, header=None, nrows=1, dtype=str).iloc[0].tolist()
         else:
             df = pd.read_parquet(path)
     except Exception as exc:  # the reader's own message (on one line), with the file name
@@ -69,6 +70,10 @@ def read_table(path: str | Path) -> pd.DataFrame:
     if suffix == ".csv" and len(df.columns) == 1 and any(c in str(df.columns[0]) for c in ";\t"):
         raise LogError(f"{path}: the header is one field ({str(df.columns[0])[:40]!r}...): "
                        "columns must be separated by commas")
+    if suffix == ".csv":  # pandas renamed a repeated name 'X.1': which one is meant?
+        names = [str(c).strip() for c in header]
+        if twice := sorted({n for n in names if n and n != "nan" and names.count(n) > 1}):
+            raise LogError(f"{path}: the header names column {twice[0]!r} twice; rename one")
     df.attrs["path"] = str(path)
     return df
 

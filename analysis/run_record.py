@@ -63,6 +63,9 @@ def read_run(path: str | Path) -> RunRecord:
     run_dir = Path(path)
     if not run_dir.is_dir():
         raise LogError(f"{run_dir}: not a run folder (expected a folder with run.json)")
+    if (run_dir / "run.json").exists() and not (run_dir / "run.json").is_file():
+        # a folder, or a FIFO or device that would block or read without end
+        raise LogError(f"{run_dir / 'run.json'}: not a regular file")
     meta = _read_meta(run_dir / "run.json")
     samples = _read_samples(run_dir / _samples_name(meta))
     events = _read_events(run_dir / str(meta.get("events") or EVENTS_DEFAULT))

@@ -12,8 +12,9 @@ mean of 20 repeats), and compares the two directions by the RMS of their differe
   ``y0 + (y1 - y0) (1 - exp(-(t - L) / tau))`` for ``t > L`` (latency L, time constant tau,
   gain = (y1 - y0) / step of the setpoint); the initial guess is the two-point method
   ``tau = 1.5 (t63 - t28)``, ``L = t63 - tau``;
-* the 63 % rise time is read from the data (first crossing of 63.2 % of the change,
-  measured from the command edge, so it includes the latency);
+* the 63 % rise time is read from the data (first crossing of 63.2 % of the fitted
+  change, measured from the command edge, so it includes the latency: ``L + tau`` when
+  the model fits); a level held less than 4 tau gets a note (not settled);
 * the spread of the single-edge estimates gives each estimate's uncertainty;
 * a second-order fit with two real poles (the form of C.1) is available as an option.
 """
@@ -426,6 +427,12 @@ def _fit_first_order(tb: np.ndarray, yb: np.ndarray, cnt: np.ndarray, step: floa
     ok, why = bool(sol.success), "" if sol.success else f"the solver failed ({sol.message})"
     if ok and tau >= 0.99 * hi[1]:
         ok, why = False, f"tau runs into its bound ({tau * 1e3:.0f} ms): no settling in the window"
+    if ok and y1 != y0:
+        # read against the fitted levels: the mean of the window's end is below the final
+        # value when the level is held less than ~3 tau, and the 63 % of that lower change
+        # came before latency + tau (Table C.1's t63 = L + tau; issue 21: t63 161 ms
+        # against L + tau 180 ms with a 0.5 s hold and tau 166 ms)
+        t63 = _crossing(tb, (yb - y0) / (y1 - y0), T63)
     return FirstOrderFit(lat, tau, (y1 - y0) / step, y0, y1, rms, t63, ok, why)
 
 
@@ -552,8 +559,33 @@ def fit_step_response(
         ))
 
     up, down = _headline(groups, "up"), _headline(groups, "down")
+    hold = min(edges[i].hold_after_s for i in usable)
     return StepResponse(signal, command, gain_unit, tuple(edges), tuple(groups), up, down,
-                        rise_fall_rms(up, down), post_s, bin_s, excluded=excluded)
+                        rise_fall_rms(up, down), post_s, bin_s,
+                        notes=short_hold_notes(hold, up, down), excluded=excluded)
+
+
+#: A level held this many time constants has settled to within 2 % (e^-4) before it
+#: changes: the usual settling time of a first-order lag. At 3 tau (95 %) the mean of the
+#: window's end, which the fit starts from, is still 7 % short of the final level.
+SETTLE_TAUS = 4.0
+
+
+def short_hold_notes(hold_s: float, up: DirectionFit | None, down: DirectionFit | None
+                     ) -> tuple[str, ...]:
+    """A note when the levels are held less than ``SETTLE_TAUS`` time constants: the
+    response has not settled when the command changes, so the final level and tau are the
+    fit's extrapolation (and the rising and falling responses overlap)."""
+    taus = {d.direction: d.tau.value for d in (up, down)
+            if d is not None and math.isfinite(d.tau.value)}
+    if not taus or hold_s >= SETTLE_TAUS * max(taus.values()):
+        return ()
+    which = ", ".join(f"tau_{k} {v * 1e3:.0f} ms" for k, v in taus.items())
+    need = SETTLE_TAUS * max(taus.values())
+    return (f"levels held {hold_s:.3g} s, less than {SETTLE_TAUS:g} tau ({which}): the "
+            "response has not settled when the level changes, so the final level and tau "
+            f"are extrapolated by the fit; hold each level at least {math.ceil(need * 10) / 10:g}"
+            " s (step --hold) to measure them",)
 
 
 def _starts_from_rest(t: np.ndarray, speed: np.ndarray | None, edges: list[Edge]
@@ -746,7 +778,7 @@ def fit_run(record: RunRecord, signal: str = "auto", command: str | None = None,
                 notes.append(f"not fitted: {reason}")
             if notes:
                 notes.append(f"fitted {col} instead")
-            return replace(res, notes=tuple(notes))
+            return replace(res, notes=(*notes, *res.notes))
     raise LogError(f"{record.path}: no signal can be fitted: " + "; ".join(
         why[n] for n in cands))
 

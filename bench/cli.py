@@ -19,6 +19,7 @@ import os
 import pkgutil
 import sys
 from collections.abc import Sequence
+from pathlib import Path
 
 from bench import commands
 
@@ -66,6 +67,41 @@ def _parser_for(argv: Sequence[str]) -> argparse.ArgumentParser:
     return build_parser()
 
 
+#: Path options that name outputs (checked by each command's ``check_writable``); every
+#: other Path argument is an input, checked by :func:`_check_inputs` before the command runs.
+_OUTPUTS = frozenset({"out", "apply_out", "figures", "plot", "png", "save", "screenshot",
+                      "simulate_log"})
+
+
+def _flags(parser: argparse.ArgumentParser, argv: Sequence[str]) -> dict[str, str]:
+    """The option string of each destination of the command given (positionals: '')."""
+    flags: dict[str, str] = {}
+    stack = [parser]
+    while stack:
+        p = stack.pop()
+        for action in p._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                stack.extend(sub for name, sub in action.choices.items() if name in argv)
+            else:
+                flags.setdefault(action.dest, max(action.option_strings, key=len, default=""))
+    return flags
+
+
+def _check_inputs(parser: argparse.ArgumentParser, argv: Sequence[str],
+                  args: argparse.Namespace) -> None:
+    """Refuse an input path that is a symlink loop, a device or a FIFO before any command
+    reads it (``decode /dev/zero`` filled 18 GB; a looping --rig link was a traceback)."""
+    from bench.input_paths import check_input
+
+    flags = _flags(parser, argv)
+    for dest, value in vars(args).items():
+        if dest in _OUTPUTS:
+            continue
+        for v in value if isinstance(value, list) else [value]:
+            if isinstance(v, os.PathLike):
+                check_input(Path(v), flags.get(dest, ""))
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = _parser_for(argv)
@@ -77,6 +113,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     args._defaults = option_defaults(parser, args)  # for cli_support.refuse_unused
     try:
+        _check_inputs(parser, argv, args)
         return int(args.func(args) or 0)
     except KeyboardInterrupt:
         print("rotorbench: interrupted", file=sys.stderr)

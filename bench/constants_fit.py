@@ -73,4 +73,5 @@ def _step_values(rec: Any) -> dict[str, Any]:
             "rise_time_63_up_s": f.up.t63.value, "rise_time_63_down_s": f.down.t63.value,
             "gain": 0.5 * (f.up.gain.value + f.down.gain.value),
             "rise_fall_rms": f.rise_fall_rms, "repeats": f.up.tau.n,
-            "thrust_low_n": f.up.mean.y0, "thrust_high_n": f.up.mean.y1}
+            "thrust_low_n": f.up.mean.y0, "thrust_high_n": f.up.mean.y1,
+            "notes": list(f.notes)}  # provenance: e.g. levels held too briefly to settle

@@ -28,6 +28,7 @@ from typing import Any
 from analysis.atomic_files import write_atomically
 from bench import rig_imu, rig_propulsion
 from bench.errors import RigError
+from bench.input_paths import check_input
 from bench.rig_devices import REPO, URL_SCHEMES, DeviceConfig
 from bench.rig_imu import HEXAPOD_LIMIT_MAXIMA, HexapodSettings, ImuSettings, ImuSimConfig
 from bench.rig_propulsion import (
@@ -168,7 +169,7 @@ def is_imu_rig(path: str | os.PathLike[str]) -> bool:
 
 def _load(path: str | os.PathLike[str], kind: str | None) -> RigConfig:
     """The rig file read with the sections of bench ``kind`` (None: the file's own)."""
-    path = Path(path).resolve()
+    path = check_input(path, "rig file").resolve()
     top = RigTable(path, "", read_rig_toml(path))
     parse = BENCH_SECTIONS[kind or _kind_of(top.data)]
     return RigConfig(**parse(path, top))
@@ -176,7 +177,7 @@ def _load(path: str | os.PathLike[str], kind: str | None) -> RigConfig:
 
 def load_rig(path: str | os.PathLike[str]) -> RigConfig:
     """Read and validate a propulsion rig file; raises ``RigError`` naming file and field."""
-    path = Path(path).resolve()
+    path = check_input(path, "rig file").resolve()
     if _kind_of(read_rig_toml(path)) == "imu":
         raise RigError(f"{path}: [rig] kind = \"imu\": an IMU-bench rig (hexapod and IMUs); "
                        "this command needs a propulsion rig (esc, load_cell, power, rpm), e.g. "

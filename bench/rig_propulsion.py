@@ -21,6 +21,7 @@ from urllib.parse import urlsplit
 import numpy as np
 
 from bench.errors import RigError, ThrustOutsideMap
+from bench.input_paths import check_input
 from bench.rig_devices import REPO, DeviceConfig, parse_device
 from bench.rig_table import RigTable
 
@@ -268,11 +269,16 @@ def make_thrust_map(where: Path | str, command_us: Sequence[float], thrust_n: Se
 
 
 def read_thrust_map(path: Path) -> ThrustMap:
+    check_input(path, "thrust map")
     try:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise RigError(f"{path}: cannot read thrust map: {exc}") from None
-    rows = list(csv.DictReader(io.StringIO(text)))
+    reader = csv.DictReader(io.StringIO(text))
+    names = [n.strip() for n in reader.fieldnames or []]
+    if twice := sorted({n for n in names if n and names.count(n) > 1}):
+        raise RigError(f"{path}: the header names column {twice[0]!r} twice; rename one")
+    rows = list(reader)
     if not rows or not {"command_us", "thrust_n"} <= set(rows[0]):
         raise RigError(f"{path}: thrust map needs columns command_us,thrust_n")
     cmd, thr = [], []
@@ -323,7 +329,7 @@ def parse(path: Path, top: RigTable) -> dict[str, Any]:
     tm = top.table("thrust_map", required=False)
     if tm is not None:
         tm.only("file")
-        tm_path = (path.parent / tm.text("file")).resolve()
+        tm_path = check_input(path.parent / tm.text("file"), "thrust map").resolve()
         if tm_path.is_file():
             thrust_map = read_thrust_map(tm_path)
     return {"path": path, "name": name, "devices": devices, "limits": limits,

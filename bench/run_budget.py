@@ -16,7 +16,7 @@ from typing import Any
 from bench.errors import RigError
 
 __all__ = ["CONFIRM_BYTES", "CONFIRM_PLAN_S", "MAX_PLAN_S", "Budget", "check_budget",
-           "project"]
+           "check_duration", "project"]
 
 MAX_PLAN_S = 24 * 3600.0  # a longer run is split into several (a day of samples is ~37 GB)
 CONFIRM_PLAN_S = 3600.0
@@ -54,13 +54,20 @@ def project(duration_s: float, rate_hz: float) -> Budget:
     return Budget(duration_s, rate_hz, duration_s * rate_hz * BYTES_PER_ROW)
 
 
+def check_duration(duration_s: float, what: str, described: str = "") -> None:
+    """Refuse (``RigError``, exit 2) a plan longer than :data:`MAX_PLAN_S`, whatever the
+    rig: a sequence checks this from its repeat count before it builds its steps."""
+    if duration_s > MAX_PLAN_S:
+        described = described or f"projected {_duration(duration_s)} of rig time"
+        raise RigError(f"{what}: {described}; longer than the {_duration(MAX_PLAN_S)} "
+                       "a run may last: check the hold and repeat counts, or split it into "
+                       "several runs")
+
+
 def check_budget(budget: Budget, what: str, yes: bool) -> None:
     """Refuse (``RigError``, exit 2) a plan beyond the bounds; above the confirmation
     bounds only with ``yes``."""
-    if budget.duration_s > MAX_PLAN_S:
-        raise RigError(f"{what}: {budget.describe()}; longer than the {_duration(MAX_PLAN_S)} "
-                       "a run may last: check the hold and repeat counts, or split it into "
-                       "several runs")
+    check_duration(budget.duration_s, what, budget.describe())
     if not yes and (budget.duration_s > CONFIRM_PLAN_S or budget.bytes > CONFIRM_BYTES):
         raise RigError(f"{what}: {budget.describe()}; pass --yes to run it (asked above "
                        f"{_duration(CONFIRM_PLAN_S)} or {_size(CONFIRM_BYTES)})")

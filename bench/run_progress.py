@@ -67,6 +67,7 @@ def check_limits(rig: Any, seq: PlanSequence) -> None:
 def check_budget_of(rig: Any, seq: PlanSequence, confirmed: bool) -> Budget:
     """The plan's projected rig time and samples size, refused beyond the bounds of
     ``bench.run_budget`` (above the confirmation bounds unless ``confirmed``: --yes)."""
+    check_budget(project(seq.duration_s, row_rate_hz(rig)), seq.where, confirmed)  # cheap
     budget = project(plan_for(rig, seq, dry_run=True).duration_s, row_rate_hz(rig))
     check_budget(budget, seq.where, confirmed)
     return budget

@@ -17,6 +17,8 @@ from pathlib import Path
 from typing import Any
 
 from bench.errors import RigError, ThrustOutsideMap
+from bench.input_paths import check_input
+from bench.run_budget import check_duration
 
 G0 = 9.80665  # standard gravity, m/s^2 (grams-force -> newtons)
 
@@ -151,6 +153,12 @@ class Sequence:
         return tuple(float(s.thrust_n) for s in self.steps if isinstance(s, ThrustStep))
 
     @property
+    def duration_s(self) -> float:
+        """The rig time of the compiled plan (the sum of the steps' times), without
+        compiling it."""
+        return float(sum(map(_step_s, self.steps)))
+
+    @property
     def where(self) -> str:
         """How messages name it: ``sequence 'name'``, with its file when it has one."""
         return f"sequence {self.name!r}" + (f" ({self.source})" if self.source else "")
@@ -236,6 +244,7 @@ def load_sequence(path: Path) -> Sequence:
     import json
     import tomllib
 
+    check_input(path, "--sequence")
     try:
         text = Path(path).read_text(encoding="utf-8")
         data = tomllib.loads(text) if Path(path).suffix == ".toml" else json.loads(text)
@@ -284,9 +293,14 @@ def step1(
     low, high = band_n or hover_band_n()
     _check_repeats(repeats)
     _check_hold(hold_s)
+
+    def repeat(i: int) -> list[Step]:
+        return [Checkpoint(f"repeat {i + 1}"), ThrustStep(high, hold_s), ThrustStep(low, hold_s)]
+
+    _check_length("step1", _spin_up(low, settle_s), repeat(0), repeats, _spin_down())
     steps: list[Step] = _spin_up(low, settle_s)
     for i in range(repeats):
-        steps += [Checkpoint(f"repeat {i + 1}"), ThrustStep(high, hold_s), ThrustStep(low, hold_s)]
+        steps += repeat(i)
     steps += _spin_down()
     return Sequence(
         name="step1",
@@ -317,18 +331,20 @@ def step2(
     _check_repeats(repeats)
     _check_hold(hold_s)
     span = high - low
-    steps: list[Step] = _spin_up(low, settle_s)
-    for i in range(repeats):
-        steps.append(Checkpoint(f"repeat {i + 1} rising"))
-        steps.append(ThrustStep(high, dwell_s))
+
+    def repeat(i: int) -> list[Step]:
+        steps: list[Step] = [Checkpoint(f"repeat {i + 1} rising"), ThrustStep(high, dwell_s)]
         for f in fractions:
             steps += [ThrustStep(high - f * span, dwell_s), ThrustStep(high, dwell_s)]
-        steps.append(Hold(hold_s))
-        steps.append(Checkpoint(f"repeat {i + 1} falling"))
-        steps.append(ThrustStep(low, dwell_s))
+        steps += [Hold(hold_s), Checkpoint(f"repeat {i + 1} falling"), ThrustStep(low, dwell_s)]
         for f in fractions:
             steps += [ThrustStep(low + f * span, dwell_s), ThrustStep(low, dwell_s)]
-        steps.append(Hold(hold_s))
+        return [*steps, Hold(hold_s)]
+
+    _check_length("step2", _spin_up(low, settle_s), repeat(0), repeats, _spin_down())
+    steps: list[Step] = _spin_up(low, settle_s)
+    for i in range(repeats):
+        steps += repeat(i)
     steps += _spin_down()
     return Sequence(
         name="step2",
@@ -367,6 +383,32 @@ def sweep(start_us: float = 1100.0, end_us: float = 1900.0, duration_s: float = 
         steps=steps,
         description=f"slow ramp {start_us:g} -> {end_us:g} us over {duration_s:g} s",
     )
+
+
+#: The most steps a repeated sequence may build: a day of Step 1 at its 0.5 s holds is
+#: 259 000; --repeats 3000000 --hold 1e-3 (under 2 h) used to take 2.6 GB.
+MAX_PLAN_STEPS = 300_000
+
+
+def _step_s(step: Step) -> float:
+    """The rig time one step takes (its hold, duration and soft-start ramp)."""
+    return float(sum(getattr(step, name, 0.0) or 0.0
+                     for name in ("hold_s", "duration_s", "ramp_s")))
+
+
+def _check_length(name: str, head: list[Step], one: list[Step], repeats: int,
+                  tail: list[Step]) -> None:
+    """Refuse a repeated sequence longer than a run may last before its steps exist: the
+    length is projected from one repeat, in constant memory (``--repeats 100000000``
+    built 16 GB of steps before the budget check could refuse it)."""
+    duration = (sum(map(_step_s, head)) + repeats * sum(map(_step_s, one))
+                + sum(map(_step_s, tail)))
+    check_duration(duration, f"sequence {name!r} ({repeats} repeats)")
+    steps = len(head) + repeats * len(one) + len(tail)
+    if steps > MAX_PLAN_STEPS:  # short holds: a short plan of very many steps
+        raise RigError(f"sequence {name!r} ({repeats} repeats): {steps} steps, more than "
+                       f"the {MAX_PLAN_STEPS} a plan may hold (about 1.4 kB of memory each "
+                       "with its segment); lower --repeats or split it into several runs")
 
 
 def _check_repeats(repeats: int) -> None:

@@ -112,14 +112,31 @@ class _Table:
         return f"{self.label}: {row}, column '{column}'"
 
 
+def check_unique_header(path: Path, sep: str = ",") -> None:
+    """Refuse a table whose header names a column twice: pandas renames the second to
+    'X.1' and the reader would take one of them silently."""
+    raw = pd.read_csv(path, sep=sep, dtype=str, keep_default_na=False, header=None, nrows=1,
+                      skipinitialspace=True).iloc[0].tolist()
+    names = [str(c).strip() for c in raw]
+    twice = sorted({n for n in names if n and names.count(n) > 1})
+    if twice:
+        raise CatalogError(f"{path}: the header names column {twice[0]!r} twice; rename one")
+
+
 def _read_csv(path: Path) -> _Table:
     label = str(path)
+    if path.is_symlink() and not path.exists():
+        raise CatalogError(f"{path}: a symbolic link that leads nowhere (a loop or a "
+                           "missing target)")
+    if path.exists() and not path.is_file():  # a folder, a FIFO (blocks), a device
+        raise CatalogError(f"{path}: not a regular file")
     if not path.is_file():
         raise CatalogError(f"{path.parent}: missing file {path.name}")
     try:
         frame = pd.read_csv(
             path, dtype=str, keep_default_na=False, skip_blank_lines=False, skipinitialspace=True
         )
+        check_unique_header(path)
     except pd.errors.EmptyDataError:
         raise CatalogError(f"{label}: file is empty (expected a header and data rows)") from None
     except (pd.errors.ParserError, UnicodeDecodeError) as exc:

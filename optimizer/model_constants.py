@@ -145,8 +145,10 @@ def constants_from_mapping(data: dict[str, Any], where: str) -> ModelConstants:
 
 def load_constants(path: Path) -> ModelConstants:
     """Read ``catalog.toml``; a missing file gives the defaults."""
-    if not path.exists():
+    if not path.exists() and not path.is_symlink():  # a link to nowhere is not "absent"
         return ModelConstants()
+    if path.exists() and not path.is_file():  # a folder, a FIFO (blocks), a device
+        raise CatalogError(f"{path}: not a regular file")
     try:
         with path.open("rb") as fh:
             data = tomllib.load(fh)

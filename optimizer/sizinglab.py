@@ -51,7 +51,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from optimizer.catalog import Catalog
+from optimizer.catalog import Catalog, check_unique_header
 from optimizer.errors import CatalogError
 
 #: The Apache-2.0 copies shipped in the repository (fixtures/data/sizinglab, see its SOURCE.md).
@@ -101,6 +101,7 @@ def _read(path: Path, needed: tuple[str, ...], positive: tuple[str, ...] = ()) -
         raise CatalogError(f"{path}: SizingLab file not found")
     try:
         frame = pd.read_csv(path, sep=";", dtype=str, keep_default_na=False)  # as written
+        check_unique_header(path, sep=";")
     except (pd.errors.ParserError, UnicodeDecodeError, pd.errors.EmptyDataError) as exc:
         raise CatalogError(f"{path}: not a semicolon-separated table ({exc})") from None
     frame.columns = [str(c).strip() for c in frame.columns]

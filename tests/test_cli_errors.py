@@ -49,6 +49,75 @@ def test_import_header_only(tmp_path: Path, capsys) -> None:
     assert not (tmp_path / "o").exists()
 
 
+_RCB_ROWS = "".join(f"{0.1 * i:.1f},{1100 + 10 * i},{100 + 5 * i},16.0,{0.5 * i},{900 * i}\n"
+                   for i in range(10))
+
+
+@pytest.mark.parametrize(("fmt", "header", "twice"), [
+    # the audit's case: 'Thrust (gf)' renamed to 'Voltage (V)'; voltage_v took the thrust
+    ("rcbenchmark", "Time (s),ESC signal (µs),Voltage (V),Voltage (V),Current (A),"
+                    "Motor Electrical Speed (RPM)", "'Voltage (V)' twice (columns 3 and 4)"),
+    ("rcbenchmark", "Time (s),ESC signal (µs),Thrust (gf),Voltage (V),Current (A),"
+                    "Thrust (N)", "'Thrust (N)' twice (columns 3 and 6)"),
+    ("esc32", "Timestamp,Amps,Batt. Volts,Amps,RPM,Duty", "'Amps' twice (columns 2 and 4)"),
+    ("csv", "t_s,throttle_us,thrust_n,voltage_v,current_a,thrust_n",
+     "'thrust_n' twice (columns 3 and 6)"),
+])
+def test_import_refuses_a_column_named_twice(tmp_path: Path, capsys, fmt: str, header: str,
+                                             twice: str) -> None:
+    """Audit row 3: pandas renames a repeated header to 'X.1' and the importer took it."""
+    f = tmp_path / "log.csv"
+    rows = _RCB_ROWS if fmt != "esc32" else "".join(
+        f"2019-11-05 17:14:08:{100 * i:03d},{0.5 * i},16.0,0.1,{900 * i},{10 * i}\n"
+        for i in range(10))
+    f.write_text(header + "\n" + rows, encoding="utf-8")
+    err = run_bad(capsys, "import", str(f), "--format", fmt, "--out", str(tmp_path / "o"))
+    assert f"log.csv: the header names column {twice}; rename one" in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_sizinglab_import_refuses_a_column_named_twice(tmp_path: Path, capsys,
+                                                      shared_data: Path) -> None:
+    """Audit row 3's sibling in the SizingLab importer."""
+    import shutil
+
+    src = tmp_path / "sizinglab"
+    shutil.copytree(shared_data / "sizinglab", src)
+    motors = src / "Motors_Data.csv"
+    motors.write_text(motors.read_text(encoding="utf-8").replace("Pole_number", "Kv_rpm_v", 1),
+                      encoding="utf-8")
+    err = run_bad(capsys, "import-sizinglab", "--source", str(src), "--out", str(tmp_path / "cat"))
+    assert "Motors_Data.csv: the header names column 'Kv_rpm_v' twice" in err
+    assert not (tmp_path / "cat").exists()
+
+
+def test_other_tables_refuse_a_column_named_twice(tmp_path: Path, capsys,
+                                                  fixtures_dir: Path) -> None:
+    """Audit row 3's siblings: every reader of a CSV header (catalog tables, a rig's
+    thrust map, an IMU log) refuses a repeated name."""
+    import shutil
+
+    cat = tmp_path / "thesis-e"
+    shutil.copytree(fixtures_dir / "catalogs" / "thesis-e", cat)
+    motors = cat / "motors.csv"
+    motors.write_text(motors.read_text(encoding="utf-8").replace(",price,", ",mass_g,", 1),
+                      encoding="utf-8")
+    err = run_bad(capsys, "optimize", "--catalog", str(cat))
+    assert "motors.csv: the header names column 'mass_g' twice" in err
+
+    rig = tmp_path / "rig" / "sim.toml"
+    shutil.copytree(fixtures_dir / "rigs", rig.parent)
+    (rig.parent / "sim.thrust_map.csv").write_text("command_us,thrust_n,thrust_n\n"
+                                                   "1000,0,1\n2000,8,9\n", encoding="utf-8")
+    err = run_bad(capsys, "step", "--rig", str(rig), "--dry-run")
+    assert "sim.thrust_map.csv: the header names column 'thrust_n' twice" in err
+
+    log = tmp_path / "imu.csv"
+    log.write_text("t_s,gyr_x,gyr_x\n0,1,2\n", encoding="utf-8")
+    err = run_bad(capsys, "calibrate", "--from-log", str(log), "--out", str(tmp_path / "c.json"))
+    assert "imu.csv: the header names column 'gyr_x' twice" in err
+
+
 def test_import_map_twice_is_refused(tmp_path: Path, capsys) -> None:
     f = tmp_path / "log.csv"
     f.write_text("a,b\n0,1\n0.1,2\n")
@@ -111,9 +180,31 @@ def test_report_replaces_an_earlier_report(tmp_path: Path, capsys) -> None:
     run = _imported_run(tmp_path)
     out = tmp_path / "rep"
     assert main(["report", str(run), "--out", str(out)]) == 0
-    (out / "stale.txt").write_text("old")
+    first = sorted(p.name for p in out.iterdir())
+    (out / "report.json").write_text("{}")  # its own files are replaced
     assert main(["report", str(run), "--out", str(out)]) == 0
-    assert (out / "report.json").is_file() and not (out / "stale.txt").exists()
+    assert sorted(p.name for p in out.iterdir()) == first
+    assert (out / "report.json").read_text() != "{}"
+
+
+@pytest.mark.parametrize("manifest", [True, False], ids=["report", "older report"])
+def test_report_keeps_the_users_files_in_its_folder(tmp_path: Path, capsys,
+                                                     manifest: bool) -> None:
+    """Audit row 1: a second `report --out rep` deleted rep/NOTES.txt and rep/mydata/."""
+    run = _imported_run(tmp_path)
+    out = tmp_path / "rep"
+    assert main(["report", str(run), "--out", str(out)]) == 0
+    if not manifest:  # a report folder written before the manifest existed
+        (out / ".rotorbench-files").unlink()
+    (out / "NOTES.txt").write_text("mine")
+    (out / "mydata").mkdir()
+    (out / "mydata" / "x.csv").write_text("1\n")
+    capsys.readouterr()
+    err = run_bad(capsys, "report", str(run), "--out", str(out))
+    assert "holds files `rotorbench report` did not write (NOTES.txt, mydata/)" in err
+    assert (out / "NOTES.txt").read_text() == "mine"
+    assert (out / "mydata" / "x.csv").read_text() == "1\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["rep", "run", "stand.csv"]
 
 
 # --- the SQLite stores beside the runs -----------------------------------------------------
@@ -308,6 +399,25 @@ def test_export_hover_thrust_must_be_positive(tmp_path: Path, capsys, value: str
     capsys.readouterr()
     err = run_bad(capsys, "export", "ardupilot", str(run), f"--hover-thrust={value}")
     assert "--hover-thrust: expected a thrust per motor > 0 N" in err
+
+
+@pytest.mark.parametrize("json_flag", [[], ["--json"]], ids=["lines", "json"])
+@pytest.mark.parametrize(("auw", "motors", "says"), [
+    ("nan", "4", "--auw-kg: expected an all-up weight > 0 kg, got nan"),
+    ("inf", "4", "--auw-kg: expected an all-up weight > 0 kg, got inf"),
+    ("-1", "4", "--auw-kg: expected an all-up weight > 0 kg, got -1"),
+    ("1.2", "0", "--motors: expected a count >= 1, got 0"),
+    ("1.2", "-4", "--motors: expected a count >= 1, got -4"),
+])
+def test_export_auw_and_motors_are_checked(tmp_path: Path, capsys, auw: str, motors: str,
+                                           says: str, json_flag: list[str]) -> None:
+    """Audit row 2: `--auw-kg nan --motors 4` printed MOT_THST_HOVER,nan (exit 0) and, with
+    --json, a ValueError traceback."""
+    run = _imported_run(tmp_path)
+    capsys.readouterr()
+    err = run_bad(capsys, "export", "ardupilot", str(run), f"--auw-kg={auw}",
+                  f"--motors={motors}", *json_flag)
+    assert says in err
 
 
 @pytest.mark.parametrize("value", ["0", "-1", "nan"])
@@ -717,3 +827,105 @@ def test_absurd_payload_is_refused_without_numpy_warnings(capsys, command: list[
     """1e308 kg passed as finite and overflowed numpy (RuntimeWarning lines, then exit 3)."""
     line = run_bad(capsys, *command, "--payload-kg", "1e308")
     assert "payload" in line and "10000" in line
+
+
+# --- input paths that are not files: a symlink loop, a device, a FIFO ---------------------
+
+
+_LOOP_ARGV = [  # every command with an input path; LOOP is replaced by the looping link
+    ["step", "--rig", "LOOP", "--dry-run"], ["sweep", "--rig", "LOOP", "--dry-run"],
+    ["check", "--rig", "LOOP"], ["calibrate", "--rig", "LOOP", "--dry-run"],
+    ["console", "--rig", "LOOP", "--selftest"], ["step", "--sequence", "LOOP", "--dry-run"],
+    ["fit", "LOOP"], ["report", "LOOP"], ["export", "ardupilot", "LOOP"],
+    ["constants", "--add", "LOOP"], ["import", "LOOP", "--format", "csv", "--out", "o"],
+    ["decode", "--protocol", "msp", "LOOP"], ["attitude", "LOOP"],
+    ["calibrate", "--from-log", "LOOP", "--out", "c.json"],
+    ["optimize", "--catalog", "LOOP"], ["optimize", "--measured", "LOOP"],
+    ["import-sizinglab", "--source", "LOOP", "--out", "q"],
+]
+
+
+@pytest.mark.parametrize("argv", _LOOP_ARGV, ids=lambda a: " ".join(a[:2]))
+def test_a_symlink_loop_as_input_is_one_line(tmp_path: Path, capsys, monkeypatch,
+                                             argv: list[str]) -> None:
+    """Audit row 9: a rig file that is a symlink loop gave a RuntimeError traceback from
+    Path.resolve (and 'not found' elsewhere: exists() is False for a loop)."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "a").symlink_to("b")
+    (tmp_path / "b").symlink_to("a")
+    argv = [a.replace("LOOP", "a") for a in argv]
+    err = run_bad(capsys, *argv)
+    assert "a: a loop of symbolic links" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a", "b"]  # nothing written
+
+
+def test_a_rigs_thrust_map_that_loops_is_one_line(tmp_path: Path, capsys,
+                                                  fixtures_dir: Path) -> None:
+    rig = tmp_path / "sim.toml"
+    rig.write_text((fixtures_dir / "rigs" / "sim.toml").read_text(encoding="utf-8"))
+    map_link = tmp_path / "sim.thrust_map.csv"
+    map_link.symlink_to(map_link.name)
+    err = run_bad(capsys, "step", "--rig", str(rig), "--dry-run")
+    assert "thrust map" in err and "a loop of symbolic links" in err
+
+
+@pytest.mark.parametrize("argv", [
+    ["decode", "--protocol", "msp", "SPECIAL"], ["decode", "--protocol", "gcs", "SPECIAL"],
+    ["decode", "--protocol", "vesc-can", "SPECIAL"],
+    ["import", "SPECIAL", "--format", "rcbenchmark", "--out", "o"],
+    ["calibrate", "--from-log", "SPECIAL", "--out", "c.json"],
+    ["step", "--rig", "SPECIAL", "--dry-run"], ["step", "--sequence", "SPECIAL", "--dry-run"],
+], ids=lambda a: " ".join(a[:3]))
+@pytest.mark.parametrize("special", ["/dev/zero", "fifo"])
+def test_a_device_or_fifo_as_input_is_refused(tmp_path: Path, capsys, monkeypatch,
+                                              argv: list[str], special: str) -> None:
+    """Audit row 5: `decode --protocol msp /dev/zero` read 18 GB in 20 s (a FIFO blocks
+    forever): a path that is not a regular file is refused before it is opened."""
+    import os
+
+    monkeypatch.chdir(tmp_path)
+    if special == "fifo":
+        os.mkfifo(tmp_path / "fifo")
+    argv = [a.replace("SPECIAL", special) for a in argv]
+    err = run_bad(capsys, *argv)
+    kind = "a character device" if special == "/dev/zero" else "a FIFO (named pipe)"
+    assert f"{special}: is {kind}, not a regular file; save the data to a file" in err
+
+
+@pytest.mark.parametrize(("name", "kind", "says"), [
+    ("catalog.toml", "loop", "catalog.toml: cannot read: Too many levels of symbolic links"),
+    ("catalog.toml", "fifo", "catalog.toml: not a regular file"),
+    ("motors.csv", "loop", "motors.csv: a symbolic link that leads nowhere"),
+    ("motors.csv", "fifo", "motors.csv: not a regular file"),
+])
+def test_a_catalog_file_that_loops_or_blocks(tmp_path: Path, capsys, fixtures_dir: Path,
+                                            name: str, kind: str, says: str) -> None:
+    """Row 9's sibling inside a catalog folder: a looping catalog.toml was taken as absent
+    (the default constants, silently), a looping table as 'missing'; a FIFO blocked."""
+    import os
+    import shutil
+
+    cat = tmp_path / "cat"
+    shutil.copytree(fixtures_dir / "catalogs" / "thesis-e", cat)
+    (cat / name).unlink()
+    if kind == "loop":
+        (cat / name).symlink_to(name)
+    else:
+        os.mkfifo(cat / name)
+    err = run_bad(capsys, "optimize", "--catalog", str(cat))
+    assert says in err
+
+
+@pytest.mark.parametrize("command", [["fit"], ["report"], ["export", "ardupilot"],
+                                     ["constants", "--add"]])
+def test_a_run_json_that_is_a_fifo_is_refused(tmp_path: Path, capsys,
+                                              command: list[str]) -> None:
+    """Row 5's sibling inside a run folder: a FIFO as run.json blocked every reader."""
+    import os
+
+    run = _imported_run(tmp_path)
+    (run / "run.json").unlink()
+    os.mkfifo(run / "run.json")
+    capsys.readouterr()
+    err = run_bad(capsys, *command, str(run))
+    assert f"{run / 'run.json'}: not a regular file" in err

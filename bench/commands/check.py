@@ -56,6 +56,11 @@ def deep(args: argparse.Namespace, path: Path) -> int:
     out = args.save or path.with_name(f"{path.stem}.bringup.json")
     rig = load_any_rig(path)
     check_writable(out, "--save", folder=False, inputs=(path,))  # before listening
+    try:  # the folder too, as every other command's output: the report is not lost after
+        out.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise RigError(f"--save {out}: cannot create its folder {out.parent} "
+                       f"({exc.strerror or exc})") from None
     report = bringup_report(rig, seconds)
     atomic_write_json(out, report)
     if args.json:

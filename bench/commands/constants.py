@@ -61,6 +61,8 @@ def handler(args: argparse.Namespace) -> int:
     for c in fitted:
         print(f"stored {c.kind} constants of {c.run_id} for {c.motor} / {c.propeller} / "
               f"{c.esc} ({c.esc_mode}) / {c.battery}")
+        for note in c.data.get("notes", []):
+            print(f"note: {note}")
     rows = store.constants()
     if not rows:
         print(f"no constants stored under {store.describe()}")

@@ -33,6 +33,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from analysis.atomic_files import temp_beside
 from bench.cli_support import add_hover_args, check_writable, hover_margin_from_args, seed_arg
 from bench.errors import RigError
+from bench.owned_folder import refuse_foreign, write_manifest
 from optimizer.paper_e_cases import PAPER_E_CASES
 
 G0 = 9.80665
@@ -40,6 +41,8 @@ ACTUATORS = (4, 6, 8)
 #: Written into every demo output; only a folder holding it may be replaced.
 MARKER = ".rotorbench-demo"
 MARKER_TEXT = "rotorbench demo output; `rotorbench demo --out` may replace this folder\n"
+#: What a demo folder held before its manifest (:mod:`bench.owned_folder`).
+DEMO_NAMES = (MARKER, "demo.json", "runs", "figures", "tables")
 #: Metric keys whose source the designs table reports.
 SOURCE_KEYS = ("time_constant_ms", "current_a", "power_w", "flight_time_min")
 MODES = ("complementary", "diode", "stock")
@@ -57,7 +60,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "optimized with and without the measured constants.")
     p.add_argument("--out", type=Path, default=Path("demo-out"),
                    help="output folder (default ./demo-out); an existing one is replaced only "
-                        f"if a previous demo wrote it (it holds {MARKER}), else refused")
+                        f"if a previous demo wrote it (it holds {MARKER}) and it holds "
+                        "nothing else, else refused")
     p.add_argument("--repeats", type=int, default=3, help="Step 1 repeats per combination")
     p.add_argument("--seed", type=seed_arg, default=1, help="seed of the simulated rig")
     p.add_argument("--combos", type=int, default=None,
@@ -126,6 +130,7 @@ def check_out(out: Path) -> Path:
                        f"{MARKER} in it); refusing to replace it, choose a new folder")
     if cwd == out or out in cwd.parents:
         raise RigError(f"--out {out}: is the current folder or contains it; run from elsewhere")
+    refuse_foreign(out, "--out", "demo", DEMO_NAMES)
     return out
 
 
@@ -228,9 +233,10 @@ def handler(args: argparse.Namespace) -> int:
         with open(tmp / "demo.json", "w", encoding="utf-8") as fh:
             json.dump(summary, fh, indent=2, default=str)
         (tmp / MARKER).write_text(MARKER_TEXT, encoding="utf-8")
+        write_manifest(tmp)
         old = None
         if out.exists():
-            check_out(out)  # still a previous demo's output
+            check_out(out)  # still a previous demo's output, with nothing of the user's
             old = temp_beside(out, ".old", folder=True)
             os.replace(out, old)  # onto the empty placeholder
         os.replace(tmp, out)

@@ -47,10 +47,24 @@ def _hover(args: argparse.Namespace) -> float | None:
                            f"got {args.hover_thrust:g}")
         return float(args.hover_thrust)
     if args.auw_kg is not None or args.motors is not None:
-        if args.auw_kg is None or not args.motors or args.motors < 1 or args.auw_kg <= 0:
+        if args.auw_kg is None or args.motors is None:
             raise RigError("--auw-kg and --motors go together (positive weight, >= 1 motor)")
+        # `not x > 0` also refuses NaN (NaN <= 0 is False: it used to print MOT_THST_HOVER,nan)
+        if not (np.isfinite(args.auw_kg) and args.auw_kg > 0):
+            raise RigError(f"--auw-kg: expected an all-up weight > 0 kg, got {args.auw_kg:g}")
+        if args.motors < 1:
+            raise RigError(f"--motors: expected a count >= 1, got {args.motors}")
         return args.auw_kg * G0 / args.motors
     return None
+
+
+def _check_finite(out: dict[str, Any], source: Path) -> None:
+    """Refuse to print a parameter the fit left NaN or infinite (an autopilot would take
+    ``nan`` as a value; ``--json`` cannot encode it)."""
+    for name, value in out.items():
+        if isinstance(value, float) and not np.isfinite(value):
+            raise LogError(f"{source}: the fit gives no finite {name} ({value}); "
+                           "the run does not support this export")
 
 
 def build(args: argparse.Namespace) -> dict[str, Any]:
@@ -98,6 +112,7 @@ def build(args: argparse.Namespace) -> dict[str, Any]:
             full = False
         out = gazebo_params(static.k_f, static.moment_constant_m, tau_up, tau_dn,
                             omega_max, full, static.notes)
+    _check_finite(out, record.path)
     out["target"] = args.target
     out["run"] = str(record.path)
     return out

@@ -9,7 +9,8 @@ the rotor and blade-pass frequencies marked where its sampling allows one
 Step runs are fitted (Table C.1, Fig. C.9-C.12), sweeps and imported stand logs give the
 static curves (Fig. C.13-C.14), and Step 2 runs are simulated with the fitted models of
 the Step 1 run of the same ESC mode (Fig. C.16-C.19). The folder is built beside ``DIR``
-and renamed into place when complete.
+and renamed into place when complete; an earlier report there is replaced only when
+it holds nothing but the report's own files (its manifest).
 """
 
 from __future__ import annotations
@@ -26,8 +27,12 @@ from rich.console import Console
 
 from bench.cli_support import add_store_args, check_writable, run_folder_arg
 from bench.errors import RigError
+from bench.owned_folder import refuse_foreign, write_manifest
 
 G0 = 9.80665
+#: What a report folder held before its manifest (:mod:`bench.owned_folder`).
+REPORT_NAMES = ("report.json", "table_c1.csv", "static_curves.csv", "validation.csv",
+                "steps.png", "static_*.png", "validation_*.png")
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -95,6 +100,7 @@ def build(args: argparse.Namespace, out: Path, console: Console) -> dict[str, An
         else:
             try:
                 fits.append((rec, label, fit_run(rec)))
+                notes.extend(f"{rec.id}: {n}" for n in fits[-1][2].notes)
             except LogError as exc:
                 notes.append(f"{rec.id}: no step fit ({exc})")
     summary: dict[str, Any] = {"runs": [str(r.path) for r in records], "notes": notes}
@@ -238,6 +244,7 @@ def handler(args: argparse.Namespace) -> int:
         # a run folder or a user's file
         raise RigError(f"--out {out}: exists and is not a report folder (no report.json in "
                        "it); refusing to replace it, choose a new folder")
+    refuse_foreign(out, "--out", "report", REPORT_NAMES)
     check_writable(out, "--out", folder=True, beside=True)
     tmp = out.with_name(f".{out.name}.tmp")
     if tmp.exists():
@@ -248,6 +255,8 @@ def handler(args: argparse.Namespace) -> int:
         summary = build(args, tmp, console)
         with open(tmp / "report.json", "w", encoding="utf-8") as fh:
             json.dump(summary, fh, indent=2, default=float)
+        write_manifest(tmp)
+        refuse_foreign(out, "--out", "report", REPORT_NAMES)  # added to while we worked
         old = out.with_name(f".{out.name}.old")
         shutil.rmtree(old, ignore_errors=True)  # left by an interrupted earlier report
         if out.exists():

@@ -120,3 +120,23 @@ def test_sim_gazebo_export_matches_the_plant(tmp_path, capsys):
     assert ap["command_axis"] == "throttle_us over 1000-2000"
     assert 0.0 < ap["MOT_SPIN_MIN"] < 0.15
     assert 0.0 < ap["MOT_THST_HOVER"] < 1.0
+
+
+def test_a_step_run_or_a_fast_sweep_is_not_a_static_curve(tmp_path, capsys):
+    """Audit row 6: `export ardupilot STEP_RUN` gave MOT_THST_EXPO 0.71 (the sweep of the
+    same rig 0.385) from the lagging transients between the step levels and from idle. A
+    run whose steady commands leave part of its range uncovered is refused, naming the
+    sweep command; the sweep itself still exports."""
+    rig = load_rig(default_rig_path())
+    opts = RunOptions(tick_s=0.02)
+    sw = run_sequence(rig, sweep(duration_s=6.0), tmp_path, open_rig, options=opts).run_dir
+    fast = run_sequence(rig, sweep(duration_s=1.0), tmp_path, open_rig, options=opts).run_dir
+    st = run_sequence(rig, step1(repeats=2, hold_s=0.5, band_n=hover_band_n()), tmp_path,
+                      open_rig, options=opts).run_dir
+    for run in (st, fast):
+        for target in ("ardupilot", "px4"):
+            assert main(["export", target, str(run)]) == 2
+            err = capsys.readouterr().err
+            assert f"{run}: not a static sweep: its command never holds still" in err
+            assert "(`rotorbench sweep`)" in err and len(err.splitlines()) == 1
+    assert _json(capsys, ["export", "ardupilot", str(sw), "--json"])["MOT_THST_EXPO"] > 0

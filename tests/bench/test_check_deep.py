@@ -83,3 +83,22 @@ def test_deep_refuses_bad_seconds(tmp_path, capsys):
     rig = _copy(tmp_path, "sim")
     assert main(["check", "--deep", "--rig", str(rig), "--seconds", "0"]) == 2
     assert "--seconds" in capsys.readouterr().err
+
+
+def test_deep_save_creates_its_folder(tmp_path, capsys, monkeypatch):
+    """Audit row 8: the docs/devices.md line `check --deep ... --save out/deep/imu.json`
+    with out/deep missing ended in a FileNotFoundError after listening."""
+    monkeypatch.chdir(tmp_path)
+    assert main(["check", "--deep", "--seconds", "1", "--rig", str(RIGS / "sim-imu-tcp.toml"),
+                 "--save", "out/deep/imu.json"]) == 0
+    assert capsys.readouterr().out.splitlines()[-1] == "saved out/deep/imu.json"
+    assert json.loads((tmp_path / "out" / "deep" / "imu.json").read_text())["devices"]
+
+
+def test_deep_save_below_a_file_is_refused_before_listening(tmp_path, capsys):
+    (tmp_path / "out").write_text("a file")
+    rig = _copy(tmp_path, "sim")
+    assert main(["check", "--deep", "--rig", str(rig), "--seconds", "1",
+                 "--save", str(tmp_path / "out" / "deep" / "r.json")]) == 2
+    err = capsys.readouterr().err
+    assert "--save" in err and "is a file, not a folder" in err and len(err.splitlines()) == 1

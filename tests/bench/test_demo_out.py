@@ -51,13 +51,34 @@ def test_replaces_a_previous_demo_output(tmp_path, capsys):
     out = tmp_path / "demo-out"
     out.mkdir()
     (out / MARKER).write_text("rotorbench demo output\n", encoding="utf-8")
-    (out / "stale.txt").write_text("from the last run", encoding="utf-8")
+    (out / "tables").mkdir()
+    (out / "tables" / "stale.csv").write_text("from the last run", encoding="utf-8")
     keep = tmp_path / "neighbour.txt"
     keep.write_text("not the demo's", encoding="utf-8")
     assert main(["demo", "--out", str(out), "--combos", "1", "--repeats", "2"]) == 0
     capsys.readouterr()
-    assert not (out / "stale.txt").exists()
+    assert not (out / "tables" / "stale.csv").exists()
     assert (out / MARKER).is_file() and (out / "demo.json").is_file()
     assert (out / "tables" / "designs.csv").is_file()
     assert keep.read_text(encoding="utf-8") == "not the demo's"
     assert sorted(os.listdir(tmp_path)) == ["demo-out", "neighbour.txt"]  # no temp folders
+    # audit row 1: a file and a folder of the user's in the demo output are not deleted
+    (out / "NOTES.txt").write_text("mine", encoding="utf-8")
+    (out / "figures" / "mydata").mkdir()
+    before = _snapshot(tmp_path)
+    assert main(["demo", "--out", str(out), "--combos", "1", "--repeats", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "did not write (NOTES.txt, figures/mydata/)" in err, err
+    assert _snapshot(tmp_path) == before
+
+
+def test_keeps_a_users_file_in_an_older_demo_output(tmp_path, capsys):
+    """A demo folder from before the manifest: only the demo's own top-level names."""
+    out = tmp_path / "demo-out"
+    out.mkdir()
+    (out / MARKER).write_text("rotorbench demo output\n", encoding="utf-8")
+    (out / "NOTES.txt").write_text("mine", encoding="utf-8")
+    before = _snapshot(tmp_path)
+    assert main(["demo", "--out", str(out), "--combos", "1", "--repeats", "1"]) == 2
+    assert "did not write (NOTES.txt)" in capsys.readouterr().err
+    assert _snapshot(tmp_path) == before

@@ -52,8 +52,48 @@ def test_a_plan_longer_than_a_day_is_refused(sim_rig_mapped_path: Path, tmp_path
                                              argv: list[str]) -> None:
     out = tmp_path / "runs"
     err = run_bad(capsys, *argv, "--rig", str(sim_rig_mapped_path), "--out", str(out), "--yes")
-    assert "of rig time and about" in err and "longer than the 24 h a run may last" in err
+    assert "of rig time" in err and "longer than the 24 h a run may last" in err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("sequence", ["step1", "step2"])
+def test_a_huge_repeat_count_is_refused_in_constant_memory(sim_rig_mapped_path: Path,
+                                                           tmp_path: Path, capsys,
+                                                           sequence: str) -> None:
+    """Audit row 4: `step --repeats 100000000` built 16 GB of steps before the budget
+    check; 1e6 repeats took 12.8 s and 1.4 GB to refuse. The length is now projected from
+    one repeat."""
+    import tracemalloc
+
+    out = tmp_path / "runs"
+    tracemalloc.start()
+    try:
+        err = run_bad(capsys, "step", "--sequence", sequence, "--repeats", "200000",
+                      "--rig", str(sim_rig_mapped_path), "--out", str(out))
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert f"sequence '{sequence}' (200000 repeats): projected" in err
+    assert "longer than the 24 h a run may last" in err
+    assert peak < 50e6, f"{peak / 1e6:.0f} MB"
+    assert not out.exists()
+
+
+def test_many_short_repeats_are_refused_by_their_step_count(sim_rig_mapped_path: Path,
+                                                            capsys) -> None:
+    """A short plan of very many steps (--hold 1e-3): 2.6 GB and no end before."""
+    err = run_bad(capsys, "step", "--repeats", "3000000", "--hold", "1e-3", "--dry-run",
+                  "--rig", str(sim_rig_mapped_path))
+    assert "(3000000 repeats): 9000007 steps, more than the 300000 a plan may hold" in err
+
+
+def test_a_console_plan_with_a_huge_repeat_count_is_refused() -> None:
+    """The console's plans share the sequence builders (bench.plan_specs)."""
+    from bench.errors import RigError
+    from bench.plan_specs import plan_sequence
+
+    with pytest.raises(RigError, match=r"\(100000000 repeats\): projected .* longer than"):
+        plan_sequence({"plan": "step1", "repeats": 100_000_000, "hold_s": 0.5})
 
 
 def test_a_sequence_file_with_an_absurd_hold(sim_rig_mapped_path: Path, tmp_path: Path,
@@ -85,8 +125,12 @@ def test_a_long_plan_needs_yes(sim_rig_mapped_path: Path, tmp_path: Path, capsys
 
 
 def test_the_dry_run_prints_the_projection(sim_rig_mapped_path: Path, capsys) -> None:
-    assert main(["step", "--hold", "1e6", "--rig", str(sim_rig_mapped_path), "--dry-run"]) == 0
-    assert "projected 1.11e+04 h of rig time and about 17.2 TB" in capsys.readouterr().out
+    assert main(["step", "--hold", "1000", "--rig", str(sim_rig_mapped_path), "--dry-run"]) == 0
+    assert "projected 11.1 h of rig time and about 17.2 GB" in capsys.readouterr().out
+    # a plan no run may carry out is refused by the dry run too, with its projection
+    err = run_bad(capsys, "step", "--hold", "1e6", "--rig", str(sim_rig_mapped_path),
+                  "--dry-run")
+    assert "projected 1.11e+04 h of rig time; longer than the 24 h" in err
 
 
 def test_budget_bounds() -> None:
