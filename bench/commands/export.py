@@ -68,16 +68,10 @@ def _check_finite(out: dict[str, Any], source: Path) -> None:
 
 
 def build(args: argparse.Namespace) -> dict[str, Any]:
-    from analysis.exports import (
-        actuator_of,
-        ardupilot_params,
-        gazebo_params,
-        px4_params,
-        thrust_curve_from_runs,
-    )
+    """The parameters of ``args.target`` (one home: ``analysis.exports.export_params``,
+    which the web view's downloads use too), after the options are checked."""
+    from analysis.exports import export_params
     from analysis.run_record import read_run
-    from analysis.static_curves import RPM_TO_RAD_S, command_curve, fit_static_run
-    from analysis.step_response import fit_run
     from bench.cli_support import refuse_unused
 
     if args.target != "ardupilot":  # MOT_THST_HOVER is ArduPilot's; PX4, Gazebo have none
@@ -88,33 +82,11 @@ def build(args: argparse.Namespace) -> dict[str, Any]:
                       f"for export {args.target} (only gazebo uses time constants)")
     hover = _hover(args)  # options first: a bad one is named before any fit
     record = read_run(args.run)
-    thrust_record = read_run(args.thrust_run) if args.thrust_run else None
-    if args.target in ("ardupilot", "px4"):
-        curve = thrust_curve_from_runs(record, thrust_record)
-        out = ardupilot_params(curve, hover) if args.target == "ardupilot" \
-            else px4_params(curve)
-        out["command_axis"] = actuator_of(record)[1]
-    else:
-        static = fit_static_run(thrust_record or record)
-        tau_up = tau_dn = None
-        if args.step_run is not None:
-            fit = fit_run(read_run(args.step_run), signal="rpm")
-            tau_up = fit.up.tau.value if fit.up else None
-            tau_dn = fit.down.tau.value if fit.down else None
-        omega_max = static.omega_max
-        try:
-            act = actuator_of(record)[0]
-            full = bool(np.nanmax(act) >= 0.99)
-            if "rpm" in record.samples.columns:  # steady top speed of RUN itself
-                _, rpm = command_curve(act, record.column("rpm"))
-                omega_max = float(np.max(rpm)) * RPM_TO_RAD_S
-        except LogError:  # no command column: the top speed is just the highest seen
-            full = False
-        out = gazebo_params(static.k_f, static.moment_constant_m, tau_up, tau_dn,
-                            omega_max, full, static.notes)
+    out = export_params(args.target, record,
+                        read_run(args.thrust_run) if args.thrust_run else None,
+                        read_run(args.step_run) if args.step_run is not None else None,
+                        hover)
     _check_finite(out, record.path)
-    out["target"] = args.target
-    out["run"] = str(record.path)
     return out
 
 
