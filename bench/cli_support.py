@@ -431,7 +431,9 @@ def measured_from_args(args: argparse.Namespace, catalog: Any) -> Any:
 
     url = parse_store(args.measured or os.environ.get(STORE_ENV) or str(DEFAULT_RUNS_ROOT))
     if url.folder is not None:
-        return load_measured_set(url.folder, catalog, args.esc_mode)
+        from bench.input_paths import check_input
+
+        return load_measured_set(check_input(url.folder, "--measured"), catalog, args.esc_mode)
     from bench.store.lab_catalog import LabCatalog
 
     assert url.dsn is not None

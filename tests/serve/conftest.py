@@ -16,7 +16,7 @@ from bench.cli import main
 def recorded(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A folder store: a short sweep, two step runs (two ESC modes), stored constants."""
     out = tmp_path_factory.mktemp("served") / "runs"
-    assert main(["sweep", "--duration", "4", "--out", str(out), "--no-save-map"]) == 0
+    assert main(["sweep", "--duration", "10", "--out", str(out), "--no-save-map"]) == 0
     assert main(["step", "--repeats", "2", "--out", str(out)]) == 0
     assert main(["step", "--repeats", "2", "--esc-mode", "diode", "--out", str(out)]) == 0
     steps = sorted(p.parent for p in out.glob("*-step1/run.json"))
