@@ -139,6 +139,10 @@ class LabStore:
         self.data  # noqa: B018 - no data location: said before anything is tried
         sent = self.trailing.stop() if self.trailing is not None else {}
         self.trailing = None
+        if (self.spool / "runs.sqlite").exists():  # a run whose process died (kill -9) is
+            from bench.run_index import RunIndex  # marked killed first, then delivered
+
+            RunIndex(self.spool)
         waiting = pending_runs(self.spool, self.publisher)
         delivered, failed = [], []
         for run_dir in waiting:

@@ -130,3 +130,27 @@ def test_outage_mid_run_then_sync(tmp_path: Path) -> None:
             assert "synced 0 of 0 waiting runs" in sync[1].stdout
             (run,) = _runs(url, env)
             assert run["status"] == "success" and run["samples"] > 100_000
+
+
+def test_kill_9_keeps_the_spooled_run_and_sync_delivers_it(pg_url: str, s3_env: object,
+                                                           tmp_path: Path) -> None:
+    import signal
+
+    env = _env(s3_env, tmp_path)
+    assert main(["store", "init", pg_url, "--data", f"s3://{s3_env.bucket}/runs"]) == 0
+    spool = tmp_path / "spool"
+    bench = subprocess.Popen([*ROTORBENCH, "step", "--repeats", "3", "--realtime", "--store",
+                              pg_url, "--spool", str(spool)], env=env,
+                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    end = time.monotonic() + 60
+    while not list(spool.glob("*/samples.parquet/part-*.parquet")):
+        assert time.monotonic() < end and bench.poll() is None
+        time.sleep(0.1)
+    time.sleep(1.5)
+    bench.send_signal(signal.SIGKILL)
+    bench.communicate(timeout=30)
+    sync = subprocess.run([*ROTORBENCH, "store", "sync", "--store", pg_url, "--spool",
+                           str(spool)], env=env, capture_output=True, text=True, timeout=120)
+    assert "synced 1 of 1 waiting runs" in sync.stdout, sync.stdout + sync.stderr
+    (run,) = _runs(pg_url, env)
+    assert run["status"] == "killed" and run["samples"] > 0
