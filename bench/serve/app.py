@@ -50,6 +50,7 @@ __all__ = ["create_app"]
 HERE = Path(__file__).parent
 RUN_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.:+-]{0,127}$")
 PAGE_SIZES = (25, 50, 100, 200)
+PLOT_COLUMNS = 1500  # min/max bins per time plot: about one per pixel column of a wide page
 EXPORTS = ("ardupilot", "px4", "gazebo")
 Text = Annotated[str | None, Query(max_length=128)]
 
@@ -66,6 +67,7 @@ def create_app(store: Store, *, token: str | None = None, title: str = "rotorben
     templates = Jinja2Templates(directory=str(HERE / "templates"))
     cache = RecordCache()
     series_cache = SeriesCache()
+    _warm(templates)
     app.state.store = store
 
     def run_or_404(run_id: str) -> Path:
@@ -216,7 +218,7 @@ def create_app(store: Store, *, token: str | None = None, title: str = "rotorben
             "limits": meta.get("limits") or {}, "trip": meta.get("trip"),
             "drops": {k: meta.get(k) for k in ("dropped_samples", "longest_gap_s", "drops",
                                                "link_errors") if meta.get(k) is not None},
-            "exports": EXPORTS})
+            "exports": EXPORTS, "columns": PLOT_COLUMNS})
 
     @app.get("/compare", response_class=HTMLResponse, include_in_schema=False)
     def page_compare(request: Request, runs: Annotated[str, Query(max_length=1200)] = ""
@@ -256,6 +258,17 @@ def create_app(store: Store, *, token: str | None = None, title: str = "rotorben
         return JSONResponse({"detail": str(exc)}, status_code=503)
 
     return Guard(app, token)
+
+
+def _warm(templates: Any) -> None:
+    """Compile the pages and import the readers now, not on a user's first click."""
+    import pyarrow.dataset
+    import pyarrow.parquet  # noqa: F401
+
+    import analysis.run_record  # noqa: F401
+
+    for name in ("runs.html", "run.html", "compare.html", "constants.html"):
+        templates.env.get_template(name)
 
 
 def _row(r: RunSummary) -> dict[str, Any]:
