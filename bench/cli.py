@@ -14,6 +14,7 @@ and keeps its traceback.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import os
 import pkgutil
@@ -66,6 +67,14 @@ def _parser_for(argv: Sequence[str]) -> argparse.ArgumentParser:
     return build_parser()
 
 
+def _plain_numbers() -> contextlib.AbstractContextManager[object]:
+    """numpy scalars print as numbers (``9.99``, not ``np.float64(9.99)``) in every message
+    a command formats, however the value reached the f-string (``!r``, a list, a dict)."""
+    import numpy as np
+
+    return np.printoptions(legacy="1.25")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = _parser_for(argv)
@@ -74,8 +83,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        return int(args.func(args) or 0)
-    except KeyboardInterrupt:
+        with _plain_numbers():
+            return int(args.func(args) or 0)
+    except KeyboardInterrupt as exc:
+        if "SIGTERM" in exc.args:  # bench.run_progress.sigterm_as_interrupt
+            print("rotorbench: terminated", file=sys.stderr)
+            return 143  # 128 + SIGTERM, as a shell reports a process ended by `kill`
         print("rotorbench: interrupted", file=sys.stderr)
         return 130
     except BrokenPipeError:
