@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from analysis.csv_dialect import Dialect, sniff
 from analysis.errors import LogError
 
 __all__ = ["FORMATS", "RUN_COLUMNS", "import_csv", "import_esc32", "import_log",
@@ -133,10 +134,11 @@ def _check_file(path: Path) -> None:
 def _read_csv(path: Path, **kwargs: Any) -> pd.DataFrame:
     _check_file(path)
     try:
+        dialect = sniff(path, int(kwargs.get("skiprows", 0) or 0))  # ';' and '0,5' too
         # every cell as written: errors quote the file's text ('inf', not np.float64(inf)),
         # and only an empty cell means "no value"
         df = pd.read_csv(path, encoding="utf-8-sig", dtype=str, keep_default_na=False,
-                         skipinitialspace=True, **kwargs)
+                         skipinitialspace=True, sep=dialect.sep, **kwargs)
     except (UnicodeDecodeError, pd.errors.ParserError, csv.Error) as exc:
         reason = " ".join(str(exc).split())  # pandas' messages span lines; one line here
         raise LogError(f"{path}: not a readable CSV ({reason})") from None
@@ -151,6 +153,7 @@ def _read_csv(path: Path, **kwargs: Any) -> pd.DataFrame:
         raise LogError(f"{path}: no data rows (only a header)")
     df.columns = [str(c).strip() for c in df.columns]  # 'Time (s), Amps' -> 'Amps'
     df.attrs["first_line"] = 2 + int(kwargs.get("skiprows", 0) or 0)  # file line of row 0
+    df.attrs["dialect"] = dialect
     return df
 
 
@@ -158,6 +161,8 @@ def _numeric(df: pd.DataFrame, header: str, path: Path) -> np.ndarray:
     """A column as floats: an empty cell is NaN (no value); text, NaN and inf are refused
     naming row and column with the cell as written in the file."""
     raw = df[header].astype(str).str.strip()
+    if df.attrs.get("dialect", Dialect()).decimal == ",":
+        raw = raw.str.replace(",", ".", regex=False)
     empty = raw.to_numpy() == ""
     values = pd.to_numeric(raw.where(~empty, "nan"), errors="coerce").to_numpy(dtype=float)
     bad = ~np.isfinite(values) & ~empty
@@ -168,6 +173,12 @@ def _numeric(df: pd.DataFrame, header: str, path: Path) -> np.ndarray:
         raise LogError(f"{path}: row {row + _first_line(df)}, column {header!r}: expected "
                        f"{what}, got {raw.iloc[row]!r}")
     return values
+
+
+def _dialect_meta(df: pd.DataFrame) -> dict[str, str]:
+    """``{"csv_dialect": "';'-separated, decimal comma"}`` for a file read not as plain CSV."""
+    dialect = df.attrs.get("dialect", Dialect())
+    return {} if dialect.plain else {"csv_dialect": dialect.describe()}
 
 
 def _first_line(df: pd.DataFrame) -> int:
@@ -297,7 +308,8 @@ def import_rcbenchmark(path: str | Path) -> tuple[pd.DataFrame, dict[str, Any]]:
     frame, order = _frame(cols, path, time_col=used["t_s"], raw_time=df[used["t_s"]],
                           first_line=_first_line(df))
     meta = {"format": "rcbenchmark", "source_file": str(path), "columns": used,
-            "control_protocol": first[0].strip() if skip else None, "time_order": order}
+            "control_protocol": first[0].strip() if skip else None, "time_order": order,
+            **_dialect_meta(df)}
     return frame, meta
 
 
@@ -354,7 +366,7 @@ def import_esc32(path: str | Path) -> tuple[pd.DataFrame, dict[str, Any]]:
     frame, order = _frame(cols, path, time_col=stamp_col, raw_time=df[stamp_col],
                           first_line=_first_line(df))
     meta = {"format": "esc32", "source_file": str(path), "columns": used,
-            "start_time": str(start), "time_order": order}
+            "start_time": str(start), "time_order": order, **_dialect_meta(df)}
     return frame, meta
 
 
@@ -388,7 +400,7 @@ def import_csv(path: str | Path, mapping: Mapping[str, str] | None = None
     frame, order = _frame(cols, path, time_col=mapping["t_s"], raw_time=df[mapping["t_s"]],
                           first_line=_first_line(df), allow_repeats=False)
     meta = {"format": "csv", "source_file": str(path), "columns": dict(mapping),
-            "time_order": order}
+            "time_order": order, **_dialect_meta(df)}
     return frame, meta
 
 

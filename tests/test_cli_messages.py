@@ -77,3 +77,24 @@ def test_evaluate_battery_c_not_finite_names_the_option(capsys, value):
     err = run_bad(capsys, *FREE_FORM, "--battery-c", value)
     assert err == f"rotorbench: error: --battery-c: expected a finite number, got {value}"
     assert "<free-form>" not in err and "batteries.csv" not in err
+
+
+@pytest.mark.parametrize(("fmt", "text"), [
+    ("rcbenchmark", "Time (s);ESC signal (µs);Thrust (gf);Voltage (V);Current (A)\n"
+                    "0,0;1000;0,5;16,1;0,2\n0,1;1100;10,5;16,0;1,2\n0,2;1200;20,5;15,9;2,25\n"),
+    ("csv", "t_s;thrust_n;current_a\n0,0;0,5;0,2\n0,1;1,5;1,2\n0,2;2,5;2,25\n"),
+    ("csv", "t_s\tthrust_n\tcurrent_a\n0.0\t0.5\t0.2\n0.1\t1.5\t1.2\n0.2\t2.5\t2.25\n"),
+])
+def test_import_reads_a_semicolon_or_tab_separated_log(tmp_path, capsys, fmt, text):
+    """A log saved by a comma-decimal spreadsheet got pandas' 'Expected N fields' or 'the
+    header is one field'; it is read, and the import says how."""
+    log = tmp_path / "log.csv"
+    log.write_text(text, encoding="utf-8")
+    out = tmp_path / "run"
+    assert main(["import", str(log), "--format", fmt, "--out", str(out)]) == 0
+    said = capsys.readouterr().out
+    sep = "';'" if ";" in text else "tab"
+    assert "-separated, decimal" in said and sep in said
+    samples = pd.read_parquet(out / "samples.parquet")
+    assert samples["t_s"].tolist() == pytest.approx([0.0, 0.1, 0.2])
+    assert samples["current_a"].tolist() == pytest.approx([0.2, 1.2, 2.25])

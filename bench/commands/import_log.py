@@ -98,7 +98,9 @@ def handler(args: argparse.Namespace) -> int:
     meta = {"kind": "import", "components": {}, "import": meta}
     out = write_run(args.out, samples, meta)
     cols = ", ".join(c for c in samples.columns)
-    print(f"{out}: imported {len(samples)} rows from {args.file} ({args.fmt}); columns {cols}")
+    dialect = meta["import"].get("csv_dialect")
+    how = f"{args.fmt}, {dialect}" if dialect else args.fmt
+    print(f"{out}: imported {len(samples)} rows from {args.file} ({how}); columns {cols}")
     order = meta["import"].get("time_order") or {}
     if order.get("reordered_rows"):
         print(f"time order: {order['reordered_rows']} rows reordered where the time stepped "
