@@ -76,3 +76,17 @@ def test_calibrate_usage_shows_the_action_as_optional():
     sub = build_parser(only="calibrate")._subparsers._group_actions[0]
     usage = sub.choices["calibrate"].format_usage()
     assert usage.rstrip().endswith("[ACTION ...]"), usage
+
+
+def test_step_dry_run_of_a_refused_plan_prints_only_the_refusal(capsys, fixtures_dir):
+    """It printed 300 000 plan lines (3 M with a larger count) and no refusal; the run
+    itself refuses the plan: the dry run says so first, and prints nothing else."""
+    rig = str(fixtures_dir / "rigs" / "sim.toml")
+    assert main(["step", "--rig", rig, "--dry-run", "--repeats", "100000"]) == 2
+    out, err = capsys.readouterr()
+    assert out == ""
+    assert err.startswith("rotorbench: error: sequence 'step1': projected 27.8 h of rig time")
+    assert err.count("\n") == 1 and "longer than the 24 h a run may last" in err
+    assert main(["step", "--rig", rig, "--dry-run", "--repeats", "2"]) == 0
+    out = capsys.readouterr().out
+    assert "projected" in out.splitlines()[-1]

@@ -85,8 +85,11 @@ def test_a_long_plan_needs_yes(sim_rig_mapped_path: Path, tmp_path: Path, capsys
 
 
 def test_the_dry_run_prints_the_projection(sim_rig_mapped_path: Path, capsys) -> None:
-    assert main(["step", "--hold", "1e6", "--rig", str(sim_rig_mapped_path), "--dry-run"]) == 0
-    assert "projected 1.11e+04 h of rig time and about 17.2 TB" in capsys.readouterr().out
+    """A plan longer than a run may last is refused by the dry run too, with its
+    projection and before any plan line (tests/test_cli_command_output.py)."""
+    assert main(["step", "--hold", "1e6", "--rig", str(sim_rig_mapped_path), "--dry-run"]) == 2
+    out, err = capsys.readouterr()
+    assert "projected 1.11e+04 h of rig time and about 17.2 TB" in err and out == ""
 
 
 def test_budget_bounds() -> None:
