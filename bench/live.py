@@ -157,8 +157,11 @@ class LiveView:
         import pyqtgraph as pg
         from pyqtgraph.Qt import QtCore
 
+        from bench.qt_messages import filter_qt_messages
+
         self.ring = ring
         self.window_s = window_s
+        filter_qt_messages()
         self.app = pg.mkQApp("rotorbench")
         self.win = pg.GraphicsLayoutWidget(title=title)
         self.win.resize(900, 700)
