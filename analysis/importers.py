@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from analysis.csv_dialect import Dialect, sniff
 from analysis.csv_tail import cut_last_line
 from analysis.errors import LogError, excerpt
 
@@ -156,13 +157,14 @@ def _read_csv(path: Path, *, logger: bool = False, **kwargs: Any) -> pd.DataFram
     see ``analysis.csv_tail``)."""
     _check_file(path)
     try:
+        dialect = sniff(path, int(kwargs.get("skiprows", 0) or 0))  # ';' and '0,5' too
         # every cell as written: errors quote the file's text ('inf', not np.float64(inf)),
         # and only an empty cell means "no value"
         df = pd.read_csv(path, encoding="utf-8-sig", dtype=str, keep_default_na=False,
-                         skipinitialspace=True, **kwargs)
+                         skipinitialspace=True, sep=dialect.sep, **kwargs)
         # the header as written: pandas renames a repeated name to 'X.1' silently
         raw = pd.read_csv(path, encoding="utf-8-sig", dtype=str, keep_default_na=False,
-                          skipinitialspace=True, header=None, nrows=1,
+                          skipinitialspace=True, header=None, nrows=1, sep=dialect.sep,
                           **kwargs).iloc[0].tolist()
     except (UnicodeDecodeError, pd.errors.ParserError, csv.Error) as exc:
         reason = " ".join(str(exc).split())  # pandas' messages span lines; one line here
@@ -188,6 +190,7 @@ def _read_csv(path: Path, *, logger: bool = False, **kwargs: Any) -> pd.DataFram
     _check_unique([str(c).strip() for c in raw], path, lambda h: h)
     df.columns = [str(c).strip() for c in df.columns]  # 'Time (s), Amps' -> 'Amps'
     df.attrs["first_line"] = first_line
+    df.attrs["dialect"] = dialect
     return df
 
 
@@ -216,6 +219,8 @@ def _numeric(df: pd.DataFrame, header: str, path: Path) -> np.ndarray:
     """A column as floats: an empty cell is NaN (no value); text, NaN and inf are refused
     naming row and column with the cell as written in the file."""
     raw = df[header].astype(str).str.strip()
+    if df.attrs.get("dialect", Dialect()).decimal == ",":
+        raw = raw.str.replace(",", ".", regex=False)
     empty = raw.to_numpy() == ""
     values = pd.to_numeric(raw.where(~empty, "nan"), errors="coerce").to_numpy(dtype=float)
     bad = ~np.isfinite(values) & ~empty
@@ -226,6 +231,12 @@ def _numeric(df: pd.DataFrame, header: str, path: Path) -> np.ndarray:
         raise LogError(f"{path}: row {row + _first_line(df)}, column {excerpt(header)}: "
                        f"expected {what}, got {excerpt(raw.iloc[row])}")
     return values
+
+
+def _dialect_meta(df: pd.DataFrame) -> dict[str, str]:
+    """``{"csv_dialect": "';'-separated, decimal comma"}`` for a file read not as plain CSV."""
+    dialect = df.attrs.get("dialect", Dialect())
+    return {} if dialect.plain else {"csv_dialect": dialect.describe()}
 
 
 def _first_line(df: pd.DataFrame) -> int:
@@ -363,7 +374,7 @@ def import_rcbenchmark(path: str | Path) -> tuple[pd.DataFrame, dict[str, Any]]:
                           first_line=_first_line(df))
     meta = {"format": "rcbenchmark", "source_file": str(path), "columns": used,
             "control_protocol": first[0].strip() if skip else None, "time_order": order,
-            "cut_last_line": df.attrs.get("cut_last_line")}
+            "cut_last_line": df.attrs.get("cut_last_line"), **_dialect_meta(df)}
     return frame, meta
 
 
@@ -421,7 +432,7 @@ def import_esc32(path: str | Path) -> tuple[pd.DataFrame, dict[str, Any]]:
                           first_line=_first_line(df))
     meta = {"format": "esc32", "source_file": str(path), "columns": used,
             "start_time": str(start), "time_order": order,
-            "cut_last_line": df.attrs.get("cut_last_line")}
+            "cut_last_line": df.attrs.get("cut_last_line"), **_dialect_meta(df)}
     return frame, meta
 
 
@@ -455,7 +466,8 @@ def import_csv(path: str | Path, mapping: Mapping[str, str] | None = None
     frame, order = _frame(cols, path, time_col=mapping["t_s"], raw_time=df[mapping["t_s"]],
                           first_line=_first_line(df), allow_repeats=False)
     meta = {"format": "csv", "source_file": str(path), "columns": dict(mapping),
-            "time_order": order, "cut_last_line": df.attrs.get("cut_last_line")}
+            "time_order": order, "cut_last_line": df.attrs.get("cut_last_line"),
+            **_dialect_meta(df)}
     return frame, meta
 
 

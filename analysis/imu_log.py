@@ -109,7 +109,7 @@ def _increasing(t: np.ndarray, path: Path, offset: int = 0) -> None:
         i = int(bad[0]) + 1 + offset
         j = i - offset
         raise LogError(f"{_where(path, i + 1)}, column t_s: time must increase, "
-                       f"got {t[j]!r} after {t[j - 1]!r}")
+                       f"got {float(t[j]):g} after {float(t[j - 1]):g}")
 
 
 def load_calibration_log(path: str | Path, require_phases: tuple[str, ...] = REQUIRED_PHASES
@@ -186,7 +186,7 @@ def load_attitude_log(path: str | Path) -> pd.DataFrame:
         if bad.any():
             i = int(np.flatnonzero(bad)[0])
             raise LogError(f"{_where(p, i + 1)}, column {MOVEMENT_COLUMN}: expected 0 or 1, "
-                           f"got {df[MOVEMENT_COLUMN].iloc[i]!r}")
+                           f"got {float(df[MOVEMENT_COLUMN].iloc[i]):g}")
     _increasing(df["t_s"].to_numpy(), p)
     return df
 

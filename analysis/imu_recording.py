@@ -169,7 +169,8 @@ def read_broad(path: str | Path) -> ImuRecording:
         mov = _dataset(f, path, "movement", 1, n, True) if "movement" in f else None
     if mov is not None and not np.isin(mov, (0.0, 1.0)).all():
         i = int(np.flatnonzero(~np.isin(mov, (0.0, 1.0)))[0])
-        raise LogError(f"{path}: dataset movement, sample {i}: expected 0 or 1, got {mov[i]!r}")
+        raise LogError(f"{path}: dataset movement, sample {i}: expected 0 or 1, "
+                       f"got {float(mov[i]):g}")
     rec = ImuRecording(str(path), np.arange(n) / rate, gyr, acc, mag, ref,
                        None if mov is None else mov.astype(bool))
     return _check_scorable(rec, "dataset opt_quat", "dataset movement")

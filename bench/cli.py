@@ -14,6 +14,7 @@ and keeps its traceback.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import os
 import pkgutil
@@ -102,6 +103,14 @@ def _check_inputs(parser: argparse.ArgumentParser, argv: Sequence[str],
                 check_input(Path(v), flags.get(dest, ""))
 
 
+def _plain_numbers() -> contextlib.AbstractContextManager[object]:
+    """numpy scalars print as numbers (``9.99``, not ``np.float64(9.99)``) in every message
+    a command formats, however the value reached the f-string (``!r``, a list, a dict)."""
+    import numpy as np
+
+    return np.printoptions(legacy="1.25")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = _parser_for(argv)
@@ -114,8 +123,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     args._defaults = option_defaults(parser, args)  # for cli_support.refuse_unused
     try:
         _check_inputs(parser, argv, args)
-        return int(args.func(args) or 0)
-    except KeyboardInterrupt:
+        with _plain_numbers():
+            return int(args.func(args) or 0)
+    except KeyboardInterrupt as exc:
+        if "SIGTERM" in exc.args:  # bench.run_progress.sigterm_as_interrupt
+            print("rotorbench: terminated", file=sys.stderr)
+            return 143  # 128 + SIGTERM, as a shell reports a process ended by `kill`
         print("rotorbench: interrupted", file=sys.stderr)
         return 130
     except BrokenPipeError:

@@ -288,9 +288,10 @@ def run_options_from_args(args: argparse.Namespace) -> Any:
     return RunOptions(tick_s=args.tick, realtime=bool(args.realtime or args.live))
 
 
-def print_dry_run(rig: Any, seq: Any) -> None:
-    """The dry run: the rig's ESC, every step with times and commands, the projection."""
-    from bench.run_budget import project, row_rate_hz
+def print_dry_run(rig: Any, seq: Any, note: str | None = None) -> None:
+    """The dry run: ``note``, the rig's ESC, every step with times and commands, the
+    projection."""
+    from bench.run_budget import check_budget, project, row_rate_hz
     from bench.safety import effective_limits
     from bench.sequences import format_plan
     from bench.session import plan_for
@@ -298,10 +299,16 @@ def print_dry_run(rig: Any, seq: Any) -> None:
     effective_limits(rig.limits, seq.limits, source=f"sequence {seq.name!r}",
                      thrust_setpoints_n=seq.thrust_setpoints_n)
     plan = plan_for(rig, seq, dry_run=True)
+    budget = project(plan.duration_s, row_rate_hz(rig))
+    # a plan no run may carry out is refused before its (millions of) lines are printed;
+    # one that needs --yes is shown, the projection says what it costs
+    check_budget(budget, seq.where, yes=True)
+    if note:
+        print(note)
     print(f"rig {rig.name} ({rig.path}); ESC {rig.esc.idle_us:g} us idle, "
           f"{rig.esc.min_us:g}-{rig.esc.max_us:g} us at {rig.esc.frame_rate_hz:g} Hz")
     print(format_plan(plan))
-    print(project(plan.duration_s, row_rate_hz(rig)).describe())
+    print(budget.describe())
 
 
 # --- the sizing commands' option groups (optimize, evaluate, pareto, fly) ---------------

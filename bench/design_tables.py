@@ -12,6 +12,7 @@ import math
 from typing import Any
 
 from bench.measured_constants import is_measured
+from optimizer.selection import TIE_ORDER, TIE_RTOL
 
 __all__ = ["MEASURED_MARK", "ROWS", "format_cell", "print_table"]
 
@@ -90,11 +91,57 @@ def print_table(result: Any, title: str | None = None, console: Any = None) -> N
             f"Best: {best.actuators} actuators, propeller {best.propeller}, motor "
             f"{best.motor}, battery {best.battery}"
         )
+    for line in tie_notes(result):
+        console.print(line, style="dim")
     if any_measured:
         console.print(f"{MEASURED_MARK} measured on the bench (runs in --json 'sources'); "
                       "other numbers from the datasheet model", style="dim")
     if result.source:
         console.print(f"Catalog: {result.source}", style="dim")
+
+
+_PARTS = ("propeller", "motor", "battery")
+
+
+def tie_notes(result: Any) -> list[str]:
+    """What "N tied" in the Status row means, once per distinct set of tied designs."""
+    groups: dict[tuple[str, ...], list[int]] = {}
+    for d in result.designs:
+        names = tuple(d.extra.get("tied_designs") or ()) if d.feasible else ()
+        if d.n_tied > 1 and names:
+            groups.setdefault(names, []).append(d.actuators)
+    notes = []
+    objective = getattr(result.objective, "name", str(result.objective))
+    for names, counts in groups.items():
+        n = next(d.n_tied for d in result.designs if d.actuators == counts[0])
+        shown = [f"{names[0]} (chosen)", *names[1:]] + (["..."] if n > len(names) else [])
+        differ = [part for p, part in enumerate(_PARTS)
+                  if len({name.split("/")[p] for name in names}) > 1]
+        why = ""
+        if differ == ["motor"] and objective == "flight-time":
+            why = (" The flight time does not see the motor here: with the thesis current "
+                   "model the battery delivers the propellers' shaft power (--current-model "
+                   "drive counts the motor's losses), so motors of equal mass tie.")
+        notes.append(
+            f"{n} tied ({', '.join(map(str, counts))} actuators): {', '.join(shown)} reach "
+            f"the same {objective} (within {TIE_RTOL:g} relative)"
+            + (f" and differ only in the {' and '.join(differ)}" if differ else "")
+            + f"; the chosen one comes first by {_tie_order(result.objective)}." + why)
+    return notes
+
+
+_TIE_WORDS = {"flight_time_min": "longer flight time", "price": "lower price",
+              "time_constant_ms": "faster actuators", "power_w": "lower power",
+              "total_mass_kg": "lower mass", "roll_inertia_kgm2": "lower roll inertia",
+              "pitch_inertia_kgm2": "lower pitch inertia"}
+
+
+def _tie_order(objective: Any) -> str:
+    """optimizer.selection's tie-break order in words, without the objective's metric."""
+    own = set(getattr(objective, "metrics", ())) if getattr(objective, "is_single", False) \
+        else set()
+    words = [_TIE_WORDS.get(m, m) for m, _ in TIE_ORDER if m not in own]
+    return ", then ".join([*words, "catalog order"])
 
 
 def _status(d: Any) -> str:

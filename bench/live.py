@@ -157,8 +157,11 @@ class LiveView:
         import pyqtgraph as pg
         from pyqtgraph.Qt import QtCore
 
+        from bench.qt_messages import filter_qt_messages
+
         self.ring = ring
         self.window_s = window_s
+        filter_qt_messages()
         self.app = pg.mkQApp("rotorbench")
         self.win = pg.GraphicsLayoutWidget(title=title)
         self.win.resize(900, 700)
@@ -399,6 +402,15 @@ class _Window:
             pass
 
 
+def _how_to_exit() -> str:
+    """What ends the wait for the window: over SSH or offscreen there is none to close."""
+    platform = os.environ.get("QT_QPA_PLATFORM", "").split(":")[0]
+    if platform in ("offscreen", "minimal", "vnc"):
+        return (f"the window is not on this screen (QT_QPA_PLATFORM={platform}): "
+                "press Ctrl-C to exit")
+    return "close the window to exit (or press Ctrl-C)"
+
+
 def _exit_text(code: int) -> str:
     if code < 0:
         try:
@@ -439,6 +451,8 @@ def run_with_live_view(work: Callable[[Callable[[Mapping[str, np.ndarray]], None
         value = work(on_rows)
         status = getattr(getattr(value, "result", value), "status", None)
         window.finished(str(status or "done"))
+        if not close_when_done:
+            print(f"live view: run finished; {_how_to_exit()}", file=sys.stderr, flush=True)
         window.wait_closed()
     finally:
         window.close()

@@ -185,7 +185,7 @@ def erase_on_user_error(progress: Progress) -> Iterator[None]:
 
 @contextlib.contextmanager
 def sigterm_as_interrupt(stop: threading.Event) -> Iterator[None]:
-    """``kill PID`` (SIGTERM) ends a run like Ctrl-C: safe stop, record, exit 130."""
+    """``kill PID`` (SIGTERM) ends a run like Ctrl-C: safe stop, record, exit 143 (Ctrl-C: 130)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return

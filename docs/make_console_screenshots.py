@@ -9,6 +9,7 @@ Usage: python docs/make_console_screenshots.py
 from __future__ import annotations
 
 import os
+import shutil
 import sys
 import tempfile
 import threading
@@ -19,23 +20,36 @@ os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
 IMG = Path(__file__).resolve().parent / "img"
 
 
-def main() -> int:
+def main(img: Path = IMG) -> int:
+    """The screenshots into ``img``; the runs they record go to a temporary folder that is
+    removed afterwards, also when a step fails (it was left behind: 18 MB in /tmp)."""
     import pyqtgraph as pg
 
+    from bench.qt_messages import filter_qt_messages
+
+    filter_qt_messages()
+    _app = pg.mkQApp("rotorbench console")  # kept alive while the windows live
+    out = Path(tempfile.mkdtemp(prefix="console-shots-"))
+    try:
+        return take_screenshots(out, img)
+    finally:
+        shutil.rmtree(out, ignore_errors=True)
+
+
+def take_screenshots(out: Path, img: Path) -> int:
+    """Drive the console on the simulated rigs (runs recorded under ``out``)."""
     from bench.console.link import BenchLink
     from bench.console.server import ConsoleBench
     from bench.console.window import ConsoleWindow
     from bench.rig import default_rig_path, load_rig
 
-    _app = pg.mkQApp("rotorbench console")  # kept alive while the windows live
-    out = Path(tempfile.mkdtemp(prefix="console-shots-"))
     link = BenchLink(capacity=25_000 * 6)
     bench = ConsoleBench(load_rig(default_rig_path()), out, link)
     win = ConsoleWindow(link.gui_link(), out)
     win.resize(1280, 800)
     win.show()
     threading.Thread(target=bench.serve, daemon=True).start()
-    IMG.mkdir(parents=True, exist_ok=True)
+    img.mkdir(parents=True, exist_ok=True)
 
     def wait(predicate, timeout_s: float = 60.0) -> None:
         if not win.wait_for(predicate, timeout_s):
@@ -43,7 +57,7 @@ def main() -> int:
 
     def shot(name: str) -> None:
         win.wait_for(lambda: False, 0.4)
-        path = IMG / f"console-{name}.png"
+        path = img / f"console-{name}.png"
         win.grab().save(str(path))
         print(path)
 

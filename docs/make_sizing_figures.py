@@ -22,6 +22,7 @@ sys.path.insert(0, str(REPO))
 from bench.cli import main  # noqa: E402
 
 IMG = REPO / "docs" / "img"
+SIZINGLAB = REPO / "fixtures" / "data" / "sizinglab"
 
 
 def quiet(argv: list[str]) -> None:
@@ -83,13 +84,17 @@ def discharge_figure(path: Path) -> None:
     plt.close(fig)
 
 
-def run() -> None:
-    IMG.mkdir(parents=True, exist_ok=True)
+def run(img: Path = IMG, lab: Path = SIZINGLAB) -> list[Path]:
+    """Write the figures into ``img``; print each one written and each one skipped (with
+    why); return those written."""
+    img.mkdir(parents=True, exist_ok=True)
+    written = [img / "sizing_partial_load.png", img / "sizing_pareto_thesis_e.png"]
     quiet(["evaluate", "--actuators", "4", "--propeller", "P4", "--motor", "M1", "--battery",
-           "B3", "--plot", str(IMG / "sizing_partial_load.png")])
+           "B3", "--plot", str(written[0])])
     quiet(["pareto", "--actuators", "4", "--x", "flight-time", "--y", "time-constant",
-           "--plot", str(IMG / "sizing_pareto_thesis_e.png")])
-    lab = REPO / "fixtures" / "data" / "sizinglab"
+           "--plot", str(written[1])])
+    skipped: list[str] = []
+    target = img / "sizing_pareto_sizinglab.png"
     if lab.is_dir():
         import tempfile
 
@@ -98,12 +103,17 @@ def run() -> None:
         with tempfile.TemporaryDirectory() as tmp:
             folder = import_to_folder(lab, Path(tmp) / "sizinglab")
             quiet(["pareto", "--catalog", str(folder), "--actuators", "4", "--x",
-                   "flight-time", "--y", "time-constant", "--flyable", "--plot",
-                   str(IMG / "sizing_pareto_sizinglab.png")])
-    discharge_figure(IMG / "sizing_discharge.png")
-    for name in ("sizing_partial_load", "sizing_pareto_thesis_e", "sizing_pareto_sizinglab",
-                 "sizing_discharge"):
-        print(IMG / f"{name}.png")
+                   "flight-time", "--y", "time-constant", "--flyable", "--plot", str(target)])
+        written.append(target)
+    else:
+        skipped.append(f"skipped {target}: no SizingLab data at {lab}")
+    discharge_figure(img / "sizing_discharge.png")
+    written.append(img / "sizing_discharge.png")
+    for path in written:
+        print(f"wrote {path}")
+    for line in skipped:
+        print(line)
+    return written
 
 
 if __name__ == "__main__":

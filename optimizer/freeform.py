@@ -73,6 +73,8 @@ def freeform_catalog(values: dict[str, Any], constants: ModelConstants | None = 
     for part, column, flag, _ in FIELDS:
         value = values.get(flag_dest(flag))
         if value is not None:
+            if not math.isfinite(float(value)):  # a catalog reads nan as an empty cell
+                raise RequestError(f"{flag}: expected a finite number, got {value}")
             rows[part][column] = value
     prop = rows["propeller"]
     diameter = float(prop["diameter_m"])
@@ -97,13 +99,16 @@ def freeform_catalog(values: dict[str, Any], constants: ModelConstants | None = 
         raise RequestError(_flag_message(str(exc))) from None
 
 
+#: catalog columns a flag fills indirectly (the pack's current limit from --battery-c)
+_DERIVED = (("battery", "max_current_a", "--battery-c", False),)
+
 _FILES = {"propeller": "propellers.csv", "motor": "motors.csv", "battery": "batteries.csv"}
 
 
 def _flag_message(message: str) -> str:
     """A catalog cell error ("<free-form>/motors.csv: data row 1, column 'kv_rpm_per_v':
     expected ...") said of the flag the value came from."""
-    for part, column, flag, _ in FIELDS:
+    for part, column, flag, _ in (*FIELDS, *_DERIVED):
         if f"/{_FILES[part]}:" in message and f"column '{column}'" in message:
             return f"{flag}: {message.rsplit(': ', 1)[-1]}"
     return f"free-form design: {message}"

@@ -71,7 +71,7 @@ class MeasuredActuator:
         label = f"measured actuator ({self.propeller_id}, {self.motor_id}, {self.esc_mode})"
         tc = self.time_constant_s
         if tc is not None and not (math.isfinite(tc) and tc > 0):
-            raise RequestError(f"{label}: time_constant_s must be > 0, got {tc!r}")
+            raise RequestError(f"{label}: time_constant_s must be > 0, got {float(tc):g}")
         thrust = np.asarray(self.hover_thrust_n, float)
         current = np.asarray(self.hover_current_a, float)
         if thrust.shape != current.shape or thrust.ndim != 1:
@@ -90,17 +90,17 @@ class MeasuredActuator:
         for name in ("tau_up_s", "tau_down_s", "k_f_n_s2", "k_m_nm_s2"):
             x = getattr(self, name)
             if x is not None and not (math.isfinite(x) and x > 0):
-                raise RequestError(f"{label}: {name} must be > 0, got {x!r}")
+                raise RequestError(f"{label}: {name} must be > 0, got {float(x):g}")
         lat = self.latency_s
         if lat is not None and not (math.isfinite(lat) and lat >= 0):
-            raise RequestError(f"{label}: latency_s must be >= 0, got {lat!r}")
+            raise RequestError(f"{label}: latency_s must be >= 0, got {float(lat):g}")
         v = self.supply_voltage_v
         if v is not None and not (math.isfinite(v) and v > 0):
-            raise RequestError(f"{label}: supply_voltage_v must be > 0, got {v!r}")
+            raise RequestError(f"{label}: supply_voltage_v must be > 0, got {float(v):g}")
         top = self.max_thrust_n
         if top is not None:
             if not (math.isfinite(top) and top > 0):
-                raise RequestError(f"{label}: max_thrust_n must be > 0, got {top!r}")
+                raise RequestError(f"{label}: max_thrust_n must be > 0, got {float(top):g}")
             if thrust.size and top < thrust[-1]:
                 raise RequestError(
                     f"{label}: max_thrust_n {top:g} N is below the highest current point "

@@ -495,8 +495,23 @@ def _result(
         cost=float(np.asarray(cost).ravel()[chosen]),
         status=outcome.status,
         n_tied=int(tied.size),
+        extra={"tied_designs": tied_names(grid, tied, chosen)} if tied.size > 1 else {},
         **common,
     )
+
+
+#: At most this many tied designs are named (the count is always given).
+TIED_NAMED = 12
+
+
+def tied_names(grid: DesignGrid, tied: np.ndarray, chosen: int) -> list[str]:
+    """``propeller/motor/battery`` ids of the tied designs, the chosen one first."""
+    order = [chosen, *(int(t) for t in tied if int(t) != chosen)][:TIED_NAMED]
+    names = []
+    for flat in order:
+        i, j, k = (int(x) for x in np.unravel_index(flat, grid.shape))
+        names.append(f"{grid.propeller_ids[i]}/{grid.motor_ids[j]}/{grid.battery_ids[k]}")
+    return names
 
 
 def pick_best(designs: Sequence[DesignResult]) -> DesignResult | None:

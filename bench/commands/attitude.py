@@ -32,6 +32,7 @@ from analysis.attitude_filters import (
     PEERS,
     PROJECT_FILTERS,
     FilterRun,
+    available,
     paper_b,
     paper_b_printed,
     run_filter,
@@ -72,7 +73,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="with --compare: only these peers, comma-separated (default all: "
                         f"{', '.join(PEERS)})")
     p.add_argument("--png", type=Path, metavar="FILE",
-                   help="error-over-time figure of --compare (default LOG-stem_errors.png)")
+                   help="write the error-over-time figure of --compare to this PNG")
     g = p.add_argument_group("paper-b and paper-b-printed options")
     g.add_argument("--gain", type=float, metavar="P",
                    help=f"blend gain P_err per sample, 0..1 (default t_s/{PAPER_B_TAU_S:g} s; "
@@ -132,8 +133,7 @@ def _check_args(args: argparse.Namespace) -> None:
         raise LogError(f"{args.png}: the figure is a PNG; name it *.png")
     for path, flag in ((args.out, "--out"), (args.png, "--png")):
         if path is not None:
-            check_writable(path, flag, folder=False, make_parents=False,
-                           inputs=(args.log, args.cal))
+            check_writable(path, flag, folder=False, inputs=(args.log, args.cal))
 
 
 def _paper_b_run(rec: ImuRecording, args: argparse.Namespace) -> FilterRun:
@@ -192,6 +192,12 @@ def handler(args: argparse.Namespace) -> int:
     if args.compare and rec.ref_quat is None:
         raise LogError(f"{args.log}: --compare needs a reference orientation (BROAD opt_quat "
                        "or ref_qw..ref_qz) to score against")
+    if args.compare and isinstance(args.peers, list):
+        need_mag = [n for n in args.peers if not available(n, rec)]
+        if need_mag:  # named by the user: dropping it from the table would hide it
+            raise LogError(f"--peers {need_mag[0]}: a 9D peer needs a magnetometer and "
+                           f"{args.log} has none (mag_x_ut..mag_z_ut or imu_mag); use "
+                           f"{need_mag[0].replace('9d', '6d')}")
     console = Console(file=sys.stderr if args.json else sys.stdout, width=120)
     if args.filter in _PAPER_B_FILTERS:
         run = _paper_b_run(rec, args)
@@ -212,12 +218,13 @@ def handler(args: argparse.Namespace) -> int:
         console.print("no reference attitude in the log (ref_qw..ref_qz or opt_quat) to "
                       "compare with; --out FILE writes the estimate")
     if args.out is not None:
+        args.out.parent.mkdir(parents=True, exist_ok=True)  # as the other commands do
         _write_estimate(rec, run.quat, args.out)
         print(f"wrote {args.out}", file=sys.stderr)
-    if args.compare:
-        png = args.png or Path(f"{args.log.stem}_errors.png")
-        error_figure(rec, rows, png, title=f"{args.log.name}: error over time")
-        print(f"wrote {png}", file=sys.stderr)
+    if args.png is not None:  # only when asked: no file in the current folder unasked
+        args.png.parent.mkdir(parents=True, exist_ok=True)
+        error_figure(rec, rows, args.png, title=f"{args.log.name}: error over time")
+        print(f"wrote {args.png}", file=sys.stderr)
     if args.json:
         print(json.dumps({"log": str(args.log), "calibration": str(args.cal or ""),
                           "scores": [r.as_dict() for r in rows]}, indent=2))

@@ -48,9 +48,22 @@ from bench.run_progress import run_calibration_with_progress
 from bench.runner import HexapodRunOptions
 
 
+class _OptionalAction(argparse.HelpFormatter):
+    """Usage shows the sub-action as optional (``[ACTION ...]``): ``calibrate`` alone runs
+    on the rig, ``calibrate apply`` is the one sub-action (argparse always writes it as
+    required)."""
+
+    def _format_args(self, action: argparse.Action, default_metavar: str) -> str:
+        text = super()._format_args(action, default_metavar)
+        if action.nargs == argparse.PARSER and not action.required:
+            return f"[{text}]"
+        return text
+
+
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
-        "calibrate", help="IMU calibration on a hexapod (Paper A): from a log, or apply",
+        "calibrate", formatter_class=_OptionalAction,
+        help="IMU calibration on a hexapod (Paper A): from a log, or apply",
         description="Calibrate an IMU from a hexapod calibration log (CSV/Parquet), write a "
                     "simulated log, or apply a calibration to any IMU log.")
     p.add_argument("--from-log", type=Path, metavar="FILE",
@@ -136,8 +149,7 @@ def handler(args: argparse.Namespace) -> int:
 
 def _check_out(args: argparse.Namespace) -> None:
     if args.out is not None:
-        check_writable(args.out, "--out", folder=False, make_parents=False,
-                       inputs=(args.from_log,))
+        check_writable(args.out, "--out", folder=False, inputs=(args.from_log,))
     if args.figures is not None:
         check_writable(args.figures, "--figures", folder=True)
     for flag, value in (("--gyro-range-dps", args.gyro_range_dps),
@@ -159,16 +171,17 @@ def finish(cal: Calibration, df, args: argparse.Namespace, out: Path | None, sou
         for path in verification_figures(cal, df, args.figures):
             print(f"wrote {path}", file=sys.stderr)
     if out is not None:
+        out.parent.mkdir(parents=True, exist_ok=True)  # as the other commands do
         save_calibration(cal, out)
         print(f"wrote {out}", file=sys.stderr)
 
 
 def _apply(args: argparse.Namespace) -> int:
-    check_writable(args.apply_out, "--out", folder=False, make_parents=False,
-                   inputs=(args.log, args.cal))
+    check_writable(args.apply_out, "--out", folder=False, inputs=(args.log, args.cal))
     cal = load_calibration(args.cal)
     df = load_imu_log(args.log)
     out = apply_to_frame(cal, df)
+    args.apply_out.parent.mkdir(parents=True, exist_ok=True)
     write_table(out, args.apply_out)
     print(f"wrote {args.apply_out} ({len(out)} rows; time offset "
           f"{cal.time_offset_s * 1e3:.2f} ms applied)", file=sys.stderr)
@@ -184,11 +197,12 @@ def _simulate(args: argparse.Namespace) -> int:
 
     if args.simulate_log.suffix.lower() not in (".csv", ".parquet"):
         raise LogError(f"{args.simulate_log}: simulated log must end in .csv or .parquet")
-    check_writable(args.simulate_log, "--simulate-log", folder=False, make_parents=False)
+    check_writable(args.simulate_log, "--simulate-log", folder=False)
     m = ADIS16400
     seed = 0 if args.seed is None else args.seed
     cols = simulate_calibration_log(m, paper_a_protocol(m.rate_hz, short=args.short),
                                     seed=seed)
+    args.simulate_log.parent.mkdir(parents=True, exist_ok=True)
     write_table(pd.DataFrame(cols), args.simulate_log, float_format="%.9g")
     console = Console()
     console.print(f"wrote {args.simulate_log}: {len(cols['t_s'])} rows at {m.rate_hz:g} Hz "

@@ -110,6 +110,8 @@ def handler(args: argparse.Namespace) -> int:
     meta = {"kind": "import", "components": {}, "import": meta}
     out = write_run(args.out, samples, meta)
     cols = ", ".join(c for c in samples.columns)
+    dialect = meta["import"].get("csv_dialect")
+    how = f"{how}, {dialect}" if dialect else how
     print(f"{out}: imported {len(samples)} rows from {args.file} ({fmt}, {how}); "
           f"columns {cols}")
     order = meta["import"].get("time_order") or {}

@@ -52,10 +52,10 @@ def handler(args: argparse.Namespace) -> int:
     check_limits(rig, seq)  # before a sweep for a missing map could start
     options = cli.run_options_from_args(args)  # a bad --tick: the dry run says so too
     if args.dry_run:
-        if rig.thrust_map is None and seq.needs_thrust_map:
-            print("no static thrust map in the rig yet: a sweep would run first "
-                  "(`rotorbench sweep --dry-run` shows it); thrust-step commands shown as (map)")
-        cli.print_dry_run(rig, seq)
+        no_map = rig.thrust_map is None and seq.needs_thrust_map
+        cli.print_dry_run(rig, seq, note=(
+            "no static thrust map in the rig yet: a sweep would run first (`rotorbench sweep "
+            "--dry-run` shows it); thrust-step commands shown as (map)") if no_map else None)
         return 0
     check_budget_of(rig, seq, args.yes)  # before a sweep for a missing map could start
     if rig.thrust_map is None and seq.needs_thrust_map:

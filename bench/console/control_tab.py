@@ -63,9 +63,11 @@ class LimitsPanel(QtWidgets.QGroupBox):
             button = QtWidgets.QPushButton("Tighten")
             button.setFocusPolicy(QtCore.Qt.FocusPolicy.NoFocus)
             button.clicked.connect(lambda _=False, n=name: self.tighten(n))
-            grid.addWidget(label, r, 0)
-            grid.addWidget(box, r, 1)
-            grid.addWidget(button, r, 2)
+            # the label has the panel's width to itself ("voltage_min_v: 10.35 V (rig 9.9)"
+            # was cut to "voltage_min_v: 9 \" beside the box), the box and button below it
+            grid.addWidget(label, 2 * r, 0, 1, 2)
+            grid.addWidget(box, 2 * r + 1, 0)
+            grid.addWidget(button, 2 * r + 1, 1)
             self.rows[name] = (label, box)
         self.values: dict[str, float] = {}
 

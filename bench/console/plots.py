@@ -28,6 +28,9 @@ PLOT_CHANNELS = (
     ("efficiency_n_w", "efficiency", "N/W"),
 )
 MIN_POWER_W = 1.0  # below this the efficiency is noise over noise: not drawn
+#: Channels a sensor of the rig records; one without any sample while rows arrive says so
+#: in its plot (a rig without a torque sensor left the torque plot blank).
+SENSOR_CHANNELS = ("thrust_n", "torque_nm", "current_a", "voltage_v", "rpm")
 
 
 def derived(snap: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -117,6 +120,8 @@ class LivePlots(QtWidgets.QWidget):
                 plot.setXLink(first)
             self.plots[key] = plot
             self.curves[key] = self._curve(plot, pg.mkPen("y" if key == "throttle_us" else "c"))
+        self.no_data = {key: self._note(self.plots[key], f"no {title} sensor on this rig")
+                        for key, title, _ in PLOT_CHANNELS if key in SENSOR_CHANNELS}
         self.curves["thrust_setpoint_n"] = self._curve(
             self.plots["thrust_n"], pg.mkPen("m", style=QtCore.Qt.PenStyle.DashLine))
         self.readout = QtWidgets.QLabel("cursor: -")
@@ -149,6 +154,20 @@ class LivePlots(QtWidgets.QWidget):
         curve = _EnvelopeCurve(pen)
         plot.addItem(curve)
         return curve
+
+    @staticmethod
+    def _note(plot: Any, text: str) -> Any:
+        """A hidden line of text centred on the plot's area, fixed in pixels."""
+        item = pg.TextItem(text, color=(200, 200, 200), anchor=(0.5, 0.5))
+        item.setParentItem(plot.vb)
+        item.hide()
+
+        def centre(*_: Any) -> None:
+            item.setPos(plot.vb.width() / 2.0, plot.vb.height() / 2.0)
+
+        plot.vb.sigResized.connect(centre)
+        centre()
+        return item
 
     def set_paused(self, paused: bool) -> None:
         """Paused: the curves hold still so they can be zoomed and read."""
@@ -188,6 +207,8 @@ class LivePlots(QtWidgets.QWidget):
         x, ys = env.lines()
         for key, curve in self.curves.items():
             curve.set_envelope(x, ys[key])
+        for key, note in self.no_data.items():
+            note.setVisible(not np.isfinite(ys[key]).any())
         for key, plot in self.plots.items():
             y = ys[key]
             if key == "thrust_n":

@@ -73,7 +73,9 @@ def _hub(ctx: Any, device: str, spec: DeviceUrl) -> Any:
             raise DeviceError(f"NI-DAQmx {device}: {type(exc).__name__}: {exc}") from None
         return ni.NiHub(acq)
 
-    return ctx.shared(("nidaq", device), make)
+    # closed with the context too: a role refused after the task exists (a missing
+    # calibration key) never registers with the hub, whose last release would close it
+    return ctx.shared(("nidaq", device), make, close=lambda hub: hub.acq.close())
 
 
 @register("nidaq", None, ("load_cell", "power", "rpm"), summary=SUMMARY, example=EXAMPLE)

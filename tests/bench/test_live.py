@@ -262,3 +262,15 @@ def test_step_live_from_the_command_line_runs_to_the_end(tmp_path, fixtures_dir)
     assert proc.returncode == 0, err
     assert "Fatal Python error" not in err
     assert ": success: sequence complete" in out
+    # offscreen (or over SSH) there is no window to close: the wait says what ends it
+    assert ("live view: run finished; the window is not on this screen "
+            "(QT_QPA_PLATFORM=offscreen): press Ctrl-C to exit") in err
+
+
+def test_the_wait_after_a_live_run_says_how_to_end_it(monkeypatch):
+    from bench.live import _how_to_exit
+
+    monkeypatch.setenv("QT_QPA_PLATFORM", "xcb")
+    assert _how_to_exit() == "close the window to exit (or press Ctrl-C)"
+    monkeypatch.setenv("QT_QPA_PLATFORM", "offscreen")
+    assert "press Ctrl-C to exit" in _how_to_exit()

@@ -44,7 +44,13 @@ DEVICES = {
 def interp(monkeypatch):
     it = mock.create_autospec(BaseInterpreter, instance=True)
     handles = iter(range(1, 100))
-    it.create_task.side_effect = lambda name: (f"task{next(handles)}", True)
+    it.made = []  # every task handle handed out
+
+    def create_task(name):
+        it.made.append(f"task{next(handles)}")
+        return it.made[-1], True
+
+    it.create_task.side_effect = create_task
     it.get_task_attribute_string.return_value = "task"
     it.driver_version = (24, 5, 0)
     monkeypatch.setattr(nidaqmx.utils, "_select_interpreter", lambda *a, **k: it)
@@ -83,6 +89,8 @@ def test_one_ai_task_counter_on_its_clock_and_a_pulse_output(tmp_path, interp):
 def test_bad_nidaq_tables_name_the_field(tmp_path, interp, role, body, match):
     with pytest.raises(DeviceError, match=match):
         open_rig(load_rig(rigs.write(tmp_path, {**DEVICES, role: body})))
+    # every task made before the refusal is cleared (a leaked Task warns when collected)
+    assert sorted(c.args[0] for c in interp.clear_task.call_args_list) == sorted(interp.made)
 
 
 def test_without_the_ni_driver_the_error_names_the_device(tmp_path, monkeypatch):
