@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib.util
+import signal
 import sys
 from pathlib import Path
 
@@ -35,6 +36,15 @@ def fixtures_dir() -> Path:
 def shared_data() -> Path:
     """fixtures/data: shipped, so a test that needs it fails (never skips) when it is gone."""
     return SHARED_DATA
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    # A shell starts a background job (`make test &`, `setsid make test`, some CI runners)
+    # with SIGINT ignored, and an ignored signal stays ignored through fork and exec: the
+    # `rotorbench` children of the Ctrl-C tests never saw their Ctrl-C and ran to the end.
+    # Ctrl-C is what those tests are about, so this run and its children get it back.
+    if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:

@@ -220,6 +220,7 @@ def test_sigint_on_the_command_stops_records_and_exits_130(tmp_path: Path) -> No
     finally:
         if child.poll() is None:
             child.kill()
+            child.communicate()  # reaped, pipes closed: no leak warning in a later test
     assert child.returncode == 130, err.decode()
     (run_dir,) = [p for p in runs.iterdir() if p.is_dir()]
     meta = json.loads((run_dir / "run.json").read_text())

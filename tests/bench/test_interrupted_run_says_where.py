@@ -39,6 +39,7 @@ def test_an_interrupted_step_names_its_run_folder_and_status(sim_rig_mapped_path
     finally:
         if child.poll() is None:
             child.kill()
+            child.communicate()  # reaped, pipes closed: no leak warning in a later test
     assert child.returncode == code, err
     (run_dir,) = out.glob("*-step1")
     status = json.loads((run_dir / "run.json").read_text())["status"]

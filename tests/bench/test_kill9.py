@@ -55,6 +55,7 @@ def test_kill_9_mid_run_keeps_everything_up_to_the_last_part(sim_rig_mapped_path
     finally:
         if child.poll() is None:
             child.kill()
+            child.communicate()  # reaped, pipes closed: no leak warning in a later test
     assert child.returncode == -signal.SIGKILL
     run_dir = next(out.glob("*-step1"))
     df = pd.read_parquet(run_dir / "samples.parquet")
@@ -91,6 +92,7 @@ def test_sigterm_mid_run_stops_safely_and_records_it(sim_rig_mapped_path, tmp_pa
     finally:
         if child.poll() is None:
             child.kill()
+            child.communicate()  # reaped, pipes closed: no leak warning in a later test
     assert child.returncode == 143, err  # 128 + SIGTERM (Ctrl-C is 130)
     run_dir = next(out.glob("*-step1"))
     meta = json.loads((run_dir / "run.json").read_text())

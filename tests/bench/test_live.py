@@ -259,6 +259,7 @@ def test_step_live_from_the_command_line_runs_to_the_end(tmp_path, fixtures_dir)
     finally:
         if proc.poll() is None:
             proc.kill()
+            proc.communicate()  # reaped, pipes closed: no leak warning in a later test
     assert proc.returncode == 0, err
     assert "Fatal Python error" not in err
     assert ": success: sequence complete" in out

@@ -116,6 +116,7 @@ def test_kill_9_of_the_host_stops_the_pulse_train_within_dead_host_s(tmp_path):
     finally:
         if child.poll() is None:
             child.kill()
+            child.communicate()  # reaped, pipes closed: no leak warning in a later test
     reader.join(timeout=5)
     child.stdout.close()
     end, width_us, last_start = hw.train_end(400.0)

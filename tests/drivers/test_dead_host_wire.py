@@ -110,6 +110,7 @@ def _kill_mid_step(kind: str, bridge: Bridge, running, released, bound_s: float)
     finally:
         if child.poll() is None:
             child.kill()
+            child.communicate()  # reaped, pipes closed: no leak warning in a later test
     while not released():
         assert time.monotonic() - killed < bound_s + 2.0, "the motor never stopped"
         time.sleep(0.002)
@@ -202,6 +203,7 @@ def test_kill_9_of_the_host_leaves_the_msp_motor_test_running_as_betaflight_does
     finally:
         if child.poll() is None:
             child.kill()
+            child.communicate()  # reaped, pipes closed: no leak warning in a later test
         fc.stop()
 
 
@@ -243,6 +245,7 @@ def test_kill_9_of_the_host_releases_the_vesc_on_usb_within_its_timeout():
     finally:
         if child.poll() is None:
             child.kill()
+            child.communicate()  # reaped, pipes closed: no leak warning in a later test
         vesc.stop()
     assert vesc.timeouts == 1
     assert took <= 1.0 + 0.05, f"VESC released {took:.3f} s after the kill (bound 1 s)"
