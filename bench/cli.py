@@ -92,7 +92,7 @@ def _check_inputs(parser: argparse.ArgumentParser, argv: Sequence[str],
                   args: argparse.Namespace) -> None:
     """Refuse an input path that is a symlink loop, a device or a FIFO before any command
     reads it (``decode /dev/zero`` filled 18 GB; a looping --rig link was a traceback)."""
-    from bench.input_paths import check_input
+    from bench.rig.input_paths import check_input
 
     flags = _flags(parser, argv)
     for dest, value in vars(args).items():
@@ -126,7 +126,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         with _plain_numbers():
             return int(args.func(args) or 0)
     except KeyboardInterrupt as exc:
-        if "SIGTERM" in exc.args:  # bench.run_progress.sigterm_as_interrupt
+        if "SIGTERM" in exc.args:  # bench.jobs.run_progress.sigterm_as_interrupt
             print("rotorbench: terminated", file=sys.stderr)
             return 143  # 128 + SIGTERM, as a shell reports a process ended by `kill`
         print("rotorbench: interrupted", file=sys.stderr)

@@ -10,7 +10,7 @@ share: the catalog (:func:`add_catalog_args`), the hover margin (:func:`add_hove
 (:func:`add_measured_args`, :func:`measured_from_args`) and the flyable-design rules
 (:func:`add_rule_args`, :func:`rules_from_args`), plus their JSON encoder
 (:func:`json_default`) and the exit status when nothing is feasible. The work behind
-them lives in library modules (``bench.catalogs``, ``bench.measured_constants``,
+them lives in library modules (``bench.store.catalogs``, ``bench.store.measured_constants``,
 ``optimizer.flyable``); here is only argparse and output.
 
 A command that would run for minutes (a demo, a calibration on the rig) and then fail to
@@ -213,7 +213,7 @@ def seed_arg(text: str) -> int:
 
 # --- the bench commands' arguments (step, sweep, console) -----------------------------------
 def add_common_arguments(p: argparse.ArgumentParser) -> None:
-    from bench.safety import LIMIT_FIELDS
+    from bench.run.safety import LIMIT_FIELDS
 
     p.add_argument("--rig", type=Path, default=None,
                    help="rig file (TOML); default: the simulated rig fixtures/rigs/sim.toml")
@@ -248,7 +248,7 @@ def load_rig_from_args(args: argparse.Namespace, prefer_out_copy: bool = False) 
     ``prefer_out_copy``: for a read-only rig (shipped, or not writable) use the copy an
     earlier sweep stored under ``<out>/rigs/`` with its measured map, if there is one.
     """
-    from bench.rig import default_rig_path, load_rig, map_goes_to_copy, rig_copy_path
+    from bench.rig.rig import default_rig_path, load_rig, map_goes_to_copy, rig_copy_path
 
     rig = load_rig(args.rig or default_rig_path())
     if prefer_out_copy and map_goes_to_copy(rig):
@@ -263,8 +263,8 @@ def load_rig_from_args(args: argparse.Namespace, prefer_out_copy: bool = False) 
 
 
 def parse_limits(items: list[str]) -> dict[str, float]:
-    """``--limit NAME=VALUE`` items as a dict (names of ``bench.safety.LIMIT_FIELDS``)."""
-    from bench.safety import LIMIT_FIELDS
+    """``--limit NAME=VALUE`` items as a dict (names of ``bench.run.safety.LIMIT_FIELDS``)."""
+    from bench.run.safety import LIMIT_FIELDS
 
     out = {}
     for item in items:
@@ -283,7 +283,7 @@ def parse_limits(items: list[str]) -> dict[str, float]:
 
 def run_options_from_args(args: argparse.Namespace) -> Any:
     """The loop settings of ``--tick``, ``--realtime`` and ``--live`` (which implies it)."""
-    from bench.runner import RunOptions
+    from bench.runners.runner import RunOptions
 
     return RunOptions(tick_s=args.tick, realtime=bool(args.realtime or args.live))
 
@@ -291,10 +291,10 @@ def run_options_from_args(args: argparse.Namespace) -> Any:
 def print_dry_run(rig: Any, seq: Any, note: str | None = None) -> None:
     """The dry run: ``note``, the rig's ESC, every step with times and commands, the
     projection."""
-    from bench.run_budget import check_budget, project, row_rate_hz
-    from bench.safety import effective_limits
-    from bench.sequences import format_plan
-    from bench.session import plan_for
+    from bench.plans.run_budget import check_budget, project, row_rate_hz
+    from bench.plans.sequences import format_plan
+    from bench.run.safety import effective_limits
+    from bench.runners.session import plan_for
 
     effective_limits(rig.limits, seq.limits, source=f"sequence {seq.name!r}",
                      thrust_setpoints_n=seq.thrust_setpoints_n)
@@ -359,7 +359,7 @@ class HoverMargin:
 
     def apply(self, catalog: Any) -> Any:
         """``catalog`` with the margin as its ``min_thrust_to_weight`` check."""
-        from bench.catalogs import with_min_thrust_to_weight
+        from bench.store.catalogs import with_min_thrust_to_weight
 
         return with_min_thrust_to_weight(catalog, self.ratio)
 
@@ -405,7 +405,7 @@ def hover_margin_from_args(args: argparse.Namespace,
 
 def add_measured_args(p: argparse.ArgumentParser) -> None:
     """``--measured [DIR]`` and ``--esc-mode``: the constants store as the optimizer's
-    measured overrides (``bench.measured_constants``)."""
+    measured overrides (``bench.store.measured_constants``)."""
     p.add_argument(
         "--measured",
         type=str,
@@ -432,13 +432,13 @@ def measured_from_args(args: argparse.Namespace, catalog: Any) -> Any:
         if getattr(args, "esc_mode", None) is not None:
             raise RequestError("--esc-mode only applies with --measured")
         return None
-    from bench.constants_store import ActuatorKey, ConstantsRow
-    from bench.measured_constants import load_measured_set
+    from bench.store.constants_store import ActuatorKey, ConstantsRow
+    from bench.store.measured_constants import load_measured_set
     from bench.store.store_url import STORE_ENV, parse_store
 
     url = parse_store(args.measured or os.environ.get(STORE_ENV) or str(DEFAULT_RUNS_ROOT))
     if url.folder is not None:
-        from bench.input_paths import check_input
+        from bench.rig.input_paths import check_input
 
         return load_measured_set(check_input(url.folder, "--measured"), catalog, args.esc_mode)
     from bench.store.lab_catalog import LabCatalog

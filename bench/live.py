@@ -27,7 +27,7 @@ from typing import Any, TypeVar
 import numpy as np
 
 from bench.errors import RigError
-from bench.run_loop import OperatorStop
+from bench.run.run_loop import OperatorStop
 
 __all__ = ["LIVE_CHANNELS", "LiveView", "RingBuffer", "WindowLost", "binding_fault",
            "run_with_live_view"]
@@ -157,7 +157,7 @@ class LiveView:
         import pyqtgraph as pg
         from pyqtgraph.Qt import QtCore
 
-        from bench.qt_messages import filter_qt_messages
+        from bench.qt.qt_messages import filter_qt_messages
 
         self.ring = ring
         self.window_s = window_s

@@ -40,7 +40,7 @@ def _load(name: str, path: Path) -> object:
 
 def make_folder_store(root: Path, n: int) -> None:
     """``n`` indexed runs (run.json each; samples are not needed for listing)."""
-    from bench.run_index import RunIndex
+    from bench.store.run_index import RunIndex
 
     RunIndex(root)  # creates runs.sqlite
     rows = []
@@ -91,7 +91,7 @@ def time_get(client: object, path: str, repeats: int = 7) -> float:
 
 
 def make_big_run(root: Path, rows: int) -> str:
-    from bench.run_index import RunIndex
+    from bench.store.run_index import RunIndex
 
     rid = "20260101T000000_000000Z-endurance"
     run = root / rid

@@ -12,7 +12,7 @@ from __future__ import annotations
 import argparse
 import time
 
-from bench.rig import default_rig_path, load_rig
+from bench.rig.rig import default_rig_path, load_rig
 from drivers.factory import open_rig
 
 G = 9.81

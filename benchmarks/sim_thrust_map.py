@@ -16,7 +16,7 @@ import argparse
 
 import numpy as np
 
-from bench.rig import default_rig_path, load_rig, save_thrust_map
+from bench.rig.rig import default_rig_path, load_rig, save_thrust_map
 from drivers.factory import open_rig
 
 

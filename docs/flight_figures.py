@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.fly_figures import pyplot
-from bench.measured_constants import load_measured_set
+from bench.figures.fly_figures import pyplot
+from bench.store.measured_constants import load_measured_set
 from optimizer.catalog import load_catalog
 from optimizer.design_model import evaluate_grid
 from optimizer.flight.design import gains_for, setup

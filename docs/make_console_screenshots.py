@@ -25,7 +25,7 @@ def main(img: Path = IMG) -> int:
     removed afterwards, also when a step fails (it was left behind: 18 MB in /tmp)."""
     import pyqtgraph as pg
 
-    from bench.qt_messages import filter_qt_messages
+    from bench.qt.qt_messages import filter_qt_messages
 
     filter_qt_messages()
     _app = pg.mkQApp("rotorbench console")  # kept alive while the windows live
@@ -41,7 +41,7 @@ def take_screenshots(out: Path, img: Path) -> int:
     from bench.console.link import BenchLink
     from bench.console.server import ConsoleBench
     from bench.console.window import ConsoleWindow
-    from bench.rig import default_rig_path, load_rig
+    from bench.rig.rig import default_rig_path, load_rig
 
     link = BenchLink(capacity=25_000 * 6)
     bench = ConsoleBench(load_rig(default_rig_path()), out, link)
@@ -94,7 +94,7 @@ def take_screenshots(out: Path, img: Path) -> int:
     shot("history")
     win.close()
     # IMU: the simulated IMU bench, a quick calibration done
-    from bench.rig import default_imu_rig_path, load_imu_rig
+    from bench.rig.rig import default_imu_rig_path, load_imu_rig
 
     imu_link = BenchLink(capacity=1000)
     imu_bench = ConsoleBench(load_imu_rig(default_imu_rig_path()), out / "imu", imu_link)

@@ -1,6 +1,6 @@
 """Rig files -> opened devices, whatever the bench: one opener, devices by role.
 
-``open_rig(rig)`` takes a validated rig config (``bench.rig.RigConfig``, of either bench,
+``open_rig(rig)`` takes a validated rig config (``bench.rig.rig.RigConfig``, of either bench,
 used duck-typed so ``drivers`` does not import ``bench``) and returns an :class:`OpenRig`:
 the clock and the devices by role (``esc``, ``load_cell``, ``power``, ``rpm``; ``hexapod``,
 ``imu``, ``reference_imu``).
@@ -185,7 +185,7 @@ class _Sensors(MutableMapping[str, Sensor]):
 
 def validate_device(rig_path: Any, role: str, dev: Any) -> None:
     """Check a device's calibration and options as its opener will use them, before any
-    device opens or run folder exists (``bench.rig.load_rig`` calls this).
+    device opens or run folder exists (``bench.rig.rig.load_rig`` calls this).
 
     Covers ``sim://`` devices (calibration keys and values, ``options.faults``) and the
     calibration of ``nidaq://`` sensors (same keys and values; a missing key is reported

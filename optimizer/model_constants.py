@@ -64,7 +64,7 @@ class ModelConstants:
     #: If set, a design must reach this max-thrust / weight ratio at full battery voltage
     #: (steady state of eqs. (E.4)-(E.7)); None disables the check (the thesis has none).
     #: The sizing commands raise it to ``DEFAULT_MIN_THRUST_TO_WEIGHT`` unless run with
-    #: ``--thesis-rules`` (``bench.catalogs.with_min_thrust_to_weight``).
+    #: ``--thesis-rules`` (``bench.store.catalogs.with_min_thrust_to_weight``).
     min_thrust_to_weight: float | None = None
     #: Which current the motor's ``max_current_a`` limits. "winding": the torque current
     #: I_w = Q / K_t + I_0 at hover, Q = W / omega (E.3), is checked ("motor winding

@@ -3,7 +3,7 @@
 Three options change how the grid is built, and so how ``optimize`` is called:
 
 * measured overrides (a store's ``MeasuredActuator`` set: something with ``build_grid``
-  and ``annotate``, e.g. ``bench.measured_constants.MeasuredSet``): every design then
+  and ``annotate``, e.g. ``bench.store.measured_constants.MeasuredSet``): every design then
   carries ``sources`` naming what was measured;
 * the flyable-design rules (``optimizer.flyable.Rules``): the result then carries
   ``rule_reports``, what each rule removed;

@@ -7,7 +7,7 @@ and apply.
     rotorbench calibrate apply --cal cal.json LOG --out corrected.parquet
 
 On the rig (default: the simulated IMU bench ``fixtures/rigs/sim-imu.toml``) every Paper A
-stage runs as its own recorded run (``bench.calibration_stages``); the stages' samples are
+stage runs as its own recorded run (``bench.jobs.calibration_stages``); the stages' samples are
 joined into one calibration log next to the runs and calibrated like ``--from-log``.
 """
 
@@ -30,9 +30,6 @@ from analysis.imu_calibration import (
     save_calibration,
 )
 from analysis.imu_log import load_calibration_log, load_imu_log, write_table
-from bench.calibration_report import mat, print_calibration, print_stages, print_truth, vec
-from bench.calibration_sequences import format_plan, paper_a_sequences
-from bench.calibration_stages import calibrate_frame, collect_log, plans_for
 from bench.cli_support import (
     add_store_args,
     check_writable,
@@ -42,10 +39,13 @@ from bench.cli_support import (
     seed_arg,
 )
 from bench.errors import RigError
-from bench.recorder import new_run_id
-from bench.rig import default_imu_rig_path, is_imu_rig, load_imu_rig
-from bench.run_progress import run_calibration_with_progress
-from bench.runner import HexapodRunOptions
+from bench.figures.calibration_report import mat, print_calibration, print_stages, print_truth, vec
+from bench.jobs.calibration_stages import calibrate_frame, collect_log, plans_for
+from bench.jobs.run_progress import run_calibration_with_progress
+from bench.plans.calibration_sequences import format_plan, paper_a_sequences
+from bench.rig.rig import default_imu_rig_path, is_imu_rig, load_imu_rig
+from bench.run.recorder import new_run_id
+from bench.runners.runner import HexapodRunOptions
 
 
 class _OptionalAction(argparse.HelpFormatter):

@@ -45,10 +45,10 @@ def _fmt(v: object) -> str:
 
 
 def deep(args: argparse.Namespace, path: Path) -> int:
-    """``--deep``: the bring-up report (bench/bringup.py), printed and saved."""
-    from bench.bringup import bringup_report
-    from bench.recorder import atomic_write_json
-    from bench.rig import load_any_rig
+    """``--deep``: the bring-up report (bench/rig/bringup.py), printed and saved."""
+    from bench.rig.bringup import bringup_report
+    from bench.rig.rig import load_any_rig
+    from bench.run.recorder import atomic_write_json
 
     seconds = 2.0 if args.seconds is None else args.seconds
     if not (math.isfinite(seconds) and 0 < seconds <= 600):
@@ -86,7 +86,7 @@ def deep(args: argparse.Namespace, path: Path) -> int:
 
 
 def handler(args: argparse.Namespace) -> int:
-    from bench.rig import default_rig_path, is_imu_rig, load_imu_rig, load_rig
+    from bench.rig.rig import default_rig_path, is_imu_rig, load_imu_rig, load_rig
 
     if not (math.isfinite(args.timeout) and 0 < args.timeout <= MAX_TIMEOUT_S):
         raise RigError(f"--timeout: expected seconds > 0 per device (at most "

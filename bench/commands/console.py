@@ -67,8 +67,8 @@ def handler(args: argparse.Namespace) -> int:
     from bench.console.manual import DEFAULT_RATE_US_S
     from bench.console.server import ConsoleBench
     from bench.live import _qt_binding_missing, check_display
-    from bench.rig import is_imu_rig, load_imu_rig
-    from bench.runner import RunOptions
+    from bench.rig.rig import is_imu_rig, load_imu_rig
+    from bench.runners.runner import RunOptions
 
     store = cli.recording_store(args)  # a lab store records into the spool, published at exit
     imu = args.rig is not None and is_imu_rig(args.rig)
@@ -126,7 +126,7 @@ def handler(args: argparse.Namespace) -> int:
 
 
 def _tightened(rig: Any, extra: dict[str, float]) -> dict[str, float]:
-    from bench.safety import effective_limits
+    from bench.run.safety import effective_limits
 
     return effective_limits(rig.limits, extra, source="--limit")
 

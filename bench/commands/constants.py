@@ -1,9 +1,9 @@
 """``rotorbench constants``: store fitted constants of runs and list the stored ones.
 
 ``--add RUN ...`` fits each run (step runs: latency and time constants; sweeps: static
-curves and the supply current at a list of thrusts; ``bench.constants_fit``) and stores the
+curves and the supply current at a list of thrusts; ``bench.store.constants_fit``) and stores the
 result in ``<out>/constants.sqlite`` under the run's motor, propeller, ESC, ESC mode and
-battery. ``bench.measured_constants.load_measured`` turns the store into the optimizer's
+battery. ``bench.store.measured_constants.load_measured`` turns the store into the optimizer's
 ``MeasuredActuator`` overrides.
 """
 
@@ -24,7 +24,7 @@ from bench.cli_support import (
     run_folder_arg,
     store_from_args,
 )
-from bench.constants_fit import fit_for_store
+from bench.store.constants_fit import fit_for_store
 from bench.store.lab_catalog import StoredConstants
 
 

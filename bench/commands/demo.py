@@ -33,7 +33,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from analysis.atomic_files import temp_beside
 from bench.cli_support import add_hover_args, check_writable, hover_margin_from_args, seed_arg
 from bench.errors import RigError
-from bench.owned_folder import refuse_foreign, write_manifest
+from bench.figures.owned_folder import refuse_foreign, write_manifest
 from optimizer.paper_e_cases import PAPER_E_CASES
 
 G0 = 9.80665
@@ -41,7 +41,7 @@ ACTUATORS = (4, 6, 8)
 #: Written into every demo output; only a folder holding it may be replaced.
 MARKER = ".rotorbench-demo"
 MARKER_TEXT = "rotorbench demo output; `rotorbench demo --out` may replace this folder\n"
-#: What a demo folder held before its manifest (:mod:`bench.owned_folder`).
+#: What a demo folder held before its manifest (:mod:`bench.figures.owned_folder`).
 DEMO_NAMES = (MARKER, "demo.json", "runs", "figures", "tables")
 #: Metric keys whose source the designs table reports.
 SOURCE_KEYS = ("time_constant_ms", "current_a", "power_w", "flight_time_min")
@@ -72,7 +72,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def combo_rig(base: Any, catalog: Any, i: int, j: int, mode: str, seed: int) -> Any:
     """The default sim rig with propeller ``i`` on motor ``j`` of the catalog."""
-    from bench.rig import Limits
+    from bench.rig.rig import Limits
     from optimizer.design_model import battery_voltage_v, motor_inertia_kgm2, propeller_inertia_kgm2
     from optimizer.physics import torque_constant
 
@@ -142,15 +142,15 @@ def handler(args: argparse.Namespace) -> int:
     from analysis.static_curves import fit_static_run
     from analysis.step_response import fit_run
     from analysis.validation import validate_run
-    from bench.catalogs import shipped_catalog
-    from bench.constants_fit import fit_for_store
-    from bench.constants_store import ConstantsStore
-    from bench.measured_constants import MeasuredSet, load_measured
-    from bench.rig import default_rig_path, load_rig
-    from bench.runner import RunOptions
-    from bench.sequences import step1, step2, sweep
-    from bench.session import run_sequence
-    from bench.thrust_map import fit_sweep_run
+    from bench.plans.sequences import step1, step2, sweep
+    from bench.plans.thrust_map import fit_sweep_run
+    from bench.rig.rig import default_rig_path, load_rig
+    from bench.runners.runner import RunOptions
+    from bench.runners.session import run_sequence
+    from bench.store.catalogs import shipped_catalog
+    from bench.store.constants_fit import fit_for_store
+    from bench.store.constants_store import ConstantsStore
+    from bench.store.measured_constants import MeasuredSet, load_measured
     from drivers.factory import open_rig
 
     wall0 = time.monotonic()
@@ -308,7 +308,7 @@ def _tables_and_figures(console, catalog, fits, statics, step2_runs, measured, c
                                  title=f"Step 2, {m}: RMS error first order "
                                        f"{v.rms_first_order_pct:.1f} % of the band")
     # Tables E.8-E.10: the optimizer's designs, datasheet model and measured constants
-    from bench.design_tables import print_table
+    from bench.figures.design_tables import print_table
 
     sel_rows, e11, e13, e14 = [], [], [], []
     for case, title, pair in cases:

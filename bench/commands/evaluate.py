@@ -18,7 +18,6 @@ import time
 from pathlib import Path
 from typing import Any
 
-from bench.catalogs import load, with_current_model
 from bench.cli_support import (
     add_catalog_args,
     add_hover_args,
@@ -28,8 +27,9 @@ from bench.cli_support import (
     json_default,
     measured_from_args,
 )
-from bench.design_tables import MEASURED_MARK, ROWS, format_cell
-from bench.measured_constants import is_measured
+from bench.figures.design_tables import MEASURED_MARK, ROWS, format_cell
+from bench.store.catalogs import load, with_current_model
+from bench.store.measured_constants import is_measured
 from optimizer.errors import RequestError
 
 
@@ -169,7 +169,7 @@ def handler(args: argparse.Namespace) -> int:
         check_figure_path(args.plot)
     record = evaluate(args)
     if args.plot is not None:
-        from bench.sizing_figures import partial_load_figure
+        from bench.figures.sizing_figures import partial_load_figure
 
         partial_load_figure(record, args.plot)
     if args.json:

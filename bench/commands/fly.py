@@ -20,7 +20,6 @@ import math
 from pathlib import Path
 from typing import Any
 
-from bench.catalogs import load
 from bench.cli_support import (
     add_catalog_args,
     add_hover_args,
@@ -32,6 +31,7 @@ from bench.cli_support import (
     measured_from_args,
     run_folder_arg,
 )
+from bench.store.catalogs import load
 from optimizer.errors import RequestError
 
 
@@ -72,7 +72,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def step_constants(run: Path) -> Any:
     """Fit a step run (as ``rotorbench constants`` does) into flight-model numbers."""
     from analysis.run_record import esc_frame_s, read_run
-    from bench.constants_fit import fit_for_store
+    from bench.store.constants_fit import fit_for_store
     from optimizer.flight.design import StepConstants
 
     key, kind, run_id, data = fit_for_store(run)
@@ -163,7 +163,7 @@ def _one(args: argparse.Namespace, catalog: Any, grid: Any, step: Any, measured:
     if measured is not None:
         report["measured_store"] = measured.describe()
     if args.plot is not None:
-        from bench.fly_figures import maneuver_figures
+        from bench.figures.fly_figures import maneuver_figures
 
         report["plots"] = [str(p) for p in maneuver_figures(flights, vehicle, args.plot)]
     if args.json:
@@ -231,7 +231,7 @@ def _sweep(args: argparse.Namespace, catalog: Any, grid: Any, step: Any, measure
     if measured is not None:
         doc["measured_store"] = measured.describe()
     if args.plot is not None:
-        from bench.fly_figures import ranking_scatter
+        from bench.figures.fly_figures import ranking_scatter
 
         doc["plots"] = [str(ranking_scatter(ranking, args.plot, Path(catalog.source).name))]
     if args.json:

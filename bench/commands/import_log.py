@@ -4,7 +4,7 @@ The format is read from the header unless ``--format`` forces it (``--map`` impl
 the output line says which was taken and how.
 
 Parsing lives in ``analysis.importers``; this is the glue that writes the run folder with
-``bench.recorder.RunRecorder`` into a temporary folder beside ``DIR`` and renames it into
+``bench.run.recorder.RunRecorder`` into a temporary folder beside ``DIR`` and renames it into
 place, so an interrupted import leaves nothing half-written under the final name.
 """
 
@@ -55,7 +55,7 @@ def parse_mapping(items: list[str]) -> dict[str, str]:
 
 def write_run(out: Path, samples, meta: dict) -> Path:
     """Write ``samples`` (a DataFrame with run columns) and ``meta`` as a run folder."""
-    from bench.recorder import BASE_COLUMNS, RunRecorder
+    from bench.run.recorder import BASE_COLUMNS, RunRecorder
 
     out = Path(out)
     if out.exists():

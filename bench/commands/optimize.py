@@ -18,7 +18,6 @@ import argparse
 import json
 from typing import Any
 
-from bench.catalogs import load
 from bench.cli_support import (
     EXIT_NO_FEASIBLE,
     RULE_FLAGS,
@@ -33,7 +32,8 @@ from bench.cli_support import (
     refuse_unused,
     rules_from_args,
 )
-from bench.design_tables import print_table
+from bench.figures.design_tables import print_table
+from bench.store.catalogs import load
 from optimizer.errors import RequestError
 from optimizer.objectives import OBJECTIVE_NAMES, Objective, parse_weights, single, weighted
 from optimizer.paper_e_cases import PAPER_E_CASES

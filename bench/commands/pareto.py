@@ -19,7 +19,6 @@ from typing import Any
 
 import numpy as np
 
-from bench.catalogs import load
 from bench.cli_support import (
     EXIT_NO_FEASIBLE,
     add_catalog_args,
@@ -30,6 +29,7 @@ from bench.cli_support import (
     json_default,
     rules_from_args,
 )
+from bench.store.catalogs import load
 from optimizer.errors import RequestError
 
 #: Most points drawn in grey on the plot (an even subsample beyond this).
@@ -142,7 +142,7 @@ def handler(args: argparse.Namespace) -> int:
         check_figure_path(args.plot)
     doc = compute(args)
     if args.plot is not None:
-        from bench.sizing_figures import pareto_figure
+        from bench.figures.sizing_figures import pareto_figure
 
         cx, cy = doc["_cloud"]
         step = max(1, -(-cx.size // PLOT_CLOUD_MAX))

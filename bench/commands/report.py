@@ -27,10 +27,10 @@ from rich.console import Console
 
 from bench.cli_support import add_store_args, check_writable, run_folder_arg
 from bench.errors import RigError
-from bench.owned_folder import refuse_foreign, write_manifest
+from bench.figures.owned_folder import refuse_foreign, write_manifest
 
 G0 = 9.80665
-#: What a report folder held before its manifest (:mod:`bench.owned_folder`).
+#: What a report folder held before its manifest (:mod:`bench.figures.owned_folder`).
 REPORT_NAMES = ("report.json", "table_c1.csv", "static_curves.csv", "validation.csv",
                 "steps.png", "static_*.png", "validation_*.png")
 

@@ -14,7 +14,7 @@ from rich.table import Table
 
 from bench.cli_support import add_store_args, check_folder_to_read, check_writable, store_from_args
 from bench.errors import RigError
-from bench.run_index import INDEX_NAME, RunIndex
+from bench.store.run_index import INDEX_NAME, RunIndex
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:

@@ -5,8 +5,8 @@ from __future__ import annotations
 import argparse
 
 from bench import cli_support as cli
-from bench.plan_specs import named_step_sequence
-from bench.sequences import Sequence
+from bench.plans.plan_specs import named_step_sequence
+from bench.plans.sequences import Sequence
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -37,8 +37,8 @@ def build(args: argparse.Namespace) -> Sequence:
 
 
 def handler(args: argparse.Namespace) -> int:
-    from bench.map_sweep import measure_map
-    from bench.run_progress import (
+    from bench.jobs.map_sweep import measure_map
+    from bench.jobs.run_progress import (
         check_budget_of,
         check_limits,
         err_console,

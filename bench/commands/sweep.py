@@ -5,8 +5,8 @@ from __future__ import annotations
 import argparse
 
 from bench import cli_support as cli
-from bench.plan_specs import sweep_sequence
-from bench.sequences import Sequence
+from bench.plans.plan_specs import sweep_sequence
+from bench.plans.sequences import Sequence
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -32,7 +32,7 @@ def build(args: argparse.Namespace) -> Sequence:
 
 
 def handler(args: argparse.Namespace) -> int:
-    from bench.map_sweep import measure_map
+    from bench.jobs.map_sweep import measure_map
 
     store = cli.recording_store(args)  # before the rig: a lab store records into the spool
     rig = cli.load_rig_from_args(args, prefer_out_copy=True)

@@ -10,7 +10,7 @@ from pyqtgraph.Qt import QtCore, QtGui, QtWidgets
 
 from bench.console.plots import LivePlots
 from bench.live import RingBuffer
-from bench.safety import LIMIT_FIELDS
+from bench.run.safety import LIMIT_FIELDS
 
 __all__ = ["ControlTab", "LimitsPanel", "ThrottleSlider"]
 

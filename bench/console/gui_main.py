@@ -31,7 +31,7 @@ def window_main(gui_args: tuple[Any, ...], out: str, selftest: dict[str, Any] | 
     from pyqtgraph.Qt import QtCore
 
     from bench.console.window import ConsoleWindow
-    from bench.qt_messages import filter_qt_messages
+    from bench.qt.qt_messages import filter_qt_messages
 
     def crash(kind: Any, value: Any, tb: Any) -> None:
         # an exception in a Qt slot would otherwise be printed and forgotten; the window

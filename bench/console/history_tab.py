@@ -17,7 +17,7 @@ import pyqtgraph as pg
 from pyqtgraph.Qt import QtCore, QtWidgets
 
 from bench.console.envelope import envelope
-from bench.run_index import RunIndex, RunRow
+from bench.store.run_index import RunIndex, RunRow
 
 __all__ = ["HistoryTab"]
 

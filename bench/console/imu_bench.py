@@ -1,6 +1,6 @@
 """The console's IMU-bench runs: a Paper A calibration on an IMU rig, started from the IMU tab.
 
-Each stage is recorded and indexed by :func:`bench.calibration_stages.run_calibration` (the
+Each stage is recorded and indexed by :func:`bench.jobs.calibration_stages.run_calibration` (the
 HexapodRunner: limits, watchdog, hexapod stopped in a ``finally``), exactly as
 ``rotorbench calibrate --rig`` does; the console adds only its stop and its liveness check
 (a lost window sets the stop event, which ends the stage at its next tick with the hexapod
@@ -63,15 +63,15 @@ class ImuCalibration:
 
     def run(self) -> dict[str, Any]:
         from analysis.imu_log import load_calibration_log
-        from bench.calibration_sequences import paper_a_sequences
-        from bench.calibration_stages import (
+        from bench.jobs.calibration_stages import (
             calibrate_frame,
             collect_log,
             plans_for,
             run_calibration,
         )
-        from bench.recorder import new_run_id
-        from bench.runner import HexapodRunOptions
+        from bench.plans.calibration_sequences import paper_a_sequences
+        from bench.run.recorder import new_run_id
+        from bench.runners.runner import HexapodRunOptions
 
         rig = self.rig
         seqs = paper_a_sequences(rig.imu.value("rate_hz"), quick=self.quick)

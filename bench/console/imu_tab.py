@@ -13,7 +13,7 @@ from typing import Any
 from pyqtgraph.Qt import QtCore, QtWidgets
 
 from bench.console.pose_view import PoseView
-from bench.run_index import RunIndex
+from bench.store.run_index import RunIndex
 
 __all__ = ["ImuTab"]
 

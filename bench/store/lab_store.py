@@ -140,7 +140,7 @@ class LabStore:
         sent = self.trailing.stop() if self.trailing is not None else {}
         self.trailing = None
         if (self.spool / "runs.sqlite").exists():  # a run whose process died (kill -9) is
-            from bench.run_index import RunIndex  # marked killed first, then delivered
+            from bench.store.run_index import RunIndex  # marked killed first, then delivered
 
             RunIndex(self.spool)
         waiting = pending_runs(self.spool, self.publisher)
@@ -182,7 +182,7 @@ class LabStore:
         return PushReport(pushed, skipped, failed, added, same)
 
     def _push_constants(self, folder: Path) -> tuple[int, int]:
-        from bench.constants_store import STORE_NAME, ConstantsStore
+        from bench.store.constants_store import STORE_NAME, ConstantsStore
 
         if not (folder / STORE_NAME).exists():
             return 0, 0

@@ -1,7 +1,7 @@
 """One ``Store`` interface for runs and constants, with its two implementations.
 
 * ``FolderStore``: the embedded default, a folder of run folders with ``runs.sqlite`` and
-  ``constants.sqlite`` beside them (``bench.run_index``, ``bench.constants_store``).
+  ``constants.sqlite`` beside them (``bench.store.run_index``, ``bench.store.constants_store``).
 * ``LabStore`` (``bench.store.lab_store``): the PostgreSQL catalog with the run folders in
   a shared folder or an S3 bucket, runs recorded into a local spool first.
 
@@ -48,7 +48,7 @@ class FolderStore:
     @property
     def path(self) -> Path:
         """The constants store's file (what the constants table is titled with)."""
-        from bench.constants_store import STORE_NAME
+        from bench.store.constants_store import STORE_NAME
 
         return self.root / STORE_NAME
 
@@ -83,7 +83,7 @@ class FolderStore:
         opening the index first marks runs whose recording process died."""
         import sqlite3
 
-        from bench.run_index import INDEX_NAME, RunIndex
+        from bench.store.run_index import INDEX_NAME, RunIndex
 
         if not (self.root / INDEX_NAME).exists():
             return 0 if count else []
@@ -137,7 +137,7 @@ class FolderStore:
                        data=str(Path(r.data).resolve()))
 
     def run_folder(self, run_id: str) -> Path:
-        from bench.run_index import INDEX_NAME, RunIndex
+        from bench.store.run_index import INDEX_NAME, RunIndex
 
         if (self.root / INDEX_NAME).exists():
             for r in RunIndex(self.root).list():
@@ -146,7 +146,7 @@ class FolderStore:
         raise RigError(f"run {run_id}: not in the store {self.root}")
 
     def add_constants(self, rows: Sequence[Any]) -> int:
-        from bench.constants_store import ActuatorKey, ConstantsStore
+        from bench.store.constants_store import ActuatorKey, ConstantsStore
 
         store = ConstantsStore(self.root)
         for r in rows:
@@ -155,7 +155,7 @@ class FolderStore:
         return len(rows)
 
     def constants(self) -> list[Any]:
-        from bench.constants_store import ConstantsStore
+        from bench.store.constants_store import ConstantsStore
         from bench.store.lab_catalog import StoredConstants
 
         return [StoredConstants(r.key.motor, r.key.propeller, r.key.esc, r.key.esc_mode,

@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 
 from bench.cli import main
-from bench.constants_store import ConstantsStore
 from bench.errors import RigError
-from bench.measured_constants import load_measured
-from bench.rig import default_rig_path, load_rig
-from bench.runner import RunOptions
-from bench.sequences import hover_band_n, step1, sweep
-from bench.session import run_sequence
+from bench.plans.sequences import hover_band_n, step1, sweep
+from bench.rig.rig import default_rig_path, load_rig
+from bench.runners.runner import RunOptions
+from bench.runners.session import run_sequence
+from bench.store.constants_store import ConstantsStore
+from bench.store.measured_constants import load_measured
 from drivers.factory import open_rig
 
 

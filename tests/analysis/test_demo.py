@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 
 from bench.cli import main
-from bench.constants_store import ConstantsStore
+from bench.store.constants_store import ConstantsStore
 
 
 def test_demo_one_combination(tmp_path, capsys):

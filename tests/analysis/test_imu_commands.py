@@ -64,7 +64,7 @@ def test_calibrate_on_a_propulsion_rig_says_what_is_missing(
         capsys: pytest.CaptureFixture) -> None:
     # Without --from-log the command runs on the IMU bench (tests/bench/test_calibration_*);
     # a propulsion rig file is refused with one line naming the file and the field.
-    from bench.rig import default_rig_path
+    from bench.rig.rig import default_rig_path
 
     assert main(["calibrate", "--rig", str(default_rig_path())]) == 2
     err = capsys.readouterr().err

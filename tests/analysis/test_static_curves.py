@@ -20,10 +20,10 @@ from analysis.static_curves import (
     from_parameters,
     motor_constants,
 )
-from bench.rig import default_rig_path, load_rig
-from bench.runner import RunOptions
-from bench.sequences import sweep
-from bench.session import run_sequence
+from bench.plans.sequences import sweep
+from bench.rig.rig import default_rig_path, load_rig
+from bench.runners.runner import RunOptions
+from bench.runners.session import run_sequence
 from drivers.factory import open_rig
 
 

@@ -31,7 +31,7 @@ def fake_rig():
 @pytest.fixture
 def sim_rig_path(tmp_path: Path) -> Path:
     """A copy of the default sim rig in tmp_path, without a thrust map."""
-    from bench.rig import default_rig_path
+    from bench.rig.rig import default_rig_path
 
     target = tmp_path / "rig" / "sim.toml"
     target.parent.mkdir()

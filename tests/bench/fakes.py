@@ -179,7 +179,7 @@ class FakeRig:
 
 def write_truth_map(rig_path) -> None:
     """A static map for a copied sim rig from the plant's own steady state (no sweep)."""
-    from bench.rig import load_rig, save_thrust_map
+    from bench.rig.rig import load_rig, save_thrust_map
     from drivers.factory import open_rig
 
     rig = load_rig(rig_path)

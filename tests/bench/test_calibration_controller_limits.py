@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from bench.calibration_stages import run_calibration
-from bench.rig import load_imu_rig
+from bench.jobs.calibration_stages import run_calibration
+from bench.rig.rig import load_imu_rig
 from drivers.errors import DeviceError
 from drivers.factory import open_rig
 

@@ -13,7 +13,7 @@ import pytest
 from analysis.imu_calibration import TABLE_A2, load_calibration
 from analysis.imu_log import CALIBRATION_COLUMNS, load_calibration_log
 from bench.cli import main
-from bench.rig import default_imu_rig_path
+from bench.rig.rig import default_imu_rig_path
 
 
 @pytest.fixture(scope="module")

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from bench.errors import RigError
-from bench.rig import default_imu_rig_path, default_rig_path, is_imu_rig, load_imu_rig
+from bench.rig.rig import default_imu_rig_path, default_rig_path, is_imu_rig, load_imu_rig
 
 TEXT = default_imu_rig_path().read_text(encoding="utf-8")
 

@@ -10,11 +10,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bench.calibration_sequences import Move, Rest, SetPivot, compile_plan
-from bench.rig import default_imu_rig_path, load_imu_rig
-from bench.runner import HexapodRunOptions
-from bench.sequences import Sequence
-from bench.session import run_stage
+from bench.plans.calibration_sequences import Move, Rest, SetPivot, compile_plan
+from bench.plans.sequences import Sequence
+from bench.rig.rig import default_imu_rig_path, load_imu_rig
+from bench.runners.runner import HexapodRunOptions
+from bench.runners.session import run_stage
 from drivers.contracts import Fault, HexapodLimits
 from drivers.errors import DeviceError
 from drivers.factory import open_rig
@@ -176,7 +176,7 @@ def test_stalled_host_is_stopped_by_the_watchdog(bench, tmp_path: Path) -> None:
 
 
 def test_calibration_session_stops_at_a_failed_stage_and_closes(tmp_path: Path) -> None:
-    from bench.calibration_stages import run_calibration
+    from bench.jobs.calibration_stages import run_calibration
 
     opened = []
 

@@ -8,7 +8,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from bench.calibration_sequences import (
+from bench.errors import RigError
+from bench.plans.calibration_sequences import (
     Move,
     Rest,
     SetPivot,
@@ -18,8 +19,7 @@ from bench.calibration_sequences import (
     paper_a_sequences,
     phase_at,
 )
-from bench.errors import RigError
-from bench.sequences import Sequence
+from bench.plans.sequences import Sequence
 from drivers.contracts import HexapodLimits
 from drivers.hexapod_motions import gyro_sines, lever_arm_motion
 

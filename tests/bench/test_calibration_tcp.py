@@ -13,12 +13,12 @@ import pandas as pd
 import pytest
 
 from analysis.imu_calibration import load_calibration
-from bench.calibration_sequences import Move, Rest, SetPivot, compile_plan
 from bench.cli import main
-from bench.rig import load_imu_rig
-from bench.runner import HexapodRunOptions
-from bench.sequences import Sequence
-from bench.session import run_stage
+from bench.plans.calibration_sequences import Move, Rest, SetPivot, compile_plan
+from bench.plans.sequences import Sequence
+from bench.rig.rig import load_imu_rig
+from bench.runners.runner import HexapodRunOptions
+from bench.runners.session import run_stage
 from drivers.backends.pi_hexapod import PiHexapod
 from drivers.errors import DeviceError
 from drivers.factory import open_rig

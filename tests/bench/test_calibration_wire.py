@@ -22,12 +22,12 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from analysis.imu_calibration import calibrate, load_calibration
-from bench.calibration_sequences import Move, Rest, SetPivot, compile_plan
 from bench.cli import main
-from bench.rig import load_imu_rig
-from bench.runner import HexapodRunOptions
-from bench.sequences import Sequence
-from bench.session import run_stage
+from bench.plans.calibration_sequences import Move, Rest, SetPivot, compile_plan
+from bench.plans.sequences import Sequence
+from bench.rig.rig import load_imu_rig
+from bench.runners.runner import HexapodRunOptions
+from bench.runners.session import run_stage
 from drivers.contracts import POSE_CHANNELS
 from drivers.errors import DeviceError
 from drivers.factory import open_rig

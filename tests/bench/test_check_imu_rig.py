@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from bench.cli import main
-from bench.rig import load_imu_rig
+from bench.rig.rig import load_imu_rig
 from drivers.check import hexapod_answer as _hexapod_answer
 from drivers.contracts import Trajectory
 from drivers.factory import open_rig

@@ -11,7 +11,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bench.catalogs import SHIPPED_CATALOGS, default_catalog, load, shipped_catalog
 from bench.cli_support import (
     add_measured_args,
     add_rule_args,
@@ -20,9 +19,10 @@ from bench.cli_support import (
     option_defaults,
     rules_from_args,
 )
-from bench.constants_fit import fit_for_store
-from bench.design_tables import format_cell
 from bench.errors import RigError
+from bench.figures.design_tables import format_cell
+from bench.store.catalogs import SHIPPED_CATALOGS, default_catalog, load, shipped_catalog
+from bench.store.constants_fit import fit_for_store
 from optimizer.errors import CatalogError, RequestError
 
 

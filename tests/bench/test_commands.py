@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 
 from bench.cli import main
-from bench.rig import load_rig
+from bench.rig.rig import load_rig
 
 
 def test_dry_run_prints_every_step_and_touches_no_device(sim_rig_mapped_path, monkeypatch,

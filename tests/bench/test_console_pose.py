@@ -10,10 +10,10 @@ import pytest
 pytest.importorskip("pytestqt")
 pytest.importorskip("pyqtgraph")
 
-from bench.calibration_sequences import HexapodSegment
 from bench.console.imu_bench import commanded_pose
 from bench.console.imu_tab import ImuTab
 from bench.console.pose_view import HOME_HEIGHT_M, TRANSLATION_GAIN, plate_points
+from bench.plans.calibration_sequences import HexapodSegment
 from drivers.hexapod_motions import Motion
 
 

@@ -30,7 +30,7 @@ from pyqtgraph.Qt import QtCore
 
 from bench.console.link import HEARTBEAT_BOUND_S, BenchLink
 from bench.console.server import ConsoleBench
-from bench.rig import default_rig_path, load_rig
+from bench.rig.rig import default_rig_path, load_rig
 from drivers.factory import open_rig
 
 Key = QtCore.Qt.Key
@@ -79,7 +79,7 @@ def _served_window(qtbot, tmp_path, rig, capacity, **kwargs):
 
 @pytest.fixture
 def console(qtbot, tmp_path):
-    from bench.runner import RunOptions
+    from bench.runners.runner import RunOptions
 
     opener = _Opener()
     # window and bench share one interpreter here: a long paint holding the GIL can stall
@@ -299,7 +299,7 @@ def test_the_selftest_runs_headless_and_records_a_run_that_ends_at_idle(tmp_path
     assert "recorded throttle: up to 1300 us, last 1000 us" in proc.stdout
     with Image.open(shot) as img:
         assert img.size[0] >= 800 and img.size[1] >= 500
-    from bench.run_index import RunIndex
+    from bench.store.run_index import RunIndex
 
     rows = RunIndex(tmp_path).list()
     assert [(r.sequence, r.status) for r in rows] == [("manual", "success")]
@@ -307,7 +307,7 @@ def test_the_selftest_runs_headless_and_records_a_run_that_ends_at_idle(tmp_path
 
 @pytest.fixture
 def imu_console(qtbot, tmp_path):
-    from bench.rig import default_imu_rig_path, load_imu_rig
+    from bench.rig.rig import default_imu_rig_path, load_imu_rig
 
     yield from _served_window(qtbot, tmp_path, load_imu_rig(default_imu_rig_path()), 1000)
 

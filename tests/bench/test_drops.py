@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 
 from bench.cli import main
-from bench.drops import DropCounter
-from bench.recorder import RunRecorder
-from bench.rig import load_rig
-from bench.runner import Runner, RunOptions
-from bench.safety import effective_limits
-from bench.sequences import step1
-from bench.session import esc_range_of, plan_for
+from bench.plans.sequences import step1
+from bench.rig.rig import load_rig
+from bench.run.drops import DropCounter
+from bench.run.recorder import RunRecorder
+from bench.run.safety import effective_limits
+from bench.runners.runner import Runner, RunOptions
+from bench.runners.session import esc_range_of, plan_for
 from drivers.contracts import Fault
 from drivers.factory import open_rig
 

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from bench.indexed_run import RunInterrupted, indexed_run
+from bench.store.indexed_run import RunInterrupted, indexed_run
 
 
 @pytest.mark.parametrize(("sig", "how", "code", "last"), [

@@ -15,15 +15,15 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from bench.run_index import RunIndex
+from bench.store.run_index import RunIndex
 
 CHILD = """
 import sys
 from pathlib import Path
-from bench.rig import load_rig
-from bench.runner import RunOptions
-from bench.sequences import step1
-from bench.session import run_sequence
+from bench.rig.rig import load_rig
+from bench.runners.runner import RunOptions
+from bench.plans.sequences import step1
+from bench.runners.session import run_sequence
 from drivers.factory import open_rig
 
 rig = load_rig(sys.argv[1])

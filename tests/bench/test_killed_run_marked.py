@@ -13,15 +13,15 @@ from pathlib import Path
 import numpy as np
 
 from analysis.run_record import read_run
-from bench.recorder import RunRecorder
-from bench.run_index import RunIndex
+from bench.run.recorder import RunRecorder
+from bench.store.run_index import RunIndex
 
 DIES = """
 import os, sys
 from pathlib import Path
 import numpy as np
-from bench.recorder import RunRecorder
-from bench.run_index import RunIndex
+from bench.run.recorder import RunRecorder
+from bench.store.run_index import RunIndex
 
 root = Path(sys.argv[1])
 rec = RunRecorder(root / "dead", {"id": "dead", "sequence": {"name": "step1"}})

@@ -95,7 +95,7 @@ def test_live_view_redraws_from_the_ring_on_its_timer():
 
 
 def _step_plan(repeats):
-    from bench.sequences import EscRange, compile_plan, step1
+    from bench.plans.sequences import EscRange, compile_plan, step1
 
     esc = EscRange(1000.0, 1050.0, 2000.0)
     return esc, compile_plan(step1(repeats=repeats), esc,
@@ -103,8 +103,8 @@ def _step_plan(repeats):
 
 
 def _runner(fakes, tmp_path, repeats, spy):
-    from bench.recorder import RunRecorder
-    from bench.runner import Runner
+    from bench.run.recorder import RunRecorder
+    from bench.runners.runner import Runner
 
     esc, plan = _step_plan(repeats)
     rig = fakes.FakeRig()

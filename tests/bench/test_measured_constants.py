@@ -1,4 +1,4 @@
-"""The constants stage as a library (bench.measured_constants): a store written row by row
+"""The constants stage as a library (bench.store.measured_constants): a store written row by row
 read back as the optimizer's overrides, one catalog and ESC mode picked, sources named."""
 
 from __future__ import annotations
@@ -7,8 +7,8 @@ import math
 
 import pytest
 
-from bench.constants_store import ActuatorKey, ConstantsStore
-from bench.measured_constants import (
+from bench.store.constants_store import ActuatorKey, ConstantsStore
+from bench.store.measured_constants import (
     MeasuredSet,
     find_store,
     is_measured,

@@ -7,12 +7,13 @@ import argparse
 
 import pytest
 
-from bench.calibration_sequences import Move, compile_plan, paper_a_sequences
 from bench.commands.step import build as build_step
 from bench.commands.sweep import build as build_sweep
 from bench.errors import RigError
-from bench.plan_specs import plan_sequence
-from bench.rig import (
+from bench.plans.calibration_sequences import Move, compile_plan, paper_a_sequences
+from bench.plans.plan_specs import plan_sequence
+from bench.plans.sequences import Checkpoint, Plan, Sequence, step1
+from bench.rig.rig import (
     RigConfig,
     default_imu_rig_path,
     default_rig_path,
@@ -20,8 +21,7 @@ from bench.rig import (
     load_imu_rig,
     load_rig,
 )
-from bench.sequences import Checkpoint, Plan, Sequence, step1
-from bench.session import plan_for
+from bench.runners.session import plan_for
 
 
 def test_one_rig_config_for_both_benches() -> None:

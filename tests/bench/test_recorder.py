@@ -13,8 +13,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from bench.recorder import BASE_COLUMNS, SAMPLES_DIR, RunRecorder
-from bench.run_index import RunIndex
+from bench.run.recorder import BASE_COLUMNS, SAMPLES_DIR, RunRecorder
+from bench.store.run_index import RunIndex
 
 
 def rows(t):
@@ -111,7 +111,7 @@ def test_run_json_text_is_the_indented_dump_and_reuses_unchanged_values(tmp_path
     first write for the last): byte for byte what ``json.dump(indent=2)`` writes."""
     from pathlib import Path
 
-    from bench.recorder import _json_text, _jsonable, atomic_write_json
+    from bench.run.recorder import _json_text, _jsonable, atomic_write_json
 
     plan = {"segments": [{"index": i, "label": "step\nup", "us": 1000.0 + i, "sp": None,
                           "nan": float("nan"), "x": np.float64(1.5), "e": [], "d": {}}

@@ -12,7 +12,7 @@ import pytest
 
 from bench.cli import main
 from bench.errors import RigError
-from bench.rig import load_rig
+from bench.rig.rig import load_rig
 from drivers.errors import DeviceError
 from drivers.sim.rig import SimRig
 

@@ -9,10 +9,10 @@ from pathlib import Path
 
 import pytest
 
-import bench.run_budget as budget_module
+import bench.plans.run_budget as budget_module
 from bench.cli import main
-from bench.rig import HEXAPOD_LIMIT_MAXIMA, LIMIT_MAXIMA, default_imu_rig_path
-from bench.run_budget import Budget, check_budget, project
+from bench.plans.run_budget import Budget, check_budget, project
+from bench.rig.rig import HEXAPOD_LIMIT_MAXIMA, LIMIT_MAXIMA, default_imu_rig_path
 from tests.test_cli_errors import run_bad
 
 
@@ -88,9 +88,9 @@ def test_many_short_repeats_are_refused_by_their_step_count(sim_rig_mapped_path:
 
 
 def test_a_console_plan_with_a_huge_repeat_count_is_refused() -> None:
-    """The console's plans share the sequence builders (bench.plan_specs)."""
+    """The console's plans share the sequence builders (bench.plans.plan_specs)."""
     from bench.errors import RigError
-    from bench.plan_specs import plan_sequence
+    from bench.plans.plan_specs import plan_sequence
 
     with pytest.raises(RigError, match=r"\(100000000 repeats\): projected .* longer than"):
         plan_sequence({"plan": "step1", "repeats": 100_000_000, "hold_s": 0.5})

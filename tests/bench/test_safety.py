@@ -11,11 +11,11 @@ import pandas as pd
 import pytest
 
 from bench.errors import RigError
-from bench.recorder import RunRecorder
-from bench.rig import Limits
-from bench.runner import Runner, RunOptions
-from bench.safety import SafetySupervisor, effective_limits
-from bench.sequences import EscRange, Sequence, compile_plan, step1
+from bench.plans.sequences import EscRange, Sequence, compile_plan, step1
+from bench.rig.rig import Limits
+from bench.run.recorder import RunRecorder
+from bench.run.safety import SafetySupervisor, effective_limits
+from bench.runners.runner import Runner, RunOptions
 from drivers.contracts import Block
 from drivers.errors import DeviceError
 

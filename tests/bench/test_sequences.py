@@ -7,7 +7,7 @@ import math
 import pytest
 
 from bench.errors import RigError
-from bench.sequences import (
+from bench.plans.sequences import (
     G0,
     Arm,
     Disarm,

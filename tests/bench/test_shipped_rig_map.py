@@ -8,9 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
-import bench.rig as rig_module
+import bench.rig.rig as rig_module
 from bench.cli import main
-from bench.rig import (
+from bench.rig.rig import (
     default_rig_path,
     is_shipped_rig,
     load_rig,

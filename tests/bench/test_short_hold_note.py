@@ -55,7 +55,7 @@ def test_a_hold_shorter_than_4_tau_gets_a_note(step_runs, capsys, tmp_path) -> N
     assert any("has not settled" in n for n in report["notes"])
     assert main(["constants", "--out", str(tmp_path / "store"), "--add", str(short)]) == 0
     assert "note: levels held 0.5 s, less than 4 tau" in capsys.readouterr().out
-    from bench.constants_store import ConstantsStore
+    from bench.store.constants_store import ConstantsStore
 
     (row,) = ConstantsStore(tmp_path / "store").rows()
     assert any("has not settled" in n for n in row.data["notes"])

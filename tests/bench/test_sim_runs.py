@@ -12,13 +12,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from bench.recorder import BASE_COLUMNS, RunRecorder
-from bench.rig import load_rig
-from bench.run_index import RunIndex
-from bench.runner import Runner, RunOptions
-from bench.safety import effective_limits
-from bench.sequences import step1
-from bench.session import esc_range_of, plan_for, run_sequence
+from bench.plans.sequences import step1
+from bench.rig.rig import load_rig
+from bench.run.recorder import BASE_COLUMNS, RunRecorder
+from bench.run.safety import effective_limits
+from bench.runners.runner import Runner, RunOptions
+from bench.runners.session import esc_range_of, plan_for, run_sequence
+from bench.store.run_index import RunIndex
 from drivers.contracts import Fault
 from drivers.errors import DeviceError
 from drivers.factory import open_rig
@@ -31,7 +31,7 @@ def disarmed(devices, rig) -> bool:
 
 
 def _mapped_rig(tmp: Path, fakes):
-    from bench.rig import default_rig_path
+    from bench.rig.rig import default_rig_path
 
     path = tmp / "sim.toml"
     path.write_text(default_rig_path().read_text(encoding="utf-8"), encoding="utf-8")

@@ -11,9 +11,9 @@ from pathlib import Path
 
 import pytest
 
-from bench.constants_store import ActuatorKey, ConstantsStore
 from bench.errors import RigError
-from bench.run_index import RunIndex
+from bench.store.constants_store import ActuatorKey, ConstantsStore
+from bench.store.run_index import RunIndex
 from tests.test_cli_errors import run_bad
 
 KEY = ActuatorKey("m1", "p1", "esc", "complementary", "3s")

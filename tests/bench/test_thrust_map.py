@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 
 from bench.errors import RigError
-from bench.thrust_map import StaticThrustMap, fit_sweep
+from bench.plans.thrust_map import StaticThrustMap, fit_sweep
 
 
 def ramp(noise=0.0, seed=0):

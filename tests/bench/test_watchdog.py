@@ -7,9 +7,9 @@ import time
 
 import pytest
 
-from bench.runner import Runner, RunOptions
-from bench.sequences import EscRange, compile_plan, step1
-from bench.watchdog import GuardedEsc, HostWatchdog, WatchdogTrip
+from bench.plans.sequences import EscRange, compile_plan, step1
+from bench.run.watchdog import GuardedEsc, HostWatchdog, WatchdogTrip
+from bench.runners.runner import Runner, RunOptions
 
 ESC = EscRange(1000.0, 1050.0, 2000.0)
 
@@ -61,7 +61,7 @@ def test_guarded_esc_clamps_commands_to_the_rig_range():
 
 
 def test_stalled_runner_is_stopped_by_the_watchdog(fakes, tmp_path):
-    from bench.recorder import RunRecorder
+    from bench.run.recorder import RunRecorder
 
     rig = fakes.FakeRig()
     rig.faults.stall_at_s = rig.clock.t + 3.3  # spinning at the high level

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from bench.rig import RigConfig, default_rig_path, load_rig
+from bench.rig.rig import RigConfig, default_rig_path, load_rig
 
 _NAME = "rotorbench_tests_drivers_stepfit"
 

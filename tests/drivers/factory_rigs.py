@@ -5,7 +5,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from bench.rig import default_rig_path
+from bench.rig.rig import default_rig_path
 
 ROLES = ("esc", "load_cell", "power", "rpm")
 

@@ -13,7 +13,7 @@ import pytest
 pytest.importorskip("serial")
 
 from bench.cli import main
-from bench.rig import load_rig
+from bench.rig.rig import load_rig
 from drivers.backends.kiss_telemetry import KissTelemetry
 from drivers.backends.serial_link import open_port
 from drivers.codecs import kiss

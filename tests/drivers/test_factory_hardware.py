@@ -11,7 +11,7 @@ import os
 
 import pytest
 
-from bench.rig import load_rig
+from bench.rig.rig import load_rig
 from drivers.check import check_rig
 from drivers.discovery import can_configs, serial_ports
 

@@ -14,7 +14,7 @@ from unittest import mock
 
 import pytest
 
-from bench.rig import load_rig
+from bench.rig.rig import load_rig
 from drivers.errors import DeviceError
 from drivers.factory import open_rig
 

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from bench.cli import main
-from bench.rig import load_rig
+from bench.rig.rig import load_rig
 from drivers.device_options import parse_device
 from drivers.errors import DeviceError
 from drivers.factory import open_rig

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bench.rig import load_rig
+from bench.rig.rig import load_rig
 from drivers.contracts import Esc, Sensor
 from drivers.factory import open_rig
 

@@ -7,7 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from bench.rig import DeviceConfig
+from bench.rig.rig import DeviceConfig
 from drivers.contracts import Fault
 from drivers.errors import DeviceError
 from drivers.factory import open_rig

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from bench.rig import default_imu_rig_path, load_imu_rig
+from bench.rig.rig import default_imu_rig_path, load_imu_rig
 from drivers.contracts import (
     HEXAPOD_LOG_CHANNELS,
     IMU_CHANNELS,

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from bench.rig import load_imu_rig
+from bench.rig.rig import load_imu_rig
 from drivers.backends.gx3_imu import Gx3Reference
 from drivers.backends.msp_fc import MspImuSensor
 from drivers.codecs import gx3

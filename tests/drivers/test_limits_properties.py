@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from bench.errors import RigError
-from bench.rig import Limits, ThrustMap
+from bench.rig.rig import Limits, ThrustMap
 
 value = st.one_of(st.none(), st.floats(0.0, 1e4, allow_nan=False))
 limits = st.builds(Limits, thrust_n=value, current_a=value, rpm=value,

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bench.rig import load_imu_rig
+from bench.rig.rig import load_imu_rig
 from drivers.backends.pi_hexapod import GcsDialect, PiHexapod
 from drivers.codecs import gcs
 from drivers.contracts import (

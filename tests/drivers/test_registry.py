@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 import drivers.device_context  # noqa: F401  (registers the entries)
-from bench.rig import is_imu_rig, load_imu_rig, load_rig
+from bench.rig.rig import is_imu_rig, load_imu_rig, load_rig
 from drivers import registry
 from drivers.device_options import parse_device
 from drivers.errors import DeviceError

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from bench.errors import RigError
-from bench.rig import Limits, default_rig_path, load_rig, save_thrust_map
+from bench.rig.rig import Limits, default_rig_path, load_rig, save_thrust_map
 from drivers.errors import DeviceError
 from drivers.factory import open_rig
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench.rig import default_rig_path, load_rig
+from bench.rig.rig import default_rig_path, load_rig
 from drivers.factory import open_rig
 
 

@@ -18,7 +18,7 @@ G = 9.81
 
 @pytest.fixture(scope="module")
 def fits(request):
-    from bench.rig import default_rig_path, load_rig
+    from bench.rig.rig import default_rig_path, load_rig
 
     stepfit = __import__("sys").modules["rotorbench_tests_drivers_stepfit"]
     rig = load_rig(default_rig_path())

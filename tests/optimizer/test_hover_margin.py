@@ -16,8 +16,8 @@ import json
 import numpy as np
 import pytest
 
-from bench.catalogs import shipped_catalog, with_min_thrust_to_weight
 from bench.cli import main
+from bench.store.catalogs import shipped_catalog, with_min_thrust_to_weight
 from optimizer.design_model import evaluate_design, evaluate_grid
 from optimizer.model_constants import DEFAULT_MIN_THRUST_TO_WEIGHT
 from optimizer.objectives import single

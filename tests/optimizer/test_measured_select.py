@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from bench.cli import main
-from bench.constants_store import ActuatorKey, ConstantsStore
+from bench.store.constants_store import ActuatorKey, ConstantsStore
 from optimizer.catalog import load_catalog
 from optimizer.design_model import MODEL_SOURCES, design_sources, evaluate_design, evaluate_grid
 from optimizer.errors import RequestError

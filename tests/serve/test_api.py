@@ -91,8 +91,8 @@ def test_live_lists_a_running_run(recorded: object, tmp_path: object) -> None:
 
     from fastapi.testclient import TestClient
 
-    from bench.run_index import RunIndex
     from bench.serve.app import create_app
+    from bench.store.run_index import RunIndex
     from bench.store.stores import open_store
 
     root = tmp_path / "runs"

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import re
 
-from bench.recorder import new_run_id
-from bench.run_ids import uuid7
+from bench.run.recorder import new_run_id
+from bench.run.run_ids import uuid7
 
 
 def test_uuid7_layout_and_order() -> None:

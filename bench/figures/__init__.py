@@ -1,0 +1,1 @@
+"""Figures and tables that commands print or save."""

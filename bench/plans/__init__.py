@@ -1,0 +1,1 @@
+"""Plans as data: sequences, plan specs, calibration sequences, budget, thrust map."""

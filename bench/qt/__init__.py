@@ -1,0 +1,1 @@
+"""Qt plumbing shared by the windows (the live view and the console)."""

@@ -1,0 +1,212 @@
+"""SQLite index of the run folders under one output root (``<root>/runs.sqlite``).
+
+The run folders stay the record; the index is for listing and finding them. A run is
+added when it starts (status ``running``) and updated when it ends. If a process died
+(kill -9, power loss) its row and its ``run.json`` still say running: opening the index
+(the store) finds such runs of this host whose recording process is gone and marks them
+``killed`` in ``run.json`` too (with the last sample time on disk), so every reader of
+the folder agrees with ``rotorbench runs``. ``rebuild`` re-reads every ``run.json``
+under the root.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sqlite3
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from bench.errors import RigError
+from bench.store.sqlite_store import connect, writing
+
+__all__ = ["INDEX_NAME", "Rebuilt", "RunIndex", "RunRow"]
+
+INDEX_NAME = "runs.sqlite"
+_SCHEMA = """
+CREATE TABLE IF NOT EXISTS runs (
+    id TEXT PRIMARY KEY,
+    path TEXT NOT NULL,
+    rig TEXT,
+    components TEXT,
+    sequence TEXT,
+    started_utc TEXT,
+    ended_utc TEXT,
+    status TEXT,
+    reason TEXT,
+    host TEXT,
+    pid INTEGER
+)
+"""
+
+
+@dataclass(frozen=True)
+class RunRow:
+    id: str
+    path: str
+    rig: str
+    components: dict[str, Any]
+    sequence: str
+    started_utc: str
+    ended_utc: str | None
+    status: str
+    reason: str
+
+
+@dataclass(frozen=True)
+class Rebuilt:
+    """What ``RunIndex.rebuild`` did: how many runs it indexed, which folders it skipped
+    (one line each, naming the file and why)."""
+
+    indexed: int
+    skipped: tuple[str, ...] = ()
+
+
+class RunIndex:
+    """A small SQLite table of runs; every call opens its own short connection."""
+
+    def __init__(self, root: Path) -> None:
+        self.root = Path(root)
+        self.path = self.root / INDEX_NAME
+        try:
+            self.root.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise RigError(f"--out {self.root}: cannot create the run folder "
+                           f"({exc.strerror or exc})") from None
+        self._connect().close()
+        self.mark_killed()
+
+    def mark_killed(self) -> list[str]:
+        """Runs of this host still 'running' whose process is gone: write status killed,
+        the reason and the last sample time into their ``run.json`` and the index row.
+        Returns their ids. A folder that cannot be updated (read-only, gone) is left as it
+        is; the listing still reports it killed."""
+        import socket
+
+        with self._connect() as con:
+            rows = con.execute("SELECT id, path, pid FROM runs WHERE status = 'running' AND "
+                               "host = ?", (socket.gethostname(),)).fetchall()
+        marked = []
+        for rid, rel, pid in rows:
+            if not pid or _alive(int(pid)):
+                continue
+            run_dir = self.root / rel
+            try:
+                meta = json.loads((run_dir / "run.json").read_text(encoding="utf-8"))
+            except (OSError, ValueError):  # ValueError: not UTF-8, not JSON
+                continue
+            if (not isinstance(meta, dict) or meta.get("status") != "running"
+                    or meta.get("pid") != pid):
+                continue
+            last_t, rows_on_disk = _last_sample(run_dir / str(meta.get("samples")
+                                                              or "samples.parquet"))
+            meta.update(status="killed", reason=f"recording process {pid} is gone (kill -9 or "
+                        "power loss); samples up to the last written part",
+                        last_sample_t_s=last_t, rows=rows_on_disk,
+                        marked_killed_utc=_utc_now())
+            try:
+                from bench.run.recorder import atomic_write_json
+
+                atomic_write_json(run_dir / "run.json", meta)
+            except OSError:
+                continue
+            self.upsert(meta, run_dir)
+            marked.append(str(rid))
+        return marked
+
+    def _connect(self) -> sqlite3.Connection:
+        return connect(self.path, _SCHEMA, "run index", "move it away and run `rotorbench "
+                       "runs --rebuild` to index the run folders again")
+
+    def upsert(self, meta: Mapping[str, Any], run_dir: Path) -> None:
+        """Insert or update the row of one run from its ``run.json`` content."""
+        row = (
+            str(meta.get("id", run_dir.name)),
+            os.path.relpath(run_dir, self.root),
+            str(meta.get("rig", {}).get("name", "") if isinstance(meta.get("rig"), Mapping)
+                else meta.get("rig", "")),
+            json.dumps(meta.get("components", {}), default=str),
+            str(meta.get("sequence", {}).get("name", "")
+                if isinstance(meta.get("sequence"), Mapping) else meta.get("sequence", "")),
+            meta.get("started_utc"),
+            meta.get("ended_utc"),
+            meta.get("status"),
+            meta.get("reason", ""),
+            meta.get("host"),
+            meta.get("pid"),
+        )
+        with writing(self.path, "run index"), self._connect() as con:
+            con.execute("INSERT OR REPLACE INTO runs VALUES (?,?,?,?,?,?,?,?,?,?,?)", row)
+
+    def list(self) -> list[RunRow]:
+        import socket
+
+        with self._connect() as con:
+            rows = con.execute(
+                "SELECT id, path, rig, components, sequence, started_utc, ended_utc, status,"
+                " reason, host, pid FROM runs ORDER BY started_utc"
+            ).fetchall()
+        out = []
+        here = socket.gethostname()
+        for (rid, path, rig, comps, seq, start, end, status, reason, host, pid) in rows:
+            if status == "running" and host == here and pid and not _alive(int(pid)):
+                status, reason = "killed", "recording process is gone; samples up to the last part"
+            out.append(RunRow(rid, path, rig or "", json.loads(comps or "{}"), seq or "",
+                              start or "", end, status or "", reason or ""))
+        return out
+
+    def rebuild(self) -> Rebuilt:
+        """Re-index every run folder with a ``run.json`` under the root.
+
+        One damaged ``run.json`` (not UTF-8, not JSON, not an object) must not keep the
+        others out of the index: it is skipped and named in ``Rebuilt.skipped``."""
+        count, skipped = 0, []
+        for meta_path in sorted(self.root.glob("*/run.json")):
+            try:
+                meta = json.loads(meta_path.read_text(encoding="utf-8"))
+            except (OSError, ValueError) as exc:  # ValueError: not UTF-8, not JSON
+                skipped.append(f"{meta_path}: unreadable run.json ({exc})")
+                continue
+            if not isinstance(meta, dict):
+                skipped.append(f"{meta_path}: expected a JSON object at the top level")
+                continue
+            self.upsert(meta, meta_path.parent)
+            count += 1
+        return Rebuilt(count, tuple(skipped))
+
+
+def _utc_now() -> str:
+    from datetime import UTC, datetime
+
+    return datetime.now(UTC).isoformat(timespec="milliseconds")
+
+
+def _last_sample(samples: Path) -> tuple[float | None, int]:
+    """Largest ``t_s`` and row count of the complete parts on disk (hidden temporary
+    parts are skipped by the reader); (None, 0) if nothing is readable."""
+    import pyarrow.parquet as pq
+
+    try:
+        t = pq.read_table(samples, columns=["t_s"]).column("t_s").to_numpy()
+    except Exception:  # no parts, damaged part: the status is what matters here
+        return None, 0
+    return (float(t.max()) if t.size else None), int(t.size)
+
+
+def _alive(pid: int) -> bool:
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    # A zombie (killed child not yet reaped) still answers signal 0.
+    try:
+        with open(f"/proc/{pid}/stat", encoding="ascii") as fh:
+            return fh.read().split(")")[-1].split()[0] != "Z"
+    except OSError:
+        return True
