@@ -104,5 +104,5 @@ def test_cli_flyable_and_errors(capsys) -> None:
     out = capsys.readouterr().out
     assert "rules, 4 actuators" in out and "kv-prop" in out
     assert main(["optimize", "--no-rule", "frame"]) == 2
-    assert "--no-rule only applies" in capsys.readouterr().err
+    assert "--no-rule has no effect without --flyable" in capsys.readouterr().err
     assert main(["optimize", "--flyable", "--hover-throttle", "80", "20"]) == 2
