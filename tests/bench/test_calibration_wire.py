@@ -65,6 +65,11 @@ def calibrated(tmp_path_factory: pytest.TempPathFactory):
     text = WIRE_RIG_PATH.read_text(encoding="utf-8")
     assert text.count("time_scale = 6.0") == 2 and text.count("timeout_s = 0.3") == 1
     text = text.replace("time_scale = 6.0", "time_scale = 3.0")
+    # Likewise the GX3 reference's silence limit, 0.2 s (wall) by default: two test processes
+    # on two cores (pytest-xdist) starved its simulated peer past it once ("serial://sim/gx3:
+    # no packet for 0.700 s"); a silent GX3 is the device-lost tests' subject.
+    text = text.replace('protocol = "gx3",', 'protocol = "gx3", stale_s = 1.0,')
+    assert text.count("stale_s = 1.0") == 1
     rig.write_text(text.replace("timeout_s = 0.3", "timeout_s = 1.0"), encoding="utf-8")
     code = main(["calibrate", "--quick", "--tick", "0.1", "--rig", str(rig),
                  "--runs", str(root / "runs"), "--out", str(out)])
