@@ -105,23 +105,34 @@ class SeriesCache:
 
 def series_of(folder: Path, columns: int = 1500) -> dict[str, Any]:
     """Every time plot of ``PLOTS`` the run has, min/max-decimated to ``columns`` bins;
-    reads only those columns (``analysis.run_record.read_columns``)."""
-    from analysis.run_record import read_columns
+    reads only those columns, one at a time (``analysis.run_record.iter_columns``)."""
+    from analysis.run_record import iter_columns
 
-    data = read_columns(folder, [k for k, _, _ in PLOTS if k != "efficiency_g_w"])
-    if {"thrust_n", "current_a", "voltage_v"} <= set(data):
-        data["efficiency_g_w"] = _efficiency_of(data["thrust_n"], data["current_a"],
-                                                data["voltage_v"])
-    t = data["t_s"]
-    out: dict[str, Any] = {"rows": int(t.size), "columns": columns, "plots": []}
-    for key, title, unit in PLOTS:
-        y = data.get(key)
-        if y is None or not np.isfinite(y).any():
+    need_eff = ("thrust_n", "current_a", "voltage_v")
+    plots: dict[str, dict[str, Any]] = {}
+    kept: dict[str, np.ndarray] = {}
+    t = np.empty(0)
+    for key, y in iter_columns(folder, [k for k, _, _ in PLOTS if k != "efficiency_g_w"]):
+        if key == "t_s":
+            t = y
             continue
-        tt, yy = minmax_decimate(t, y, columns)
-        out["plots"].append({"key": key, "title": title, "unit": unit,
-                             "t": _json_list(tt), "y": _json_list(yy)})
-    return out
+        plots[key] = _decimated(t, y, key, columns)
+        if key in need_eff:
+            kept[key] = y
+    if len(kept) == len(need_eff):
+        plots["efficiency_g_w"] = _decimated(t, _efficiency_of(*(kept[k] for k in need_eff)),
+                                             "efficiency_g_w", columns)
+    return {"rows": int(t.size), "columns": columns,
+            "plots": [plots[k] for k, _, _ in PLOTS if plots.get(k) is not None]}
+
+
+def _decimated(t: np.ndarray, y: np.ndarray, key: str, columns: int) -> dict[str, Any] | None:
+    """One time plot (None for a column without a finite value)."""
+    if not np.isfinite(y).any():
+        return None
+    title, unit = next((ti, u) for k, ti, u in PLOTS if k == key)
+    tt, yy = minmax_decimate(t, y, columns)
+    return {"key": key, "title": title, "unit": unit, "t": _json_list(tt), "y": _json_list(yy)}
 
 
 def _json_list(a: np.ndarray) -> list[float | None]:
