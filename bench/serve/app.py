@@ -42,6 +42,7 @@ from bench.serve.run_views import (
     step_traces,
 )
 from bench.serve.security import COOKIE, Guard
+from bench.store.json_values import json_safe
 from bench.store.run_summary import RunFilter, RunSummary
 from bench.store.stores import Store
 
@@ -108,7 +109,7 @@ def create_app(store: Store, *, token: str | None = None, title: str = "rotorben
     @app.get("/api/runs/{run_id}", summary="one run: its run.json")
     def api_run(run_id: str) -> dict[str, Any]:
         rec = record_of(run_id)
-        return {"run_id": rec.id, "meta": _finite(rec.meta), "rows": len(rec.samples),
+        return {"run_id": rec.id, "meta": json_safe(rec.meta), "rows": len(rec.samples),
                 "columns": [str(c) for c in rec.samples.columns]}
 
     @app.get("/api/runs/{run_id}/series", summary="time plots, min/max per pixel column")
@@ -134,7 +135,7 @@ def create_app(store: Store, *, token: str | None = None, title: str = "rotorben
 
     @app.get("/api/constants", summary="measured constants with their provenance")
     def api_constants() -> list[dict[str, Any]]:
-        return [_finite(c.__dict__) for c in store.constants()]
+        return [json_safe(c.__dict__) for c in store.constants()]
 
     @app.get("/api/live", summary="running runs: status, elapsed time, latest values")
     def api_live() -> list[dict[str, Any]]:
@@ -214,7 +215,7 @@ def create_app(store: Store, *, token: str | None = None, title: str = "rotorben
         return templates.TemplateResponse(request, "run.html", {
             "run_id": str(meta.get("id") or run_id), "meta": meta, "rows": rows,
             "title": title,
-            "meta_text": json.dumps(_finite(_short_meta(meta)), indent=2),
+            "meta_text": json.dumps(json_safe(_short_meta(meta)), indent=2),
             "limits": meta.get("limits") or {}, "trip": meta.get("trip"),
             "drops": {k: meta.get(k) for k in ("dropped_samples", "longest_gap_s", "drops",
                                                "link_errors") if meta.get(k) is not None},
@@ -274,7 +275,7 @@ def _warm(templates: Any) -> None:
 def _row(r: RunSummary) -> dict[str, Any]:
     d = r.as_dict()
     d["duration_s"] = _duration(r.started_utc, r.ended_utc)
-    return _finite(d)
+    return json_safe(d)
 
 
 def _parse(ts: str | None) -> float | None:
@@ -304,16 +305,6 @@ def _num(v: Any) -> float | None:
     except (TypeError, ValueError):
         return None
     return f if math.isfinite(f) else None
-
-
-def _finite(obj: Any) -> Any:
-    if isinstance(obj, dict):
-        return {str(k): _finite(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_finite(v) for v in obj]
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    return obj
 
 
 def _short_meta(meta: dict[str, Any]) -> dict[str, Any]:

@@ -11,7 +11,6 @@ from __future__ import annotations
 import math
 import threading
 from collections import OrderedDict
-from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -20,6 +19,7 @@ import numpy as np
 from analysis.errors import LogError
 from analysis.run_record import RunRecord, read_run
 from bench.serve.decimate import minmax_decimate
+from bench.store.json_values import json_safe
 
 __all__ = ["PLOTS", "RecordCache", "SeriesCache", "export_of", "fits_of", "series_of",
            "static_points", "step_traces"]
@@ -140,18 +140,6 @@ def _json_list(a: np.ndarray) -> list[float | None]:
     return [None if not math.isfinite(v) else v for v in a.tolist()]
 
 
-def _clean(obj: Any) -> Any:
-    if isinstance(obj, Mapping):
-        return {str(k): _clean(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_clean(v) for v in obj]
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    if isinstance(obj, np.generic):
-        return _clean(obj.item())
-    return obj
-
-
 def fits_of(record: RunRecord) -> dict[str, Any]:
     """The run's step fit (first-order-plus-delay per edge) and static curves, each with
     the reason when it does not apply (a sweep has no steps, a step run few speeds)."""
@@ -160,11 +148,11 @@ def fits_of(record: RunRecord) -> dict[str, Any]:
 
     out: dict[str, Any] = {}
     try:
-        out["step"] = _clean(fit_run(record).summary())
+        out["step"] = json_safe(fit_run(record).summary())
     except LogError as exc:
         out["step_why"] = str(exc)
     try:
-        out["static"] = _clean(fit_static_run(record).summary())
+        out["static"] = json_safe(fit_static_run(record).summary())
     except LogError as exc:
         out["static_why"] = str(exc)
     return out
@@ -248,4 +236,4 @@ def export_of(record: RunRecord, target: str) -> dict[str, Any]:
     """What ``rotorbench export TARGET RUN --json`` prints, for one run folder."""
     from analysis.exports import export_params
 
-    return _clean(export_params(target, record))
+    return json_safe(export_params(target, record))

@@ -11,7 +11,6 @@ are fitted by ``bench.store.constants_fit.fit_for_store``.
 from __future__ import annotations
 
 import json
-import math
 import sqlite3
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -20,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.errors import RigError
+from bench.store.json_values import json_safe
 from bench.store.sqlite_store import connect, writing
 
 __all__ = ["KEY_FIELDS", "STORE_NAME", "ActuatorKey", "ConstantsRow", "ConstantsStore"]
@@ -75,16 +75,6 @@ class ConstantsRow:
     data: dict[str, Any]
 
 
-def _clean(obj: Any) -> Any:
-    if isinstance(obj, Mapping):
-        return {str(k): _clean(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_clean(v) for v in obj]
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    return obj
-
-
 class ConstantsStore:
     """A small SQLite table; every call opens its own short connection."""
 
@@ -106,7 +96,7 @@ class ConstantsStore:
         """Store (or replace) the constants of one kind for one actuator."""
         if kind not in ("step", "static"):
             raise ValueError(f"kind must be step or static, got {kind!r}")
-        text = json.dumps(_clean(data), allow_nan=False)
+        text = json.dumps(json_safe(data), allow_nan=False)
         now = datetime.now(UTC).isoformat(timespec="seconds")
         with writing(self.path, "constants store"), self._connect() as con:
             con.execute(

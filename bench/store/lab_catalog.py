@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from bench.errors import RigError
+from bench.store.json_values import json_safe
 from bench.store.pg_schema import READER_ROLE, SCHEMA_VERSION, WRITER_ROLE, schema_version
 from bench.store.run_summary import RunFilter
 from bench.store.store_url import redact, scrub
@@ -74,16 +75,6 @@ class StoredConstants:
     fitted_utc: str
     data: dict[str, Any]
     recorded_by: str = ""
-
-
-def _finite(obj: Any) -> Any:
-    if isinstance(obj, Mapping):
-        return {str(k): _finite(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_finite(v) for v in obj]
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    return obj
 
 
 class LabCatalog:
@@ -173,8 +164,8 @@ class LabCatalog:
         from psycopg.types.json import Jsonb
 
         values = [getattr(run, k) for k in RUN_FIELDS]
-        values[RUN_FIELDS.index("components")] = Jsonb(_finite(run.components))
-        values[RUN_FIELDS.index("meta")] = Jsonb(_finite(run.meta))
+        values[RUN_FIELDS.index("components")] = Jsonb(json_safe(run.components))
+        values[RUN_FIELDS.index("meta")] = Jsonb(json_safe(run.meta))
         cols = ", ".join(RUN_FIELDS)
         marks = ", ".join(["%s"] * len(RUN_FIELDS))
         updates = ", ".join(f"{k} = EXCLUDED.{k}" for k in RUN_FIELDS if k != "run_id")
@@ -217,7 +208,7 @@ class LabCatalog:
                     "INSERT INTO constants (motor, propeller, esc, esc_mode, battery, kind, "
                     "catalog, run_id, run_path, data) VALUES (%s,%s,%s,%s,%s,%s,%s,%s,%s,%s)",
                     (r.motor, r.propeller, r.esc, r.esc_mode, r.battery, r.kind, r.catalog,
-                     r.run_id, r.run_path, Jsonb(_finite(r.data))))
+                     r.run_id, r.run_path, Jsonb(json_safe(r.data))))
         return len(rows)
 
     def constants(self, *, history: bool = False) -> list[StoredConstants]:
