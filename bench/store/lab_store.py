@@ -98,7 +98,12 @@ class LabStore:
     def after_run(self, run_dir: Path | None = None) -> str | None:
         """Publish every ended run the spool holds (this one, a map sweep before it); a
         server that is away leaves them spooled, said in one line each."""
-        rep = self.sync()
+        try:
+            rep = self.sync()
+        except RigError as exc:  # the lab is away: the runs wait in the spool
+            return (f"spooled: the runs in {self.spool} wait for the lab store ({exc}); "
+                    f"deliver them with `rotorbench store sync --store "
+                    f"{redact(self.catalog.dsn)} --spool {self.spool}`")
         lines = [f"stored in {redact(self.catalog.dsn)}: {self.data.run_uri(rid)}"
                  for rid in rep.delivered]
         lines += [f"spooled: {self.spool / rid} waits for the lab store ({why}); deliver it "
@@ -207,7 +212,12 @@ def _ckey(c: StoredConstants) -> tuple[str, ...]:
 
 def open_lab(dsn: str, *, data: str | None = None, spool: Path | None = None) -> LabStore:
     """The lab store at ``dsn``; ``data`` overrides the catalog's data location."""
+    from bench.store.lab_catalog import CatalogUnavailable
+
     catalog = LabCatalog(dsn)
-    where = data or catalog.setting(DATA_SETTING)
+    try:
+        where = data or catalog.setting(DATA_SETTING)
+    except CatalogUnavailable:  # a bench still records (into the spool) with the lab away
+        where = None
     return LabStore(catalog, DataLocation(where) if where else None,
                     Path(spool) if spool else default_spool())

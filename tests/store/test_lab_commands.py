@@ -154,3 +154,18 @@ def test_kill_9_keeps_the_spooled_run_and_sync_delivers_it(pg_url: str, s3_env: 
     assert "synced 1 of 1 waiting runs" in sync.stdout, sync.stdout + sync.stderr
     (run,) = _runs(pg_url, env)
     assert run["status"] == "killed" and run["samples"] > 0
+
+
+def test_a_bench_records_with_the_database_away_from_the_start(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """No catalog to reach when the run starts: it records into the spool, ends normally
+    and says it is spooled (store sync delivers it later; tested above)."""
+    from rotorbench_tests_services import free_port
+
+    url = f"postgresql://bench:hidden-pw@127.0.0.1:{free_port()}/lab?connect_timeout=1"
+    spool = tmp_path / "spool"
+    assert main(["step", "--repeats", "1", "--store", url, "--spool", str(spool)]) == 0
+    out = capsys.readouterr().out
+    assert "success" in out and "spooled:" in out and "hidden-pw" not in out
+    (run,) = spool.glob("*/run.json")
+    assert json.loads(run.read_text())["status"] == "success"
