@@ -129,10 +129,7 @@ def iter_columns(run_dir: str | Path, columns: list[str]) -> Iterator[tuple[str,
     t = read("t_s")
     if t.size == 0:
         raise LogError(f"{path}: no samples")
-    if not np.all(np.isfinite(t)):
-        bad = int(np.flatnonzero(~np.isfinite(t))[0])
-        raise LogError(f"{path}: row {bad}: t_s is not a finite number")
-    order = np.argsort(t, kind="stable") if np.any(t[1:] < t[:-1]) else None
+    order = _time_order(t, path)
     yield "t_s", t if order is None else t[order]
     for name in columns:
         if name in names and name != "t_s":
@@ -176,13 +173,18 @@ def _read_samples(path: Path) -> pd.DataFrame:
     for name in df.columns:
         if not pd.api.types.is_numeric_dtype(df[name]):
             raise LogError(f"{path}: column {name!r} is not numeric ({df[name].dtype})")
-    t = df["t_s"].to_numpy(dtype=float)
+    if _time_order(df["t_s"].to_numpy(dtype=float), path) is not None:
+        df = df.sort_values("t_s", kind="stable")
+    return df.reset_index(drop=True)
+
+
+def _time_order(t: np.ndarray, path: Path) -> np.ndarray | None:
+    """Check ``t_s`` (every value finite) and return the order that sorts it, or None
+    when it is sorted already (a log whose clock stepped back is sorted, stably)."""
     if not np.all(np.isfinite(t)):
         bad = int(np.flatnonzero(~np.isfinite(t))[0])
         raise LogError(f"{path}: row {bad}: t_s is not a finite number")
-    if np.any(np.diff(t) < 0):
-        df = df.sort_values("t_s", kind="stable")
-    return df.reset_index(drop=True)
+    return np.argsort(t, kind="stable") if np.any(t[1:] < t[:-1]) else None
 
 
 def _read_events(path: Path) -> pd.DataFrame:

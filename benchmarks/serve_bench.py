@@ -161,7 +161,7 @@ def main() -> int:
         if why:
             print(f"first paint: skipped ({why})")
             return 0
-        with _server_process(big) as base, browser.chromium() as chrome:
+        with _server_process(big, services) as base, browser.chromium() as chrome:
             page = chrome.new_page(viewport={"width": 1280, "height": 900})
             page.goto(base + "/")  # a server that is up and a browser that has been there
             page.goto(base + "/static/plotly.min.js")  # (plotly.js in its cache)
@@ -178,26 +178,17 @@ def main() -> int:
 
 
 @contextlib.contextmanager
-def _server_process(store: Path) -> object:
+def _server_process(store: Path, services: object) -> object:
     """``rotorbench serve`` in its own process, as a lab runs it (the browser's driver in
     this process must not share the server's interpreter)."""
-    import socket
     import subprocess
 
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        port = sock.getsockname()[1]
+    port = services.free_port()
     proc = subprocess.Popen([sys.executable, "-m", "bench.cli", "serve", "--store", str(store),
                              "--port", str(port)], stdout=subprocess.DEVNULL)
     try:
-        end = time.monotonic() + 30
-        while True:
-            with contextlib.suppress(OSError), socket.create_connection(("127.0.0.1", port),
-                                                                         0.2):
-                break
-            if time.monotonic() > end or proc.poll() is not None:
-                raise SystemExit("rotorbench serve did not start")
-            time.sleep(0.05)
+        if not services.wait_port(port, 30):
+            raise SystemExit("rotorbench serve did not start within 30 s")
         yield f"http://127.0.0.1:{port}"
     finally:
         proc.terminate()

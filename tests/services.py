@@ -41,7 +41,8 @@ def free_port() -> int:
         return int(s.getsockname()[1])
 
 
-def _wait_port(port: int, timeout_s: float) -> bool:
+def wait_port(port: int, timeout_s: float) -> bool:
+    """True once something listens on 127.0.0.1:``port``, False after ``timeout_s``."""
     end = time.monotonic() + timeout_s
     while time.monotonic() < end:
         with contextlib.suppress(OSError), socket.create_connection(("127.0.0.1", port), 0.2):
@@ -169,7 +170,7 @@ def s3_server(port: int | None = None) -> Iterator[S3Server]:
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     server = S3Server(port, proc)
     try:
-        if not _wait_port(port, 30):
+        if not wait_port(port, 30):
             pytest.fail("moto_server did not listen within 30 s", pytrace=False)
         yield server
     finally:

@@ -36,6 +36,7 @@ from bench.errors import RigError
 from bench.serve.run_views import (
     RecordCache,
     SeriesCache,
+    command_edges,
     export_of,
     fits_of,
     static_points,
@@ -130,8 +131,9 @@ def create_app(store: Store, *, token: str | None = None, title: str = "rotorben
         if not ids:
             raise HTTPException(422, "runs: give run ids separated by commas")
         recs = [record_of(r) for r in ids]
-        return {"static": [static_points(r) for r in recs],
-                "steps": [step_traces(r) for r in recs]}
+        edges = [command_edges(r) for r in recs]  # each run's jumps found once
+        return {"static": [static_points(r, edges=e) for r, e in zip(recs, edges, strict=True)],
+                "steps": [step_traces(r, edges=e) for r, e in zip(recs, edges, strict=True)]}
 
     @app.get("/api/constants", summary="measured constants with their provenance")
     def api_constants() -> list[dict[str, Any]]:

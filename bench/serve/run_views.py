@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 import threading
 from collections import OrderedDict
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -21,8 +22,17 @@ from analysis.run_record import RunRecord, read_run
 from bench.serve.decimate import minmax_decimate
 from bench.store.json_values import json_safe
 
-__all__ = ["PLOTS", "RecordCache", "SeriesCache", "export_of", "fits_of", "series_of",
-           "static_points", "step_traces"]
+__all__ = [
+    "PLOTS",
+    "RecordCache",
+    "SeriesCache",
+    "command_edges",
+    "export_of",
+    "fits_of",
+    "series_of",
+    "static_points",
+    "step_traces",
+]
 
 G0 = 9.80665
 #: the time plots of a run page: (key, title, unit)
@@ -158,20 +168,37 @@ def fits_of(record: RunRecord) -> dict[str, Any]:
     return out
 
 
-def _steady(record: RunRecord, command: str, settle_s: float = 0.3) -> np.ndarray:
-    """Samples that are not within ``settle_s`` after a command jump: the plateaus of a
-    step run after its transients, and all of a slow sweep (a ramp has no jumps)."""
+EdgesOf = Callable[[str], list[Any]]
+
+
+def command_edges(record: RunRecord) -> EdgesOf:
+    """The command jumps of ``record`` by command column, each found once (the compare
+    page needs them for its static curves and for its step responses)."""
     from analysis.run_record import event_times
     from analysis.step_response import detect_edges
 
+    found: dict[str, list[Any]] = {}
+
+    def edges(command: str) -> list[Any]:
+        if command not in found:
+            found[command] = detect_edges(record.column("t_s"), record.column(command), None,
+                                          event_times(record))
+        return found[command]
+    return edges
+
+
+def _steady(record: RunRecord, edges: list[Any], settle_s: float = 0.3) -> np.ndarray:
+    """Samples that are not within ``settle_s`` after a command jump: the plateaus of a
+    step run after its transients, and all of a slow sweep (a ramp has no jumps)."""
     t = record.column("t_s")
     keep = np.ones(t.size, bool)
-    for e in detect_edges(t, record.column(command), None, event_times(record)):
+    for e in edges:
         keep[(t >= e.t_s) & (t < e.t_s + settle_s)] = False
     return keep
 
 
-def static_points(record: RunRecord, bins: int = 40) -> dict[str, Any]:
+def static_points(record: RunRecord, bins: int = 40, edges: EdgesOf | None = None
+                  ) -> dict[str, Any]:
     """Binned static curves for overlays: thrust vs speed, current and efficiency vs thrust,
     from the steady samples only (a step run's transients are not a static curve)."""
     from analysis.static_curves import binned_medians
@@ -180,7 +207,8 @@ def static_points(record: RunRecord, bins: int = 40) -> dict[str, Any]:
     out: dict[str, Any] = {"run_id": record.id}
     command = next((c for c in ("throttle_us", "duty_pct") if c in cols), None)
     t = record.column("t_s")
-    keep = _steady(record, command) if command else np.ones(t.size, bool)
+    edges = edges or command_edges(record)
+    keep = _steady(record, edges(command)) if command else np.ones(t.size, bool)
     out["steady_samples"] = int(keep.sum())
 
     def col(name: str) -> np.ndarray:
@@ -202,11 +230,8 @@ def static_points(record: RunRecord, bins: int = 40) -> dict[str, Any]:
 
 
 def step_traces(record: RunRecord, pre_s: float = 0.05, post_s: float = 0.5,
-                columns: int = 400) -> dict[str, Any]:
+                columns: int = 400, edges: EdgesOf | None = None) -> dict[str, Any]:
     """The mean rising and falling responses of the run, each normalised 0 -> 1."""
-    from analysis.run_record import event_times
-    from analysis.step_response import detect_edges
-
     cols = record.samples.columns
     signal = "thrust_n" if "thrust_n" in cols else "rpm" if "rpm" in cols else None
     command = next((c for c in ("throttle_us", "thrust_setpoint_n", "duty_pct") if c in cols),
@@ -214,12 +239,12 @@ def step_traces(record: RunRecord, pre_s: float = 0.05, post_s: float = 0.5,
     if signal is None or command is None:
         return {"run_id": record.id, "why": "no command and response columns"}
     t, y = record.column("t_s"), record.column(signal)
-    edges = detect_edges(t, record.column(command), None, event_times(record))
+    jumps = (edges or command_edges(record))(command)
     grid = np.linspace(-pre_s, post_s, columns)
     out: dict[str, Any] = {"run_id": record.id, "signal": signal, "t": _json_list(grid)}
     for direction in ("up", "down"):
         traces = []
-        for e in [e for e in edges if e.direction == direction][:50]:
+        for e in [e for e in jumps if e.direction == direction][:50]:
             seg = np.interp(e.t_s + grid, t, y)
             lo, hi = np.median(seg[grid < 0]), np.median(seg[-columns // 10:])
             if abs(hi - lo) > 1e-9:

@@ -9,7 +9,6 @@ it twice adds nothing (the marker, the upsert by id and the same object keys).
 
 from __future__ import annotations
 
-import getpass
 import json
 import socket
 from collections.abc import Mapping
@@ -36,23 +35,20 @@ def bench_name(meta: Mapping[str, Any]) -> str:
 
 def operator_name(meta: Mapping[str, Any]) -> str:
     """The run's operator (the recorder writes it), else whoever publishes it."""
-    if meta.get("operator"):
-        return str(meta["operator"])
-    try:
-        return getpass.getuser()
-    except (KeyError, OSError):  # no passwd entry in a container
-        return "unknown"
+    from bench.run.recorder import operator
+
+    return str(meta.get("operator") or operator())
 
 
 def _rows(run_dir: Path, meta: Mapping[str, Any]) -> int:
-    import pyarrow.parquet as pq
+    from analysis.errors import LogError
+    from analysis.run_record import sample_count
 
     if isinstance(meta.get("rows"), int):
         return int(meta["rows"])
     try:
-        return int(pq.read_table(
-            run_dir / str(meta.get("samples") or "samples.parquet"), columns=[]).num_rows)
-    except Exception:  # no parts yet, damaged part: count what the catalog can say
+        return sample_count(run_dir, dict(meta))
+    except LogError:  # no parts yet, damaged part: count what the catalog can say
         return 0
 
 

@@ -98,17 +98,17 @@ class LabStore:
     def after_run(self, run_dir: Path | None = None) -> str | None:
         """Publish every ended run the spool holds (this one, a map sweep before it); a
         server that is away leaves them spooled, said in one line each."""
+        sync = (f"`rotorbench store sync --store {redact(self.catalog.dsn)} --spool "
+                f"{self.spool}`")
         try:
             rep = self.sync()
         except RigError as exc:  # the lab is away: the runs wait in the spool
             return (f"spooled: the runs in {self.spool} wait for the lab store ({exc}); "
-                    f"deliver them with `rotorbench store sync --store "
-                    f"{redact(self.catalog.dsn)} --spool {self.spool}`")
+                    f"deliver them with {sync}")
         lines = [f"stored in {redact(self.catalog.dsn)}: {self.data.run_uri(rid)}"
                  for rid in rep.delivered]
         lines += [f"spooled: {self.spool / rid} waits for the lab store ({why}); deliver it "
-                  f"with `rotorbench store sync --store {redact(self.catalog.dsn)} --spool "
-                  f"{self.spool}`" for rid, why in rep.failed]
+                  f"with {sync}" for rid, why in rep.failed]
         return "\n".join(lines) or None
 
     def list_runs(self, where: RunFilter | None = None, *, limit: int | None = None,
@@ -192,17 +192,17 @@ class LabStore:
         if not (folder / STORE_NAME).exists():
             return 0, 0
         have = {_ckey(c) for c in self.catalog.constants(history=True)}
+        rows = ConstantsStore(folder).rows()
         new = []
-        for r in ConstantsStore(folder).rows():
+        for r in rows:
             row = StoredConstants(r.key.motor, r.key.propeller, r.key.esc, r.key.esc_mode,
                                   r.key.battery, r.kind, r.key.catalog, r.run_id,
                                   self.data.run_uri(r.run_id), r.fitted_utc, r.data)
             if _ckey(row) not in have:
                 new.append(row)
-        total = len(ConstantsStore(folder).rows())
         if new:
             self.catalog.add_constants(new)
-        return len(new), total - len(new)
+        return len(new), len(rows) - len(new)
 
 
 def _ckey(c: StoredConstants) -> tuple[str, ...]:

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.errors import RigError
+from bench.store.run_summary import RunFilter
 from bench.store.sqlite_store import connect, writing
 
 __all__ = ["INDEX_NAME", "Rebuilt", "RunIndex", "RunRow"]
@@ -141,21 +142,42 @@ class RunIndex:
             con.execute("INSERT OR REPLACE INTO runs VALUES (?,?,?,?,?,?,?,?,?,?,?)", row)
 
     def list(self) -> list[RunRow]:
+        """Every run, oldest first."""
+        return self.select()
+
+    def select(self, where: RunFilter | None = None, *, limit: int | None = None,
+               offset: int = 0, newest_first: bool = False) -> list[RunRow]:
+        """The runs ``where`` matches (bench aside: it is in run.json), filtered and paged in
+        SQL, so a page of 10,000 runs is read at once; every value is a bound parameter."""
         import socket
 
+        clause, params = _where(where)
+        order = "started_utc DESC, id DESC" if newest_first else "started_utc"
+        sql = f"SELECT {_COLUMNS} FROM runs {clause} ORDER BY {order}"
+        if limit is not None:
+            sql += " LIMIT ? OFFSET ?"
+            params += [int(limit), int(offset)]
         with self._connect() as con:
-            rows = con.execute(
-                "SELECT id, path, rig, components, sequence, started_utc, ended_utc, status,"
-                " reason, host, pid FROM runs ORDER BY started_utc"
-            ).fetchall()
-        out = []
+            rows = con.execute(sql, params).fetchall()
         here = socket.gethostname()
+        out = []
         for (rid, path, rig, comps, seq, start, end, status, reason, host, pid) in rows:
             if status == "running" and host == here and pid and not _alive(int(pid)):
                 status, reason = "killed", "recording process is gone; samples up to the last part"
-            out.append(RunRow(rid, path, rig or "", json.loads(comps or "{}"), seq or "",
+            out.append(RunRow(rid, path, rig or "", _components(comps), seq or "",
                               start or "", end, status or "", reason or ""))
         return out
+
+    def count(self, where: RunFilter | None = None) -> int:
+        clause, params = _where(where)
+        with self._connect() as con:
+            return int(con.execute(f"SELECT count(*) FROM runs {clause}", params).fetchone()[0])
+
+    def path_of(self, run_id: str) -> Path | None:
+        """The folder of run ``run_id``, None if the index has no such run."""
+        with self._connect() as con:
+            row = con.execute("SELECT path FROM runs WHERE id = ?", (run_id,)).fetchone()
+        return None if row is None else self.root / row[0]
 
     def rebuild(self) -> Rebuilt:
         """Re-index every run folder with a ``run.json`` under the root.
@@ -175,6 +197,40 @@ class RunIndex:
             self.upsert(meta, meta_path.parent)
             count += 1
         return Rebuilt(count, tuple(skipped))
+
+
+_COLUMNS = ("id, path, rig, components, sequence, started_utc, ended_utc, status, reason, "
+            "host, pid")
+
+
+def _where(where: RunFilter | None) -> tuple[str, list[Any]]:
+    """The SQL ``WHERE`` of a run filter (components are JSON: SQLite's json_extract)."""
+    w = where or RunFilter()
+    clauses: list[str] = []
+    params: list[Any] = []
+    for col in ("status", "sequence"):
+        if getattr(w, col) is not None:
+            clauses.append(f"{col} = ?")
+            params.append(getattr(w, col))
+    for key in ("motor", "propeller", "esc_mode"):
+        if getattr(w, key) is not None:
+            clauses.append("json_extract(components, ?) = ?")
+            params += [f"$.{key}", getattr(w, key)]
+    if w.since is not None:
+        clauses.append("started_utc >= ?")
+        params.append(w.since)
+    if w.until is not None:
+        clauses.append("started_utc < ?")
+        params.append(w.until)
+    return (("WHERE " + " AND ".join(clauses)) if clauses else ""), params
+
+
+def _components(text: str | None) -> dict[str, Any]:
+    try:
+        value = json.loads(text or "{}")
+    except ValueError:
+        return {}
+    return value if isinstance(value, dict) else {}
 
 
 def _utc_now() -> str:

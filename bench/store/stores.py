@@ -79,53 +79,20 @@ class FolderStore:
 
     def _query(self, where: RunFilter | None, limit: int | None = None, offset: int = 0,
                count: bool = False) -> Any:
-        """Index rows newest first, filtered and paged in SQL (10,000 runs list at once);
+        """Index rows newest first, filtered and paged by the index (``RunIndex.select``);
         opening the index first marks runs whose recording process died."""
-        import sqlite3
-
         from bench.store.run_index import INDEX_NAME, RunIndex
 
         if not (self.root / INDEX_NAME).exists():
             return 0 if count else []
-        RunIndex(self.root)
-        w = where or RunFilter()
-        clauses, params = [], []
-        for col in ("status", "sequence"):
-            if getattr(w, col) is not None:
-                clauses.append(f"{col} = ?")
-                params.append(getattr(w, col))
-        for key in ("motor", "propeller", "esc_mode"):
-            if getattr(w, key) is not None:
-                clauses.append("json_extract(components, ?) = ?")
-                params += [f"$.{key}", getattr(w, key)]
-        if w.since is not None:
-            clauses.append("started_utc >= ?")
-            params.append(w.since)
-        if w.until is not None:
-            clauses.append("started_utc < ?")
-            params.append(w.until)
-        sql_where = ("WHERE " + " AND ".join(clauses)) if clauses else ""
-        con = sqlite3.connect(f"file:{self.root / INDEX_NAME}?mode=ro", uri=True, timeout=10)
-        try:
-            if count:
-                return int(con.execute(f"SELECT count(*) FROM runs {sql_where}",
-                                       params).fetchone()[0])
-            sql = (f"SELECT id, path, rig, components, sequence, started_utc, ended_utc, "
-                   f"status, reason FROM runs {sql_where} ORDER BY started_utc DESC, id DESC")
-            if limit is not None:
-                sql += " LIMIT ? OFFSET ?"
-                params += [int(limit), int(offset)]
-            rows = con.execute(sql, params).fetchall()
-        except sqlite3.DatabaseError as exc:
-            raise RigError(f"{self.root / INDEX_NAME}: cannot read the run index ({exc})"
-                           ) from None
-        finally:
-            con.close()
-        return [RunSummary(run_id=rid, bench=rig or "", sequence=seq or "", status=st or "",
-                           samples=0, data=str(self.root / path), started_utc=start or None,
-                           ended_utc=end, rig=rig or "", reason=reason or "",
-                           components=_components(comps))
-                for rid, path, rig, comps, seq, start, end, st, reason in rows]
+        index = RunIndex(self.root)
+        if count:
+            return index.count(where)
+        return [RunSummary(run_id=r.id, bench=r.rig, sequence=r.sequence, status=r.status,
+                           samples=0, data=str(self.root / r.path),
+                           started_utc=r.started_utc or None, ended_utc=r.ended_utc, rig=r.rig,
+                           reason=r.reason, components=r.components)
+                for r in index.select(where, limit=limit, offset=offset, newest_first=True)]
 
     def _complete(self, r: RunSummary) -> RunSummary:
         """The summary with what only run.json holds: bench, operator, sample count."""
@@ -139,11 +106,11 @@ class FolderStore:
     def run_folder(self, run_id: str) -> Path:
         from bench.store.run_index import INDEX_NAME, RunIndex
 
-        if (self.root / INDEX_NAME).exists():
-            for r in RunIndex(self.root).list():
-                if r.id == run_id:
-                    return self.root / r.path
-        raise RigError(f"run {run_id}: not in the store {self.root}")
+        folder = RunIndex(self.root).path_of(run_id) if (self.root / INDEX_NAME).exists() \
+            else None
+        if folder is None:
+            raise RigError(f"run {run_id}: not in the store {self.root}")
+        return folder
 
     def add_constants(self, rows: Sequence[Any]) -> int:
         from bench.store.constants_store import ActuatorKey, ConstantsStore
@@ -161,14 +128,6 @@ class FolderStore:
         return [StoredConstants(r.key.motor, r.key.propeller, r.key.esc, r.key.esc_mode,
                                 r.key.battery, r.kind, r.key.catalog, r.run_id, r.run_path,
                                 r.fitted_utc, r.data) for r in ConstantsStore(self.root).rows()]
-
-
-def _components(text: str | None) -> dict[str, Any]:
-    try:
-        value = json.loads(text or "{}")
-    except ValueError:
-        return {}
-    return value if isinstance(value, dict) else {}
 
 
 def _read_meta(run_dir: Path) -> Mapping[str, Any]:

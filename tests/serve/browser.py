@@ -8,12 +8,14 @@ the flags this closed network needs.
 from __future__ import annotations
 
 import contextlib
+import importlib.util
 import os
 import shutil
-import socket
+import sys
 import threading
 import time
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 CHROMIUM = os.environ.get("ROTORBENCH_CHROMIUM", "/usr/bin/chromium")
@@ -21,10 +23,20 @@ FLAGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking",
          "--disable-component-update", "--no-first-run", "--disable-sync"]
 
 
+def _services() -> Any:
+    """tests/services.py (the free port and the port wait live there), loaded once."""
+    name = "rotorbench_tests_services"
+    if name not in sys.modules:
+        spec = importlib.util.spec_from_file_location(name, Path(__file__).parents[1] /
+                                                      "services.py")
+        assert spec and spec.loader
+        sys.modules[name] = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(sys.modules[name])
+    return sys.modules[name]
+
+
 def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
+    return int(_services().free_port())
 
 
 @contextlib.contextmanager
