@@ -297,18 +297,9 @@ def step1(
     def repeat(i: int) -> list[Step]:
         return [Checkpoint(f"repeat {i + 1}"), ThrustStep(high, hold_s), ThrustStep(low, hold_s)]
 
-    _check_length("step1", _spin_up(low, settle_s), repeat(0), repeats, _spin_down())
-    steps: list[Step] = _spin_up(low, settle_s)
-    for i in range(repeats):
-        steps += repeat(i)
-    steps += _spin_down()
-    return Sequence(
-        name="step1",
-        steps=tuple(steps),
-        description=f"Paper C Step 1: {low:.3f} N <-> {high:.3f} N, {repeats} repeats, "
-        f"{hold_s:g} s per level",
-        needs_thrust_map=True,
-    )
+    return _repeated("step1", low, settle_s, repeat, repeats,
+                     f"Paper C Step 1: {low:.3f} N <-> {high:.3f} N, {repeats} repeats, "
+                     f"{hold_s:g} s per level")
 
 
 def step2(
@@ -341,18 +332,22 @@ def step2(
             steps += [ThrustStep(low + f * span, dwell_s), ThrustStep(low, dwell_s)]
         return [*steps, Hold(hold_s)]
 
-    _check_length("step2", _spin_up(low, settle_s), repeat(0), repeats, _spin_down())
+    return _repeated("step2", low, settle_s, repeat, repeats,
+                     f"Paper C Step 2: decreasing amplitude {fractions} between {low:.3f} N "
+                     f"and {high:.3f} N, {repeats} repeats")
+
+
+def _repeated(name: str, low: float, settle_s: float, repeat: Callable[[int], list[Step]],
+              repeats: int, description: str) -> Sequence:
+    """Spin up to ``low``, ``repeats`` times ``repeat(i)``, spin down: a thrust-step plan,
+    its length checked from one repeat before the steps are built (audit row 4)."""
+    _check_length(name, _spin_up(low, settle_s), repeat(0), repeats, _spin_down())
     steps: list[Step] = _spin_up(low, settle_s)
     for i in range(repeats):
         steps += repeat(i)
     steps += _spin_down()
-    return Sequence(
-        name="step2",
-        steps=tuple(steps),
-        description=f"Paper C Step 2: decreasing amplitude {fractions} between {low:.3f} N "
-        f"and {high:.3f} N, {repeats} repeats",
-        needs_thrust_map=True,
-    )
+    return Sequence(name=name, steps=tuple(steps), description=description,
+                    needs_thrust_map=True)
 
 
 def sweep(start_us: float = 1100.0, end_us: float = 1900.0, duration_s: float = 20.0) -> Sequence:

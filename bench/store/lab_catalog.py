@@ -224,23 +224,8 @@ class LabCatalog:
 
 
 def _filters(where: RunFilter) -> tuple[str, list[Any]]:
-    clauses: list[str] = []
-    params: list[Any] = []
-    for col in ("bench", "status", "sequence"):
-        if getattr(where, col) is not None:
-            clauses.append(f"{col} = %s")
-            params.append(getattr(where, col))
-    for key in ("motor", "propeller", "esc_mode"):
-        if getattr(where, key) is not None:
-            clauses.append("components->>%s = %s")
-            params += [key, getattr(where, key)]
-    if where.since is not None:
-        clauses.append("started_utc >= %s::timestamptz")
-        params.append(where.since)
-    if where.until is not None:
-        clauses.append("started_utc < %s::timestamptz")
-        params.append(where.until)
-    return (("WHERE " + " AND ".join(clauses)) if clauses else ""), params
+    return where.sql("%s", "components->>%s = %s", columns=("bench", "status", "sequence"),
+                     time_cast="::timestamptz")
 
 
 def _run(row: Sequence[Any], meta: Any = None) -> CatalogRun:

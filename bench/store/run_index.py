@@ -204,25 +204,10 @@ _COLUMNS = ("id, path, rig, components, sequence, started_utc, ended_utc, status
 
 
 def _where(where: RunFilter | None) -> tuple[str, list[Any]]:
-    """The SQL ``WHERE`` of a run filter (components are JSON: SQLite's json_extract)."""
-    w = where or RunFilter()
-    clauses: list[str] = []
-    params: list[Any] = []
-    for col in ("status", "sequence"):
-        if getattr(w, col) is not None:
-            clauses.append(f"{col} = ?")
-            params.append(getattr(w, col))
-    for key in ("motor", "propeller", "esc_mode"):
-        if getattr(w, key) is not None:
-            clauses.append("json_extract(components, ?) = ?")
-            params += [f"$.{key}", getattr(w, key)]
-    if w.since is not None:
-        clauses.append("started_utc >= ?")
-        params.append(w.since)
-    if w.until is not None:
-        clauses.append("started_utc < ?")
-        params.append(w.until)
-    return (("WHERE " + " AND ".join(clauses)) if clauses else ""), params
+    """The SQL ``WHERE`` of a run filter (the bench is in run.json, not in the index; the
+    components are JSON: SQLite's json_extract of ``'$.' || key``)."""
+    return (where or RunFilter()).sql("?", "json_extract(components, '$.' || ?) = ?",
+                                      columns=("status", "sequence"))
 
 
 def _components(text: str | None) -> dict[str, Any]:

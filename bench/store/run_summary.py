@@ -52,3 +52,26 @@ class RunFilter:
                 and (self.esc_mode is None or str(comp.get("esc_mode", "")) == self.esc_mode)
                 and (self.since is None or (run.started_utc or "") >= self.since)
                 and (self.until is None or (run.started_utc or "") < self.until))
+
+    def sql(self, mark: str, component: str, *, columns: tuple[str, ...], time_cast: str = ""
+            ) -> tuple[str, list[Any]]:
+        """This filter as an SQL ``WHERE`` with bound parameters, for a store's dialect:
+        ``mark`` is its placeholder (``?`` or ``%s``); ``component`` the expression of one
+        component, with two placeholders (the key, then the value), e.g.
+        ``components->>%s = %s``; ``columns`` the plain columns the store can filter on;
+        ``time_cast`` what follows a time placeholder (``::timestamptz``)."""
+        clauses: list[str] = []
+        params: list[Any] = []
+        for col in columns:
+            if getattr(self, col) is not None:
+                clauses.append(f"{col} = {mark}")
+                params.append(getattr(self, col))
+        for key in ("motor", "propeller", "esc_mode"):
+            if getattr(self, key) is not None:
+                clauses.append(component)
+                params += [key, getattr(self, key)]
+        for value, op in ((self.since, ">="), (self.until, "<")):
+            if value is not None:
+                clauses.append(f"started_utc {op} {mark}{time_cast}")
+                params.append(value)
+        return (("WHERE " + " AND ".join(clauses)) if clauses else ""), params
