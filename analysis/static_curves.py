@@ -7,9 +7,10 @@ narrow speed bins (so a 25 kHz sweep, a 50 Hz stand log with sparse load-cell ro
 log of hand-set plateaus all give a clean point cloud), then fitted by least squares:
 
 * thrust = a w^2 + b w + c and its analytic inverse, and the pure k_f w^2 of (E.1) (the
-  Gazebo motor constant); the residual is reported on the raw samples (``thrust_rms``:
-  what a prediction of one sample is off by) and on the binned medians the curve was
-  fitted to (``thrust_rms_binned``, much smaller: the medians have averaged the noise);
+  Gazebo motor constant) with the spread of the k_f one speed level gives; the residual
+  is reported on the raw samples (``thrust_rms``: what a prediction of one sample is off
+  by) and on the binned medians the curve was fitted to (``thrust_rms_binned``, much
+  smaller: the medians have averaged the noise);
 * current = polynomial in w (degree 3: power grows with w^3), whose slope at hover is
   the damping D of Fig. C.5;
 * torque = k_q w^2 and torque / thrust (the moment constant), when torque is logged;
@@ -40,6 +41,7 @@ __all__ = [
     "fit_static",
     "fit_static_run",
     "from_parameters",
+    "lsq_through_origin",
     "motor_constants",
 ]
 
@@ -141,6 +143,9 @@ class StaticCurves:
     omega_max: float  # highest steady speed in the data (rad/s)
     voltage_v: float  # median supply voltage (V)
     notes: tuple[str, ...] = ()  # what was done to the data (e.g. the thrust sign flipped)
+    # spread of the k_f (k_q) one speed level gives (``lsq_through_origin``), NaN if unknown
+    k_f_std: float = math.nan
+    k_q_std: float = math.nan
 
     def thrust_at(self, omega: np.ndarray | float) -> np.ndarray:
         if self.thrust_poly is None:
@@ -181,6 +186,8 @@ class StaticCurves:
             "current_poly_w": coef(self.current_poly),
             "k_f_n_s2": num(self.k_f),
             "k_q_nm_s2": num(self.k_q),
+            "k_f_std_n_s2": num(self.k_f_std),
+            "k_q_std_nm_s2": num(self.k_q_std),
             "moment_constant_m": num(self.moment_constant_m),
             "thrust_rms_n": num(self.thrust_rms),
             "current_rms_a": num(self.current_rms),
@@ -212,10 +219,25 @@ def thrust_sign(thrust_n: np.ndarray, drive: np.ndarray) -> float:
     return -1.0 if np.median(f[x >= hi]) < np.median(f[x <= lo]) else 1.0
 
 
-def _lsq_through_origin(x: np.ndarray, y: np.ndarray) -> float:
+def lsq_through_origin(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
+    """Slope k of y = k x by least squares, and the spread of the k one point gives.
+
+    The spread is that of one point as the fit weights them (by x^2): the residual RMS
+    over the RMS of x, sqrt(sum(r^2) / (n - 1)) / sqrt(sum(x^2) / n) = sqrt(n) times the
+    slope's standard error. For k_f (x = w^2) a point is one speed level (a bin of the
+    sweep), as one edge is for a step fit's spread: what one measurement may show, not
+    how well the mean is known. NaN with fewer than two points."""
     ok = np.isfinite(x) & np.isfinite(y)
-    den = float(np.sum(x[ok] ** 2))
-    return float(np.sum(x[ok] * y[ok]) / den) if den > 0 else math.nan
+    xs, ys = x[ok], y[ok]
+    den = float(np.sum(xs**2))
+    if not den > 0:
+        return math.nan, math.nan
+    k = float(np.sum(xs * ys) / den)
+    n = xs.size
+    if n < 2:
+        return k, math.nan
+    resid = ys - k * xs
+    return k, float(np.sqrt(np.sum(resid**2) / (n - 1) / (den / n)))
 
 
 def fit_static(
@@ -267,8 +289,8 @@ def fit_static(
 
     tp, trms, trms_b = poly(pts["thrust"], th[use], 2)
     cp, crms, crms_b = poly(pts["current"], cu[use], 3)
-    k_f = _lsq_through_origin(w**2, pts["thrust"])
-    k_q = _lsq_through_origin(w**2, pts["torque"])
+    k_f, k_f_std = lsq_through_origin(w**2, pts["thrust"])
+    k_q, k_q_std = lsq_through_origin(w**2, pts["torque"])
     vmed = float(np.nanmedian(vv[use])) if np.isfinite(vv[use]).any() else math.nan
     return StaticCurves(
         omega=w, thrust=pts["thrust"], current=pts["current"], torque=pts["torque"],
@@ -276,6 +298,7 @@ def fit_static(
         moment_constant_m=k_q / k_f if math.isfinite(k_q) and k_f > 0 else math.nan,
         thrust_rms=trms, current_rms=crms, thrust_rms_binned=trms_b,
         current_rms_binned=crms_b, omega_max=float(np.max(w)), voltage_v=vmed, notes=notes,
+        k_f_std=k_f_std, k_q_std=k_q_std,
     )
 
 

@@ -15,7 +15,8 @@ mean of 20 repeats), and compares the two directions by the RMS of their differe
 * the 63 % rise time is read from the data (first crossing of 63.2 % of the fitted
   change, measured from the command edge, so it includes the latency: ``L + tau`` when
   the model fits); a level held less than 4 tau gets a note (not settled);
-* the spread of the single-edge estimates gives each estimate's uncertainty;
+* the spread of the single-edge estimates gives each estimate's uncertainty (``Estimate``:
+  ``std`` is the spread of one edge, ``stderr`` that of the mean of the repeats);
 * a second-order fit with two real poles (the form of C.1) is available as an option.
 """
 
@@ -43,6 +44,7 @@ __all__ = [
     "first_order_step",
     "fit_run",
     "fit_step_response",
+    "pooled_std",
     "second_order_step",
 ]
 
@@ -232,6 +234,16 @@ class Estimate:
                         else math.nan, int(s.size))
 
 
+def pooled_std(estimates: Any) -> float:
+    """The spread of one edge over several groups of edges (e.g. the rising and the
+    falling latency): sqrt(sum((n_i - 1) s_i^2) / sum(n_i - 1)) over the groups that have
+    a spread, NaN if none has. Each group's own mean is taken out first, so a latency
+    that differs between rising and falling edges is not counted as spread."""
+    pairs = [(e.n - 1, e.std) for e in estimates if e.n > 1 and math.isfinite(e.std)]
+    dof = sum(d for d, _ in pairs)
+    return math.sqrt(sum(d * s * s for d, s in pairs) / dof) if dof else math.nan
+
+
 @dataclass(frozen=True)
 class DirectionFit:
     """Rising or falling edges of one level pair: the mean-of-repeats fit and the spread."""
@@ -305,7 +317,7 @@ class StepResponse:
             "tau_down_ms": ms(dn.tau.value) if dn else None,
             "tau_up_std_ms": ms(up.tau.std) if up else None,
             "tau_down_std_ms": ms(dn.tau.std) if dn else None,
-            "latency_std_ms": ms(finite_mean([e.std for e in lat])) if lat else None,
+            "latency_std_ms": ms(pooled_std(lat)) if lat else None,
             "gain": num(float(np.mean([d.gain.value for d in (up, dn) if d is not None])))
             if (up or dn) else None,
             "gain_up": num(up.gain.value) if up else None,

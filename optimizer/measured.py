@@ -29,6 +29,10 @@ from optimizer.errors import RequestError
 
 #: The measured top thrust bounds batteries up to this fraction above the bench voltage.
 TOP_THRUST_VOLTAGE_MARGIN = 0.05
+#: The flight constants that may carry an uncertainty, and the field holding it.
+STD_OF = {"tau_up_s": "tau_up_std_s", "tau_down_s": "tau_down_std_s",
+          "latency_s": "latency_std_s", "k_f_n_s2": "k_f_std_n_s2",
+          "k_m_nm_s2": "k_m_std_nm_s2"}
 
 
 @dataclass(frozen=True)
@@ -66,6 +70,16 @@ class MeasuredActuator:
     latency_s: float | None = None
     k_f_n_s2: float | None = None
     k_m_nm_s2: float | None = None
+    # Their uncertainty, optional (None: none known, the value is flown as it is): the
+    # spread (sample standard deviation) of one measurement, not the standard error of
+    # the mean: one edge of the step run for the time constants and the latency (pooled
+    # over rising and falling edges), one speed level of the sweep for k_f and k_m.
+    # ``optimizer.flight.uncertainty`` draws flown samples from them.
+    tau_up_std_s: float | None = None
+    tau_down_std_s: float | None = None
+    latency_std_s: float | None = None
+    k_f_std_n_s2: float | None = None
+    k_m_std_nm_s2: float | None = None
 
     def __post_init__(self) -> None:
         label = f"measured actuator ({self.propeller_id}, {self.motor_id}, {self.esc_mode})"
@@ -94,6 +108,14 @@ class MeasuredActuator:
         lat = self.latency_s
         if lat is not None and not (math.isfinite(lat) and lat >= 0):
             raise RequestError(f"{label}: latency_s must be >= 0, got {float(lat):g}")
+        for name, std in STD_OF.items():
+            x = getattr(self, std)
+            if x is None:
+                continue
+            if not (math.isfinite(x) and x >= 0):
+                raise RequestError(f"{label}: {std} must be finite and >= 0, got {float(x):g}")
+            if getattr(self, name) is None:
+                raise RequestError(f"{label}: {std} is given without {name}")
         v = self.supply_voltage_v
         if v is not None and not (math.isfinite(v) and v > 0):
             raise RequestError(f"{label}: supply_voltage_v must be > 0, got {float(v):g}")

@@ -24,7 +24,7 @@ from bench.cli_support import (
     run_folder_arg,
     store_from_args,
 )
-from bench.store.constants_fit import fit_for_store
+from bench.store.constants_fit import STD_KEYS, fit_for_store
 from bench.store.lab_catalog import StoredConstants
 
 
@@ -74,12 +74,21 @@ def handler(args: argparse.Namespace) -> int:
     for r in rows:
         d = r.data
         if r.kind == "step":
-            vals = (f"latency {d['latency_s'] * 1e3:.1f} ms, tau up {d['tau_up_s'] * 1e3:.1f} / "
-                    f"down {d['tau_down_s'] * 1e3:.1f} ms")
+            vals = (f"latency {_value(d, 'latency_s', 1e3, '.1f')} ms, tau up "
+                    f"{_value(d, 'tau_up_s', 1e3, '.1f')} / down "
+                    f"{_value(d, 'tau_down_s', 1e3, '.1f')} ms")
         else:
-            vals = (f"k_f {d.get('k_f_n_s2') or float('nan'):.3g}, {len(d['hover_thrust_n'])} "
+            vals = (f"k_f {_value(d, 'k_f_n_s2', 1.0, '.3g')}, {len(d['hover_thrust_n'])} "
                     f"current points up to {max(d['hover_thrust_n'], default=0):.2f} N")
         table.add_row(r.motor, r.propeller, f"{r.esc} ({r.esc_mode})", r.battery, r.kind, vals,
                       r.run_id)
     Console(width=shutil.get_terminal_size((160, 24)).columns).print(table)
     return 0
+
+
+def _value(data: dict, key: str, scale: float, fmt: str) -> str:
+    """A stored constant with the spread of one measurement where the store has one
+    (``STD_KEYS``): "40.1 ± 1.2"; "?" for a constant the fit could not give."""
+    x, std = data.get(key), data.get(STD_KEYS[key])
+    text = format(x * scale, fmt) if isinstance(x, int | float) else "?"
+    return text + (f" ± {format(std * scale, fmt)}" if isinstance(std, int | float) else "")

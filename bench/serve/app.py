@@ -43,7 +43,7 @@ from bench.serve.run_views import (
     step_traces,
 )
 from bench.serve.security import COOKIE, Guard
-from bench.store.json_values import json_safe
+from bench.store.json_values import finite_number, json_safe
 from bench.store.run_summary import RunFilter, RunSummary
 from bench.store.stores import Store
 
@@ -147,7 +147,7 @@ def create_app(store: Store, *, token: str | None = None, title: str = "rotorben
             try:
                 rec = cache.get(store.run_folder(r.run_id))
                 last = rec.samples.iloc[-1]
-                row["latest"] = {k: _num(last[k]) for k in ("t_s", "thrust_n", "current_a",
+                row["latest"] = {k: finite_number(last[k]) for k in ("t_s", "thrust_n", "current_a",
                                                             "rpm") if k in last.index}
             except (RigError, LogError):
                 pass  # recorded elsewhere, or no part written yet
@@ -299,14 +299,6 @@ def _duration(start: str | None, end: str | None) -> float | None:
 def _elapsed(start: str | None) -> float | None:
     a = _parse(start)
     return None if a is None else round(time.time() - a, 1)
-
-
-def _num(v: Any) -> float | None:
-    try:
-        f = float(v)
-    except (TypeError, ValueError):
-        return None
-    return f if math.isfinite(f) else None
 
 
 def _short_meta(meta: dict[str, Any]) -> dict[str, Any]:

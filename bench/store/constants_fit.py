@@ -1,13 +1,14 @@
 """A bench run folder as the constants the store keeps: the first half of the constants stage.
 
 Step runs (kind ``step1``/``step``) give the latency and the rising and falling time
-constants; sweeps give the static curves and the supply current at ``HOVER_POINTS``
-thrusts inside the measured range (the optimizer never extrapolates a measurement, so
-nothing outside it is stored). Keyed by the run's motor, propeller, ESC, ESC mode and
-battery (``bench.store.constants_store.ActuatorKey``). A library function rather than CLI code
-because ``rotorbench constants``, ``rotorbench fly --step-run`` and the demo all fit runs
-the same way. The second half, store -> optimizer overrides, is
-``bench.store.measured_constants``.
+constants, each with the spread of one edge (``*_std_s``); sweeps give the static curves
+(k_f, k_q with the spread of one speed level, ``k_f_std_n_s2``, ``k_q_std_nm_s2``) and the
+supply current at ``HOVER_POINTS`` thrusts inside the measured range (the optimizer
+never extrapolates a measurement, so nothing outside it is stored). Keyed by the run's
+motor, propeller, ESC, ESC mode and battery (``bench.store.constants_store.ActuatorKey``).
+A library function rather than CLI code because ``rotorbench constants``, ``rotorbench fly
+--step-run`` and the demo all fit runs the same way. The second half, store -> optimizer
+overrides, is ``bench.store.measured_constants``.
 """
 
 from __future__ import annotations
@@ -20,9 +21,14 @@ import numpy as np
 from bench.errors import RigError
 from bench.store.constants_store import ActuatorKey
 
-__all__ = ["HOVER_POINTS", "fit_for_store"]
+__all__ = ["HOVER_POINTS", "STD_KEYS", "fit_for_store"]
 
 HOVER_POINTS = 24  # thrusts at which the supply current is stored
+#: the stored constants that carry a spread, and the key of that spread (a store written
+#: before the latency's and k_f's spreads were kept lacks those keys: no uncertainty)
+STD_KEYS = {"tau_up_s": "tau_up_std_s", "tau_down_s": "tau_down_std_s",
+            "latency_s": "latency_std_s", "k_f_n_s2": "k_f_std_n_s2",
+            "k_q_nm_s2": "k_q_std_nm_s2"}
 
 
 def fit_for_store(run: Path) -> tuple[ActuatorKey, str, str, dict[str, Any]]:
@@ -62,14 +68,17 @@ def _static_values(rec: Any) -> dict[str, Any]:
 
 def _step_values(rec: Any) -> dict[str, Any]:
     """A step run's latency, time constants and gain (both edges, all repeats)."""
-    from analysis.step_response import fit_run
+    from analysis.step_response import fit_run, pooled_std
 
     f = fit_run(rec, window_s=2.0)  # the whole hold (slow coasting modes settle late)
     if f.up is None or f.down is None:
         raise RigError(f"{rec.path}: needs rising and falling edges")
+    # *_std_s: the spread of one edge (sample std over the repeats), what one step of
+    # this actuator may do; the standard error of the mean is std / sqrt(repeats)
     return {"latency_s": 0.5 * (f.up.latency.value + f.down.latency.value),
             "tau_up_s": f.up.tau.value, "tau_down_s": f.down.tau.value,
             "tau_up_std_s": f.up.tau.std, "tau_down_std_s": f.down.tau.std,
+            "latency_std_s": pooled_std((f.up.latency, f.down.latency)),
             "rise_time_63_up_s": f.up.t63.value, "rise_time_63_down_s": f.down.t63.value,
             "gain": 0.5 * (f.up.gain.value + f.down.gain.value),
             "rise_fall_rms": f.rise_fall_rms, "repeats": f.up.tau.n,

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["json_safe"]
+__all__ = ["finite_number", "json_safe"]
 
 
 def json_safe(obj: Any) -> Any:
@@ -25,3 +25,13 @@ def json_safe(obj: Any) -> Any:
     if isinstance(obj, float) and not math.isfinite(obj):
         return None
     return obj
+
+
+def finite_number(value: Any) -> float | None:
+    """``value`` as a finite float; None for a value that is none (missing, null, text,
+    NaN, infinity): what a stored JSON value or a sample cell may hold."""
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        return None
+    return x if math.isfinite(x) else None

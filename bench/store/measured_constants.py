@@ -20,9 +20,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from bench.store.constants_store import STORE_NAME, ConstantsRow, ConstantsStore
+from bench.store.json_values import finite_number
 from optimizer.errors import RequestError
 
 __all__ = ["MeasuredSet", "find_store", "is_measured", "load_measured", "load_measured_set"]
@@ -69,25 +68,32 @@ def load_measured(root: Path, catalog: str | None = None,
     return out
 
 
+#: MeasuredActuator field <- the kind of row and the key of its value in the row's data
+#: (its spread's key: ``bench.store.constants_fit.STD_KEYS``)
+_FLIGHT_FIELDS = (("tau_up_s", "step", "tau_up_s"), ("tau_down_s", "step", "tau_down_s"),
+                  ("latency_s", "step", "latency_s"), ("k_f_n_s2", "static", "k_f_n_s2"),
+                  ("k_m_nm_s2", "static", "k_q_nm_s2"))
+
+
 def _flight_extras(step: ConstantsRow | None, static: ConstantsRow | None) -> dict[str, float]:
     """The flight model's optional constants (``MeasuredActuator`` tau_up_s ... k_m_nm_s2)
-    where the store has them as positive finite numbers."""
-    pairs: tuple[tuple[str, Any], ...] = ()
-    if step is not None:
-        pairs += (("tau_up_s", step.data.get("tau_up_s")),
-                  ("tau_down_s", step.data.get("tau_down_s")),
-                  ("latency_s", step.data.get("latency_s")))
-    if static is not None:
-        pairs += (("k_f_n_s2", static.data.get("k_f_n_s2")),
-                  ("k_m_nm_s2", static.data.get("k_q_nm_s2")))
+    where the store has them as positive finite numbers (latency >= 0), each with its
+    spread (``optimizer.measured.STD_OF``) where the store has that as a finite number
+    >= 0: a store written before the spreads were kept gives constants without any."""
+    from bench.store.constants_fit import STD_KEYS
+    from optimizer.measured import STD_OF
+
+    rows = {"step": step, "static": static}
     out = {}
-    for name, value in pairs:
-        try:
-            x = float(value)
-        except (TypeError, ValueError):
+    for name, kind, key in _FLIGHT_FIELDS:
+        row = rows[kind]
+        x = None if row is None else finite_number(row.data.get(key))
+        if x is None or not (x > 0 or (name == "latency_s" and x >= 0)):
             continue
-        if np.isfinite(x) and (x > 0 or (name == "latency_s" and x >= 0)):
-            out[name] = x
+        out[name] = x
+        std = finite_number(row.data.get(STD_KEYS[key]))
+        if std is not None and std >= 0:
+            out[STD_OF[name]] = std
     return out
 
 

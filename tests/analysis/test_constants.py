@@ -38,6 +38,13 @@ def test_store_fits_and_overrides(tmp_path, capsys):
     assert all(r.key.motor == "dji-2212-920kv" and r.key.propeller == "8x4.5" for r in rows)
     step = next(r for r in rows if r.kind == "step" and r.key.esc_mode == "diode")
     assert step.run_id == runs["diode"].name and step.data["tau_down_s"] > step.data["tau_up_s"]
+    # the spread of one edge (3 repeats per direction) and of one speed level of the sweep
+    static = next(r for r in rows if r.kind == "static")
+    spreads = {k: step.data[k] for k in ("tau_up_std_s", "tau_down_std_s", "latency_std_s")}
+    assert all(0 < v < 0.2 * step.data["tau_up_s"] for v in spreads.values()), spreads
+    assert 0 < static.data["k_f_std_n_s2"] < 0.05 * static.data["k_f_n_s2"]
+    assert static.data["k_q_std_nm_s2"] is None  # the sim stand logs no torque
+    assert f"latency {step.data['latency_s'] * 1e3:.1f} ± " in out  # the table shows them
     # storing a newer fit of the same kind replaces the row
     assert main(["constants", "--out", str(tmp_path), "--add", str(runs["diode"])]) == 0
     assert len(ConstantsStore(tmp_path).rows()) == 3
@@ -52,6 +59,8 @@ def test_store_fits_and_overrides(tmp_path, capsys):
     i, inside = comp.current_at(np.array([2.45]), np.array([comp.supply_voltage_v]))
     assert inside[0] and 1.0 < i[0] < 4.0
     assert "static: " in diode.source and "step: " in diode.source
+    assert diode.latency_std_s == step.data["latency_std_s"]
+    assert diode.k_f_std_n_s2 == static.data["k_f_std_n_s2"] and diode.k_m_std_nm_s2 is None
     assert load_measured(tmp_path, catalog="thesis-e") == []
 
 

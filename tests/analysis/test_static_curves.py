@@ -18,6 +18,7 @@ from analysis.static_curves import (
     fit_static,
     fit_static_run,
     from_parameters,
+    lsq_through_origin,
     motor_constants,
 )
 from bench.plans.sequences import sweep
@@ -69,6 +70,28 @@ def test_fit_recovers_synthetic_curves_and_inverse():
     assert s.damping_at(800.0) == pytest.approx(3 * 2e-9 * 800**2, rel=0.05)
 
 
+def test_k_f_spread_is_that_of_one_speed_level():
+    # the spread of one point is sqrt(n) times the least-squares standard error, which
+    # scipy's curve_fit gives independently (its covariance of k in y = k x)
+    from scipy.optimize import curve_fit
+
+    rng = np.random.default_rng(2)
+    w = np.linspace(300.0, 1200.0, 40)
+    thrust = 2e-6 * w**2 + rng.normal(0, 0.02, w.size)
+    k, spread = lsq_through_origin(w**2, thrust)
+    (k_ref,), cov = curve_fit(lambda x, kk: kk * x, w**2, thrust, p0=[1e-6])
+    assert k == pytest.approx(k_ref, rel=1e-9)
+    assert spread == pytest.approx(math.sqrt(cov[0, 0]) * math.sqrt(w.size), rel=1e-6)
+    # the noise of one point over the RMS of w^2: the k_f one level alone would give
+    assert spread == pytest.approx(0.02 / math.sqrt(np.mean(w**4)), rel=0.3)
+    thrust[::4] = np.nan  # gaps are left out, not counted
+    assert math.isfinite(lsq_through_origin(w**2, thrust)[1])
+    assert math.isnan(lsq_through_origin(w[:1] ** 2, thrust[:1])[1])  # one point: no spread
+    s = fit_static(np.repeat(w / RPM_TO_RAD_S, 20), np.repeat(thrust, 20))
+    assert s.summary()["k_f_std_n_s2"] == s.k_f_std and 0 < s.k_f_std < 0.1 * s.k_f
+    assert s.summary()["k_q_std_nm_s2"] is None  # no torque logged
+
+
 def test_no_spin_is_a_log_error():
     with pytest.raises(LogError, match="never turns"):
         fit_static(np.zeros(10), np.zeros(10))
@@ -99,6 +122,9 @@ def test_real_f40_static_curves(shared_data):
     ok = np.isfinite(s.thrust)
     assert np.sqrt(np.mean((pred[ok] - s.thrust[ok]) ** 2)) < 0.05 * np.nanmax(s.thrust)
     assert 0.005 < s.moment_constant_m < 0.03  # torque/thrust of a 7 in three-blade prop
+    # one speed level's k_f and k_q scatter by a few % about the fit (2.3 %, 1.5 %):
+    # the pure w^2 law is not exact over the range, and each level is a handful of samples
+    assert 0.01 < s.k_f_std / s.k_f < 0.04 and 0.005 < s.k_q_std / s.k_q < 0.03
     assert s.omega_max / RPM_TO_RAD_S > 15000
 
 

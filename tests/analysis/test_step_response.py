@@ -12,9 +12,11 @@ import pytest
 from analysis.errors import LogError
 from analysis.run_record import read_run
 from analysis.step_response import (
+    Estimate,
     detect_edges,
     first_order_step,
     fit_step_response,
+    pooled_std,
     second_order_step,
 )
 
@@ -71,6 +73,23 @@ def test_noise_spread_gives_the_uncertainty():
     assert up.tau.stderr == pytest.approx(up.tau.std / math.sqrt(8))
     # the mean-of-repeats fit is within a few standard errors of the truth
     assert abs(up.tau.value - 0.030) < 5 * up.tau.stderr + 3e-4
+
+
+def test_the_latency_spread_pools_the_edges_of_both_directions():
+    # rising latencies about 10 ms, falling about 30 ms: the pooled spread is that of one
+    # edge about its own direction's mean, not the 10 ms between the directions
+    up, down = np.array([0.009, 0.010, 0.011, 0.010]), np.array([0.028, 0.032])
+    got = pooled_std([Estimate.of(up.mean(), up), Estimate.of(down.mean(), down)])
+    dev = np.concatenate((up - up.mean(), down - down.mean()))
+    assert got == pytest.approx(math.sqrt(np.sum(dev**2) / (up.size + down.size - 2)))
+    one = Estimate.of(0.02, np.array([0.02]))  # a single edge has no spread: left out
+    assert pooled_std([one, Estimate.of(up.mean(), up)]) == pytest.approx(np.std(up, ddof=1))
+    assert math.isnan(pooled_std([one]))
+    t, u, y = synth([1.7, 3.2] * 8 + [1.7], 0.5, 0.015, 0.030, 0.050, noise=0.05, seed=3)
+    res = fit_step_response(t, y, u)
+    want = pooled_std([res.up.latency, res.down.latency])
+    assert 0 < want < 0.005
+    assert res.summary()["latency_std_ms"] == pytest.approx(want * 1e3, abs=1e-4)
 
 
 def test_symmetric_response_has_zero_rise_fall_rms_and_asymmetric_does_not():

@@ -101,3 +101,20 @@ def test_measured_set_builds_grids_and_names_sources(store, tmp_path):
     assert is_measured(sources, "time_constant_ms") == ((d.propeller, d.motor) == ("P1", "M1"))
     assert not is_measured(None, "time_constant_ms")
     assert not is_measured({"current_a": "model (E.67-E.69)"}, "current_a")
+
+
+def test_stored_spreads_reach_the_overrides_and_old_stores_have_none(tmp_path):
+    s = ConstantsStore(tmp_path / "runs")
+    spread = {"tau_up_std_s": 0.002, "tau_down_std_s": 0.004, "latency_std_s": 0.0}
+    s.put(_key("P1", "M1", "complementary"), "step", "run-step", "r/step", {**STEP, **spread})
+    s.put(_key("P1", "M1", "complementary"), "static", "run-sweep", "r/sweep",
+          {**STATIC, "k_q_nm_s2": 2e-8, "k_f_std_n_s2": 3e-8, "k_q_std_nm_s2": 1e-9})
+    # written before the spreads were kept (tau stds only), or with ones a fit left open
+    s.put(_key("P2", "M1", "complementary"), "step", "run-old", "r/old",
+          {**STEP, "tau_up_std_s": None, "tau_down_std_s": -1.0})
+    got = {o.propeller_id: o for o in load_measured(s.root)}
+    new, old = got["P1"], got["P2"]
+    assert (new.tau_up_std_s, new.tau_down_std_s, new.latency_std_s) == (0.002, 0.004, 0.0)
+    assert (new.k_f_std_n_s2, new.k_m_nm_s2, new.k_m_std_nm_s2) == (3e-8, 2e-8, 1e-9)
+    assert (old.tau_up_std_s, old.tau_down_std_s, old.latency_std_s) == (None, None, None)
+    assert old.tau_up_s == STEP["tau_up_s"] and old.k_f_std_n_s2 is None

@@ -9,6 +9,7 @@ import pandas as pd
 import pytest
 
 from bench.cli import main
+from bench.store.constants_fit import fit_for_store
 from bench.store.lab_catalog import StoredConstants
 from bench.store.run_summary import RunFilter
 from bench.store.stores import open_store
@@ -66,3 +67,17 @@ def test_constants_round_trip(store: object) -> None:
     store.add_constants([newer])
     (back,) = store.constants()  # the newest per actuator and kind
     assert back.run_id == "r2" and back.data["tau_up_s"] == 0.14
+
+
+def test_a_fitted_step_runs_spreads_round_trip(store: object) -> None:
+    """The spread of one edge (time constants and latency) travels in the constants' JSON
+    (a jsonb column in the lab catalog: no migration) and comes back as it was stored."""
+    run = _record(store)
+    key, kind, run_id, data = fit_for_store(run)
+    assert all(data[k] > 0 for k in ("tau_up_std_s", "tau_down_std_s", "latency_std_s"))
+    store.add_constants([StoredConstants(key.motor, key.propeller, key.esc, key.esc_mode,
+                                         key.battery, kind, key.catalog, run_id, str(run), "",
+                                         data)])
+    (back,) = store.constants()
+    assert {k: back.data[k] for k in ("tau_up_std_s", "tau_down_std_s", "latency_std_s")} == \
+        {k: data[k] for k in ("tau_up_std_s", "tau_down_std_s", "latency_std_s")}
