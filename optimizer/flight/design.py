@@ -20,6 +20,7 @@ from optimizer.errors import RequestError
 from optimizer.flight.actuators import ActuatorModel
 from optimizer.flight.controller import Gains, design_gains, phase_margins
 from optimizer.flight.maneuvers import DT_S, HOVER, Maneuver, fly
+from optimizer.flight.uncertainty import std_of
 from optimizer.flight.vehicle import Vehicle, vehicle_from_grid
 
 
@@ -76,6 +77,18 @@ def setup(catalog: Any, grid: Any, index: tuple[int, int, int], *, layout: str =
             frame = step.frame_s
     kwargs: dict[str, Any] = {} if frame is None else {"frame_s": frame}
     return vehicle, ActuatorModel(up, down, latency, source=source, **kwargs)
+
+
+def design_std(grid: Any, index: tuple[int, int, int], step: StepConstants | None = None
+               ) -> dict[str, float]:
+    """The std of each constant ``setup`` flies design ``index`` with
+    (``optimizer.flight.uncertainty.QUANTITIES``): the measured override's spreads, 0
+    where the constant is the model's; a step run given to ``setup`` replaces the time
+    constants and latency and brings no spread."""
+    std = std_of(getattr(grid, "overrides", {}).get((index[0], index[1])))
+    if step is not None:
+        std.update(tau_up_s=0.0, tau_down_s=0.0, latency_s=0.0)
+    return std
 
 
 def gains_for(actuator: ActuatorModel, dt: float = DT_S) -> Gains:
