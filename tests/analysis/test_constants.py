@@ -19,7 +19,8 @@ from bench.store.measured_constants import load_measured
 from drivers.factory import open_rig
 
 
-def test_store_fits_and_overrides(tmp_path, capsys):
+def test_store_fits_and_overrides(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "240")  # the table's cells unwrapped, whatever the terminal
     rig = load_rig(default_rig_path())
     opts = RunOptions(tick_s=0.02)
     sw = run_sequence(rig, sweep(duration_s=6.0), tmp_path, open_rig, options=opts).run_dir
