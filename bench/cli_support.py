@@ -85,15 +85,17 @@ FIGURE_SUFFIXES = (".png", ".pdf", ".svg")
 
 
 def check_figure_path(path: Path, flag: str = "--plot",
-                      suffixes: tuple[str, ...] = FIGURE_SUFFIXES) -> Path:
+                      suffixes: tuple[str, ...] = FIGURE_SUFFIXES,
+                      inputs: Sequence[Path | None] = ()) -> Path:
     """Refuse, before any work, a figure file that could not be written or whose suffix is
     no figure format (matplotlib would append ``.png`` to a bare name, or fail late);
-    ``suffixes``: the formats the writer knows (default: matplotlib's)."""
+    ``suffixes``: the formats the writer knows (default: matplotlib's); ``inputs``: the
+    files the command reads (never overwritten)."""
     path = Path(path)
     if path.suffix.lower() not in suffixes:
         raise RequestError(f"{flag} {path}: expected a file name ending in "
                            f"{', '.join(suffixes)}")
-    return check_writable(path, flag, folder=False)
+    return check_writable(path, flag, folder=False, inputs=inputs)
 
 
 def check_writable(path: Path, flag: str, *, folder: bool, beside: bool = False,

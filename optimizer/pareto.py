@@ -20,7 +20,8 @@ the enumeration alike. Every solve returns one
 front point, so a front of k points costs 2k + 1 MILPs.
 
 :func:`enumerate_front` is the independent oracle: sort by ``(cx, cy)`` and keep each
-point whose ``cy`` beats every earlier one.
+point whose ``cy`` beats every earlier one. Vectorised, it is also the front of any two
+columns of a sweep file's rows (``optimizer.flight.sweep_file``, ``pareto --from``).
 """
 
 from __future__ import annotations
@@ -67,16 +68,35 @@ def enumerate_front(cx: np.ndarray, cy: np.ndarray, ok: np.ndarray) -> FrontResu
     idx = np.flatnonzero(ok)
     order = idx[np.lexsort((idx, cy[idx], cx[idx]))]
     ys = cy[order]
-    keep = []
-    best_y = np.inf
-    # candidates: running minimum of cy drops (vectorised), then the tolerance walk
+    # candidates: where the running minimum of cy drops (a strictly falling sequence)
     prev_min = np.concatenate([[np.inf], np.minimum.accumulate(ys)[:-1]])
-    for pos in np.flatnonzero(ys < prev_min):
-        y = ys[pos]
-        if not np.isfinite(best_y) or y <= best_y - _tol(best_y):
-            keep.append(int(order[pos]))
-            best_y = y
-    return FrontResult(np.asarray(keep, int), "exact", 0, time.perf_counter() - start)
+    cand = np.flatnonzero(ys < prev_min)
+    keep = _tolerance_walk(ys[cand])
+    return FrontResult(order[cand[keep]].astype(int), "exact", 0, time.perf_counter() - start)
+
+
+def _tolerance_walk(y: np.ndarray) -> np.ndarray:
+    """Which of the strictly falling ``y`` stay on the front: the first, then each at least
+    ``RTOL`` below the last one kept (closer ones are the same point).
+
+    A value that far below its predecessor is that far below every earlier kept one too
+    (``v - tol(v)`` rises with v), so only runs of close neighbours need the sequential
+    walk: vectorised for millions of rows, a Python loop only over near-ties.
+    """
+    keep = np.ones(y.size, bool)
+    if y.size < 2:
+        return keep
+    close = np.flatnonzero(y[1:] > y[:-1] - _tol(y[:-1])) + 1
+    keep[close] = False
+    best, prev = np.inf, -1
+    for pos in close:
+        if prev != pos - 1:  # its predecessor is not close to its own: kept
+            best = y[pos - 1]
+        if y[pos] <= best - _tol(best):
+            keep[pos] = True
+            best = y[pos]
+        prev = pos
+    return keep
 
 
 def milp_front(

@@ -125,15 +125,17 @@ def _sum_reports(reports: list[Any]) -> list[dict[str, Any]]:
 
 def meet_roll_rise_option(result: Any, catalog: Any, objective: Objective, requirements: Any,
                           method: str, max_roll_rise_ms: float,
-                          measured: MeasuredGrids | None = None) -> Any:
+                          measured: MeasuredGrids | None = None, screen: Any = None) -> Any:
     """A roll rise limit on a selection: fly the picks, then candidates in objective order
-    (``optimizer.flight.choice.meet_roll_rise``), on the measured grids when given."""
+    (``optimizer.flight.choice.meet_roll_rise``), on the measured grids when given; with
+    ``screen`` (``optimizer.flight.sweep_screen.roll_screen``) read from a sweep file."""
     from optimizer.flight.choice import meet_roll_rise
 
     if method == "thesis":
         raise RequestError("--max-roll-rise-ms works with --method milp or exact")
     result = meet_roll_rise(result, catalog, objective, requirements, max_roll_rise_ms,
-                            build_grid=None if measured is None else measured.build_grid)
+                            build_grid=None if measured is None else measured.build_grid,
+                            screen=screen)
     if measured is not None:
         measured.annotate(result)
     return result

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import json
+from pathlib import Path
 from typing import Any
 
 from bench.cli_support import (
@@ -96,6 +97,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         metavar="T",
         help="keep only designs whose closed-loop 10 deg roll step rises (10-90 %%) within T "
         "ms: the MILP's pick is flown, then the others in objective order (rotorbench fly)",
+    )
+    p.add_argument(
+        "--from-sweep",
+        type=Path,
+        default=None,
+        metavar="SWEEP",
+        help="with --max-roll-rise-ms: read the roll rise times from this sweep file "
+        "(rotorbench fly --sweep --out SWEEP.parquet) instead of flying; designs it lacks "
+        "are not screened (docs/optimizer.md)",
     )
     add_hover_args(p)
     add_measured_args(p)
@@ -184,11 +194,12 @@ def handler(args: argparse.Namespace) -> int:
         # are not part of Paper E's runs
         refuse_unused(args, ("--objective", "--weights", "--normalize", "--payload-kg",
                              "--flyable", *RULE_FLAGS, "--series", "--parallel",
-                             "--prop-data"), "with --paper-e-cases")
+                             "--prop-data", "--from-sweep"), "with --paper-e-cases")
         implied = "--method thesis" if args.method == "thesis" else "--paper-e-cases"
         margin = hover_margin_from_args(args, implied_by=implied)
         return run_paper_e_cases(args, load(args.catalog, args.current_model), margin)
     objective = build_objective(args)
+    screen = _roll_screen(args)
     margin = hover_margin_from_args(
         args, implied_by="--method thesis" if args.method == "thesis" else None)
     catalog = margin.apply(load(args.catalog, args.current_model))
@@ -218,7 +229,7 @@ def handler(args: argparse.Namespace) -> int:
                                "or --series/--parallel yet (the flown candidates come from the "
                                "plain catalog model)")
         result = meet_roll_rise_option(result, catalog, objective, requirements, args.method,
-                                       args.max_roll_rise_ms, measured)
+                                       args.max_roll_rise_ms, measured, screen)
     warnings = _hover_warnings(result, catalog, args.payload_kg)
     if args.json:
         doc = result.to_dict()
@@ -236,8 +247,12 @@ def handler(args: argparse.Namespace) -> int:
         for d in result.designs:
             info = d.extra.get("flight")
             if info and d.feasible:
+                how = (f"flew {info['flown']} design(s)" if "source" not in info else
+                       f"from {info['source']}: {info['screened']} screened, "
+                       f"{info['not_in_file']} not in the file, "
+                       f"{info['not_in_file_better']} of them better")
                 print(f"{d.actuators} actuators: roll rise {info['roll_rise_ms']:.0f} ms <= "
-                      f"{info['max_roll_rise_ms']:g} ms (flew {info['flown']} design(s))")
+                      f"{info['max_roll_rise_ms']:g} ms ({how})")
         if prop_data is not None:
             rep = prop_data["report"]
             print(f"propeller data (APC static): {len(rep['matched'])} matched, missed: "
@@ -249,6 +264,19 @@ def handler(args: argparse.Namespace) -> int:
             print(f"warning: {line}")
     return 0 if result.any_feasible else EXIT_NO_FEASIBLE
 
+
+
+def _roll_screen(args: argparse.Namespace) -> Any:
+    """The sweep file's roll rise times (``--from-sweep``), read and checked before any
+    solve; None without it."""
+    if args.from_sweep is None:
+        return None
+    if args.max_roll_rise_ms is None:
+        refuse_unused(args, ("--from-sweep",), "without --max-roll-rise-ms")
+        raise RequestError("--from-sweep needs --max-roll-rise-ms")  # a library caller
+    from optimizer.flight.sweep_screen import roll_screen
+
+    return roll_screen(args.from_sweep, args.payload_kg)
 
 
 def print_rule_reports(reports: list[dict[str, Any]]) -> None:

@@ -5,8 +5,10 @@ non-dominated designs; the fronts of several counts are merged by dominance. Eve
 hovers with the margin of ``--min-thrust-to-weight`` (default 1.2; ``--thesis-rules``
 drops it), a check of the grid the front is solved on. ``--check``
 also enumerates every design and says whether the two fronts agree. ``front`` lists
-designs with the keys of an ``optimize --json`` design. Exit 0 with a front, 3 when no
-design is feasible, 2 for bad input.
+designs with the keys of an ``optimize --json`` design. ``--from SWEEP.parquet`` draws the
+front of any two columns of a closed-loop sweep file instead (``optimizer.flight.sweep_file``:
+objectives, ``roll-rise``-style aliases, raw columns; no catalog, no MILP). Exit 0 with a
+front, 3 when no design is feasible, 2 for bad input.
 """
 
 from __future__ import annotations
@@ -21,12 +23,15 @@ import numpy as np
 
 from bench.cli_support import (
     EXIT_NO_FEASIBLE,
+    RULE_FLAGS,
     add_catalog_args,
     add_hover_args,
     add_rule_args,
     check_figure_path,
+    given_options,
     hover_margin_from_args,
     json_default,
+    refuse_unused,
     rules_from_args,
 )
 from bench.store.catalogs import load
@@ -44,12 +49,20 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="exact Pareto front of two objectives (epsilon-constraint MILP)",
         description="The non-dominated designs of two objectives (any of "
         f"{', '.join(METRICS)}), exact: an epsilon-constraint MILP per actuator count, "
-        "fronts merged by dominance.",
+        "fronts merged by dominance. With --from SWEEP.parquet: the exact front of any two "
+        "columns of a closed-loop sweep file (docs/optimizer.md).",
     )
     add_catalog_args(p)
-    p.add_argument("--actuators", type=int, nargs="+", default=[4, 6, 8], metavar="N")
-    p.add_argument("--x", choices=tuple(METRICS), default="flight-time")
-    p.add_argument("--y", choices=tuple(METRICS), default="time-constant")
+    p.add_argument("--actuators", type=int, nargs="+", default=[4, 6, 8], metavar="N",
+                   help="actuator counts (default 4 6 8; with --from: keep only these rows)")
+    axis = (f"one of {', '.join(METRICS)}; with --from also <maneuver>-rise|-overshoot|"
+            "-settling|-saturation[-pNN] (e.g. roll-rise) or a numeric column, minimised "
+            "unless written max:NAME")
+    p.add_argument("--x", default="flight-time", metavar="NAME", help=f"x objective: {axis}")
+    p.add_argument("--y", default="time-constant", metavar="NAME", help="y objective (as --x)")
+    p.add_argument("--from", dest="source", type=Path, default=None, metavar="SWEEP",
+                   help="the front of a closed-loop sweep file (rotorbench fly --sweep --out "
+                   "SWEEP.parquet) instead of a catalog")
     p.add_argument("--method", choices=("milp", "exact"), default="milp",
                    help="milp: epsilon-constraint MILP (default); exact: enumeration")
     p.add_argument("--check", action="store_true",
@@ -64,11 +77,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def compute(args: argparse.Namespace) -> dict[str, Any]:
     from optimizer import pareto
     from optimizer.design_model import evaluate_grid
-    from optimizer.objectives import single
+    from optimizer.objectives import METRICS, single
     from optimizer.selection import DesignResult, _design_at
 
     if args.x == args.y:
         raise RequestError(f"--x and --y are both {args.x}; give two different objectives")
+    for flag, name in (("--x", args.x), ("--y", args.y)):
+        if name not in METRICS:
+            raise RequestError(f"{flag} {name}: expected one of {', '.join(METRICS)} "
+                               "(closed-loop figures and other columns: --from SWEEP.parquet)")
     for n in args.actuators:
         if n < 3:
             raise RequestError(f"--actuators: expected counts >= 3, got {n}")
@@ -137,10 +154,44 @@ def compute(args: argparse.Namespace) -> dict[str, Any]:
     }
 
 
+#: Options of the catalog and the MILP, which a sweep file has already decided.
+CATALOG_ONLY = ("--catalog", "--payload-kg", "--current-model", "--method", "--check",
+                "--min-thrust-to-weight", "--thesis-rules", "--flyable", *RULE_FLAGS)
+
+
+def compute_from_file(args: argparse.Namespace) -> dict[str, Any]:
+    """``compute``'s document for the rows of a sweep file (``pareto --from``)."""
+    from optimizer.flight.sweep_file import front, open_sweep
+
+    refuse_unused(args, CATALOG_ONLY, "with --from (the sweep file holds the designs and "
+                  "their numbers)")
+    sweep = open_sweep(args.source)
+    only = given_options(args, "--actuators") and list(dict.fromkeys(args.actuators))
+    res = front(sweep, args.x, args.y, only or None)
+    catalog = sweep.spec.get("catalog")
+    name = Path(str(catalog)).name if isinstance(catalog, str) else sweep.path.name
+    return {
+        "x": args.x, "y": args.y, "x_key": res.x.column, "y_key": res.y.column,
+        "x_label": res.x.label, "y_label": res.y.label,
+        "x_sense": res.x.sense, "y_sense": res.y.sense,
+        "source": str(sweep.path), "catalog": catalog, "catalog_name": name,
+        "actuators": res.actuators, "method": "sweep", "front": res.front,
+        "rows": res.rows, "considered": res.considered, "left_out": res.left_out.to_dict(),
+        "left_out_text": res.left_out.text(), "sweep": sweep.spec,
+        "_cloud": res.cloud, "_cloud_label": "flown designs that hover",
+    }
+
+
 def handler(args: argparse.Namespace) -> int:
     if args.plot is not None:  # refused before the work, not after it
-        check_figure_path(args.plot)
-    doc = compute(args)
+        check_figure_path(args.plot, inputs=(args.source,))
+    if args.source is not None:
+        return _report(args, compute_from_file(args))
+    return _report(args, compute(args))
+
+
+def _report(args: argparse.Namespace, doc: dict[str, Any]) -> int:
+    """Plot, then print the document (JSON or a table and its notes)."""
     if args.plot is not None:
         from bench.figures.sizing_figures import pareto_figure
 
@@ -148,15 +199,17 @@ def handler(args: argparse.Namespace) -> int:
         step = max(1, -(-cx.size // PLOT_CLOUD_MAX))
         pareto_figure({**doc, "_cloud": (cx[::step], cy[::step])}, args.plot)
     doc.pop("_cloud")
-    text = doc.pop("hover_margin_text")
+    doc.pop("_cloud_label", None)
+    text = doc.pop("hover_margin_text", None)
     if args.json:
         print(json.dumps(doc, indent=2, default=json_default))
     else:
         print_front(doc)
         if args.plot is not None:
             print(f"plot: {args.plot}")
-        print(text)
-        for line in doc["warnings"]:
+        if text:
+            print(text)
+        for line in doc.get("warnings", ()):
             print(f"warning: {line}")
     return 0 if doc["front"] else EXIT_NO_FEASIBLE
 
@@ -165,18 +218,25 @@ def print_front(doc: dict[str, Any]) -> None:
     from rich.console import Console
     from rich.table import Table
 
-    table = Table(title=f"Pareto front: {doc['x']} vs {doc['y']}, payload "
-                  f"{doc['payload_kg']:g} kg, method {doc['method']}", title_justify="left")
+    where = (f"from {doc['source']}" if "source" in doc else
+             f"payload {doc['payload_kg']:g} kg, method {doc['method']}")
+    table = Table(title=f"Pareto front: {doc['x']} vs {doc['y']}, {where}",
+                  title_justify="left")
     for head in ("N", "Propeller", "Motor", "Battery", doc["x_label"], doc["y_label"],
                  "Price", "Mass (kg)"):
         table.add_column(head, justify="right")
     for d in doc["front"]:
         table.add_row(str(d["actuators"]), d["propeller"], d["motor"], d["battery"],
-                      f"{d[doc['x_key']]:.4g}", f"{d[doc['y_key']]:.4g}",
-                      f"{d['price']:.2f}", f"{d['total_mass_kg']:.3f}")
+                      *(_number(d.get(k), f) for k, f in ((doc["x_key"], ".4g"),
+                                                          (doc["y_key"], ".4g"),
+                                                          ("price", ".2f"),
+                                                          ("total_mass_kg", ".3f"))))
     console = Console(soft_wrap=False)
     console.print(table)
-    for e in doc["per_actuator"]:
+    if "source" in doc:
+        console.print(f"{len(doc['front'])} points from {doc['considered']} of "
+                      f"{doc['rows']} rows; {doc['left_out_text']}")
+    for e in doc.get("per_actuator", ()):
         line = (f"{e['actuators']} actuators: {e['points']} points from {e['feasible_designs']} "
                 f"feasible designs, {e['solves']} MILP solves, {e['time_s']:.3f} s")
         if "check_agrees" in e:
@@ -185,3 +245,7 @@ def print_front(doc: dict[str, Any]) -> None:
         console.print(line)
     if not doc["front"]:
         console.print("No feasible design.", style="bold red")
+
+
+def _number(value: Any, fmt: str) -> str:
+    return "-" if value is None else format(value, fmt)

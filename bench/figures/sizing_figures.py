@@ -48,11 +48,13 @@ def partial_load_figure(record: dict[str, Any], path: Path) -> Path:
 
 
 def pareto_figure(doc: dict[str, Any], path: Path) -> Path:
-    """The front (line and points) over every feasible design (grey)."""
+    """The front (line and points) over every feasible design (grey; ``_cloud_label`` says
+    what else the grey points are, e.g. the flown designs of a sweep file)."""
     fig, ax = plt.subplots(figsize=(6.4, 4.4))
     cloud = doc.get("_cloud")
     if cloud is not None and len(cloud[0]):
-        ax.scatter(cloud[0], cloud[1], s=4, c="0.75", label="feasible designs", rasterized=True)
+        ax.scatter(cloud[0], cloud[1], s=4, c="0.75",
+                   label=doc.get("_cloud_label", "feasible designs"), rasterized=True)
     xs = [d[doc["x_key"]] for d in doc["front"]]
     ys = [d[doc["y_key"]] for d in doc["front"]]
     ax.step(xs, ys, where="post", color="C0", lw=1)

@@ -5,7 +5,9 @@ the 6-DOF equations of motion, thesis 2.39-2.43 / B.7-B.11), ``actuators`` (Pape
 first-order-plus-delay rotor), ``mixer`` (B.27 for any layout, saturation rule),
 ``controller`` (quaternion attitude -> rate -> mixer cascade, altitude hold, gain rule),
 ``maneuvers`` (the closed-loop simulation and the named maneuvers), ``metrics`` (rise,
-overshoot, settling), ``ranking`` (time constant vs closed-loop rise time) and
-``reference`` (tight integrations the step and the rotor lag are checked against). Plain
-numbers in, plain numbers out: no device code.
+overshoot, settling), ``ranking`` (time constant vs closed-loop rise time), ``choice``
+(``optimize --max-roll-rise-ms``), ``sweep_file`` (a sweep's Parquet file read back: the
+front of ``pareto --from``), ``sweep_screen`` (its roll rise times for ``optimize
+--from-sweep``) and ``reference`` (tight integrations the step and the rotor lag are
+checked against). Plain numbers in, plain numbers out: no device code.
 """
