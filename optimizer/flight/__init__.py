@@ -8,6 +8,8 @@ first-order-plus-delay rotor), ``mixer`` (B.27 for any layout, saturation rule),
 overshoot, settling), ``ranking`` (time constant vs closed-loop rise time), ``choice``
 (``optimize --max-roll-rise-ms``), ``sweep_file`` (a sweep's Parquet file read back: the
 front of ``pareto --from``), ``sweep_screen`` (its roll rise times for ``optimize
---from-sweep``) and ``reference`` (tight integrations the step and the rotor lag are
-checked against). Plain numbers in, plain numbers out: no device code.
+--from-sweep``), ``reference`` (tight integrations the step and the rotor lag are checked
+against) and the batch flight, many designs at once as numpy arrays with the scalar
+loop's figures: ``batch_designs`` (the designs), ``batch_loop`` (the tick) and ``batch``
+(``fly_batch``). Plain numbers in, plain numbers out: no device code.
 """

@@ -100,6 +100,13 @@ def _euler_quaternion(roll: float, pitch: float, yaw: float) -> tuple[float, ...
             cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy)
 
 
+def step_quaternion(man: Maneuver) -> tuple[float, ...]:
+    """The attitude setpoint after the step (level for a maneuver of no attitude axis)."""
+    command = {"roll": (man.amplitude, 0.0, 0.0), "pitch": (0.0, man.amplitude, 0.0),
+               "yaw": (0.0, 0.0, man.amplitude)}.get(man.axis)
+    return _euler_quaternion(*command) if command else (1.0, 0.0, 0.0, 0.0)
+
+
 def fly(vehicle: Vehicle, actuator: ActuatorModel, man: Maneuver, *,
         gains: Gains | None = None, dt: float = DT_S, record: bool = True) -> Flight:
     """Fly one maneuver; ``record=False`` keeps only the maneuver axis (faster sweeps)."""
@@ -127,9 +134,7 @@ def fly(vehicle: Vehicle, actuator: ActuatorModel, man: Maneuver, *,
     t_arr = np.arange(steps) * dt
     sp = np.zeros(steps)
     level = (1.0, 0.0, 0.0, 0.0)
-    command = {"roll": (man.amplitude, 0.0, 0.0), "pitch": (0.0, man.amplitude, 0.0),
-               "yaw": (0.0, 0.0, man.amplitude)}.get(man.axis)
-    q_step = _euler_quaternion(*command) if command else level
+    q_step = step_quaternion(man)
     z_step = man.amplitude if man.axis == "altitude" else 0.0
     k_step = round(STEP_TIME_S / dt)
     if man.axis in ("roll", "pitch", "yaw", "altitude"):
@@ -181,30 +186,51 @@ def figures(f: Flight, vehicle: Vehicle, actuator: ActuatorModel,
             rotors: RotorBank) -> dict[str, Any]:
     """The maneuver's JSON figures (issue keys first)."""
     man = f.maneuver
-    t_step = STEP_TIME_S
-    out: dict[str, Any] = {}
+    if man.axis == "hover":
+        return trim_figures(vehicle.hover_speed_rad_s, rotors.omega_min, rotors.omega_max,
+                            vehicle.n_rotors, vehicle.k_m, float(abs(f.position[-1, 2])))
     axis_col = {"roll": 0, "pitch": 1, "yaw": 2}
     if man.axis in axis_col:
-        y = f.euler[:, axis_col[man.axis]]
-        out.update(metrics.step_metrics(f.t, y, t_step, 0.0, man.amplitude))
+        signal = f.euler[:, axis_col[man.axis]]
     elif man.axis == "altitude":
-        out.update(metrics.step_metrics(f.t, f.position[:, 2], t_step, 0.0, man.amplitude))
-    elif man.axis == "gust":
-        tilt = np.hypot(f.euler[:, 0], f.euler[:, 1])
-        d = metrics.disturbance_metrics(f.t, tilt, t_step, math.radians(GUST_BAND_DEG))
+        signal = f.position[:, 2]
+    else:
+        signal = gust_tilt(f.euler[:, 0], f.euler[:, 1])
+    return response_figures(man, f.t, signal, f.saturated)
+
+
+def gust_tilt(roll: np.ndarray, pitch: np.ndarray) -> np.ndarray:
+    """How far a gust tilts the vehicle (rad), what the gust's figures read."""
+    return np.hypot(roll, pitch)
+
+
+def response_figures(man: Maneuver, t: np.ndarray, signal: np.ndarray,
+                     saturated: np.ndarray) -> dict[str, Any]:
+    """Figures of a step or gust from what its axis reads (T,): the commanded angle, the
+    height, or the gust's tilt; and the saturation flags (T,)."""
+    t_step = STEP_TIME_S
+    out: dict[str, Any] = {}
+    if man.axis == "gust":
+        d = metrics.disturbance_metrics(t, signal, t_step, math.radians(GUST_BAND_DEG))
         out.update({"rise_time_ms": None, "overshoot_pct": None,
                     "settling_time_ms": d["settling_time_ms"],
                     "peak_tilt_deg": math.degrees(d["peak"])})
-    out["saturation_pct"] = 100.0 * float(np.mean(f.saturated))
-    if man.axis == "hover":
-        # the trim (E.19-E.20), as far as the rotors reach: full throttle when they cannot
-        w = min(max(vehicle.hover_speed_rad_s, rotors.omega_min), rotors.omega_max)
-        span = rotors.omega_max - rotors.omega_min
-        # (E.60)-(E.63): shaft power of one rotor C_p rho n^3 D^5 = k_m omega^3
-        shaft = vehicle.n_rotors * vehicle.k_m * w ** 3
-        out = {"rpm": w * 60.0 / (2.0 * math.pi),
-               "throttle": (w - rotors.omega_min) / span,
-               "shaft_power_w": shaft,
-               "model_rpm": vehicle.hover_speed_rad_s * 60.0 / (2.0 * math.pi),
-               "altitude_error_m": float(abs(f.position[-1, 2]))}
+    else:
+        out.update(metrics.step_metrics(t, signal, t_step, 0.0, man.amplitude))
+    out["saturation_pct"] = 100.0 * float(np.mean(saturated))
     return metrics.summary(out)
+
+
+def trim_figures(hover_speed_rad_s: float, omega_min: float, omega_max: float, n_rotors: int,
+                 k_m: float, altitude_error_m: float) -> dict[str, Any]:
+    """Hover's figures: the trim (E.19-E.20), as far as the rotors reach (full throttle when
+    they cannot), and the height lost or gained at the end of the run."""
+    w = min(max(hover_speed_rad_s, omega_min), omega_max)
+    span = omega_max - omega_min
+    # (E.60)-(E.63): shaft power of one rotor C_p rho n^3 D^5 = k_m omega^3
+    shaft = n_rotors * k_m * w ** 3
+    return metrics.summary({"rpm": w * 60.0 / (2.0 * math.pi),
+                            "throttle": (w - omega_min) / span,
+                            "shaft_power_w": shaft,
+                            "model_rpm": hover_speed_rad_s * 60.0 / (2.0 * math.pi),
+                            "altitude_error_m": altitude_error_m})

@@ -28,14 +28,15 @@ import numpy as np
 
 
 def allocation_matrix(x: np.ndarray, y: np.ndarray, spin: np.ndarray,
-                      torque_ratio_m: float) -> np.ndarray:
-    """A (4 x N): rotor thrusts -> [M_x, M_y, M_z, T], (B.11) plus the thrust row of (B.27)."""
-    return np.vstack([y, -x, -spin * torque_ratio_m, np.ones_like(x)])
+                      torque_ratio_m: float | np.ndarray) -> np.ndarray:
+    """A (4 x N): rotor thrusts -> [M_x, M_y, M_z, T], (B.11) plus the thrust row of (B.27).
+    Positions of shape (B, N) and torque ratios of shape (B, 1) give a stack (B, 4, N)."""
+    return np.stack([y, -x, -spin * torque_ratio_m, np.ones_like(x)], axis=-2)
 
 
 def mixing_matrix(allocation: np.ndarray) -> np.ndarray:
-    """(B.27): A^-1 for N = 4, the Moore-Penrose inverse A^+ otherwise."""
-    if allocation.shape[0] == allocation.shape[1]:
+    """(B.27): A^-1 for N = 4, the Moore-Penrose inverse A^+ otherwise (also of a stack)."""
+    if allocation.shape[-2] == allocation.shape[-1]:
         return np.linalg.inv(allocation)
     return np.linalg.pinv(allocation)
 

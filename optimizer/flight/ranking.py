@@ -18,8 +18,11 @@ from typing import Any
 import numpy as np
 from scipy.stats import spearmanr
 
+from optimizer.flight.actuators import ActuatorModel
+from optimizer.flight.batch import CHUNK, DesignBatch, fly_batch
 from optimizer.flight.design import feasible_indices, gains_for, setup
 from optimizer.flight.maneuvers import MANEUVERS, fly
+from optimizer.flight.vehicle import Vehicle
 
 
 @dataclass(frozen=True)
@@ -72,15 +75,33 @@ def roll_step(catalog: Any, grid: Any, index: tuple[int, int, int], **kwargs: An
               ) -> FlownDesign:
     """Fly ``roll_step`` for one design of a grid (``kwargs`` go to ``design.setup``)."""
     vehicle, actuator = setup(catalog, grid, index, **kwargs)
-    note = vehicle.hover_shortfall()
     f = fly(vehicle, actuator, MANEUVERS["roll_step"], gains=gains_for(actuator), record=False)
+    return _row(grid, index, vehicle, actuator, f.figures)
+
+
+def roll_steps(catalog: Any, grid: Any, indices: Sequence[tuple[int, int, int]],
+               **kwargs: Any) -> list[FlownDesign]:
+    """``roll_step`` of many designs of a grid, flown together (``optimizer.flight.batch``,
+    the same figures); a design the batch reports an error for is flown alone, as before."""
+    if not indices:
+        return []
+    models = [setup(catalog, grid, idx, **kwargs) for idx in indices]
+    batch = DesignBatch.from_models([v for v, _ in models], [a for _, a in models])
+    figures = fly_batch(batch, MANEUVERS["roll_step"])
+    return [roll_step(catalog, grid, idx, **kwargs) if "error" in fig
+            else _row(grid, idx, v, a, fig)
+            for idx, (v, a), fig in zip(indices, models, figures, strict=True)]
+
+
+def _row(grid: Any, index: tuple[int, int, int], vehicle: Vehicle, actuator: ActuatorModel,
+         fig: dict[str, Any]) -> FlownDesign:
     i, j, k = index
-    fig = f.figures
     return FlownDesign(
         grid.propeller_ids[i], grid.motor_ids[j], grid.battery_ids[k],
         float(grid.metrics["time_constant_ms"][i, j, k]), fig["rise_time_ms"],
         fig["overshoot_pct"], fig["settling_time_ms"], fig["saturation_pct"],
-        actuator.tau_up_s * 1e3, actuator.tau_down_s * 1e3, fig["final_error_pct"], note)
+        actuator.tau_up_s * 1e3, actuator.tau_down_s * 1e3, fig["final_error_pct"],
+        vehicle.hover_shortfall())
 
 
 def rank(catalog: Any, grid: Any, progress: Callable[[int, int], None] | None = None,
@@ -89,14 +110,15 @@ def rank(catalog: Any, grid: Any, progress: Callable[[int, int], None] | None = 
 
     A design that never reaches 90 % of the step ranks last (rise time infinite); one
     that cannot hover (hover speed above full throttle: the catalog may have no
-    thrust-to-weight check) is flown and listed but left out of rho."""
+    thrust-to-weight check) is flown and listed but left out of rho. The designs fly in
+    batches (``roll_steps``); ``progress`` is told after each."""
     start = time.perf_counter()
     indices = feasible_indices(grid)
-    rows = []
-    for n, idx in enumerate(indices):
-        rows.append(roll_step(catalog, grid, idx, **kwargs))
+    rows: list[FlownDesign] = []
+    for first in range(0, len(indices), CHUNK):
+        rows.extend(roll_steps(catalog, grid, indices[first:first + CHUNK], **kwargs))
         if progress is not None:
-            progress(n + 1, len(indices))
+            progress(len(rows), len(indices))
     rho, p = spearman(rows)
     return Ranking(grid.n_actuators, rows, rho, p, time.perf_counter() - start)
 

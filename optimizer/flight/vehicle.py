@@ -98,11 +98,8 @@ class Vehicle:
         X layout: rotors at (2i + 1) pi / N, as the optimizer's inertia sums; plus layout:
         at 2 i pi / N (rotor 0 on the roll axis). Spins alternate around the frame.
         """
-        i = np.arange(self.n_rotors)
-        offset = 1.0 if self.layout == "x" else 0.0
-        angle = (2 * i + offset) * np.pi / self.n_rotors
-        spin = np.where(i % 2 == 0, 1.0, -1.0)
-        return self.arm_m * np.cos(angle), self.arm_m * np.sin(angle), spin
+        cos, sin, spin = rotor_directions(self.n_rotors, self.layout)
+        return self.arm_m * cos, self.arm_m * sin, spin
 
     def with_constants(self, k_f: float | None = None, k_m: float | None = None,
                        omega_max_rad_s: float | None = None) -> Vehicle:
@@ -115,6 +112,16 @@ class Vehicle:
         if omega_max_rad_s is not None:
             changes["omega_max_rad_s"] = float(omega_max_rad_s)
         return replace(self, **changes)
+
+
+def rotor_directions(n_rotors: int, layout: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """cos and sin of each rotor's angle and its spin (``Vehicle.rotor_positions`` at a
+    unit arm; the batch flight scales them by each design's arm)."""
+    i = np.arange(n_rotors)
+    offset = 1.0 if layout == "x" else 0.0
+    angle = (2 * i + offset) * np.pi / n_rotors
+    spin = np.where(i % 2 == 0, 1.0, -1.0)
+    return np.cos(angle), np.sin(angle), spin
 
 
 def rotor_constants(ct: float, cp: float, rho: float, diameter_m: float) -> tuple[float, float]:
@@ -240,10 +247,22 @@ def step(s: list[float], dt: float, thrust: float, mx: float, my: float, mz: flo
             pw, px, py, pz, nx, ny, nz]
 
 
+def roll_angle(qw: Any, qx: Any, qy: Any, qz: Any) -> Any:
+    """Roll (rad) of quaternion components (arrays of any one shape), (B.6)."""
+    return np.arctan2(2.0 * (qw * qx + qy * qz), 1.0 - 2.0 * (qx * qx + qy * qy))
+
+
+def pitch_angle(qw: Any, qx: Any, qy: Any, qz: Any) -> Any:
+    """Pitch (rad) of quaternion components, (B.6)."""
+    return np.arcsin(np.clip(2.0 * (qw * qy - qz * qx), -1.0, 1.0))
+
+
+def yaw_angle(qw: Any, qx: Any, qy: Any, qz: Any) -> Any:
+    """Yaw (rad) of quaternion components, (B.6)."""
+    return np.arctan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
+
+
 def euler_angles(q: np.ndarray) -> np.ndarray:
     """Roll, pitch, yaw (rad) of quaternions (..., 4), (B.6)."""
-    qw, qx, qy, qz = np.moveaxis(np.asarray(q, float), -1, 0)
-    roll = np.arctan2(2.0 * (qw * qx + qy * qz), 1.0 - 2.0 * (qx * qx + qy * qy))
-    pitch = np.arcsin(np.clip(2.0 * (qw * qy - qz * qx), -1.0, 1.0))
-    yaw = np.arctan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
-    return np.stack([roll, pitch, yaw], axis=-1)
+    parts = np.moveaxis(np.asarray(q, float), -1, 0)
+    return np.stack([roll_angle(*parts), pitch_angle(*parts), yaw_angle(*parts)], axis=-1)
