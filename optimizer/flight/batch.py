@@ -21,9 +21,11 @@ from optimizer.flight.maneuvers import DT_S, Maneuver, response_figures, trim_fi
 
 __all__ = ["CHUNK", "DesignBatch", "fly_batch"]
 
-#: Designs flown together at most (the stored per-tick arrays grow with it; larger
-#: batches are flown in chunks of this size): see benchmarks/flight_batch_bench.py.
-CHUNK = 1024
+#: Designs flown together at most; a larger batch flies in chunks of this size. Per
+#: design and tick a flight keeps 9 bytes (the figure's signal and the saturation flag):
+#: 150 MB for a 4 s maneuver of 4096 designs. Designs per CPU second still grow past it,
+#: slowly (benchmarks/flight_batch_bench.py, docs/flight.md).
+CHUNK = 4096
 
 
 def fly_batch(batch: DesignBatch, man: Maneuver, dt: float = DT_S,
