@@ -3,22 +3,22 @@
 Every feasible design of one actuator count is flown through ``roll_step`` with its own
 gains (the gain rule); the rows pair the design's time constant (E.35, or measured) with
 its closed-loop 10-90 % roll rise time, and Spearman's rho (scipy.stats.spearmanr)
-measures how well the first orders the second. Also the filter behind
+measures how well the first orders the second (the whole catalog is flown by the sweep
+engine: ``optimizer.sweep.ranking.rank``). Also the filter behind
 ``optimize --max-roll-rise-ms``: fly candidates in objective order until one meets it.
 """
 
 from __future__ import annotations
 
 import math
-import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from scipy.stats import spearmanr
 
-from optimizer.flight.design import feasible_indices, gains_for, setup
+from optimizer.flight.design import gains_for, setup
 from optimizer.flight.maneuvers import MANEUVERS, fly
 
 
@@ -81,24 +81,6 @@ def roll_step(catalog: Any, grid: Any, index: tuple[int, int, int], **kwargs: An
         float(grid.metrics["time_constant_ms"][i, j, k]), fig["rise_time_ms"],
         fig["overshoot_pct"], fig["settling_time_ms"], fig["saturation_pct"],
         actuator.tau_up_s * 1e3, actuator.tau_down_s * 1e3, fig["final_error_pct"], note)
-
-
-def rank(catalog: Any, grid: Any, progress: Callable[[int, int], None] | None = None,
-         **kwargs: Any) -> Ranking:
-    """Fly every feasible design of ``grid``; Spearman rho of time constant vs rise time.
-
-    A design that never reaches 90 % of the step ranks last (rise time infinite); one
-    that cannot hover (hover speed above full throttle: the catalog may have no
-    thrust-to-weight check) is flown and listed but left out of rho."""
-    start = time.perf_counter()
-    indices = feasible_indices(grid)
-    rows = []
-    for n, idx in enumerate(indices):
-        rows.append(roll_step(catalog, grid, idx, **kwargs))
-        if progress is not None:
-            progress(n + 1, len(indices))
-    rho, p = spearman(rows)
-    return Ranking(grid.n_actuators, rows, rho, p, time.perf_counter() - start)
 
 
 def spearman(rows: Sequence[FlownDesign]) -> tuple[float, float]:
