@@ -17,6 +17,7 @@ from __future__ import annotations
 import contextlib
 import importlib.util
 import logging
+import signal
 import time
 import uuid
 from collections.abc import Callable, Iterator, Mapping, Sequence
@@ -120,7 +121,7 @@ def run_sweep(plan: pd.DataFrame, maneuvers: Sequence[str], spec: Mapping[str, A
     rows: list[dict[str, Any]] = []
     size = 0
     try:
-        with _opened(executor, say) as runner:
+        with opened(executor, say) as runner:
             size = chunk_size(len(plan), runner.slots, chunk)
             chunks = split(todo, maneuvers, size)
             with _bar(progress, len(plan), resumed) as advance:
@@ -247,8 +248,10 @@ def _distributed() -> Any:
 
 
 @contextlib.contextmanager
-def _opened(executor: Executor, say: Callable[[str], None]) -> Iterator[Any]:
-    """The executor's runner, the cluster started or reached and closed at the end."""
+def opened(executor: Executor, say: Callable[[str], None]) -> Iterator[Any]:
+    """The executor's runner (``slots``: worker threads; ``results(chunks)``: each
+    chunk's rows as it finishes; a Dask runner's ``client``), the cluster started or
+    reached, and closed at the end."""
     if executor.in_process:
         yield _InProcess()
         return
@@ -266,7 +269,7 @@ def _opened(executor: Executor, say: Callable[[str], None]) -> Iterator[Any]:
                 n_workers=executor.workers, threads_per_worker=1, processes=True,
                 host="127.0.0.1", dashboard_address="127.0.0.1:0" if bokeh else None,
                 scheduler_kwargs={} if bokeh else {"dashboard_address": "127.0.0.1:0"},
-                silence_logs=logging.ERROR))
+                silence_logs=logging.CRITICAL, preload=[__name__]))
             client = stack.enter_context(d.Client(cluster, set_as_default=False))
             what = f"Dask LocalCluster of {executor.workers} worker processes"
         runner = _Dask(client, d)
@@ -274,6 +277,13 @@ def _opened(executor: Executor, say: Callable[[str], None]) -> Iterator[Any]:
         if executor.scheduler is not None and not client.nthreads():
             say("no workers on the cluster yet: the chunks wait for them")
         yield runner
+
+
+def dask_setup(worker: Any) -> None:
+    """Preload hook of the LocalCluster's worker processes (``distributed`` calls it in
+    each): Ctrl-C at a terminal reaches the whole process group, and the command closes
+    its cluster itself, so the workers ignore it instead of each printing a traceback."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def _dashboard(client: Any, executor: Executor) -> str:
