@@ -17,7 +17,6 @@ from __future__ import annotations
 import contextlib
 import importlib.util
 import logging
-import signal
 import time
 import uuid
 from collections.abc import Callable, Iterator, Mapping, Sequence
@@ -121,7 +120,7 @@ def run_sweep(plan: pd.DataFrame, maneuvers: Sequence[str], spec: Mapping[str, A
     rows: list[dict[str, Any]] = []
     size = 0
     try:
-        with opened(executor, say) as runner:
+        with opened(executor if len(todo) else Executor(), say) as runner:
             size = chunk_size(len(plan), runner.slots, chunk)
             chunks = split(todo, maneuvers, size)
             with _bar(progress, len(plan), resumed) as advance:
@@ -269,7 +268,7 @@ def opened(executor: Executor, say: Callable[[str], None]) -> Iterator[Any]:
                 n_workers=executor.workers, threads_per_worker=1, processes=True,
                 host="127.0.0.1", dashboard_address="127.0.0.1:0" if bokeh else None,
                 scheduler_kwargs={} if bokeh else {"dashboard_address": "127.0.0.1:0"},
-                silence_logs=logging.CRITICAL, preload=[__name__]))
+                silence_logs=logging.CRITICAL, preload=["bench.jobs.sweep_worker"]))
             client = stack.enter_context(d.Client(cluster, set_as_default=False))
             what = f"Dask LocalCluster of {executor.workers} worker processes"
         runner = _Dask(client, d)
@@ -277,13 +276,6 @@ def opened(executor: Executor, say: Callable[[str], None]) -> Iterator[Any]:
         if executor.scheduler is not None and not client.nthreads():
             say("no workers on the cluster yet: the chunks wait for them")
         yield runner
-
-
-def dask_setup(worker: Any) -> None:
-    """Preload hook of the LocalCluster's worker processes (``distributed`` calls it in
-    each): Ctrl-C at a terminal reaches the whole process group, and the command closes
-    its cluster itself, so the workers ignore it instead of each printing a traceback."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def _dashboard(client: Any, executor: Executor) -> str:
