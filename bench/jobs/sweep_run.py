@@ -223,10 +223,9 @@ class _Dask:
                 if nxt is not None:
                     pending.add(nxt)
                 yield rows
-        except d.KilledWorker as exc:
-            raise SweepLost(f"a chunk of designs killed {exc.args[0] if exc.args else ''} "
-                            "workers again and again (out of memory?); the rest is kept"
-                            ) from None
+        except d.KilledWorker:
+            raise SweepLost("a chunk of designs killed every worker that flew it (out of "
+                            "memory, or a crash)") from None
         except (OSError, TimeoutError, d.client.FutureCancelledError) as exc:
             raise SweepLost(f"lost the Dask scheduler {self.where} ({type(exc).__name__})"
                             ) from None
