@@ -17,8 +17,8 @@ from typing import Any
 
 import pandas as pd
 
-#: the Parquet key-value metadata key that holds the spec
-METADATA_KEY = "rotorbench.sweep"
+#: the Parquet key-value metadata key that holds the spec (and marks a sweep file)
+METADATA_KEY = "rotorbench_sweep"
 #: the layout of the rows and parts; a resume across layouts is refused
 FORMAT = 1
 
@@ -52,25 +52,33 @@ def catalog_digest(catalog: Any) -> str:
 def sweep_spec(catalog: Any, plan: pd.DataFrame, maneuvers: Sequence[str],
                options: Mapping[str, Any]) -> dict[str, Any]:
     """The spec of a sweep: ``options`` are the command's (payload, actuators, hover
-    margin, rules, measured store, packs, layout, ...), as JSON values."""
+    margin, rules, measured store, packs, layout, drag, step run), as JSON values."""
     return {
         "format": FORMAT,
         "version": _version(),
         "catalog": catalog.source,
         "catalog_digest": catalog_digest(catalog),
-        **options,
+        "options": dict(options),
         "maneuvers": list(maneuvers),
         "designs": len(plan),
         "plan_digest": frame_digest(plan),
     }
 
 
-def spec_difference(old: Mapping[str, Any], new: Mapping[str, Any]) -> str | None:
-    """The first entry two specs differ in, as ``key: old there, new here``; None if equal."""
+def spec_difference(old: Mapping[str, Any], new: Mapping[str, Any],
+                    prefix: str = "") -> str | None:
+    """The first entry two specs differ in, as ``key: old there, new now`` (nested keys
+    joined by dots: ``options.rules.tip_speed_m_s``); None if equal."""
     for key in dict.fromkeys([*old, *new]):
         a, b = old.get(key), new.get(key)
-        if _canonical(a) != _canonical(b):
-            return f"{key}: {json.dumps(a, default=str)} there, {json.dumps(b, default=str)} now"
+        if _canonical(a) == _canonical(b):
+            continue
+        if isinstance(a, Mapping) and isinstance(b, Mapping):
+            inner = spec_difference(a, b, f"{prefix}{key}.")
+            if inner is not None:
+                return inner
+        return (f"{prefix}{key}: {json.dumps(a, default=str)} there, "
+                f"{json.dumps(b, default=str)} now")
     return None
 
 

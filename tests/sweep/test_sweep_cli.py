@@ -35,10 +35,13 @@ def test_the_file_has_a_row_per_design_and_its_spec(reference) -> None:
     assert all(r["error"] is None and r["can_hover"] for r in rows)
     assert min(r["thrust_to_weight"] for r in rows) >= 1.2
     assert str(reference.schema.field("roll_step_rise_time_ms").type) == "double"
-    spec = json.loads(reference.schema.metadata[b"rotorbench.sweep"])
+    spec = json.loads(reference.schema.metadata[b"rotorbench_sweep"])
     assert spec["maneuvers"] == ["roll_step"] and spec["designs"] == 44
-    assert spec["catalog"].endswith("thesis-e") and spec["actuators"] == [4]
-    assert spec["hover_margin"]["min_thrust_to_weight"] == 1.2
+    assert spec["catalog"].endswith("thesis-e")
+    options = spec["options"]
+    assert options["actuators"] == [4] and options["payload_kg"] == 0.0
+    assert options["hover_margin"]["min_thrust_to_weight"] == 1.2
+    assert (options["layout"], options["drag_n_s_m"], options["step_run"]) == ("x", 0.0, None)
 
 
 def test_the_ranking_reads_the_sweeps_rows(capsys, reference) -> None:

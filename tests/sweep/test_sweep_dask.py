@@ -54,9 +54,9 @@ def test_a_series_sweep_is_the_same_on_the_cluster(capsys, tmp_path, dask) -> No
     assert_same_rows(a, b)
     assert set(a["series"].to_pylist()) == {2} and set(a["parallel"].to_pylist()) == {2}
     assert set(a["actuators"].to_pylist()) == {4, 6}
-    spec = json.loads(a.schema.metadata[b"rotorbench.sweep"])
-    assert (spec["series"], spec["parallel"], spec["rules"]["tip_speed_m_s"]) == ([2], [2],
-                                                                                  140.0)
+    options = json.loads(a.schema.metadata[b"rotorbench_sweep"])["options"]
+    assert (options["series"], options["parallel"], options["rules"]["tip_speed_m_s"]) == \
+        ([2], [2], 140.0)
 
 
 def test_a_worker_killed_mid_sweep_costs_nothing(tmp_path, dask, reference, thesis_e) -> None:

@@ -155,6 +155,12 @@ def test_spec_difference_names_the_first_key() -> None:
     assert spec_difference(a, {**a, "maneuvers": ("roll_step",)}) is None  # JSON alike
     assert spec_difference(a, {**a, "maneuvers": ["gust"]}) == \
         'maneuvers: ["roll_step"] there, ["gust"] now'
+    nested = {"options": {"rules": {"tip_speed_m_s": 140.0}, "layout": "x"}}
+    other = {"options": {"rules": {"tip_speed_m_s": 120.0}, "layout": "x"}}
+    assert spec_difference(nested, other) == "options.rules.tip_speed_m_s: 140.0 there, " \
+        "120.0 now"
+    assert spec_difference(nested, {"options": {**nested["options"], "rules": None}}) == \
+        'options.rules: {"tip_speed_m_s": 140.0} there, null now'
 
 
 def test_rank_flies_what_one_design_flies(thesis_e) -> None:
