@@ -46,6 +46,7 @@ __all__ = [
     "add_common_arguments",
     "add_hover_args",
     "add_measured_args",
+    "add_pack_args",
     "add_rule_args",
     "check_writable",
     "given_options",
@@ -54,6 +55,7 @@ __all__ = [
     "load_rig_from_args",
     "measured_from_args",
     "option_defaults",
+    "packs_from_args",
     "parse_limits",
     "print_dry_run",
     "refuse_unused",
@@ -495,6 +497,27 @@ def rules_from_args(args: argparse.Namespace) -> Any:
         hover_throttle_pct=tuple(args.hover_throttle),
         max_time_constant_ms=args.rule_max_time_constant_ms,
     ).validate()
+
+
+def add_pack_args(p: argparse._ActionsContainer) -> None:
+    """``--series`` and ``--parallel``: cells in series and parallel (optimizer.packs)."""
+    p.add_argument("--series", default=None, metavar="S",
+                   help="choose cells in series too, e.g. 2-6 (the catalog's batteries read "
+                   "as cells, docs/sizing.md)")
+    p.add_argument("--parallel", default=None, metavar="P",
+                   help="with --series: parallel strings, e.g. 1-4 (default 1)")
+
+
+def packs_from_args(args: argparse.Namespace) -> tuple[tuple[int, ...], tuple[int, ...]] | None:
+    """(series counts, parallel counts) of ``--series``/``--parallel``; None without them."""
+    if args.series is None and args.parallel is None:
+        return None
+    if args.series is None:
+        raise RequestError("--parallel needs --series (e.g. --series 2-6 --parallel 1-4)")
+    from optimizer.packs import parse_counts
+
+    return (parse_counts(args.series, "--series"),
+            parse_counts(args.parallel or "1", "--parallel"))
 
 
 def json_default(obj: Any) -> Any:

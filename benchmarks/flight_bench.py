@@ -22,9 +22,9 @@ from optimizer.catalog import load_catalog
 from optimizer.design_model import evaluate_grid
 from optimizer.flight.design import gains_for, setup
 from optimizer.flight.maneuvers import MANEUVERS, fly
-from optimizer.flight.ranking import rank
 from optimizer.objectives import single
 from optimizer.selection import optimize
+from optimizer.sweep.ranking import rank
 
 CATALOG = "fixtures/catalogs/thesis-e"
 

@@ -118,6 +118,14 @@ def with_packs(catalog: Catalog, series: Sequence[int], parallel: Sequence[int])
                    f"{min(parallel)}-{max(parallel)}P)")
 
 
+def packs_at(catalog: Catalog, cells: pd.DataFrame, series: int,
+             parallel: Sequence[int]) -> Catalog:
+    """The catalog whose batteries are the packs of ``cells`` at one series count (the
+    catalog of one per-S grid: :func:`optimize_packs`, the flight sweep)."""
+    return Catalog(catalog.propellers, catalog.motors, pack_frame(cells, (series,), parallel),
+                   catalog.constants, catalog.source)
+
+
 def optimize_packs(
     catalog: Catalog,
     objective: Objective,
@@ -144,9 +152,8 @@ def optimize_packs(
         per_s: list[DesignResult] = []
         incumbent = math.inf
         for s in series:
-            packs = pack_frame(cells, (s,), parallel)
-            sub = Catalog(catalog.propellers, catalog.motors, packs, catalog.constants,
-                          catalog.source)
+            sub = packs_at(catalog, cells, s, parallel)
+            packs = sub.batteries
             start = time.perf_counter()
             grid = build_grid(sub, n, req.payload_kg)
             gtime = time.perf_counter() - start

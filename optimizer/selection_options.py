@@ -23,7 +23,8 @@ from typing import Any, Protocol
 from optimizer.errors import RequestError
 from optimizer.objectives import Objective
 
-__all__ = ["MeasuredGrids", "meet_roll_rise_option", "prop_data_option", "solve", "solve_packs"]
+__all__ = ["MeasuredGrids", "grid_builder", "meet_roll_rise_option", "pack_grid_builder",
+           "prop_data_option", "solve", "solve_packs"]
 
 
 class MeasuredGrids(Protocol):
@@ -47,7 +48,7 @@ def solve(catalog: Any, objective: Objective, actuators: tuple[int, ...], requir
                            "thesis formulation linearises the datasheet model)")
     if prop_data is not None and (measured is not None or method == "thesis"):
         raise RequestError("--prop-data works with --method milp or exact, without --measured")
-    build, builder = _grid_builder(measured, rules, prop_data)
+    build, builder = grid_builder(measured, rules, prop_data)
     result = optimize(catalog, objective, actuators, requirements, method, build_grid=build)
     if measured is not None:
         measured.annotate(result)
@@ -56,9 +57,10 @@ def solve(catalog: Any, objective: Objective, actuators: tuple[int, ...], requir
     return result
 
 
-def _grid_builder(measured: MeasuredGrids | None, rules: Any,
-                  prop_data: dict[str, Any] | None) -> tuple[Any, Any]:
-    """(grid builder for ``optimize``, the ``FlyableBuilder`` when rules apply, else None)."""
+def grid_builder(measured: MeasuredGrids | None, rules: Any,
+                 prop_data: dict[str, Any] | None = None) -> tuple[Any, Any]:
+    """(grid builder for ``optimize``, the ``FlyableBuilder`` when rules apply, else None):
+    the grids ``optimize`` chooses from, which the flight sweep flies too."""
     build = None if measured is None else measured.build_grid
     coefficients = None
     if prop_data is not None:
@@ -93,15 +95,21 @@ def solve_packs(catalog: Any, objective: Objective, actuators: tuple[int, ...],
     added up per actuator count."""
     from optimizer.packs import optimize_packs
 
-    if measured is not None:
-        raise RequestError("--series/--parallel do not combine with --measured (measured "
-                           "currents belong to the bench's supply voltage)")
-    build, builder = _grid_builder(None, rules, prop_data)
+    build, builder = pack_grid_builder(measured, rules, prop_data)
     result = optimize_packs(catalog, objective, actuators, requirements, method, series,
                             parallel, build_grid=build)
     if builder is not None:
         result.rule_reports = _sum_reports(builder.reports)
     return result
+
+
+def pack_grid_builder(measured: MeasuredGrids | None, rules: Any,
+                      prop_data: dict[str, Any] | None = None) -> tuple[Any, Any]:
+    """:func:`grid_builder` for series/parallel packs, which take no measured overrides."""
+    if measured is not None:
+        raise RequestError("--series/--parallel do not combine with --measured (measured "
+                           "currents belong to the bench's supply voltage)")
+    return grid_builder(None, rules, prop_data)
 
 
 def _sum_reports(reports: list[Any]) -> list[dict[str, Any]]:

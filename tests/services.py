@@ -1,9 +1,11 @@
-"""Real services for the tests: a throwaway PostgreSQL cluster and moto's S3 server.
+"""Real services for the tests: a throwaway PostgreSQL cluster, moto's S3 server and a
+Dask cluster.
 
 No mocks: the cluster is started from the machine's PostgreSQL binaries
 (``/usr/lib/postgresql/*/bin``) on a free loopback port, as the ``postgres`` user when the
-tests run as root (PostgreSQL refuses root), and ``moto_server`` is a real HTTP S3
-endpoint on 127.0.0.1. When either is missing, a laptop skips with one line; CI
+tests run as root (PostgreSQL refuses root), ``moto_server`` is a real HTTP S3
+endpoint on 127.0.0.1, and ``dask scheduler`` / ``dask worker`` are the venv's own
+processes on loopback ports. When one is missing, a laptop skips with one line; CI
 (``CI=true``) fails, since ``.ci/run`` installs them.
 """
 
@@ -11,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import glob
+import importlib.util
 import os
 import shutil
 import socket
@@ -175,6 +178,92 @@ def s3_server(port: int | None = None) -> Iterator[S3Server]:
         yield server
     finally:
         server.stop()
+
+
+@dataclass
+class DaskCluster:
+    """A running ``dask scheduler`` and its ``dask worker`` processes (no nanny: a worker
+    killed is gone, as a lost machine is)."""
+
+    port: int
+    scheduler: subprocess.Popen[bytes]
+    workers: list[subprocess.Popen[bytes]]
+    folder: Path
+
+    @property
+    def address(self) -> str:
+        return f"tcp://127.0.0.1:{self.port}"
+
+    def add_worker(self, name: str) -> subprocess.Popen[bytes]:
+        """Start one more single-thread worker; returns once the scheduler has it."""
+        proc = subprocess.Popen(
+            [*dask_command(), "worker", self.address, "--nthreads", "1", "--no-dashboard",
+             "--no-nanny", "--host", "127.0.0.1", "--name", name, "--memory-limit", "0",
+             "--death-timeout", "60", "--local-directory", str(self.folder / name)],
+            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        self.workers.append(proc)
+        if not self.wait_workers(sum(w.poll() is None for w in self.workers), 60):
+            pytest.fail(f"dask worker {name} did not join {self.address} within 60 s",
+                        pytrace=False)
+        return proc
+
+    def wait_workers(self, count: int, timeout_s: float) -> bool:
+        """True once the scheduler lists exactly ``count`` workers."""
+        from distributed import Client
+
+        end = time.monotonic() + timeout_s
+        with Client(self.address, timeout="10s", set_as_default=False) as client:
+            while time.monotonic() < end:
+                if len(client.scheduler_info(n_workers=-1)["workers"]) == count:
+                    return True
+                time.sleep(0.1)
+        return False
+
+    def stop(self) -> None:
+        """Workers first (a worker whose scheduler went first retries to reach it), then
+        the scheduler; whatever has not ended within 5 s is killed."""
+        for group in (self.workers, [self.scheduler]):
+            for proc in group:
+                if proc.poll() is None:
+                    proc.terminate()
+            deadline = time.monotonic() + 5.0
+            for proc in group:
+                try:
+                    proc.wait(max(0.0, deadline - time.monotonic()))
+                except subprocess.TimeoutExpired:
+                    proc.kill()
+                    proc.wait(10)
+
+
+def dask_command() -> list[str]:
+    """The venv's ``dask`` command (the sweep extra installs it)."""
+    exe = Path(sys.executable).with_name("dask")
+    if not exe.exists() or importlib.util.find_spec("distributed") is None:
+        missing("dask[distributed] not installed (pip install 'rotorbench[sweep]')")
+    return [str(exe)]
+
+
+@contextlib.contextmanager
+def dask_cluster(workers: int = 2) -> Iterator[DaskCluster]:
+    """A ``dask scheduler`` on a free loopback port and ``workers`` single-thread
+    workers; every process is terminated at the end, whatever happened."""
+    cmd = dask_command()
+    port = free_port()
+    folder = Path(tempfile.mkdtemp(prefix="rotorbench-dask-"))
+    scheduler = subprocess.Popen(
+        [*cmd, "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard",
+         "--dashboard-address", "127.0.0.1:0"],
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=folder)
+    cluster = DaskCluster(port, scheduler, [], folder)
+    try:
+        if not wait_port(port, 60):
+            pytest.fail("dask scheduler did not listen within 60 s", pytrace=False)
+        for i in range(workers):
+            cluster.add_worker(f"w{i}")
+        yield cluster
+    finally:
+        cluster.stop()
+        shutil.rmtree(folder, ignore_errors=True)
 
 
 # -- fixtures (the root conftest loads this module, so every folder shares one cluster) ---

@@ -1,34 +1,49 @@
-"""``rotorbench fly``: fly a design through Paper B's maneuvers, or rank a whole catalog.
+"""``rotorbench fly``: fly a design through Paper B's maneuvers, or a whole catalog.
 
 One design (``--actuators --propeller --motor --battery``): hover and the maneuvers
 (roll_step, pitch_step, yaw_step, altitude_step, gust by default) on the flight model of
 ``optimizer.flight`` with gains from its rule; the actuators are the catalog model's, the
 measured store's (``--measured DIR``, as ``optimize``) or a step run fitted now
-(``--step-run RUN``). ``--sweep`` flies every feasible design of the catalog for one
-actuator count through ``roll_step`` and reports how well the time constant ranks the
-closed-loop roll rise time (Spearman rho, a table, with ``--plot`` a scatter PNG); feasible
-includes the hover margin of ``--min-thrust-to-weight`` (default 1.2; ``--thesis-rules``
-flies the thesis' feasible set, designs that cannot hover included and left out of rho).
-Exit 0, 2 for bad input.
+(``--step-run RUN``).
+
+``--sweep`` flies every design ``optimize`` would consider with the same options (payload,
+hover margin: ``--min-thrust-to-weight``, default 1.2, or ``--thesis-rules``, which flies
+designs that cannot hover too; ``--flyable`` and its rules; ``--measured``;
+``--series``/``--parallel`` packs) with the sweep engine (``optimizer.sweep``,
+``bench.jobs.sweep_run``): in this process, on a local Dask cluster (``--workers K``) or
+on a running one (``--scheduler ADDRESS``). With ``--out SWEEP.parquet`` one row per
+design and maneuver figures go to a Parquet file (an interrupted sweep resumes;
+docs/sweeps.md); without it, one actuator count's designs fly ``roll_step`` and the
+command reports how well the time constant ranks the closed-loop roll rise time
+(Spearman rho, a table, with ``--plot`` a scatter PNG; designs that cannot hover are
+left out of rho). Exit 0, 2 for bad input, 1 when the cluster was lost (the finished
+chunks are kept), 130 on Ctrl-C (likewise).
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 from pathlib import Path
 from typing import Any
 
 from bench.cli_support import (
+    RULE_FLAGS,
     add_catalog_args,
     add_hover_args,
     add_measured_args,
+    add_pack_args,
+    add_rule_args,
     add_store_args,
     check_writable,
     hover_margin_from_args,
     json_default,
     measured_from_args,
+    packs_from_args,
+    refuse_unused,
+    rules_from_args,
     run_folder_arg,
 )
 from bench.store.catalogs import load
@@ -40,13 +55,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     from optimizer.flight.vehicle import LAYOUTS
 
     p = subparsers.add_parser(
-        "fly", help="fly a design (Paper B model, mixer, cascade controller) or rank a catalog",
+        "fly", help="fly a design (Paper B model, mixer, cascade controller) or a catalog",
         description="Fly one design of a catalog through hover and step maneuvers with "
-        "gains from the vehicle and actuator model, or (--sweep) fly every feasible design "
-        "and rank the time constant against the closed-loop roll rise time.")
+        "gains from the vehicle and actuator model, or (--sweep) fly every design optimize "
+        "would consider: into a Parquet file (--out), or ranking the time constant against "
+        "the closed-loop roll rise time.")
     add_catalog_args(p)
-    p.add_argument("--actuators", type=int, default=None, metavar="N",
-                   help="actuator count: 4, 6 or 8 (--sweep: default 4)")
+    p.add_argument("--actuators", type=int, nargs="+", default=None, metavar="N",
+                   help="actuator count: 4, 6 or 8 (--sweep --out: one or more; --sweep: "
+                   "default 4)")
     p.add_argument("--propeller", metavar="ID")
     p.add_argument("--motor", metavar="ID")
     p.add_argument("--battery", metavar="ID")
@@ -63,9 +80,22 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--plot", type=Path, default=None, metavar="DIR",
                    help="write PNG figures (one per maneuver; --sweep: the ranking scatter)")
     p.add_argument("--sweep", action="store_true",
-                   help="fly every feasible design (roll_step) and rank time constant vs "
-                   "roll rise time")
+                   help="fly every design optimize would consider: with --out into a Parquet "
+                   "file, else through roll_step, ranking time constant vs roll rise time")
     add_hover_args(p)
+    add_rule_args(p)
+    g = p.add_argument_group("sweep (docs/sweeps.md)")
+    add_pack_args(g)
+    g.add_argument("--out", type=Path, default=None, metavar="SWEEP.parquet",
+                   help="write one row per design (keys, static numbers, maneuver figures); "
+                   "an interrupted sweep resumes from SWEEP.parquet.parts/")
+    g.add_argument("--workers", type=int, default=1, metavar="K",
+                   help="worker processes of a local Dask cluster (default 1: this process)")
+    g.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="fly on a running Dask cluster, e.g. tcp://host:8786")
+    g.add_argument("--chunk-size", type=int, default=None, metavar="N",
+                   help="designs per task and part (default: up to 256, at least 4 chunks "
+                   "per worker)")
     p.set_defaults(func=handler)
 
 
@@ -109,39 +139,61 @@ def _grid(args: argparse.Namespace, catalog: Any, n: int) -> Any:
     return evaluate_grid(catalog, n, args.payload_kg), None
 
 
-def _check_args(args: argparse.Namespace) -> int:
+#: options of --sweep only
+SWEEP_FLAGS = ("--out", "--workers", "--scheduler", "--chunk-size", "--flyable", *RULE_FLAGS,
+               "--series", "--parallel")
+
+
+def _check_args(args: argparse.Namespace) -> list[int]:
     from optimizer.flight.vehicle import FLIGHT_ACTUATORS
 
-    n = args.actuators if args.actuators is not None else (4 if args.sweep else None)
-    if n is None:
+    counts = args.actuators or ([4] if args.sweep else [])
+    if not counts:
         raise RequestError("--actuators: give the actuator count (4, 6 or 8)")
-    if n not in FLIGHT_ACTUATORS:
-        raise RequestError(f"--actuators: the flight model flies 4, 6 or 8, got {n}")
+    for n in counts:
+        if n not in FLIGHT_ACTUATORS:
+            raise RequestError(f"--actuators: the flight model flies 4, 6 or 8, got {n}")
     if not (math.isfinite(args.drag) and args.drag >= 0):
         raise RequestError(f"--drag: expected a coefficient >= 0 N s/m, got {args.drag}")
-    if args.sweep:
-        for name in ("propeller", "motor", "battery", "maneuver"):
-            if getattr(args, name) is not None:
-                raise RequestError(f"--{name} does not apply to --sweep (it flies every "
-                                   "feasible design through roll_step)")
-    else:
+    if not args.sweep:
+        refuse_unused(args, SWEEP_FLAGS, "without --sweep")
         missing = [f"--{k}" for k in ("propeller", "motor", "battery") if not getattr(args, k)]
         if missing:
             raise RequestError(f"{', '.join(missing)}: name the design to fly (or --sweep)")
-    return n
+        if len(counts) > 1:
+            raise RequestError("--actuators: one count names one design (--sweep flies several)")
+        return counts
+    for name in ("propeller", "motor", "battery"):
+        if getattr(args, name) is not None:
+            raise RequestError(f"--{name} does not apply to --sweep (it flies every "
+                               "feasible design)")
+    if args.out is None:
+        if args.maneuver is not None:
+            raise RequestError("--maneuver applies to --sweep --out (the ranking flies "
+                               "roll_step)")
+        if len(counts) > 1:
+            raise RequestError("--actuators: the ranking (--sweep without --out) takes one "
+                               "count; give --out SWEEP.parquet to fly several")
+    else:
+        if args.plot is not None:
+            raise RequestError("--plot draws the ranking of --sweep without --out")
+        if args.out.suffix != ".parquet":
+            raise RequestError(f"--out {args.out}: expected a file name ending in .parquet")
+        check_writable(args.out, "--out", folder=False, make_parents=False)
+    return counts
 
 
 def handler(args: argparse.Namespace) -> int:
-    n = _check_args(args)
+    counts = _check_args(args)
     if args.plot is not None:  # refuse before flying, not after (nothing half-written)
         check_writable(args.plot, "--plot", folder=True)
     margin = hover_margin_from_args(args)
     catalog = margin.apply(load(args.catalog, args.current_model))
     step = (step_constants(run_folder_arg(args, args.step_run))
             if args.step_run is not None else None)
-    grid, measured = _grid(args, catalog, n)
     if args.sweep:
-        return _sweep(args, catalog, grid, step, measured, margin)
+        return _sweep(args, catalog, counts, step, margin)
+    grid, measured = _grid(args, catalog, counts[0])
     return _one(args, catalog, grid, step, measured)
 
 
@@ -213,18 +265,66 @@ def _print_one(report: dict[str, Any]) -> None:
         console.print(f"wrote {p}", style="dim")
 
 
-def _sweep(args: argparse.Namespace, catalog: Any, grid: Any, step: Any, measured: Any,
+def _sweep(args: argparse.Namespace, catalog: Any, counts: list[int], step: Any,
            margin: Any) -> int:
+    """Plan every design, fly it with the sweep engine; write the rows (``--out``) or
+    print the ranking."""
+    from bench.jobs.sweep_run import Executor, run_sweep
+    from optimizer.flight.maneuvers import MANEUVERS
+    from optimizer.selection_options import grid_builder, pack_grid_builder
+    from optimizer.sweep.designs import Packs, plan_designs
+    from optimizer.sweep.spec import sweep_spec
+
+    executor = Executor(args.workers, args.scheduler).check()
+    measured = measured_from_args(args, catalog)
+    rules = rules_from_args(args)
+    packs = packs_from_args(args)
+    build, _ = (pack_grid_builder(measured, rules) if packs is not None
+                else grid_builder(measured, rules))
+    plan = plan_designs(catalog, counts, args.payload_kg, build,
+                        Packs(*packs) if packs is not None else None,
+                        layout=args.layout, step=step, drag_n_s_m=args.drag)
+    maneuvers = (args.maneuver or list(MANEUVERS)) if args.out is not None else ["roll_step"]
+    options = {
+        "actuators": counts, "payload_kg": args.payload_kg,
+        "current_model": catalog.constants.current_model,
+        "hover_margin": margin.to_dict(catalog),
+        "rules": None if rules is None else dataclasses.asdict(rules),
+        "series": None if packs is None else list(packs[0]),
+        "parallel": None if packs is None else list(packs[1]),
+        "measured": None if measured is None else measured.describe(),
+        "step_run": None if step is None else {
+            k: (None if isinstance(v, float) and math.isnan(v) else v)
+            for k, v in dataclasses.asdict(step).items()},
+        "layout": args.layout, "drag_n_s_m": args.drag,
+    }
+    spec = sweep_spec(catalog, plan, maneuvers, options)
+    result = run_sweep(plan, maneuvers, spec, out=args.out, executor=executor,
+                       chunk=args.chunk_size)
+    if args.out is None:
+        return _ranking(args, catalog, counts[0], result, packs is not None, measured, margin)
+    doc = {"out": str(args.out), "designs": len(plan), "errors": result.errors,
+           "resumed": result.resumed, "flown": result.flown, "seconds": result.seconds,
+           "chunk_size": result.chunk_size, "spec": spec}
+    if args.json:
+        print(json.dumps(doc, indent=2, default=json_default))
+        return 0
+    errors = f", {result.errors} did not fly (see column error)" if result.errors else ""
+    print(f"wrote {args.out}: {len(plan)} designs x {len(maneuvers)} maneuvers{errors}; "
+          f"{result.flown} flown in {result.seconds:.1f} s"
+          + (f", {result.resumed} resumed" if result.resumed else ""))
+    print(margin.describe(catalog))
+    return 0
+
+
+def _ranking(args: argparse.Namespace, catalog: Any, n: int, result: Any, packs: bool,
+             measured: Any, margin: Any) -> int:
+    """The time constant ranking of a sweep's rows: table, Spearman rho, scatter."""
     from rich.console import Console
-    from rich.progress import Progress
 
-    from optimizer.flight.ranking import rank
+    from optimizer.sweep.ranking import ranking_from_rows
 
-    with Progress(console=Console(stderr=True), transient=True) as bar:
-        task = bar.add_task(f"flying {grid.n_actuators}-rotor designs", total=None)
-        ranking = rank(catalog, grid, lambda i, total: bar.update(task, completed=i,
-                                                                  total=total),
-                       layout=args.layout, step=step, drag_n_s_m=args.drag)
+    ranking = ranking_from_rows(n, result.table.to_pylist(), result.seconds, packs)
     doc = ranking.to_dict()
     doc["catalog"] = catalog.source
     doc["hover_margin"] = margin.to_dict(catalog)

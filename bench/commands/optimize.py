@@ -26,10 +26,12 @@ from bench.cli_support import (
     add_catalog_args,
     add_hover_args,
     add_measured_args,
+    add_pack_args,
     add_rule_args,
     hover_margin_from_args,
     json_default,
     measured_from_args,
+    packs_from_args,
     refuse_unused,
     rules_from_args,
 )
@@ -110,11 +112,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     add_hover_args(p)
     add_measured_args(p)
     add_rule_args(p)
-    p.add_argument("--series", default=None, metavar="S",
-                   help="choose cells in series too, e.g. 2-6 (the catalog's batteries read "
-                   "as cells, docs/sizing.md)")
-    p.add_argument("--parallel", default=None, metavar="P",
-                   help="with --series: parallel strings, e.g. 1-4 (default 1)")
+    add_pack_args(p)
     p.add_argument("--prop-data", action="store_true",
                    help="hover speed and power from the APC static C_t(rpm), C_p(rpm) where a "
                    "catalog propeller matches (docs/sizing.md); constants elsewhere")
@@ -211,15 +209,10 @@ def handler(args: argparse.Namespace) -> int:
     measured = measured_from_args(args, catalog)
     rules = rules_from_args(args)
     prop_data = prop_data_option(catalog) if args.prop_data else None
-    if args.series is not None or args.parallel is not None:
-        if args.series is None:
-            raise RequestError("--parallel needs --series (e.g. --series 2-6 --parallel 1-4)")
-        from optimizer.packs import parse_counts
-
+    packs = packs_from_args(args)
+    if packs is not None:
         result = solve_packs(catalog, objective, tuple(args.actuators), requirements,
-                             args.method, parse_counts(args.series, "--series"),
-                             parse_counts(args.parallel or "1", "--parallel"), measured, rules,
-                             prop_data)
+                             args.method, *packs, measured, rules, prop_data)
     else:
         result = solve(catalog, objective, tuple(args.actuators), requirements, args.method,
                        measured, rules, prop_data)

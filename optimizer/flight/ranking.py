@@ -3,15 +3,15 @@
 Every feasible design of one actuator count is flown through ``roll_step`` with its own
 gains (the gain rule); the rows pair the design's time constant (E.35, or measured) with
 its closed-loop 10-90 % roll rise time, and Spearman's rho (scipy.stats.spearmanr)
-measures how well the first orders the second. Also the filter behind
+measures how well the first orders the second (the whole catalog is flown by the sweep
+engine: ``optimizer.sweep.ranking.rank``). Also the filter behind
 ``optimize --max-roll-rise-ms``: fly candidates in objective order until one meets it.
 """
 
 from __future__ import annotations
 
 import math
-import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -19,8 +19,8 @@ import numpy as np
 from scipy.stats import spearmanr
 
 from optimizer.flight.actuators import ActuatorModel
-from optimizer.flight.batch import CHUNK, DesignBatch, fly_batch
-from optimizer.flight.design import feasible_indices, gains_for, setup
+from optimizer.flight.batch import DesignBatch, fly_batch
+from optimizer.flight.design import gains_for, setup
 from optimizer.flight.maneuvers import MANEUVERS, fly
 from optimizer.flight.vehicle import Vehicle
 
@@ -102,25 +102,6 @@ def _row(grid: Any, index: tuple[int, int, int], vehicle: Vehicle, actuator: Act
         fig["overshoot_pct"], fig["settling_time_ms"], fig["saturation_pct"],
         actuator.tau_up_s * 1e3, actuator.tau_down_s * 1e3, fig["final_error_pct"],
         vehicle.hover_shortfall())
-
-
-def rank(catalog: Any, grid: Any, progress: Callable[[int, int], None] | None = None,
-         **kwargs: Any) -> Ranking:
-    """Fly every feasible design of ``grid``; Spearman rho of time constant vs rise time.
-
-    A design that never reaches 90 % of the step ranks last (rise time infinite); one
-    that cannot hover (hover speed above full throttle: the catalog may have no
-    thrust-to-weight check) is flown and listed but left out of rho. The designs fly in
-    batches (``roll_steps``); ``progress`` is told after each."""
-    start = time.perf_counter()
-    indices = feasible_indices(grid)
-    rows: list[FlownDesign] = []
-    for first in range(0, len(indices), CHUNK):
-        rows.extend(roll_steps(catalog, grid, indices[first:first + CHUNK], **kwargs))
-        if progress is not None:
-            progress(len(rows), len(indices))
-    rho, p = spearman(rows)
-    return Ranking(grid.n_actuators, rows, rho, p, time.perf_counter() - start)
 
 
 def spearman(rows: Sequence[FlownDesign]) -> tuple[float, float]:

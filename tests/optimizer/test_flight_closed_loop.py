@@ -14,9 +14,9 @@ from optimizer.flight.controller import closed_loop, phase_margins
 from optimizer.flight.design import fly_report, gains_for, setup
 from optimizer.flight.maneuvers import MANEUVERS, fly
 from optimizer.flight.metrics import step_metrics
-from optimizer.flight.ranking import rank
 from optimizer.objectives import single
 from optimizer.selection import optimize
+from optimizer.sweep.ranking import rank
 from tests.conftest import FIXTURES
 
 CATALOG = FIXTURES / "catalogs" / "thesis-e"

@@ -1,0 +1,154 @@
+"""A sweep's files: finished chunks as Parquet parts, then one Parquet file, both atomic.
+
+While a sweep runs, every finished chunk is written to ``SWEEP.parquet.parts/`` as its own
+part (a temporary name, then a rename: a part is whole or absent, whatever kills the
+process), next to ``spec.json``, the sweep's spec (``optimizer.sweep.spec``). Running the
+same command again reads which designs the parts hold and flies only the others; a
+command with other options finds a different spec and is refused, naming the difference.
+At the end the parts become ``SWEEP.parquet`` (again written beside and renamed, the spec
+in its key-value metadata) and the folder is removed.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import shutil
+from collections.abc import Iterable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from optimizer.errors import RequestError
+from optimizer.sweep.rows import columns
+from optimizer.sweep.spec import METADATA_KEY, spec_difference
+
+#: Arrow types of the value kinds of ``optimizer.sweep.rows``
+ARROW_TYPES = {"str": pa.string(), "int": pa.int64(), "float": pa.float64(),
+               "bool": pa.bool_()}
+SPEC_FILE = "spec.json"
+PART_PREFIX = "part-"
+TMP_PREFIX = ".tmp-"
+
+
+def schema(maneuvers: Sequence[str]) -> pa.Schema:
+    """The Arrow schema of a sweep's rows."""
+    return pa.schema([(name, ARROW_TYPES[kind]) for name, kind in columns(maneuvers)])
+
+
+def table_of(rows: Sequence[Mapping[str, Any]], maneuvers: Sequence[str]) -> pa.Table:
+    """Rows (``optimizer.sweep.fly_rows``) as a table of the sweep's schema."""
+    return pa.Table.from_pylist(list(rows), schema=schema(maneuvers))
+
+
+def parts_folder(out: Path) -> Path:
+    """Where the parts of the sweep writing ``out`` live: ``<out>.parts`` beside it."""
+    return out.with_name(out.name + ".parts")
+
+
+def write_atomic(table: pa.Table, path: Path, spec: Mapping[str, Any] | None = None) -> Path:
+    """Write ``table`` to ``path`` through a temporary file in the same folder and a
+    rename, so ``path`` is the old file or the new one, never half of one. ``spec``
+    goes into the file's key-value metadata."""
+    if spec is not None:
+        meta = dict(table.schema.metadata or {})
+        meta[METADATA_KEY.encode()] = json.dumps(spec).encode()
+        table = table.replace_schema_metadata(meta)
+    tmp = path.with_name(f"{TMP_PREFIX}{os.getpid()}-{path.name}")
+    try:
+        pq.write_table(table, tmp)
+        os.replace(tmp, path)
+    finally:
+        with contextlib.suppress(FileNotFoundError):
+            tmp.unlink()
+    return path
+
+
+def read_spec(path: Path) -> dict[str, Any] | None:
+    """The sweep spec in a Parquet file's metadata (None when it has none)."""
+    meta = pq.read_schema(path).metadata or {}
+    raw = meta.get(METADATA_KEY.encode())
+    return json.loads(raw) if raw is not None else None
+
+
+class Parts:
+    """The parts folder of one sweep (see the module doc); made with the first part."""
+
+    def __init__(self, folder: Path, spec: Mapping[str, Any]) -> None:
+        self.folder = folder
+        self.spec = dict(spec)
+        self.maneuvers = tuple(spec["maneuvers"])
+
+    @classmethod
+    def open(cls, out: Path, spec: Mapping[str, Any]) -> Parts:
+        """The parts of ``out``'s sweep: those a run with the same spec left (temporary
+        files of a killed write are removed), or none yet; another spec there is refused
+        (``RequestError``, exit 2) naming the first difference."""
+        folder = parts_folder(out)
+        if folder.exists():
+            try:
+                old = json.loads((folder / SPEC_FILE).read_text())
+            except (OSError, ValueError):
+                raise RequestError(f"--out {out}: {folder} exists but holds no sweep's "
+                                   f"{SPEC_FILE}; remove it or choose another --out") from None
+            diff = spec_difference(old, spec)
+            if diff is not None:
+                raise RequestError(f"--out {out}: {folder} holds an unfinished sweep with "
+                                   f"other options ({diff}); run that command again to "
+                                   f"finish it, or remove {folder}")
+            for tmp in folder.glob(f"{TMP_PREFIX}*"):
+                tmp.unlink()
+        return cls(folder, spec)
+
+    def _make(self) -> None:
+        """The folder and its spec.json (atomic), before the first part goes in."""
+        if self.folder.exists():
+            return
+        self.folder.mkdir()
+        tmp = self.folder / f"{TMP_PREFIX}{SPEC_FILE}"
+        tmp.write_text(json.dumps(self.spec, indent=1))
+        os.replace(tmp, self.folder / SPEC_FILE)
+
+    def files(self) -> list[Path]:
+        if not self.folder.is_dir():
+            return []
+        return sorted(self.folder.glob(f"{PART_PREFIX}*.parquet"))
+
+    def done_ids(self) -> set[str]:
+        """The ids of every design a part holds."""
+        done: set[str] = set()
+        for path in self.files():
+            done.update(pq.read_table(path, columns=["design_id"])["design_id"].to_pylist())
+        return done
+
+    def write(self, rows: Sequence[Mapping[str, Any]]) -> Path:
+        """One finished chunk as a part (atomic)."""
+        self._make()
+        first = rows[0]["design_id"]
+        path = self.folder / f"{PART_PREFIX}{first}-{len(rows)}.parquet"
+        return write_atomic(table_of(rows, self.maneuvers), path)
+
+    def table(self) -> pa.Table:
+        """Every row the parts hold."""
+        tables = [pq.read_table(p, schema=schema(self.maneuvers)) for p in self.files()]
+        return pa.concat_tables(tables) if tables else table_of([], self.maneuvers)
+
+    def remove(self) -> None:
+        shutil.rmtree(self.folder, ignore_errors=True)
+
+
+def in_plan_order(table: pa.Table, plan_ids: Iterable[str]) -> pa.Table:
+    """One row per planned design, in plan order (a design flown twice, e.g. by a task
+    Dask ran again after a worker died, appears once)."""
+    position: dict[str, int] = {}
+    for i, d in enumerate(table["design_id"].to_pylist()):
+        position.setdefault(d, i)
+    ids = list(plan_ids)
+    missing = [d for d in ids if d not in position]
+    if missing:
+        raise RuntimeError(f"{len(missing)} designs of the plan have no row (first: "
+                           f"{missing[0]})")
+    return table.take(pa.array([position[d] for d in ids], type=pa.int64()))

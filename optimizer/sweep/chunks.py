@@ -1,0 +1,44 @@
+"""Cutting a plan into chunks: the unit of a task, of a Parquet part and of resume.
+
+The numbers of a design do not depend on its chunk (``optimizer.sweep.fly_rows``), so
+the size is a matter of overhead only: big enough that the scheduler's cost per task
+(about a millisecond) is small beside the flying (tens of ms per design and maneuver),
+small enough that every worker gets several chunks and an interrupted sweep loses little.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import pandas as pd
+
+from optimizer.errors import RequestError
+from optimizer.sweep.fly_rows import Chunk
+
+#: the most designs in one chunk unless ``--chunk-size`` says otherwise
+DEFAULT_CHUNK_SIZE = 256
+#: chunks per worker slot the default size aims at (load balance at the end of a sweep)
+CHUNKS_PER_SLOT = 4
+
+
+def chunk_size(n_designs: int, slots: int, given: int | None = None) -> int:
+    """``given`` (checked), else :data:`DEFAULT_CHUNK_SIZE` or less, so that each of
+    ``slots`` parallel workers gets about :data:`CHUNKS_PER_SLOT` chunks."""
+    if given is not None:
+        return check_chunk_size(given)
+    share = math.ceil(n_designs / (CHUNKS_PER_SLOT * max(1, slots)))
+    return max(1, min(DEFAULT_CHUNK_SIZE, share))
+
+
+def check_chunk_size(given: int) -> int:
+    """``--chunk-size``: a number of designs >= 1."""
+    if given < 1:
+        raise RequestError(f"--chunk-size: expected a number of designs >= 1, got {given}")
+    return given
+
+
+def split(plan: pd.DataFrame, maneuvers: Sequence[str], size: int) -> list[Chunk]:
+    """Consecutive chunks of at most ``size`` plan rows, in plan order."""
+    return [Chunk(plan.iloc[start:start + size].reset_index(drop=True), tuple(maneuvers))
+            for start in range(0, len(plan), size)]
