@@ -26,6 +26,7 @@ import argparse
 import dataclasses
 import json
 import math
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -94,8 +95,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     g.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="fly on a running Dask cluster, e.g. tcp://host:8786")
     g.add_argument("--chunk-size", type=int, default=None, metavar="N",
-                   help="designs per task and part (default: up to 256, at least 4 chunks "
+                   help="designs per task and part (default: up to 1024, at least 4 chunks "
                    "per worker)")
+    g.add_argument("--samples", type=int, default=1, metavar="M",
+                   help="robust designs: fly each design M times with its time constants, "
+                   "latency and rotor constants drawn from the measured spreads of "
+                   "--measured; adds 5th/50th/95th percentile columns (default 1: nominal)")
+    g.add_argument("--seed", type=int, default=0, metavar="S",
+                   help="with --samples: the seed hashed with each design's keys (default 0)")
     p.set_defaults(func=handler)
 
 
@@ -141,7 +148,7 @@ def _grid(args: argparse.Namespace, catalog: Any, n: int) -> Any:
 
 #: options of --sweep only
 SWEEP_FLAGS = ("--out", "--workers", "--scheduler", "--chunk-size", "--flyable", *RULE_FLAGS,
-               "--series", "--parallel")
+               "--series", "--parallel", "--samples", "--seed")
 
 
 def _check_args(args: argparse.Namespace) -> list[int]:
@@ -174,9 +181,17 @@ def _check_args(args: argparse.Namespace) -> list[int]:
         if len(counts) > 1:
             raise RequestError("--actuators: the ranking (--sweep without --out) takes one "
                                "count; give --out SWEEP.parquet to fly several")
+        if args.samples != 1 or args.seed != 0:
+            raise RequestError("--samples and --seed apply to --sweep --out (the percentiles "
+                               "go to its file)")
     else:
         if args.plot is not None:
             raise RequestError("--plot draws the ranking of --sweep without --out")
+        if args.samples < 1:
+            raise RequestError(f"--samples: expected a number of flights per design >= 1, "
+                               f"got {args.samples}")
+        if args.seed < 0:
+            raise RequestError(f"--seed: expected a whole number >= 0, got {args.seed}")
         if args.out.suffix != ".parquet":
             raise RequestError(f"--out {args.out}: expected a file name ending in .parquet")
         check_writable(args.out, "--out", folder=False, make_parents=False)
@@ -298,7 +313,11 @@ def _sweep(args: argparse.Namespace, catalog: Any, counts: list[int], step: Any,
             for k, v in dataclasses.asdict(step).items()},
         "layout": args.layout, "drag_n_s_m": args.drag,
     }
-    spec = sweep_spec(catalog, plan, maneuvers, options)
+    spec = sweep_spec(catalog, plan, maneuvers, options, args.samples, args.seed)
+    if args.samples > 1 and not _any_spread(plan):
+        print("warning: --samples: no design has a measured spread (--measured with fitted "
+              "step runs and sweeps gives them), so every sample is the nominal design",
+              file=sys.stderr)
     result = run_sweep(plan, maneuvers, spec, out=args.out, executor=executor,
                        chunk=args.chunk_size)
     if args.out is None:
@@ -315,6 +334,14 @@ def _sweep(args: argparse.Namespace, catalog: Any, counts: list[int], step: Any,
           + (f", {result.resumed} resumed" if result.resumed else ""))
     print(margin.describe(catalog))
     return 0
+
+
+def _any_spread(plan: Any) -> bool:
+    """Whether some design of the plan has a measured spread to draw samples from."""
+    from optimizer.sweep.flight_params import STD_PREFIX
+
+    spread = plan[[c for c in plan.columns if c.startswith(STD_PREFIX)]].to_numpy(float)
+    return bool((spread > 0).any())
 
 
 def _ranking(args: argparse.Namespace, catalog: Any, n: int, result: Any, packs: bool,

@@ -34,14 +34,16 @@ PART_PREFIX = "part-"
 TMP_PREFIX = ".tmp-"
 
 
-def schema(maneuvers: Sequence[str]) -> pa.Schema:
+def schema(maneuvers: Sequence[str], samples: int = 1) -> pa.Schema:
     """The Arrow schema of a sweep's rows."""
-    return pa.schema([(name, ARROW_TYPES[kind]) for name, kind in columns(maneuvers)])
+    return pa.schema([(name, ARROW_TYPES[kind])
+                      for name, kind in columns(maneuvers, samples)])
 
 
-def table_of(rows: Sequence[Mapping[str, Any]], maneuvers: Sequence[str]) -> pa.Table:
+def table_of(rows: Sequence[Mapping[str, Any]], maneuvers: Sequence[str],
+             samples: int = 1) -> pa.Table:
     """Rows (``optimizer.sweep.fly_rows``) as a table of the sweep's schema."""
-    return pa.Table.from_pylist(list(rows), schema=schema(maneuvers))
+    return pa.Table.from_pylist(list(rows), schema=schema(maneuvers, samples))
 
 
 def parts_folder(out: Path) -> Path:
@@ -81,6 +83,7 @@ class Parts:
         self.folder = folder
         self.spec = dict(spec)
         self.maneuvers = tuple(spec["maneuvers"])
+        self.samples = int(spec.get("samples", 1))
 
     @classmethod
     def open(cls, out: Path, spec: Mapping[str, Any]) -> Parts:
@@ -129,12 +132,13 @@ class Parts:
         self._make()
         first = rows[0]["design_id"]
         path = self.folder / f"{PART_PREFIX}{first}-{len(rows)}.parquet"
-        return write_atomic(table_of(rows, self.maneuvers), path)
+        return write_atomic(table_of(rows, self.maneuvers, self.samples), path)
 
     def table(self) -> pa.Table:
         """Every row the parts hold."""
-        tables = [pq.read_table(p, schema=schema(self.maneuvers)) for p in self.files()]
-        return pa.concat_tables(tables) if tables else table_of([], self.maneuvers)
+        kind = schema(self.maneuvers, self.samples)
+        tables = [pq.read_table(p, schema=kind) for p in self.files()]
+        return pa.concat_tables(tables) if tables else table_of([], self.maneuvers, self.samples)
 
     def remove(self) -> None:
         shutil.rmtree(self.folder, ignore_errors=True)

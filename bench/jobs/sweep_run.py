@@ -110,6 +110,7 @@ def run_sweep(plan: pd.DataFrame, maneuvers: Sequence[str], spec: Mapping[str, A
     executor = executor.check()
     if chunk is not None:
         check_chunk_size(chunk)
+    samples, seed = int(spec.get("samples", 1)), int(spec.get("seed", 0))
     parts = Parts.open(out, spec) if out is not None else None
     done = parts.done_ids() if parts is not None else set()
     todo = plan.loc[~plan["design_id"].isin(done)]
@@ -122,7 +123,7 @@ def run_sweep(plan: pd.DataFrame, maneuvers: Sequence[str], spec: Mapping[str, A
     try:
         with opened(executor if len(todo) else Executor(), say) as runner:
             size = chunk_size(len(plan), runner.slots, chunk)
-            chunks = split(todo, maneuvers, size)
+            chunks = split(todo, maneuvers, size, samples, seed)
             with _bar(progress, len(plan), resumed) as advance:
                 for flown in runner.results(chunks):
                     if parts is not None:
@@ -137,7 +138,7 @@ def run_sweep(plan: pd.DataFrame, maneuvers: Sequence[str], spec: Mapping[str, A
             say(f"kept {len(parts.done_ids())} of {len(plan)} designs in {parts.folder}; run "
                 "the same command again to fly the rest")
         raise
-    table = parts.table() if parts is not None else table_of(rows, maneuvers)
+    table = parts.table() if parts is not None else table_of(rows, maneuvers, samples)
     table = in_plan_order(table, plan["design_id"])
     if out is not None:
         write_atomic(table, out, spec)

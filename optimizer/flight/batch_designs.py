@@ -143,10 +143,14 @@ class DesignBatch:
                     latency_s: Any = DEFAULT_LATENCY_S,
                     frame_s: Any = 1.0 / DEFAULT_FRAME_RATE_HZ, levels: Any = DEFAULT_LEVELS,
                     idle_fraction: Any = DEFAULT_IDLE_FRACTION,
-                    labels: Sequence[str] | None = None, dt: float = DT_S) -> DesignBatch:
+                    labels: Sequence[str] | None = None, dt: float = DT_S,
+                    gains: Any = None) -> DesignBatch:
         """A batch from numbers (scalars or arrays, broadcast to one length B), without
         building ``Vehicle`` objects; the defaults are ``Vehicle``'s and
-        ``ActuatorModel``'s. A design with invalid numbers gets an error, not the batch."""
+        ``ActuatorModel``'s. A design with invalid numbers gets an error, not the batch.
+        ``gains`` (B, 3) of (k_p, w_i, k_a) fly the designs with given gains instead of
+        the rule's for their own actuator: a drawn sample of a design keeps the
+        controller tuned for its nominal actuator, as a built vehicle would."""
         if layout not in LAYOUTS:
             raise RequestError(f"layout: expected one of {', '.join(LAYOUTS)}, got {layout!r}")
         if n_rotors not in FLIGHT_ACTUATORS:
@@ -169,9 +173,15 @@ class DesignBatch:
             raise RequestError(f"design batch: {len(names)} labels for {size} designs")
         errors = _errors(n_rotors, layout, arrays, names)
         valid = np.array([not e for e in errors], bool)
-        gains = np.full((size, 3), np.nan)
-        if valid.any():  # the rule once per distinct actuator
-            table = np.stack([arrays[name][valid] for name in _ACTUATOR], axis=1)
+        if gains is not None:
+            gains = np.array(gains, float).reshape(-1, 3)
+            if gains.shape[0] != size:
+                raise RequestError(f"design batch: {gains.shape[0]} gains for {size} designs")
+        else:
+            gains = np.full((size, 3), np.nan)
+        need = valid & np.isnan(gains).any(axis=1)
+        if need.any():  # the rule once per distinct actuator
+            table = np.stack([arrays[name][need] for name in _ACTUATOR], axis=1)
             kinds, which = np.unique(table, axis=0, return_inverse=True)
             cache: dict[tuple[float, float], Gains] = {}
             per_kind = []
@@ -179,7 +189,7 @@ class DesignBatch:
                 g = _gains(ActuatorModel(up, down, latency, frame, int(levels), idle), dt,
                            cache)
                 per_kind.append((g.k_p, g.w_i, g.k_a))
-            gains[valid] = np.array(per_kind)[which.ravel()]
+            gains[need] = np.array(per_kind)[which.ravel()]
         return cls(n_rotors, layout, **arrays, k_p=gains[:, 0], w_i=gains[:, 1],
                    k_a=gains[:, 2], labels=names, errors=tuple(errors))
 

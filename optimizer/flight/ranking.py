@@ -19,7 +19,6 @@ import numpy as np
 from scipy.stats import spearmanr
 
 from optimizer.flight.actuators import ActuatorModel
-from optimizer.flight.batch import DesignBatch, fly_batch
 from optimizer.flight.design import gains_for, setup
 from optimizer.flight.maneuvers import MANEUVERS, fly
 from optimizer.flight.vehicle import Vehicle
@@ -77,20 +76,6 @@ def roll_step(catalog: Any, grid: Any, index: tuple[int, int, int], **kwargs: An
     vehicle, actuator = setup(catalog, grid, index, **kwargs)
     f = fly(vehicle, actuator, MANEUVERS["roll_step"], gains=gains_for(actuator), record=False)
     return _row(grid, index, vehicle, actuator, f.figures)
-
-
-def roll_steps(catalog: Any, grid: Any, indices: Sequence[tuple[int, int, int]],
-               **kwargs: Any) -> list[FlownDesign]:
-    """``roll_step`` of many designs of a grid, flown together (``optimizer.flight.batch``,
-    the same figures); a design the batch reports an error for is flown alone, as before."""
-    if not indices:
-        return []
-    models = [setup(catalog, grid, idx, **kwargs) for idx in indices]
-    batch = DesignBatch.from_models([v for v, _ in models], [a for _, a in models])
-    figures = fly_batch(batch, MANEUVERS["roll_step"])
-    return [roll_step(catalog, grid, idx, **kwargs) if "error" in fig
-            else _row(grid, idx, v, a, fig)
-            for idx, (v, a), fig in zip(indices, models, figures, strict=True)]
 
 
 def _row(grid: Any, index: tuple[int, int, int], vehicle: Vehicle, actuator: ActuatorModel,

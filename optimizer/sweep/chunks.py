@@ -2,7 +2,8 @@
 
 The numbers of a design do not depend on its chunk (``optimizer.sweep.fly_rows``), so
 the size is a matter of overhead only: big enough that the scheduler's cost per task
-(about a millisecond) is small beside the flying (tens of ms per design and maneuver),
+(milliseconds) is small beside the flying (about a millisecond per design and maneuver
+in a batch flight),
 small enough that every worker gets several chunks and an interrupted sweep loses little.
 """
 
@@ -16,8 +17,10 @@ import pandas as pd
 from optimizer.errors import RequestError
 from optimizer.sweep.fly_rows import Chunk
 
-#: the most designs in one chunk unless ``--chunk-size`` says otherwise
-DEFAULT_CHUNK_SIZE = 256
+#: the most designs in one chunk unless ``--chunk-size`` says otherwise: a batch flight
+#: of 1024 designs flies about twice as many per CPU second as one of 256
+#: (benchmarks/flight_batch_bench.py), and a lost chunk costs seconds, not minutes
+DEFAULT_CHUNK_SIZE = 1024
 #: chunks per worker slot the default size aims at (load balance at the end of a sweep)
 CHUNKS_PER_SLOT = 4
 
@@ -38,7 +41,9 @@ def check_chunk_size(given: int) -> int:
     return given
 
 
-def split(plan: pd.DataFrame, maneuvers: Sequence[str], size: int) -> list[Chunk]:
+def split(plan: pd.DataFrame, maneuvers: Sequence[str], size: int, samples: int = 1,
+          seed: int = 0) -> list[Chunk]:
     """Consecutive chunks of at most ``size`` plan rows, in plan order."""
-    return [Chunk(plan.iloc[start:start + size].reset_index(drop=True), tuple(maneuvers))
+    return [Chunk(plan.iloc[start:start + size].reset_index(drop=True), tuple(maneuvers),
+                  samples, seed)
             for start in range(0, len(plan), size)]

@@ -5,7 +5,8 @@ overrides, the flyable rules; with cells in series and parallel one grid per ser
 as ``optimizer.packs.optimize_packs`` builds them), and a design is in the sweep when it
 meets every check of its grid (the hover margin, the rules, the limits:
 ``optimizer.flight.design.feasible_indices``). Each becomes one row of a plan: its keys,
-id and seed, the static numbers, and the flight model's parameters as numbers
+id, the static numbers, the flight model's parameters as numbers and the measured
+spreads of its constants
 (``optimizer.flight.design.setup``, so a sweep flies what ``rotorbench fly`` flies).
 """
 
@@ -20,11 +21,12 @@ import numpy as np
 import pandas as pd
 
 from optimizer.errors import RequestError
-from optimizer.flight.design import feasible_indices, setup
+from optimizer.flight.design import design_std, feasible_indices, setup
+from optimizer.flight.uncertainty import QUANTITIES
 from optimizer.flight.vehicle import FLIGHT_ACTUATORS
 from optimizer.grid import METRIC_KEYS
-from optimizer.sweep.flight_params import param_columns, params_of
-from optimizer.sweep.keys import DESIGN_KEYS, design_id, design_seed
+from optimizer.sweep.flight_params import STD_PREFIX, param_columns, params_of
+from optimizer.sweep.keys import DESIGN_KEYS, design_id
 
 #: a grid builder as ``optimizer.selection.optimize`` takes it: (catalog, N, payload) -> grid
 GridBuilder = Callable[[Any, int, float], Any]
@@ -97,12 +99,13 @@ def grid_designs(catalog: Any, grid: Any, *, packs: bool = False,
     }
     ids = [design_id(*k) for k in zip(*(keys[c] for c in DESIGN_KEYS), strict=True)]
     frame = pd.DataFrame({"design_id": ids, **keys})
-    frame["seed"] = np.array([design_seed(d) for d in ids], dtype=np.uint64)
     for key in METRIC_KEYS:
         frame[key] = grid.metrics[key][ii, jj, kk]
     frame["thrust_to_weight"] = thrust_to_weight(catalog, grid)[ii, jj, kk]
-    params, errors = [], []
+    params, errors, spreads = [], [], []
     for index in map(tuple, idx.tolist()):
+        # the measured spreads of the constants flown (``--samples`` draws from them)
+        spreads.append(design_std(grid, index, setup_kwargs.get("step")))
         try:
             params.append(params_of(*setup(catalog, grid, index, **setup_kwargs)))
             errors.append("")
@@ -110,7 +113,8 @@ def grid_designs(catalog: Any, grid: Any, *, packs: bool = False,
             params.append(dict.fromkeys(param_columns(), math.nan))
             errors.append(f"{type(exc).__name__}: {exc}")
     flight = pd.DataFrame(params, columns=list(param_columns()))
-    frame = pd.concat([frame, flight], axis=1)
+    spread = pd.DataFrame(spreads, columns=list(QUANTITIES)).add_prefix(STD_PREFIX)
+    frame = pd.concat([frame, flight, spread], axis=1)
     frame["setup_error"] = errors  # "" when the flight model took the design
     return frame
 

@@ -14,6 +14,10 @@ from typing import Any
 from optimizer.flight.actuators import ActuatorModel
 from optimizer.flight.vehicle import Vehicle
 
+#: a plan's column of a constant's measured spread: ``std_`` + the quantity
+#: (``optimizer.flight.uncertainty.QUANTITIES``), 0 where the constant is the model's
+STD_PREFIX = "std_"
+
 #: the principal inertias of ``Vehicle.inertia_kgm2``, one column each
 INERTIA_COLUMNS = ("vehicle_inertia_roll_kgm2", "vehicle_inertia_pitch_kgm2",
                    "vehicle_inertia_yaw_kgm2")

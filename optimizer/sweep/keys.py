@@ -1,9 +1,10 @@
-"""The keys that name a design in a sweep, its stable id and its random seed.
+"""The keys that name a design in a sweep and its stable id.
 
 The id is a hash of the keys alone (not of a position or a chunk), so it is the same in
-every run, worker count and chunking: resume finds finished designs by it, and
-uncertainty sampling (``--samples``) seeds each design's draws from it, so a design's
-samples do not depend on which worker flies it or with which neighbours.
+every run, worker count and chunking: resume finds finished designs by it. Uncertainty
+sampling (``--samples``) seeds each design's draws from the same keys
+(``optimizer.flight.uncertainty.design_seed``), so a design's samples do not depend on
+which worker flies it or with which neighbours.
 """
 
 from __future__ import annotations
@@ -11,10 +12,12 @@ from __future__ import annotations
 import hashlib
 import json
 
+from optimizer.flight.uncertainty import DESIGN_KEYS as UNCERTAINTY_KEYS
+
 #: A design: actuator count, propeller, motor, battery (a plain catalog's battery id, or
-#: the cell of a series/parallel pack) and the pack's cells in series and in parallel.
-DESIGN_KEYS: tuple[str, ...] = ("actuators", "propeller", "motor", "battery", "series",
-                                "parallel")
+#: the cell of a series/parallel pack) and the pack's cells in series and in parallel
+#: (its seed, ``optimizer.flight.uncertainty.design_seed``, hashes the same keys).
+DESIGN_KEYS: tuple[str, ...] = UNCERTAINTY_KEYS
 
 
 def design_id(actuators: int, propeller: str, motor: str, battery: str, series: int,
@@ -24,9 +27,3 @@ def design_id(actuators: int, propeller: str, motor: str, battery: str, series: 
     text = json.dumps([int(actuators), str(propeller), str(motor), str(battery), int(series),
                        int(parallel)], separators=(",", ":"))
     return hashlib.sha256(text.encode()).hexdigest()[:16]
-
-
-def design_seed(design: str) -> int:
-    """The design's random seed (0 <= seed < 2**64) from its id: what a design's samples
-    are drawn with (``numpy.random.default_rng(seed)``), whoever flies it."""
-    return int(design, 16)

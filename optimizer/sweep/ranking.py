@@ -19,6 +19,8 @@ from optimizer.sweep.fly_rows import fly_chunk
 
 #: the maneuver the ranking reads
 MANEUVER = "roll_step"
+#: designs per batch flight of ``rank`` (progress after each)
+RANK_CHUNK = 256
 
 
 def flown_design(row: Mapping[str, Any], battery: str | None = None) -> FlownDesign:
@@ -51,15 +53,15 @@ def ranking_from_rows(actuators: int, rows: Iterable[Mapping[str, Any]], seconds
 
 def rank(catalog: Any, grid: Any, progress: Callable[[int, int], None] | None = None,
          **setup_kwargs: Any) -> Ranking:
-    """Fly every feasible design of ``grid`` through ``roll_step`` (in this process, one
-    design per chunk so ``progress`` sees each); Spearman rho of time constant vs rise
-    time. A design that never reaches 90 % of the step ranks last (rise time infinite);
-    one that cannot hover is flown and listed but left out of rho. ``setup_kwargs`` go
-    to ``optimizer.flight.design.setup``."""
+    """Fly every feasible design of ``grid`` through ``roll_step`` (in this process, in
+    batch flights of ``RANK_CHUNK`` designs, ``progress`` told after each); Spearman rho
+    of time constant vs rise time. A design that never reaches 90 % of the step ranks
+    last (rise time infinite); one that cannot hover is flown and listed but left out of
+    rho. ``setup_kwargs`` go to ``optimizer.flight.design.setup``."""
     start = time.perf_counter()
     plan = grid_designs(catalog, grid, **setup_kwargs)
     rows = []
-    for chunk in split(plan, (MANEUVER,), 1):
+    for chunk in split(plan, (MANEUVER,), RANK_CHUNK):
         rows += fly_chunk(chunk)
         if progress is not None:
             progress(len(rows), len(plan))

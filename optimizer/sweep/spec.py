@@ -50,9 +50,11 @@ def catalog_digest(catalog: Any) -> str:
 
 
 def sweep_spec(catalog: Any, plan: pd.DataFrame, maneuvers: Sequence[str],
-               options: Mapping[str, Any]) -> dict[str, Any]:
+               options: Mapping[str, Any], samples: int = 1, seed: int = 0
+               ) -> dict[str, Any]:
     """The spec of a sweep: ``options`` are the command's (payload, actuators, hover
-    margin, rules, measured store, packs, layout, drag, step run), as JSON values."""
+    margin, rules, measured store, packs, layout, drag, step run), as JSON values;
+    ``samples`` flights per design (``--samples``) drawn with ``seed``."""
     return {
         "format": FORMAT,
         "version": _version(),
@@ -60,6 +62,8 @@ def sweep_spec(catalog: Any, plan: pd.DataFrame, maneuvers: Sequence[str],
         "catalog_digest": catalog_digest(catalog),
         "options": dict(options),
         "maneuvers": list(maneuvers),
+        "samples": int(samples),
+        "seed": int(seed),
         "designs": len(plan),
         "plan_digest": frame_digest(plan),
     }
