@@ -21,7 +21,7 @@ import pandas as pd
 
 from analysis.errors import LogError
 
-__all__ = ["RunRecord", "esc_frame_s", "event_times", "iter_columns", "read_columns",
+__all__ = ["ColumnChunks", "RunRecord", "esc_frame_s", "event_times", "read_columns",
            "read_meta", "read_run", "sample_count"]
 
 SAMPLES_DEFAULT = "samples.parquet"
@@ -94,47 +94,83 @@ def read_columns(run_dir: str | Path, columns: list[str]) -> dict[str, np.ndarra
     """Some sample columns of a run as float arrays sorted by ``t_s`` (which is always
     read): a long run's plots need a few columns, not the whole table. Columns the run
     lacks are left out; the same checks as ``read_run`` on ``t_s``."""
-    return dict(iter_columns(run_dir, columns))
+    chunks = ColumnChunks(run_dir, columns)
+    parts = list(chunks)
+    return {"t_s": chunks.t} | {name: np.concatenate([c[name] for c in parts])
+                                for name in chunks.names}
 
 
-def iter_columns(run_dir: str | Path, columns: list[str]) -> Iterator[tuple[str, np.ndarray]]:
-    """``read_columns`` one column at a time, ``t_s`` first: a 5 M-row run's plots hold one
-    column in memory at a time (its first read allocated 0.8 s of fresh pages at once)."""
-    import pyarrow.parquet as pq
+class ColumnChunks:
+    """Some sample columns of a run, a chunk of rows at a time in ``t_s`` order.
 
-    run_dir = Path(run_dir)
-    path = run_dir / _samples_name(read_meta(run_dir))
-    if not path.exists():
-        raise LogError(f"{path}: missing (the run's samples)")
+    ``t`` (all of ``t_s``, checked as ``read_run`` checks it) is read at once; iterating
+    gives ``{column: float array}`` for consecutive rows (``rows`` at most), so a 5 M-row
+    run's plots are reduced from a few MB at a time, not from whole 40 MB columns (whose
+    fresh pages cost the kernel more than the reduction costs: 3.8x the wall time of a
+    first read, benchmarks/serve_series_read.py). The parts are read one after the other
+    in this thread: pyarrow's dataset scanner was no faster, and with its threads slower
+    and less even on a busy 2-core machine. ``names``: the asked columns the run has
+    (from its first part; a part without one gives NaN). A log whose clock stepped back
+    comes in one chunk, sorted."""
 
-    def read(name: str) -> np.ndarray:
+    def __init__(self, run_dir: str | Path, columns: list[str], rows: int = 131_072) -> None:
+        import pyarrow.parquet as pq
+
+        run_dir = Path(run_dir)
+        self.path = path = run_dir / _samples_name(read_meta(run_dir))
+        self.rows = rows
+        if not path.exists():
+            raise LogError(f"{path}: missing (the run's samples)")
+        self._files = ([p for p in sorted(path.glob("*.parquet"))
+                        if not p.name.startswith((".", "_"))] if path.is_dir() else [path])
+        if not self._files:
+            raise LogError(f"{path}: no sample parts in the folder (the run recorded nothing)")
         try:
-            table = pq.read_table(path, columns=[name])
+            have = pq.read_schema(self._files[0]).names
         except Exception as exc:  # pyarrow raises several types for damaged files
             raise LogError(f"{path}: not readable as Parquet ({type(exc).__name__}: "
                            f"{exc})") from None
-        return table.column(name).to_numpy().astype(float, copy=False)
+        if "t_s" not in have:
+            raise LogError(f"{path}: no 't_s' column")
+        self.names = [c for c in dict.fromkeys(columns) if c in have and c != "t_s"]
+        t = np.concatenate([c["t_s"] for c in self._read(["t_s"], None)])
+        if t.size == 0:
+            raise LogError(f"{path}: no samples")
+        self._order = _time_order(t, path)
+        self.t = t if self._order is None else t[self._order]
 
-    try:
-        names = pq.read_schema(next(p for p in sorted(path.glob("*.parquet"))
-                                    if not p.name.startswith((".", "_")))
-                               if path.is_dir() else path).names
-    except StopIteration:
-        raise LogError(f"{path}: no sample parts in the folder (the run recorded nothing)"
-                       ) from None
-    except Exception as exc:
-        raise LogError(f"{path}: not readable as Parquet ({type(exc).__name__}: {exc})") from None
-    if "t_s" not in names:
-        raise LogError(f"{path}: no 't_s' column")
-    t = read("t_s")
-    if t.size == 0:
-        raise LogError(f"{path}: no samples")
-    order = _time_order(t, path)
-    yield "t_s", t if order is None else t[order]
-    for name in columns:
-        if name in names and name != "t_s":
-            y = read(name)
-            yield name, y if order is None else y[order]
+    def __iter__(self) -> Iterator[dict[str, np.ndarray]]:
+        if not self.names:
+            return
+        if self._order is None:
+            yield from self._read(self.names, self.rows)
+            return
+        parts = list(self._read(self.names, None))
+        yield {c: np.concatenate([p[c] for p in parts])[self._order] for c in self.names}
+
+    def _read(self, names: list[str], rows: int | None) -> Iterator[dict[str, np.ndarray]]:
+        """Each part's ``names`` in batches of ``rows`` (None: the part at once)."""
+        import pyarrow.parquet as pq
+
+        try:
+            for f in self._files:
+                with pq.ParquetFile(f, pre_buffer=False) as part:
+                    there = [c for c in names if c in part.schema_arrow.names]
+                    if not there:  # a part written before these columns existed
+                        yield {c: np.full(part.metadata.num_rows, np.nan) for c in names}
+                        continue
+                    for batch in (part.iter_batches(rows, columns=there, use_threads=False)
+                                  if rows else [part.read(there, use_threads=False)]):
+                        yield {c: _floats(batch.column(c)) if c in there
+                               else np.full(batch.num_rows, np.nan) for c in names}
+        except Exception as exc:  # pyarrow raises several types for damaged files
+            raise LogError(f"{self.path}: not readable as Parquet ({type(exc).__name__}: "
+                           f"{exc})") from None
+
+
+def _floats(column: Any) -> np.ndarray:
+    """A pyarrow column as a float array (nulls as NaN)."""
+    return np.asarray(column.to_numpy(zero_copy_only=False), dtype=float)
 
 
 def _read_meta(path: Path) -> dict[str, Any]:

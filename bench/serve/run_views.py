@@ -19,7 +19,7 @@ import numpy as np
 
 from analysis.errors import LogError
 from analysis.run_record import RunRecord, read_run
-from bench.serve.decimate import minmax_decimate
+from bench.serve.decimate import Bins, MinMaxEnvelope
 from bench.store.json_values import json_safe
 
 __all__ = [
@@ -115,34 +115,33 @@ class SeriesCache:
 
 def series_of(folder: Path, columns: int = 1500) -> dict[str, Any]:
     """Every time plot of ``PLOTS`` the run has, min/max-decimated to ``columns`` bins;
-    reads only those columns, one at a time (``analysis.run_record.iter_columns``)."""
-    from analysis.run_record import iter_columns
+    reads only those columns, and reduces them a chunk of rows at a time while they are
+    read (``analysis.run_record.ColumnChunks``): a 5 M-row run holds one chunk in memory."""
+    from analysis.run_record import ColumnChunks
 
+    chunks = ColumnChunks(folder, [k for k, _, _ in PLOTS if k != "efficiency_g_w"])
+    keys = list(chunks.names)
     need_eff = ("thrust_n", "current_a", "voltage_v")
-    plots: dict[str, dict[str, Any]] = {}
-    kept: dict[str, np.ndarray] = {}
-    t = np.empty(0)
-    for key, y in iter_columns(folder, [k for k, _, _ in PLOTS if k != "efficiency_g_w"]):
-        if key == "t_s":
-            t = y
-            continue
-        plots[key] = _decimated(t, y, key, columns)
-        if key in need_eff:
-            kept[key] = y
-    if len(kept) == len(need_eff):
-        plots["efficiency_g_w"] = _decimated(t, _efficiency_of(*(kept[k] for k in need_eff)),
-                                             "efficiency_g_w", columns)
-    return {"rows": int(t.size), "columns": columns,
+    if set(need_eff) <= set(keys):
+        keys.append("efficiency_g_w")
+    bins = Bins(chunks.t, columns)
+    envelopes = {k: MinMaxEnvelope(bins) for k in keys}
+    for chunk in chunks:
+        if "efficiency_g_w" in envelopes:
+            chunk["efficiency_g_w"] = _efficiency_of(*(chunk[k] for k in need_eff))
+        for k, envelope in envelopes.items():
+            envelope.add(chunk[k])
+    plots = {k: _plot(k, *envelope.points()) for k, envelope in envelopes.items()}
+    return {"rows": int(chunks.t.size), "columns": columns,
             "plots": [plots[k] for k, _, _ in PLOTS if plots.get(k) is not None]}
 
 
-def _decimated(t: np.ndarray, y: np.ndarray, key: str, columns: int) -> dict[str, Any] | None:
+def _plot(key: str, t: np.ndarray, y: np.ndarray) -> dict[str, Any] | None:
     """One time plot (None for a column without a finite value)."""
     if not np.isfinite(y).any():
         return None
     title, unit = next((ti, u) for k, ti, u in PLOTS if k == key)
-    tt, yy = minmax_decimate(t, y, columns)
-    return {"key": key, "title": title, "unit": unit, "t": _json_list(tt), "y": _json_list(yy)}
+    return {"key": key, "title": title, "unit": unit, "t": _json_list(t), "y": _json_list(y)}
 
 
 def _json_list(a: np.ndarray) -> list[float | None]:
