@@ -1,24 +1,23 @@
 """Speed of the closed-loop design sweep (``rotorbench fly --sweep``, docs/sweeps.md).
 
-Flies one sweep three ways and prints designs per second for each:
+1. The cost of one chunk (a batch flight) against its size, in this process: seconds per
+   chunk = a + b x designs (a: numpy's fixed cost per tick, b: per design), fitted over
+   chunks of 16 to 1024 designs. Designs per second per core follow for any chunk size.
+2. The sweep flown in this process, on a Dask LocalCluster of 1 worker and of 2 worker
+   processes, all with the same chunk size: designs per second and the 1 -> 2 speed-up.
+   Cluster start and stop are timed apart from the flying.
+3. The scheduler's cost per task: the wall time of N no-op tasks, divided by N.
+4. A projection to 64 and 512 worker cores for 100,000 and 1,000,000 designs: each core
+   flies its share of chunks (cost model of 1.), one scheduler hands out the tasks one
+   after the other (3.), and the plan is built before any flying in one process (its
+   measured seconds per design): the serial part.
 
-1. in this process (``--workers 1``, the default executor);
-2. a Dask LocalCluster of 1 worker process (what the cluster path costs over 1);
-3. a LocalCluster of 2 worker processes (the 1 -> 2 speed-up).
+The sweep: thesis-e, N = 4 (44 designs: too few to spread, it shows the fixed costs) or
+with ``--sizinglab DIR`` the SizingLab flyable designs of ``--actuators`` (default 4;
+``rotorbench import-sizinglab --out DIR`` first). ``--maneuver`` as the command (default
+roll_step). Numbers are only as quiet as the machine (the load average is printed).
 
-Cluster start and stop are timed apart from the flying. Then the scheduler's cost per
-task: the wall time of N no-op tasks on the 1- and 2-worker clusters, divided by N.
-From the measured seconds per design (in this process) and cost per task, it projects
-the wall time of the sweep on 64 and 512 worker cores, for one design per task and for
-the default chunk of 256: flying (designs x s/design / cores) plus the scheduler
-(tasks x s/task, which one scheduler does one after the other).
-
-The sweep: thesis-e, N = 4, the 44 designs that hover with margin (default), or with
-``--sizinglab DIR`` the SizingLab flyable set (``rotorbench import-sizinglab --out DIR``
-first; ``--flyable --actuators 4 6 8``: long, run it on an idle machine).
-``--maneuver`` as the command (default: all five).
-
-    .venv/bin/python benchmarks/sweep_bench.py [--sizinglab DIR] [--maneuver roll_step]
+    .venv/bin/python benchmarks/sweep_bench.py [--sizinglab DIR] [--actuators 4 6 8]
 """
 
 from __future__ import annotations
@@ -29,6 +28,8 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
@@ -38,8 +39,9 @@ from optimizer.catalog import load_catalog  # noqa: E402
 from optimizer.flight.maneuvers import MANEUVERS  # noqa: E402
 from optimizer.flyable import FlyableBuilder, Rules  # noqa: E402
 from optimizer.model_constants import DEFAULT_MIN_THRUST_TO_WEIGHT  # noqa: E402
-from optimizer.sweep.chunks import chunk_size, split  # noqa: E402
+from optimizer.sweep.chunks import DEFAULT_CHUNK_SIZE, chunk_size, split  # noqa: E402
 from optimizer.sweep.designs import plan_designs  # noqa: E402
+from optimizer.sweep.fly_rows import fly_chunk  # noqa: E402
 
 
 def noop(i: int) -> int:
@@ -53,16 +55,34 @@ def plan_of(args: argparse.Namespace):
         return "thesis-e N = 4", plan_designs(catalog, [4])
     catalog = with_min_thrust_to_weight(load_catalog(args.sizinglab),
                                         DEFAULT_MIN_THRUST_TO_WEIGHT)
-    return (f"SizingLab flyable N = 4, 6, 8 ({args.sizinglab})",
-            plan_designs(catalog, [4, 6, 8], build_grid=FlyableBuilder(Rules())))
+    counts = ", ".join(map(str, args.actuators))
+    return (f"SizingLab flyable N = {counts} ({args.sizinglab})",
+            plan_designs(catalog, args.actuators, build_grid=FlyableBuilder(Rules())))
 
 
-def fly(plan, maneuvers, executor: Executor) -> dict[str, float]:
+def chunk_cost(plan, maneuvers) -> tuple[float, float]:
+    """(a, b) of seconds per chunk = a + b x designs, least squares over chunk sizes."""
+    sizes, seconds = [], []
+    for size in (16, 64, 256, 1024):
+        chunk = split(plan.sample(size, replace=len(plan) < size, random_state=size)
+                      .reset_index(drop=True), maneuvers, size)[0]
+        fly_chunk(chunk)  # warm
+        t0 = time.perf_counter()
+        fly_chunk(chunk)
+        sizes.append(size)
+        seconds.append(time.perf_counter() - t0)
+        print(f"  chunk of {size:5d}: {seconds[-1]:7.3f} s = {size / seconds[-1]:7.1f} "
+              "designs/s")
+    b, a = np.polyfit(sizes, seconds, 1)
+    return float(a), float(b)
+
+
+def fly(plan, maneuvers, executor: Executor, size: int) -> dict[str, float]:
     """Seconds to open the executor, to fly every chunk, to close it."""
     t0 = time.perf_counter()
     with opened(executor, lambda _: None) as runner:
         t1 = time.perf_counter()
-        chunks = split(plan, maneuvers, chunk_size(len(plan), runner.slots))
+        chunks = split(plan, maneuvers, size)
         flown = sum(len(rows) for rows in runner.results(chunks))
         t2 = time.perf_counter()
     assert flown == len(plan)
@@ -87,44 +107,57 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--sizinglab", type=Path, default=None, metavar="DIR",
                    help="catalog folder of rotorbench import-sizinglab --out DIR")
-    p.add_argument("--maneuver", nargs="+", default=list(MANEUVERS), choices=list(MANEUVERS))
+    p.add_argument("--actuators", type=int, nargs="+", default=[4])
+    p.add_argument("--maneuver", nargs="+", default=["roll_step"], choices=list(MANEUVERS))
     p.add_argument("--noop-tasks", type=int, default=2000)
     args = p.parse_args()
     print(f"machine: {os.cpu_count()} CPUs, load average "
           f"{', '.join(f'{x:.1f}' for x in os.getloadavg())} (other work slows every figure)")
     start = time.perf_counter()
     name, plan = plan_of(args)
+    plan_s = time.perf_counter() - start
     n = len(plan)
     print(f"sweep: {name}: {n} designs x {len(args.maneuver)} maneuvers "
-          f"({', '.join(args.maneuver)}); plan built in {time.perf_counter() - start:.2f} s")
+          f"({', '.join(args.maneuver)}); plan built in {plan_s:.2f} s "
+          f"({plan_s / n * 1e3:.2f} ms per design, one process)")
+    print("1. one chunk (a batch flight) in this process:")
+    a, b = chunk_cost(plan, args.maneuver)
+    print(f"  fit: {a:.3f} s + {b * 1e3:.3f} ms x designs per chunk; at the default chunk of "
+          f"{DEFAULT_CHUNK_SIZE}: {DEFAULT_CHUNK_SIZE / (a + b * DEFAULT_CHUNK_SIZE):.0f} "
+          "designs/s per core")
+    size = min(DEFAULT_CHUNK_SIZE, chunk_size(n, 2))
+    print(f"2. the whole sweep, chunks of {size}:")
     runs = {"in process": Executor(),
             "LocalCluster, 1 worker": Executor(workers=1, local=True),
             "LocalCluster, 2 workers": Executor(workers=2)}
     rates = {}
     for label, executor in runs.items():
-        t = fly(plan, args.maneuver, executor)
+        t = fly(plan, args.maneuver, executor, size)
         rates[label] = n / t["fly"]
-        print(f"{label:24s}: {rates[label]:7.2f} designs/s (flying {t['fly']:.2f} s; cluster "
-              f"start {t['open']:.2f} s, stop {t['close']:.2f} s)")
+        print(f"  {label:24s}: {rates[label]:7.1f} designs/s (flying {t['fly']:.2f} s; "
+              f"cluster start {t['open']:.2f} s, stop {t['close']:.2f} s)")
     one, two = rates["LocalCluster, 1 worker"], rates["LocalCluster, 2 workers"]
-    print(f"speed-up 1 -> 2 workers: {two / one:.2f}x; LocalCluster 1 worker vs in process: "
-          f"{one / rates['in process']:.2f}x")
+    print(f"  speed-up 1 -> 2 workers: {two / one:.2f}x; LocalCluster 1 worker vs in "
+          f"process: {one / rates['in process']:.2f}x")
+    print("3. the scheduler:")
     per_task = {w: overhead(w, args.noop_tasks) for w in (1, 2)}
     for w, s in per_task.items():
-        print(f"scheduler overhead, {w} worker(s): {s * 1e3:.2f} ms per task "
-              f"({args.noop_tasks} no-op tasks)")
-    s_design = 1.0 / rates["in process"]
+        print(f"  {w} worker(s): {s * 1e3:.2f} ms per task ({args.noop_tasks} no-op tasks)")
     o = max(per_task.values())
-    print(f"projection from {s_design * 1e3:.1f} ms per design (in process) and {o * 1e3:.2f} "
-          "ms per task (the slower cluster), scaling perfect otherwise:")
-    for designs in (n, 100_000, 1_000_000):
+    print(f"4. projection: chunk cost {a:.3f} s + {b * 1e3:.3f} ms x designs, {o * 1e3:.2f} ms "
+          f"per task in one scheduler, plan {plan_s / n * 1e3:.2f} ms per design before the "
+          "flying; workers otherwise independent:")
+    for designs in (100_000, 1_000_000):
         for cores in (64, 512):
-            for size in dict.fromkeys((1, chunk_size(designs, cores))):
-                flying, sched = designs * s_design / cores, -(-designs // size) * o
-                wall = max(flying, sched)
-                print(f"  {designs:>9} designs, {cores:3d} cores, chunks of {size:3d}: "
-                      f"{_duration(wall):>8s} (flying {_duration(flying)}, scheduler "
-                      f"{_duration(sched)})")
+            c = chunk_size(designs, cores)
+            tasks = -(-designs // c)
+            flying = -(-tasks // cores) * (a + b * c)
+            sched = tasks * o
+            serial = designs * plan_s / n
+            wall = serial + max(flying, sched)
+            print(f"  {designs:>9} designs, {cores:3d} cores, chunks of {c:4d}: "
+                  f"{_duration(wall):>8s} (plan {_duration(serial)}, flying "
+                  f"{_duration(flying)}, scheduler {_duration(sched)})")
 
 
 def _duration(seconds: float) -> str:

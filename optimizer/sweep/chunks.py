@@ -21,17 +21,22 @@ from optimizer.sweep.fly_rows import Chunk
 #: of 1024 designs flies about twice as many per CPU second as one of 256
 #: (benchmarks/flight_batch_bench.py), and a lost chunk costs seconds, not minutes
 DEFAULT_CHUNK_SIZE = 1024
+#: the fewest designs in a default chunk: a batch flight costs about 0.12 ms a tick
+#: whatever its size (0.47 s for a 4 s maneuver, as much as flying 400 designs more;
+#: benchmarks/sweep_bench.py), so smaller chunks only add that
+MIN_CHUNK_SIZE = 256
 #: chunks per worker slot the default size aims at (load balance at the end of a sweep)
 CHUNKS_PER_SLOT = 4
 
 
 def chunk_size(n_designs: int, slots: int, given: int | None = None) -> int:
     """``given`` (checked), else :data:`DEFAULT_CHUNK_SIZE` or less, so that each of
-    ``slots`` parallel workers gets about :data:`CHUNKS_PER_SLOT` chunks."""
+    ``slots`` parallel workers gets about :data:`CHUNKS_PER_SLOT` chunks, but not below
+    :data:`MIN_CHUNK_SIZE` (a small sweep is then fewer chunks than slots)."""
     if given is not None:
         return check_chunk_size(given)
     share = math.ceil(n_designs / (CHUNKS_PER_SLOT * max(1, slots)))
-    return max(1, min(DEFAULT_CHUNK_SIZE, share))
+    return max(1, min(DEFAULT_CHUNK_SIZE, max(MIN_CHUNK_SIZE, share)))
 
 
 def check_chunk_size(given: int) -> int:

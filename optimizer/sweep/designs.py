@@ -27,6 +27,7 @@ from optimizer.flight.vehicle import FLIGHT_ACTUATORS
 from optimizer.grid import METRIC_KEYS
 from optimizer.sweep.flight_params import STD_PREFIX, param_columns, params_of
 from optimizer.sweep.keys import DESIGN_KEYS, design_id
+from optimizer.sweep.model_params import model_params, modelled
 
 #: a grid builder as ``optimizer.selection.optimize`` takes it: (catalog, N, payload) -> grid
 GridBuilder = Callable[[Any, int, float], Any]
@@ -102,19 +103,23 @@ def grid_designs(catalog: Any, grid: Any, *, packs: bool = False,
     for key in METRIC_KEYS:
         frame[key] = grid.metrics[key][ii, jj, kk]
     frame["thrust_to_weight"] = thrust_to_weight(catalog, grid)[ii, jj, kk]
-    params, errors, spreads = [], [], []
-    for index in map(tuple, idx.tolist()):
+    step = setup_kwargs.get("step")
+    flight = model_params(catalog, grid, idx, setup_kwargs.get("layout", "x"),
+                          setup_kwargs.get("drag_n_s_m", 0.0))
+    alone = ~(modelled(grid, idx, step) & flight.pop("valid").to_numpy(bool))
+    errors = [""] * len(idx)
+    spread = pd.DataFrame(0.0, index=flight.index, columns=list(QUANTITIES))
+    for row in np.flatnonzero(alone):  # measured numbers, a step run or a refusal: setup's
+        index = tuple(int(v) for v in idx[row])
         # the measured spreads of the constants flown (``--samples`` draws from them)
-        spreads.append(design_std(grid, index, setup_kwargs.get("step")))
+        spread.iloc[row] = pd.Series(design_std(grid, index, step))[list(QUANTITIES)]
         try:
-            params.append(params_of(*setup(catalog, grid, index, **setup_kwargs)))
-            errors.append("")
+            params = params_of(*setup(catalog, grid, index, **setup_kwargs))
         except Exception as exc:  # a design the flight model refuses is a row with why
-            params.append(dict.fromkeys(param_columns(), math.nan))
-            errors.append(f"{type(exc).__name__}: {exc}")
-    flight = pd.DataFrame(params, columns=list(param_columns()))
-    spread = pd.DataFrame(spreads, columns=list(QUANTITIES)).add_prefix(STD_PREFIX)
-    frame = pd.concat([frame, flight, spread], axis=1)
+            params = dict.fromkeys(param_columns(), math.nan)
+            errors[row] = f"{type(exc).__name__}: {exc}"
+        flight.iloc[row] = pd.Series(params)[list(param_columns())]
+    frame = pd.concat([frame, flight, spread.add_prefix(STD_PREFIX)], axis=1)
     frame["setup_error"] = errors  # "" when the flight model took the design
     return frame
 

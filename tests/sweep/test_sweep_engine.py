@@ -14,7 +14,7 @@ from optimizer.flight.maneuvers import MANEUVERS, fly
 from optimizer.flight.ranking import roll_step, spearman
 from optimizer.flyable import FlyableBuilder, Rules
 from optimizer.packs import cells_of, packs_at
-from optimizer.sweep.chunks import DEFAULT_CHUNK_SIZE, chunk_size, split
+from optimizer.sweep.chunks import DEFAULT_CHUNK_SIZE, MIN_CHUNK_SIZE, chunk_size, split
 from optimizer.sweep.designs import Packs, grid_designs, plan_designs, thrust_to_weight
 from optimizer.sweep.flight_params import flight_of
 from optimizer.sweep.fly_rows import Chunk, fly_chunk
@@ -139,7 +139,8 @@ def test_thrust_to_weight_without_the_margin_is_the_margin_grids(thesis_e) -> No
 
 
 def test_chunk_sizes() -> None:
-    assert chunk_size(44, 1) == 11 and chunk_size(44, 2) == 6 and chunk_size(3, 8) == 1
+    assert chunk_size(44, 2) == chunk_size(3, 8) == MIN_CHUNK_SIZE  # one chunk: all of it
+    assert chunk_size(20_000, 8) == 625  # four per worker
     assert chunk_size(10**6, 64) == DEFAULT_CHUNK_SIZE
     assert chunk_size(44, 2, given=100) == 100
     import pandas as pd
@@ -180,3 +181,27 @@ def test_rank_flies_what_one_design_flies(thesis_e) -> None:
                  grid.battery_ids.index(r.battery))
         assert roll_step(small, grid, index) == r
     assert ranking.rho == spearman(ranking.rows)[0]
+
+
+@pytest.mark.parametrize("layout, drag, packs", [("x", 0.0, False), ("plus", 0.3, False),
+                                                 ("x", 0.0, True)])
+def test_the_plans_model_numbers_are_setups(thesis_e, layout, drag, packs) -> None:
+    """The plan's vectorised model numbers (``optimizer.sweep.model_params``) are exactly
+    ``params_of(*setup(...))`` of each design, for every actuator count."""
+    import numpy as np
+
+    from optimizer.flight.design import feasible_indices, setup
+    from optimizer.sweep.flight_params import param_columns, params_of
+    from optimizer.sweep.model_params import model_params, modelled
+
+    catalog = packs_at(thesis_e, cells_of(thesis_e), 4, (1, 2)) if packs else thesis_e
+    for n in (4, 6, 8):
+        grid = evaluate_grid(catalog, n)
+        idx = np.array(feasible_indices(grid)).reshape(-1, 3)
+        assert len(idx) > 10 and modelled(grid, idx).all()
+        frame = model_params(catalog, grid, idx, layout, drag)
+        assert frame.pop("valid").all()
+        for row, index in zip(frame.to_dict("records"), map(tuple, idx.tolist()),
+                              strict=True):
+            want = params_of(*setup(catalog, grid, index, layout=layout, drag_n_s_m=drag))
+            assert [row[c] for c in param_columns()] == [want[c] for c in param_columns()]
