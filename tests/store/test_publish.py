@@ -96,6 +96,48 @@ def test_database_outage_then_sync(spool_run: Path, tmp_path: Path, pg_cluster: 
     assert pending_runs(spool, pub) == [] and cat.count_runs() == 1
 
 
+def test_each_file_goes_up_in_one_put(spool_run: Path, s3_env: object) -> None:
+    """A run's files are PUT whole, not as multipart uploads (three requests each: most
+    of the object store's work for a run of many parts): the ETag the server gives each
+    object is then the MD5 of its bytes, where a multipart upload's ends in ``-1``."""
+    import hashlib
+
+    import boto3  # moto's own client library, here to read what the server keeps
+
+    data = DataLocation(f"s3://{s3_env.bucket}/runs")
+    data.upload(spool_run, "one-put")
+    s3 = boto3.client("s3", endpoint_url=s3_env.endpoint)
+    files = sorted(p for p in spool_run.rglob("*") if p.is_file())
+    assert len(files) >= 3
+    for path in files:
+        rel = path.relative_to(spool_run).as_posix()
+        head = s3.head_object(Bucket=s3_env.bucket, Key=f"runs/one-put/{rel}")
+        assert head["ETag"].strip('"') == hashlib.md5(path.read_bytes()).hexdigest(), rel
+
+
+def test_publishing_a_recorded_run_leaves_pandas_unimported(spool_run: Path, tmp_path: Path,
+                                                             pg_url: str) -> None:
+    """The publish at the end of a recording command takes the row count from run.json:
+    the run reader, and pandas with it (0.4 s of the command), stay unimported."""
+    import subprocess
+    import sys
+
+    LabCatalog(pg_url).init()
+    spool = _fresh_spool(spool_run, tmp_path)
+    code = ("import sys\nfrom pathlib import Path\n"
+            "from bench.store.lab_catalog import LabCatalog\n"
+            "from bench.store.lab_publish import Publisher\n"
+            "from bench.store.run_data import DataLocation\n"
+            "Publisher(LabCatalog(sys.argv[1]), DataLocation(sys.argv[2])).publish("
+            "Path(sys.argv[3]))\n"
+            "print([m for m in ('pandas', 'analysis.run_record') if m in sys.modules])\n")
+    out = subprocess.run([sys.executable, "-c", code, pg_url, str(tmp_path / "share"),
+                          str(spool / spool_run.name)], capture_output=True, text=True,
+                         check=True, timeout=120)
+    assert out.stdout.strip() == "[]"
+    assert LabCatalog(pg_url).count_runs() == 1
+
+
 def test_folder_data_location(spool_run: Path, tmp_path: Path) -> None:
     data = DataLocation(str(tmp_path / "share"))
     uri = data.upload(spool_run, "r1")
