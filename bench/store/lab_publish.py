@@ -102,14 +102,16 @@ class Publisher:
 
 
 def pending_runs(spool: Path, publisher: Publisher) -> list[Path]:
-    """Ended runs in ``spool`` not yet published to ``publisher``'s store, oldest first."""
+    """Ended runs in ``spool`` not yet published to ``publisher``'s store, oldest first.
+    A published run's marker is read, not its run.json (a bench's spool keeps every run)."""
     out = []
     for meta_path in sorted(Path(spool).glob("*/run.json")):
+        if publisher.is_published(meta_path.parent):
+            continue
         try:
             meta = json.loads(meta_path.read_text(encoding="utf-8"))
         except (OSError, UnicodeDecodeError, ValueError):
             continue
-        if meta.get("status") == "running" or publisher.is_published(meta_path.parent):
-            continue
-        out.append(meta_path.parent)
+        if meta.get("status") != "running":
+            out.append(meta_path.parent)
     return out

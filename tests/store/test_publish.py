@@ -174,3 +174,59 @@ def test_parts_trail_the_run_and_run_json_seals_it(spool_run: Path, tmp_path: Pa
     back = data.download(meta["id"], tmp_path / "cache")
     pd.testing.assert_frame_equal(pd.read_parquet(back / "samples.parquet"),
                                   pd.read_parquet(run / "samples.parquet"))
+
+
+class _CountingJson:
+    """``json`` as a module uses it, counting the documents it parses."""
+
+    def __init__(self) -> None:
+        self.loads_calls = 0
+
+    def loads(self, text: str) -> object:
+        self.loads_calls += 1
+        return json.loads(text)
+
+    def __getattr__(self, name: str) -> object:
+        return getattr(json, name)
+
+
+def test_a_spool_full_of_runs_is_not_read_again(spool_run: Path, tmp_path: Path,
+                                                monkeypatch: pytest.MonkeyPatch) -> None:
+    """A bench's spool keeps every run it recorded: the trailing upload reads the run.json
+    only of runs recorded after it started, and no more once they end; the publish at the
+    end reads the marker of a published run, not its run.json (0.25 MB for a 200-repeat
+    Step 1: reading them all every pass would slow the bench the more runs it kept)."""
+    import os
+    import shutil
+
+    import bench.store.lab_publish as lab_publish
+    import bench.store.trailing_upload as trailing_upload
+    from bench.store.trailing_upload import TrailingUpload
+
+    spool = tmp_path / "spool"
+    for i in range(3):
+        shutil.copytree(spool_run, spool / f"old-{i}")
+        (spool / f"old-{i}" / lab_publish.MARKER).write_text(json.dumps({"store": "lab"}))
+    data = DataLocation(str(tmp_path / "share"))
+    counted = _CountingJson()
+    monkeypatch.setattr(trailing_upload, "json", counted)
+    monkeypatch.setattr(lab_publish, "json", counted)
+    trailing = TrailingUpload(spool, data, period_s=60.0).start()
+    trailing.stop()
+    trailing.send_new()
+    assert counted.loads_calls == 0 and trailing.done == {}
+    new = spool / "new"
+    shutil.copytree(spool_run, new)
+    meta = json.loads((new / "run.json").read_text())
+    (new / "run.json").write_text(json.dumps({**meta, "status": "running", "pid": os.getpid()}))
+    trailing.send_new()
+    assert counted.loads_calls == 1 and len(trailing.done["new"]) == meta["parts"]
+    (new / "run.json").write_text(json.dumps(meta))  # the run ended
+    trailing.send_new()
+    trailing.send_new()
+    assert counted.loads_calls == 2  # read once more, seen ended, passed
+    counted.loads_calls = 0
+    publisher = Publisher(LabCatalog("postgresql://lab"), data)
+    monkeypatch.setattr(Publisher, "store_key", lambda self: "lab")
+    assert pending_runs(spool, publisher) == [new]
+    assert counted.loads_calls == 3 + 1  # three markers, one run.json
