@@ -193,9 +193,10 @@ class _CountingJson:
 def test_a_spool_full_of_runs_is_not_read_again(spool_run: Path, tmp_path: Path,
                                                 monkeypatch: pytest.MonkeyPatch) -> None:
     """A bench's spool keeps every run it recorded: the trailing upload reads the run.json
-    only of runs recorded after it started, and no more once they end; the publish at the
-    end reads the marker of a published run, not its run.json (0.25 MB for a 200-repeat
-    Step 1: reading them all every pass would slow the bench the more runs it kept)."""
+    only of runs recorded after it started, again only when it was replaced, and no more
+    once they end; the publish at the end reads the marker of a published run, not its
+    run.json (0.25 MB for a 200-repeat Step 1: reading them all every pass would slow the
+    bench the more runs it kept)."""
     import os
     import shutil
 
@@ -220,6 +221,7 @@ def test_a_spool_full_of_runs_is_not_read_again(spool_run: Path, tmp_path: Path,
     meta = json.loads((new / "run.json").read_text())
     (new / "run.json").write_text(json.dumps({**meta, "status": "running", "pid": os.getpid()}))
     trailing.send_new()
+    trailing.send_new()  # its run.json unchanged: not parsed again
     assert counted.loads_calls == 1 and len(trailing.done["new"]) == meta["parts"]
     (new / "run.json").write_text(json.dumps(meta))  # the run ended
     trailing.send_new()
