@@ -42,7 +42,7 @@ def operator_name(meta: Mapping[str, Any]) -> str:
 
 def _rows(run_dir: Path, meta: Mapping[str, Any]) -> int:
     """The recorder's count from run.json; else the parts' own (an imported or killed run:
-    only then is the reader, and pandas with it, about 0.4 s, imported)."""
+    only then is the reader, and pandas with it, 0.2 s, imported)."""
     if isinstance(meta.get("rows"), int):
         return int(meta["rows"])
     from analysis.errors import LogError

@@ -118,7 +118,7 @@ def test_each_file_goes_up_in_one_put(spool_run: Path, s3_env: object) -> None:
 def test_publishing_a_recorded_run_leaves_pandas_unimported(spool_run: Path, tmp_path: Path,
                                                              pg_url: str) -> None:
     """The publish at the end of a recording command takes the row count from run.json:
-    the run reader, and pandas with it (0.4 s of the command), stay unimported."""
+    the run reader, and pandas with it (0.2 s of the command), stay unimported."""
     import subprocess
     import sys
 
