@@ -1,9 +1,11 @@
 """Run folders: ``run.json``, ``samples.parquet/`` (a folder of parts) and ``events.csv``.
 
-Samples are written as they arrive in parts of at most ``chunk_s`` seconds of data.
-Each part is written under a hidden temporary name and renamed into place, and
+Samples are written as they arrive in parts of at most ``chunk_s`` seconds of data (one
+second; ten for a simulated run written behind, ``RunRecorder.write_behind``). Each part
+is written under a hidden temporary name and renamed into place, and
 ``pandas.read_parquet`` skips hidden names, so after a crash or ``kill -9`` every part
-on disk is complete and readable: at most the last (unwritten) chunk is lost.
+on disk is complete and readable: at most the last (unwritten) chunk is lost. The
+columns are encoded losslessly and compactly (``part_encoding``).
 ``run.json`` is written at the start with status ``running`` and replaced atomically
 at the end; events are appended one flushed line at a time.
 
@@ -35,13 +37,14 @@ import pyarrow.parquet as pq
 from bench.errors import RecordingError, RigError
 from drivers.worker import Worker
 
-__all__ = ["BASE_COLUMNS", "RunRecorder", "atomic_write_json", "new_run_id",
-           "software_version", "utc_now"]
+__all__ = ["BASE_COLUMNS", "BEHIND_PART_S", "RunRecorder", "atomic_write_json", "new_run_id",
+           "part_encoding", "software_version", "utc_now"]
 
 BASE_COLUMNS = ("t_s", "throttle_us", "thrust_setpoint_n", "thrust_n", "current_a",
                 "voltage_v", "rpm")
 SAMPLES_DIR = "samples.parquet"
 EVENT_FIELDS = ("t_s", "utc", "kind", "step", "label", "detail")
+BEHIND_PART_S = 10.0  # rig seconds per part of a simulated run written behind it
 
 
 def utc_now() -> str:
@@ -161,6 +164,36 @@ def _arrow(values: np.ndarray) -> pa.Array:
     return pa.array(v)
 
 
+def part_encoding(cols: Mapping[str, np.ndarray]) -> dict[str, Any]:
+    """How a part's columns are encoded (``pyarrow.parquet.write_table`` options), all
+    lossless: the values read back are the ones written, bit for bit.
+
+    A device gives counts: an ADC's 16 or 24 bits, a counter's ticks, scaled to SI units
+    as float64. A second of such a channel holds a few hundred to a few thousand distinct
+    values, so a dictionary (each value once, then a 10-12 bit index per sample) holds it
+    in a third of the plain bytes, where lz4 on plain float64 finds little to take. Which
+    columns repeat their values is read off each part (``_repeats``); the others are
+    written plain (a dictionary of distinct values would cost ten times the plain write).
+    The time stamps, distinct and increasing, have their bytes split into streams
+    (``BYTE_STREAM_SPLIT``: the sign, exponent and high mantissa bytes, which hardly
+    change from row to row, in streams of their own), which lz4 shrinks to about half.
+    A 200-repeat Step 1 is 41 MB instead of 88 MB, for the same encoding time
+    (docs/lab.md, Speed); every Parquet reader reads any of these encodings."""
+    dictionary = [name for name, values in cols.items()
+                  if values.dtype.kind not in "iufb" or _repeats(values)]  # text: as pyarrow
+    split = [name for name in ("t_s",) if name in cols and name not in dictionary
+             and cols[name].dtype.kind == "f"]
+    return {"use_dictionary": dictionary, "use_byte_stream_split": split}
+
+
+def _repeats(values: np.ndarray, sample: int = 4096) -> bool:
+    """Whether a column repeats its values: at most half of an evenly spaced sample of
+    ``sample`` rows distinct (0.05 ms a column; the simulated rig's quantised channels
+    have 36 % or fewer, distinct values 100 %)."""
+    picked = values[::max(1, len(values) // sample)][:sample]
+    return len(picked) > 1 and 2 * len(np.unique(picked)) <= len(picked)
+
+
 def _table(cols: Mapping[str, np.ndarray], schema: pa.Schema | None = None) -> pa.Table:
     arrays = [_arrow(v) for v in cols.values()]
     if schema is None:
@@ -204,7 +237,9 @@ class RunRecorder:
         self._json_cache: dict[str, tuple[Any, str]] = {}  # run.json's plan, sequence...
         # The first Parquet write initialises pyarrow's writer (~0.3 s); do it now, not
         # inside the command loop where it would look like a stalled host.
-        pq.write_table(_table({"t_s": np.zeros(1)}), io.BytesIO(), compression=compression)
+        warm = {"t_s": np.arange(4.0), "x": np.zeros(4)}  # (and its encodings' code)
+        pq.write_table(_table(warm), io.BytesIO(), compression=compression,
+                       **part_encoding(warm))
         self.meta.setdefault("id", self.run_dir.name)
         self.meta.update(status="running", reason="", started_utc=utc_now(), ended_utc=None,
                          software_version=software_version(), host=socket.gethostname(),
@@ -254,16 +289,25 @@ class RunRecorder:
         while self._n and tb[self._n - 1] - tb[0] >= self.chunk_s:
             self._flush_until(tb[0] + self.chunk_s)
 
-    def write_behind(self) -> None:
+    def write_behind(self, part_s: float = BEHIND_PART_S) -> None:
         """Write each part in a background thread while the run goes on (pyarrow lets go
-        of the GIL while it encodes and compresses), one part at a time.
+        of the GIL while it encodes and compresses), one part at a time, each holding
+        ``part_s`` seconds of rig time.
 
         For simulated rigs run flat out, where the Parquet writing was a sixth of the
         command's time. The price: a failed write (disk full) is noticed when the next
         part is handed over or at ``finish``, one part later, and a crash may lose the
-        part in flight as well as the buffered rows. A rig with hardware keeps writing in
-        line, so a full disk stops the motor at once."""
+        part in flight as well as the buffered rows: up to twice ``part_s`` of rig time,
+        a fifth of a second of the host's time at 100x real time. Parts of ten seconds
+        rather than one make a tenth of the files, and a lab store a tenth of the uploads
+        (every S3 request costs milliseconds of CPU on both sides, whatever its size:
+        docs/lab.md, Speed). A rig with hardware keeps writing in line, in parts of a
+        second, so a full disk stops the motor at once and a crash loses at most a
+        second."""
+        if part_s <= 0:
+            raise ValueError("part_s must be > 0")
         self._writer = Worker("run-recorder")
+        self.chunk_s = float(part_s)
 
     def flush(self) -> None:
         """Write everything buffered (used at the end of a run)."""
@@ -313,8 +357,8 @@ class RunRecorder:
         final = self.run_dir / SAMPLES_DIR / name
         tmp = final.with_name(f".{name}.tmp")
         try:
-            pq.write_table(table, tmp, compression=self.compression, use_dictionary=False,
-                           write_statistics=["t_s"])
+            pq.write_table(table, tmp, compression=self.compression, write_statistics=["t_s"],
+                           **part_encoding(cols))
             os.replace(tmp, final)
         except OSError as exc:
             with contextlib.suppress(OSError):

@@ -41,11 +41,13 @@ def operator_name(meta: Mapping[str, Any]) -> str:
 
 
 def _rows(run_dir: Path, meta: Mapping[str, Any]) -> int:
+    """The recorder's count from run.json; else the parts' own (an imported or killed run:
+    only then is the reader, and pandas with it, 0.2 s, imported)."""
+    if isinstance(meta.get("rows"), int):
+        return int(meta["rows"])
     from analysis.errors import LogError
     from analysis.run_record import sample_count
 
-    if isinstance(meta.get("rows"), int):
-        return int(meta["rows"])
     try:
         return sample_count(run_dir, dict(meta))
     except LogError:  # no parts yet, damaged part: count what the catalog can say
@@ -100,14 +102,16 @@ class Publisher:
 
 
 def pending_runs(spool: Path, publisher: Publisher) -> list[Path]:
-    """Ended runs in ``spool`` not yet published to ``publisher``'s store, oldest first."""
+    """Ended runs in ``spool`` not yet published to ``publisher``'s store, oldest first.
+    A published run's marker is read, not its run.json (a bench's spool keeps every run)."""
     out = []
     for meta_path in sorted(Path(spool).glob("*/run.json")):
+        if publisher.is_published(meta_path.parent):
+            continue
         try:
             meta = json.loads(meta_path.read_text(encoding="utf-8"))
         except (OSError, UnicodeDecodeError, ValueError):
             continue
-        if meta.get("status") == "running" or publisher.is_published(meta_path.parent):
-            continue
-        out.append(meta_path.parent)
+        if meta.get("status") != "running":
+            out.append(meta_path.parent)
     return out

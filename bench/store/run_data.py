@@ -37,7 +37,7 @@ class DataLocation:
 
         if self.is_s3:
             try:
-                fs, root = pafs.FileSystem.from_uri(self.uri)
+                fs, root = _s3_from_uri(self.uri)
             except (OSError, ValueError) as exc:
                 raise DataUnavailable(f"data location {self.uri}: {exc}") from None
             return fs, root.rstrip("/")
@@ -63,19 +63,21 @@ class DataLocation:
 
     def put_files(self, run_dir: Path, run_id: str, rels: list[str], threads: int = 8) -> None:
         """Upload ``rels`` (paths relative to ``run_dir``) under ``<location>/<run_id>/``."""
+        import shutil
         from concurrent.futures import ThreadPoolExecutor
-
-        import pyarrow.fs as pafs
 
         if not rels:
             return
         fs, root = self._fs()
         dest = f"{root}/{run_id}"
-        local = pafs.LocalFileSystem()
 
         def put(rel: str) -> None:
-            pafs.copy_files(str(Path(run_dir) / rel), f"{dest}/{rel}", source_filesystem=local,
-                            destination_filesystem=fs)
+            # closed here, so a failed PUT raises (pyarrow's copy_files would drop the
+            # error of a delayed open when it destroys the stream: a run marked published
+            # that is not in the store)
+            with open(Path(run_dir) / rel, "rb") as src, \
+                    fs.open_output_stream(f"{dest}/{rel}") as out:
+                shutil.copyfileobj(src, out, 1 << 20)
 
         try:
             if not self.is_s3:  # a folder needs its folders; S3 keys do not
@@ -117,6 +119,27 @@ class DataLocation:
             raise DataUnavailable(f"data location {self.uri}: download of {run_id} failed "
                                   f"({_short(exc)})") from None
         return target
+
+
+def _s3_from_uri(uri: str) -> tuple[Any, str]:
+    """pyarrow's S3 file system for ``uri`` with ``allow_delayed_open``: a file smaller
+    than a multipart part then goes up in one PUT, not in the three requests (create,
+    part, complete) pyarrow makes by default. A run folder is dozens to hundreds of such
+    files, and each request costs both sides milliseconds of CPU whatever its size: the
+    three requests per file were half of the object store's time for a 200-repeat Step 1
+    (docs/lab.md, Speed). A failed PUT is raised when the file is closed
+    (``DataLocation.put_files``). A pyarrow without the option gets the URI as it is."""
+    import pyarrow.fs as pafs
+
+    if "allow_delayed_open=" in uri:
+        return pafs.FileSystem.from_uri(uri)
+    try:
+        return pafs.FileSystem.from_uri(f"{uri}{'&' if '?' in uri else '?'}"
+                                        "allow_delayed_open=true")
+    except ValueError as exc:
+        if "allow_delayed_open" not in str(exc):
+            raise
+        return pafs.FileSystem.from_uri(uri)
 
 
 def _short(exc: BaseException) -> str:

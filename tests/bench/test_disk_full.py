@@ -44,9 +44,9 @@ def disk_fills_after(monkeypatch):
 def test_disk_full_during_a_step(sim_rig_mapped_path: Path, tmp_path: Path, capsys,
                                  disk_fills_after) -> None:
     out = tmp_path / "runs"
-    disk_fills_after(2)
-    code = main(["step", "--rig", str(sim_rig_mapped_path), "--repeats", "2", "--out",
-                 str(out)])
+    disk_fills_after(2)  # parts of 10 s of rig time (written behind the simulated run):
+    code = main(["step", "--rig", str(sim_rig_mapped_path), "--repeats", "50", "--out",
+                 str(out)])  # the third fails at 30 s, said when the fourth is handed over
     err = capsys.readouterr().err
     assert code == 2, err
     assert err.count("\n") == 1 and "Traceback" not in err, err
@@ -93,7 +93,7 @@ def test_write_behind_reports_a_failed_part_when_the_next_one_is_handed_over(
     import numpy as np
 
     rec = RunRecorder(tmp_path / "r", {"kind": "x"})
-    rec.write_behind()
+    rec.write_behind(part_s=1.0)
     disk_fills_after(1)
 
     def rows(t0: float) -> dict:

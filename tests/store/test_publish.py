@@ -96,6 +96,48 @@ def test_database_outage_then_sync(spool_run: Path, tmp_path: Path, pg_cluster: 
     assert pending_runs(spool, pub) == [] and cat.count_runs() == 1
 
 
+def test_each_file_goes_up_in_one_put(spool_run: Path, s3_env: object) -> None:
+    """A run's files are PUT whole, not as multipart uploads (three requests each: most
+    of the object store's work for a run of many parts): the ETag the server gives each
+    object is then the MD5 of its bytes, where a multipart upload's ends in ``-1``."""
+    import hashlib
+
+    import boto3  # moto's own client library, here to read what the server keeps
+
+    data = DataLocation(f"s3://{s3_env.bucket}/runs")
+    data.upload(spool_run, "one-put")
+    s3 = boto3.client("s3", endpoint_url=s3_env.endpoint)
+    files = sorted(p for p in spool_run.rglob("*") if p.is_file())
+    assert len(files) >= 3
+    for path in files:
+        rel = path.relative_to(spool_run).as_posix()
+        head = s3.head_object(Bucket=s3_env.bucket, Key=f"runs/one-put/{rel}")
+        assert head["ETag"].strip('"') == hashlib.md5(path.read_bytes()).hexdigest(), rel
+
+
+def test_publishing_a_recorded_run_leaves_pandas_unimported(spool_run: Path, tmp_path: Path,
+                                                             pg_url: str) -> None:
+    """The publish at the end of a recording command takes the row count from run.json:
+    the run reader, and pandas with it (0.2 s of the command), stay unimported."""
+    import subprocess
+    import sys
+
+    LabCatalog(pg_url).init()
+    spool = _fresh_spool(spool_run, tmp_path)
+    code = ("import sys\nfrom pathlib import Path\n"
+            "from bench.store.lab_catalog import LabCatalog\n"
+            "from bench.store.lab_publish import Publisher\n"
+            "from bench.store.run_data import DataLocation\n"
+            "Publisher(LabCatalog(sys.argv[1]), DataLocation(sys.argv[2])).publish("
+            "Path(sys.argv[3]))\n"
+            "print([m for m in ('pandas', 'analysis.run_record') if m in sys.modules])\n")
+    out = subprocess.run([sys.executable, "-c", code, pg_url, str(tmp_path / "share"),
+                          str(spool / spool_run.name)], capture_output=True, text=True,
+                         check=True, timeout=120)
+    assert out.stdout.strip() == "[]"
+    assert LabCatalog(pg_url).count_runs() == 1
+
+
 def test_folder_data_location(spool_run: Path, tmp_path: Path) -> None:
     data = DataLocation(str(tmp_path / "share"))
     uri = data.upload(spool_run, "r1")
@@ -132,3 +174,61 @@ def test_parts_trail_the_run_and_run_json_seals_it(spool_run: Path, tmp_path: Pa
     back = data.download(meta["id"], tmp_path / "cache")
     pd.testing.assert_frame_equal(pd.read_parquet(back / "samples.parquet"),
                                   pd.read_parquet(run / "samples.parquet"))
+
+
+class _CountingJson:
+    """``json`` as a module uses it, counting the documents it parses."""
+
+    def __init__(self) -> None:
+        self.loads_calls = 0
+
+    def loads(self, text: str) -> object:
+        self.loads_calls += 1
+        return json.loads(text)
+
+    def __getattr__(self, name: str) -> object:
+        return getattr(json, name)
+
+
+def test_a_spool_full_of_runs_is_not_read_again(spool_run: Path, tmp_path: Path,
+                                                monkeypatch: pytest.MonkeyPatch) -> None:
+    """A bench's spool keeps every run it recorded: the trailing upload reads the run.json
+    only of runs recorded after it started, again only when it was replaced, and no more
+    once they end; the publish at the end reads the marker of a published run, not its
+    run.json (0.25 MB for a 200-repeat Step 1: reading them all every pass would slow the
+    bench the more runs it kept)."""
+    import os
+    import shutil
+
+    import bench.store.lab_publish as lab_publish
+    import bench.store.trailing_upload as trailing_upload
+    from bench.store.trailing_upload import TrailingUpload
+
+    spool = tmp_path / "spool"
+    for i in range(3):
+        shutil.copytree(spool_run, spool / f"old-{i}")
+        (spool / f"old-{i}" / lab_publish.MARKER).write_text(json.dumps({"store": "lab"}))
+    data = DataLocation(str(tmp_path / "share"))
+    counted = _CountingJson()
+    monkeypatch.setattr(trailing_upload, "json", counted)
+    monkeypatch.setattr(lab_publish, "json", counted)
+    trailing = TrailingUpload(spool, data, period_s=60.0).start()
+    trailing.stop()
+    trailing.send_new()
+    assert counted.loads_calls == 0 and trailing.done == {}
+    new = spool / "new"
+    shutil.copytree(spool_run, new)
+    meta = json.loads((new / "run.json").read_text())
+    (new / "run.json").write_text(json.dumps({**meta, "status": "running", "pid": os.getpid()}))
+    trailing.send_new()
+    trailing.send_new()  # its run.json unchanged: not parsed again
+    assert counted.loads_calls == 1 and len(trailing.done["new"]) == meta["parts"]
+    (new / "run.json").write_text(json.dumps(meta))  # the run ended
+    trailing.send_new()
+    trailing.send_new()
+    assert counted.loads_calls == 2  # read once more, seen ended, passed
+    counted.loads_calls = 0
+    publisher = Publisher(LabCatalog("postgresql://lab"), data)
+    monkeypatch.setattr(Publisher, "store_key", lambda self: "lab")
+    assert pending_runs(spool, publisher) == [new]
+    assert counted.loads_calls == 3 + 1  # three markers, one run.json
