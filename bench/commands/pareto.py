@@ -142,6 +142,7 @@ def compute(args: argparse.Namespace) -> dict[str, Any]:
     return {
         "x": args.x, "y": args.y,
         "x_key": spec_x.metric, "y_key": spec_y.metric,
+        "x_sense": spec_x.sense, "y_sense": spec_y.sense,
         "x_label": f"{spec_x.label} ({spec_x.unit})" if spec_x.unit else spec_x.label,
         "y_label": f"{spec_y.label} ({spec_y.unit})" if spec_y.unit else spec_y.label,
         "catalog": catalog.source, "catalog_name": Path(str(catalog.source)).name,

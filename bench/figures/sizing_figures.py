@@ -57,7 +57,10 @@ def pareto_figure(doc: dict[str, Any], path: Path) -> Path:
                    label=doc.get("_cloud_label", "feasible designs"), rasterized=True)
     xs = [d[doc["x_key"]] for d in doc["front"]]
     ys = [d[doc["y_key"]] for d in doc["front"]]
-    ax.step(xs, ys, where="post", color="C0", lw=1)
+    # the edge of what the front reaches: at an x between two points, the best y is the
+    # next point's when x is maximised (only it and those after reach that x), the
+    # previous point's when x is minimised
+    ax.step(xs, ys, where="pre" if doc.get("x_sense") == "max" else "post", color="C0", lw=1)
     ax.scatter(xs, ys, c="C0", s=18, zorder=3, label=f"Pareto front ({len(xs)})")
     ax.set_xlabel(doc["x_label"])
     ax.set_ylabel(doc["y_label"])

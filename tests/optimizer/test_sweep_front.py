@@ -290,3 +290,23 @@ def test_a_maneuver_no_design_rose_in_leaves_every_row_out(tmp_path: Path, capsy
     doc = json.loads(capsys.readouterr().out)
     assert doc["front"] == [] and doc["considered"] == 0
     assert doc["left_out"]["missing"]["roll_step_rise_time_ms"] == len(rows)
+
+
+@pytest.mark.parametrize("sense, style", [("max", "steps-pre"), ("min", "steps-post")])
+def test_the_fronts_edge_steps_the_way_the_x_sense_reaches(tmp_path, monkeypatch, sense,
+                                                           style) -> None:
+    """A maximised x (flight time): between two front points only the next one reaches
+    that x, so the edge holds the next point's y ("pre"); a minimised x the previous's."""
+    import matplotlib.pyplot as plt
+
+    from bench.figures import sizing_figures
+
+    seen = {}
+    monkeypatch.setattr(sizing_figures, "_save", lambda fig, path: seen.setdefault("fig", fig))
+    doc = {"x_key": "a", "y_key": "b", "x_label": "a", "y_label": "b", "x_sense": sense,
+           "catalog_name": "c", "actuators": [4],
+           "front": [{"a": 1.0, "b": 1.0}, {"a": 2.0, "b": 3.0}]}
+    sizing_figures.pareto_figure(doc, tmp_path / "f.png")
+    ax = seen["fig"].axes[0]
+    assert ax.lines[0].get_drawstyle() == style
+    plt.close(seen["fig"])
