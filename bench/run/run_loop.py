@@ -320,15 +320,25 @@ class SafeRunLoop:
         longer than ``stale_s`` ends the run."""
         return self._stamp(role, read(), now)
 
+    @property
+    def stale_limit_s(self) -> float:
+        """How long (rig time) a device may be silent: ``stale_s``, times the time scale
+        of a simulated bench paced faster than the wall clock (``PacedClock``): there a
+        wall-clock hiccup of the host that serves the simulated devices lasts time_scale
+        times as long in rig time (CI saw 0.2 s of wall silence read as 0.6 s at 3x). A
+        real rig's clock is the wall clock: its limit is ``stale_s``."""
+        scale = float(getattr(self.rig.clock, "time_scale", 1.0))
+        return self.options.stale_s * max(1.0, scale)
+
     def _stamp(self, role: str, b: Block, now: float) -> Block:
         """The bookkeeping of one block read at ``now``: drops, the stale check and the
         time base relative to the run start."""
         self.drops.update(role, b.t_s, b.values)
         if len(b):
             self._heard[role] = now
-        elif now - self._heard.get(role, 0.0) > self.options.stale_s:
+        elif now - self._heard.get(role, 0.0) > self.stale_limit_s:
             raise DeviceError(f"{role}: no samples for {now - self._heard.get(role, 0.0):.2f} s "
-                              f"(limit {self.options.stale_s:g} s){self.stale_hint}")
+                              f"(limit {self.stale_limit_s:g} s){self.stale_hint}")
         return Block(b.t_s - self._t0, b.values)
 
     def _deliver(self, rows: Mapping[str, np.ndarray], trip: Trip | None) -> None:

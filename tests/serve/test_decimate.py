@@ -9,6 +9,8 @@ import shutil
 from pathlib import Path
 
 import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -92,7 +94,15 @@ def test_a_runs_plots_are_the_decimation_of_its_columns(recorded: Path,
     run = tmp_path / "run"
     shutil.copytree(next(p.parent for p in sorted(recorded.glob("*-step1/run.json"))), run)
     parts = sorted((run / "samples.parquet").glob("*.parquet"))
-    assert len(parts) >= 2  # the chunks cross parts
+    if len(parts) < 3:  # a flat-out simulated run writes 10 s parts: cut it in three
+        table = pa.concat_tables([pq.read_table(q) for q in parts])
+        for q in parts:
+            q.unlink()
+        third = -(-table.num_rows // 3)
+        for i in range(3):
+            pq.write_table(table.slice(i * third, third),
+                           run / "samples.parquet" / f"part-{i:06d}.parquet")
+    assert len(sorted((run / "samples.parquet").glob("*.parquet"))) >= 3  # chunks cross parts
     record = read_run(run)
     t = record.column("t_s")
     want = {k: record.column(k) for k in ("throttle_us", "thrust_n", "current_a",

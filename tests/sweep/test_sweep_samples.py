@@ -126,3 +126,30 @@ def test_bad_sample_options_are_one_line(tmp_path, capsys, flags, words) -> None
 def test_samples_need_the_out_file(capsys) -> None:
     assert main(["fly", "--sweep", "--actuators", "4", "--samples", "3"]) == 2
     assert "--samples" in capsys.readouterr().err
+
+
+def test_measured_spreads_reach_the_plan_and_the_draws(thesis_e) -> None:
+    """A measured actuator with spreads (as the constants store loads it) overrides its
+    designs' numbers in the plan, brings its spreads (std_*), and only its designs' samples
+    spread; the others keep the model's numbers and no spread."""
+    from optimizer.design_model import evaluate_grid
+    from optimizer.measured import MeasuredActuator
+
+    prop, motor = thesis_e.propellers["id"].iloc[0], thesis_e.motors["id"].iloc[0]
+    measured = MeasuredActuator(prop, motor, tau_up_s=0.030, tau_down_s=0.045,
+                                latency_s=0.004, time_constant_s=0.035, tau_up_std_s=0.004,
+                                tau_down_std_s=0.006, latency_std_s=0.001)
+
+    def build(catalog, n, payload):
+        return evaluate_grid(catalog, n, payload, overrides=[measured])
+
+    plan = plan_designs(thesis_e, [4], build_grid=build)
+    mine = (plan["propeller"] == prop) & (plan["motor"] == motor)
+    assert mine.any() and (~mine).any()
+    assert (plan.loc[mine, "actuator_tau_up_s"] == 0.030).all()
+    assert (plan.loc[mine, STD_PREFIX + "tau_up_s"] == 0.004).all()
+    assert (plan.loc[~mine, plan.columns.str.startswith(STD_PREFIX)].to_numpy() == 0).all()
+    both = pd.concat([plan[mine].iloc[:2], plan[~mine].iloc[:2]], ignore_index=True)
+    rows = fly_chunk(Chunk(both, ("roll_step",), samples=M))
+    spread = [r["roll_step_rise_time_ms_p95"] - r["roll_step_rise_time_ms_p05"] for r in rows]
+    assert spread[0] > 0 and spread[1] > 0 and spread[2] == spread[3] == 0
