@@ -54,13 +54,13 @@ RUN_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.:+-]{0,127}$")
 PAGE_SIZES = (25, 50, 100, 200)
 PLOT_COLUMNS = 1500  # min/max bins per time plot: about one per pixel column of a wide page
 EXPORTS = ("ardupilot", "px4", "gazebo")
-#: plotly.js's "basic" bundle (scatter, bar, pie), in static/ with its LICENSE and SOURCE:
-#: the pages draw only scatter traces, and a run page's scripts have run 3-5x sooner than
-#: with the full bundle (benchmarks/serve_bench.py). The version in its name lets
-#: browsers keep it for a year.
-PLOTLY_JS = "plotly-basic-4.1.1.min.js"
-IMMUTABLE = "public, max-age=31536000, immutable"
 Text = Annotated[str | None, Query(max_length=128)]
+
+
+def _plotly_js() -> Path:
+    import plotly
+
+    return Path(plotly.__file__).parent / "package_data" / "plotly.min.js"
 
 
 def create_app(store: Store, *, token: str | None = None, title: str = "rotorbench") -> Any:
@@ -69,7 +69,6 @@ def create_app(store: Store, *, token: str | None = None, title: str = "rotorben
     templates = Jinja2Templates(directory=str(HERE / "templates"))
     cache = RecordCache()
     series_cache = SeriesCache()
-    templates.env.globals["plotly_js"] = f"/static/{PLOTLY_JS}"
     _warm(templates)
     app.state.store = store
 
@@ -245,13 +244,17 @@ def create_app(store: Store, *, token: str | None = None, title: str = "rotorben
         resp.set_cookie(COOKIE, token, httponly=True, samesite="strict")
         return resp
 
+    @app.get("/static/plotly.min.js", include_in_schema=False)
+    def plotly_js() -> FileResponse:
+        return FileResponse(_plotly_js(), media_type="text/javascript",
+                            headers={"Cache-Control": "public, max-age=86400"})
+
     @app.get("/static/{name}", include_in_schema=False)
     def static(name: str) -> FileResponse:
         files = {p.name: p for p in (HERE / "static").iterdir()}
         if name not in files:
             raise HTTPException(404, "no such file")
-        return FileResponse(files[name], headers={"Cache-Control": IMMUTABLE}
-                            if name == PLOTLY_JS else None)
+        return FileResponse(files[name])
 
     @app.exception_handler(RigError)
     def store_error(request: Request, exc: RigError) -> JSONResponse:

@@ -6,7 +6,7 @@
 * A query string over ``MAX_QUERY`` bytes or a path over ``MAX_PATH`` is 414, before any
   route runs.
 * Every response has a Content-Security-Policy that allows only this server's scripts
-  (plotly.js is the bundle in static/, served by this app: no CDN).
+  (plotly.js is served from the plotly package itself: no CDN, nothing copied here).
 """
 
 from __future__ import annotations

@@ -11,7 +11,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from bench.cli import main
-from bench.serve.app import PLOTLY_JS, create_app
+from bench.serve.app import create_app
 from bench.serve.security import CSP
 from bench.store.stores import open_store
 
@@ -35,7 +35,7 @@ def test_other_host_needs_a_token(capsys: pytest.CaptureFixture[str]) -> None:
 def test_token_required_on_every_request(recorded: Path) -> None:
     app = create_app(open_store(str(recorded)), token=TOKEN)
     with TestClient(app) as c:
-        for path in ("/", "/api/runs", f"/static/{PLOTLY_JS}", "/openapi.json"):
+        for path in ("/", "/api/runs", "/static/plotly.min.js", "/openapi.json"):
             assert c.get(path).status_code == 401
         assert c.get("/api/runs", headers={"Authorization": "Bearer wrong"}).status_code == 401
         assert c.get("/api/runs", headers={"Authorization": f"Bearer {TOKEN}"}).status_code \
