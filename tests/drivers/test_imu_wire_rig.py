@@ -64,8 +64,12 @@ TEST_TIME_SCALE = 2.0
 def bench(tmp_path_factory: pytest.TempPathFactory):
     rig = _rig(tmp_path_factory.mktemp("wire"), "time_scale = 6.0",
                f"time_scale = {TEST_TIME_SCALE}")
-    rig.write_text(rig.read_text(encoding="utf-8").replace(
-        "time_scale = 6.0", f"time_scale = {TEST_TIME_SCALE}"), encoding="utf-8")
+    text = rig.read_text(encoding="utf-8").replace("time_scale = 6.0",
+                                                    f"time_scale = {TEST_TIME_SCALE}")
+    # and the GX3's silence limit (0.2 s) and the MSP reply timeout (0.3 s) widened: a
+    # starved test process is not a silent device (the device-lost tests are about that)
+    text = text.replace('protocol = "gx3",', 'protocol = "gx3", stale_s = 3.0,')
+    rig.write_text(text.replace("timeout_s = 0.3", "timeout_s = 3.0"), encoding="utf-8")
     with open_rig(load_imu_rig(rig)) as b:
         b.imu.read_block()
         b.reference_imu.read_block()
