@@ -5,10 +5,11 @@ PYTHON ?= $(shell command -v python3.11 || command -v python3)
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
-# test processes: two per core (pytest-xdist; many tests wait on paced rigs, child
-# processes or servers rather than compute); a file's tests stay in one process so its
-# module fixtures (a whole simulated calibration) run once. TEST_WORKERS=0 runs serially.
-TEST_WORKERS ?= $(shell echo $$(( $$(nproc 2>/dev/null || echo 1) * 2 )))
+# test processes: one per core (pytest-xdist); a file's tests stay in one process so its
+# module fixtures (a whole simulated calibration) run once. Two per core were faster but
+# starved the paced wire-level rigs once the sweep tests' Dask processes ran beside them
+# (docs/architecture.md). TEST_WORKERS=0 runs serially.
+TEST_WORKERS ?= $(shell nproc 2>/dev/null || echo 1)
 
 .PHONY: demo test bench lint clean
 
