@@ -1,4 +1,4 @@
-"""Speed of ``pareto --from SWEEP.parquet`` (``optimizer.flight.sweep_file.front``).
+"""Speed of ``pareto --from SWEEP.parquet`` (``optimizer.sweep.sweep_file.front``).
 
 Writes a seeded synthetic sweep file (the columns of ``fly --sweep --out``: design keys,
 the static model numbers, four figures of five maneuvers, ``can_hover``, ``error``; 8 % of
@@ -30,8 +30,8 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from optimizer.flight.maneuvers import MANEUVERS
-from optimizer.flight.sweep_file import SPEC_KEY, STATIC_KEYS, front, open_sweep
 from optimizer.pareto import enumerate_front
+from optimizer.sweep.sweep_file import SPEC_KEY, STATIC_KEYS, front, open_sweep
 
 
 def timed(fn):

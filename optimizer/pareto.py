@@ -21,7 +21,7 @@ front point, so a front of k points costs 2k + 1 MILPs.
 
 :func:`enumerate_front` is the independent oracle: sort by ``(cx, cy)`` and keep each
 point whose ``cy`` beats every earlier one. Vectorised, it is also the front of any two
-columns of a sweep file's rows (``optimizer.flight.sweep_file``, ``pareto --from``).
+columns of a sweep file's rows (``optimizer.sweep.sweep_file``, ``pareto --from``).
 """
 
 from __future__ import annotations

@@ -136,7 +136,7 @@ def meet_roll_rise_option(result: Any, catalog: Any, objective: Objective, requi
                           measured: MeasuredGrids | None = None, screen: Any = None) -> Any:
     """A roll rise limit on a selection: fly the picks, then candidates in objective order
     (``optimizer.flight.choice.meet_roll_rise``), on the measured grids when given; with
-    ``screen`` (``optimizer.flight.sweep_screen.roll_screen``) read from a sweep file."""
+    ``screen`` (``optimizer.sweep.sweep_screen.roll_screen``) read from a sweep file."""
     from optimizer.flight.choice import meet_roll_rise
 
     if method == "thesis":

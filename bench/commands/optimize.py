@@ -267,7 +267,7 @@ def _roll_screen(args: argparse.Namespace) -> Any:
     if args.max_roll_rise_ms is None:
         refuse_unused(args, ("--from-sweep",), "without --max-roll-rise-ms")
         raise RequestError("--from-sweep needs --max-roll-rise-ms")  # a library caller
-    from optimizer.flight.sweep_screen import roll_screen
+    from optimizer.sweep.sweep_screen import roll_screen
 
     return roll_screen(args.from_sweep, args.payload_kg)
 

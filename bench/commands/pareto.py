@@ -6,7 +6,7 @@ hovers with the margin of ``--min-thrust-to-weight`` (default 1.2; ``--thesis-ru
 drops it), a check of the grid the front is solved on. ``--check``
 also enumerates every design and says whether the two fronts agree. ``front`` lists
 designs with the keys of an ``optimize --json`` design. ``--from SWEEP.parquet`` draws the
-front of any two columns of a closed-loop sweep file instead (``optimizer.flight.sweep_file``:
+front of any two columns of a closed-loop sweep file instead (``optimizer.sweep.sweep_file``:
 objectives, ``roll-rise``-style aliases, raw columns; no catalog, no MILP). Exit 0 with a
 front, 3 when no design is feasible, 2 for bad input.
 """
@@ -162,7 +162,7 @@ CATALOG_ONLY = ("--catalog", "--payload-kg", "--current-model", "--method", "--c
 
 def compute_from_file(args: argparse.Namespace) -> dict[str, Any]:
     """``compute``'s document for the rows of a sweep file (``pareto --from``)."""
-    from optimizer.flight.sweep_file import front, open_sweep
+    from optimizer.sweep.sweep_file import front, open_sweep
 
     refuse_unused(args, CATALOG_ONLY, "with --from (the sweep file holds the designs and "
                   "their numbers)")

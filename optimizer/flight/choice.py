@@ -7,7 +7,7 @@ The MILP (or enumeration) picks first. Per actuator count its design is flown th
 T, proven by flight: every design with a better objective was flown and missed. The
 best actuator count is then chosen again among the survivors (``pick_best``).
 
-With a sweep file (``--from-sweep``, ``optimizer.flight.sweep_screen.RollScreen``) nothing is
+With a sweep file (``--from-sweep``, ``optimizer.sweep.sweep_screen.RollScreen``) nothing is
 flown: the same order is read off the file's roll rise times, so the pick is the one the
 flights would make (the MILP's pick if it meets T, else the lowest cost, ties in catalog
 order). A design of the grid the file lacks counts as not screened: never picked, counted
@@ -20,7 +20,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -36,8 +36,14 @@ from optimizer.selection import (
     pick_best,
 )
 
-if TYPE_CHECKING:  # the flying path needs no Parquet reader
-    from optimizer.flight.sweep_screen import RollScreen
+
+class RollScreen(Protocol):
+    """Roll rise times read from a sweep file (``optimizer.sweep.sweep_screen.RollScreen``,
+    which sits above this floor: a sweep flies with ``optimizer.flight``)."""
+
+    source: str
+
+    def on_grid(self, grid: Any) -> Any: ...
 
 
 def meet_roll_rise(result: SelectionResult, catalog: Any, objective: Objective,

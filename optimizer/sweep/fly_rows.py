@@ -157,11 +157,10 @@ def _percentiles(row: dict[str, Any], name: str, flown: list[dict[str, Any]],
                  m: int) -> None:
     """The ``_p05/_p50/_p95`` of each spread figure over a design's samples (a design
     flown once stands for all ``m``); a sample that failed counts as missing."""
+    failed = [fig["error"] for fig in flown if "error" in fig]
+    if failed and row["error"] is None:
+        row["error"] = f"{name}: a drawn sample did not fly: {failed[0]}"
+    copies = m if len(flown) == 1 else 1
     for f in spread_figures(name):
-        values = [np.nan if fig.get(f) is None else fig[f] for fig in flown]
-        if len(values) == 1:
-            values *= m
-        failed = [fig["error"] for fig in flown if "error" in fig]
-        if failed and row["error"] is None:
-            row["error"] = f"{name}: a drawn sample did not fly: {failed[0]}"
+        values = [np.nan if fig.get(f) is None else fig[f] for fig in flown] * copies
         row.update(percentile_columns(f"{name}_{f}", values))

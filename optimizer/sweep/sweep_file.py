@@ -9,7 +9,7 @@ holds the sweep's spec as JSON (``catalog``, ``options``, ``maneuvers``).
 
 Only the columns a question needs are read (pyarrow), so a file of millions of rows answers
 in seconds: ``pareto --from`` (:func:`front`) reads two columns and the filters, then the
-front's rows; ``optimize --from-sweep`` (``optimizer.flight.sweep_screen``) reads the roll
+front's rows; ``optimize --from-sweep`` (``optimizer.sweep.sweep_screen``) reads the roll
 rise time, the design keys and the model numbers it checks the file against the catalog with.
 """
 
@@ -29,19 +29,21 @@ import pyarrow.parquet as pq
 
 from optimizer.errors import RequestError
 from optimizer.flight.maneuvers import MANEUVERS
-from optimizer.grid import METRIC_KEYS
 from optimizer.objectives import METRICS, Sense
 from optimizer.pareto import enumerate_front
+from optimizer.sweep.keys import DESIGN_KEYS as KEYS
+from optimizer.sweep.rows import STATIC
+from optimizer.sweep.spec import METADATA_KEY
 
-#: The columns that name a design (``series``/``parallel``: the battery pack's cells).
-DESIGN_KEYS: tuple[str, ...] = ("actuators", "propeller", "motor", "battery", "series",
-                                "parallel", "design_id")
+#: The columns that name a design (``series``/``parallel``: the battery pack's cells), as
+#: the writer names them (``optimizer.sweep.keys``).
+DESIGN_KEYS: tuple[str, ...] = (*KEYS, "design_id")
 #: Whether a design flew (``error``: null when it did) and hovers, in every row.
 FLAGS: tuple[str, ...] = ("can_hover", "error")
 #: The static model numbers of a row, listed with each design of a front.
-STATIC_KEYS: tuple[str, ...] = (*METRIC_KEYS, "thrust_to_weight")
+STATIC_KEYS: tuple[str, ...] = STATIC
 #: The Parquet key-value metadata entry that marks a sweep file and holds its spec.
-SPEC_KEY = b"rotorbench_sweep"
+SPEC_KEY = METADATA_KEY.encode()
 #: Closed-loop alias suffix -> (column suffix, label, unit, what a null means if not "no").
 FIGURES: dict[str, tuple[str, str, str, str | None]] = {
     "rise": ("rise_time_ms", "rise time", "ms", "never rose"),

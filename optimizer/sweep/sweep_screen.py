@@ -20,8 +20,8 @@ import pandas as pd
 import pyarrow.compute as pc
 
 from optimizer.errors import RequestError
-from optimizer.flight.sweep_file import DESIGN_KEYS, FLAGS, open_sweep, usable_rows
 from optimizer.grid import METRIC_KEYS
+from optimizer.sweep.sweep_file import DESIGN_KEYS, FLAGS, open_sweep, usable_rows
 
 #: The roll rise time ``optimize --from-sweep`` screens on.
 ROLL_RISE = "roll_step_rise_time_ms"
@@ -29,12 +29,12 @@ ROLL_RISE = "roll_step_rise_time_ms"
 MODEL_RTOL = 1e-9
 
 
-#: Flight options of a sweep's spec that change the roll rise time but not the model
-#: numbers: (keys the spec may use, the value ``optimize`` flies with).
-FLIGHT_OPTIONS: tuple[tuple[tuple[str, ...], Any], ...] = (
-    (("layout",), "x"),
-    (("drag_n_s_m", "drag"), 0.0),
-    (("step_run",), None),
+#: Flight options of a sweep's spec (as ``fly --sweep`` writes them) that change the roll
+#: rise time but not the model numbers: (key, the value ``optimize`` flies with).
+FLIGHT_OPTIONS: tuple[tuple[str, Any], ...] = (
+    ("layout", "x"),
+    ("drag_n_s_m", 0.0),
+    ("step_run", None),
 )
 
 
@@ -142,13 +142,12 @@ def _check_spec(spec: dict[str, Any], payload_kg: float, where: str) -> None:
         if not math.isclose(float(said), payload_kg, abs_tol=1e-12):
             raise RequestError(f"{where}: flown with a payload of {float(said):g} kg; this "
                                f"run asks for {payload_kg:g} kg (--payload-kg)")
-    for keys, expected in FLIGHT_OPTIONS:
-        key = next((k for k in keys if k in options), None)
-        if key is None:
+    for key, expected in FLIGHT_OPTIONS:
+        if key not in options:
             continue
         value = options[key]
         if value is None and expected == 0.0:  # no drag given: none
             value = 0.0
         if value != expected:
             raise RequestError(f"{where}: flown with {key} = {options[key]!r}; optimize flies "
-                               f"the catalog's actuators with {keys[0]} = {expected!r}")
+                               f"the catalog's actuators with {key} = {expected!r}")
