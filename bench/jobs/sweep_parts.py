@@ -69,13 +69,6 @@ def write_atomic(table: pa.Table, path: Path, spec: Mapping[str, Any] | None = N
     return path
 
 
-def read_spec(path: Path) -> dict[str, Any] | None:
-    """The sweep spec in a Parquet file's metadata (None when it has none)."""
-    meta = pq.read_schema(path).metadata or {}
-    raw = meta.get(METADATA_KEY.encode())
-    return json.loads(raw) if raw is not None else None
-
-
 class Parts:
     """The parts folder of one sweep (see the module doc); made with the first part."""
 
