@@ -179,8 +179,29 @@ def compute_from_file(args: argparse.Namespace) -> dict[str, Any]:
         "actuators": res.actuators, "method": "sweep", "front": res.front,
         "rows": res.rows, "considered": res.considered, "left_out": res.left_out.to_dict(),
         "left_out_text": res.left_out.text(), "sweep": sweep.spec,
+        "hover_margin_text": _sweep_margin_text(sweep.spec),
         "_cloud": res.cloud, "_cloud_label": "flown designs that hover",
     }
+
+
+def _sweep_margin_text(spec: dict[str, Any]) -> str | None:
+    """The hover margin the sweep was flown under (its spec's ``options.hover_margin``), as
+    ``pareto`` says its own: a front of a ``--thesis-rules`` sweep may hold designs below
+    the default margin (rows that cannot hover are left out)."""
+    options = spec.get("options")
+    margin = options.get("hover_margin") if isinstance(options, dict) else None
+    if not isinstance(margin, dict):
+        return None
+    source, ratio = margin.get("source", "?"), margin.get("min_thrust_to_weight")
+    if margin.get("thesis_rules"):
+        line = (f"thesis rules (the sweep's {source}): no hover margin, designs that cannot "
+                "hover left out")
+        return line + (f"; the catalog's own min_thrust_to_weight {ratio:g} applied"
+                       if isinstance(ratio, (int, float)) else "")
+    if not isinstance(ratio, (int, float)):
+        return None
+    return (f"hover margin (the sweep's, {source}): every design reaches full-throttle "
+            f"thrust-to-weight >= {ratio:g}")
 
 
 def handler(args: argparse.Namespace) -> int:

@@ -196,6 +196,31 @@ def test_cli_json_shape_text_and_plot(tmp_path: Path, capsys) -> None:
             "1 error, 2 cannot hover, 3 never rose in roll_step") in " ".join(out.split())
 
 
+@pytest.mark.parametrize(("margin", "said"), [
+    ({"min_thrust_to_weight": None, "thesis_rules": True, "source": "--thesis-rules"},
+     "thesis rules (the sweep's --thesis-rules): no hover margin, designs that cannot hover "
+     "left out"),
+    ({"min_thrust_to_weight": 2.0, "thesis_rules": True, "source": "--thesis-rules"},
+     "the catalog's own min_thrust_to_weight 2 applied"),
+    ({"min_thrust_to_weight": 1.2, "thesis_rules": False, "source": "default"},
+     "hover margin (the sweep's, default): every design reaches full-throttle "
+     "thrust-to-weight >= 1.2"),
+])
+def test_text_says_the_hover_margin_the_sweep_was_flown_under(tmp_path: Path, capsys,
+                                                              margin, said) -> None:
+    """A front of a ``fly --sweep --thesis-rules`` file may offer a design below the default
+    margin (thesis-e's 8 x P1/M1/B3, thrust-to-weight 1.10): like ``pareto`` on a catalog
+    (issue 20), the text says which rule the designs were sized under (``--json`` has it in
+    ``sweep.options.hover_margin``)."""
+    spec = {**SPEC, "options": {**SPEC["options"], "hover_margin": margin}}
+    path = write_sweep(tmp_path / "s.parquet", feasible_rows((4,)), spec)
+    assert main(["pareto", "--from", str(path), "--x", "flight-time", "--y", "price"]) == 0
+    assert said in " ".join(capsys.readouterr().out.split())
+    plain = write_sweep(tmp_path / "plain.parquet", feasible_rows((4,)))  # no margin known
+    assert main(["pareto", "--from", str(plain), "--x", "flight-time", "--y", "price"]) == 0
+    assert "hover margin" not in capsys.readouterr().out
+
+
 def test_axis_names(tmp_path: Path) -> None:
     """Objective names, closed-loop aliases (percentiles too), raw columns, max:/min:."""
     rows = [{"actuators": 4, "propeller": "P1", "motor": "M1", "battery": "B1",
