@@ -62,7 +62,7 @@ def test_ctrl_c_keeps_the_parts_and_the_same_command_resumes(capsys, tmp_path,
     workers) during a 2-worker sweep: the finished chunks stay, one line each says so, no
     worker prints a traceback; the same command in this process flies the rest."""
     out = tmp_path / "sweep.parquet"
-    argv = [*SWEEP, "--out", str(out), "--chunk-size", "1"]
+    argv = [*SWEEP, "--out", str(out), "--chunk-size", "4"]  # 11 chunks
     env = {**os.environ, "PYTHONPATH": str(REPO)}
     child = subprocess.Popen([sys.executable, "-m", "bench.cli", *argv, "--workers", "2"],
                              env=env, cwd=REPO, stdout=subprocess.DEVNULL,

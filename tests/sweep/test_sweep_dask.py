@@ -29,8 +29,10 @@ def assert_same_rows(a, b) -> None:
 
 
 def test_every_executor_gives_the_in_process_rows(capsys, tmp_path, dask, reference) -> None:
-    runs = {"local": ["--workers", "2", "--chunk-size", "5"],
-            "remote": ["--scheduler", dask.address, "--chunk-size", "3"]}
+    # uneven chunkings of the 44 designs (4 chunks of 11; 5 of 9, the last of 8); each chunk
+    # flies the maneuver's whole tick loop, so many tiny chunks would only cost time
+    runs = {"local": ["--workers", "2", "--chunk-size", "11"],
+            "remote": ["--scheduler", dask.address, "--chunk-size", "9"]}
     for name, options in runs.items():
         out = tmp_path / f"{name}.parquet"
         assert main([*SWEEP, *options, "--out", str(out)]) == 0
@@ -49,7 +51,7 @@ def test_a_series_sweep_is_the_same_on_the_cluster(capsys, tmp_path, dask) -> No
     doc = json.loads(capsys.readouterr().out)
     assert doc["designs"] == 12 and doc["errors"] == 0
     assert main([*PACKS, "--out", str(there), "--scheduler", dask.address,
-                 "--chunk-size", "2"]) == 0
+                 "--chunk-size", "5"]) == 0
     a, b = pq.read_table(here), pq.read_table(there)
     assert_same_rows(a, b)
     assert set(a["series"].to_pylist()) == {2} and set(a["parallel"].to_pylist()) == {2}
@@ -83,7 +85,7 @@ def test_a_worker_killed_mid_sweep_costs_nothing(tmp_path, dask, reference, thes
             killed.append(done)
 
     out = tmp_path / "killed.parquet"
-    result = run_sweep(plan, ["roll_step"], spec, out=out, chunk=2, progress=False,
+    result = run_sweep(plan, ["roll_step"], spec, out=out, chunk=4, progress=False,
                        executor=Executor(scheduler=dask.address), on_rows=kill_while_busy)
     assert killed and killed[0] < 44
     assert doomed.wait(10) == -signal.SIGKILL
