@@ -123,10 +123,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     args._defaults = option_defaults(parser, args)  # for cli_support.refuse_unused
     try:
         _check_inputs(parser, argv, args)
-        with _plain_numbers():
+        from bench.run.sigterm import sigterm_as_interrupt
+
+        # `kill PID` ends every command like Ctrl-C (safe stop, clean-up), exit 143
+        with _plain_numbers(), sigterm_as_interrupt():
             return int(args.func(args) or 0)
     except KeyboardInterrupt as exc:
-        if "SIGTERM" in exc.args:  # bench.jobs.run_progress.sigterm_as_interrupt
+        if "SIGTERM" in exc.args:  # bench.run.sigterm.sigterm_as_interrupt
             print("rotorbench: terminated", file=sys.stderr)
             return 143  # 128 + SIGTERM, as a shell reports a process ended by `kill`
         print("rotorbench: interrupted", file=sys.stderr)

@@ -9,7 +9,6 @@ write (disk full) becomes a one-line error; a user error leaves only its own lin
 from __future__ import annotations
 
 import contextlib
-import signal
 import sys
 import threading
 from collections.abc import Callable, Iterator, Mapping, Sequence
@@ -27,6 +26,7 @@ from bench.plans.run_budget import Budget, check_budget, project, row_rate_hz
 from bench.plans.sequences import Plan, Segment
 from bench.plans.sequences import Sequence as PlanSequence
 from bench.run.safety import effective_limits
+from bench.run.sigterm import sigterm_as_interrupt
 from bench.runners.runner import HexapodRunOptions, RunOptions
 from bench.runners.session import RunOutcome, plan_for, run_sequence
 from bench.store.indexed_run import RunInterrupted, RunRecordingFailed
@@ -181,24 +181,6 @@ def erase_on_user_error(progress: Progress) -> Iterator[None]:
             if not progress.console.is_interactive:  # a file or pipe: not even a blank line
                 progress.console.quiet = True
         raise
-
-
-@contextlib.contextmanager
-def sigterm_as_interrupt(stop: threading.Event) -> Iterator[None]:
-    """``kill PID`` (SIGTERM) ends a run like Ctrl-C: safe stop, record, exit 143 (Ctrl-C: 130)."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def on_term(*_: object) -> None:
-        stop.set()
-        raise KeyboardInterrupt("SIGTERM")  # the runner is on this thread: interrupt it now
-
-    previous = signal.signal(signal.SIGTERM, on_term)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
 
 
 def report(outcome: RunOutcome) -> int:
