@@ -43,3 +43,28 @@ def test_each_shipped_data_set_has_its_licence_and_source(data_set: str) -> None
     assert (folder / "LICENSE").stat().st_size > 500
     source = (folder / "SOURCE.md").read_text(encoding="utf-8")
     assert "Shipped in this repository under" in source and "commit" in source
+
+
+def _skips_for_data(path: Path) -> list[str]:
+    """Test functions of ``path`` that read the shipped data and can call ``pytest.skip``."""
+    import ast
+
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    found = []
+    for fn in ast.walk(tree):
+        if not isinstance(fn, ast.FunctionDef | ast.AsyncFunctionDef):
+            continue
+        names = {n.id for n in ast.walk(fn) if isinstance(n, ast.Name)}
+        names |= {a.arg for a in fn.args.args}
+        skips = any(isinstance(c, ast.Call) and isinstance(c.func, ast.Attribute)
+                    and c.func.attr in ("skip", "xfail") for c in ast.walk(fn))
+        if skips and names & {"shared_data", "SHARED_DATA"}:
+            found.append(f"{path.relative_to(REPO)}::{fn.name}")
+    return found
+
+
+def test_no_test_skips_for_want_of_the_shipped_data() -> None:
+    """The data ship with the repository, so a test that reads them fails when they are
+    gone; a skip would hide a clone that lost them (make test skipped 44 for want of data)."""
+    assert [hit for p in sorted((REPO / "tests").rglob("*.py"))
+            for hit in _skips_for_data(p)] == []

@@ -103,8 +103,6 @@ def test_broad_trial_07_roll_pitch_rms(shared_data: Path) -> None:
     """
     h5py = pytest.importorskip("h5py")
     path = shared_data / "broad" / "07_undisturbed_fast_rotation_B.hdf5"
-    if not path.exists():
-        pytest.skip(f"{path} not found")
     with h5py.File(path, "r") as f:
         gyr, acc = f["imu_gyr"][:], f["imu_acc"][:]
         q_ref, moving = f["opt_quat"][:], f["movement"][:].astype(bool)
