@@ -1,6 +1,7 @@
 """Autopilot parameters from measured static curves and step fits.
 
-Formulas from ``reference/thrust-stands.md`` section 5:
+Formulas from section 5 of the project's notes ``reference/thrust-stands.md`` (not shipped;
+the firmware and wiki sources are named below):
 
 * ArduPilot (AP_Motors_Thrust_Linearization): the firmware inverts
   ``T = (1 - e) x + e x^2`` with ``x`` the command normalised over

@@ -10,10 +10,10 @@ price, and resistance S R_cell / P. Identical cells are listed once.
 Every (cell, S, P) becomes one battery of the design grid, so selection stays the exact
 choice of ``optimizer.selection`` (MILP or enumeration over precomputed designs). To keep
 memory bounded, :func:`optimize_packs` solves one grid per series count S (decomposition
-by battery voltage, reference/design-optimization.md section 4.2) and carries the best
-cost found so far as an objective cutoff into the next S (designs costlier than it cannot
-be optimal; equal ones stay for the tie-break). The winner across S is chosen by cost,
-then the shared tie order, then the lower S.
+by battery voltage, section 4.2 of the project's notes reference/design-optimization.md,
+not shipped) and carries the best cost found so far as an objective cutoff into the next S
+(designs costlier than it cannot be optimal; equal ones stay for the tie-break). The winner
+across S is chosen by cost, then the shared tie order, then the lower S.
 """
 
 from __future__ import annotations

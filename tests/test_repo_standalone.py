@@ -68,3 +68,19 @@ def test_no_test_skips_for_want_of_the_shipped_data() -> None:
     gone; a skip would hide a clone that lost them (make test skipped 44 for want of data)."""
     assert [hit for p in sorted((REPO / "tests").rglob("*.py"))
             for hit in _skips_for_data(p)] == []
+
+
+NOTES = re.compile(r"reference/[\w-]+\.md")
+UNSHIPPED = re.compile(r"not\s+shipped|not\s+in\s+this\s+repository")
+
+
+def test_the_research_notes_cited_say_they_do_not_ship() -> None:
+    """The project's research notes (``reference/*.md``) stay beside the repository: a
+    citation of one says so in its paragraph, so a reader of a clone does not look for it."""
+    bare = []
+    for p in _files():
+        text = p.read_text(encoding="utf-8", errors="replace")
+        for para in re.split(r"\n\s*\n", text):
+            if NOTES.search(para) and not UNSHIPPED.search(para):
+                bare.append(f"{p.relative_to(REPO)}: {NOTES.search(para).group()}")
+    assert bare == []
