@@ -54,7 +54,8 @@ def parse_mapping(items: list[str]) -> dict[str, str]:
 
 
 def write_run(out: Path, samples, meta: dict) -> Path:
-    """Write ``samples`` (a DataFrame with run columns) and ``meta`` as a run folder."""
+    """Write ``samples`` (a DataFrame with run columns) and ``meta`` as a run folder; the
+    run's reason names the log (``meta["import"]["source_file"]``)."""
     from bench.run.recorder import BASE_COLUMNS, RunRecorder
 
     out = Path(out)
@@ -82,7 +83,7 @@ def write_run(out: Path, samples, meta: dict) -> Path:
         for a, b in itertools.pairwise(bounds):
             if b > a:
                 rec.append({c: v[a:b] for c, v in cols.items()})
-        rec.finish("success", f"imported from {meta.get('source_file')}",
+        rec.finish("success", f"imported from {meta['import']['source_file']}",
                    duration_s=float(t[-1] - t[0]))
         tmp.rename(out)
     except BaseException:

@@ -107,6 +107,19 @@ def test_import_command_writes_a_run_folder(shared_data, tmp_path, capsys):
     assert not (tmp_path / "x").exists() and not (tmp_path / "y").exists()
 
 
+def test_an_imported_run_is_listed_with_the_file_it_came_from(tmp_path, capsys):
+    """`runs` showed an import's reason as 'imported from None'."""
+    import json
+
+    log = tmp_path / "stand.csv"
+    log.write_text("t_s,throttle_us,thrust_n\n0,1000,0\n0.1,1100,0.5\n0.2,1200,1\n")
+    assert main(["import", str(log), "--out", str(tmp_path / "runs" / "a")]) == 0
+    capsys.readouterr()
+    assert main(["runs", "--out", str(tmp_path / "runs"), "--rebuild", "--json"]) == 0
+    (row,) = json.loads(capsys.readouterr().out)
+    assert row["reason"] == f"imported from {log}"
+
+
 def test_imported_csv_steps_fit_end_to_end(tmp_path, capsys):
     import json
 
