@@ -841,6 +841,9 @@ _LOOP_ARGV = [  # every command with an input path; LOOP is replaced by the loop
     ["calibrate", "--from-log", "LOOP", "--out", "c.json"],
     ["optimize", "--catalog", "LOOP"], ["optimize", "--measured", "LOOP"],
     ["import-sizinglab", "--source", "LOOP", "--out", "q"],
+    # folders a command lists: a loop read as an empty folder ("no runs", exit 0)
+    ["runs", "--out", "LOOP"], ["constants", "--out", "LOOP"],
+    ["store", "push", "LOOP", "--store", "postgresql://127.0.0.1:1/lab"],
 ]
 
 
