@@ -113,14 +113,16 @@ class HostWatchdog:
 
     def start(self) -> HostWatchdog:
         self._last = time.monotonic()
-        self._thread = threading.Thread(target=self._watch, name="rotorbench-watchdog",
-                                        daemon=True)
-        self._thread.start()
+        thread = threading.Thread(target=self._watch, name="rotorbench-watchdog", daemon=True)
+        thread.start()  # a Ctrl-C or SIGTERM may land in here: then no thread is kept
+        self._thread = thread
         return self
 
     def stop(self) -> None:
+        """Stop watching; safe after a start that a signal interrupted (a thread that was
+        never started cannot be joined, and a started one sees the stop within poll_s)."""
         self._stop.set()
-        if self._thread is not None:
+        if self._thread is not None and self._thread.is_alive():
             self._thread.join(timeout=2.0)
 
     def _watch(self) -> None:

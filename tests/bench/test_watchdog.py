@@ -78,3 +78,45 @@ def test_stalled_runner_is_stopped_by_the_watchdog(fakes, tmp_path):
     assert rig.esc.armed is False
     meta = json.loads((tmp_path / "run" / "run.json").read_text())
     assert meta["status"] == "abort" and "stalled" in meta["reason"]
+
+
+def test_a_signal_inside_the_watchdogs_start_still_ends_safely_and_recorded(
+        fakes, tmp_path, monkeypatch):
+    """SIGTERM (or Ctrl-C) landing while the watchdog thread starts: the ESC is made safe,
+    the run is recorded as aborted and the interrupt goes on to the command. It once
+    ended in 'RuntimeError: cannot join thread before it is started' from the run's
+    finally, and the run was never recorded (seen with `kill` on `rotorbench demo`)."""
+    import threading
+
+    from bench.run.recorder import RunRecorder
+
+    real_start = threading.Thread.start
+
+    def start(thread: threading.Thread) -> None:
+        if thread.name == "rotorbench-watchdog":
+            raise KeyboardInterrupt("SIGTERM")  # the signal handler ran inside start()
+        real_start(thread)
+
+    monkeypatch.setattr(threading.Thread, "start", start)
+    rig = fakes.FakeRig()
+    plan = compile_plan(step1(repeats=1), ESC, lambda f: 1050.0 + (f / 1e-7) ** 0.5 / 12.0)
+    rec = RunRecorder(tmp_path / "run", {})
+    runner = Runner(rig, plan, ESC, {"thrust_n": 10.0}, rec, RunOptions())
+    with pytest.raises(KeyboardInterrupt):
+        runner.run()
+    assert rig.esc.armed is False
+    meta = json.loads((tmp_path / "run" / "run.json").read_text())
+    assert meta["status"] == "abort" and "interrupted" in meta["reason"]
+
+
+def test_stop_of_a_watchdog_whose_start_was_interrupted(monkeypatch) -> None:
+    import threading
+
+    def start(thread: threading.Thread) -> None:
+        raise KeyboardInterrupt
+
+    wd = HostWatchdog(GuardedEsc(Esc(), 1050.0, 2000.0, 1000.0))
+    monkeypatch.setattr(threading.Thread, "start", start)
+    with pytest.raises(KeyboardInterrupt):
+        wd.start()
+    wd.stop()  # nothing to join, no error
