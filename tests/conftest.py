@@ -58,3 +58,27 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     for item in items:
         if "hardware" in item.keywords:
             item.add_marker(skip)
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _qt_objects_end_with_their_module():
+    """Qt widgets a test module made (pytest-qt windows, pyqtgraph's plots and their
+    parentless menus) are destroyed when the module ends, while the QApplication is there
+    to do it. Left to Python's cyclic garbage collector they died inside whatever test of
+    the same xdist worker came later: once a pyqtgraph QMenu's destructor hung on a Qt
+    mutex in the middle of a hexapod upload of the wire-level calibration (a hung CI)."""
+    yield
+    widgets = sys.modules.get("PySide6.QtWidgets")
+    app = widgets.QApplication.instance() if widgets is not None else None
+    if app is None:
+        return
+    import gc
+
+    from PySide6 import QtCore
+
+    for widget in app.topLevelWidgets():
+        widget.close()
+        widget.deleteLater()
+    QtCore.QCoreApplication.sendPostedEvents(None, QtCore.QEvent.Type.DeferredDelete)
+    app.processEvents()
+    gc.collect()
