@@ -68,15 +68,16 @@ def _qt_objects_end_with_their_module():
     the same xdist worker came later: once a pyqtgraph QMenu's destructor hung on a Qt
     mutex in the middle of a hexapod upload of the wire-level calibration (a hung CI)."""
     yield
-    widgets = sys.modules.get("PySide6.QtWidgets")
-    app = widgets.QApplication.instance() if widgets is not None else None
-    if app is None:
+    qt_widgets = sys.modules.get("PySide6.QtWidgets")
+    app = qt_widgets.QApplication.instance() if qt_widgets is not None else None
+    widgets = app.topLevelWidgets() if app is not None else []
+    if not widgets:  # nothing of Qt's left: no collection (a full one costs a big heap)
         return
     import gc
 
     from PySide6 import QtCore
 
-    for widget in app.topLevelWidgets():
+    for widget in widgets:
         widget.close()
         widget.deleteLater()
     QtCore.QCoreApplication.sendPostedEvents(None, QtCore.QEvent.Type.DeferredDelete)
