@@ -14,6 +14,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -179,28 +180,34 @@ def test_a_device_lost_mid_run_stops_the_hexapod_and_keeps_the_data(
     time without a sample (83 ms of wall time at time_scale 6)."""
     fault_at = 3.0
     hit: list[float] = []
-    with open_rig(RIG) as bench:
-        peer = bench.peers[role]
+    for attempt in range(2):  # one retry: a loaded host stalled a device before the fault
+        root = tmp_path / f"try{attempt}"
+        with open_rig(RIG) as bench:
+            peer = bench.peers[role]
 
-        def on_rows(rows) -> None:
-            if not hit and rows["t_s"][-1] > fault_at:
-                hit.append(bench.clock.now())
-                peer.port.disconnect() if fault == "silent" else peer.port.stop()
+            def on_rows(rows, bench=bench, peer=peer) -> None:
+                if not hit and rows["t_s"][-1] > fault_at:
+                    hit.append(bench.clock.now())
+                    peer.port.disconnect() if fault == "silent" else peer.port.stop()
 
-        plan = compile_plan(SEQ, RIG.hexapod.hexapod_limits())
-        with pytest.raises(DeviceError, match=message):
-            run_stage(bench, RIG, plan, tmp_path / "runs",
-                      options=HexapodRunOptions(tick_s=0.1), on_rows=on_rows)
-        meta, events, df = _record(tmp_path)
-        plant = bench.sim.hexapod
-        assert meta["status"] == "fail" and "device error" in meta["reason"]
-        assert [e["kind"] for e in events][-2:] == ["safe_stop", "run_end"]
-        assert bench.hexapod.stop_calls >= 1 and not plant.is_moving()
-        run = plant._runs[-1]
-        assert run.stopped_at < run.t0 + run.duration  # the 22 s motion was cut short
-        # stopped soon after the loss: the backend's timeout (0.1 s MSP, 0.2 s GX3 stale)
-        # and a tick, in wall time; x time_scale in bench time
-        scale = bench.clock.time_scale
-        assert run.stopped_at - hit[0] < scale * 0.5
-        # the data up to then is kept (MSP polls ~100 Hz of bench time, fewer when starved)
-        assert len(df) > 100 and df["t_s"].max() > fault_at
+            plan = compile_plan(SEQ, RIG.hexapod.hexapod_limits())
+            with pytest.raises(DeviceError) as caught:
+                run_stage(bench, RIG, plan, root / "runs",
+                          options=HexapodRunOptions(tick_s=0.1), on_rows=on_rows)
+            if not hit and attempt == 0:
+                continue  # lost before the fault was made: not this test's subject
+            assert re.search(message, str(caught.value)), caught.value
+            meta, events, df = _record(root)
+            plant = bench.sim.hexapod
+            assert meta["status"] == "fail" and "device error" in meta["reason"]
+            assert [e["kind"] for e in events][-2:] == ["safe_stop", "run_end"]
+            assert bench.hexapod.stop_calls >= 1 and not plant.is_moving()
+            run = plant._runs[-1]
+            assert run.stopped_at < run.t0 + run.duration  # the 22 s motion was cut short
+            # stopped soon after the loss: the backend's timeout (0.1 s MSP, 0.2 s GX3 stale)
+            # and a tick, in wall time; x time_scale in bench time
+            scale = bench.clock.time_scale
+            assert run.stopped_at - hit[0] < scale * 0.5
+            # the data up to then is kept (MSP polls ~100 Hz of bench time, fewer when starved)
+            assert len(df) > 100 and df["t_s"].max() > fault_at
+        break
