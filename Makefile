@@ -8,7 +8,7 @@ STAMP := $(VENV)/.installed
 # test processes: one per core (pytest-xdist); a file's tests stay in one process so its
 # module fixtures (a whole simulated calibration) run once. Three per two cores were faster
 # (4 min 39 s - 5 min 23 s from a fresh clone against about 6) but starved the paced
-# wire-level rigs on two busy cores: three different load failures in six fresh-clone runs
+# wire-level rigs on two busy cores: two load failures and a hang in seven fresh-clone runs
 # (docs/architecture.md). TEST_WORKERS=0 runs serially.
 TEST_WORKERS ?= $(shell nproc 2>/dev/null || echo 1)
 
