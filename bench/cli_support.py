@@ -26,7 +26,6 @@ and removing a hidden temporary file, the only test that is right for every user
 from __future__ import annotations
 
 import argparse
-import errno
 import math
 import os
 import tempfile
@@ -77,13 +76,11 @@ EXIT_NO_FEASIBLE = 3
 def check_folder_to_read(path: Path, flag: str = "--out") -> Path:
     """A folder a command lists (runs, constants): a file there is a mistake said now,
     a folder not made yet simply holds nothing."""
+    from bench.rig.input_paths import refuse_loop
+
     path = Path(path)
-    try:
-        path.stat()
-    except OSError as exc:
-        if exc.errno == errno.ELOOP:  # exists() is False for a loop: it read as empty
-            raise RigError(f"{flag} {path}: a loop of symbolic links (a link that points "
-                           "back at itself); point it at a folder of runs") from None
+    # exists() is False for a loop: it read as an empty folder
+    refuse_loop(path, f"{flag} {path}", "a folder of runs")
     if path.exists() and not path.is_dir():
         raise RigError(f"{flag} {path}: is a file; expected a folder of runs")
     return path

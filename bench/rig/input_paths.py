@@ -17,10 +17,22 @@ from pathlib import Path
 
 from bench.errors import RigError
 
-__all__ = ["check_input"]
+__all__ = ["check_input", "refuse_loop"]
 
 _KINDS = ((stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
           (stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISSOCK, "a socket"))
+
+
+def refuse_loop(path: Path, where: str, point_at: str = "a file") -> int | None:
+    """``path``'s mode (None if missing or unreadable), or RigError naming ``where`` if it
+    is a loop of symbolic links; ``point_at`` says what the link should name."""
+    try:
+        return os.stat(path).st_mode
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            raise RigError(f"{where}: a loop of symbolic links (a link that points back "
+                           f"at itself); point it at {point_at}") from None
+        return None
 
 
 def check_input(path: Path | str, flag: str = "") -> Path:
@@ -28,12 +40,8 @@ def check_input(path: Path | str, flag: str = "") -> Path:
     folder; ``flag`` (``--rig``) prefixes the message."""
     path = Path(path)
     where = f"{flag} {path}" if flag else str(path)
-    try:
-        mode = os.stat(path).st_mode
-    except OSError as exc:
-        if exc.errno == errno.ELOOP:
-            raise RigError(f"{where}: a loop of symbolic links (a link that points back "
-                           "at itself); point it at a file") from None
+    mode = refuse_loop(path, where)
+    if mode is None:
         return path  # missing or unreadable: the reader names what it expected
     if stat.S_ISREG(mode) or stat.S_ISDIR(mode):
         return path

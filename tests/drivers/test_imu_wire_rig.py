@@ -64,8 +64,7 @@ TEST_TIME_SCALE = 2.0
 def bench(tmp_path_factory: pytest.TempPathFactory):
     rig = _rig(tmp_path_factory.mktemp("wire"), "time_scale = 6.0",
                f"time_scale = {TEST_TIME_SCALE}")
-    text = rig.read_text(encoding="utf-8").replace("time_scale = 6.0",
-                                                    f"time_scale = {TEST_TIME_SCALE}")
+    text = rig.read_text(encoding="utf-8")
     # and the GX3's silence limit (0.2 s) and the MSP reply timeout (0.3 s) widened: a
     # starved test process is not a silent device (the device-lost tests are about that)
     text = text.replace('protocol = "gx3",', 'protocol = "gx3", stale_s = 3.0,')
