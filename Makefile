@@ -5,12 +5,12 @@ PYTHON ?= $(shell command -v python3.11 || command -v python3)
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
-# test processes: one per core (pytest-xdist); a file's tests stay in one process so its
-# module fixtures (a whole simulated calibration) run once. Three per two cores were faster
-# (4 min 39 s - 5 min 23 s from a fresh clone against about 6) but starved the paced
-# wire-level rigs on two busy cores: two load failures and a hang in seven fresh-clone runs
-# (docs/architecture.md). TEST_WORKERS=0 runs serially.
-TEST_WORKERS ?= $(shell nproc 2>/dev/null || echo 1)
+# test processes: three per two cores (pytest-xdist; at least two). Many tests wait on the
+# wall clock (the paced wire-level rigs, the windows, the lab servers' outages), so with one
+# process per core a core sat idle through those waits. A file's tests stay in one process
+# so its module fixtures (a whole simulated calibration) run once. TEST_WORKERS=0 runs
+# serially. docs/architecture.md has the measurements.
+TEST_WORKERS ?= $(shell n=$$(nproc 2>/dev/null || echo 1); echo $$(( (3 * n + 1) / 2 )))
 
 .PHONY: demo test bench lint clean
 
