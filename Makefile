@@ -27,10 +27,14 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(BIN)/rotorbench demo
 
+# The project's own bytecode, written once: with PYTHONDONTWRITEBYTECODE set (CI, many
+# containers) every process of the suite (three test processes, dozens of `rotorbench`
+# subprocesses, Dask workers, windows) compiled the packages from source again.
 test: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/lint-imports
-	QT_QPA_PLATFORM=offscreen $(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile
+	$(BIN)/python -m compileall -q -j0 bench drivers analysis optimizer > /dev/null
+	QT_QPA_PLATFORM=offscreen $(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/run_all.py

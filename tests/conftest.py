@@ -52,12 +52,30 @@ def pytest_addoption(parser: pytest.Parser) -> None:
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    _longest_files_first(items)
     if config.getoption("--run-hardware"):
         return
     skip = pytest.mark.skip(reason="needs hardware; pass --run-hardware")
     for item in items:
         if "hardware" in item.keywords:
             item.add_marker(skip)
+
+
+#: the wall time a ``slow`` mark without ``wall_s`` stands for
+SLOW_WALL_S = 10.0
+
+
+def _longest_files_first(items: list[pytest.Item]) -> None:
+    """Order the test files by the wall time their ``slow`` marks announce, longest first,
+    each file's tests kept together and in order. ``make test`` hands files to its
+    processes in this order (``--dist loadfile --no-loadscope-reorder``): a two-minute file
+    started last would run alone after the others had finished."""
+    wall: dict[Path, float] = {}
+    for item in items:
+        mark = item.get_closest_marker("slow")
+        here = float(mark.kwargs.get("wall_s", SLOW_WALL_S)) if mark is not None else 0.0
+        wall[item.path] = max(wall.get(item.path, 0.0), here)
+    items.sort(key=lambda item: -wall[item.path])  # stable: files stay whole
 
 
 @pytest.fixture(autouse=True, scope="module")

@@ -24,6 +24,8 @@ from drivers.errors import DeviceError
 from drivers.factory import open_rig
 from drivers.hexapod_motions import gyro_sines
 
+pytestmark = pytest.mark.slow(wall_s=20)  # a calibration through the PI GCS wire: started first
+
 REPO = Path(__file__).resolve().parents[2]
 TCP_RIG_PATH = REPO / "fixtures" / "rigs" / "sim-imu-tcp.toml"
 RIG = load_imu_rig(TCP_RIG_PATH)

@@ -33,6 +33,8 @@ from bench.console.server import ConsoleBench
 from bench.rig.rig import default_rig_path, load_rig
 from drivers.factory import open_rig
 
+pytestmark = pytest.mark.slow(wall_s=60)  # windows on paced benches in real time: started first
+
 Key = QtCore.Qt.Key
 LEFT = QtCore.Qt.MouseButton.LeftButton
 IDLE = 1000.0

@@ -27,6 +27,8 @@ from bench.live import (
     run_with_live_view,
 )
 
+pytestmark = pytest.mark.slow(wall_s=22)  # paced runs drawn live: started first
+
 
 def cols(t):
     return {"t_s": t, "throttle_us": 1000 + t, "thrust_n": 2 * t, "current_a": 3 * t,

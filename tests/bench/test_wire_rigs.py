@@ -27,6 +27,8 @@ from drivers.factory import open_rig
 pytest.importorskip("serial")
 pytest.importorskip("can")
 
+pytestmark = pytest.mark.slow(wall_s=35)  # wire-level rigs in real time: started first
+
 RIGS = default_rig_path().parent
 
 

@@ -17,6 +17,8 @@ from rotorbench_tests_services import SUPERUSER_PASSWORD, postgres_cluster, s3_s
 
 from bench.cli import main
 
+pytestmark = pytest.mark.slow(wall_s=30)  # servers started, stopped and restarted: started first
+
 ROTORBENCH = [sys.executable, "-m", "bench.cli"]
 
 

@@ -21,6 +21,8 @@ from optimizer.sweep.keys import DESIGN_KEYS, design_id
 from optimizer.sweep.rows import columns
 from tests.sweep.conftest import SWEEP
 
+pytestmark = pytest.mark.slow(wall_s=20)  # sweeps in subprocesses, one interrupted: started first
+
 REPO = Path(__file__).resolve().parents[2]
 
 

@@ -10,6 +10,7 @@ import signal
 import time
 
 import pyarrow.parquet as pq
+import pytest
 from pandas.testing import assert_frame_equal
 
 from bench.cli import main
@@ -17,6 +18,8 @@ from bench.jobs.sweep_run import Executor, run_sweep
 from optimizer.sweep.designs import plan_designs
 from optimizer.sweep.spec import sweep_spec
 from tests.sweep.conftest import SWEEP
+
+pytestmark = pytest.mark.slow(wall_s=25)  # real Dask schedulers and workers: started first
 
 #: a series/parallel sweep of a small subset: 12 flyable 2S2P designs, N = 4 and 6
 PACKS = ["fly", "--sweep", "--actuators", "4", "6", "--series", "2", "--parallel", "2",
