@@ -18,10 +18,10 @@ TEST_WORKERS ?= $(shell n=$$(nproc 2>/dev/null || echo 1); echo $$(( (3 * n + 1)
 # fallback where uv cannot be installed or cannot reach the package index.
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --upgrade pip
 	( $(BIN)/python -m pip install --quiet uv && \
 	  $(BIN)/uv pip install --quiet --compile-bytecode --python $(BIN)/python -e '.[dev]' ) || \
-	  $(BIN)/python -m pip install --quiet -e '.[dev]'
+	  ( $(BIN)/python -m pip install --quiet --upgrade pip && \
+	    $(BIN)/python -m pip install --quiet -e '.[dev]' )
 	touch $(STAMP)
 
 demo: $(STAMP)

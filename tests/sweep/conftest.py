@@ -13,9 +13,11 @@ from optimizer.catalog import load_catalog
 from tests.conftest import FIXTURES
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")
 def dask() -> Iterator[DaskCluster]:
-    """One scheduler with two single-thread workers for the session (per xdist worker)."""
+    """One scheduler with two single-thread workers for the module that asks for it. Not
+    for the session: idle, the three processes still cost 2 s of CPU per 30 s (heartbeats),
+    about 14 s of a suite that runs on saturated cores after the file has ended."""
     with dask_cluster(workers=2) as cluster:
         yield cluster
 
