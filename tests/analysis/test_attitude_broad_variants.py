@@ -48,6 +48,36 @@ def _rec(d: dict) -> ImuRecording:
                         d["movement"])
 
 
+class _Cases:
+    """Trial 07, each variant (seed 0) and each filter's attitude on it, computed once for
+    the module: the tests below score the same VQF runs on the same variants several times."""
+
+    def __init__(self, trial: dict) -> None:
+        self.trial = trial
+        self._data: dict[str, dict] = {}
+        self._runs: dict[tuple, tuple[np.ndarray, bool]] = {}
+
+    def data(self, name: str) -> dict:
+        if name in ("trial 07", "base"):
+            return self.trial
+        if name not in self._data:
+            self._data[name] = make_variant(self.trial, name, seed=0)
+        return self._data[name]
+
+    def run(self, name: str, filt: str, **options: object) -> tuple[np.ndarray, bool]:
+        """The filter's quaternions on the case, and whether it used the magnetometer."""
+        key = (name, filt, tuple(sorted(options.items())))
+        if key not in self._runs:
+            out = run_filter(filt, _rec(self.data(name)), **options)
+            self._runs[key] = (out.quat, out.nine_d)
+        return self._runs[key]
+
+
+@pytest.fixture(scope="module")
+def cases(trial: dict) -> _Cases:
+    return _Cases(trial)
+
+
 def _deg(q: np.ndarray, d: dict, nine_d: bool) -> tuple[float, float]:
     """Inclination and heading RMSE (deg), BROAD scoring; 6D heading after its offset."""
     s = score(q, d["quat"], d["movement"], remove_heading_offset=not nine_d)
@@ -55,14 +85,13 @@ def _deg(q: np.ndarray, d: dict, nine_d: bool) -> tuple[float, float]:
 
 
 @pytest.mark.parametrize("name", list(VARIANTS))
-def test_default_within_the_issue_bounds_of_vqf(trial: dict, name: str) -> None:
-    d = make_variant(trial, name, seed=0)
-    rec = _rec(d)
-    default = run_filter("default", rec)
-    assert default.nine_d  # a BROAD trial has a magnetometer: the default is 9D
-    incl, head = _deg(default.quat, d, True)
-    vqf6_incl, _ = _deg(run_filter("vqf-6d", rec).quat, d, False)
-    _, vqf9_head = _deg(run_filter("vqf-9d", rec).quat, d, True)
+def test_default_within_the_issue_bounds_of_vqf(cases: _Cases, name: str) -> None:
+    d = cases.data(name)
+    default, nine_d = cases.run(name, "default")
+    assert nine_d  # a BROAD trial has a magnetometer: the default is 9D
+    incl, head = _deg(default, d, True)
+    vqf6_incl, _ = _deg(cases.run(name, "vqf-6d")[0], d, False)
+    _, vqf9_head = _deg(cases.run(name, "vqf-9d")[0], d, True)
     assert incl <= 1.25 * vqf6_incl + 0.1, (incl, vqf6_incl)
     if name in UNDISTURBED:
         assert head <= 1.5 * vqf9_head + 0.5, (head, vqf9_head)
@@ -90,14 +119,14 @@ def _offline(d: dict, **params: object) -> dict:
     ("translation", {"tauAcc": 0.3}, "quat6D", "inclination", 3.0),
     ("tapping", {"tauAcc": 0.3}, "quat6D", "inclination", 1.4),
 ])
-def test_default_chain_is_active_and_helps(trial: dict, name: str, off: dict, quat: str,
+def test_default_chain_is_active_and_helps(cases: _Cases, name: str, off: dict, quat: str,
                                            metric: str, worse_by: float) -> None:
-    d = trial if name == "base" else make_variant(trial, name, seed=0)
+    d = cases.data(name)
     nine_d = quat == "quat9D"
-    default = run_filter("default", _rec(d), six_d=not nine_d)
-    with_it = _deg(default.quat, d, nine_d)
+    default, _ = cases.run(name, "default", six_d=not nine_d)
+    with_it = _deg(default, d, nine_d)
     # the default is offlineVQF with the package's defaults: identical to calling it
-    np.testing.assert_allclose(default.quat, _offline(d)[quat], atol=1e-9)
+    np.testing.assert_allclose(default, _offline(d)[quat], atol=1e-9)
     without = _deg(_offline(d, **off)[quat], d, nine_d)
     i = 0 if metric == "inclination" else 1
     assert without[i] > worse_by * with_it[i], (with_it, without)
@@ -134,50 +163,41 @@ def test_variants_have_the_shapes_they_claim(trial: dict) -> None:
 
 
 @pytest.mark.parametrize("name", ["paper-b", "paper-b-printed"])
-def test_paper_b_is_not_tilted_by_vibration(trial: dict, name: str) -> None:
+def test_paper_b_is_not_tilted_by_vibration(cases: _Cases, name: str) -> None:
     """A zero-mean vibration rectified by the normalisation of the accelerometer tilted
     Paper B's printed correction (measured 1.63° -> 2.20° on the vibration variant); the
     (B.28) low-pass ahead of it (τ_a = 5 ms) removes that (1.64° -> 1.66°). ``paper-b``
     low-passes in the earth frame before normalising, linearly: 1.03° -> 1.03°."""
-    still = _deg(run_filter(name, _rec(trial)).quat, trial, False)[0]
-    d = make_variant(trial, "vibration", seed=0)
-    shaken = _deg(run_filter(name, _rec(d)).quat, d, False)[0]
+    still = _deg(cases.run("trial 07", name)[0], cases.trial, False)[0]
+    shaken = _deg(cases.run("vibration", name)[0], cases.data("vibration"), False)[0]
     assert shaken < 1.1 * still
 
 
 LIVELY = ("swing_wrist", "swing_forearm", "combined_with_breaks")
 
 
-def _vqf_6d_incl(rec: ImuRecording, d: dict) -> float:
+def _vqf_6d_incl(cases: _Cases, name: str) -> float:
     """VQF's 6D inclination RMSE, the better of its online and offline forms."""
-    return min(_deg(run_filter(n, rec).quat, d, False)[0] for n in ("vqf-6d", "vqf-offline-6d"))
-
-
-@pytest.fixture(scope="module")
-def variants(trial: dict) -> dict[str, dict]:
-    return {"trial 07": trial, **{n: make_variant(trial, n, seed=0) for n in VARIANTS}}
+    return min(_deg(cases.run(name, n)[0], cases.data(name), False)[0]
+               for n in ("vqf-6d", "vqf-offline-6d"))
 
 
 @pytest.mark.parametrize("name", ["trial 07", *VARIANTS])
-def test_paper_b_within_twice_vqf_plus_half_a_degree(variants: dict, name: str) -> None:
+def test_paper_b_within_twice_vqf_plus_half_a_degree(cases: _Cases, name: str) -> None:
     """Issue 20's bound on every BROAD-shaped variant. Before the earth-frame low-pass
     (``paper-b-printed`` now) the lively ones failed it: measured 7.6-22° (swing at the
     wrist 14.6°, at the forearm 20.6°, combined with breaks 11.4°) against VQF's 1.0-1.7°."""
-    d = variants[name]
-    rec = _rec(d)
-    incl = _deg(run_filter("paper-b", rec).quat, d, False)[0]
-    vqf6 = _vqf_6d_incl(rec, d)
+    incl = _deg(cases.run(name, "paper-b")[0], cases.data(name), False)[0]
+    vqf6 = _vqf_6d_incl(cases, name)
     assert incl <= 2.0 * vqf6 + 0.5, (incl, vqf6)
 
 
 @pytest.mark.parametrize("name", LIVELY)
-def test_lively_variants_tilt_the_printed_correction(variants: dict, name: str) -> None:
+def test_lively_variants_tilt_the_printed_correction(cases: _Cases, name: str) -> None:
     """The reproduction: on fast rotation combined with translation, Paper B's printed
     correction (each sample's normalised accelerometer) is far outside the bound."""
-    d = variants[name]
-    rec = _rec(d)
-    printed = _deg(run_filter("paper-b-printed", rec).quat, d, False)[0]
-    assert printed > 3.0 * (2.0 * _vqf_6d_incl(rec, d) + 0.5), printed
+    printed = _deg(cases.run(name, "paper-b-printed")[0], cases.data(name), False)[0]
+    assert printed > 3.0 * (2.0 * _vqf_6d_incl(cases, name) + 0.5), printed
 
 
 def test_swing_is_a_bounded_translation_with_a_sustained_centripetal_part(trial: dict) -> None:
