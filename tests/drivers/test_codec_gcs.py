@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import os
 import sys
 
@@ -184,3 +185,42 @@ def test_fuzz_strict_replies_are_reply_text(noise):
         assert gcs.is_reply_text(" \n".join(r.lines) + "\n")
     s = dec.stats
     assert dec.buffered == 0 and s.bytes_in == s.frame_bytes + s.garbage_bytes
+
+
+# the bytes a reply stream is made of: text with line ends and continuation spaces, weighted
+# so lines end, continue and overflow; half the streams also carry bytes to drop (control
+# bytes, cp1252 holes), which send a chunk the byte-wise way
+_TEXT = [*b"0123456789 =.-AXYZ#\t\r\xe9", *b"\n\n\n", *b"  "]
+_REPLY_BYTES = st.one_of(
+    st.lists(st.sampled_from(_TEXT), max_size=300),
+    st.lists(st.sampled_from([*_TEXT, 0x00, 0x02, 0x7F, 0x81]), max_size=300)).map(bytes)
+
+
+@settings(max_examples=1000, deadline=None, database=None)
+@given(stream=_REPLY_BYTES, cuts=st.lists(st.integers(0, 300), max_size=40),
+       max_bytes=st.sampled_from([4, 8, 24, gcs.DEFAULT_MAX_REPLY]))
+def test_reply_decoder_line_by_line_is_the_byte_by_byte_decoder(stream, cuts, max_bytes):
+    """The reply decoder takes clean text a line at a time (a data recorder's reply is
+    megabytes); messages, their offsets and lengths, and every counter are the byte-wise
+    decoder's, in any chunking, with garbage and over-long lines mixed in."""
+    fast, slow = gcs.GcsReplyDecoder(max_bytes), gcs.GcsReplyDecoder(max_bytes)
+    bounds = sorted({0, len(stream), *(c for c in cuts if c < len(stream))})
+    got, want = [], []
+    for a, b in itertools.pairwise(bounds):
+        got += fast.feed_located(stream[a:b])
+        want += gcs._TextDecoder.feed_located(slow, stream[a:b])
+    assert got == want
+    assert fast.stats.as_dict() == slow.stats.as_dict()
+    assert fast.buffered == slow.buffered
+    assert fast.flush_located() == slow.flush_located()
+    assert fast.stats.as_dict() == slow.stats.as_dict()
+
+
+def test_a_long_clean_data_recorder_reply_is_one_message_at_its_offset():
+    rows = "".join(f"{i * 0.001:.6f} {i:d} {-i * 0.5:.3f} \n" for i in range(20_000))
+    array = "# REC_RATE = 1000 \n# END_HEADER \n" + rows[:-2] + "\n"  # its last line ends it
+    dec = gcs.GcsReplyDecoder()
+    first, data = dec.feed_located(b"0 1\n" + array.encode())
+    assert first.message == gcs.GcsReply(("0 1",)) and (first.offset, first.length) == (0, 4)
+    assert (data.offset, data.length) == (4, len(array))
+    assert len(data.message.lines) == 20_002 and dec.stats.garbage_bytes == 0
