@@ -96,6 +96,23 @@ def test_live_view_redraws_from_the_ring_on_its_timer():
     view.close()
 
 
+def test_live_view_draws_one_time_axis_and_blits_unchanged_axes():
+    """Axis text was most of a frame (43 ms offscreen for 8 axes redrawn every frame;
+    benchmarks/live_frame.py): the stacked plots share one time axis, under the last, and
+    each axis is kept as a pixmap while its range stands."""
+    from pyqtgraph.Qt import QtWidgets
+
+    ring = RingBuffer(("t_s", "throttle_us", "thrust_n", "current_a", "rpm"), 1000)
+    view = LiveView(ring, window_s=2.0, interval_ms=10)
+    view.show()
+    view.app.processEvents()
+    assert [k for k, p in view.plots.items() if p.getAxis("bottom").isVisible()] == ["rpm"]
+    cached = QtWidgets.QGraphicsItem.CacheMode.DeviceCoordinateCache
+    assert all(p.getAxis(side).cacheMode() == cached
+               for p in view.plots.values() for side in ("left", "bottom"))
+    view.close()
+
+
 def _step_plan(repeats):
     from bench.plans.sequences import EscRange, compile_plan, step1
 
