@@ -445,9 +445,10 @@ class GcsReplyDecoder(_TextDecoder):
 
     def feed_located(self, data: bytes | bytearray) -> list[Located]:
         """Reply by reply where that is the same as byte by byte: a chunk of GCS text
-        without a byte to drop, read leniently, no reply growing past ``max_bytes``. A data
-        recorder's reply (``DRR?``) is megabytes of such text; byte by byte it cost the
-        host 12 s of CPU in a quick calibration. Anything else goes the byte-wise way."""
+        without a byte to drop, read leniently, no reply growing past ``max_bytes``. The data
+        recorder's replies (``DRR?``) are such text, about 12 MB in a quick calibration
+        through the wire: 15x faster so (benchmarks/gcs_decode.py). Anything else goes
+        the byte-wise way."""
         data = bytes(data)
         if (self.strict or self._overflow
                 or len(data.translate(None, _BAD_BYTES)) != len(data)):
