@@ -155,9 +155,10 @@ class LiveView:
     def __init__(self, ring: RingBuffer, window_s: float = 10.0, interval_ms: int = 50,
                  title: str = "rotorbench live") -> None:
         import pyqtgraph as pg
-        from pyqtgraph.Qt import QtCore, QtWidgets
+        from pyqtgraph.Qt import QtCore
 
         from bench.qt.qt_messages import filter_qt_messages
+        from bench.qt.stacked_axes import stacked_axes
 
         self.ring = ring
         self.window_s = window_s
@@ -174,21 +175,14 @@ class LiveView:
             plot.setDownsampling(auto=True, mode="peak")
             plot.setClipToView(True)
             plot.showGrid(x=True, y=True, alpha=0.3)
-            # Axis text dominated the frame (8 axes, 41 of 43 ms offscreen): one time axis,
-            # under the last plot, and each axis blitted from a pixmap while its range
-            # stands (the console's plots do the same)
-            if row < len(LIVE_CHANNELS) - 1:
-                plot.hideAxis("bottom")
-            for side in ("left", "bottom"):
-                plot.getAxis(side).setCacheMode(
-                    QtWidgets.QGraphicsItem.CacheMode.DeviceCoordinateCache)
+            last = row == len(LIVE_CHANNELS) - 1
+            stacked_axes(plot, ("time", "s") if last else None)  # one time axis, under it
             if first is None:
                 first = plot
             else:
                 plot.setXLink(first)
             self.plots[col] = plot
             self.curves[col] = plot.plot(pen=pg.mkPen("y" if col == "throttle_us" else "c"))
-        self.plots["rpm"].setLabel("bottom", "time", units="s")
         if "thrust_setpoint_n" in ring.names:
             self.curves["thrust_setpoint_n"] = self.plots["thrust_n"].plot(
                 pen=pg.mkPen("m", style=QtCore.Qt.PenStyle.DashLine))

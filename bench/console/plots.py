@@ -13,6 +13,7 @@ from pyqtgraph.Qt import QtCore, QtWidgets
 
 from bench.console.envelope import RollingEnvelope
 from bench.live import RingBuffer
+from bench.qt.stacked_axes import stacked_axes
 
 __all__ = ["PLOT_CHANNELS", "LivePlots", "derived"]
 
@@ -106,14 +107,9 @@ class LivePlots(QtWidgets.QWidget):
             # a pixmap: axis text dominated the frame time on the offscreen platform.
             plot.setXRange(-window_s, 0.0, padding=0.0)
             plot.enableAutoRange(x=False, y=False)
-            if i < len(PLOT_CHANNELS) - 2:
-                plot.hideAxis("bottom")  # one time axis per column, at the bottom
-            else:
-                plot.setLabel("bottom", "time - now", units="s")
-            for side in ("left", "bottom"):
-                axis = plot.getAxis(side)
+            bottom_row = i >= len(PLOT_CHANNELS) - 2  # one time axis per column, at the bottom
+            for axis in stacked_axes(plot, ("time - now", "s") if bottom_row else None):
                 axis.enableAutoSIPrefix(False)
-                axis.setCacheMode(QtWidgets.QGraphicsItem.CacheMode.DeviceCoordinateCache)
             if first is None:
                 first = plot
             else:
