@@ -5,12 +5,19 @@ monotonic clock (never the rig clock: a stalled host also stalls a simulated clo
 when the loop has not checked in for ``timeout_s`` it latches and disarms the ESC.
 All ESC commands go through :class:`GuardedEsc`, which refuses commands once latched,
 so a loop that wakes up again cannot spin the motor back up.
+
+A conversation with an actuator that is at rest and cannot move until the next command
+(a hexapod's trajectory upload: the controller refuses it while moving) may take longer
+than the timeout on a real controller; ``at_rest`` excuses it instead of stopping a run
+that has nothing moving to stop.
 """
 
 from __future__ import annotations
 
+import contextlib
 import threading
 import time
+from collections.abc import Iterator
 
 from drivers.contracts import Esc
 
@@ -75,13 +82,19 @@ class GuardedEsc:
 
 
 class HostWatchdog:
-    """A daemon thread that kills the ESC when ``kick`` has not been called for a while."""
+    """A daemon thread that kills the ESC when ``kick`` has not been called for a while.
 
-    def __init__(self, esc: GuardedEsc, timeout_s: float = 0.5, poll_s: float | None = None):
+    ``esc`` is anything with ``kill(reason)`` (the hexapod's guard too); ``stops`` says
+    what its kill does, for the run's reason."""
+
+    def __init__(self, esc: GuardedEsc, timeout_s: float = 0.5, poll_s: float | None = None,
+                 *, stops: str = "ESC disarmed"):
         if timeout_s <= 0:
             raise ValueError("watchdog timeout must be positive")
         self.esc = esc
         self.timeout_s = timeout_s
+        self.stops = stops
+        self._at_rest = False  # inside at_rest: a long conversation is not a stall
         self.poll_s = poll_s if poll_s is not None else min(timeout_s / 5.0, 0.05)
         self._last = time.monotonic()
         self._stop = threading.Event()
@@ -106,10 +119,24 @@ class HostWatchdog:
         if self.tripped:
             raise WatchdogTrip(self.reason)
 
+    @contextlib.contextmanager
+    def at_rest(self) -> Iterator[None]:
+        """A device conversation with the actuator at rest, which it cannot leave inside
+        the block (a trajectory upload): its length is not a stall. The loop checks in on
+        the way in (a stall before it still trips) and the timeout starts again on the
+        way out."""
+        self.kick()
+        self._at_rest = True
+        try:
+            yield
+        finally:
+            self._last = time.monotonic()
+            self._at_rest = False
+
     @property
     def reason(self) -> str:
         return (f"watchdog: command loop stalled {self.stall_s:.3f} s "
-                f"(timeout {self.timeout_s:g} s); ESC disarmed")
+                f"(timeout {self.timeout_s:g} s); {self.stops}")
 
     def start(self) -> HostWatchdog:
         self._last = time.monotonic()
@@ -128,7 +155,7 @@ class HostWatchdog:
     def _watch(self) -> None:
         while not self._stop.wait(self.poll_s):
             stalled = time.monotonic() - self._last
-            if stalled > self.timeout_s:
+            if stalled > self.timeout_s and not self._at_rest:
                 self._trip(stalled)
                 return
 

@@ -351,7 +351,8 @@ class HexapodRunner(PlanRunner):
         super().__init__(rig, plan, recorder, options or HexapodRunOptions(), on_rows,
                          on_progress, stop_event)
         self.hexapod = GuardedHexapod(rig.hexapod)
-        self.watchdog = HostWatchdog(self.hexapod, self.options.watchdog_timeout_s)  # type: ignore[arg-type]
+        self.watchdog = HostWatchdog(self.hexapod, self.options.watchdog_timeout_s,  # type: ignore[arg-type]
+                                     stops="hexapod stopped")
         self.supervisor = HexapodSupervisor(plan.limits, self.options.limit_margin)
         self.merger = RowMerger(plan, rig.reference_imu is not None)
         self._lag = 0.0  # how far the realised schedule runs behind the plan (s)
@@ -371,7 +372,8 @@ class HexapodRunner(PlanRunner):
         if seg.motion is not None:
             self._await_rest(seg)  # ... and an upload
             traj = Trajectory.from_motion(seg.motion, self.options.trajectory_rate_hz)
-            self.hexapod.upload(traj)
+            with self.watchdog.at_rest():  # a real controller takes seconds for a long one
+                self.hexapod.upload(traj)
             self._catch_up(seg.t_start_s)  # the time base: the start command, after upload
             self.hexapod.start()
             self._event("motion_start", seg.index, seg.label,

@@ -8,6 +8,7 @@ while a trajectory runs (PI GCS, drivers/backends/pi_hexapod.py).
 
 from __future__ import annotations
 
+import time
 from typing import Any
 
 import numpy as np
@@ -106,3 +107,27 @@ def test_a_motion_that_does_not_end_ends_the_run_safely(bench) -> None:
     assert len(hx.started_at) == 1  # the second motion was never uploaded
     hx.stuck = False
     assert hx.stop_calls >= 1 and not hx.is_moving()
+
+
+class WallClockUploads(SlowUploads):
+    """An upload that takes host (wall) time, as a real controller's over TCP or RS-232."""
+
+    def upload(self, trajectory: Any) -> None:
+        if self._hexapod.is_moving():
+            raise DeviceError(f"upload of {trajectory.name!r} refused while moving")
+        time.sleep(self.upload_s)
+        self._hexapod.upload(trajectory)
+
+
+def test_an_upload_longer_than_the_host_watchdog_does_not_stop_the_run() -> None:
+    """The hexapod is at rest while a trajectory uploads (the controller refuses an upload
+    while moving), so the upload's length is not a stalled host. It was: a 52 s trajectory
+    over TCP to a loaded host took 1.7 s and the calibration ended 'command loop stalled'."""
+    b = open_rig(RIG)
+    b.hexapod = WallClockUploads(b.hexapod, b.clock, 0.5)  # type: ignore[assignment]
+    try:
+        runner, rows = _run(b, watchdog_timeout_s=0.3)
+    finally:
+        b.close()
+    assert runner.result is not None and runner.result.status == "success", runner.result
+    assert len(b.hexapod.started_at) == 2 and len(rows["t_s"]) > 0

@@ -49,6 +49,32 @@ def test_watchdog_disarms_when_the_loop_stops_checking_in():
     assert esc.armed is False and esc.pulse == 1000.0
 
 
+
+def test_a_conversation_at_rest_is_not_a_stall_but_a_stall_around_it_is():
+    """``at_rest`` (a hexapod's trajectory upload) excuses the time inside the block only:
+    the timeout starts again on the way out, and a stall before it trips on the way in."""
+    esc = Esc()
+    guarded = GuardedEsc(esc, 1050.0, 2000.0, 1000.0)
+    guarded.arm()
+    with HostWatchdog(guarded, timeout_s=0.2, stops="hexapod stopped") as wd:
+        with wd.at_rest():
+            time.sleep(0.5)  # the controller takes its time
+        assert not wd.tripped and esc.armed
+        wd.kick()  # the next tick: not late
+        time.sleep(0.5)  # a real stall after the block
+        assert wd.tripped and not esc.armed
+        assert wd.reason.endswith("; hexapod stopped")
+    esc = Esc()
+    guarded = GuardedEsc(esc, 1050.0, 2000.0, 1000.0)
+    guarded.arm()
+    with HostWatchdog(guarded, timeout_s=0.2, poll_s=10.0) as wd:  # the thread sleeps on
+        time.sleep(0.4)  # the loop stalled before the conversation
+        stalled = r"stalled \d\.\d+ s \(timeout 0\.2 s\); ESC disarmed"
+        with pytest.raises(WatchdogTrip, match=stalled), wd.at_rest():
+            pass
+    assert not esc.armed
+
+
 def test_guarded_esc_clamps_commands_to_the_rig_range():
     esc = Esc()
     guarded = GuardedEsc(esc, 1050.0, 1800.0, 1000.0)
