@@ -121,8 +121,9 @@ class WallClockUploads(SlowUploads):
 
 def test_an_upload_longer_than_the_host_watchdog_does_not_stop_the_run() -> None:
     """The hexapod is at rest while a trajectory uploads (the controller refuses an upload
-    while moving), so the upload's length is not a stalled host. It was: a 52 s trajectory
-    over TCP to a loaded host took 1.7 s and the calibration ended 'command loop stalled'."""
+    while moving), so the upload's length is not a stalled host. It was: a real controller
+    takes seconds for a long trajectory, and the 1 s watchdog ended the run 'command loop
+    stalled' before the motion began."""
     b = open_rig(RIG)
     b.hexapod = WallClockUploads(b.hexapod, b.clock, 0.5)  # type: ignore[assignment]
     try:

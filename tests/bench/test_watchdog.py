@@ -49,7 +49,6 @@ def test_watchdog_disarms_when_the_loop_stops_checking_in():
     assert esc.armed is False and esc.pulse == 1000.0
 
 
-
 def test_a_conversation_at_rest_is_not_a_stall_but_a_stall_around_it_is():
     """``at_rest`` (a hexapod's trajectory upload) excuses the time inside the block only:
     the timeout starts again on the way out, and a stall before it trips on the way in."""
