@@ -9,6 +9,7 @@ while a trajectory runs (PI GCS, drivers/backends/pi_hexapod.py).
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -35,8 +36,12 @@ class SlowUploads:
     """The simulated hexapod with an upload that takes rig time and is refused while moving;
     notes the rig time of every start."""
 
-    def __init__(self, hexapod: Any, clock: Any, upload_s: float) -> None:
+    def __init__(self, hexapod: Any, clock: Any, upload_s: float,
+                 sleep: Callable[[float], None] | None = None) -> None:
+        """``sleep``: what the upload takes its time on (default the rig clock; ``time.sleep``
+        for host time, as a real controller's over TCP or RS-232)."""
         self._hexapod, self._clock, self.upload_s = hexapod, clock, upload_s
+        self._sleep = sleep or clock.sleep
         self.started_at: list[float] = []
         self.stuck = False  # True: reports moving for ever once started (a hung controller)
 
@@ -46,7 +51,7 @@ class SlowUploads:
     def upload(self, trajectory: Any) -> None:
         if self._hexapod.is_moving():
             raise DeviceError(f"upload of {trajectory.name!r} refused while moving")
-        self._clock.sleep(self.upload_s)
+        self._sleep(self.upload_s)
         self._hexapod.upload(trajectory)
 
     def start(self) -> None:
@@ -109,23 +114,13 @@ def test_a_motion_that_does_not_end_ends_the_run_safely(bench) -> None:
     assert hx.stop_calls >= 1 and not hx.is_moving()
 
 
-class WallClockUploads(SlowUploads):
-    """An upload that takes host (wall) time, as a real controller's over TCP or RS-232."""
-
-    def upload(self, trajectory: Any) -> None:
-        if self._hexapod.is_moving():
-            raise DeviceError(f"upload of {trajectory.name!r} refused while moving")
-        time.sleep(self.upload_s)
-        self._hexapod.upload(trajectory)
-
-
 def test_an_upload_longer_than_the_host_watchdog_does_not_stop_the_run() -> None:
     """The hexapod is at rest while a trajectory uploads (the controller refuses an upload
     while moving), so the upload's length is not a stalled host. It was: a real controller
     takes seconds for a long trajectory, and the 1 s watchdog ended the run 'command loop
     stalled' before the motion began."""
     b = open_rig(RIG)
-    b.hexapod = WallClockUploads(b.hexapod, b.clock, 0.5)  # type: ignore[assignment]
+    b.hexapod = SlowUploads(b.hexapod, b.clock, 0.5, time.sleep)  # type: ignore[assignment]
     try:
         runner, rows = _run(b, watchdog_timeout_s=0.3)
     finally:
