@@ -100,14 +100,14 @@ def test_the_shipped_jitter_fixture_is_what_the_generator_writes(logfamily, fixt
     shipped = fixtures_dir / "logs" / "rcbenchmark_jitter.csv"
     assert shipped.read_bytes() == again.read_bytes()
     _, meta = import_rcbenchmark(shipped)
-    assert meta["time_order"]["reordered_rows"] == 6  # as the README shows
+    assert meta["time_order"]["reordered_rows"] == 6  # as docs/identification.md shows
 
 
-@pytest.mark.parametrize("doc", ["README.md", "docs/identification.md"])
+@pytest.mark.parametrize("doc", ["docs/identification.md"])
 def test_the_docs_show_what_importing_the_jittery_log_prints(fixtures_dir, tmp_path, capsys,
                                                              monkeypatch, doc):
-    """The README and docs/identification.md show the import of the jittery fixture and its
-    summary; run the shown command verbatim (from the repository root) and compare."""
+    """docs/identification.md shows the import of the jittery fixture and its summary; run
+    the shown command verbatim (from the repository root) and compare."""
     root = fixtures_dir.parent
     text = (root / doc).read_text(encoding="utf-8")
     cmd = "$ rotorbench import fixtures/logs/rcbenchmark_jitter.csv " \
