@@ -20,7 +20,8 @@ scalar-first quaternions, sensor to earth, ENU (z up; x east in 9D). Filters:
   estimated at rest (:mod:`analysis.gyro_bias`). 6D only, as in the paper.
 * ``paper-b-printed``: Paper B's correction as printed, each sample's normalised
   accelerometer blended with P_err (:func:`analysis.attitude.estimate_attitude`, by default
-  ``tilt="estimate"``, valid in every orientation), same bias; ``paper-b`` before issue 20.
+  ``tilt="estimate"``, valid in every orientation), same bias; what ``paper-b`` was before
+  its earth-frame low-pass.
 
 Peers (the ``imu`` extra), defaults of their packages: ``vqf-6d``/``vqf-9d`` (online VQF),
 ``vqf-offline-6d``/``-9d``, ``madgwick-6d``/``-9d`` and ``mahony-6d``/``-9d`` (``ahrs``,

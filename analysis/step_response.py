@@ -442,8 +442,8 @@ def _fit_first_order(tb: np.ndarray, yb: np.ndarray, cnt: np.ndarray, step: floa
     if ok and y1 != y0:
         # read against the fitted levels: the mean of the window's end is below the final
         # value when the level is held less than ~3 tau, and the 63 % of that lower change
-        # came before latency + tau (Table C.1's t63 = L + tau; issue 21: t63 161 ms
-        # against L + tau 180 ms with a 0.5 s hold and tau 166 ms)
+        # came before latency + tau (Table C.1's t63 = L + tau; read against the window's end
+        # it gave t63 161 ms against L + tau 180 ms with a 0.5 s hold and tau 166 ms)
         t63 = _crossing(tb, (yb - y0) / (y1 - y0), T63)
     return FirstOrderFit(lat, tau, (y1 - y0) / step, y0, y1, rms, t63, ok, why)
 

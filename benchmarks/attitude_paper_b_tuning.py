@@ -4,7 +4,7 @@ Inclination RMSE (deg, BROAD scoring over the movement samples) of
 :func:`analysis.attitude_filters.paper_b` for a few (τ, τ_lp) pairs on BROAD trial 07, its
 BROAD-shaped variants (``drivers.sim.imu_disturbances``, seed 0) and the simulated
 recordings of ``benchmarks/attitude_bench.py`` (hexapod, tumble, tour), next to VQF (the
-better of online and offline 6D) and issue 20's bound 2 x VQF + 0.5°. τ = 3 s with
+better of online and offline 6D) and the bound ``paper-b`` is held to, 2 x VQF + 0.5°. τ = 3 s with
 τ_lp = 0 is the printed correction's gain with the correction taken on the earth side.
 Prints a Markdown table (docs/attitude.md holds its output).
 """

@@ -1,4 +1,4 @@
-"""Speed of the flight model (optimizer.flight): targets of issue 15.
+"""Speed of the flight model (optimizer.flight): against its speed targets.
 
 1. 10 s of flight at the 1 kHz control rate (a 10 s roll step, all rotors recorded) on
    thesis-e's Case I design, N = 4 (target: < 0.5 s);

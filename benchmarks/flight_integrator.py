@@ -1,4 +1,4 @@
-"""Accuracy of the flight model's discretisation (issue 20, part 2): the numbers in
+"""Accuracy of the flight model's discretisation against tight references: the numbers in
 docs/flight.md.
 
 1. Roll pulse: Case I's vehicle (thesis-e, 4x P4+M1+B3) from hover, thrust = weight and a

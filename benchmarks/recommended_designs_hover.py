@@ -1,4 +1,4 @@
-"""Does every design ``optimize`` recommends fly? (issue 20, part 1)
+"""Does every design ``optimize`` recommends fly? (hover with control margin)
 
 The thesis' model has no thrust limit, so its optimum can be a drone that cannot take off
 (4 x P1 + M1 + B3 on thesis-e, thrust-to-weight 0.73). This script asks the three commands a

@@ -1,4 +1,4 @@
-"""Sizing benchmark (issue 16): series/parallel MILP, Pareto fronts, rules, battery model.
+"""Sizing benchmark: series/parallel MILP, Pareto fronts, rules, battery model.
 
 Prints what it measures on this machine (nothing hard-coded):
 1. Series/parallel on the SizingLab catalogs (batteries read as cells, S 2-6, P 1-4):

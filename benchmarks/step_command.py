@@ -1,4 +1,4 @@
-"""Benchmark: ``rotorbench step`` as a whole command on the simulated rig (issue 12).
+"""Benchmark: ``rotorbench step`` as a whole command on the simulated rig.
 
 What a user waits for: a fresh process (Python and imports included), Step 1 of Paper C
 at 25 kHz on the default simulated rig, recorded to a run folder. For 20 and 200 repeats

@@ -1,4 +1,4 @@
-"""Careless files a new user hands the CLI (issue 21, part 3): bytes that are not UTF-8,
+"""Careless files a new user hands the CLI: bytes that are not UTF-8,
 damaged BROAD files, a log cut mid-line, a log with one enormous line. Each answer is one
 line on stderr naming the file, exit code 2, no traceback, nothing half-written."""
 

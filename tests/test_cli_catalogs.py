@@ -1,4 +1,4 @@
-"""Catalog names and ties as a new user met them (issue 21, part 3, "Catalogs")."""
+"""Catalog names and ties as a new user met them."""
 
 from __future__ import annotations
 

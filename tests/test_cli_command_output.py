@@ -1,4 +1,4 @@
-"""What a new user tripped over in the commands' output (issue 21, part 3, "Commands"):
+"""What a new user tripped over in the commands' output:
 each test types the command as the user did."""
 
 from __future__ import annotations
@@ -85,7 +85,7 @@ def test_step_dry_run_of_a_refused_plan_prints_only_the_refusal(capsys, fixtures
     assert main(["step", "--rig", rig, "--dry-run", "--repeats", "100000"]) == 2
     out, err = capsys.readouterr()
     assert out == ""
-    assert err.startswith("rotorbench: error: sequence 'step1'")  # audit row 4 says the count
+    assert err.startswith("rotorbench: error: sequence 'step1'")  # says the count
     assert "projected 27.8 h of rig time" in err
     assert err.count("\n") == 1 and "longer than the 24 h a run may last" in err
     assert main(["step", "--rig", rig, "--dry-run", "--repeats", "2"]) == 0

@@ -54,7 +54,7 @@ _RCB_ROWS = "".join(f"{0.1 * i:.1f},{1100 + 10 * i},{100 + 5 * i},16.0,{0.5 * i}
 
 
 @pytest.mark.parametrize(("fmt", "header", "twice"), [
-    # the audit's case: 'Thrust (gf)' renamed to 'Voltage (V)'; voltage_v took the thrust
+    # the case met: 'Thrust (gf)' renamed to 'Voltage (V)'; voltage_v took the thrust
     ("rcbenchmark", "Time (s),ESC signal (µs),Voltage (V),Voltage (V),Current (A),"
                     "Motor Electrical Speed (RPM)", "'Voltage (V)' twice (columns 3 and 4)"),
     ("rcbenchmark", "Time (s),ESC signal (µs),Thrust (gf),Voltage (V),Current (A),"
@@ -65,7 +65,7 @@ _RCB_ROWS = "".join(f"{0.1 * i:.1f},{1100 + 10 * i},{100 + 5 * i},16.0,{0.5 * i}
 ])
 def test_import_refuses_a_column_named_twice(tmp_path: Path, capsys, fmt: str, header: str,
                                              twice: str) -> None:
-    """Audit row 3: pandas renames a repeated header to 'X.1' and the importer took it."""
+    """pandas renames a repeated header to 'X.1' and the importer took it."""
     f = tmp_path / "log.csv"
     rows = _RCB_ROWS if fmt != "esc32" else "".join(
         f"2019-11-05 17:14:08:{100 * i:03d},{0.5 * i},16.0,0.1,{900 * i},{10 * i}\n"
@@ -78,7 +78,7 @@ def test_import_refuses_a_column_named_twice(tmp_path: Path, capsys, fmt: str, h
 
 def test_sizinglab_import_refuses_a_column_named_twice(tmp_path: Path, capsys,
                                                       shared_data: Path) -> None:
-    """Audit row 3's sibling in the SizingLab importer."""
+    """The same in the SizingLab importer: a repeated header is refused."""
     import shutil
 
     src = tmp_path / "sizinglab"
@@ -93,7 +93,7 @@ def test_sizinglab_import_refuses_a_column_named_twice(tmp_path: Path, capsys,
 
 def test_other_tables_refuse_a_column_named_twice(tmp_path: Path, capsys,
                                                   fixtures_dir: Path) -> None:
-    """Audit row 3's siblings: every reader of a CSV header (catalog tables, a rig's
+    """The same in every other reader of a CSV header (catalog tables, a rig's
     thrust map, an IMU log) refuses a repeated name."""
     import shutil
 
@@ -190,7 +190,7 @@ def test_report_replaces_an_earlier_report(tmp_path: Path, capsys) -> None:
 @pytest.mark.parametrize("manifest", [True, False], ids=["report", "older report"])
 def test_report_keeps_the_users_files_in_its_folder(tmp_path: Path, capsys,
                                                      manifest: bool) -> None:
-    """Audit row 1: a second `report --out rep` deleted rep/NOTES.txt and rep/mydata/."""
+    """A second `report --out rep` deleted rep/NOTES.txt and rep/mydata/."""
     run = _imported_run(tmp_path)
     out = tmp_path / "rep"
     assert main(["report", str(run), "--out", str(out)]) == 0
@@ -411,7 +411,7 @@ def test_export_hover_thrust_must_be_positive(tmp_path: Path, capsys, value: str
 ])
 def test_export_auw_and_motors_are_checked(tmp_path: Path, capsys, auw: str, motors: str,
                                            says: str, json_flag: list[str]) -> None:
-    """Audit row 2: `--auw-kg nan --motors 4` printed MOT_THST_HOVER,nan (exit 0) and, with
+    """`--auw-kg nan --motors 4` printed MOT_THST_HOVER,nan (exit 0) and, with
     --json, a ValueError traceback."""
     run = _imported_run(tmp_path)
     capsys.readouterr()
@@ -850,7 +850,7 @@ _LOOP_ARGV = [  # every command with an input path; LOOP is replaced by the loop
 @pytest.mark.parametrize("argv", _LOOP_ARGV, ids=lambda a: " ".join(a[:2]))
 def test_a_symlink_loop_as_input_is_one_line(tmp_path: Path, capsys, monkeypatch,
                                              argv: list[str]) -> None:
-    """Audit row 9: a rig file that is a symlink loop gave a RuntimeError traceback from
+    """A rig file that is a symlink loop gave a RuntimeError traceback from
     Path.resolve (and 'not found' elsewhere: exists() is False for a loop)."""
     monkeypatch.chdir(tmp_path)
     (tmp_path / "a").symlink_to("b")
@@ -881,7 +881,7 @@ def test_a_rigs_thrust_map_that_loops_is_one_line(tmp_path: Path, capsys,
 @pytest.mark.parametrize("special", ["/dev/zero", "fifo"])
 def test_a_device_or_fifo_as_input_is_refused(tmp_path: Path, capsys, monkeypatch,
                                               argv: list[str], special: str) -> None:
-    """Audit row 5: `decode --protocol msp /dev/zero` read 18 GB in 20 s (a FIFO blocks
+    """`decode --protocol msp /dev/zero` read 18 GB in 20 s (a FIFO blocks
     forever): a path that is not a regular file is refused before it is opened."""
     import os
 

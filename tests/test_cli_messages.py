@@ -1,4 +1,4 @@
-"""What a new user read (issue 21, part 3, "Messages"): numbers print as numbers in every
+"""What a new user read: numbers print as numbers in every
 error message, a free-form option is named by its flag, and SIGTERM exits 143. Each test
 runs the command as a user types it."""
 

@@ -1,5 +1,5 @@
 """Outputs that cannot be written: every writing command refuses them before any work, in
-one line with exit code 2, and leaves nothing behind (issue 10, bad input).
+one line with exit code 2, and leaves nothing behind.
 
 Two kinds of unwritable place: a regular file where a folder must be, and a read-only
 folder. Root ignores a folder's mode bits, so as root the folder is made immutable

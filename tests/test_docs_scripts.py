@@ -1,4 +1,4 @@
-"""The scripts that make the docs' figures (issue 21, part 3, "The docs scripts"): they
+"""The scripts that make the docs' figures: they
 say what they wrote and what they skipped, and leave nothing behind in the temp folder."""
 
 from __future__ import annotations

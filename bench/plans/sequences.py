@@ -340,7 +340,8 @@ def step2(
 def _repeated(name: str, low: float, settle_s: float, repeat: Callable[[int], list[Step]],
               repeats: int, description: str) -> Sequence:
     """Spin up to ``low``, ``repeats`` times ``repeat(i)``, spin down: a thrust-step plan,
-    its length checked from one repeat before the steps are built (audit row 4)."""
+    its length checked from one repeat before the steps are built (a huge ``repeats`` is
+    refused without building them)."""
     _check_length(name, _spin_up(low, settle_s), repeat(0), repeats, _spin_down())
     steps: list[Step] = _spin_up(low, settle_s)
     for i in range(repeats):

@@ -1,4 +1,4 @@
-"""Fly a design: Paper B's multirotor model, mixer and cascade controller (issue 15).
+"""Fly a design: Paper B's multirotor model, mixer and cascade controller.
 
 Modules, one job each: ``vehicle`` (rigid-body parameters from the optimizer's model and
 the 6-DOF equations of motion, thesis 2.39-2.43 / B.7-B.11), ``actuators`` (Paper C's

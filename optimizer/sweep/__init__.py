@@ -1,4 +1,4 @@
-"""Closed-loop design sweeps: every design ``optimize`` would consider, flown (issue 25).
+"""Closed-loop design sweeps: every design ``optimize`` would consider, flown.
 
 Pure, like the rest of ``optimizer``: which designs (``designs``), their stable ids and
 seeds (``keys``), the per-design flight parameters as plain numbers (``flight_params``),

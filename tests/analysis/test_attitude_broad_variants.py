@@ -8,7 +8,7 @@ the same samples: inclination RMSE <= 1.25 x VQF 6D + 0.1° on every variant, he
 RMSE <= 1.5 x VQF 9D + 0.5° on the undisturbed ones. The default is VQF's offline form, so
 the second set of tests checks that what the default relies on is really switched on and
 really helps: turned off in the same ``offlineVQF``, each one makes its case worse. The
-third set holds ``paper-b`` to issue 20's bound, inclination RMSE <= 2 x VQF 6D + 0.5° (VQF
+third set holds ``paper-b`` to its bound, inclination RMSE <= 2 x VQF 6D + 0.5° (VQF
 the better of online and offline) on every variant, including fast rotation at a lever arm
 with translation, where Paper B's printed correction tilts by 10-20°.
 """
@@ -184,9 +184,10 @@ def _vqf_6d_incl(cases: _Cases, name: str) -> float:
 
 @pytest.mark.parametrize("name", ["trial 07", *VARIANTS])
 def test_paper_b_within_twice_vqf_plus_half_a_degree(cases: _Cases, name: str) -> None:
-    """Issue 20's bound on every BROAD-shaped variant. Before the earth-frame low-pass
-    (``paper-b-printed`` now) the lively ones failed it: measured 7.6-22° (swing at the
-    wrist 14.6°, at the forearm 20.6°, combined with breaks 11.4°) against VQF's 1.0-1.7°."""
+    """``paper-b`` within 2 x VQF 6D + 0.5° on every BROAD-shaped variant. Before the
+    earth-frame low-pass (``paper-b-printed`` now) the lively ones failed it: measured
+    7.6-22° (swing at the wrist 14.6°, at the forearm 20.6°, combined with breaks 11.4°)
+    against VQF's 1.0-1.7°."""
     incl = _deg(cases.run(name, "paper-b")[0], cases.data(name), False)[0]
     vqf6 = _vqf_6d_incl(cases, name)
     assert incl <= 2.0 * vqf6 + 0.5, (incl, vqf6)

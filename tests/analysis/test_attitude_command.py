@@ -115,10 +115,11 @@ def test_cal_moves_a_mounted_imu_into_the_body_frame(sim: dict, tmp_path: Path, 
 
 
 def test_paper_b_on_a_swung_sensor(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
-    """Issue 20 as a user meets it: a BROAD-format file of fast turns about a pivot 17 cm
-    away. ``--filter paper-b`` stays within 2 x VQF + 0.5° (measured 0.72° vs VQF offline
-    0.58°); Paper B's printed correction, still there as ``paper-b-printed``, tilts (3.5°);
-    ``--earth-lowpass 0`` (no low-pass) brings the tilt back (5.8°)."""
+    """Paper B's filter on lively motion as a user meets it: a BROAD-format file of fast
+    turns about a pivot 17 cm away. ``--filter paper-b`` stays within 2 x VQF + 0.5°
+    (measured 0.72° vs VQF offline 0.58°); Paper B's printed correction, still there as
+    ``paper-b-printed``, tilts (3.5°); ``--earth-lowpass 0`` (no low-pass) brings the tilt
+    back (5.8°)."""
     trial = _broad(tmp_path / "swing.hdf5",
                    add_swing(simulate_wrist_turns(seed=0), (0.1, 0.1, -0.1)), 285.714)
 

@@ -48,7 +48,7 @@ def test_tumble_really_visits_upside_down(tumble: ImuRecording) -> None:
 
 @pytest.mark.parametrize(("name", "six_d", "incl_max", "head_max"), [
     # measured on seeds 0-2: 0.10-0.11 / 0.13-0.15; 0.29-0.31 / 0.19; paper-b-printed
-    # 0.59-0.60 / 0.10-0.11 (paper-b before issue 20), paper-b 0.43-0.44 / 0.10-0.11
+    # 0.59-0.60 / 0.10-0.11 (paper-b before its earth-frame low-pass), paper-b 0.43-0.44 / 0.10-0.11
     ("default", False, 0.25, 0.4),
     ("default", True, 0.25, 0.4),
     ("default-causal", False, 0.6, 0.5),

@@ -30,8 +30,8 @@ def test_demo_one_combination(tmp_path, capsys):
     measured = [d for d in summary["designs"] if d["constants"] == "measured"]
     assert len(measured) == 9 and any(d["measured metrics"] != "datasheet" for d in measured)
     assert not any(p.name.startswith(".") for p in tmp_path.iterdir())
-    # the design tables offer what `optimize` offers: designs that hover with margin (issue
-    # 20); under the thesis' rules Case III would pick P1/M1/B3, which cannot hover
+    # the design tables offer what `optimize` offers: designs that hover with margin;
+    # under the thesis' rules Case III would pick P1/M1/B3, which cannot hover
     assert summary["hover_margin"]["min_thrust_to_weight"] == 1.2
     assert "hover margin: every design reaches full-throttle thrust-to-weight >= 1.2" in printed
     [case3] = [c for c in summary["cases"] if c["case"] == "III" and c["constants"] == "model"]
@@ -42,8 +42,8 @@ def test_demo_one_combination(tmp_path, capsys):
         ids = [[(d["actuators"], d["propeller"], d["motor"], d["battery"]) for d in ds]
                for ds in (picks, case3["designs"])]
         assert (ids[0] == ids[1]) is equal, rules
-    # the web view over the demo's output shows every run, its fits and a comparison
-    # (issue 24); the same demo run, to keep the suite short
+    # the web view over the demo's output shows every run, its fits and a comparison;
+    # the same demo run, to keep the suite short
     from fastapi.testclient import TestClient
 
     from bench.serve.app import create_app

@@ -123,7 +123,7 @@ def test_sim_gazebo_export_matches_the_plant(tmp_path, capsys):
 
 
 def test_a_step_run_or_a_fast_sweep_is_not_a_static_curve(tmp_path, capsys):
-    """Audit row 6: `export ardupilot STEP_RUN` gave MOT_THST_EXPO 0.71 (the sweep of the
+    """`export ardupilot STEP_RUN` gave MOT_THST_EXPO 0.71 (the sweep of the
     same rig 0.385) from the lagging transients between the step levels and from idle. A
     run whose steady commands leave part of its range uncovered is refused, naming the
     sweep command; the sweep itself still exports."""

@@ -3,7 +3,7 @@
 The logs use the shortened protocol (``paper_a_protocol(short=True)``: 3000-sample hold,
 two 20 s beats of the gyro sines, a 0.02 Hz slow rotation, 20 s lever-arm motions, 30 s
 verification), which keeps each simulation + calibration under a second; the accuracy
-targets of issue 5 still hold there (K ~0.1 %, R < 1.1 mm over seeds 0-5).
+targets of the full protocol still hold there (K ~0.1 %, R < 1.1 mm over seeds 0-5).
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """`rotorbench calibrate --quick` on the simulated IMU bench: every stage recorded, then the
-calibration's accuracy against the simulator's hidden truth (issue 5 targets)."""
+calibration's accuracy against the simulator's hidden truth (the accuracy targets)."""
 
 from __future__ import annotations
 

@@ -86,7 +86,7 @@ def test_deep_refuses_bad_seconds(tmp_path, capsys):
 
 
 def test_deep_save_creates_its_folder(tmp_path, capsys, monkeypatch):
-    """Audit row 8: the docs/devices.md line `check --deep ... --save out/deep/imu.json`
+    """The docs/devices.md line `check --deep ... --save out/deep/imu.json`
     with out/deep missing ended in a FileNotFoundError after listening."""
     monkeypatch.chdir(tmp_path)
     assert main(["check", "--deep", "--seconds", "1", "--rig", str(RIGS / "sim-imu-tcp.toml"),

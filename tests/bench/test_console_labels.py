@@ -1,4 +1,4 @@
-"""What a new user saw in the console (issue 21, part 3, "Console"), offscreen: limit
+"""What a new user saw in the console, offscreen: limit
 labels cut off, a blank torque plot on a rig without a torque sensor, Qt's
 propagateSizeHints warning flooding stderr."""
 

@@ -1,4 +1,4 @@
-"""The IMU tab draws the hexapod's commanded pose (issue 13: the pose on the IMU tab)."""
+"""The IMU tab draws the hexapod's commanded pose."""
 
 from __future__ import annotations
 

@@ -62,7 +62,7 @@ def test_replaces_a_previous_demo_output(tmp_path, capsys):
     assert (out / "tables" / "designs.csv").is_file()
     assert keep.read_text(encoding="utf-8") == "not the demo's"
     assert sorted(os.listdir(tmp_path)) == ["demo-out", "neighbour.txt"]  # no temp folders
-    # audit row 1: a file and a folder of the user's in the demo output are not deleted
+    # a file and a folder of the user's in the demo output are not deleted
     (out / "NOTES.txt").write_text("mine", encoding="utf-8")
     (out / "figures" / "mydata").mkdir()
     before = _snapshot(tmp_path)

@@ -1,6 +1,6 @@
 """A full disk during a step (ENOSPC on a samples part): the motor stops safely, the run
 is recorded as aborted, the partial run stays readable and the command says where it is
-in one line with exit code 2, no traceback (issue 10, bad input)."""
+in one line with exit code 2, no traceback."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """Files and folders the commands write follow the user's umask, and a file they replace
-keeps its mode (issue 21, row 14: with umask 022 they were 0600/0700, and a sweep turned
+keeps its mode (with umask 022 they were 0600/0700, and a sweep turned
 the user's 0644 thrust map into 0600)."""
 
 from __future__ import annotations

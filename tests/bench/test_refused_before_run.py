@@ -1,5 +1,5 @@
 """Settings under which a run could only fail are refused before anything is written or
-armed (issue 21, rows 15 and 17): a device option misspelt left a failed run folder and an
+armed: a device option misspelt left a failed run folder and an
 index row per try; a limit of 0 or a tick of 1e-9 armed the ESC, then tripped at t = 0 or
 starved the watchdog."""
 

@@ -1,4 +1,4 @@
-"""Absurd limits and absurd plans are refused before anything spins (issue 10, bad input):
+"""Absurd limits and absurd plans are refused before anything spins:
 ``thrust_n = 1e308`` switched the trip off, a 1e6 s hold wrote 1.1 GB in 30 s."""
 
 from __future__ import annotations
@@ -60,7 +60,7 @@ def test_a_plan_longer_than_a_day_is_refused(sim_rig_mapped_path: Path, tmp_path
 def test_a_huge_repeat_count_is_refused_in_constant_memory(sim_rig_mapped_path: Path,
                                                            tmp_path: Path, capsys,
                                                            sequence: str) -> None:
-    """Audit row 4: `step --repeats 100000000` built 16 GB of steps before the budget
+    """`step --repeats 100000000` built 16 GB of steps before the budget
     check; 1e6 repeats took 12.8 s and 1.4 GB to refuse. The length is now projected from
     one repeat."""
     import tracemalloc

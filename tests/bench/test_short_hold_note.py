@@ -1,4 +1,4 @@
-"""Audit row 7 (issue 21): the README workflow `step --rig sim-thesis-e.toml --repeats 5`
+"""The documented workflow `step --rig sim-thesis-e.toml --repeats 5`
 then `fit` gave tau_up 164.7 ms but t63_up 160.8 ms (docs: t63 = latency + tau), with no
 word that the 0.5 s hold is about 3 tau, too short for the response to settle."""
 

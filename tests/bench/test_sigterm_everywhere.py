@@ -1,5 +1,5 @@
-"""`kill PID` (SIGTERM) ends every command like Ctrl-C, with exit 143 (issue 21: "SIGTERM
-exits 130 like Ctrl-C (use 143)", and "Ctrl-C and SIGTERM leave the ESC idle everywhere").
+"""`kill PID` (SIGTERM) ends every command as Ctrl-C does, the ESC left idle, but with
+exit 143 (Ctrl-C exits 130).
 `step`, `sweep` and `calibrate` did; `console` and `demo` died by the signal: the console's
 manual session stayed 'running' in its run.json with no safe stop, its window lived on for
 a minute, and the demo left its temporary folder behind."""

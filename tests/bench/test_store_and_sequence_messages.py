@@ -1,4 +1,4 @@
-"""Messages that blamed the wrong thing (issue 10, bad input): a read-only constants store
+"""Messages that blamed the wrong thing: a read-only constants store
 was called unreadable ('move it away'), a sequence's unreachable thrust blamed the rig's
 thrust-map file."""
 

@@ -1,4 +1,4 @@
-"""Frames lost on a device's link are counted (issue 14: drops counted per backend).
+"""Frames lost on a device's link are counted, per backend.
 
 Time stamps show samples that never came; a decoder's counters show frames that came
 damaged (bad checksums, truncated, malformed) and a DroneCAN transfer-id sequence shows

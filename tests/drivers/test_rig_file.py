@@ -145,7 +145,7 @@ def test_with_thrust_map_and_esc_mode_return_new_configs():
 @pytest.mark.parametrize("url", ["serial:///dev/ttyUSB0", "can://socketcan/can0",
                                  "nidaq://Dev1/ai0", "tcp://localhost:50000"])
 def test_hardware_devices_do_not_mix_with_sim_devices(tmp_path, url):
-    # sim:// runs on the fast simulated clock, hardware on the wall clock (issue 6)
+    # sim:// runs on the fast simulated clock, hardware on the wall clock
     rig = load_rig(write_rig(tmp_path, edited('url = "sim://load_cell"', f'url = "{url}"')))
     assert not rig.is_simulated
     with pytest.raises(DeviceError, match=r"rig.toml: \[devices\.esc\] .* cannot be mixed"):

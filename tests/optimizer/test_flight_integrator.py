@@ -1,4 +1,4 @@
-"""The flight model's discretisation against tight references (issue 20, part 2): the
+"""The flight model's discretisation against tight references: the
 rigid-body step's order, the rotor lag's timing, the hover figure."""
 
 from __future__ import annotations

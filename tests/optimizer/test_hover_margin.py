@@ -1,4 +1,4 @@
-"""Every design a sizing command offers can hover with control margin (issue 20, part 1).
+"""Every design a sizing command offers can hover with control margin.
 
 The thesis' model has no thrust limit, so its exact time-constant optimum on thesis-e
 (4 x P1 + M1 + B3) has thrust-to-weight 0.73 and cannot take off. By default ``optimize``,
@@ -171,8 +171,8 @@ def test_paper_e_cases_imply_thesis_rules_and_say_so(capsys) -> None:
     assert (4, "B3") not in {(d["actuators"], d["battery"]) for d in doc["cases"][2]["designs"]}
 
 
-#: ``optimize --paper-e-cases`` under the thesis' rules, as before the hover margin (issue 20:
-#: "Tables E.8-E.10 stay reproducible under it, exactly as today"): per case the picks for
+#: ``optimize --paper-e-cases`` under the thesis' rules, as before the hover margin (Tables
+#: E.8-E.10 stay reproducible under them, exactly as before): per case the picks for
 #: 4, 6, 8 actuators. The motors tie on flight time (all weigh 111 g): the tie order picks M1
 #: where the tables print M3/M2; Case III's exact optimum is B3 (38.3 ms), the table's B1
 #: 39.2 ms (docs/thesis-reproduction.md).

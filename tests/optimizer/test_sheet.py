@@ -54,7 +54,7 @@ def test_case_i_current_at_hover_thrust(capsys, fixtures_dir, model) -> None:
     hover = out["total_mass_kg"] * 9.81 / 4
     current = np.interp(hover, [r["thrust_n"] for r in rows], [r["current_a"] for r in rows])
     design = out["current_a"] / 4
-    assert current == pytest.approx(design, rel=0.05)  # issue 16's criterion
+    assert current == pytest.approx(design, rel=0.05)  # within 5 % of the design's current
     assert out["hover_current_per_actuator_a"] == pytest.approx(design, rel=1e-9)
     assert out["hover_battery_current_a"] == pytest.approx(out["current_a"], rel=1e-9)
     assert out["flight_time_min"] == pytest.approx(60 * 16.0 / out["current_a"])  # (E.72)

@@ -209,8 +209,8 @@ def test_cli_json_shape_text_and_plot(tmp_path: Path, capsys) -> None:
 def test_text_says_the_hover_margin_the_sweep_was_flown_under(tmp_path: Path, capsys,
                                                               margin, said) -> None:
     """A front of a ``fly --sweep --thesis-rules`` file may offer a design below the default
-    margin (thesis-e's 8 x P1/M1/B3, thrust-to-weight 1.10): like ``pareto`` on a catalog
-    (issue 20), the text says which rule the designs were sized under (``--json`` has it in
+    margin (thesis-e's 8 x P1/M1/B3, thrust-to-weight 1.10): like ``pareto`` on a catalog,
+    the text says which rule the designs were sized under (``--json`` has it in
     ``sweep.options.hover_margin``)."""
     spec = {**SPEC, "options": {**SPEC["options"], "hover_margin": margin}}
     path = write_sweep(tmp_path / "s.parquet", feasible_rows((4,)), spec)
