@@ -224,7 +224,7 @@ def add_common_arguments(p: argparse.ArgumentParser) -> None:
     from bench.run.safety import LIMIT_FIELDS
 
     p.add_argument("--rig", type=Path, default=None,
-                   help="rig file (TOML); default: the simulated rig fixtures/rigs/sim.toml")
+                   help="rig file (TOML); default: the simulated rig bench/data/rigs/sim.toml")
     p.add_argument("--out", type=Path, default=DEFAULT_OUT,
                    help="output root for run folders and runs.sqlite (default: ./runs); with "
                         "a lab --store, the data location (s3://bucket/prefix or a shared "
@@ -327,7 +327,7 @@ def add_catalog_args(p: argparse.ArgumentParser) -> None:
         type=Path,
         default=None,
         help="catalog folder, or the name of a shipped one (thesis-e, thesis-d; "
-             "default: fixtures/catalogs/thesis-e)",
+             "default: the shipped thesis-e)",
     )
     p.add_argument("--payload-kg", type=float, default=0.0, help="payload mass (default 0)")
     p.add_argument(

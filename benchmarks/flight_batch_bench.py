@@ -29,7 +29,7 @@ from optimizer.flight.batch import DesignBatch, fly_batch  # noqa: E402
 from optimizer.flight.design import feasible_indices, gains_for, setup  # noqa: E402
 from optimizer.flight.maneuvers import MANEUVERS, Maneuver, fly  # noqa: E402
 
-CATALOG = "fixtures/catalogs/thesis-e"
+CATALOG = "optimizer/data/catalogs/thesis-e"
 SHORT = Maneuver("roll_step", "roll", MANEUVERS["roll_step"].amplitude, 1.5)
 
 

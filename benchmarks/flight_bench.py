@@ -26,7 +26,7 @@ from optimizer.objectives import single
 from optimizer.selection import optimize
 from optimizer.sweep.ranking import rank
 
-CATALOG = "fixtures/catalogs/thesis-e"
+CATALOG = "optimizer/data/catalogs/thesis-e"
 
 
 def timed(fn) -> tuple[float, float]:

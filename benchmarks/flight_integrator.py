@@ -30,7 +30,7 @@ from optimizer.flight.maneuvers import HOVER, fly
 from optimizer.flight.reference import integrate_held, lag_mean, step_held
 from optimizer.flight.vehicle import hover_state
 
-CATALOG = "fixtures/catalogs/thesis-e"
+CATALOG = "optimizer/data/catalogs/thesis-e"
 PULSE_S = 0.2
 PULSE_ROLL_RAD = math.radians(10.0)
 

@@ -1,6 +1,6 @@
 """Paper A calibration through the bench (rig path), over several seeds, with timings.
 
-Runs every stage on the simulated IMU bench (``fixtures/rigs/sim-imu.toml``) through the
+Runs every stage on the simulated IMU bench (``bench/data/rigs/sim-imu.toml``) through the
 hexapod runner and recorder, joins the recorded runs into one log, calibrates it and
 prints the errors against the simulator's hidden truth: K (relative Frobenius), lever
 arm R, gyro-bias z-scores, time offset, and the verification RMS next to Table A.2; plus

@@ -8,7 +8,7 @@ Prints three tables (measured on this machine, nothing hard-coded):
    motors x 40 batteries: per actuator count the grid build, MILP and
    enumeration times, their ratio and whether they agree (targets: MILP < 10 s,
    enumeration < 5 s); plus the three MILP formulations on a medium catalog.
-3. The SizingLab catalogs (fixtures/data/sizinglab, imported in memory).
+3. The SizingLab catalogs (optimizer/data/sizinglab, imported in memory).
 
 Run: ``.venv/bin/python benchmarks/optimizer_bench.py [--quick]``.
 """
@@ -104,7 +104,7 @@ def _ids(d) -> str:
 def paper_e_table(console: Console) -> None:
     from optimizer.thesis_formulation import solve_thesis
 
-    catalog = load_catalog(REPO / "fixtures" / "catalogs" / "thesis-e")
+    catalog = load_catalog(REPO / "optimizer" / "data" / "catalogs" / "thesis-e")
     table = Table(title="Paper E test cases, thesis-e catalog", title_justify="left")
     for col in (
         "case",

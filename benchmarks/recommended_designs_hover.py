@@ -71,7 +71,7 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory(prefix="rotorbench-hover-") as tmp:
         sizinglab = str(Path(tmp) / "sizinglab")
         subprocess.run([str(ROTORBENCH), "import-sizinglab", "--source",
-                        str(ROOT / "fixtures" / "data" / "sizinglab"), "--out", sizinglab],
+                        str(ROOT / "optimizer" / "data" / "sizinglab"), "--out", sizinglab],
                        check=True, capture_output=True)
         rows = rows_for("thesis-e", "thesis-e", args.payload_kg, extra)
         rows += rows_for("SizingLab", sizinglab, args.payload_kg, extra)

@@ -2,7 +2,7 @@
 
 Paper C section 4.4: thrust against command from slow, settled holds. This is what
 ``rotorbench sweep`` does on any rig; this script makes the default rig's side file
-(``fixtures/rigs/sim.thrust_map.csv``) reproducible without the bench CLI:
+(``bench/data/rigs/sim.thrust_map.csv``) reproducible without the bench CLI:
 
     .venv/bin/python benchmarks/sim_thrust_map.py [RIG.toml] [--hold SECONDS]
 

@@ -126,7 +126,7 @@ def main(argv: list[str]) -> int:
         print(f"SizingLab data not found at {DEFAULT_FOLDER}")
         return 1
     lab = import_sizinglab(DEFAULT_FOLDER)
-    thesis_e = load_catalog(REPO / "fixtures" / "catalogs" / "thesis-e")
+    thesis_e = load_catalog(REPO / "optimizer" / "data" / "catalogs" / "thesis-e")
     series_parallel(lab, (4,) if args.quick else (4, 6, 8))
     fronts(lab, thesis_e)
     rules(lab)

@@ -50,7 +50,7 @@ def noop(i: int) -> int:
 
 def plan_of(args: argparse.Namespace):
     if args.sizinglab is None:
-        catalog = with_min_thrust_to_weight(load_catalog(REPO / "fixtures/catalogs/thesis-e"),
+        catalog = with_min_thrust_to_weight(load_catalog(REPO / "optimizer/data/catalogs/thesis-e"),
                                             DEFAULT_MIN_THRUST_TO_WEIGHT)
         return "thesis-e N = 4", plan_designs(catalog, [4])
     catalog = with_min_thrust_to_weight(load_catalog(args.sizinglab),

@@ -32,7 +32,7 @@ console = Console()
 
 
 def robot() -> None:
-    problem = load_robot(ROOT / "fixtures/catalogs/thesis-robot")
+    problem = load_robot(ROOT / "optimizer/data/catalogs/thesis-robot")
     table = Table(title="Section 2.4.1 robot (Table 2.2), current 1 A/kg")
     for col in (
         "power limit",
@@ -78,7 +78,7 @@ def robot() -> None:
 
 
 def paper_e_cases() -> None:
-    cat = load_catalog(ROOT / "fixtures/catalogs/thesis-e")
+    cat = load_catalog(ROOT / "optimizer/data/catalogs/thesis-e")
     for regions, label in ((10, "10 regions"), (THESIS_REGIONS, "thesis regions (230 / 160)")):
         table = Table(title=f"Paper E test cases, thesis formulation, {label}")
         for col in (
@@ -127,7 +127,7 @@ def paper_e_cases() -> None:
 
 def all_objectives() -> None:
     for name in ("thesis-e", "thesis-d"):
-        cat = load_catalog(ROOT / "fixtures/catalogs" / name)
+        cat = load_catalog(ROOT / "optimizer/data/catalogs" / name)
         table = Table(title=f"{name}: every objective, 10 regions vs thesis regions")
         for col in (
             "objective",

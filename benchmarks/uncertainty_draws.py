@@ -31,7 +31,7 @@ from optimizer.flight.uncertainty import (
     percentile_columns,
 )
 
-CATALOG = "fixtures/catalogs/thesis-e"
+CATALOG = "optimizer/data/catalogs/thesis-e"
 NOMINAL = (0.040, 0.060, 0.012, 1.2e-6, 2.0e-8)
 STD = (0.004, 0.009, 0.002, 3e-8, 1e-9)
 

@@ -29,7 +29,7 @@ from optimizer.sweep.ranking import rank
 
 ROOT = Path(__file__).resolve().parents[1]
 IMG = ROOT / "docs" / "img"
-CATALOG = ROOT / "fixtures" / "catalogs" / "thesis-e"
+CATALOG = ROOT / "optimizer" / "data" / "catalogs" / "thesis-e"
 
 
 def _key(r) -> str:

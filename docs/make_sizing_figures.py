@@ -22,7 +22,7 @@ sys.path.insert(0, str(REPO))
 from bench.cli import main  # noqa: E402
 
 IMG = REPO / "docs" / "img"
-SIZINGLAB = REPO / "fixtures" / "data" / "sizinglab"
+SIZINGLAB = REPO / "optimizer" / "data" / "sizinglab"
 
 
 def quiet(argv: list[str]) -> None:
@@ -44,7 +44,7 @@ def discharge_figure(path: Path) -> None:
     from optimizer.design_model import evaluate_design, single_design_catalog
     from optimizer.sheet import design_sheet, pack_of
 
-    base = load_catalog(REPO / "fixtures" / "catalogs" / "thesis-e")
+    base = load_catalog(REPO / "optimizer" / "data" / "catalogs" / "thesis-e")
     ids = ("P4", "M1", "B3")
     curve = bat.DEFAULT_CELL
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 3.6))

@@ -201,7 +201,7 @@ def compare_for_design(single: Catalog, record: dict[str, Any], curve: Any) -> d
 
 
 def data_folder() -> Path:
-    """The SizingLab folder the repository ships (``optimizer.sizinglab.DEFAULT_FOLDER``)."""
+    """The SizingLab folder the package ships (``optimizer.sizinglab.DEFAULT_FOLDER``)."""
     from optimizer.sizinglab import DEFAULT_FOLDER
 
     return DEFAULT_FOLDER

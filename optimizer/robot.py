@@ -10,7 +10,7 @@ C^2, E).
 Reading of (2.46): it prints ``C = (w_r + w_b) * 2 A/kg``, but the printed result
 (battery #3, weight 5 kg, C = 5 A, 6 h, M = 6 A as "the highest current drain
 possible") needs 1 A/kg; with 2 A/kg even the lightest robot draws 6 A = 36 W and
-the problem is infeasible. The fixture ``fixtures/catalogs/thesis-robot`` carries
+the problem is infeasible. The fixture ``optimizer/data/catalogs/thesis-robot`` carries
 the constant ``current_per_kg_a = 1.0``; passing 2.0 reproduces the infeasibility.
 """
 

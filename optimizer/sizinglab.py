@@ -53,9 +53,10 @@ import pandas as pd
 
 from optimizer.catalog import Catalog, check_unique_header
 from optimizer.errors import CatalogError
+from optimizer.shipped_data import SIZINGLAB
 
-#: The Apache-2.0 copies shipped in the repository (fixtures/data/sizinglab, see its SOURCE.md).
-DEFAULT_FOLDER = Path(__file__).resolve().parents[1] / "fixtures" / "data" / "sizinglab"
+#: The Apache-2.0 copies shipped with the package (optimizer/data/sizinglab, see its SOURCE.md).
+DEFAULT_FOLDER = SIZINGLAB
 
 PROP_MASS_COEF_G = 0.0641
 PROP_MASS_EXPONENT = 2.26

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tests.conftest import CATALOGS, RIGS
 from tests.test_cli_errors import run_bad
 
 NOT_UTF8 = b"# caf\xe9 \xff\xfe\n"
@@ -22,7 +23,7 @@ NOT_UTF8 = b"# caf\xe9 \xff\xfe\n"
 def test_catalog_toml_not_utf8(tmp_path: Path, capsys, fixtures_dir: Path) -> None:
     """`optimize` on a catalog whose catalog.toml holds a Latin-1 byte: a traceback."""
     cat = tmp_path / "cat"
-    shutil.copytree(fixtures_dir / "catalogs" / "thesis-e", cat)
+    shutil.copytree(CATALOGS / "thesis-e", cat)
     with (cat / "catalog.toml").open("ab") as fh:
         fh.write(NOT_UTF8)
     for argv in (["optimize"], ["pareto"]):  # every sizing command shares the loader
@@ -36,12 +37,12 @@ def test_robot_toml_and_csv_not_utf8(tmp_path: Path, fixtures_dir: Path) -> None
     from optimizer.robot import load_robot
 
     robot = tmp_path / "robot"
-    shutil.copytree(fixtures_dir / "catalogs" / "thesis-robot", robot)
+    shutil.copytree(CATALOGS / "thesis-robot", robot)
     with (robot / "robot.toml").open("ab") as fh:
         fh.write(NOT_UTF8)
     with pytest.raises(CatalogError, match=r"robot\.toml: not valid TOML"):
         load_robot(robot)
-    shutil.copy(fixtures_dir / "catalogs" / "thesis-robot" / "robot.toml", robot)
+    shutil.copy(CATALOGS / "thesis-robot" / "robot.toml", robot)
     with (robot / "batteries.csv").open("ab") as fh:
         fh.write(NOT_UTF8)
     with pytest.raises(CatalogError, match=r"batteries\.csv: not UTF-8 text"):
@@ -258,7 +259,7 @@ def test_import_quotes_a_short_excerpt_of_a_huge_cell(tmp_path: Path, capsys, fm
 
 def test_every_error_line_is_capped(tmp_path: Path, capsys, fixtures_dir: Path) -> None:
     """The net under the readers that quote a value whole: a rig file's 3 MB URL."""
-    text = (fixtures_dir / "rigs" / "sim.toml").read_text(encoding="utf-8")
+    text = (RIGS / "sim.toml").read_text(encoding="utf-8")
     rig = tmp_path / "rig.toml"
     rig.write_text(text.replace('url = "sim://esc"', f'url = "sim://esc{"z" * 3_000_000}"'),
                    encoding="utf-8")

@@ -16,7 +16,7 @@ def test_every_catalog_the_docs_name_as_shipped_works_by_name(capsys):
     `--catalog NAME` (`thesis-robot`, the section 2.4.1 robot example, is refused there and
     must not be listed as shipped)."""
     text = " ".join(CATALOGS_DOC.read_text(encoding="utf-8").split())
-    sentence = re.search(r"The default catalog is `fixtures/catalogs/(\S+?)`[^;]*; (.*?) "
+    sentence = re.search(r"The default catalog is `optimizer/data/catalogs/(\S+?)`[^;]*; (.*?) "
                          r"(?:is|are) shipped too", text)
     assert sentence is not None, "docs/catalogs.md: the sentence naming the shipped catalogs moved"
     names = [sentence.group(1), *re.findall(r"`([\w-]+)`", sentence.group(2))]

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from bench.cli import build_parser, main
+from tests.conftest import RIGS
 
 h5py = pytest.importorskip("h5py")
 pytest.importorskip("vqf")
@@ -81,7 +82,7 @@ def test_calibrate_usage_shows_the_action_as_optional():
 def test_step_dry_run_of_a_refused_plan_prints_only_the_refusal(capsys, fixtures_dir):
     """It printed 300 000 plan lines (3 M with a larger count) and no refusal; the run
     itself refuses the plan: the dry run says so first, and prints nothing else."""
-    rig = str(fixtures_dir / "rigs" / "sim.toml")
+    rig = str(RIGS / "sim.toml")
     assert main(["step", "--rig", rig, "--dry-run", "--repeats", "100000"]) == 2
     out, err = capsys.readouterr()
     assert out == ""

@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 
 from bench.cli import main
+from tests.conftest import CATALOGS, RIGS, SIZINGLAB
 
 
 def run_bad(capsys: pytest.CaptureFixture[str], *argv: str) -> str:
@@ -82,7 +83,7 @@ def test_sizinglab_import_refuses_a_column_named_twice(tmp_path: Path, capsys,
     import shutil
 
     src = tmp_path / "sizinglab"
-    shutil.copytree(shared_data / "sizinglab", src)
+    shutil.copytree(SIZINGLAB, src)
     motors = src / "Motors_Data.csv"
     motors.write_text(motors.read_text(encoding="utf-8").replace("Pole_number", "Kv_rpm_v", 1),
                       encoding="utf-8")
@@ -98,7 +99,7 @@ def test_other_tables_refuse_a_column_named_twice(tmp_path: Path, capsys,
     import shutil
 
     cat = tmp_path / "thesis-e"
-    shutil.copytree(fixtures_dir / "catalogs" / "thesis-e", cat)
+    shutil.copytree(CATALOGS / "thesis-e", cat)
     motors = cat / "motors.csv"
     motors.write_text(motors.read_text(encoding="utf-8").replace(",price,", ",mass_g,", 1),
                       encoding="utf-8")
@@ -106,7 +107,7 @@ def test_other_tables_refuse_a_column_named_twice(tmp_path: Path, capsys,
     assert "motors.csv: the header names column 'mass_g' twice" in err
 
     rig = tmp_path / "rig" / "sim.toml"
-    shutil.copytree(fixtures_dir / "rigs", rig.parent)
+    shutil.copytree(RIGS, rig.parent)
     (rig.parent / "sim.thrust_map.csv").write_text("command_us,thrust_n,thrust_n\n"
                                                    "1000,0,1\n2000,8,9\n", encoding="utf-8")
     err = run_bad(capsys, "step", "--rig", str(rig), "--dry-run")
@@ -501,7 +502,7 @@ def test_rig_file_or_thrust_map_with_garbage_bytes(tmp_path: Path, capsys,
     for argv in (["step", "--dry-run"], ["check"]):
         err = run_bad(capsys, *argv, "--rig", str(rig))
         assert f"{rig}: not valid TOML: 'utf-8' codec can't decode" in err
-    text = (fixtures_dir / "rigs" / "sim.toml").read_text()
+    text = (RIGS / "sim.toml").read_text()
     rig.write_text(text)
     (tmp_path / "sim.thrust_map.csv").write_bytes(garbage)
     err = run_bad(capsys, "step", "--dry-run", "--rig", str(rig))
@@ -513,7 +514,7 @@ def test_imu_rig_given_to_a_propulsion_command(capsys, fixtures_dir: Path,
                                                command: str) -> None:
     """It said 'hexapod: unknown key; expected one of rig, devices, ...'. (``check``
     checks IMU-bench rigs: tests/bench/test_check_imu_rig.py.)"""
-    rig = fixtures_dir / "rigs" / "sim-imu.toml"
+    rig = RIGS / "sim-imu.toml"
     err = run_bad(capsys, command, "--rig", str(rig), "--dry-run")
     assert 'kind = "imu": an IMU-bench rig' in err and "rotorbench calibrate" in err
 
@@ -562,11 +563,11 @@ def test_fit_multi_rate_run_prints_no_numpy_warning(tmp_path: Path, capsys) -> N
 def test_check_rig_mixing_sim_and_hardware(tmp_path: Path, capsys, fixtures_dir: Path) -> None:
     """check listed each sim device as FAIL 'unknown device URL scheme 'sim''; step said
     what is wrong. Both now say it in one line."""
-    text = (fixtures_dir / "rigs" / "sim.toml").read_text()
+    text = (RIGS / "sim.toml").read_text()
     rig = tmp_path / "mixed.toml"
     rig.write_text(text.replace('url = "sim://power"', 'url = "nidaq://Dev1/ai1,ai2"'))
     (tmp_path / "sim.thrust_map.csv").write_text(
-        (fixtures_dir / "rigs" / "sim.thrust_map.csv").read_text())
+        (RIGS / "sim.thrust_map.csv").read_text())
     for argv in (["check"], ["step", "--repeats", "1", "--out", str(tmp_path / "runs")]):
         err = run_bad(capsys, *argv, "--rig", str(rig))
         assert "[devices.esc] url 'sim://esc': sim:// devices run on the simulated clock" in err
@@ -577,7 +578,7 @@ def test_catalog_with_semicolons_says_so(tmp_path: Path, capsys, fixtures_dir: P
     import shutil
 
     cat = tmp_path / "cat"
-    shutil.copytree(fixtures_dir / "catalogs" / "thesis-e", cat)
+    shutil.copytree(CATALOGS / "thesis-e", cat)
     motors = cat / "motors.csv"
     motors.write_text(motors.read_text().replace(",", ";"))
     err = run_bad(capsys, "optimize", "--catalog", str(cat))
@@ -622,7 +623,7 @@ def test_catalog_by_shipped_name_and_bad_environment(tmp_path: Path, capsys,
 
 def test_robot_example_given_as_a_catalog(capsys, fixtures_dir: Path) -> None:
     """It said only 'missing file propellers.csv'."""
-    err = run_bad(capsys, "optimize", "--catalog", str(fixtures_dir / "catalogs" / "thesis-robot"))
+    err = run_bad(capsys, "optimize", "--catalog", str(CATALOGS / "thesis-robot"))
     assert "mobile-robot example (robot.toml), not a multirotor catalog" in err
 
 
@@ -634,13 +635,13 @@ def test_devices_can_timeout_must_be_positive(capsys, value: str) -> None:
 
 def test_replay_file_that_is_not_a_recording(tmp_path: Path, capsys, fixtures_dir: Path) -> None:
     """Garbage bytes said 'This file contains pickled (object) data ... allow_pickle='."""
-    text = (fixtures_dir / "rigs" / "sim.toml").read_text()
+    text = (RIGS / "sim.toml").read_text()
     rec = tmp_path / "rec.npz"
     rec.write_bytes(b"\xac\x00 garbage" * 20)
     rig = tmp_path / "replay.toml"
     rig.write_text(text.replace('url = "sim://load_cell"', f'url = "replay://{rec}"'))
     (tmp_path / "sim.thrust_map.csv").write_text(
-        (fixtures_dir / "rigs" / "sim.thrust_map.csv").read_text())
+        (RIGS / "sim.thrust_map.csv").read_text())
     err = run_bad(capsys, "check", "--rig", str(rig))
     assert "rec.npz: not a NumPy .npz file (expected an .npz recording" in err
     assert "pickle" not in err
@@ -707,9 +708,9 @@ def test_check_deep_save_is_checked_before_listening(tmp_path: Path, capsys,
     """A folder, a path below a file or the rig itself as --save were tracebacks (or
     replaced the rig file) after the listening."""
     rig = tmp_path / "rig.toml"
-    rig.write_text((fixtures_dir / "rigs" / "sim.toml").read_text())
+    rig.write_text((RIGS / "sim.toml").read_text())
     (tmp_path / "sim.thrust_map.csv").write_text(
-        (fixtures_dir / "rigs" / "sim.thrust_map.csv").read_text())
+        (RIGS / "sim.thrust_map.csv").read_text())
     (tmp_path / "folder").mkdir()
     base = ["check", "--rig", str(rig), "--deep", "--seconds", "0.2", "--save"]
     err = run_bad(capsys, *base, str(tmp_path / "folder"))
@@ -790,7 +791,7 @@ def test_catalog_cell_beyond_1e9_is_refused(tmp_path: Path, capsys, fixtures_dir
     import shutil
 
     cat = tmp_path / "cat"
-    shutil.copytree(fixtures_dir / "catalogs" / "thesis-e", cat)
+    shutil.copytree(CATALOGS / "thesis-e", cat)
     lines = (cat / "propellers.csv").read_text().splitlines()
     header = lines[0].split(",")
     row = lines[1].split(",")
@@ -864,7 +865,7 @@ def test_a_symlink_loop_as_input_is_one_line(tmp_path: Path, capsys, monkeypatch
 def test_a_rigs_thrust_map_that_loops_is_one_line(tmp_path: Path, capsys,
                                                   fixtures_dir: Path) -> None:
     rig = tmp_path / "sim.toml"
-    rig.write_text((fixtures_dir / "rigs" / "sim.toml").read_text(encoding="utf-8"))
+    rig.write_text((RIGS / "sim.toml").read_text(encoding="utf-8"))
     map_link = tmp_path / "sim.thrust_map.csv"
     map_link.symlink_to(map_link.name)
     err = run_bad(capsys, "step", "--rig", str(rig), "--dry-run")
@@ -908,7 +909,7 @@ def test_a_catalog_file_that_loops_or_blocks(tmp_path: Path, capsys, fixtures_di
     import shutil
 
     cat = tmp_path / "cat"
-    shutil.copytree(fixtures_dir / "catalogs" / "thesis-e", cat)
+    shutil.copytree(CATALOGS / "thesis-e", cat)
     (cat / name).unlink()
     if kind == "loop":
         (cat / name).symlink_to(name)

@@ -37,9 +37,10 @@ def test_nothing_reaches_beside_the_repository() -> None:
     assert hits == []
 
 
-@pytest.mark.parametrize("data_set", ["sizinglab", "broad", "esc_test"])
+@pytest.mark.parametrize("data_set", ["optimizer/data/sizinglab", "fixtures/data/broad",
+                                      "fixtures/data/esc_test"])
 def test_each_shipped_data_set_has_its_licence_and_source(data_set: str) -> None:
-    folder = REPO / "fixtures" / "data" / data_set
+    folder = REPO / data_set
     assert (folder / "LICENSE").stat().st_size > 500
     source = (folder / "SOURCE.md").read_text(encoding="utf-8")
     assert "Shipped in this repository under" in source and "commit" in source

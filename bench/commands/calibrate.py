@@ -6,7 +6,7 @@ and apply.
     rotorbench calibrate --from-log sim.parquet --out cal.json [--figures DIR]
     rotorbench calibrate apply --cal cal.json LOG --out corrected.parquet
 
-On the rig (default: the simulated IMU bench ``fixtures/rigs/sim-imu.toml``) every Paper A
+On the rig (default: the simulated IMU bench ``bench/data/rigs/sim-imu.toml``) every Paper A
 stage runs as its own recorded run (``bench.jobs.calibration_stages``); the stages' samples are
 joined into one calibration log next to the runs and calibrated like ``--from-log``.
 """
@@ -89,7 +89,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="random seed (--simulate-log: default 0; rig: the rig file's seed)")
     p.add_argument("--rig", type=Path, metavar="FILE",
                    help="IMU-bench rig file ([rig] kind = \"imu\"); default: the simulated "
-                        "bench fixtures/rigs/sim-imu.toml")
+                        "bench bench/data/rigs/sim-imu.toml")
     p.add_argument("--quick", action="store_true",
                    help="on the rig: shortened stages (3000-sample hold, 0.02 Hz rotation, "
                         "20 s lever-arm and 30 s verification motions)")
@@ -227,7 +227,7 @@ def _load(args: argparse.Namespace):
         _check_toml(path)  # a broken file is reported as broken, not as the wrong kind
     if path.is_file() and not is_imu_rig(path):
         raise RigError(f"{path}: [rig] kind: not an IMU-bench rig; `rotorbench calibrate` "
-                       "needs a rig file with [rig] kind = \"imu\" (see fixtures/rigs/"
+                       "needs a rig file with [rig] kind = \"imu\" (see bench/data/rigs/"
                        "sim-imu.toml)")
     rig = load_imu_rig(path)
     return rig.with_seed(args.seed) if args.seed is not None else rig

@@ -25,7 +25,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "stopped, the IMUs must deliver samples.")
     p.add_argument("--rig", type=Path, default=None,
                    help="rig file (TOML), propulsion or IMU bench; default: the simulated rig "
-                        "fixtures/rigs/sim.toml")
+                        "bench/data/rigs/sim.toml")
     p.add_argument("--timeout", type=float, default=2.0,
                    help="seconds to wait for each device (default 2)")
     p.add_argument("--json", action="store_true", help="print JSON lines instead of a table")

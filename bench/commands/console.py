@@ -26,7 +26,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "window (no heartbeat for 1 s) does the same. On an IMU-bench rig the IMU "
                     "tab runs the Paper A calibration.")
     p.add_argument("--rig", type=Path, default=None,
-                   help="rig file (TOML); default: the simulated rig fixtures/rigs/sim.toml")
+                   help="rig file (TOML); default: the simulated rig bench/data/rigs/sim.toml")
     p.add_argument("--out", type=Path, default=cli.DEFAULT_OUT,
                    help="output root for run folders and runs.sqlite (default: ./runs); with "
                         "a lab --store, the data location")

@@ -29,7 +29,7 @@ from analysis.atomic_files import write_atomically
 from bench.errors import RigError
 from bench.rig import rig_imu, rig_propulsion
 from bench.rig.input_paths import check_input
-from bench.rig.rig_devices import REPO, URL_SCHEMES, DeviceConfig
+from bench.rig.rig_devices import URL_SCHEMES, DeviceConfig
 from bench.rig.rig_imu import HEXAPOD_LIMIT_MAXIMA, HexapodSettings, ImuSettings, ImuSimConfig
 from bench.rig.rig_propulsion import (
     ESC_MODES,
@@ -45,9 +45,10 @@ from bench.rig.rig_propulsion import (
     make_thrust_map,
 )
 from bench.rig.rig_table import RigTable, read_rig_toml
+from bench.rig.shipped_rigs import shipped_rig
 
 __all__ = ["BENCH_SECTIONS", "ESC_MODES", "FRAME_RATE_RANGE_HZ", "HEXAPOD_LIMIT_MAXIMA",
-           "LIMIT_MAXIMA", "PULSE_RANGE_US", "REPO", "ROLES", "URL_SCHEMES", "Components",
+           "LIMIT_MAXIMA", "PULSE_RANGE_US", "ROLES", "URL_SCHEMES", "Components",
            "DeviceConfig", "EscConfig", "HexapodSettings", "ImuSettings", "ImuSimConfig",
            "Limits", "RigConfig", "SimConfig", "ThrustMap", "default_imu_rig_path",
            "default_rig_path", "is_imu_rig", "is_shipped_rig", "load_any_rig",
@@ -63,16 +64,16 @@ BENCH_SECTIONS: Mapping[str, Callable[[Path, RigTable], dict[str, Any]]] = {
 
 def default_rig_path() -> Path:
     """The simulated rig every command uses when no ``--rig`` is given."""
-    return REPO / "fixtures" / "rigs" / "sim.toml"
+    return shipped_rig("sim.toml")
 
 
 def default_imu_rig_path() -> Path:
     """The simulated IMU bench ``rotorbench calibrate`` uses when no ``--rig`` is given."""
-    return REPO / "fixtures" / "rigs" / "sim-imu.toml"
+    return shipped_rig("sim-imu.toml")
 
 
 def is_shipped_rig(path: str | os.PathLike[str]) -> bool:
-    """True for a rig file inside the package's own ``fixtures/rigs`` folder.
+    """True for a rig file inside the package's own rigs folder (``bench/data/rigs``).
 
     Shipped rigs are read-only references: a sweep stores a copy of them (with its map)
     under the output folder instead of rewriting tracked or installed files.
@@ -181,7 +182,7 @@ def load_rig(path: str | os.PathLike[str]) -> RigConfig:
     if _kind_of(read_rig_toml(path)) == "imu":
         raise RigError(f"{path}: [rig] kind = \"imu\": an IMU-bench rig (hexapod and IMUs); "
                        "this command needs a propulsion rig (esc, load_cell, power, rpm), e.g. "
-                       "fixtures/rigs/sim.toml; the IMU bench runs with `rotorbench calibrate`")
+                       "bench/data/rigs/sim.toml; the IMU bench runs with `rotorbench calibrate`")
     return _load(path, "propulsion")
 
 

@@ -10,15 +10,13 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 from urllib.parse import urlsplit
 
 from bench.rig.rig_table import RigTable
 
-__all__ = ["REPO", "URL_SCHEMES", "DeviceConfig", "parse_device"]
+__all__ = ["URL_SCHEMES", "DeviceConfig", "parse_device"]
 
-REPO = Path(__file__).resolve().parents[2]
 URL_SCHEMES = ("sim", "replay", "serial", "can", "nidaq", "tcp")
 
 

@@ -5,7 +5,7 @@ reference IMU (Paper A/B).
 the one :class:`bench.rig.rig.RigConfig`; problems raise ``RigError`` naming the file and the
 field.
 
-Layout (see ``fixtures/rigs/sim-imu.toml``): ``[devices.hexapod|imu|reference_imu]`` with
+Layout (see ``bench/data/rigs/sim-imu.toml``): ``[devices.hexapod|imu|reference_imu]`` with
 ``url`` (and ``options``), ``[hexapod]`` limits, pivot and log/trajectory rates, ``[imu]``
 the datasheet figures of the IMU under test and the operator's measured mounting,
 ``[reference_imu]`` the simulated reference's rate and noise, ``[sim]`` seed, noise switch,

@@ -22,8 +22,9 @@ import numpy as np
 
 from bench.errors import RigError, ThrustOutsideMap
 from bench.rig.input_paths import check_input
-from bench.rig.rig_devices import REPO, DeviceConfig, parse_device
+from bench.rig.rig_devices import DeviceConfig, parse_device
 from bench.rig.rig_table import RigTable
+from optimizer.shipped_data import CATALOGS
 
 __all__ = ["ESC_MODES", "LIMIT_MAXIMA", "ROLES", "Components", "EscConfig", "Limits",
            "SimConfig", "ThrustMap", "make_thrust_map", "parse", "read_thrust_map"]
@@ -77,7 +78,8 @@ class Limits:
 
 @dataclass(frozen=True)
 class Components:
-    """The hardware under test, as ids of an optimizer catalog (``fixtures/catalogs/<id>``)."""
+    """The hardware under test, as ids of a shipped optimizer catalog
+    (``optimizer/data/catalogs/<id>``)."""
 
     catalog: str
     motor: str
@@ -240,7 +242,7 @@ def _components(path: Path, t: RigTable) -> Components:
     comp = Components(**{k: t.text(k) for k in keys})
     if comp.esc_mode not in ESC_MODES:
         t.fail("esc_mode", f"{comp.esc_mode!r}: expected one of {', '.join(ESC_MODES)}")
-    cat_dir = REPO / "fixtures" / "catalogs" / comp.catalog
+    cat_dir = CATALOGS / comp.catalog
     for key, csv_name in (("motor", "motors.csv"), ("propeller", "propellers.csv"),
                           ("battery", "batteries.csv")):
         table = cat_dir / csv_name

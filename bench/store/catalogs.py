@@ -1,7 +1,7 @@
 """Which component catalog a command means: a folder, a shipped name, or the default.
 
 The sizing commands take ``--catalog DIR``; a bare name that is no folder here but a
-catalog shipped in ``fixtures/catalogs`` (``thesis-e``, ``thesis-d``) means that one; no
+catalog shipped in ``optimizer/data/catalogs`` (``thesis-e``, ``thesis-d``) means that one; no
 ``--catalog`` means ``$ROTORBENCH_CATALOG`` or ``thesis-e``. A missing default (an
 install without the source tree) is a one-line ``CatalogError``, not a traceback. Kept
 out of the commands because ``optimize``, ``evaluate``, ``pareto``, ``fly`` and the demo
@@ -15,15 +15,16 @@ from pathlib import Path
 from typing import Any
 
 from optimizer.errors import CatalogError
+from optimizer.shipped_data import CATALOGS
 
 __all__ = ["SHIPPED_CATALOGS", "default_catalog", "load", "shipped_catalog", "with_current_model",
            "with_min_thrust_to_weight"]
 
-SHIPPED_CATALOGS = Path(__file__).resolve().parents[2] / "fixtures" / "catalogs"
+SHIPPED_CATALOGS = CATALOGS
 
 
 def default_catalog() -> Path:
-    """fixtures/catalogs/thesis-e of the source tree (or $ROTORBENCH_CATALOG)."""
+    """The shipped catalog thesis-e (or $ROTORBENCH_CATALOG)."""
     env = os.environ.get("ROTORBENCH_CATALOG")
     if env:
         return _shipped_name(Path(env))

@@ -14,6 +14,7 @@ from analysis.errors import LogError
 from analysis.run_record import read_run
 from analysis.vibration import vibration_spectrum, vibration_vs_speed
 from bench.cli import main
+from tests.conftest import RIGS
 
 RCB = "esc_test/rcbenchmark_Log_2019-11-05_171350.csv"
 
@@ -21,7 +22,7 @@ RCB = "esc_test/rcbenchmark_Log_2019-11-05_171350.csv"
 def _rig(fixtures_dir: Path, tmp_path: Path, imbalance: float, blade_pass: float,
          blades: int) -> Path:
     """sim-vibration.toml with other amplitudes and blade count, beside its thrust map."""
-    src = fixtures_dir / "rigs" / "sim-vibration.toml"
+    src = RIGS / "sim-vibration.toml"
     text = src.read_text(encoding="utf-8")
     text = text.replace("vibration_imbalance_m_s2 = 3.0", f"vibration_imbalance_m_s2 = {imbalance}")
     text = text.replace("vibration_blade_pass_m_s2 = 1.5",
@@ -30,7 +31,7 @@ def _rig(fixtures_dir: Path, tmp_path: Path, imbalance: float, blade_pass: float
     rig = tmp_path / "rig.toml"
     rig.write_text(text, encoding="utf-8")
     (tmp_path / "sim.thrust_map.csv").write_bytes(
-        (fixtures_dir / "rigs" / "sim.thrust_map.csv").read_bytes())
+        (RIGS / "sim.thrust_map.csv").read_bytes())
     return rig
 
 
@@ -47,7 +48,7 @@ def _step(rig: Path, out: Path, capsys) -> Path:
 @pytest.fixture(scope="module")
 def shipped_step(fixtures_dir_module, tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("vib")
-    assert main([*STEP, "--rig", str(fixtures_dir_module / "rigs" / "sim-vibration.toml"),
+    assert main([*STEP, "--rig", str(RIGS / "sim-vibration.toml"),
                  "--out", str(out)]) == 0
     return next(out.glob("*-step1"))
 
@@ -86,8 +87,8 @@ def test_a_three_blade_rotor_with_little_imbalance_peaks_at_blade_pass(fixtures_
 
 
 def test_a_rig_without_vibration_samples_exactly_as_before(fixtures_dir, tmp_path, capsys):
-    plain = read_run(_step(fixtures_dir / "rigs" / "sim.toml", tmp_path / "a", capsys))
-    vib = read_run(_step(fixtures_dir / "rigs" / "sim-vibration.toml", tmp_path / "b",
+    plain = read_run(_step(RIGS / "sim.toml", tmp_path / "a", capsys))
+    vib = read_run(_step(RIGS / "sim-vibration.toml", tmp_path / "b",
                           capsys))
     assert "acc_x_m_s2" not in plain.samples.columns
     for col in ("t_s", "thrust_n", "current_a", "voltage_v", "rpm"):
@@ -114,7 +115,7 @@ def test_report_shows_vibration_against_speed_and_the_spectrum(shipped_step, tmp
 
 def test_a_sweep_gets_vibration_against_speed_but_no_spectrum(fixtures_dir, tmp_path,
                                                               capsys):
-    assert main(["sweep", "--rig", str(fixtures_dir / "rigs" / "sim-vibration.toml"),
+    assert main(["sweep", "--rig", str(RIGS / "sim-vibration.toml"),
                  "--out", str(tmp_path / "runs")]) == 0
     run = next((tmp_path / "runs").glob("*-sweep"))
     capsys.readouterr()

@@ -14,7 +14,7 @@ from drivers.errors import DeviceError
 from drivers.factory import open_rig
 
 REPO = Path(__file__).resolve().parents[2]
-RIG = load_imu_rig(REPO / "fixtures" / "rigs" / "sim-imu-tcp.toml")
+RIG = load_imu_rig(REPO / "bench" / "data" / "rigs" / "sim-imu-tcp.toml")
 
 
 def _opened(change):

@@ -27,7 +27,7 @@ from drivers.hexapod_motions import gyro_sines
 pytestmark = pytest.mark.slow(wall_s=20)  # a calibration through the PI GCS wire: started first
 
 REPO = Path(__file__).resolve().parents[2]
-TCP_RIG_PATH = REPO / "fixtures" / "rigs" / "sim-imu-tcp.toml"
+TCP_RIG_PATH = REPO / "bench" / "data" / "rigs" / "sim-imu-tcp.toml"
 RIG = load_imu_rig(TCP_RIG_PATH)
 SEQ = Sequence("cal_test", (SetPivot(), Rest(0.5, "gyro"),
                                        Move(gyro_sines(beats=1), "gyro"), Rest(0.5, "gyro")))

@@ -37,7 +37,7 @@ from drivers.hexapod_motions import gyro_sines
 pytestmark = pytest.mark.slow(wall_s=120)  # the calibration through the wire: 115-120 s
 
 REPO = Path(__file__).resolve().parents[2]
-WIRE_RIG_PATH = REPO / "fixtures" / "rigs" / "sim-imu-wire.toml"
+WIRE_RIG_PATH = REPO / "bench" / "data" / "rigs" / "sim-imu-wire.toml"
 RIG = load_imu_rig(WIRE_RIG_PATH)
 SEQ = Sequence("cal_test", (SetPivot(), Rest(0.5, "gyro"),
                                        Move(gyro_sines(beats=1), "gyro"), Rest(0.5, "gyro")))

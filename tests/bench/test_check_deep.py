@@ -11,7 +11,7 @@ import pytest
 
 from bench.cli import main
 
-RIGS = Path(__file__).resolve().parents[2] / "fixtures" / "rigs"
+RIGS = Path(__file__).resolve().parents[2] / "bench" / "data" / "rigs"
 
 
 def _copy(tmp_path: Path, name: str) -> Path:

@@ -14,7 +14,7 @@ from drivers.contracts import Trajectory
 from drivers.factory import open_rig
 from drivers.hexapod_motions import gyro_sines
 
-RIGS = Path(__file__).resolve().parents[2] / "fixtures" / "rigs"
+RIGS = Path(__file__).resolve().parents[2] / "bench" / "data" / "rigs"
 
 
 @pytest.mark.parametrize("name", ["sim-imu", "sim-imu-tcp", "sim-imu-wire"])

@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 
 from bench.cli import main
+from tests.conftest import SIZINGLAB
 
 
 def mode(path: Path) -> int:
@@ -88,6 +89,6 @@ def test_demo_folder_is_0755(tmp_path: Path, umask_022: None, capsys) -> None:
 def test_imported_catalog_folder_is_0755(tmp_path: Path, umask_022: None, capsys,
                                          shared_data: Path) -> None:
     out = tmp_path / "cat"
-    assert main(["import-sizinglab", "--source", str(shared_data / "sizinglab"),
+    assert main(["import-sizinglab", "--source", str(SIZINGLAB),
                  "--out", str(out)]) == 0
     assert mode(out) == 0o755

@@ -14,6 +14,8 @@ import time
 import numpy as np
 import pytest
 
+from tests.conftest import RIGS
+
 os.environ["QT_QPA_PLATFORM"] = "offscreen"
 pytest.importorskip("pyqtgraph")
 
@@ -258,7 +260,7 @@ def test_step_live_from_the_command_line_runs_to_the_end(tmp_path, fixtures_dir)
     env = {**os.environ, "QT_QPA_PLATFORM": "offscreen"}
     proc = subprocess.Popen(
         [sys.executable, "-m", "bench.cli", "step", "--live", "--repeats", "2", "--rig",
-         str(fixtures_dir / "rigs" / "sim.toml"), "--out", str(tmp_path)],
+         str(RIGS / "sim.toml"), "--out", str(tmp_path)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     try:
         deadline = time.monotonic() + 120

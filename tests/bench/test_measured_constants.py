@@ -20,9 +20,9 @@ from optimizer.errors import RequestError
 from optimizer.objectives import single
 from optimizer.selection import Requirements
 from optimizer.selection_options import solve
-from tests.conftest import FIXTURES
+from tests.conftest import CATALOGS
 
-CATALOG = FIXTURES / "catalogs" / "thesis-e"
+CATALOG = CATALOGS / "thesis-e"
 STATIC = {"hover_thrust_n": [0.5, 1.0, 2.0, 3.0], "hover_current_a": [0.3, 0.7, 1.6, 2.8],
           "voltage_v": 12.0, "thrust_max_n": 3.0, "k_f_n_s2": 1.2e-6, "k_q_nm_s2": -1.0}
 STEP = {"tau_up_s": 0.040, "tau_down_s": 0.060, "latency_s": 0.0}

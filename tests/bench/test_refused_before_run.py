@@ -12,7 +12,7 @@ import pytest
 from bench.cli import main
 from tests.test_cli_errors import run_bad
 
-FIXTURE_RIGS = Path(__file__).resolve().parents[2] / "fixtures" / "rigs"
+FIXTURE_RIGS = Path(__file__).resolve().parents[2] / "bench" / "data" / "rigs"
 
 
 # --- row 15: a device-option error writes nothing -----------------------------------------

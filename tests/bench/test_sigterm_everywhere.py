@@ -49,7 +49,7 @@ def test_sigterm_on_the_console_makes_the_running_session_safe(tmp_path: Path) -
     pytest.importorskip("pyqtgraph")
     out = tmp_path / "runs"
     code, err = _terminate_when(
-        ["console", "--rig", str(REPO / "fixtures" / "rigs" / "sim.toml"), "--selftest",
+        ["console", "--rig", str(REPO / "bench" / "data" / "rigs" / "sim.toml"), "--selftest",
          "--out", str(out)],
         lambda: any(out.glob("*-manual/samples.parquet/part-*")))
     assert code == 143, err

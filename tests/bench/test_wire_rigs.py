@@ -1,6 +1,6 @@
 """The bench on the wire-level simulated rigs: same step results, safe ends on disconnects.
 
-``fixtures/rigs/sim-serial.toml`` (MSP motor test + line-printing load-cell board on ptys)
+``bench/data/rigs/sim-serial.toml`` (MSP motor test + line-printing load-cell board on ptys)
 and ``sim-can.toml`` (VESC on python-can's virtual bus + the board) run the real backends
 against simulated devices driven by the plant of ``sim.toml``, in real time. These tests
 run ``rotorbench step`` / ``fit`` / ``check`` through the CLI and the runner through

@@ -24,7 +24,7 @@ from drivers.factory import open_rig
 from drivers.wire_sim.pty_sim import PtyStream
 
 ep = sys.modules["rotorbench_tests_expected_protocol"]
-RIGS = Path(__file__).resolve().parents[2] / "fixtures" / "rigs"
+RIGS = Path(__file__).resolve().parents[2] / "bench" / "data" / "rigs"
 T = Path(__file__).resolve().parents[2] / "fixtures" / "transcripts" / "kiss"
 
 

@@ -20,7 +20,7 @@ _spec = importlib.util.spec_from_file_location("rotorbench_tests_factory_rigs",
 rigs = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(rigs)
 
-SIM_SERIAL = Path(__file__).resolve().parents[2] / "fixtures" / "rigs" / "sim-serial.toml"
+SIM_SERIAL = Path(__file__).resolve().parents[2] / "bench" / "data" / "rigs" / "sim-serial.toml"
 
 
 class Dev:

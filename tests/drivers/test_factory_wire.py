@@ -21,7 +21,7 @@ _spec = importlib.util.spec_from_file_location("rotorbench_tests_factory_rigs",
 rigs = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(rigs)
 
-RIGS = Path(__file__).resolve().parents[2] / "fixtures" / "rigs"
+RIGS = Path(__file__).resolve().parents[2] / "bench" / "data" / "rigs"
 
 
 def _spin(r, pulse_us: float, seconds: float) -> dict:

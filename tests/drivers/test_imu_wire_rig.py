@@ -21,7 +21,7 @@ from drivers.factory import open_rig
 from drivers.wire_sim.paced_clock import PacedClock
 
 REPO = Path(__file__).resolve().parents[2]
-WIRE_RIG = REPO / "fixtures" / "rigs" / "sim-imu-wire.toml"
+WIRE_RIG = REPO / "bench" / "data" / "rigs" / "sim-imu-wire.toml"
 G = 9.80665
 
 

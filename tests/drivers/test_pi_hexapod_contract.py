@@ -30,7 +30,7 @@ from drivers.hexapod_motions import gyro_sines, lever_arm_motion, verification_m
 from drivers.sim.hexapod import SimHexapod
 
 REPO = Path(__file__).resolve().parents[2]
-TCP_RIG = REPO / "fixtures" / "rigs" / "sim-imu-tcp.toml"
+TCP_RIG = REPO / "bench" / "data" / "rigs" / "sim-imu-tcp.toml"
 
 
 @pytest.fixture

@@ -12,7 +12,7 @@ from drivers import registry
 from drivers.device_options import parse_device
 from drivers.errors import DeviceError
 
-RIGS = Path(__file__).resolve().parents[2] / "fixtures" / "rigs"
+RIGS = Path(__file__).resolve().parents[2] / "bench" / "data" / "rigs"
 
 
 class Dev:

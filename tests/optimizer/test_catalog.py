@@ -15,7 +15,7 @@ from optimizer.errors import CatalogError
 from optimizer.model_constants import ModelConstants
 
 ROOT = Path(__file__).resolve().parents[2]
-THESIS_E = ROOT / "fixtures" / "catalogs" / "thesis-e"
+THESIS_E = ROOT / "optimizer" / "data" / "catalogs" / "thesis-e"
 
 
 @pytest.fixture
@@ -57,7 +57,7 @@ def test_thesis_catalogs_load_and_convert_units():
     assert cat.motors["mass_kg"].iloc[0] == pytest.approx(0.111)
     assert cat.batteries["capacity_ah"].tolist() == pytest.approx([4.0, 8.0, 16.0, 3.3])
     assert cat.constants.price_includes_propellers is False
-    d = load_catalog(ROOT / "fixtures" / "catalogs" / "thesis-d")
+    d = load_catalog(ROOT / "optimizer" / "data" / "catalogs" / "thesis-d")
     assert d.propeller_ids == tuple(f"P{i}" for i in range(1, 7))
     assert d.motor_ids == tuple(f"M{i}" for i in range(1, 6))
     # 2200 mAh x 25 C = 55 A (Paper D section 4)

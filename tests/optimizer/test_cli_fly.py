@@ -12,7 +12,7 @@ from optimizer.catalog import load_catalog
 from optimizer.design_model import evaluate_grid
 from optimizer.flight.design import setup
 from optimizer.measured import MeasuredActuator
-from tests.conftest import FIXTURES
+from tests.conftest import CATALOGS
 
 CASE_I = ["--actuators", "4", "--propeller", "P4", "--motor", "M1", "--battery", "B3"]
 
@@ -35,7 +35,7 @@ def test_fly_json_has_the_issue_keys(capsys, tmp_path) -> None:
     assert sorted(p.name for p in tmp_path.glob("*.png")) == [
         "fly_gust.png", "fly_hover.png", "fly_roll_step.png"]
     # the hover's shaft power is the model's (E.60-E.63) at evaluate's hover speed
-    grid = evaluate_grid(load_catalog(FIXTURES / "catalogs" / "thesis-e"), 4)
+    grid = evaluate_grid(load_catalog(CATALOGS / "thesis-e"), 4)
     model_w = 4 * float(grid.metrics["propeller_power_w"][3, 0, 2])  # P4+M1+B3
     assert doc["hover"]["shaft_power_w"] == pytest.approx(model_w, rel=0.02)
     assert doc["hover"]["can_hover"] is True and doc["hover"]["note"] == ""
@@ -91,7 +91,7 @@ def test_plus_layout_flies_the_same_roll_step(capsys) -> None:
 
 
 def test_measured_actuator_numbers_reach_the_flight_model() -> None:
-    catalog = load_catalog(FIXTURES / "catalogs" / "thesis-e")
+    catalog = load_catalog(CATALOGS / "thesis-e")
     item = MeasuredActuator("P4", "M1", time_constant_s=0.09, tau_up_s=0.06, tau_down_s=0.12,
                             latency_s=0.004, k_f_n_s2=6e-5, k_m_nm_s2=2e-6,
                             time_constant_source="run-x")

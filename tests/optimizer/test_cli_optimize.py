@@ -10,6 +10,7 @@ import pytest
 
 from bench.cli import main
 from optimizer.selection import ENTRY_KEYS
+from tests.conftest import CATALOGS, SIZINGLAB
 
 
 def run_json(capsys, *argv: str) -> tuple[int, dict]:
@@ -18,7 +19,7 @@ def run_json(capsys, *argv: str) -> tuple[int, dict]:
 
 
 def test_optimize_json_keys_and_best(capsys, fixtures_dir) -> None:
-    cat = str(fixtures_dir / "catalogs" / "thesis-e")
+    cat = str(CATALOGS / "thesis-e")
     code, out = run_json(capsys, "optimize", "--catalog", cat, "--objective", "flight-time")
     assert code == 0
     assert [d["actuators"] for d in out["designs"]] == [4, 6, 8]
@@ -37,7 +38,7 @@ def test_optimize_default_catalog_and_table(capsys) -> None:
 
 
 def test_methods_agree_on_the_cli(capsys, fixtures_dir) -> None:
-    cat = str(fixtures_dir / "catalogs" / "thesis-d")
+    cat = str(CATALOGS / "thesis-d")
     args = ["optimize", "--catalog", cat, "--objective", "time-constant", "--payload-kg", "0.5"]
     _, a = run_json(capsys, *args, "--method", "milp")
     _, b = run_json(capsys, *args, "--method", "exact")
@@ -116,7 +117,7 @@ def test_bad_catalog_subprocess_no_traceback(tmp_path, fixtures_dir) -> None:
     bad = tmp_path / "cat"
     bad.mkdir()
     for name in ("propellers.csv", "motors.csv", "batteries.csv"):
-        text = (fixtures_dir / "catalogs" / "thesis-e" / name).read_text()
+        text = (CATALOGS / "thesis-e" / name).read_text()
         if name == "motors.csv":
             text = text.replace(",0.222,", ",abc,")
         (bad / name).write_text(text)
@@ -147,7 +148,7 @@ def test_paper_e_cases(capsys) -> None:
 
 
 def test_import_sizinglab_command(capsys, shared_data, tmp_path) -> None:
-    source = shared_data / "sizinglab"
+    source = SIZINGLAB
     out = tmp_path / "sl"
     assert main(["import-sizinglab", "--source", str(source), "--out", str(out)]) == 0
     assert "204 motors" in capsys.readouterr().out
@@ -174,7 +175,7 @@ def test_a_chosen_design_that_cannot_hover_is_said_so(capsys, fixtures_dir) -> N
     """The exact Case III optimum with 4 actuators (P1/M1/B3; Table E.10 prints B1) needs
     4994 rpm; M1 reaches 4279 rpm on 12 V. The thesis' limits (--thesis-rules) accept it;
     optimize says so, and --flyable removes it."""
-    cat = str(fixtures_dir / "catalogs" / "thesis-e")
+    cat = str(CATALOGS / "thesis-e")
     code, doc = run_json(capsys, "optimize", "--catalog", cat, "--actuators", "4",
                          "--objective", "time-constant", "--thesis-rules")
     assert code == 0 and doc["best"]["propeller"] == "P1" and doc["best"]["motor"] == "M1"

@@ -17,7 +17,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 @pytest.fixture(scope="module")
 def cat():
-    return load_catalog(ROOT / "fixtures" / "catalogs" / "thesis-e")
+    return load_catalog(ROOT / "optimizer" / "data" / "catalogs" / "thesis-e")
 
 
 def test_grid_contract(cat):
@@ -172,7 +172,7 @@ def test_request_errors(cat):
 
 
 def test_motor_without_inertia_data_notes_it():
-    cat = load_catalog(ROOT / "fixtures" / "catalogs" / "thesis-d")
+    cat = load_catalog(ROOT / "optimizer" / "data" / "catalogs" / "thesis-d")
     assert "motor_inertia" in evaluate_grid(cat, 4).notes
 
 

@@ -19,9 +19,9 @@ from optimizer.flight.design import feasible_indices, gains_for, setup
 from optimizer.flight.maneuvers import HOVER, MANEUVERS, Maneuver, fly
 from optimizer.flight.ranking import roll_step
 from optimizer.sweep.ranking import rank
-from tests.conftest import FIXTURES
+from tests.conftest import CATALOGS
 
-CATALOG = FIXTURES / "catalogs" / "thesis-e"
+CATALOG = CATALOGS / "thesis-e"
 #: Short runs keep the file fast: the step at 0.1 s, 0.5 s of response; the gust's 0.5 s
 #: pulse from 0.1 s and 0.2 s after it.
 SHORT_S = 0.6

@@ -17,9 +17,9 @@ from optimizer.flight.metrics import step_metrics
 from optimizer.objectives import single
 from optimizer.selection import optimize
 from optimizer.sweep.ranking import rank
-from tests.conftest import FIXTURES
+from tests.conftest import CATALOGS
 
-CATALOG = FIXTURES / "catalogs" / "thesis-e"
+CATALOG = CATALOGS / "thesis-e"
 
 
 @pytest.fixture(scope="module")

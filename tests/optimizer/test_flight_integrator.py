@@ -17,13 +17,13 @@ from optimizer.flight.design import design_index, gains_for, setup
 from optimizer.flight.maneuvers import HOVER, fly
 from optimizer.flight.reference import integrate_held, lag_mean, step_held
 from optimizer.flight.vehicle import hover_state
-from tests.conftest import FIXTURES
+from tests.conftest import CATALOGS
 
 
 @pytest.fixture(scope="module")
 def thesis_e():
     """thesis-e and its N = 4 model grid."""
-    catalog = load_catalog(FIXTURES / "catalogs" / "thesis-e")
+    catalog = load_catalog(CATALOGS / "thesis-e")
     return catalog, evaluate_grid(catalog, 4)
 
 

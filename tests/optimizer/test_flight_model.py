@@ -12,9 +12,9 @@ from optimizer.design_model import evaluate_grid
 from optimizer.flight.actuators import ActuatorModel, RotorBank
 from optimizer.flight.mixer import Mixer, allocation_matrix, mixing_matrix
 from optimizer.flight.vehicle import Vehicle, derivative, hover_state, step, vehicle_from_grid
-from tests.conftest import FIXTURES
+from tests.conftest import CATALOGS
 
-CATALOG = FIXTURES / "catalogs" / "thesis-e"
+CATALOG = CATALOGS / "thesis-e"
 
 
 @pytest.fixture(scope="module")

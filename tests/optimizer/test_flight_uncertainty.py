@@ -35,6 +35,7 @@ from optimizer.flight.uncertainty import (
     with_sample,
 )
 from optimizer.measured import MeasuredActuator
+from tests.conftest import CATALOGS
 
 DESIGN = {"actuators": 4, "propeller": "P1", "motor": "M1", "battery": "B3", "series": 3,
           "parallel": 1}
@@ -224,7 +225,7 @@ def test_a_measured_actuator_checks_its_spreads() -> None:
 
 
 def test_the_flown_design_gives_its_nominal_spread_and_samples(fixtures_dir) -> None:
-    cat = load_catalog(fixtures_dir / "catalogs" / "thesis-e")
+    cat = load_catalog(CATALOGS / "thesis-e")
     measured = MeasuredActuator("P1", "M1", time_constant_s=0.05, tau_up_s=0.04,
                                 tau_down_s=0.06, latency_s=0.01, tau_up_std_s=0.004,
                                 tau_down_std_s=0.006, latency_std_s=0.001)
@@ -258,7 +259,7 @@ def test_twenty_flown_samples_of_a_measured_design_spread_about_the_nominal(fixt
     from optimizer.flight.design import gains_for
     from optimizer.flight.maneuvers import MANEUVERS, fly
 
-    cat = load_catalog(fixtures_dir / "catalogs" / "thesis-e")
+    cat = load_catalog(CATALOGS / "thesis-e")
     measured = MeasuredActuator("P4", "M1", time_constant_s=0.12, tau_up_s=0.10,
                                 tau_down_s=0.14, latency_s=0.012, tau_up_std_s=0.010,
                                 tau_down_std_s=0.014, latency_std_s=0.002)

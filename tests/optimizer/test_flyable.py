@@ -12,11 +12,12 @@ from optimizer.flyable import RULE_NAMES, FlyableBuilder, Rules, rule_checks, ru
 from optimizer.objectives import single
 from optimizer.selection import optimize
 from optimizer.sheet import design_sheet
+from tests.conftest import CATALOGS, SIZINGLAB
 
 
 @pytest.fixture
 def thesis_e(fixtures_dir):
-    return load_catalog(fixtures_dir / "catalogs" / "thesis-e")
+    return load_catalog(CATALOGS / "thesis-e")
 
 
 def _value(checks, label: str, idx) -> float:
@@ -80,7 +81,7 @@ def test_milp_equals_enumeration_with_rules(thesis_e) -> None:
 def test_sizinglab_unflyable_best_is_removed(shared_data) -> None:
     from optimizer.sizinglab import import_sizinglab
 
-    cat = import_sizinglab(shared_data / "sizinglab")
+    cat = import_sizinglab(SIZINGLAB)
     plain = optimize(cat, single("flight-time"), (4,), method="milp").designs[0]
     ids = (plain.propeller, plain.motor, plain.battery)
     grid = evaluate_grid(cat, 4)

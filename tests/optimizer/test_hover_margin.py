@@ -23,6 +23,7 @@ from optimizer.model_constants import DEFAULT_MIN_THRUST_TO_WEIGHT
 from optimizer.objectives import single
 from optimizer.paper_e_cases import PAPER_E_CASES
 from optimizer.selection import Requirements, optimize
+from tests.conftest import CATALOGS, SIZINGLAB
 
 OBJECTIVES = ("flight-time", "time-constant", "price")
 ACTUATORS = ("4", "6", "8")
@@ -65,7 +66,7 @@ def assert_hovers(capsys, catalog: str, payload: float, design: tuple) -> None:
 
 def test_thesis_e_recommendations_hover(capsys, fixtures_dir) -> None:
     """thesis-e, N = 4, 6, 8, three objectives, no payload and Case II's 1.5 kg."""
-    cat = str(fixtures_dir / "catalogs" / "thesis-e")
+    cat = str(CATALOGS / "thesis-e")
     seen = set()
     for payload in (0.0, 1.5):
         for objective in OBJECTIVES:
@@ -83,7 +84,7 @@ def test_thesis_e_recommendations_hover(capsys, fixtures_dir) -> None:
 @pytest.mark.slow
 def test_sizinglab_recommendations_hover(capsys, shared_data, tmp_path) -> None:
     """The SizingLab catalogs (their own min_thrust_to_weight 2 stays, above 1.2)."""
-    source = shared_data / "sizinglab"  # shipped: missing is a failure, not a skip
+    source = SIZINGLAB  # shipped: missing is a failure, not a skip
     sizinglab_catalog = str(tmp_path / "sl")
     assert main(["import-sizinglab", "--source", str(source), "--out", sizinglab_catalog]) == 0
     capsys.readouterr()

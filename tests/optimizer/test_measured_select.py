@@ -17,13 +17,14 @@ from optimizer.errors import RequestError
 from optimizer.measured import MeasuredActuator
 from optimizer.objectives import single
 from optimizer.selection import Requirements, optimize
+from tests.conftest import CATALOGS
 
 SOURCE_KEYS = {*MODEL_SOURCES, "max_thrust"}
 
 
 @pytest.fixture
 def cat(fixtures_dir):
-    return load_catalog(fixtures_dir / "catalogs" / "thesis-e")
+    return load_catalog(CATALOGS / "thesis-e")
 
 
 def _select(cat, objective, overrides, actuators=(4,), payload=0.0, esc_mode=None):
@@ -100,7 +101,7 @@ def test_measured_max_thrust_makes_designs_infeasible_with_a_named_reason(cat, f
     rec = evaluate_design(cat, 4, "P1", "M1", "B3", overrides=[top])
     assert not rec["feasible"] and "measured max thrust 4.3" in rec["reason"]
     # only P1 and M1 in the catalog, with the heavy battery: no design can hover
-    only = load_catalog(fixtures_dir / "catalogs" / "thesis-e")
+    only = load_catalog(CATALOGS / "thesis-e")
     only = type(only)(only.propellers.iloc[[0]].reset_index(drop=True),
                       only.motors.iloc[[0]].reset_index(drop=True),
                       only.batteries.iloc[[2]].reset_index(drop=True), only.constants,
@@ -167,7 +168,7 @@ def _store(root, tau_s=0.02, top=2.9):
 
 
 def test_cli_optimize_measured_json_sources_and_table_marks(tmp_path, capsys, fixtures_dir):
-    cat = str(fixtures_dir / "catalogs" / "thesis-e")
+    cat = str(CATALOGS / "thesis-e")
     _store(tmp_path / "runs")
     code = main(["optimize", "--catalog", cat, "--objective", "time-constant", "--actuators",
                  "4", "--measured", str(tmp_path), "--json"])  # a demo folder holds runs/
@@ -190,7 +191,7 @@ def test_cli_optimize_measured_json_sources_and_table_marks(tmp_path, capsys, fi
 
 
 def test_cli_evaluate_measured_names_the_max_thrust_check(tmp_path, capsys, fixtures_dir):
-    cat = str(fixtures_dir / "catalogs" / "thesis-e")
+    cat = str(CATALOGS / "thesis-e")
     _store(tmp_path)
     assert main(["evaluate", "--catalog", cat, "--actuators", "4", "--propeller", "P1",
                  "--motor", "M1", "--battery", "B3", "--measured", str(tmp_path),
@@ -202,7 +203,7 @@ def test_cli_evaluate_measured_names_the_max_thrust_check(tmp_path, capsys, fixt
 
 
 def test_cli_measured_bad_input_exits_2(tmp_path, capsys, fixtures_dir):
-    cat = str(fixtures_dir / "catalogs" / "thesis-e")
+    cat = str(CATALOGS / "thesis-e")
     assert main(["optimize", "--catalog", cat, "--measured", str(tmp_path / "none")]) == 2
     assert "no constants.sqlite" in capsys.readouterr().err
     _store(tmp_path)
@@ -220,7 +221,7 @@ def test_cli_measured_bad_input_exits_2(tmp_path, capsys, fixtures_dir):
 
 
 def test_cli_paper_e_cases_with_measured_constants(tmp_path, capsys, fixtures_dir):
-    cat = str(fixtures_dir / "catalogs" / "thesis-e")
+    cat = str(CATALOGS / "thesis-e")
     _store(tmp_path)
     assert main(["optimize", "--catalog", cat, "--paper-e-cases", "--actuators", "4",
                  "--measured", str(tmp_path), "--json"]) == 0

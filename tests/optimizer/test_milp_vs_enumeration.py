@@ -12,6 +12,7 @@ from optimizer import exhaustive, milp_exact
 from optimizer.catalog import Catalog, load_catalog
 from optimizer.objectives import OBJECTIVE_NAMES, single, weighted
 from optimizer.selection import Requirements, optimize
+from tests.conftest import CATALOGS
 
 SHIPPED = ("thesis-e", "thesis-d")  # thesis-robot is the mobile-robot model, not a multirotor
 
@@ -24,7 +25,7 @@ def _key(result):
 @pytest.mark.parametrize("objective", OBJECTIVE_NAMES)
 @pytest.mark.parametrize("payload", [0.0, 0.5, 1.5])
 def test_shipped_catalogs_agree(fixtures_dir, name: str, objective: str, payload: float) -> None:
-    catalog = load_catalog(fixtures_dir / "catalogs" / name)
+    catalog = load_catalog(CATALOGS / name)
     req = Requirements(payload_kg=payload)
     by_milp = optimize(catalog, single(objective), (4, 6, 8), req, "milp")
     by_enum = optimize(catalog, single(objective), (4, 6, 8), req, "exact")
@@ -38,7 +39,7 @@ def test_shipped_catalogs_agree(fixtures_dir, name: str, objective: str, payload
 
 
 def test_shipped_catalog_with_requirements_and_weights(fixtures_dir) -> None:
-    catalog = load_catalog(fixtures_dir / "catalogs" / "thesis-e")
+    catalog = load_catalog(CATALOGS / "thesis-e")
     cases = [
         (single("price"), Requirements(min_flight_time_min=40)),
         (single("flight-time"), Requirements(payload_kg=1.0, max_time_constant_ms=120)),
@@ -115,7 +116,7 @@ def test_drive_current_model_agrees_and_changes_the_numbers(fixtures_dir, seed: 
     from dataclasses import replace
 
     base = random_catalog(seed, 7, 6, 5) if seed else load_catalog(
-        fixtures_dir / "catalogs" / "thesis-e")
+        CATALOGS / "thesis-e")
     drive = replace(base, constants=base.constants.with_updates(current_model="drive"))
     for objective in OBJECTIVE_NAMES:
         a = optimize(drive, single(objective), (4, 6, 8), Requirements(), "milp")

@@ -18,9 +18,10 @@ from optimizer.design_model import evaluate_design, evaluate_grid
 from optimizer.errors import CatalogError
 from optimizer.objectives import single
 from optimizer.selection import Requirements, optimize
+from tests.conftest import SIZINGLAB
 
 ROOT = Path(__file__).resolve().parents[2]
-CATALOGS = ROOT / "fixtures" / "catalogs"
+CATALOGS = ROOT / "optimizer" / "data" / "catalogs"
 ISSUE_KEYS = (
     "actuators, feasible, propeller, motor, battery, flight_time_min, time_constant_ms, price, "
     "total_mass_kg, hover_rpm, propeller_power_w, current_a, roll_inertia_kgm2, "
@@ -226,7 +227,7 @@ def test_no_load_current_column_is_optional_and_validated(tmp_path) -> None:
 def test_sizinglab_maps_no_load_and_continuous_current(shared_data) -> None:
     from optimizer.sizinglab import import_sizinglab
 
-    folder = shared_data / "sizinglab"
+    folder = SIZINGLAB
     raw = pd.read_csv(folder / "Motors_Data.csv", sep=";")
     motors = import_sizinglab(folder).motors
     assert motors["no_load_current_a"].to_numpy() == pytest.approx(raw["Io_A"].to_numpy())

@@ -12,11 +12,12 @@ from optimizer.design_model import evaluate_grid
 from optimizer.errors import RequestError
 from optimizer.objectives import single
 from optimizer.packs import cells_of, optimize_packs, pack_frame, parse_counts, with_packs
+from tests.conftest import CATALOGS, SIZINGLAB
 
 
 @pytest.fixture
 def thesis_e(fixtures_dir) -> Catalog:
-    return load_catalog(fixtures_dir / "catalogs" / "thesis-e")
+    return load_catalog(CATALOGS / "thesis-e")
 
 
 def test_pack_of_a_cell_by_hand(thesis_e) -> None:
@@ -79,7 +80,7 @@ def _random_catalog(seed: int) -> Catalog:
 
 @pytest.mark.parametrize("objective", ["flight-time", "time-constant", "price", "power", "mass"])
 def test_milp_equals_enumeration_on_shipped_and_random_catalogs(objective, fixtures_dir) -> None:
-    catalogs = [load_catalog(fixtures_dir / "catalogs" / n) for n in ("thesis-e", "thesis-d")]
+    catalogs = [load_catalog(CATALOGS / n) for n in ("thesis-e", "thesis-d")]
     catalogs += [_random_catalog(seed) for seed in range(4)]
     for cat in catalogs:
         a = optimize_packs(cat, single(objective), (4, 6), method="milp", parallel=(1, 2, 3))
@@ -108,7 +109,7 @@ def test_decomposition_equals_one_big_grid(thesis_e) -> None:
 def test_sizinglab_milp_equals_enumeration(shared_data) -> None:
     from optimizer.sizinglab import import_sizinglab
 
-    cat = import_sizinglab(shared_data / "sizinglab")
+    cat = import_sizinglab(SIZINGLAB)
     a = optimize_packs(cat, single("flight-time"), (4,), method="milp", series=(3, 4),
                        parallel=(1, 2))
     b = optimize_packs(cat, single("flight-time"), (4,), method="exact", series=(3, 4),

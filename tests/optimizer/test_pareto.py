@@ -10,6 +10,7 @@ import pytest
 from bench.cli import main
 from optimizer.pareto import enumerate_front, is_nondominated, milp_front
 from optimizer.selection import ENTRY_KEYS
+from tests.conftest import CATALOGS
 
 
 def brute_force(cx: np.ndarray, cy: np.ndarray, ok: np.ndarray) -> list[tuple[float, float]]:
@@ -70,7 +71,7 @@ def test_merged_front_over_actuator_counts_is_not_dominated(capsys, fixtures_dir
     from optimizer.catalog import load_catalog
     from optimizer.design_model import evaluate_grid
 
-    cat_dir = fixtures_dir / "catalogs" / "thesis-d"
+    cat_dir = CATALOGS / "thesis-d"
     doc = run(capsys, "--catalog", str(cat_dir), "--x", "price", "--y", "flight-time",
               "--check")
     assert all(e["check_agrees"] for e in doc["per_actuator"])

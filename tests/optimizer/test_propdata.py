@@ -13,15 +13,16 @@ from bench.cli import main
 from optimizer.catalog import load_catalog
 from optimizer.design_model import evaluate_grid
 from optimizer.propdata import catalog_curves, load_curves, match, match_report
+from tests.conftest import CATALOGS, SIZINGLAB
 
 
 @pytest.fixture
 def curves(shared_data):
-    return load_curves(shared_data / "sizinglab")
+    return load_curves(SIZINGLAB)
 
 
 def test_coefficients_from_thrust_and_torque(curves, shared_data) -> None:
-    raw = pd.read_csv(shared_data / "sizinglab" / "APC_STATIC-data-all-props.csv", sep=";")
+    raw = pd.read_csv(SIZINGLAB / "APC_STATIC-data-all-props.csv", sep=";")
     row = raw[(raw["TYPE"] == "MR") & (raw["DIAMETER(IN)"] == 10) & (raw["PITCH(IN)"] == 4.5)
               & (raw["RPM"] == 6000)].iloc[0]
     n, d = 100.0, 10 * 0.0254  # 6000 rpm
@@ -37,19 +38,19 @@ def test_coefficients_from_thrust_and_torque(curves, shared_data) -> None:
 def test_matches_and_misses(curves, shared_data, fixtures_dir) -> None:
     from optimizer.sizinglab import import_sizinglab
 
-    lab = import_sizinglab(shared_data / "sizinglab")
+    lab = import_sizinglab(SIZINGLAB)
     found = match(lab, curves)
     assert all(c is not None and c.family == "MR" for c in found)
     for c, (_, row) in zip(found, lab.propellers.iterrows(), strict=True):
         assert c.diameter_in == pytest.approx(row["diameter_m"] / 0.0254)
         assert c.pitch_in == pytest.approx(row["pitch_m"] / 0.0254, abs=0.06)
-    thesis_d = load_catalog(fixtures_dir / "catalogs" / "thesis-d")  # no pitch column
+    thesis_d = load_catalog(CATALOGS / "thesis-d")  # no pitch column
     report = match_report(thesis_d, catalog_curves(thesis_d, curves))
     assert report["matched"] == [] and report["missed"] == list(thesis_d.propeller_ids)
 
 
 def test_constant_coefficients_reproduce_the_thesis_grid(fixtures_dir) -> None:
-    cat = load_catalog(fixtures_dir / "catalogs" / "thesis-e")
+    cat = load_catalog(CATALOGS / "thesis-e")
     ct = cat.propellers["ct"].to_numpy(float)[:, None, None]
     cp = cat.propellers["cp"].to_numpy(float)[:, None, None]
     base = evaluate_grid(cat, 6)
@@ -61,7 +62,7 @@ def test_constant_coefficients_reproduce_the_thesis_grid(fixtures_dir) -> None:
 def test_hover_with_data_is_self_consistent(curves, shared_data) -> None:
     from optimizer.sizinglab import import_sizinglab
 
-    lab = import_sizinglab(shared_data / "sizinglab")
+    lab = import_sizinglab(SIZINGLAB)
     table = catalog_curves(lab, curves)
     grid = evaluate_grid(lab, 4, coefficients=table.coefficients)
     rpm = grid.metrics["hover_rpm"]

@@ -8,11 +8,12 @@ import pytest
 
 from optimizer.errors import CatalogError
 from optimizer.robot import load_robot, solve_robot
+from tests.conftest import CATALOGS
 
 
 @pytest.fixture
 def robot(fixtures_dir: Path):
-    return load_robot(fixtures_dir / "catalogs" / "thesis-robot")
+    return load_robot(CATALOGS / "thesis-robot")
 
 
 def test_fixture_is_table_2_2(robot) -> None:

@@ -11,9 +11,9 @@ from optimizer.objectives import single
 from optimizer.paper_e_cases import PAPER_E_CASES
 from optimizer.selection import Requirements, optimize
 from optimizer.selection_options import solve
-from tests.conftest import FIXTURES
+from tests.conftest import CATALOGS
 
-CAT = load_catalog(FIXTURES / "catalogs" / "thesis-e")
+CAT = load_catalog(CATALOGS / "thesis-e")
 
 
 class _Measured:

@@ -13,6 +13,7 @@ from optimizer import physics
 from optimizer.catalog import load_catalog
 from optimizer.design_model import evaluate_design, single_design_catalog
 from optimizer.sheet import design_sheet, drive_of
+from tests.conftest import CATALOGS
 
 CASE_I = ("P4", "M1", "B3")  # Case I's best thesis-e design, 4 actuators (Table E.8)
 
@@ -24,7 +25,7 @@ def evaluate_json(capsys, *argv: str) -> dict:
 
 @pytest.fixture
 def case_i(capsys, fixtures_dir) -> dict:
-    cat = str(fixtures_dir / "catalogs" / "thesis-e")
+    cat = str(CATALOGS / "thesis-e")
     return evaluate_json(capsys, "--catalog", cat, "--actuators", "4", "--propeller", "P4",
                          "--motor", "M1", "--battery", "B3")
 
@@ -46,7 +47,7 @@ def test_case_i_thrust_to_weight_and_partial_load(case_i) -> None:
 def test_case_i_current_at_hover_thrust(capsys, fixtures_dir, model) -> None:
     """One current definition per run: the partial-load table, the hover point and the
     design's per-actuator current x18 / N agree, whichever model the run uses."""
-    cat = str(fixtures_dir / "catalogs" / "thesis-e")
+    cat = str(CATALOGS / "thesis-e")
     out = evaluate_json(capsys, "--catalog", cat, "--actuators", "4", "--propeller", "P4",
                         "--motor", "M1", "--battery", "B3", "--current-model", model)
     assert out["current_model"] == model
@@ -93,7 +94,7 @@ def test_drive_model_current_is_the_motor_electric_power(fixtures_dir) -> None:
 
 
 def test_current_model_choice_and_method_thesis(capsys, fixtures_dir) -> None:
-    cat = str(fixtures_dir / "catalogs" / "thesis-e")
+    cat = str(CATALOGS / "thesis-e")
     with pytest.raises(SystemExit) as bad:
         main(["optimize", "--catalog", cat, "--actuators", "4", "--current-model", "ecalc"])
     assert bad.value.code == 2
@@ -105,7 +106,7 @@ def test_current_model_choice_and_method_thesis(capsys, fixtures_dir) -> None:
 
 
 def test_lossless_motor_matches_the_thesis_current(fixtures_dir) -> None:
-    cat = load_catalog(fixtures_dir / "catalogs" / "thesis-e")
+    cat = load_catalog(CATALOGS / "thesis-e")
     single = single_design_catalog(cat, *CASE_I)
     single.motors.loc[0, "resistance_ohm"] = 0.0
     record = evaluate_design(single, 4, *CASE_I)
@@ -118,7 +119,7 @@ def test_lossless_motor_matches_the_thesis_current(fixtures_dir) -> None:
 
 
 def test_full_throttle_is_the_motor_steady_state(fixtures_dir) -> None:
-    cat = load_catalog(fixtures_dir / "catalogs" / "thesis-e")
+    cat = load_catalog(CATALOGS / "thesis-e")
     drive = drive_of(cat)
     op = ops.at_throttle(drive, 1.0, 12.0)
     omega = op.rpm / 60 * physics.TWO_PI
@@ -140,7 +141,7 @@ def test_battery_model_beside_the_thesis_flight_time(case_i) -> None:
 
 
 def test_free_form_parts_equal_the_catalog_design(capsys, case_i, fixtures_dir) -> None:
-    cat = str(fixtures_dir / "catalogs" / "thesis-e")
+    cat = str(CATALOGS / "thesis-e")
     free = evaluate_json(
         capsys, "--catalog", cat, "--actuators", "4",
         "--prop-diameter-m", "0.3556", "--prop-ct", "0.1027", "--prop-cp", "0.0630",

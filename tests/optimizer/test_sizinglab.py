@@ -16,11 +16,12 @@ from optimizer.sizinglab import (
     import_to_folder,
     motor_inertia_kgm2,
 )
+from tests.conftest import SIZINGLAB
 
 
 @pytest.fixture
 def sizinglab(shared_data):
-    folder = shared_data / "sizinglab"
+    folder = SIZINGLAB
     return folder
 
 

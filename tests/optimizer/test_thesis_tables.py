@@ -1,7 +1,7 @@
 """The model reproduces the designs reported in Paper E (Tables E.8-E.10) and Paper D.
 
 Expected values are the tables' printed numbers; the model derives its values from the
-shipped datasheet catalogs (fixtures/catalogs/thesis-e, thesis-d) and their catalog.toml
+shipped datasheet catalogs (optimizer/data/catalogs/thesis-e, thesis-d) and their catalog.toml
 readings. See docs/thesis-reproduction.md for the readings and the discussion.
 """
 
@@ -34,7 +34,7 @@ def thesis_e(request):
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[2]
-    return load_catalog(root / "fixtures" / "catalogs" / "thesis-e")
+    return load_catalog(root / "optimizer" / "data" / "catalogs" / "thesis-e")
 
 
 @pytest.mark.parametrize(
@@ -89,7 +89,7 @@ def thesis_d():
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[2]
-    return load_catalog(root / "fixtures" / "catalogs" / "thesis-d")
+    return load_catalog(root / "optimizer" / "data" / "catalogs" / "thesis-d")
 
 
 def _d(thesis_d, row):

@@ -10,7 +10,7 @@ from rotorbench_tests_services import DaskCluster, dask_cluster
 
 from bench.store.catalogs import with_min_thrust_to_weight
 from optimizer.catalog import load_catalog
-from tests.conftest import FIXTURES
+from tests.conftest import CATALOGS
 
 
 @pytest.fixture(scope="module")
@@ -25,7 +25,7 @@ def dask() -> Iterator[DaskCluster]:
 @pytest.fixture(scope="session")
 def thesis_e():
     """thesis-e with the default hover margin (1.2): the 44 N = 4 designs that hover."""
-    return with_min_thrust_to_weight(load_catalog(FIXTURES / "catalogs" / "thesis-e"), 1.2)
+    return with_min_thrust_to_weight(load_catalog(CATALOGS / "thesis-e"), 1.2)
 
 
 #: the sweep every executor test flies: thesis-e, N = 4, 44 designs, roll_step

@@ -22,7 +22,7 @@ from optimizer.sweep.keys import design_id
 from optimizer.sweep.ranking import rank
 from optimizer.sweep.rows import columns, figure_names
 from optimizer.sweep.spec import spec_difference
-from tests.conftest import FIXTURES
+from tests.conftest import CATALOGS
 
 
 def test_design_id_is_a_stable_hash_of_the_keys() -> None:
@@ -77,7 +77,7 @@ def test_rows_hold_the_numbers_rotorbench_fly_prints(capsys, thesis_e, design, r
             "--battery", design[2], "--maneuver", "roll_step", "gust", "--json", *rules]
     assert main(argv) == 0
     doc = json.loads(capsys.readouterr().out)
-    catalog = load_catalog(FIXTURES / "catalogs" / "thesis-e") if rules else thesis_e
+    catalog = load_catalog(CATALOGS / "thesis-e") if rules else thesis_e
     row = _row(catalog, ["roll_step", "gust"], *design)
     for m in ("roll_step", "gust"):
         assert {f: row[f"{m}_{f}"] for f in figure_names(m)} == doc["maneuvers"][m]
@@ -129,7 +129,7 @@ def test_a_design_the_flight_model_refuses_is_planned_with_why(thesis_e) -> None
 def test_thrust_to_weight_without_the_margin_is_the_margin_grids(thesis_e) -> None:
     """Under --thesis-rules the grid has no ratio; the sweep computes it with the same
     formula, so both are one number."""
-    plain = load_catalog(FIXTURES / "catalogs" / "thesis-e")
+    plain = load_catalog(CATALOGS / "thesis-e")
     assert plain.constants.min_thrust_to_weight is None
     bare = evaluate_grid(plain, 4)
     assert "thrust_to_weight" not in bare.extras
