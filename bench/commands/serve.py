@@ -40,9 +40,9 @@ def _loopback(host: str) -> bool:
 
 
 def handler(args: argparse.Namespace) -> int:
-    from bench.errors import RigError
-
     import sys
+
+    from bench.errors import RigError
 
     if args.token is not None:
         print("rotorbench: warning: --token is visible to every user of this machine (ps, "

@@ -96,13 +96,19 @@ def _init(args: argparse.Namespace) -> int:
 def _sync(args: argparse.Namespace) -> int:
     from bench.store.lab_store import default_spool, open_lab
 
+    from bench.store.run_data import DataLocation
+
+    named = bool(args.store or os.environ.get(STORE_ENV))
+    dsn = _lab_url(args) if named else None  # a wrong --store or --out is said first
+    if args.out:
+        DataLocation(args.out)
     spool = Path(args.spool) if args.spool else default_spool()
     if not spool.exists():
         print(f"nothing to sync: no spool at {spool}")
         return 0
-    if not (args.store or os.environ.get(STORE_ENV)):
+    if dsn is None:
         return _sync_every_destination(spool)
-    lab = open_lab(_lab_url(args), data=args.out, spool=spool)
+    lab = open_lab(dsn, data=args.out, spool=spool)
     rep = lab.sync(explicit=True)
     for name, why in rep.failed:
         print(f"still spooled: {name}: {why}")

@@ -126,7 +126,8 @@ class LabStore:
         try:
             rep = self.sync()
         except RigError as exc:  # the lab is away: the runs wait in the spool
-            self._told.update(p.run_dir.name for p in self._left_by_me())
+            self._stop_trailing()
+            self._told.update(d.name for d in self._left_by_me())
             return (f"spooled: the runs in {self.spool} wait for the lab store ({exc}); "
                     f"deliver them with {self._sync_hint()}")
         lines = [f"stored in {redact(self.catalog.dsn)}: {uri}" for _, uri in rep.delivered]

@@ -89,13 +89,13 @@ def conninfo(dsn: str) -> dict[str, str]:
     try:
         from psycopg.conninfo import conninfo_to_dict
     except ImportError:
-        raise RigError(f"store {redact(dsn)}: the lab catalog needs psycopg: {LAB_EXTRA}"
+        raise RigError(f"store {_hidden(dsn)}: the lab catalog needs psycopg: {LAB_EXTRA}"
                        ) from None
     import psycopg
 
     try:
         params = {k: str(v) for k, v in conninfo_to_dict(dsn).items() if v is not None}
-    except psycopg.Error:
+    except (psycopg.Error, UnicodeDecodeError):  # '%99' decodes to no UTF-8
         raise RigError(f"store {_hidden(dsn)}: not a connection string libpq can read; "
                        f"{_NOT_ENCODED}") from None
     if _is_url(dsn) and _misread_url(dsn, params):
