@@ -95,7 +95,6 @@ def _init(args: argparse.Namespace) -> int:
 
 def _sync(args: argparse.Namespace) -> int:
     from bench.store.lab_store import default_spool, open_lab
-
     from bench.store.run_data import DataLocation
 
     named = bool(args.store or os.environ.get(STORE_ENV))
