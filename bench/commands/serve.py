@@ -25,8 +25,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="address to bind (default 127.0.0.1; others need --token)")
     p.add_argument("--port", type=int, default=8765, help="port (default 8765)")
     p.add_argument("--token", default=None,
-                   help="required on every request (header or /login?token=...); default "
-                        "$ROTORBENCH_TOKEN")
+                   help="required on every request (header or /login?token=...); prefer "
+                        "$ROTORBENCH_TOKEN: a --token is visible to every user in `ps`")
     p.set_defaults(func=handler)
 
 
@@ -40,8 +40,13 @@ def _loopback(host: str) -> bool:
 
 
 def handler(args: argparse.Namespace) -> int:
+    import sys
+
     from bench.errors import RigError
 
+    if args.token is not None:
+        print("rotorbench: warning: --token is visible to every user of this machine (ps, "
+              "/proc); set ROTORBENCH_TOKEN instead", file=sys.stderr)
     token = args.token or os.environ.get("ROTORBENCH_TOKEN") or None
     if not 0 < args.port < 65536:
         raise RigError(f"--port {args.port}: expected 1-65535")

@@ -18,11 +18,23 @@ from typing import Any
 
 from bench.errors import RigError
 from bench.store.json_values import json_safe
-from bench.store.pg_schema import READER_ROLE, SCHEMA_VERSION, WRITER_ROLE, schema_version
+from bench.store.pg_schema import (
+    CATALOG_ID_SETTING,
+    READER_ROLE,
+    SCHEMA_VERSION,
+    WRITER_ROLE,
+    schema_version,
+)
 from bench.store.run_summary import RunFilter
-from bench.store.store_url import redact, scrub
+from bench.store.store_url import conninfo, public_params, redact, scrub
 
-__all__ = ["CatalogRun", "CatalogUnavailable", "LabCatalog", "StoredConstants"]
+__all__ = ["CatalogIdentity", "CatalogRun", "CatalogUnavailable", "LabCatalog",
+           "StoredConstants"]
+
+#: what a login needs for each kind of work, said when the server refuses it
+RECORD_NEEDS = f"recording needs the {WRITER_ROLE} role, reading {READER_ROLE}"
+INIT_NEEDS = ("store init needs a login that may create tables in this database (its owner) "
+              "and create roles (CREATEROLE), e.g. the admin login of docs/lab.md")
 
 RUN_FIELDS = ("run_id", "bench", "operator", "host", "rig", "rig_sha256", "software_version",
               "sequence", "components", "status", "reason", "started_utc", "ended_utc",
@@ -31,6 +43,17 @@ RUN_FIELDS = ("run_id", "bench", "operator", "host", "rig", "rig_sha256", "softw
 
 class CatalogUnavailable(RigError):
     """The database could not be reached (network, server down): a bench spools instead."""
+
+
+@dataclass(frozen=True)
+class CatalogIdentity:
+    """Which catalog a connection reached: its UUID (``store init`` wrote it) and where
+    libpq actually connected (host, port, dbname: a service or a default resolved)."""
+
+    catalog_id: str
+    address: dict[str, str]
+    user: str
+    can_record: bool
 
 
 @dataclass(frozen=True)
@@ -81,16 +104,24 @@ class LabCatalog:
     """The PostgreSQL index at ``dsn`` (a URL or libpq string; libpq options pass through)."""
 
     def __init__(self, dsn: str, connect_timeout_s: float = 5.0) -> None:
+        conninfo(dsn)  # psycopg missing or a text libpq cannot read: said here, in one line
         self.dsn = dsn
         self.connect_timeout_s = connect_timeout_s
+
+    @property
+    def params(self) -> dict[str, str]:
+        """The connection parameters without secrets (what the spool may keep)."""
+        return public_params(self.dsn)
 
     def __repr__(self) -> str:  # never the password, even in a traceback's locals
         return f"LabCatalog({redact(self.dsn)!r})"
 
     # -- connections --------------------------------------------------------------------
     @contextlib.contextmanager
-    def connect(self, *, check_schema: bool = True) -> Iterator[Any]:
-        """A short autocommit connection; server errors become one-line ``RigError``s."""
+    def connect(self, *, check_schema: bool = True, needs: str = RECORD_NEEDS
+                ) -> Iterator[Any]:
+        """A short autocommit connection; server errors become one-line ``RigError``s
+        (``needs``: what to say when the server refuses a privilege)."""
         import psycopg
 
         try:
@@ -119,8 +150,7 @@ class LabCatalog:
             yield con
         except psycopg.errors.InsufficientPrivilege as exc:
             raise RigError(f"store {redact(self.dsn)}: permission denied "
-                           f"({scrub(_first_line(exc), self.dsn)}); recording needs the "
-                           f"{WRITER_ROLE} role, reading {READER_ROLE}") from None
+                           f"({scrub(_first_line(exc), self.dsn)}); {needs}") from None
         except psycopg.OperationalError as exc:
             raise CatalogUnavailable(f"store {redact(self.dsn)}: connection lost "
                                      f"({scrub(_first_line(exc), self.dsn)})") from None
@@ -134,18 +164,29 @@ class LabCatalog:
         """Create or upgrade the schema and roles; (version before, version after)."""
         from bench.store.pg_schema import init_schema
 
-        with self.connect(check_schema=False) as con:
+        with self.connect(check_schema=False, needs=INIT_NEEDS) as con:
             return init_schema(con)
 
-    def check_can_record(self) -> None:
-        """Refuse (exit 2, naming the permission) a login that cannot insert runs; called
-        before anything spins."""
+    def identity(self) -> CatalogIdentity:
+        """The catalog's UUID, where the connection went, and whether the login may record."""
         with self.connect() as con:
-            ok = con.execute("SELECT has_table_privilege(current_user, 'runs', 'INSERT'), "
-                             "current_user").fetchone()
-        if not ok[0]:
-            raise RigError(f"store {redact(self.dsn)}: user {ok[1]} may not record runs "
+            row = con.execute(
+                "SELECT (SELECT value FROM settings WHERE key = %s), current_user, "
+                "has_table_privilege(current_user, 'runs', 'INSERT')",
+                (CATALOG_ID_SETTING,)).fetchone()
+            info = con.info
+            address = {"host": str(info.host), "port": str(info.port),
+                       "dbname": str(info.dbname)}
+        return CatalogIdentity(str(row[0]), address, str(row[1]), bool(row[2]))
+
+    def check_can_record(self) -> CatalogIdentity:
+        """Refuse (exit 2, naming the permission) a login that cannot insert runs; called
+        before anything spins or is uploaded. Returns the catalog's identity."""
+        ident = self.identity()
+        if not ident.can_record:
+            raise RigError(f"store {redact(self.dsn)}: user {ident.user} may not record runs "
                            f"(no INSERT on table runs); grant it the {WRITER_ROLE} role")
+        return ident
 
     # -- settings -----------------------------------------------------------------------
     def setting(self, key: str) -> str | None:
@@ -170,6 +211,12 @@ class LabCatalog:
         marks = ", ".join(["%s"] * len(RUN_FIELDS))
         updates = ", ".join(f"{k} = EXCLUDED.{k}" for k in RUN_FIELDS if k != "run_id")
         with self.connect() as con:
+            owner = con.execute("SELECT owner, current_user FROM runs WHERE run_id = %s",
+                                (run.run_id,)).fetchone()
+            if owner is not None and owner[0] != owner[1]:
+                raise RigError(f"run {run.run_id}: recorded in {redact(self.dsn)} by login "
+                               f"{owner[0]}; login {owner[1]} may not change it (deliver it "
+                               f"as {owner[0]})")
             con.execute(f"INSERT INTO runs ({cols}) VALUES ({marks}) ON CONFLICT (run_id) DO "
                         f"UPDATE SET {updates}, updated_utc = now()", values)
 

@@ -2,7 +2,9 @@
 
 A bench records every run into a local folder store first (the spool). Publishing a run
 copies its folder to the data location and upserts its catalog row; only then is a
-``.published`` marker written beside it. A run whose upload or index entry failed keeps
+``.published`` marker written beside it, naming the catalog's UUID. A run is delivered
+once, to one catalog (``bench.store.spool_destinations``): a run with a marker is never
+published again, whatever catalog asks. A run whose upload or index entry failed keeps
 no marker and stays in the spool; ``store sync`` publishes what is waiting, and running
 it twice adds nothing (the marker, the upsert by id and the same object keys).
 """
@@ -19,9 +21,9 @@ from typing import Any
 from bench.errors import RigError
 from bench.store.lab_catalog import LabCatalog, run_from_meta
 from bench.store.run_data import DataLocation
-from bench.store.store_url import redact
 
-__all__ = ["MARKER", "Publisher", "bench_name", "operator_name", "pending_runs"]
+__all__ = ["MARKER", "Pending", "Publisher", "bench_name", "is_published", "operator_name",
+           "pending_runs", "read_meta"]
 
 MARKER = ".published"
 
@@ -40,6 +42,18 @@ def operator_name(meta: Mapping[str, Any]) -> str:
     return str(meta.get("operator") or operator())
 
 
+def read_meta(run_dir: Path) -> dict[str, Any]:
+    """A run folder's run.json as an object, else one-line ``RigError`` naming the file."""
+    path = Path(run_dir) / "run.json"
+    try:
+        meta = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise RigError(f"{path}: unreadable ({exc})") from None
+    if not isinstance(meta, dict):
+        raise RigError(f"{path}: unreadable (a JSON {type(meta).__name__}, not an object)")
+    return meta
+
+
 def _rows(run_dir: Path, meta: Mapping[str, Any]) -> int:
     """The recorder's count from run.json; else the parts' own (an imported or killed run:
     only then is the reader, and pandas with it, 0.2 s, imported)."""
@@ -56,36 +70,24 @@ def _rows(run_dir: Path, meta: Mapping[str, Any]) -> int:
 
 @dataclass(frozen=True)
 class Publisher:
-    """Publishes run folders of a spool into ``catalog`` + ``data``."""
+    """Publishes run folders into ``catalog`` (whose UUID is ``catalog_id``) + ``data``."""
 
     catalog: LabCatalog
     data: DataLocation
-
-    def store_key(self) -> str:
-        return redact(self.catalog.dsn)
-
-    def is_published(self, run_dir: Path) -> bool:
-        try:
-            mark = json.loads((Path(run_dir) / MARKER).read_text(encoding="utf-8"))
-        except (OSError, ValueError):
-            return False
-        return mark.get("store") == self.store_key()
+    catalog_id: str
 
     def publish(self, run_dir: Path, done: set[str] | None = None) -> str:
         """Upload and index one ended run (``done``: its files a ``TrailingUpload`` sent
         already); returns its data URI. Raises ``RigError``
         (``CatalogUnavailable``/``DataUnavailable`` when a server is away)."""
         run_dir = Path(run_dir)
-        try:
-            meta = json.loads((run_dir / "run.json").read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError, ValueError) as exc:
-            raise RigError(f"{run_dir / 'run.json'}: unreadable ({exc})") from None
+        meta = read_meta(run_dir)
         run_id = str(meta.get("id") or run_dir.name)
         uri = self.data.upload(run_dir, run_id, done=done)
         self.catalog.upsert_run(run_from_meta(meta, data=uri, samples=_rows(run_dir, meta),
                                               bench=bench_name(meta),
                                               operator=operator_name(meta)))
-        (run_dir / MARKER).write_text(json.dumps({"store": self.store_key(), "data": uri}),
+        (run_dir / MARKER).write_text(json.dumps({"catalog": self.catalog_id, "data": uri}),
                                       encoding="utf-8")
         return uri
 
@@ -101,17 +103,34 @@ class Publisher:
         return True
 
 
-def pending_runs(spool: Path, publisher: Publisher) -> list[Path]:
-    """Ended runs in ``spool`` not yet published to ``publisher``'s store, oldest first.
-    A published run's marker is read, not its run.json (a bench's spool keeps every run)."""
+def is_published(run_dir: Path) -> bool:
+    """A marker is there: the run reached the one catalog it was going to."""
+    return (Path(run_dir) / MARKER).is_file()
+
+
+@dataclass(frozen=True)
+class Pending:
+    """A spooled run not yet delivered: its run.json, or why it cannot be read."""
+
+    run_dir: Path
+    meta: dict[str, Any] | None
+    unreadable: str | None = None
+
+
+def pending_runs(spool: Path) -> list[Pending]:
+    """Ended runs in ``spool`` not yet delivered, oldest first, and the run folders whose
+    run.json cannot be read (named, never skipped in silence). A delivered run's marker is
+    looked at, not its run.json (a bench's spool keeps every run)."""
     out = []
     for meta_path in sorted(Path(spool).glob("*/run.json")):
-        if publisher.is_published(meta_path.parent):
+        run_dir = meta_path.parent
+        if is_published(run_dir):
             continue
         try:
-            meta = json.loads(meta_path.read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError, ValueError):
+            meta = read_meta(run_dir)
+        except RigError as exc:
+            out.append(Pending(run_dir, None, str(exc)))
             continue
         if meta.get("status") != "running":
-            out.append(meta_path.parent)
+            out.append(Pending(run_dir, meta))
     return out

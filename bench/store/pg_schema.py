@@ -8,6 +8,9 @@ race), and creates two group roles:
   its own runs (row-level security on ``owner``); no delete.
 * ``rotorbench_reader``: reads only.
 
+The catalog's identity (``settings.catalog_id``, a UUID) is written by the migration that
+adds it and by nobody else: the writer and reader roles may only read ``settings``.
+
 Running ``init`` again changes nothing. Constants are never updated in place: every fit
 is a new row of ``constants`` and ``constants_current`` shows the newest per actuator and
 kind, so the history of every constant stays.
@@ -17,12 +20,13 @@ from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["MIGRATIONS", "READER_ROLE", "SCHEMA_VERSION", "WRITER_ROLE", "init_schema",
-           "schema_version"]
+__all__ = ["CATALOG_ID_SETTING", "MIGRATIONS", "READER_ROLE", "SCHEMA_VERSION", "WRITER_ROLE",
+           "init_schema", "schema_version"]
 
 WRITER_ROLE = "rotorbench_writer"
 READER_ROLE = "rotorbench_reader"
 _LOCK_KEY = 0x726F746F72  # "rotor": the advisory lock of init
+CATALOG_ID_SETTING = "catalog_id"
 
 MIGRATIONS: tuple[str, ...] = (
     # 1: runs, constants with history, settings (the default data location)
@@ -71,6 +75,12 @@ MIGRATIONS: tuple[str, ...] = (
         FROM constants
         ORDER BY motor, propeller, esc, esc_mode, battery, kind, id DESC;
     CREATE TABLE settings (key text PRIMARY KEY, value text NOT NULL);
+    """,
+    # 2: the catalog's identity, a UUID written once: a spooled run records it before it
+    # starts and is delivered to this catalog only, however its URL is spelled at sync
+    f"""
+    INSERT INTO settings (key, value) VALUES ('{CATALOG_ID_SETTING}', gen_random_uuid()::text)
+        ON CONFLICT (key) DO NOTHING;
     """,
 )
 SCHEMA_VERSION = len(MIGRATIONS)

@@ -15,7 +15,7 @@ from typing import Any
 
 from bench.errors import RigError
 
-__all__ = ["DataLocation", "DataUnavailable"]
+__all__ = ["DataLocation", "DataUnavailable", "refuse_credentials"]
 
 
 class DataUnavailable(RigError):
@@ -27,6 +27,9 @@ class DataLocation:
     """``uri``: a folder path or ``s3://bucket/prefix``."""
 
     uri: str
+
+    def __post_init__(self) -> None:
+        refuse_credentials(self.uri)
 
     @property
     def is_s3(self) -> bool:
@@ -119,6 +122,25 @@ class DataLocation:
             raise DataUnavailable(f"data location {self.uri}: download of {run_id} failed "
                                   f"({_short(exc)})") from None
         return target
+
+
+_CREDENTIAL_KEYS = ("access_key", "secret_key", "session_token")
+
+
+def refuse_credentials(uri: str) -> None:
+    """A data location is printed and stored in every catalog row, which readers see: a
+    key in it (``s3://KEY:SECRET@bucket``, ``?secret_key=``) is refused without echoing it."""
+    if "://" not in uri:
+        return
+    from urllib.parse import parse_qsl, urlsplit
+
+    scheme = uri.split("://", 1)[0]
+    query = uri.split("?", 1)[1] if "?" in uri else ""
+    if "@" in uri or any(k.lower() in _CREDENTIAL_KEYS for k, _ in parse_qsl(query)) or \
+            urlsplit(uri.split("?", 1)[0]).password is not None:
+        raise RigError(f"data location {scheme}://…: holds credentials, which would be "
+                       "printed and stored in the catalog for every reader; give them in "
+                       "AWS_ACCESS_KEY_ID and AWS_SECRET_ACCESS_KEY (or ~/.aws/credentials)")
 
 
 def _s3_from_uri(uri: str) -> tuple[Any, str]:

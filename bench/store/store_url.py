@@ -1,25 +1,44 @@
-"""What ``--store URL`` names, and how a URL is shown without its secret.
+"""What ``--store`` names, and how a catalog's connection string is shown without its secret.
 
-A folder path (the default ``runs``) is today's store: run folders with ``runs.sqlite``
-and ``constants.sqlite`` beside them. ``postgresql://`` (or ``postgres://``) names the lab
-catalog; libpq parameters (``sslmode``, ``service``, ``connect_timeout``) pass through as
-they are. The password is never written anywhere: echoed URLs go through ``redact``.
+A folder path (the default ``runs``) is the embedded store. The lab catalog is a libpq
+connection string in either of libpq's forms: a URL (``postgresql://`` or ``postgres://``)
+or keyword=value words (``host=db.lab dbname=lab``, ``service=lab``). It is parsed by
+libpq's own rules (psycopg's ``conninfo_to_dict``), never by a regular expression on the
+text, so what is shown, compared and stored is what libpq connects to; a secret
+(``password``, ``sslpassword``) is left out of everything shown. psycopg comes with the
+``lab`` extra: without it a catalog is still recognised (by its scheme or first keyword),
+and whatever needs to parse it names the extra. A folder store never needs psycopg.
 """
 
 from __future__ import annotations
 
 import os
-import re
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from urllib.parse import urlsplit, urlunsplit
+from urllib.parse import quote, urlsplit
 
 from bench.errors import RigError
 
-__all__ = ["STORE_ENV", "StoreUrl", "parse_store", "redact", "scrub"]
+__all__ = ["LAB_EXTRA", "SECRET_KEYS", "STORE_ENV", "StoreUrl", "conninfo", "conninfo_text",
+           "parse_store", "public_params", "redact", "scrub", "show_params"]
 
 STORE_ENV = "ROTORBENCH_STORE"
+LAB_EXTRA = "pip install 'rotorbench[lab]'"
+SECRET_KEYS = ("password", "sslpassword")
 _PG_SCHEMES = ("postgresql", "postgres")
+# libpq's keywords (PostgreSQL 15, "Parameter Key Words"): a text whose first word is one
+# of them followed by '=' is a keyword=value connection string, not a folder
+_KEYWORDS = frozenset(
+    "host hostaddr port dbname user password passfile channel_binding connect_timeout "
+    "client_encoding options application_name fallback_application_name keepalives "
+    "keepalives_idle keepalives_interval keepalives_count tcp_user_timeout replication "
+    "gssencmode sslmode requiressl sslcompression sslcert sslkey sslpassword sslrootcert "
+    "sslcrl sslcrldir sslsni requirepeer ssl_min_protocol_version ssl_max_protocol_version "
+    "krbsrvname gsslib service target_session_attrs load_balance_hosts".split())
+_NOT_ENCODED = ("a character of the password is not percent-encoded (# as %23, / as %2F, "
+                "? as %3F, @ as %40, % as %25), or give the password in PGPASSWORD or "
+                "~/.pgpass")
 
 
 @dataclass(frozen=True)
@@ -35,16 +54,17 @@ class StoreUrl:
         return self.dsn is not None
 
     def shown(self) -> str:
-        """The URL as it may be printed (password replaced by ``***``)."""
+        """The store as it may be printed (any password as ``***``)."""
         return redact(self.text)
 
 
 def parse_store(text: str | os.PathLike[str] | None, default: str = "runs") -> StoreUrl:
-    """``--store`` (or ``$ROTORBENCH_STORE``, or ``default``) as a ``StoreUrl``."""
+    """``--store`` (or ``$ROTORBENCH_STORE``, or ``default``) as a ``StoreUrl``; needs no
+    psycopg (a catalog is only recognised here, parsed when it is opened)."""
     raw = str(text) if text is not None else os.environ.get(STORE_ENV) or default
-    scheme = urlsplit(raw).scheme.lower() if "://" in raw else ""
-    if scheme in _PG_SCHEMES:
+    if _is_catalog(raw):
         return StoreUrl(raw, dsn=raw)
+    scheme = urlsplit(raw).scheme.lower() if "://" in raw else ""
     if scheme == "file":
         return StoreUrl(raw, folder=Path(urlsplit(raw).path))
     if scheme:
@@ -53,32 +73,124 @@ def parse_store(text: str | os.PathLike[str] | None, default: str = "runs") -> S
     return StoreUrl(raw, folder=Path(raw))
 
 
-def redact(url: str) -> str:
-    """``url`` with any password (``user:pw@``, ``password=...``) replaced by ``***``."""
-    if "://" in url:
-        parts = urlsplit(url)
-        if parts.password is not None:
-            host = parts.hostname or ""
-            if parts.port is not None:
-                host = f"{host}:{parts.port}"
-            netloc = f"{parts.username or ''}:***@{host}"
-            url = urlunsplit((parts.scheme, netloc, parts.path, parts.query, parts.fragment))
-    return re.sub(r"(password\s*=\s*)('[^']*'|[^\s&]+)", r"\1***", url, flags=re.I)
+def _is_catalog(raw: str) -> bool:
+    head = raw.lstrip()
+    if "://" in head:
+        return head.split("://", 1)[0].lower() in _PG_SCHEMES
+    key, eq, _ = head.partition("=")
+    return bool(eq) and key.strip().lower() in _KEYWORDS
 
 
-def scrub(message: str, url: str | None) -> str:
-    """``message`` (e.g. a driver's error) with the password of ``url`` removed."""
-    secret = _password(url) if url else None
-    message = redact(message)
-    return message.replace(secret, "***") if secret else message
+def conninfo(dsn: str) -> dict[str, str]:
+    """``dsn`` parsed by libpq's rules into its parameters (password included). A text libpq
+    cannot parse is refused without quoting it (libpq's message quotes the text around the
+    fault, which may be the password); so is a URL whose password was not percent-encoded,
+    which libpq reads as another host, port or database."""
+    try:
+        from psycopg.conninfo import conninfo_to_dict
+    except ImportError:
+        raise RigError(f"store {_hidden(dsn)}: the lab catalog needs psycopg: {LAB_EXTRA}"
+                       ) from None
+    import psycopg
+
+    try:
+        params = {k: str(v) for k, v in conninfo_to_dict(dsn).items() if v is not None}
+    except (psycopg.Error, UnicodeDecodeError):  # '%99' decodes to no UTF-8
+        raise RigError(f"store {_hidden(dsn)}: not a connection string libpq can read; "
+                       f"{_NOT_ENCODED}") from None
+    if _is_url(dsn) and _misread_url(dsn, params):
+        raise RigError(f"store {_hidden(dsn)}: {_NOT_ENCODED}")
+    return params
 
 
-def _password(url: str) -> str | None:
-    if "://" in url:
-        pw = urlsplit(url).password
-        if pw:
-            return pw
-    m = re.search(r"password\s*=\s*('([^']*)'|[^\s&]+)", url, flags=re.I)
-    if m:
-        return m.group(2) if m.group(2) is not None else m.group(1)
-    return None
+def _misread_url(dsn: str, params: dict[str, str]) -> bool:
+    """True when libpq took part of a raw password for the host, port or database: an '@'
+    that is not the one ending the user info, or a port that is no number."""
+    after = dsn.split("://", 1)[1]
+    authority = after.split("/", 1)[0]
+    if after.count("@") > authority.count("@") or authority.count("@") > 1:
+        return True
+    if "@" in params.get("host", "") or "@" in params.get("dbname", ""):
+        return True
+    return any(p and not p.isdigit() for p in params.get("port", "").split(","))
+
+
+def public_params(dsn: str) -> dict[str, str]:
+    """The connection parameters of ``dsn`` without its secrets: what may be printed,
+    compared and written into the spool."""
+    return {k: v for k, v in conninfo(dsn).items() if k not in SECRET_KEYS}
+
+
+def conninfo_text(params: Mapping[str, str]) -> str:
+    """Connection parameters as a libpq keyword=value string (quoted by libpq's rules)."""
+    from psycopg.conninfo import make_conninfo
+
+    return make_conninfo("", **params)
+
+
+def show_params(params: Mapping[str, str]) -> str:
+    """Connection parameters as a URL that may be printed (any secret as ``***``)."""
+    return _shown(dict(params), url=True)
+
+
+def redact(text: str) -> str:
+    """``text`` as it may be printed: a catalog's connection string rebuilt from its parsed
+    parameters with every secret as ``***``; another URL with user info (``s3://K:S@b``)
+    without it; anything else as it is. Never raises."""
+    if _is_catalog(text):
+        try:
+            params = conninfo(text)
+        except RigError:
+            return _hidden(text)
+        return _shown(params, url=_is_url(text))
+    if "://" in text and "@" in text:  # user info; a raw '/' in a secret ends the netloc
+        scheme, rest = text.split("://", 1)
+        return f"{scheme}://***@{rest.rsplit('@', 1)[1]}"
+    return text
+
+
+def _is_url(text: str) -> bool:
+    return "://" in text.lstrip()
+
+
+def _hidden(text: str) -> str:
+    """A catalog that cannot be parsed (or psycopg is missing): its kind, nothing else."""
+    return "postgresql://…" if _is_url(text) else "(libpq connection string)"
+
+
+def _shown(params: dict[str, str], *, url: bool) -> str:
+    shown = {k: ("***" if k in SECRET_KEYS else v) for k, v in params.items()}
+    if not url:
+        return conninfo_text(shown)
+    user = shown.pop("user", None)
+    pw = shown.pop("password", None)
+    host, port, db = shown.get("host", ""), shown.get("port", ""), shown.pop("dbname", None)
+    netloc = ""
+    if host and "," not in host and not host.startswith("/") and "," not in port:
+        shown.pop("host")
+        shown.pop("port", None)
+        netloc = f"[{host}]" if ":" in host else quote(host, safe="")
+        netloc += f":{port}" if port else ""
+    if user is not None:
+        netloc = f"{quote(user, safe='')}{':' + pw if pw else ''}@{netloc}"
+    query = "&".join(f"{quote(k, safe='')}={quote(v, safe='/')}" for k, v in shown.items())
+    path = f"/{quote(db, safe='')}" if db is not None else ""
+    return f"postgresql://{netloc}{path}{'?' + query if query else ''}"
+
+
+def scrub(message: str, dsn: str | None) -> str:
+    """``message`` (e.g. a driver's error) with every secret of ``dsn`` removed: its
+    parsed values, and their percent-encoded forms, wherever they appear."""
+    if not dsn:
+        return message
+    try:
+        params = conninfo(dsn)
+    except RigError:
+        return message.replace(dsn, _hidden(dsn))
+    message = message.replace(dsn, redact(dsn))
+    for key in SECRET_KEYS:
+        secret = params.get(key)
+        if secret:
+            for form in {secret, quote(secret, safe=""), quote(secret)}:
+                message = message.replace(form, "***")
+    return message

@@ -10,14 +10,22 @@ the end-of-run publish (or ``store sync``) does the rest. A pass is cheap, so it
 times a second and the parts follow the run closely: a bench's spool keeps every run it
 recorded, and the folders there before the trailing started, or seen ended, or recorded
 by another process, are never read again; a running run's ``run.json`` (0.25 MB for a
-200-repeat Step 1) is parsed again only once it was replaced.
+200-repeat Step 1) is parsed again only once it was replaced. Each run is announced to
+the catalog as it is first seen (status running), so the web view's live page lists it.
+
+The thread is stopped and joined before the interpreter shuts down (``atexit``), whatever
+ended the command (an error, a full disk, SIGTERM): pyarrow work still in flight on a
+daemon thread while Python finalises crashed the process (SIGSEGV in
+``FileSystem.from_uri``) after the run had been recorded.
 """
 
 from __future__ import annotations
 
+import atexit
 import json
 import os
 import threading
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -30,9 +38,11 @@ __all__ = ["TrailingUpload"]
 class TrailingUpload:
     """A daemon thread sending the finished parts of this process's running runs."""
 
-    def __init__(self, spool: Path, data: DataLocation, period_s: float = 0.1) -> None:
+    def __init__(self, spool: Path, data: DataLocation, period_s: float = 0.1, *,
+                 announce: Callable[[dict[str, Any], Path], object] | None = None) -> None:
         self.spool = Path(spool)
         self.data = data
+        self.announce = announce  # called once per run this process records, as it starts
         self.period_s = period_s
         self.done: dict[str, set[str]] = {}  # run folder name -> relative paths sent
         self.passed: set[str] = set()  # run folders not to read again
@@ -47,19 +57,23 @@ class TrailingUpload:
         """Trail the runs recorded from now on (the folders already there are passed)."""
         self.passed.update(p.name for p in self.spool.glob("*/"))
         self._thread.start()
+        atexit.register(self.stop)
         return self
 
     def stop(self) -> dict[str, set[str]]:
         """Stop after the pass under way; the parts sent, per run folder."""
         self._stop.set()
-        self._thread.join(60)
+        if self._thread.is_alive():
+            self._thread.join(60)
+        atexit.unregister(self.stop)
         return self.done
 
     def _loop(self) -> None:
         while not self._stop.wait(self.period_s):
             try:
                 self.send_new()
-            except RigError as exc:  # the store went away: the publish at the end decides
+            except (RigError, OSError) as exc:  # the store or the spool went away: the
+                # publish at the end (or store sync) decides
                 self.failed = str(exc)
                 return
 
@@ -75,6 +89,8 @@ class TrailingUpload:
             if meta.get("pid") != os.getpid() or meta.get("status") != "running":
                 self.passed.add(run_dir.name)  # ended, or another process's
                 continue
+            if run_dir.name not in self.done and self.announce is not None:
+                self.announce(meta, run_dir)
             parts = run_dir / str(meta.get("samples") or "samples.parquet")
             sent = self.done.setdefault(run_dir.name, set())
             new = sorted(p.relative_to(run_dir).as_posix() for p in parts.glob("*.parquet")

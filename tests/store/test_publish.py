@@ -25,6 +25,10 @@ def spool_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return run
 
 
+def _waiting(spool: Path) -> list[Path]:
+    return [p.run_dir for p in pending_runs(spool)]
+
+
 def _fresh_spool(run: Path, tmp_path: Path) -> Path:
     import shutil
 
@@ -38,11 +42,11 @@ def test_publish_to_s3_and_postgres(spool_run: Path, tmp_path: Path, pg_url: str
     cat = LabCatalog(pg_url)
     cat.init()
     data = DataLocation(f"s3://{s3_env.bucket}/runs")
-    pub = Publisher(cat, data)
+    pub = Publisher(cat, data, cat.identity().catalog_id)
     spool = _fresh_spool(spool_run, tmp_path)
-    assert pending_runs(spool, pub) == [spool / spool_run.name]
+    assert _waiting(spool) == [spool / spool_run.name]
     uri = pub.publish(spool / spool_run.name)
-    assert pending_runs(spool, pub) == []
+    assert _waiting(spool) == []
     run_id = json.loads((spool_run / "run.json").read_text())["id"]
     assert uri == f"s3://{s3_env.bucket}/runs/{run_id}" and data.has_run(run_id)
     (row,) = cat.list_runs()
@@ -66,15 +70,15 @@ def test_object_store_outage_then_sync(spool_run: Path, tmp_path: Path, pg_url: 
         own.create_bucket("lab")
         port = own.port
     # the server is gone now
-    pub = Publisher(cat, DataLocation("s3://lab/runs"))
+    pub = Publisher(cat, DataLocation("s3://lab/runs"), cat.identity().catalog_id)
     with pytest.raises(DataUnavailable, match=r"upload of .* failed"):
         pub.publish(spool / spool_run.name)
-    assert pending_runs(spool, pub) == [spool / spool_run.name]
+    assert _waiting(spool) == [spool / spool_run.name]
     assert cat.count_runs() == 0
     with s3_server(port) as back:
         back.create_bucket("lab")
-        assert [pub.publish(p) for p in pending_runs(spool, pub)]
-        assert pending_runs(spool, pub) == []
+        assert [pub.publish(p) for p in _waiting(spool)]
+        assert _waiting(spool) == []
         assert cat.count_runs() == 1
 
 
@@ -83,17 +87,17 @@ def test_database_outage_then_sync(spool_run: Path, tmp_path: Path, pg_cluster: 
     cat = LabCatalog(pg_url, connect_timeout_s=2)
     cat.init()
     spool = _fresh_spool(spool_run, tmp_path)
-    pub = Publisher(cat, DataLocation(f"s3://{s3_env.bucket}/runs"))
+    pub = Publisher(cat, DataLocation(f"s3://{s3_env.bucket}/runs"), cat.identity().catalog_id)
     pg_cluster.stop()
     try:
         with pytest.raises(CatalogUnavailable):
             pub.publish(spool / spool_run.name)
-        assert pending_runs(spool, pub) == [spool / spool_run.name]
+        assert _waiting(spool) == [spool / spool_run.name]
     finally:
         pg_cluster.start()
-    for p in pending_runs(spool, pub):
+    for p in _waiting(spool):
         pub.publish(p)
-    assert pending_runs(spool, pub) == [] and cat.count_runs() == 1
+    assert _waiting(spool) == [] and cat.count_runs() == 1
 
 
 def test_each_file_goes_up_in_one_put(spool_run: Path, s3_env: object) -> None:
@@ -128,7 +132,7 @@ def test_publishing_a_recorded_run_leaves_pandas_unimported(spool_run: Path, tmp
             "from bench.store.lab_catalog import LabCatalog\n"
             "from bench.store.lab_publish import Publisher\n"
             "from bench.store.run_data import DataLocation\n"
-            "Publisher(LabCatalog(sys.argv[1]), DataLocation(sys.argv[2])).publish("
+            "Publisher(LabCatalog(sys.argv[1]), DataLocation(sys.argv[2]), 'id').publish("
             "Path(sys.argv[3]))\n"
             "print([m for m in ('pandas', 'analysis.run_record') if m in sys.modules])\n")
     out = subprocess.run([sys.executable, "-c", code, pg_url, str(tmp_path / "share"),
@@ -194,8 +198,8 @@ def test_a_spool_full_of_runs_is_not_read_again(spool_run: Path, tmp_path: Path,
                                                 monkeypatch: pytest.MonkeyPatch) -> None:
     """A bench's spool keeps every run it recorded: the trailing upload reads the run.json
     only of runs recorded after it started, again only when it was replaced, and no more
-    once they end; the publish at the end reads the marker of a published run, not its
-    run.json (0.25 MB for a 200-repeat Step 1: reading them all every pass would slow the
+    once they end; the publish at the end looks at the marker of a published run, not
+    its run.json (0.25 MB for a 200-repeat Step 1: reading them all every pass would slow the
     bench the more runs it kept)."""
     import os
     import shutil
@@ -228,7 +232,5 @@ def test_a_spool_full_of_runs_is_not_read_again(spool_run: Path, tmp_path: Path,
     trailing.send_new()
     assert counted.loads_calls == 2  # read once more, seen ended, passed
     counted.loads_calls = 0
-    publisher = Publisher(LabCatalog("postgresql://lab"), data)
-    monkeypatch.setattr(Publisher, "store_key", lambda self: "lab")
-    assert pending_runs(spool, publisher) == [new]
-    assert counted.loads_calls == 3 + 1  # three markers, one run.json
+    assert _waiting(spool) == [new]
+    assert counted.loads_calls == 1  # one run.json; the three markers are only there

@@ -45,8 +45,8 @@ def test_init_twice_then_push_twice(pg_url: str, s3_env: object, laptop_runs: Pa
 def test_sync_delivers_the_spool_once(pg_url: str, s3_env: object, laptop_runs: Path,
                                       tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                       capsys: pytest.CaptureFixture[str]) -> None:
-    spool = tmp_path / "spool"
-    shutil.copytree(laptop_runs, spool)
+    spool = tmp_path / "spool"  # runs no lab command recorded: --store names their catalog
+    shutil.copytree(laptop_runs, spool, ignore=shutil.ignore_patterns(".published"))
     monkeypatch.setenv("ROTORBENCH_STORE", pg_url)
     assert main(["store", "init", pg_url]) == 0
     assert main(["store", "sync", "--spool", str(spool), "--out",
