@@ -9,6 +9,11 @@ Errors caused by the user's input (bad file, rig, catalog, device bytes) are
 exceptions with an ``exit_code`` attribute; they are printed as one line and
 the process exits with that code, without a traceback. Anything else is a bug
 and keeps its traceback.
+
+The modules log to ``logging`` (``bench.run.run_log``: every run keeps its lines in
+``run.log``); on the terminal, stderr shows warnings, ``-v`` adds what the bench does
+and ``-vv`` the details; ``--log-level`` names the level. stdout keeps only the
+command's own output (tables, JSON).
 """
 
 from __future__ import annotations
@@ -16,6 +21,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import importlib
+import logging
 import os
 import pkgutil
 import sys
@@ -46,11 +52,53 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     except PackageNotFoundError:  # running from a source tree without install
         ver = "unknown"
     parser.add_argument("--version", action="version", version=f"rotorbench {ver}")
+    _add_log_options(parser, top=True)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in [only] if only is not None else _command_modules():
         module = importlib.import_module(f"{commands.__name__}.{name}")
         module.register(sub)
+    for command in sub.choices.values():
+        _add_log_options(command)
     return parser
+
+
+LOG_LEVELS = ("debug", "info", "warning", "error")
+
+
+def _add_log_options(parser: argparse.ArgumentParser, top: bool = False) -> None:
+    """``-v``/``--log-level`` before or after the command (and its own subcommands)."""
+    default = None if top else argparse.SUPPRESS  # a command's own never hides the top's
+    group = parser.add_argument_group("diagnostics")
+    group.add_argument("-v", "--verbose", action="count", default=0 if top else default,
+                       help="log what the bench does to stderr (-vv: the details too)")
+    group.add_argument("--log-level", choices=LOG_LEVELS, type=str.lower, default=default,
+                       help="the least level logged to stderr (default: warning; every "
+                            "run keeps its whole log in run.log)")
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for child in action.choices.values():
+                _add_log_options(child)
+
+
+def configure_logging(verbose: int = 0, level: str | None = None) -> logging.Handler:
+    """stderr's share of the log: ``level``, else warnings and up, ``-v`` info, ``-vv``
+    debug, of the project's loggers (other libraries': warnings, whatever the level).
+    Returns the handler (a second call replaces the first's)."""
+    from bench.run.run_log import PACKAGES
+
+    if level is None:
+        level = ("warning", "info", "debug")[min(max(verbose, 0), 2)]
+    root = logging.getLogger()
+    for old in [h for h in root.handlers if getattr(h, "_rotorbench", False)]:
+        root.removeHandler(old)
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setLevel(getattr(logging, level.upper()))
+    handler.setFormatter(logging.Formatter("rotorbench: %(levelname)s: %(name)s: %(message)s"))
+    handler._rotorbench = True  # type: ignore[attr-defined]
+    root.addHandler(handler)
+    for name in PACKAGES:
+        logging.getLogger(name).setLevel(handler.level)
+    return handler
 
 
 def _parser_for(argv: Sequence[str]) -> argparse.ArgumentParser:
@@ -118,6 +166,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    configure_logging(getattr(args, "verbose", 0) or 0, getattr(args, "log_level", None))
     from bench.cli_support import option_defaults
 
     args._defaults = option_defaults(parser, args)  # for cli_support.refuse_unused

@@ -23,6 +23,7 @@ Problems raise ``DeviceError`` naming the rig file, the device table and the fie
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Iterator, Mapping, MutableMapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -57,6 +58,8 @@ __all__ = [
     "open_rig",
     "validate_device",
 ]
+
+log = logging.getLogger(__name__)
 
 SENSOR_ROLES = PROPULSION_SENSORS
 ROLES = ("esc", *SENSOR_ROLES)  # the propulsion stand, in opening order
@@ -291,10 +294,15 @@ def open_devices(ctx: DeviceContext) -> OpenRig:
     order = [r for r in (IMU_ROLES if imu else ROLES) if r in ctx.specs]
     order += [r for r in ctx.specs if r not in order]
     devices: dict[str, Any] = {}
+    log.info("rig %s: opening %s", getattr(ctx.rig, "path", "?"), ", ".join(
+        f"{r} {ctx.specs[r].url}" for r in order))
     try:
         for role in order:
             devices[role] = ctx.open(ctx.specs[role])
-    except BaseException:
+            log.info("%s answered: %s", role, ctx.answers.get(role) or type(devices[role])
+                     .__name__)
+    except BaseException as exc:
+        log.info("rig not opened: %s", exc or type(exc).__name__)
         for dev in reversed(devices.values()):
             try:
                 if isinstance(dev, Hexapod):

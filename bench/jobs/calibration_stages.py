@@ -31,6 +31,7 @@ from bench.plans.calibration_sequences import (
 )
 from bench.plans.sequences import Plan
 from bench.plans.sequences import Sequence as PlanSequence
+from bench.run import run_log
 from bench.runners.runner import HexapodRunOptions
 from bench.runners.session import RunOutcome, run_stage
 from drivers.contracts import Trajectory
@@ -87,31 +88,33 @@ def run_calibration(rig: Any, out_root: Path, *, quick: bool = False, seed: int 
     seqs = list(sequences) if sequences is not None else paper_a_sequences(rate, quick)
     plans = plans_for(rig, seqs)  # every stage checked before anything moves
     out = CalibrationRun(planned=len(plans))
-    bench = open_bench(rig, seed=seed)
-    try:
-        preflight(bench, plans, (options.trajectory_rate_hz if options is not None
-                                 else rig.hexapod.trajectory_rate_hz))
-        sim = getattr(bench, "sim", None)
-        if sim is not None:
-            truth = sim.truth()
-            pivot = np.asarray(rig.hexapod.pivot_m, float)
-            truth["pivot_m"] = pivot.tolist()  # R as the calibration sees it: from the pivot
-            truth["lever_arm_from_pivot_m"] = (np.asarray(truth["lever_arm_m"])
-                                               + np.asarray(truth["cg_m"]) - pivot).tolist()
-            out.truth = truth
-        meta = {**dict(extra_meta or {}),
-                **({"sim_truth": out.truth} if out.truth is not None else {})}
-        for i, plan in enumerate(plans):
-            if on_stage is not None:
-                on_stage(i, plan)
-            stage = run_stage(bench, rig, plan, out_root, options=options,
-                              on_progress=on_progress, stop_event=stop_event,
-                              extra_meta={**meta, "stage": i + 1, "stages": len(plans)})
-            out.stages.append(stage)
-            if stage.result.status != "success":
-                break
-    finally:
-        bench.close()
+    with run_log.capture():  # the bring-up goes into the first stage's run.log
+        bench = open_bench(rig, seed=seed)
+        try:
+            preflight(bench, plans, (options.trajectory_rate_hz if options is not None
+                                     else rig.hexapod.trajectory_rate_hz))
+            sim = getattr(bench, "sim", None)
+            if sim is not None:
+                truth = sim.truth()
+                pivot = np.asarray(rig.hexapod.pivot_m, float)
+                # R as the calibration sees it: from the pivot
+                truth["pivot_m"] = pivot.tolist()
+                truth["lever_arm_from_pivot_m"] = (np.asarray(truth["lever_arm_m"])
+                                                   + np.asarray(truth["cg_m"]) - pivot).tolist()
+                out.truth = truth
+            meta = {**dict(extra_meta or {}),
+                    **({"sim_truth": out.truth} if out.truth is not None else {})}
+            for i, plan in enumerate(plans):
+                if on_stage is not None:
+                    on_stage(i, plan)
+                stage = run_stage(bench, rig, plan, out_root, options=options,
+                                  on_progress=on_progress, stop_event=stop_event,
+                                  extra_meta={**meta, "stage": i + 1, "stages": len(plans)})
+                out.stages.append(stage)
+                if stage.result.status != "success":
+                    break
+        finally:
+            bench.close()
     return out
 
 

@@ -21,6 +21,7 @@ import contextlib
 import csv
 import io
 import json
+import logging
 import math
 import os
 import socket
@@ -35,6 +36,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from bench.errors import RecordingError, RigError
+from bench.run import run_log
 from drivers.worker import Worker
 
 __all__ = ["BASE_COLUMNS", "BEHIND_PART_S", "RunRecorder", "atomic_write_json", "new_run_id",
@@ -42,6 +44,8 @@ __all__ = ["BASE_COLUMNS", "BEHIND_PART_S", "RunRecorder", "atomic_write_json", 
 
 BASE_COLUMNS = ("t_s", "throttle_us", "thrust_setpoint_n", "thrust_n", "current_a",
                 "voltage_v", "rpm")
+log = logging.getLogger(__name__)
+
 SAMPLES_DIR = "samples.parquet"
 EVENT_FIELDS = ("t_s", "utc", "kind", "step", "label", "detail")
 BEHIND_PART_S = 10.0  # rig seconds per part of a simulated run written behind it
@@ -245,9 +249,16 @@ class RunRecorder:
                          software_version=software_version(), host=socket.gethostname(),
                          operator=self.meta.get("operator") or operator(),
                          bench=self.meta.get("bench") or os.environ.get("ROTORBENCH_BENCH"),
-                         pid=os.getpid(), samples=SAMPLES_DIR, events="events.csv")
+                         pid=os.getpid(), samples=SAMPLES_DIR, events="events.csv",
+                         log=run_log.LOG_NAME)
+        # the run's diagnostic log: the lines since its devices began to open, if a
+        # capture was started then (bench.runners.session), else from here
+        self._log_capture = contextlib.ExitStack()
+        self._log_capture.enter_context(run_log.capture())
         try:
             self.run_dir.mkdir(parents=True, exist_ok=False)
+            run_log.attach(self.run_dir)
+            log.info("run %s recording into %s", self.meta["id"], self.run_dir)
             (self.run_dir / SAMPLES_DIR).mkdir()
             atomic_write_json(self.run_dir / "run.json", self.meta, self._json_cache)
             self._events = open(self.run_dir / "events.csv", "w", newline="", encoding="utf-8")
@@ -255,6 +266,7 @@ class RunRecorder:
             self._events_csv.writerow(EVENT_FIELDS)
             self._events.flush()
         except OSError as exc:
+            self._log_capture.close()
             raise RigError(f"{self.run_dir}: cannot create the run folder "
                            f"({exc.strerror or exc})") from None
 
@@ -401,20 +413,31 @@ class RunRecorder:
                 self.flush()
         finally:
             self.closed = True
-            with contextlib.suppress(OSError):  # a full disk cannot take the last line
-                self._events.close()
-            self.meta.update(extra)
-            self.meta.update(status=status, reason=reason, ended_utc=utc_now(),
-                             rows=self.rows_written, parts=self.parts,
-                             finished_unix=time.time())
-            if self.failure is not None:
-                if self.meta["status"] == "success":  # the last flush failed
-                    self.meta.update(status="abort", reason=f"recording failed: {self.failure}")
-                self.meta.update(recording_error=self.failure,
-                                 rows_lost=self._n + self._rows_failed)
-                self._n = 0
-                with contextlib.suppress(OSError):  # run.json may keep "running"
-                    atomic_write_json(self.run_dir / "run.json", self.meta, self._json_cache)
-            else:
-                atomic_write_json(self.run_dir / "run.json", self.meta, self._json_cache)
+            try:
+                self._end_record(status, reason, extra)
+            finally:
+                log.info("run %s recorded: %s: %s (%d rows in %d parts%s)", self.meta["id"],
+                         self.meta["status"], self.meta["reason"], self.rows_written,
+                         self.parts, f"; {self.failure}" if self.failure else "")
+                run_log.detach()
+                self._log_capture.close()
         return self.meta
+
+    def _end_record(self, status: str, reason: str, extra: Mapping[str, Any]) -> None:
+        """Close the events and write the final ``run.json`` (a failed recording: what the
+        disk still takes)."""
+        with contextlib.suppress(OSError):  # a full disk cannot take the last line
+            self._events.close()
+        self.meta.update(extra)
+        self.meta.update(status=status, reason=reason, ended_utc=utc_now(),
+                         rows=self.rows_written, parts=self.parts, finished_unix=time.time())
+        if self.failure is not None:
+            if self.meta["status"] == "success":  # the last flush failed
+                self.meta.update(status="abort", reason=f"recording failed: {self.failure}")
+            self.meta.update(recording_error=self.failure,
+                             rows_lost=self._n + self._rows_failed)
+            self._n = 0
+            with contextlib.suppress(OSError):  # run.json may keep "running"
+                atomic_write_json(self.run_dir / "run.json", self.meta, self._json_cache)
+        else:
+            atomic_write_json(self.run_dir / "run.json", self.meta, self._json_cache)

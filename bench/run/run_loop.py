@@ -22,6 +22,7 @@ samples however they are sliced into reads, so the record is the same bit for bi
 from __future__ import annotations
 
 import contextlib
+import logging
 import math
 import signal
 import threading
@@ -41,6 +42,8 @@ from drivers.contracts import Block, Clock
 from drivers.errors import DeviceError
 
 __all__ = ["EPS", "OperatorStop", "RunResult", "SafeRunLoop", "signals_deferred"]
+
+log = logging.getLogger(__name__)
 
 EPS = 1e-9
 
@@ -192,6 +195,9 @@ class SafeRunLoop:
             self._wall0 = time.monotonic()
             self._event("run_start", detail={"rig_t0_s": self._t0,
                                              "plan_duration_s": self.plan.duration_s})
+            log.info("run started: %d segments, %.3f s planned, tick %g s, watchdog %g s",
+                     len(self.plan.segments), self.plan.duration_s, self.options.tick_s,
+                     self.watchdog.timeout_s)
             self.watchdog.start()
             for seg in self.plan.segments:
                 self._run_segment(seg)
@@ -216,12 +222,16 @@ class SafeRunLoop:
             # (or SIGTERM) is held until they are safe and the record is written.
             with signals_deferred():
                 errors = self._safe_stop()
+                log.info("safe stop (%s) done%s", self.safe_stop_label,
+                         f" with errors: {'; '.join(errors)}" if errors else "")
                 self.watchdog.stop()
                 if self.watchdog.tripped and status == "success":
                     status, reason = "abort", self.watchdog.reason
                 errors += self.watchdog.errors
                 self.result = RunResult(status, reason, trip, self._now_rel(), self.rows,
                                         errors, pending)
+                log.info("run ended: %s: %s (%.3f s of the run, %d rows)", status, reason,
+                         self.result.t_end_s, self.result.rows)
                 self._finish_record(trip, errors)
         if pending is not None:
             raise pending

@@ -15,13 +15,46 @@ that has nothing moving to stop.
 from __future__ import annotations
 
 import contextlib
+import logging
+import os
+import re
+import sys
 import threading
 import time
+import traceback
 from collections.abc import Iterator
+from types import FrameType
 
 from drivers.contracts import Esc
 
-__all__ = ["GuardedEsc", "HostWatchdog", "WatchdogTrip"]
+__all__ = ["GuardedEsc", "HostWatchdog", "WatchdogTrip", "where"]
+
+log = logging.getLogger(__name__)
+
+#: a check-in later than this share of the timeout is logged with where the loop was
+LATE_SHARE = 0.5
+
+
+def where(frame: FrameType | None, depth: int = 6) -> str:
+    """Where a thread is, innermost first: ``runner.py:245 _tick_until < runner.py:170
+    _hold``. The frames shown are the project's own (the watchdog's left out); a library
+    call the thread was inside (numpy, pyarrow, a socket) is named in front of them."""
+    if frame is None:
+        return "unknown (the thread has ended)"
+    stack = [f for f in traceback.extract_stack(frame)[::-1]
+             if not f.filename.endswith("watchdog.py")]
+    ours = [f for f in stack if _PROJECT_PATH.search(f.filename)]
+    text = " < ".join(_frame_text(f) for f in (ours or stack)[:depth])
+    if ours and stack and stack[0] is not ours[0]:
+        text = f"{_frame_text(stack[0])} in {text}"
+    return text
+
+
+_PROJECT_PATH = re.compile(r"[/\\](bench|drivers|analysis|optimizer)[/\\]")
+
+
+def _frame_text(f: traceback.FrameSummary) -> str:
+    return f"{os.path.basename(f.filename)}:{f.lineno} {f.name}"
 
 
 class WatchdogTrip(Exception):
@@ -100,6 +133,7 @@ class HostWatchdog:
         self._stop = threading.Event()
         self._trip_lock = threading.Lock()
         self._thread: threading.Thread | None = None
+        self._loop_ident: int | None = None  # the thread that checks in
         self.tripped_at: float | None = None
         self.stall_s: float = 0.0
         self.errors: list[str] = []
@@ -112,6 +146,10 @@ class HostWatchdog:
         now = time.monotonic()
         stalled = now - self._last
         self._last = now
+        if stalled > LATE_SHARE * self.timeout_s and self._thread is not None \
+                and not self.tripped:
+            log.info("late check-in: %.3f s since the last (timeout %g s), the loop at %s",
+                        stalled, self.timeout_s, where(sys._getframe(1)))
         if not self.tripped and self._thread is not None and stalled > self.timeout_s:
             # the whole process was frozen (suspend, SIGSTOP, swap): the watching thread
             # froze too, and the loop may wake first; it sees the stall itself
@@ -139,7 +177,9 @@ class HostWatchdog:
                 f"(timeout {self.timeout_s:g} s); {self.stops}")
 
     def start(self) -> HostWatchdog:
+        """Watch the thread that calls this (the command loop's)."""
         self._last = time.monotonic()
+        self._loop_ident = threading.get_ident()
         thread = threading.Thread(target=self._watch, name="rotorbench-watchdog", daemon=True)
         thread.start()  # a Ctrl-C or SIGTERM may land in here: then no thread is kept
         self._thread = thread
@@ -165,7 +205,13 @@ class HostWatchdog:
                 return
             self.stall_s = stalled
             self.tripped_at = time.monotonic()
+            loop = sys._current_frames().get(self._loop_ident) \
+                if self._loop_ident is not None else None
+            # INFO: the command says the stop itself; the log adds where the loop was
+            log.info("%s; the loop was at %s", self.reason, where(loop))
             self.errors = self.esc.kill(self.reason)
+            if self.errors:
+                log.info("watchdog: the stop reported %s", "; ".join(self.errors))
 
     def __enter__(self) -> HostWatchdog:
         return self.start()

@@ -28,6 +28,7 @@ reports it has stopped; one still moving ``motion_end_timeout_s`` later ends the
 
 from __future__ import annotations
 
+import logging
 import math
 import threading
 from collections.abc import Callable, Mapping
@@ -60,6 +61,8 @@ __all__ = ["RECORD_BASE", "HexapodRunOptions", "HexapodRunner", "ImuBenchLike", 
 _COMMAND_COLUMNS = ("throttle_us", "thrust_setpoint_n")  # filled from the command history
 
 StepHandler = Callable[[Any, Any], None]  # (runner, segment) -> None
+
+log = logging.getLogger(__name__)
 
 
 class OpenRigLike(Protocol):
@@ -140,6 +143,8 @@ class PlanRunner(SafeRunLoop):
 
     def _run_segment(self, seg: Any) -> None:
         self._segment = seg
+        log.debug("segment %d %s (%s, %.3f s) at %.3f s of the run", seg.index, seg.label,
+                 seg.kind, seg.duration_s, self._now_rel())
         self._event("step_start", seg.index, seg.label, self._step_detail(seg))
         begin = self.STEP_BEGIN.get(type(seg.step))
         if begin is None:

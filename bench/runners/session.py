@@ -28,6 +28,7 @@ import numpy as np
 from bench.plans.calibration_sequences import HexapodSegment
 from bench.plans.sequences import EscRange, Plan, Segment, Sequence, compile_plan
 from bench.plans.thrust_map import StaticThrustMap
+from bench.run import run_log
 from bench.run.recorder import BASE_COLUMNS, RunRecorder
 from bench.run.safety import effective_limits, limits_dict
 from bench.runners.hexapod_parts import RECORD_BASE, ImuBenchLike
@@ -170,7 +171,21 @@ def run_sequence(
     # the devices open before the run folder exists: a rig that cannot be opened (an
     # option misspelt, a port missing) is refused with nothing written, however often it
     # is tried; opening arms nothing (the runner arms the ESC), and the devices are closed
-    # whatever happens after
+    # whatever happens after. What they said goes into the run's run.log all the same.
+    with run_log.capture():
+        return _run_opened(rig, seq, out_root, open_rig, plan, limits, meta, seed=seed,
+                           options=options, on_rows=on_rows, on_progress=on_progress,
+                           stop_event=stop_event, runner_factory=runner_factory)
+
+
+def _run_opened(rig: Any, seq: Sequence, out_root: Path,
+                open_rig: Callable[..., OpenRigLike], plan: Plan, limits: Any,
+                meta: Mapping[str, Any], *, seed: int | None, options: RunOptions,
+                on_rows: Callable[[Mapping[str, np.ndarray]], None] | None,
+                on_progress: Callable[[float, float, Segment], None] | None,
+                stop_event: threading.Event | None,
+                runner_factory: Callable[..., Runner]) -> RunOutcome:
+    """``run_sequence`` from the devices' opening on."""
     devices = open_rig(rig, seed=seed)
     try:
         def run(recorder: RunRecorder) -> RunResult:
