@@ -35,6 +35,11 @@ from bench.store.run_data import DataLocation
 __all__ = ["TrailingUpload"]
 
 
+def _main_alive() -> bool:
+    """False once the main thread has ended (the interpreter is shutting down)."""
+    return threading.main_thread().is_alive()
+
+
 class TrailingUpload:
     """A daemon thread sending the finished parts of this process's running runs."""
 
@@ -69,12 +74,19 @@ class TrailingUpload:
         return self.done
 
     def _loop(self) -> None:
-        while not self._stop.wait(self.period_s):
+        while not self._stop.wait(self.period_s) and _main_alive():
             try:
                 self.send_new()
             except (RigError, OSError) as exc:  # the store or the spool went away: the
                 # publish at the end (or store sync) decides
                 self.failed = str(exc)
+                return
+            except RuntimeError:
+                # the interpreter is shutting down (a SIGTERM ended the command): Python
+                # stops its thread pools before the atexit hook that stops this thread
+                # runs, and a pool refuses new uploads; store sync delivers the rest
+                if _main_alive():
+                    raise
                 return
 
     def send_new(self) -> None:
