@@ -123,15 +123,17 @@ class LabStore:
         return self.catalog.count_runs(where)
 
     def run_folder(self, run_id: str) -> Path:
-        """The run as a local folder: the spool's copy, else a download into the cache."""
-        local = self.spool / run_id
+        """The run as a local folder: the spool's copy, else a download into the cache
+        (from this store's data location only, whatever the row's ``data`` says)."""
+        from bench.run.run_ids import check_run_id
+
+        local = self.spool / check_run_id(run_id, f"store {redact(self.catalog.dsn)}: run")
         if (local / "run.json").exists():
             return local
         row = self.catalog.get_run(run_id)
         if row is None:
             raise RigError(f"run {run_id}: not in the store {redact(self.catalog.dsn)}")
-        where = DataLocation(row.data.rsplit("/", 1)[0]) if row.data else self.data
-        return where.download(run_id, default_cache())
+        return self.data.for_row(run_id, row.data).download(run_id, default_cache())
 
     def add_constants(self, rows: Sequence[StoredConstants]) -> int:
         return self.catalog.add_constants(rows)
