@@ -31,7 +31,6 @@ __all__ = ["ColumnChunks", "RunRecord", "esc_frame_s", "event_times", "events_pa
            "read_columns", "read_meta", "read_run", "sample_count", "samples_path"]
 
 
-
 @dataclass(frozen=True)
 class RunRecord:
     """One run: where it is, its metadata, its samples (sorted by ``t_s``) and events."""
@@ -84,10 +83,12 @@ def sample_count(run_dir: str | Path, meta: dict[str, Any] | None = None) -> int
 
     run_dir = Path(run_dir)
     path = samples_path(run_dir, meta if meta is not None else read_meta(run_dir))
-    if path.is_dir():
-        files_under(run_dir, path)  # every part inside the run folder
+    parts = _sample_parts(run_dir, path, empty=True)
+    if not parts:
+        return 0
     try:
-        return int(ds.dataset(path, format="parquet", exclude_invalid_files=True).count_rows())
+        return int(ds.dataset([str(p) for p in parts], format="parquet",
+                              exclude_invalid_files=True).count_rows())
     except Exception as exc:  # pyarrow raises several types for damaged files
         raise LogError(_not_parquet(path, exc)) from None
 
@@ -175,9 +176,10 @@ def _floats(column: Any) -> np.ndarray:
     return np.asarray(column.to_numpy(zero_copy_only=False), dtype=float)
 
 
-def _sample_parts(run_dir: Path, path: Path) -> list[Path]:
+def _sample_parts(run_dir: Path, path: Path, *, empty: bool = False) -> list[Path]:
     """The samples file, or the parts of the samples folder (hidden temporary parts left
-    out); every file in the folder checked to stay inside the run folder."""
+    out); every file in the folder checked to stay inside the run folder. A folder
+    without parts is a ``LogError`` unless ``empty`` (a run that has not written one)."""
     if not path.exists():
         raise LogError(f"{path}: missing (the run's samples)")
     if path.is_file():
@@ -186,15 +188,15 @@ def _sample_parts(run_dir: Path, path: Path) -> list[Path]:
         raise LogError(f"{path}: not a regular file or folder")
     parts = [p for p in files_under(run_dir, path) if p.parent == path
              and p.suffix == ".parquet" and not p.name.startswith((".", "_"))]
-    if not parts:
+    if not parts and not empty:
         raise LogError(f"{path}: no sample parts in the folder (the run recorded nothing)")
     return parts
 
 
 def _read_samples(run_dir: Path, path: Path) -> pd.DataFrame:
-    _sample_parts(run_dir, path)
-    try:
-        df = pd.read_parquet(path)
+    parts = _sample_parts(run_dir, path)
+    try:  # the parts listed, not the folder: pyarrow would walk its sub-folders and links
+        df = pd.read_parquet([str(p) for p in parts] if path.is_dir() else path)
     except Exception as exc:  # pyarrow raises several types for damaged files
         raise LogError(_not_parquet(path, exc)) from None
     if "t_s" not in df.columns:
