@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bench.errors import RigError
+from bench.run.run_ids import check_run_id
 from bench.store.lab_catalog import LabCatalog, StoredConstants
 from bench.store.lab_publish import Publisher, pending_runs
 from bench.store.run_data import DataLocation
@@ -125,8 +126,6 @@ class LabStore:
     def run_folder(self, run_id: str) -> Path:
         """The run as a local folder: the spool's copy, else a download into the cache
         (from this store's data location only, whatever the row's ``data`` says)."""
-        from bench.run.run_ids import check_run_id
-
         local = self.spool / check_run_id(run_id, f"store {redact(self.catalog.dsn)}: run")
         if (local / "run.json").exists():
             return local
@@ -173,6 +172,11 @@ class LabStore:
                 failed.append((run_dir.name, f"unreadable run.json ({exc})"))
                 continue
             run_id = str(meta.get("id") or run_dir.name)
+            try:  # checked before the store is asked about it
+                check_run_id(run_id, f"{meta_path}: id")
+            except RigError as exc:
+                failed.append((run_dir.name, str(exc)))
+                continue
             if meta.get("status") == "running":
                 failed.append((run_id, "still running (or killed: `rotorbench runs` marks it)"))
                 continue
