@@ -102,8 +102,7 @@ def read_run_json(run_dir: str | Path) -> dict[str, Any]:
     except OSError as exc:
         raise LogError(f"{path}: cannot read ({exc.strerror or type(exc).__name__})") from None
     except UnicodeDecodeError as exc:
-        raise LogError(f"{path}: not UTF-8 text (byte {exc.object[exc.start]:#04x} at "
-                       f"offset {exc.start})") from None
+        raise LogError(f"{path}: not UTF-8 text (at byte offset {exc.start})") from None
     try:
         meta = json.loads(text)
     except json.JSONDecodeError as exc:  # its msg names the fault, never the text

@@ -129,3 +129,12 @@ def test_run_json_that_is_not_an_object_is_one_line(tmp_path: Path, text: str) -
     with pytest.raises(LogError, match=r"run\.json: ") as err:
         read_run_json(run)
     assert "\n" not in str(err.value)
+
+
+def test_a_run_json_that_is_not_utf8_is_named_by_offset_not_by_byte(tmp_path: Path) -> None:
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "run.json").write_bytes(b'{"id": "\xab\xcd"}')
+    with pytest.raises(LogError, match=r"not UTF-8 text \(at byte offset 8\)$") as err:
+        read_run_json(run)
+    assert "0xab" not in str(err.value) and "\\xab" not in str(err.value)
