@@ -128,9 +128,7 @@ class RunIndex:
         return marked
 
     def _connect(self) -> sqlite3.Connection:
-        return connect(self.path, _SCHEMA, "run index", "move it away and run `rotorbench "
-                       "runs --rebuild` to index the run folders again",
-                       read_only=self.read_only)
+        return connect(self.path, _SCHEMA, "run index", _BROKEN, read_only=self.read_only)
 
     def folder(self, rel: str) -> Path:
         """The run folder of an index row's ``path``: a name inside the root."""
@@ -217,6 +215,7 @@ class RunIndex:
         return Rebuilt(count, tuple(skipped))
 
 
+_BROKEN = "move it away and run `rotorbench runs --rebuild` to index the run folders again"
 _COLUMNS = ("id, path, rig, components, sequence, started_utc, ended_utc, status, reason, "
             "host, pid")
 
@@ -232,8 +231,7 @@ def _check_table(con: sqlite3.Connection, path: Path) -> None:
     try:
         con.execute(f"SELECT {_COLUMNS} FROM runs LIMIT 0")
     except sqlite3.DatabaseError as exc:
-        raise RigError(f"{path}: not a readable run index ({exc}); move it away and run "
-                       "`rotorbench runs --rebuild` to index the run folders again") from None
+        raise RigError(f"{path}: not a readable run index ({exc}); {_BROKEN}") from None
 
 
 def _text(value: Any) -> str | None:
