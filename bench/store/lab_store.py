@@ -18,7 +18,7 @@ from bench.errors import RigError
 from bench.run.run_ids import check_run_id
 from bench.store.lab_catalog import LabCatalog, StoredConstants
 from bench.store.lab_publish import Publisher, pending_runs
-from bench.store.run_data import DataLocation
+from bench.store.run_data import DataLocation, row_location
 from bench.store.run_summary import RunFilter, RunSummary
 from bench.store.store_url import redact
 from bench.store.trailing_upload import TrailingUpload
@@ -125,14 +125,14 @@ class LabStore:
 
     def run_folder(self, run_id: str) -> Path:
         """The run as a local folder: the spool's copy, else a download into the cache
-        (from this store's data location only, whatever the row's ``data`` says)."""
+        (from the store's data location: ``row_location`` checks what the row says)."""
         local = self.spool / check_run_id(run_id, f"store {redact(self.catalog.dsn)}: run")
         if (local / "run.json").exists():
             return local
         row = self.catalog.get_run(run_id)
         if row is None:
             raise RigError(f"run {run_id}: not in the store {redact(self.catalog.dsn)}")
-        return self.data.for_row(run_id, row.data).download(run_id, default_cache())
+        return row_location(run_id, row.data, self.location).download(run_id, default_cache())
 
     def add_constants(self, rows: Sequence[StoredConstants]) -> int:
         return self.catalog.add_constants(rows)

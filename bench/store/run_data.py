@@ -10,7 +10,8 @@ Run ids and file names come from run folders and catalog rows other people write
 every one is checked before a path or key is built from it: the run id by
 ``bench.run.run_ids.check_run_id``, a file of the run by ``analysis.run_paths`` (inside
 the run folder, links followed), a downloaded key to stay inside the cache's run folder.
-A catalog row's ``data`` is used only when it is this location's own URI of that run.
+A catalog row's ``data`` is used only when it is the store's own URI of that run
+(``row_location``); a lab that saved no data location trusts its rows to name it.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from analysis.run_paths import files_under, member
 from bench.errors import RigError
 from bench.run.run_ids import check_run_id
 
-__all__ = ["DataLocation", "DataUnavailable"]
+__all__ = ["DataLocation", "DataUnavailable", "row_location"]
 
 
 class DataUnavailable(RigError):
@@ -178,6 +179,24 @@ class DataLocation:
         infos = fs.get_file_info(pafs.FileSelector(base, recursive=True))
         return sorted(i.path[len(base) + 1:] for i in infos
                       if i.type == pafs.FileType.File)
+
+
+def row_location(run_id: str, data: str | None, store: DataLocation | None) -> DataLocation:
+    """Where to fetch run ``run_id`` whose catalog row says ``data``: the store's own data
+    location (``DataLocation.for_row``: a row naming another place is refused). A store
+    without one (none saved by ``store init --data``, no ``--out``) has only the row to
+    go by: its ``data`` must end in ``/<run id>``, and the download stays in the cache."""
+    if store is not None:
+        return store.for_row(run_id, data)
+    check_run_id(run_id, "catalog row: run")
+    base, _, last = (data or "").rstrip("/").rpartition("/")
+    if not base or last != run_id:
+        from analysis.errors import excerpt
+
+        raise RigError(f"run {run_id}: its catalog row names no data location for it "
+                       f"({excerpt(data or '', 120)}) and the store has none; give --out "
+                       "LOCATION or save one with `rotorbench store init URL --data LOCATION`")
+    return DataLocation(base)
 
 
 def _s3_from_uri(uri: str) -> tuple[Any, str]:

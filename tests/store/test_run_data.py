@@ -15,7 +15,7 @@ import pytest
 
 from bench.cli import main
 from bench.errors import RigError
-from bench.store.run_data import DataLocation
+from bench.store.run_data import DataLocation, row_location
 
 HOSTILE_IDS = ["../../escape", "../escape", "/tmp/escape", "a/../../escape", "..\\..\\escape",
                "a\x00b", "x" * 300, ".", "..", ""]
@@ -141,6 +141,18 @@ def test_a_row_may_name_only_this_locations_own_uri(tmp_path: Path, data: str) -
         location.for_row("r1", text)
     assert location.for_row("r1", f"{location.uri}/r1") is location
     assert location.for_row("r1", "") is location
+
+
+@pytest.mark.parametrize("data", ["", "s3://bucket/runs/other", "s3://bucket/runs/r1/../x",
+                                  "r1", "/r1/..", "s3://bucket/runs/../../r2"])
+def test_without_a_store_location_a_row_must_name_its_own_run(data: str) -> None:
+    """A lab that saved no data location (benches give --out) has only the row to go by:
+    it must end in the run's id, and the download is checked as always."""
+    with pytest.raises(RigError, match=r"^run r1: its catalog row names no data location"):
+        row_location("r1", data, None)
+    assert row_location("r1", "s3://bucket/runs/r1", None) == DataLocation("s3://bucket/runs")
+    with pytest.raises(RigError, match="is not a run id"):
+        row_location("../r1", "s3://bucket/runs/../r1", None)
 
 
 # -- the commands over PostgreSQL + S3 ----------------------------------------------------
