@@ -230,14 +230,15 @@ def test_hostile_catalog_rows_reach_nothing_outside(recorded: object, tmp_path: 
                                    ("r-file", f"file://{other}", "running"),
                                    ("../../escape", f"{data}/../../escape", "running"),
                                    ("..\\..\\escape", "", "running"),
-                                   ("../rotorbench/runs/x", f"{data}/x", "running")]:
+                                   ("../rotorbench/runs/x", f"{data}/x", "running"),
+                                   ("x" * 300, f"{data}/{'x' * 300}", "running")]:
             con.execute("INSERT INTO runs (run_id, bench, operator, status, data, started_utc) "
                         "VALUES (%s, 'hostile', 'x', %s, %s, now())", (rid, status, where))
     before = {str(p) for p in tmp_path.rglob("*")}
     with TestClient(create_app(open_store(pg_url, spool=tmp_path / "spool"))) as client:
         live = client.get("/api/live")
         assert live.status_code == 200 and all(r["latest"] == {} for r in live.json())
-        assert len(live.json()) == 4
+        assert len(live.json()) == 5
         for rid in ("r-other", "r-file"):
             for path in (f"/api/runs/{rid}", f"/runs/{rid}", f"/runs/{rid}/run.json"):
                 r = client.get(path)
