@@ -9,7 +9,6 @@ an imported log and a bench run look the same to every fit.
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -20,12 +19,16 @@ import numpy as np
 import pandas as pd
 
 from analysis.errors import LogError
+from analysis.run_paths import (
+    SAMPLES_DEFAULT,
+    events_path,
+    files_under,
+    read_run_json,
+    samples_path,
+)
 
-__all__ = ["ColumnChunks", "RunRecord", "esc_frame_s", "event_times", "read_columns",
-           "read_meta", "read_run", "sample_count"]
-
-SAMPLES_DEFAULT = "samples.parquet"
-EVENTS_DEFAULT = "events.csv"
+__all__ = ["ColumnChunks", "RunRecord", "esc_frame_s", "event_times", "events_path",
+           "read_columns", "read_meta", "read_run", "sample_count", "samples_path"]
 
 
 @dataclass(frozen=True)
@@ -56,26 +59,22 @@ class RunRecord:
 
 def _samples_name(meta: dict[str, Any]) -> str:
     name = meta.get("samples") or SAMPLES_DEFAULT
-    return str(name)
+    return name if isinstance(name, str) else SAMPLES_DEFAULT
 
 
 def read_run(path: str | Path) -> RunRecord:
     """Load a run folder; every problem raises ``LogError`` naming the file and the fault."""
     run_dir = Path(path)
-    if not run_dir.is_dir():
-        raise LogError(f"{run_dir}: not a run folder (expected a folder with run.json)")
-    if (run_dir / "run.json").exists() and not (run_dir / "run.json").is_file():
-        # a folder, or a FIFO or device that would block or read without end
-        raise LogError(f"{run_dir / 'run.json'}: not a regular file")
-    meta = _read_meta(run_dir / "run.json")
-    samples = _read_samples(run_dir / _samples_name(meta))
-    events = _read_events(run_dir / str(meta.get("events") or EVENTS_DEFAULT))
+    meta = read_meta(run_dir)
+    samples = _read_samples(run_dir, samples_path(run_dir, meta))
+    events = _read_events(events_path(run_dir, meta))
     return RunRecord(run_dir, meta, samples, events)
 
 
 def read_meta(run_dir: str | Path) -> dict[str, Any]:
-    """Only a run folder's ``run.json`` (a page that shows the metadata needs no samples)."""
-    return _read_meta(Path(run_dir) / "run.json")
+    """Only a run folder's ``run.json`` (a page that shows the metadata needs no samples);
+    ``analysis.run_paths.read_run_json``, re-exported where the rest of a run is read."""
+    return read_run_json(run_dir)
 
 
 def sample_count(run_dir: str | Path, meta: dict[str, Any] | None = None) -> int:
@@ -83,11 +82,15 @@ def sample_count(run_dir: str | Path, meta: dict[str, Any] | None = None) -> int
     import pyarrow.dataset as ds
 
     run_dir = Path(run_dir)
-    path = run_dir / _samples_name(meta if meta is not None else read_meta(run_dir))
+    path = samples_path(run_dir, meta if meta is not None else read_meta(run_dir))
+    parts = _sample_parts(run_dir, path, empty=True)
+    if not parts:
+        return 0
     try:
-        return int(ds.dataset(path, format="parquet", exclude_invalid_files=True).count_rows())
+        return int(ds.dataset([str(p) for p in parts], format="parquet",
+                              exclude_invalid_files=True).count_rows())
     except Exception as exc:  # pyarrow raises several types for damaged files
-        raise LogError(f"{path}: not readable as Parquet ({type(exc).__name__}: {exc})") from None
+        raise LogError(_not_parquet(path, exc)) from None
 
 
 def read_columns(run_dir: str | Path, columns: list[str]) -> dict[str, np.ndarray]:
@@ -117,19 +120,13 @@ class ColumnChunks:
         import pyarrow.parquet as pq
 
         run_dir = Path(run_dir)
-        self.path = path = run_dir / _samples_name(read_meta(run_dir))
+        self.path = path = samples_path(run_dir, read_meta(run_dir))
         self.rows = rows
-        if not path.exists():
-            raise LogError(f"{path}: missing (the run's samples)")
-        self._files = ([p for p in sorted(path.glob("*.parquet"))
-                        if not p.name.startswith((".", "_"))] if path.is_dir() else [path])
-        if not self._files:
-            raise LogError(f"{path}: no sample parts in the folder (the run recorded nothing)")
+        self._files = _sample_parts(run_dir, path)
         try:
             have = pq.read_schema(self._files[0]).names
         except Exception as exc:  # pyarrow raises several types for damaged files
-            raise LogError(f"{path}: not readable as Parquet ({type(exc).__name__}: "
-                           f"{exc})") from None
+            raise LogError(_not_parquet(path, exc)) from None
         if "t_s" not in have:
             raise LogError(f"{path}: no 't_s' column")
         self.names = [c for c in dict.fromkeys(columns) if c in have and c != "t_s"]
@@ -164,8 +161,14 @@ class ColumnChunks:
                         yield {c: _floats(batch.column(c)) if c in there
                                else np.full(batch.num_rows, np.nan) for c in names}
         except Exception as exc:  # pyarrow raises several types for damaged files
-            raise LogError(f"{self.path}: not readable as Parquet ({type(exc).__name__}: "
-                           f"{exc})") from None
+            raise LogError(_not_parquet(self.path, exc)) from None
+
+
+def _not_parquet(path: Path, exc: BaseException) -> str:
+    """The one-line fault of an unreadable Parquet file or folder. Only the exception's
+    type is named: pyarrow's and pandas' texts may carry bytes of the file."""
+    return (f"{path}: not readable as Parquet (not a Parquet file, or a damaged one: "
+            f"{type(exc).__name__})")
 
 
 def _floats(column: Any) -> np.ndarray:
@@ -173,35 +176,29 @@ def _floats(column: Any) -> np.ndarray:
     return np.asarray(column.to_numpy(zero_copy_only=False), dtype=float)
 
 
-def _read_meta(path: Path) -> dict[str, Any]:
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise LogError(f"{path}: missing (every run folder has a run.json)") from None
-    except OSError as exc:
-        raise LogError(f"{path}: cannot read ({exc})") from None
-    except UnicodeDecodeError as exc:
-        raise LogError(f"{path}: not UTF-8 text (byte {exc.object[exc.start]:#04x} at "
-                       f"offset {exc.start})") from None
-    try:
-        meta = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise LogError(f"{path}: line {exc.lineno}: invalid JSON ({exc.msg})") from None
-    if not isinstance(meta, dict):
-        raise LogError(f"{path}: expected a JSON object at the top level")
-    return meta
-
-
-def _read_samples(path: Path) -> pd.DataFrame:
+def _sample_parts(run_dir: Path, path: Path, *, empty: bool = False) -> list[Path]:
+    """The samples file, or the parts of the samples folder (hidden temporary parts left
+    out); every file in the folder checked to stay inside the run folder. A folder
+    without parts is a ``LogError`` unless ``empty`` (a run that has not written one)."""
     if not path.exists():
         raise LogError(f"{path}: missing (the run's samples)")
-    if path.is_dir() and not any(p.suffix == ".parquet" and not p.name.startswith((".", "_"))
-                                 for p in path.iterdir()):
+    if path.is_file():
+        return [path]
+    if not path.is_dir():  # a FIFO or device: would block or read without end
+        raise LogError(f"{path}: not a regular file or folder")
+    parts = [p for p in files_under(run_dir, path) if p.parent == path
+             and p.suffix == ".parquet" and not p.name.startswith((".", "_"))]
+    if not parts and not empty:
         raise LogError(f"{path}: no sample parts in the folder (the run recorded nothing)")
-    try:
-        df = pd.read_parquet(path)
+    return parts
+
+
+def _read_samples(run_dir: Path, path: Path) -> pd.DataFrame:
+    parts = _sample_parts(run_dir, path)
+    try:  # the parts listed, not the folder: pyarrow would walk its sub-folders and links
+        df = pd.read_parquet([str(p) for p in parts] if path.is_dir() else path)
     except Exception as exc:  # pyarrow raises several types for damaged files
-        raise LogError(f"{path}: not readable as Parquet ({type(exc).__name__}: {exc})") from None
+        raise LogError(_not_parquet(path, exc)) from None
     if "t_s" not in df.columns:
         raise LogError(f"{path}: no 't_s' column (columns: {', '.join(map(str, df.columns))})")
     if len(df) == 0:
@@ -226,13 +223,17 @@ def _time_order(t: np.ndarray, path: Path) -> np.ndarray | None:
 def _read_events(path: Path) -> pd.DataFrame:
     if not path.exists():
         return pd.DataFrame(columns=["t_s", "kind", "step", "label", "detail"])
+    if not path.is_file():
+        raise LogError(f"{path}: not a regular file")
     try:
         ev = pd.read_csv(path, dtype={"kind": str, "label": str, "detail": str},
                          keep_default_na=False, na_values={"t_s": [""], "step": [""]})
-    except Exception as exc:
-        raise LogError(f"{path}: not a readable events table ({exc})") from None
+    except Exception as exc:  # the parser's text may quote the file: only its type
+        raise LogError(f"{path}: not a readable events table (CSV: {type(exc).__name__})"
+                       ) from None
     if "t_s" not in ev.columns or "kind" not in ev.columns:
-        raise LogError(f"{path}: expected columns t_s and kind, got {list(ev.columns)}")
+        raise LogError(f"{path}: not an events table (its header has no columns t_s and "
+                       "kind)")
     ev["t_s"] = pd.to_numeric(ev["t_s"], errors="coerce")
     return ev
 

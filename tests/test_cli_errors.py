@@ -35,6 +35,17 @@ def test_import_missing_file_or_folder(tmp_path: Path, capsys, fmt: str) -> None
     assert not (tmp_path / "o").exists()
 
 
+@pytest.mark.parametrize("name", ["my run", "..x", "-x", "a" * 129, "é"])
+def test_import_out_whose_name_is_not_a_run_id(tmp_path: Path, capsys, name: str) -> None:
+    """The folder's name becomes the run's id; one that is not one was refused only
+    later, by the web view and `store push`."""
+    f = tmp_path / "log.csv"
+    f.write_text("t_s,thrust_n\n0,1\n0.1,2\n")
+    err = run_bad(capsys, "import", str(f), "--format", "csv", "--out", str(tmp_path / name))
+    assert "is not a run id" in err and "the folder's name (the run's id)" in err
+    assert not (tmp_path / name).exists()
+
+
 def test_import_ragged_csv_is_one_line(tmp_path: Path, capsys) -> None:
     f = tmp_path / "ragged.csv"
     f.write_text("t_s,thrust_n\n0,1\n0.1\n0.2,1,5\n")

@@ -95,9 +95,11 @@ def write_run(out: Path, samples, meta: dict) -> Path:
 def handler(args: argparse.Namespace) -> int:
     from analysis.importers import JITTER_MAX_PERIODS, detect_format, import_log
     from bench.cli_support import check_writable
+    from bench.run.run_ids import check_run_id
 
     if args.out.exists():
         raise RigError(f"--out {args.out}: already exists (choose a new run folder)")
+    check_run_id(args.out.name, f"--out {args.out}: the folder's name (the run's id)")
     check_writable(args.out, "--out", folder=True, beside=True)
     mapping = parse_mapping(args.mapping) or None
     if args.fmt:

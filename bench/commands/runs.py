@@ -28,6 +28,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         "data, ...), newest first")
     p.add_argument("--bench", default=None, help="only the runs of this bench")
     p.add_argument("--status", default=None, help="only runs with this status (e.g. trip)")
+    p.add_argument("--since", default=None, metavar="DATE",
+                   help="only runs started at or after DATE (YYYY-MM-DD or ISO time, UTC)")
+    p.add_argument("--until", default=None, metavar="DATE",
+                   help="only runs started before DATE (YYYY-MM-DD or ISO time, UTC)")
     p.add_argument("--limit", type=int, default=None, help="at most this many runs")
     add_store_args(p)
     p.set_defaults(func=handler)
@@ -36,16 +40,19 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def drops_text(run_dir: Path) -> str:
     """``0``, ``! 12 (gap 0.040 s)`` for a run with drops (``, ! 3 link errors`` when frames
     were lost on a device's link), ``-`` for a record without the
-    count (older runs, killed runs); from the run's ``run.json``."""
+    count (older runs, killed runs, a damaged ``run.json``); from the run's ``run.json``."""
+    from analysis.errors import LogError
+    from analysis.run_paths import read_run_json
+
     try:
-        meta = json.loads((run_dir / "run.json").read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+        meta = read_run_json(run_dir)
+    except LogError:
         return "-"
-    n = meta.get("dropped_samples")
-    if n is None:
+    n, gap, link = (meta.get(k) for k in ("dropped_samples", "longest_gap_s", "link_errors"))
+    if type(n) is not int or not isinstance(gap, int | float | None) \
+            or not isinstance(link, int | None):
         return "-"
-    link = meta.get("link_errors") or 0
-    text = f"! {n} (gap {meta.get('longest_gap_s') or 0:.3f} s)" if n else "0"
+    text = f"! {n} (gap {gap or 0:.3f} s)" if n else "0"
     return f"{text}, ! {link} link errors" if link else text
 
 
@@ -55,7 +62,8 @@ def _lab_listing(args: argparse.Namespace, store: object) -> int:
     if args.rebuild:
         raise RigError("--rebuild re-indexes a folder store; the lab catalog is indexed as "
                        "runs are published (`rotorbench store sync` delivers waiting ones)")
-    where = RunFilter(bench=args.bench, status=args.status)
+    where = RunFilter(bench=args.bench, status=args.status, since=args.since,
+                      until=args.until)
     runs = store.list_runs(where, limit=args.limit)
     if args.json:
         print(json.dumps([r.as_dict() for r in runs], indent=1))
@@ -72,14 +80,19 @@ def _lab_listing(args: argparse.Namespace, store: object) -> int:
 
 
 def handler(args: argparse.Namespace) -> int:
+    from bench.store.run_summary import utc_bound
+
     if args.limit is not None and args.limit < 1:
         raise RigError(f"--limit {args.limit}: expected at least 1")
+    for name in ("since", "until"):  # checked before any store is opened
+        if getattr(args, name) is not None:
+            utc_bound(getattr(args, name), f"--{name}")
     store = store_from_args(args)
     if not hasattr(store, "root"):
         return _lab_listing(args, store)
     args.out = store.root
     check_folder_to_read(args.out)
-    if args.json or args.bench or args.status or args.limit:
+    if args.json or args.bench or args.status or args.limit or args.since or args.until:
         if args.rebuild:
             check_writable(args.out, "--out", folder=True)
             for line in RunIndex(args.out).rebuild().skipped:

@@ -11,7 +11,6 @@ log in the format of :mod:`analysis.imu_log`, which :mod:`analysis.imu_calibrati
 
 from __future__ import annotations
 
-import json
 import threading
 import warnings
 from collections.abc import Callable, Mapping, Sequence
@@ -125,14 +124,15 @@ def collect_log(run_dirs: Sequence[Path], path: Path) -> Path:
     puts all stages on the one continuous clock of the bench.
     """
     from analysis.imu_log import write_table
+    from analysis.run_paths import read_run_json, samples_path
 
     frames = []
     for run_dir in run_dirs:
         run_dir = Path(run_dir)
         try:
-            meta = json.loads((run_dir / "run.json").read_text(encoding="utf-8"))
-            df = pd.read_parquet(run_dir / meta.get("samples", "samples.parquet"))
-        except (OSError, ValueError) as exc:
+            meta = read_run_json(run_dir)
+            df = pd.read_parquet(samples_path(run_dir, meta))
+        except (OSError, ValueError) as exc:  # LogError: a ValueError naming the file
             raise RigError(f"{run_dir}: cannot read the run's samples: {exc}") from None
         if "rig_t0_s" not in meta:
             raise RigError(f"{run_dir}/run.json: field rig_t0_s: missing (not a hexapod run?)")

@@ -154,7 +154,13 @@ def fit_sweep_run(run_dir: Path) -> SweepFit:
     ramp = max(ramps, key=lambda s: s["duration_s"])
     import pandas as pd
 
-    samples = pd.read_parquet(run_dir / meta.get("samples", "samples.parquet"))
+    from analysis.errors import LogError
+    from analysis.run_paths import samples_path
+
+    try:
+        samples = pd.read_parquet(samples_path(run_dir, meta))
+    except LogError as exc:
+        raise RigError(str(exc)) from None
     rows = samples[samples["step"] == ramp["index"]]
     fit = fit_sweep(rows, source=str(run_dir))
     atomic_write_json(run_dir / "static_map.json", fit.to_dict())

@@ -68,10 +68,10 @@ def new_run_id(name: str) -> str:
     """``<UTC stamp>-<8 hex>-<name>``: sorts by start time, says what the run is, and stays
     unique across benches that start runs in the same microsecond (the hex digits are
     random bits of a UUIDv7, ``bench.run.run_ids``)."""
-    from bench.run.run_ids import uuid7
+    from bench.run.run_ids import run_id_name, uuid7
 
     stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%S_%fZ")
-    return f"{stamp}-{uuid7().hex[-8:]}-{name}"
+    return f"{stamp}-{uuid7().hex[-8:]}-{run_id_name(name)}"
 
 
 def operator() -> str:

@@ -5,9 +5,11 @@ Pages: ``/`` (runs, filtered and paged; running runs refresh themselves), ``/run
 ``/compare?runs=a,b`` (static curves and step responses overlaid), ``/constants``. The
 same data as JSON under ``/api/``; the OpenAPI description is ``/openapi.json``.
 
-A run id is only ever looked up in the store (``Store.run_folder``): no path is built
-from a request, so ``../`` and friends have nothing to reach. The store's SQL binds
-every value.
+A run id is only ever looked up in the store (``Store.run_folder``) and must be one
+(``bench.run.run_ids.is_run_id``, the same test the stores apply to ids they read from
+run folders and catalog rows): no path is built from a request, so ``../`` and friends
+have nothing to reach. The store's SQL binds every value. A folder store is opened
+read-only: the app never writes.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ import json
 import math
 import re
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -33,6 +36,7 @@ from fastapi.templating import Jinja2Templates
 
 from analysis.errors import LogError
 from bench.errors import RigError
+from bench.run.run_ids import is_run_id
 from bench.serve.run_views import (
     RecordCache,
     SeriesCache,
@@ -42,15 +46,14 @@ from bench.serve.run_views import (
     static_points,
     step_traces,
 )
-from bench.serve.security import COOKIE, Guard
+from bench.serve.security import COOKIE, Guard, token_matches
 from bench.store.json_values import finite_number, json_safe
-from bench.store.run_summary import RunFilter, RunSummary
-from bench.store.stores import Store
+from bench.store.run_summary import BadFilter, RunFilter, RunSummary
+from bench.store.stores import FolderStore, Store
 
 __all__ = ["create_app"]
 
 HERE = Path(__file__).parent
-RUN_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.:+-]{0,127}$")
 PAGE_SIZES = (25, 50, 100, 200)
 PLOT_COLUMNS = 1500  # min/max bins per time plot: about one per pixel column of a wide page
 EXPORTS = ("ardupilot", "px4", "gazebo")
@@ -70,10 +73,12 @@ def create_app(store: Store, *, token: str | None = None, title: str = "rotorben
     cache = RecordCache()
     series_cache = SeriesCache()
     _warm(templates)
+    if isinstance(store, FolderStore) and not store.read_only:
+        store = replace(store, read_only=True)
     app.state.store = store
 
     def run_or_404(run_id: str) -> Path:
-        if not RUN_ID.match(run_id) or ".." in run_id:
+        if not is_run_id(run_id):
             raise HTTPException(404, f"no run {run_id[:64]!r}")
         try:
             return store.run_folder(run_id)
@@ -89,9 +94,7 @@ def create_app(store: Store, *, token: str | None = None, title: str = "rotorben
     def filters(bench: str | None, motor: str | None, propeller: str | None,
                 esc_mode: str | None, sequence: str | None, status: str | None,
                 since: str | None, until: str | None) -> RunFilter:
-        for name, value in (("since", since), ("until", until)):
-            if value and not re.fullmatch(r"\d{4}-\d{2}-\d{2}(T[\d:.]+Z?)?", value):
-                raise HTTPException(422, f"{name}: expected a date YYYY-MM-DD, got {value[:40]!r}")
+        """The page's filters; a date that is not one is ``BadFilter``, answered 422."""
         return RunFilter(bench=bench or None, status=status or None, sequence=sequence or None,
                          motor=motor or None, propeller=propeller or None,
                          esc_mode=esc_mode or None, since=since or None, until=until or None)
@@ -145,19 +148,26 @@ def create_app(store: Store, *, token: str | None = None, title: str = "rotorben
         for r in store.list_runs(RunFilter(status="running"), limit=50):
             row = _row(r) | {"elapsed_s": _elapsed(r.started_utc), "latest": {}}
             try:
-                rec = cache.get(store.run_folder(r.run_id))
+                rec = cache.get(run_or_404(r.run_id))
                 last = rec.samples.iloc[-1]
                 row["latest"] = {k: finite_number(last[k]) for k in ("t_s", "thrust_n", "current_a",
                                                             "rpm") if k in last.index}
-            except (RigError, LogError):
-                pass  # recorded elsewhere, or no part written yet
+            except (HTTPException, LogError):
+                pass  # recorded elsewhere, no part written yet, or not a run id
             out.append(row)
         return out
 
     # -- downloads -----------------------------------------------------------------------
     @app.get("/runs/{run_id}/run.json")
     def download_meta(run_id: str) -> FileResponse:
-        return FileResponse(run_or_404(run_id) / "run.json", media_type="application/json",
+        from analysis.run_paths import read_run_json
+
+        folder = run_or_404(run_id)
+        try:  # a run.json that is a link out of its folder, or no JSON object, is not sent
+            read_run_json(folder)
+        except LogError as exc:
+            raise HTTPException(422, f"run {run_id}: {exc}") from None
+        return FileResponse(folder / "run.json", media_type="application/json",
                             filename=f"{run_id}.json")
 
     @app.get("/runs/{run_id}/samples.parquet")
@@ -239,9 +249,13 @@ def create_app(store: Store, *, token: str | None = None, title: str = "rotorben
             "rows": rows, "store": store.describe(), "title": title})
 
     @app.get("/login", include_in_schema=False)
-    def login(token: Annotated[str, Query(max_length=512)] = "") -> Response:
+    def login(given: Annotated[str, Query(alias="token", max_length=512)] = "") -> Response:
+        """The cookie is set only for the server's token: a wrong one is 401, no cookie."""
+        if token is not None and not token_matches(given.encode(), token):
+            raise HTTPException(401, "wrong token")
         resp = RedirectResponse("/", status_code=303)
-        resp.set_cookie(COOKIE, token, httponly=True, samesite="strict")
+        if token is not None:
+            resp.set_cookie(COOKIE, given, httponly=True, samesite="strict")
         return resp
 
     @app.get("/static/plotly.min.js", include_in_schema=False)
@@ -258,7 +272,10 @@ def create_app(store: Store, *, token: str | None = None, title: str = "rotorben
 
     @app.exception_handler(RigError)
     def store_error(request: Request, exc: RigError) -> JSONResponse:
-        return JSONResponse({"detail": str(exc)}, status_code=503)
+        """A filter that is not valid is the request's fault (422); any other store
+        error is the store's (503)."""
+        return JSONResponse({"detail": str(exc)},
+                            status_code=422 if isinstance(exc, BadFilter) else 503)
 
     return Guard(app, token)
 

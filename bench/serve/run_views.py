@@ -69,8 +69,8 @@ class RecordCache:
 def _stamp(folder: Path) -> float:
     """Changes when the run gains a part or its run.json is rewritten."""
     try:
-        parts = folder / "samples.parquet"
-        n = sum(1 for _ in parts.iterdir()) if parts.is_dir() else 0
+        parts = folder / "samples.parquet"  # not listed when it is a link (maybe out)
+        n = sum(1 for _ in parts.iterdir()) if parts.is_dir() and not parts.is_symlink() else 0
         return (folder / "run.json").stat().st_mtime_ns + n
     except OSError:
         return math.nan

@@ -1,8 +1,9 @@
 """The web view's guards: token, size limits, and the headers every response carries.
 
 * ``--token``: required on every request when set (``Authorization: Bearer TOKEN``, the
-  ``X-Rotorbench-Token`` header, or the ``rotorbench_token`` cookie that ``/login`` sets),
-  compared in constant time.
+  scheme in any case as RFC 7235 has it, the ``X-Rotorbench-Token`` header, or the
+  ``rotorbench_token`` cookie that ``/login`` sets for the right token only), compared in
+  constant time.
 * A query string over ``MAX_QUERY`` bytes or a path over ``MAX_PATH`` is 414, before any
   route runs.
 * Every response has a Content-Security-Policy that allows only this server's scripts
@@ -15,7 +16,7 @@ import hmac
 from collections.abc import Awaitable, Callable
 from typing import Any
 
-__all__ = ["COOKIE", "CSP", "MAX_PATH", "MAX_QUERY", "Guard"]
+__all__ = ["COOKIE", "CSP", "MAX_PATH", "MAX_QUERY", "Guard", "token_matches"]
 
 MAX_QUERY = 2048
 MAX_PATH = 1024
@@ -64,20 +65,27 @@ class Guard:
 
     def _authorised(self, scope: dict[str, Any]) -> bool:
         assert self.token is not None
-        want = self.token.encode()
         for name, value in scope.get("headers", []):
-            if name == b"authorization" and value.startswith(b"Bearer "):
-                if hmac.compare_digest(value[7:].strip(), want):
+            if name == b"authorization":
+                scheme, _, credentials = value.strip().partition(b" ")
+                if scheme.lower() == b"bearer" and token_matches(credentials.strip(),
+                                                                 self.token):
                     return True
             elif name == b"x-rotorbench-token":
-                if hmac.compare_digest(value.strip(), want):
+                if token_matches(value.strip(), self.token):
                     return True
             elif name == b"cookie":
                 for part in value.split(b";"):
                     key, _, val = part.strip().partition(b"=")
-                    if key == COOKIE.encode() and hmac.compare_digest(val, want):
+                    if key == COOKIE.encode() and token_matches(val, self.token):
                         return True
         return False
+
+
+def token_matches(given: bytes, token: str) -> bool:
+    """``given`` is the server's token (constant time: no timing tells how much of it
+    matched)."""
+    return hmac.compare_digest(given, token.encode())
 
 
 async def _plain(send: Send, status: int, text: str) -> None:

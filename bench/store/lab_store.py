@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from bench.errors import RigError
+from bench.run.run_ids import check_run_id
 from bench.store.lab_catalog import (
     CatalogIdentity,
     CatalogUnavailable,
@@ -28,7 +29,7 @@ from bench.store.lab_catalog import (
     StoredConstants,
 )
 from bench.store.lab_publish import Publisher, pending_runs, read_meta
-from bench.store.run_data import DataLocation
+from bench.store.run_data import DataLocation, row_location
 from bench.store.run_summary import RunFilter, RunSummary
 from bench.store.spool_destinations import Destination, Ledger, same_address
 from bench.store.store_url import redact, show_params
@@ -170,15 +171,15 @@ class LabStore:
         return self.catalog.count_runs(where)
 
     def run_folder(self, run_id: str) -> Path:
-        """The run as a local folder: the spool's copy, else a download into the cache."""
-        local = self.spool / run_id
+        """The run as a local folder: the spool's copy, else a download into the cache
+        (from the store's data location: ``row_location`` checks what the row says)."""
+        local = self.spool / check_run_id(run_id, f"store {redact(self.catalog.dsn)}: run")
         if (local / "run.json").exists():
             return local
         row = self.catalog.get_run(run_id)
         if row is None:
             raise RigError(f"run {run_id}: not in the store {redact(self.catalog.dsn)}")
-        where = DataLocation(row.data.rsplit("/", 1)[0]) if row.data else self.data
-        return where.download(run_id, default_cache())
+        return row_location(run_id, row.data, self.location).download(run_id, default_cache())
 
     def add_constants(self, rows: Sequence[StoredConstants]) -> int:
         return self.catalog.add_constants(rows)
@@ -246,6 +247,11 @@ class LabStore:
                 failed.append((run_dir.name, str(exc)))
                 continue
             run_id = str(meta.get("id") or run_dir.name)
+            try:  # checked before the store is asked about it
+                check_run_id(run_id, f"{meta_path}: id")
+            except RigError as exc:
+                failed.append((run_dir.name, str(exc)))
+                continue
             if meta.get("status") == "running":
                 failed.append((run_id, "still running (or killed: `rotorbench runs` marks it)"))
                 continue

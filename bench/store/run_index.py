@@ -7,6 +7,10 @@ added when it starts (status ``running``) and updated when it ends. If a process
 ``killed`` in ``run.json`` too (with the last sample time on disk), so every reader of
 the folder agrees with ``rotorbench runs``. ``rebuild`` re-reads every ``run.json``
 under the root.
+
+A reader that must not write (the web view) opens it with ``read_only=True``: the file is
+opened read-only, nothing is marked, and the listing still reports such runs killed.
+A row's folder is a name inside the root (``path_of`` refuses one that leaves it).
 """
 
 from __future__ import annotations
@@ -19,6 +23,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from analysis.errors import LogError
+from analysis.run_paths import member, read_run_json, samples_path
 from bench.errors import RigError
 from bench.store.run_summary import RunFilter
 from bench.store.sqlite_store import connect, writing
@@ -68,9 +74,14 @@ class Rebuilt:
 class RunIndex:
     """A small SQLite table of runs; every call opens its own short connection."""
 
-    def __init__(self, root: Path) -> None:
+    def __init__(self, root: Path, *, read_only: bool = False) -> None:
         self.root = Path(root)
         self.path = self.root / INDEX_NAME
+        self.read_only = read_only
+        if read_only:
+            with self._connect() as con:
+                _check_table(con, self.path)
+            return
         try:
             self.root.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
@@ -93,16 +104,15 @@ class RunIndex:
         for rid, rel, pid in rows:
             if not pid or _alive(int(pid)):
                 continue
-            run_dir = self.root / rel
             try:
-                meta = json.loads((run_dir / "run.json").read_text(encoding="utf-8"))
-            except (OSError, ValueError):  # ValueError: not UTF-8, not JSON
+                run_dir = self.folder(rel)
+                meta = read_run_json(run_dir)
+                if meta.get("status") != "running" or meta.get("pid") != pid:
+                    continue
+                samples = samples_path(run_dir, meta)
+            except (LogError, RigError):  # gone, damaged, or naming files outside itself
                 continue
-            if (not isinstance(meta, dict) or meta.get("status") != "running"
-                    or meta.get("pid") != pid):
-                continue
-            last_t, rows_on_disk = _last_sample(run_dir / str(meta.get("samples")
-                                                              or "samples.parquet"))
+            last_t, rows_on_disk = _last_sample(samples)
             meta.update(status="killed", reason=f"recording process {pid} is gone (kill -9 or "
                         "power loss); samples up to the last written part",
                         last_sample_t_s=last_t, rows=rows_on_disk,
@@ -118,25 +128,31 @@ class RunIndex:
         return marked
 
     def _connect(self) -> sqlite3.Connection:
-        return connect(self.path, _SCHEMA, "run index", "move it away and run `rotorbench "
-                       "runs --rebuild` to index the run folders again")
+        return connect(self.path, _SCHEMA, "run index", _BROKEN, read_only=self.read_only)
+
+    def folder(self, rel: str) -> Path:
+        """The run folder of an index row's ``path``: a name inside the root."""
+        try:
+            return member(self.root, rel, f"{INDEX_NAME} path")
+        except LogError as exc:
+            raise RigError(str(exc)) from None
 
     def upsert(self, meta: Mapping[str, Any], run_dir: Path) -> None:
-        """Insert or update the row of one run from its ``run.json`` content."""
+        """Insert or update the row of one run from its ``run.json`` content (a field of
+        the wrong type, from a hand-edited file, is stored as text or left empty)."""
+        rig, seq = meta.get("rig"), meta.get("sequence")
         row = (
-            str(meta.get("id", run_dir.name)),
+            str(meta.get("id") or run_dir.name),
             os.path.relpath(run_dir, self.root),
-            str(meta.get("rig", {}).get("name", "") if isinstance(meta.get("rig"), Mapping)
-                else meta.get("rig", "")),
+            str(rig.get("name", "") if isinstance(rig, Mapping) else rig or ""),
             json.dumps(meta.get("components", {}), default=str),
-            str(meta.get("sequence", {}).get("name", "")
-                if isinstance(meta.get("sequence"), Mapping) else meta.get("sequence", "")),
-            meta.get("started_utc"),
-            meta.get("ended_utc"),
-            meta.get("status"),
-            meta.get("reason", ""),
-            meta.get("host"),
-            meta.get("pid"),
+            str(seq.get("name", "") if isinstance(seq, Mapping) else seq or ""),
+            _text(meta.get("started_utc")),
+            _text(meta.get("ended_utc")),
+            _text(meta.get("status")),
+            _text(meta.get("reason")) or "",
+            _text(meta.get("host")),
+            meta.get("pid") if type(meta.get("pid")) is int else None,
         )
         with writing(self.path, "run index"), self._connect() as con:
             con.execute("INSERT OR REPLACE INTO runs VALUES (?,?,?,?,?,?,?,?,?,?,?)", row)
@@ -177,7 +193,7 @@ class RunIndex:
         """The folder of run ``run_id``, None if the index has no such run."""
         with self._connect() as con:
             row = con.execute("SELECT path FROM runs WHERE id = ?", (run_id,)).fetchone()
-        return None if row is None else self.root / row[0]
+        return None if row is None else self.folder(row[0])
 
     def rebuild(self) -> Rebuilt:
         """Re-index every run folder with a ``run.json`` under the root.
@@ -199,6 +215,7 @@ class RunIndex:
         return Rebuilt(count, tuple(skipped))
 
 
+_BROKEN = "move it away and run `rotorbench runs --rebuild` to index the run folders again"
 _COLUMNS = ("id, path, rig, components, sequence, started_utc, ended_utc, status, reason, "
             "host, pid")
 
@@ -208,6 +225,20 @@ def _where(where: RunFilter | None) -> tuple[str, list[Any]]:
     components are JSON: SQLite's json_extract of ``'$.' || key``)."""
     return (where or RunFilter()).sql("?", "json_extract(components, '$.' || ?) = ?",
                                       columns=("status", "sequence"))
+
+
+def _check_table(con: sqlite3.Connection, path: Path) -> None:
+    try:
+        con.execute(f"SELECT {_COLUMNS} FROM runs LIMIT 0")
+    except sqlite3.DatabaseError as exc:
+        raise RigError(f"{path}: not a readable run index ({exc}); {_BROKEN}") from None
+
+
+def _text(value: Any) -> str | None:
+    """A run.json value for a text column: strings as they are, other values as JSON."""
+    if value is None or isinstance(value, str):
+        return value
+    return json.dumps(value, default=str)
 
 
 def _components(text: str | None) -> dict[str, Any]:

@@ -5,7 +5,32 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-__all__ = ["RunFilter", "RunSummary"]
+from bench.errors import RigError
+
+__all__ = ["BadFilter", "RunFilter", "RunSummary", "utc_bound"]
+
+
+class BadFilter(RigError):
+    """A run-list filter that is not valid (a date that is not one): the web view
+    answers 422, a command exits 2, before any store is asked."""
+
+
+def utc_bound(value: str, name: str) -> str:
+    """``value`` (``YYYY-MM-DD`` or an ISO 8601 time; without a zone it is UTC) as an ISO
+    time in UTC with milliseconds, the form run.json's ``started_utc`` has, so both
+    stores compare it alike; ``BadFilter`` naming ``name`` when it is not a date."""
+    from datetime import UTC, datetime
+
+    from analysis.errors import excerpt
+
+    try:
+        when = datetime.fromisoformat(value)
+    except (TypeError, ValueError):
+        raise BadFilter(f"{name} {excerpt(value)}: expected a date YYYY-MM-DD or an ISO "
+                        "time YYYY-MM-DDTHH:MM[:SS][Z]") from None
+    if when.tzinfo is None:
+        when = when.replace(tzinfo=UTC)
+    return when.astimezone(UTC).isoformat(timespec="milliseconds")
 
 
 @dataclass(frozen=True)
@@ -41,6 +66,13 @@ class RunFilter:
     esc_mode: str | None = None
     since: str | None = None  # started at or after
     until: str | None = None  # started before
+
+    def __post_init__(self) -> None:
+        """The dates checked and put in one form here, whoever builds the filter."""
+        for name in ("since", "until"):
+            value = getattr(self, name)
+            if value is not None:
+                object.__setattr__(self, name, utc_bound(value, name))
 
     def matches(self, run: RunSummary) -> bool:
         comp = run.components

@@ -18,8 +18,12 @@ from bench.errors import RigError
 __all__ = ["connect", "writing"]
 
 
-def connect(path: Path, schema: str, what: str, broken_hint: str) -> sqlite3.Connection:
-    """A connection to the store at ``path`` with its table created if missing."""
+def connect(path: Path, schema: str, what: str, broken_hint: str, *,
+            read_only: bool = False) -> sqlite3.Connection:
+    """A connection to the store at ``path`` with its table created if missing; with
+    ``read_only`` SQLite opens the file read-only (nothing created, nothing written)."""
+    if read_only:
+        return _connect_read_only(path, what, broken_hint)
     try:
         con = sqlite3.connect(path, timeout=10.0)
         con.execute(schema)
@@ -27,6 +31,16 @@ def connect(path: Path, schema: str, what: str, broken_hint: str) -> sqlite3.Con
         raise RigError(f"{path}: cannot open the {what} ({exc}); check that {path.parent} "
                        f"and {path.name} are writable") from None
     except sqlite3.DatabaseError as exc:  # not a database, malformed
+        raise RigError(f"{path}: not a readable {what} ({exc}); {broken_hint}") from None
+    return con
+
+
+def _connect_read_only(path: Path, what: str, broken_hint: str) -> sqlite3.Connection:
+    try:
+        con = sqlite3.connect(f"{Path(path).resolve().as_uri()}?mode=ro", uri=True,
+                              timeout=10.0)
+        con.execute("SELECT count(*) FROM sqlite_master")
+    except sqlite3.DatabaseError as exc:  # missing, unreadable, not a database
         raise RigError(f"{path}: not a readable {what} ({exc}); {broken_hint}") from None
     return con
 

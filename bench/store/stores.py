@@ -12,7 +12,6 @@ constants. The web view and the optimizer's ``--measured`` read through the same
 
 from __future__ import annotations
 
-import json
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -41,9 +40,12 @@ class Store(Protocol):
 
 @dataclass(frozen=True)
 class FolderStore:
-    """The embedded store at ``root`` (today's ``--out`` folder)."""
+    """The embedded store at ``root`` (today's ``--out`` folder). ``read_only``: a reader
+    that must not write (the web view) opens the index read-only; a run whose process
+    died is listed as killed without marking it in its files."""
 
     root: Path
+    read_only: bool = False
 
     @property
     def path(self) -> Path:
@@ -85,29 +87,33 @@ class FolderStore:
 
         if not (self.root / INDEX_NAME).exists():
             return 0 if count else []
-        index = RunIndex(self.root)
+        index = RunIndex(self.root, read_only=self.read_only)
         if count:
             return index.count(where)
         return [RunSummary(run_id=r.id, bench=r.rig, sequence=r.sequence, status=r.status,
-                           samples=0, data=str(self.root / r.path),
+                           samples=0, data=_folder_text(index, r.path),
                            started_utc=r.started_utc or None, ended_utc=r.ended_utc, rig=r.rig,
                            reason=r.reason, components=r.components)
                 for r in index.select(where, limit=limit, offset=offset, newest_first=True)]
 
     def _complete(self, r: RunSummary) -> RunSummary:
         """The summary with what only run.json holds: bench, operator, sample count."""
-        if r.samples or r.operator:
+        if r.samples or r.operator or not r.data:
             return r
         meta = _read_meta(Path(r.data))
-        return replace(r, bench=_bench(meta, r.rig), samples=int(meta.get("rows") or 0),
+        rows = meta.get("rows")
+        return replace(r, bench=_bench(meta, r.rig),
+                       samples=rows if type(rows) is int and rows >= 0 else 0,
                        operator=str(meta.get("operator") or ""),
                        data=str(Path(r.data).resolve()))
 
     def run_folder(self, run_id: str) -> Path:
+        from bench.run.run_ids import check_run_id
         from bench.store.run_index import INDEX_NAME, RunIndex
 
-        folder = RunIndex(self.root).path_of(run_id) if (self.root / INDEX_NAME).exists() \
-            else None
+        check_run_id(run_id, f"store {self.root}: run")
+        folder = RunIndex(self.root, read_only=self.read_only).path_of(run_id) \
+            if (self.root / INDEX_NAME).exists() else None
         if folder is None:
             raise RigError(f"run {run_id}: not in the store {self.root}")
         return folder
@@ -131,11 +137,22 @@ class FolderStore:
 
 
 def _read_meta(run_dir: Path) -> Mapping[str, Any]:
+    """run.json for the listing; a damaged one lists the run with what the index has."""
+    from analysis.errors import LogError
+    from analysis.run_paths import read_run_json
+
     try:
-        meta = json.loads((run_dir / "run.json").read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError):
+        return read_run_json(run_dir)
+    except LogError:
         return {}
-    return meta if isinstance(meta, Mapping) else {}
+
+
+def _folder_text(index: Any, rel: str) -> str:
+    """An index row's run folder; empty for a row whose folder would leave the store."""
+    try:
+        return str(index.folder(rel))
+    except RigError:
+        return ""
 
 
 def _bench(meta: Mapping[str, Any], rig: str) -> str:

@@ -106,3 +106,142 @@ def test_live_lists_a_running_run(recorded: object, tmp_path: object) -> None:
         (row,) = client.get("/api/live").json()
     assert row["run_id"] == meta["id"] and row["status"] == "running"
     assert row["elapsed_s"] > 0 and row["latest"]["thrust_n"] is not None
+
+
+@pytest.mark.parametrize("bad", ["2024-13-45", "2024-02-30", "yesterday", "2024-01-01T99:00"])
+@pytest.mark.parametrize("name", ["since", "until"])
+def test_a_bad_date_filter_is_422_in_both_stores(client: object, bad: str, name: str) -> None:
+    for path in ("/api/runs", "/"):
+        r = client.get(path, params={name: bad})
+        assert r.status_code == 422, (path, r.status_code, r.text[:200])
+        assert "expected a date" in r.text
+
+
+SECRET = "SECRET-hunter2-do-not-show"
+
+
+def _folder_client(recorded: object, tmp_path: object) -> tuple[object, object]:
+    import shutil
+
+    from fastapi.testclient import TestClient
+
+    from bench.serve.app import create_app
+    from bench.store.stores import open_store
+
+    root = tmp_path / "runs"
+    shutil.copytree(recorded, root)
+    return root, TestClient(create_app(open_store(str(root))))
+
+
+def test_a_get_never_writes_a_killed_run(recorded: object, tmp_path: object) -> None:
+    """A run whose process died: the view says killed and leaves run.json and the index
+    as they are (a command marks it)."""
+    import json
+    import socket
+    import sqlite3
+    import subprocess
+    import sys
+
+    root, client = _folder_client(recorded, tmp_path)
+    run = sorted(root.glob("*-step1"))[0]
+    proc = subprocess.Popen([sys.executable, "-c", "pass"])
+    proc.wait()
+    meta = json.loads((run / "run.json").read_text())
+    meta.update(status="running", pid=proc.pid, host=socket.gethostname(), ended_utc=None)
+    (run / "run.json").write_text(json.dumps(meta))
+    with sqlite3.connect(root / "runs.sqlite") as con:
+        con.execute("UPDATE runs SET status = 'running', host = ?, pid = ? WHERE id = ?",
+                    (meta["host"], proc.pid, meta["id"]))
+
+    def files() -> dict[str, tuple[bytes, int]]:
+        return {str(p): (p.read_bytes(), p.stat().st_mtime_ns) for p in root.rglob("*")
+                if p.is_file()}
+
+    before = files()
+    with client:
+        rows = {r["run_id"]: r for r in client.get("/api/runs").json()}
+        assert rows[meta["id"]]["status"] == "killed"
+        for path in ("/", "/api/live", f"/runs/{meta['id']}", f"/api/runs/{meta['id']}",
+                     f"/runs/{meta['id']}/run.json", "/constants"):
+            assert client.get(path).status_code == 200, path
+    assert files() == before
+
+
+def test_run_json_naming_files_outside_is_refused_and_not_quoted(recorded: object,
+                                                                 tmp_path: object) -> None:
+    import json
+    import os
+
+    root, client = _folder_client(recorded, tmp_path)
+    step, other = sorted(root.glob("*-step1"))
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    os.rename(other / "samples.parquet", outside / "samples.parquet")
+    (outside / "secret.csv").write_text(f"{SECRET},x\n1,2\n")
+    (outside / "secret.json").write_text(json.dumps({"id": "x", "key": SECRET}))
+    meta = json.loads((step / "run.json").read_text())
+    rid = meta["id"]
+    hostile = [{"samples": str(outside / "samples.parquet")},
+               {"samples": "../../outside/samples.parquet"},
+               {"events": str(outside / "secret.csv")},
+               {"events": "../../outside/secret.csv"}]
+    with client:
+        for change in hostile:
+            (step / "run.json").write_text(json.dumps({**meta, **change}))
+            for path in (f"/api/runs/{rid}", f"/api/runs/{rid}/series",
+                         f"/runs/{rid}/samples.parquet", f"/runs/{rid}/samples.csv",
+                         f"/api/runs/{rid}/fits", f"/runs/{rid}/export/gazebo"):
+                if "events" in change and path.endswith("/series"):
+                    continue  # the plots do not read the events
+                r = client.get(path)
+                assert r.status_code == 422 and "inside the run folder" in r.text, (path, r.text)
+                assert SECRET not in r.text
+        (step / "run.json").unlink()
+        os.symlink(outside / "secret.json", step / "run.json")
+        for path in (f"/runs/{rid}/run.json", f"/runs/{rid}", f"/api/runs/{rid}"):
+            r = client.get(path)
+            assert r.status_code == 422 and SECRET not in r.text, (path, r.text)
+
+
+def test_hostile_catalog_rows_reach_nothing_outside(recorded: object, tmp_path: object,
+                                                    pg_url: str, s3_env: object,
+                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    """Rows another bench (or anyone with a writer login) could write: ids with '..', data
+    locations elsewhere. The view reads none of them and writes nothing outside its cache."""
+    import json
+    import shutil
+
+    import psycopg
+    from fastapi.testclient import TestClient
+
+    from bench.cli import main
+    from bench.serve.app import create_app
+    from bench.store.stores import open_store
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    data = f"s3://{s3_env.bucket}/runs"
+    assert main(["store", "init", pg_url, "--data", data]) == 0
+    other = tmp_path / "elsewhere" / "r-other"
+    shutil.copytree(sorted(recorded.glob("*-step1"))[0], other)
+    meta = json.loads((other / "run.json").read_text())
+    (other / "run.json").write_text(json.dumps({**meta, "id": "r-other", "operator": SECRET}))
+    with psycopg.connect(pg_url) as con:
+        for rid, where, status in [("r-other", str(other), "success"),
+                                   ("r-file", f"file://{other}", "running"),
+                                   ("../../escape", f"{data}/../../escape", "running"),
+                                   ("..\\..\\escape", "", "running"),
+                                   ("../rotorbench/runs/x", f"{data}/x", "running"),
+                                   ("x" * 300, f"{data}/{'x' * 300}", "running")]:
+            con.execute("INSERT INTO runs (run_id, bench, operator, status, data, started_utc) "
+                        "VALUES (%s, 'hostile', 'x', %s, %s, now())", (rid, status, where))
+    before = {str(p) for p in tmp_path.rglob("*")}
+    with TestClient(create_app(open_store(pg_url, spool=tmp_path / "spool"))) as client:
+        live = client.get("/api/live")
+        assert live.status_code == 200 and all(r["latest"] == {} for r in live.json())
+        assert len(live.json()) == 5
+        for rid in ("r-other", "r-file"):
+            for path in (f"/api/runs/{rid}", f"/runs/{rid}", f"/runs/{rid}/run.json"):
+                r = client.get(path)
+                assert r.status_code == 404 and SECRET not in r.text, (path, r.text)
+        assert client.get("/api/runs").status_code == 200
+    assert {str(p) for p in tmp_path.rglob("*")} == before

@@ -85,3 +85,31 @@ def test_fuzzed_requests_never_500(folder_client: TestClient, path: str,
     r = folder_client.get(url, params=params)
     assert r.status_code < 500, (url, params, r.status_code, r.text[:300])
     assert "Traceback" not in r.text
+
+
+@pytest.mark.parametrize("header", [f"bearer {TOKEN}", f"BEARER {TOKEN}", f"Bearer  {TOKEN} ",
+                                    f"bEaReR {TOKEN}"])
+def test_the_bearer_scheme_is_case_insensitive(recorded: Path, header: str) -> None:
+    with TestClient(create_app(open_store(str(recorded)), token=TOKEN)) as c:
+        assert c.get("/api/runs", headers={"Authorization": header}).status_code == 200
+
+
+@pytest.mark.parametrize("header", [f"Basic {TOKEN}", f"Bearer{TOKEN}", f"{TOKEN}",
+                                    f"Bearer {TOKEN}x", "Bearer", f"Token {TOKEN}"])
+def test_other_schemes_and_wrong_tokens_are_refused(recorded: Path, header: str) -> None:
+    with TestClient(create_app(open_store(str(recorded)), token=TOKEN)) as c:
+        assert c.get("/api/runs", headers={"Authorization": header}).status_code == 401
+
+
+@pytest.mark.parametrize("wrong", ["wrong", "", TOKEN[:-1], TOKEN + "x", TOKEN.upper()])
+def test_login_with_a_wrong_token_sets_no_cookie(recorded: Path, wrong: str) -> None:
+    with TestClient(create_app(open_store(str(recorded)), token=TOKEN)) as c:
+        r = c.get("/login", params={"token": wrong}, follow_redirects=False)
+        assert r.status_code == 401 and "set-cookie" not in r.headers
+        assert c.get("/api/runs").status_code == 401
+        assert "rotorbench_token" not in c.cookies
+
+
+def test_login_without_a_server_token_sets_no_cookie(folder_client: TestClient) -> None:
+    r = folder_client.get("/login", params={"token": "anything"}, follow_redirects=False)
+    assert r.status_code == 303 and "set-cookie" not in r.headers
