@@ -40,6 +40,7 @@ from rich.text import Text
 
 from bench.jobs.sweep_lock import sweep_lock
 from bench.jobs.sweep_parts import OutputLost, Parts, in_plan_order, table_of, write_atomic
+from bench.jobs.sweep_scheduler import probe
 from optimizer.errors import RequestError
 from optimizer.sweep.chunks import check_chunk_size, chunk_size, split
 from optimizer.sweep.fly_rows import Chunk, fly_chunk
@@ -335,7 +336,9 @@ def _quiet(name: str) -> Iterator[None]:
 
 @contextlib.contextmanager
 def _connect(d: Any, address: str) -> Iterator[Any]:
-    """A client of the scheduler at ``address``; unreachable is one line, exit 2."""
+    """A client of the scheduler at ``address``; unreachable, or something else there
+    (``bench.jobs.sweep_scheduler``), is one line, exit 2."""
+    probe(address, CONNECT_TIMEOUT_S)
     try:
         client = d.Client(address, timeout=f"{CONNECT_TIMEOUT_S:g}s", set_as_default=False)
     except (OSError, TimeoutError, ValueError, TypeError) as exc:
