@@ -39,6 +39,7 @@ from rich.progress import (
 from rich.text import Text
 
 from bench.jobs.sweep_lock import sweep_lock
+from bench.jobs.sweep_memory import check_fits, physical_memory
 from bench.jobs.sweep_parts import OutputLost, Parts, in_plan_order, table_of, write_atomic
 from bench.jobs.sweep_scheduler import probe
 from optimizer.errors import RequestError
@@ -135,6 +136,7 @@ def _run(plan: pd.DataFrame, maneuvers: Sequence[str], spec: Mapping[str, Any],
     try:
         with opened(executor if len(todo) else Executor(), say) as runner:
             size = chunk_size(len(plan), runner.slots, chunk)
+            check_fits(todo, size, samples, *runner.memory())
             chunks = split(todo, maneuvers, size, samples, seed)
             with _bar(progress, len(plan), resumed) as advance:
                 for flown in runner.results(chunks):
@@ -208,6 +210,10 @@ class _InProcess:
 
     slots = 1
 
+    def memory(self) -> tuple[int | None, str]:
+        """The bytes a chunk may take here, and whose they are."""
+        return physical_memory(), "this machine"
+
     def results(self, chunks: Sequence[Chunk]) -> Iterator[list[dict[str, Any]]]:
         for chunk in chunks:
             yield fly_chunk(chunk)
@@ -220,6 +226,20 @@ class _Dask:
         self.client, self.distributed = client, distributed
         self.slots = max(1, sum(client.nthreads().values()))
         self.where = client.scheduler.address
+
+    def memory(self) -> tuple[int | None, str]:
+        """The bytes a chunk may take on the smallest worker: its memory limit, or its
+        machine's memory where it has none, over its threads (None: no worker yet)."""
+        workers = self.client.scheduler_info(n_workers=-1).get("workers", {})
+        if not workers:
+            return None, "a worker"
+        try:
+            machines = self.client.run(physical_memory)
+        except (ModuleNotFoundError, OSError, TimeoutError):  # results() says why, later
+            machines = {}
+        shares = [int(w.get("memory_limit") or machines.get(a) or 0)
+                  // max(1, int(w.get("nthreads") or 1)) for a, w in workers.items()]
+        return (min(shares) or None), "a worker thread of the cluster"
 
     def results(self, chunks: Sequence[Chunk]) -> Iterator[list[dict[str, Any]]]:
         d = self.distributed
