@@ -6,9 +6,9 @@ memory together (measured: about 1 kB per flown sample beyond the batch flight's
 ticks, which ``optimizer.flight.batch`` caps). Every design, drawn or not, then takes
 its percentiles over M values (about 25 bytes each). ``--samples 1e9`` asked for tens
 of GiB and died with a MemoryError deep in numpy, so the bytes a chunk needs are counted
-from the plan, the chunk size and M, and compared with what one worker slot has: this
-machine's physical memory in this process, a Dask worker's memory limit over its
-threads on a cluster.
+from the plan, the chunk size and M, and compared with what one worker slot has: the
+memory this machine has available in this process, a Dask worker's memory limit (or
+its machine's available memory) over its threads on a cluster.
 """
 
 from __future__ import annotations
@@ -25,17 +25,26 @@ from optimizer.sweep.flight_params import STD_PREFIX
 #: bytes per flown sample: its draws, its row of the batch's numbers, its figures dict
 #: (tracemalloc: 1030 per sample past the batch flight's 4096-design cap, roll_step)
 BYTES_PER_FLOWN_SAMPLE = 1000
-#: bytes per sample of a design's percentiles (tracemalloc: 25 per sample, a design
-#: without spreads: its one flight stands for all M)
-BYTES_PER_PERCENTILE_SAMPLE = 24
+#: bytes per sample of a design's percentiles (25 per sample by tracemalloc and by the
+#: resident size at M = 1e7 and 5e7, a design without spreads: its one flight stands
+#: for all M)
+BYTES_PER_PERCENTILE_SAMPLE = 25
 
 
-def physical_memory() -> int | None:
-    """This machine's physical memory in bytes (None where the OS does not say)."""
+def available_memory() -> int | None:
+    """The bytes this machine can give a process now without swapping: psutil's
+    ``available`` (Linux's MemAvailable: free memory and the cache it may drop), else
+    the free pages; None where the OS does not say. Not the physical total: other
+    processes hold part of it (the total let ``--samples 1e9`` through on a 23.5 GiB
+    machine, whose kernel then killed the sweep)."""
     try:
-        return int(os.sysconf("SC_PHYS_PAGES")) * int(os.sysconf("SC_PAGE_SIZE"))
-    except (ValueError, OSError, AttributeError):
-        return None
+        import psutil
+    except ImportError:
+        try:
+            return int(os.sysconf("SC_AVPHYS_PAGES")) * int(os.sysconf("SC_PAGE_SIZE"))
+        except (ValueError, OSError, AttributeError):
+            return None
+    return int(psutil.virtual_memory().available)
 
 
 def drawn(plan: pd.DataFrame) -> np.ndarray:
@@ -64,7 +73,8 @@ def most_samples(designs: int, drawn_designs: int, memory: int) -> int:
 def check_fits(plan: pd.DataFrame, size: int, samples: int, memory: int | None,
                where: str) -> None:
     """Refuse (``RigError``, exit 2) ``samples`` if the biggest chunk of ``plan`` cut in
-    ``size`` designs needs more than ``memory`` bytes (``where``: whose memory)."""
+    ``size`` designs needs more than ``memory`` bytes (``where``: whose memory, e.g.
+    ``"on this machine"``)."""
     if memory is None or samples <= 1 or plan.empty:
         return
     spread = drawn(plan)
@@ -77,8 +87,8 @@ def check_fits(plan: pd.DataFrame, size: int, samples: int, memory: int | None,
         return
     fits = most_samples(designs, drawn_designs, memory)
     raise RigError(f"--samples {samples}: a chunk of {designs} designs ({drawn_designs} with "
-                   f"measured spreads) needs about {_size(need)} of memory, {where} has "
-                   f"{_size(memory)}; at most --samples {fits} fits"
+                   f"measured spreads) needs about {_size(need)} of memory, {_size(memory)} is "
+                   f"available {where}; at most --samples {fits} fits"
                    + (" (or a smaller --chunk-size)" if drawn_designs > 1 else ""))
 
 

@@ -39,7 +39,7 @@ from rich.progress import (
 from rich.text import Text
 
 from bench.jobs.sweep_lock import sweep_lock
-from bench.jobs.sweep_memory import check_fits, physical_memory
+from bench.jobs.sweep_memory import available_memory, check_fits
 from bench.jobs.sweep_parts import OutputLost, Parts, in_plan_order, table_of, write_atomic
 from bench.jobs.sweep_scheduler import probe
 from optimizer.errors import RequestError
@@ -212,7 +212,7 @@ class _InProcess:
 
     def memory(self) -> tuple[int | None, str]:
         """The bytes a chunk may take here, and whose they are."""
-        return physical_memory(), "this machine"
+        return available_memory(), "on this machine"
 
     def results(self, chunks: Sequence[Chunk]) -> Iterator[list[dict[str, Any]]]:
         for chunk in chunks:
@@ -229,17 +229,18 @@ class _Dask:
 
     def memory(self) -> tuple[int | None, str]:
         """The bytes a chunk may take on the smallest worker: its memory limit, or its
-        machine's memory where it has none, over its threads (None: no worker yet)."""
+        machine's available memory where it has none, over its threads (None: no worker
+        yet)."""
         workers = self.client.scheduler_info(n_workers=-1).get("workers", {})
         if not workers:
             return None, "a worker"
         try:
-            machines = self.client.run(physical_memory)
+            machines = self.client.run(available_memory)
         except (ModuleNotFoundError, OSError, TimeoutError):  # results() says why, later
             machines = {}
         shares = [int(w.get("memory_limit") or machines.get(a) or 0)
                   // max(1, int(w.get("nthreads") or 1)) for a, w in workers.items()]
-        return (min(shares) or None), "a worker thread of the cluster"
+        return (min(shares) or None), "per worker thread of the cluster"
 
     def results(self, chunks: Sequence[Chunk]) -> Iterator[list[dict[str, Any]]]:
         d = self.distributed
