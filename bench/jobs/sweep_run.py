@@ -136,7 +136,8 @@ def _run(plan: pd.DataFrame, maneuvers: Sequence[str], spec: Mapping[str, Any],
     try:
         with opened(executor if len(todo) else Executor(), say) as runner:
             size = chunk_size(len(plan), runner.slots, chunk)
-            check_fits(todo, size, samples, *runner.memory())
+            if samples > 1:
+                check_fits(todo, size, samples, *runner.memory())
             chunks = split(todo, maneuvers, size, samples, seed)
             with _bar(progress, len(plan), resumed) as advance:
                 for flown in runner.results(chunks):
