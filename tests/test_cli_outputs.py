@@ -8,6 +8,7 @@ folder. Root ignores a folder's mode bits, so as root the folder is made immutab
 
 from __future__ import annotations
 
+import contextlib
 import os
 import subprocess
 from collections.abc import Callable, Iterator
@@ -29,23 +30,35 @@ def _can_write(folder: Path) -> bool:
     return True
 
 
+@contextlib.contextmanager
+def unwritable(*folders: Path) -> Iterator[None]:
+    """``folders`` nobody may write in for the block (mode 0555, or immutable as root);
+    skips the test where neither works."""
+    immutable: list[Path] = []
+    try:
+        for folder in folders:
+            folder.chmod(0o555)
+            if _can_write(folder):  # root: mode bits do not apply
+                if subprocess.run(["chattr", "+i", str(folder)],
+                                  capture_output=True).returncode == 0:
+                    immutable.append(folder)
+            if _can_write(folder):
+                pytest.skip("cannot make a read-only folder here (root without chattr)")
+        yield
+    finally:
+        for folder in immutable:
+            subprocess.run(["chattr", "-i", str(folder)], check=True)
+        for folder in folders:
+            folder.chmod(0o755)
+
+
 @pytest.fixture
 def read_only(tmp_path: Path) -> Iterator[Path]:
     """An existing folder nobody may write in (mode 0555, or immutable as root)."""
     folder = tmp_path / "ro"
     folder.mkdir()
-    folder.chmod(0o555)
-    immutable = False
-    if _can_write(folder):  # root: mode bits do not apply
-        immutable = subprocess.run(["chattr", "+i", str(folder)],
-                                   capture_output=True).returncode == 0
-    if _can_write(folder):
-        folder.chmod(0o755)
-        pytest.skip("cannot make a read-only folder here (root without chattr)")
-    yield folder
-    if immutable:
-        subprocess.run(["chattr", "-i", str(folder)], check=True)
-    folder.chmod(0o755)
+    with unwritable(folder):
+        yield folder
 
 
 #: command line with the output at OUT (a folder or file that cannot be created)

@@ -16,8 +16,10 @@ design and maneuver figures go to a Parquet file (an interrupted sweep resumes;
 docs/sweeps.md); without it, one actuator count's designs fly ``roll_step`` and the
 command reports how well the time constant ranks the closed-loop roll rise time
 (Spearman rho, a table, with ``--plot`` a scatter PNG; designs that cannot hover are
-left out of rho). Exit 0, 2 for bad input, 1 when the cluster was lost (the finished
-chunks are kept), 130 on Ctrl-C (likewise).
+left out of rho). Exit 0, 2 for bad input (another sweep writing the same ``--out``,
+``--samples`` beyond the memory, a ``--scheduler`` that is no Dask scheduler) or an
+output folder that stops taking writes (the finished chunks are kept), 1 when the
+cluster was lost (likewise), 130 on Ctrl-C (likewise).
 """
 
 from __future__ import annotations

@@ -7,6 +7,11 @@ same command again reads which designs the parts hold and flies only the others;
 command with other options finds a different spec and is refused, naming the difference.
 At the end the parts become ``SWEEP.parquet`` (again written beside and renamed, the spec
 in its key-value metadata) and the folder is removed.
+
+A part damaged after it was written (cut short by a copy, a full disk under another
+tool) is found when the sweep resumes: it is removed and its chunk flies again, said in
+one line. A folder that stops taking writes mid-sweep (read-only, gone) ends the sweep
+with :class:`OutputLost`, one line naming the folder (exit 2), the finished parts kept.
 """
 
 from __future__ import annotations
@@ -22,6 +27,8 @@ from typing import Any
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from bench.cli_support import check_writable
+from bench.errors import RigError
 from optimizer.errors import RequestError
 from optimizer.sweep.rows import columns
 from optimizer.sweep.spec import METADATA_KEY, spec_difference
@@ -32,6 +39,11 @@ ARROW_TYPES = {"str": pa.string(), "int": pa.int64(), "float": pa.float64(),
 SPEC_FILE = "spec.json"
 PART_PREFIX = "part-"
 TMP_PREFIX = ".tmp-"
+
+
+class OutputLost(RigError):
+    """The output folder stopped taking writes mid-sweep: the parts written so far stay
+    and the same command resumes once it is writable again. One line, exit 2."""
 
 
 def schema(maneuvers: Sequence[str], samples: int = 1) -> pa.Schema:
@@ -61,12 +73,20 @@ def write_atomic(table: pa.Table, path: Path, spec: Mapping[str, Any] | None = N
         table = table.replace_schema_metadata(meta)
     tmp = path.with_name(f"{TMP_PREFIX}{os.getpid()}-{path.name}")
     try:
-        pq.write_table(table, tmp)
+        with open(tmp, "wb") as fh:  # Python's OSError: errno and strerror, not Arrow's text
+            pq.write_table(table, fh)
         os.replace(tmp, path)
+    except OSError as exc:
+        raise _lost(path.parent, exc) from None
     finally:
-        with contextlib.suppress(FileNotFoundError):
+        with contextlib.suppress(OSError):
             tmp.unlink()
     return path
+
+
+def _lost(folder: Path, exc: OSError) -> OutputLost:
+    return OutputLost(f"cannot write in {folder} ({exc.strerror or exc}); the finished "
+                      "chunks stay, run the same command again once it is writable")
 
 
 class Parts:
@@ -74,6 +94,7 @@ class Parts:
 
     def __init__(self, folder: Path, spec: Mapping[str, Any]) -> None:
         self.folder = folder
+        self.schema = schema(spec["maneuvers"], int(spec.get("samples", 1)))
         self.spec = dict(spec)
         self.maneuvers = tuple(spec["maneuvers"])
         self.samples = int(spec.get("samples", 1))
@@ -95,18 +116,36 @@ class Parts:
                 raise RequestError(f"--out {out}: {folder} holds an unfinished sweep with "
                                    f"other options ({diff}); run that command again to "
                                    f"finish it, or remove {folder}")
+            check_writable(folder, f"--out {out}", folder=True)
             for tmp in folder.glob(f"{TMP_PREFIX}*"):
                 tmp.unlink()
         return cls(folder, spec)
+
+    def drop_damaged(self) -> list[str]:
+        """Remove every part that does not read back whole with the sweep's columns (its
+        designs are then flown again); one line per part saying so."""
+        said = []
+        for path in self.files():
+            try:
+                pq.read_table(path, schema=self.schema)
+            except (pa.ArrowException, ValueError) as exc:
+                why = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+                path.unlink()
+                said.append(f"damaged part {path} ({why}): its chunk flies again")
+        return said
 
     def _make(self) -> None:
         """The folder and its spec.json (atomic), before the first part goes in."""
         if self.folder.exists():
             return
-        self.folder.mkdir()
-        tmp = self.folder / f"{TMP_PREFIX}{SPEC_FILE}"
-        tmp.write_text(json.dumps(self.spec, indent=1))
-        os.replace(tmp, self.folder / SPEC_FILE)
+        try:
+            self.folder.mkdir()
+            tmp = self.folder / f"{TMP_PREFIX}{SPEC_FILE}"
+            tmp.write_text(json.dumps(self.spec, indent=1))
+            os.replace(tmp, self.folder / SPEC_FILE)
+        except OSError as exc:
+            raise _lost(self.folder.parent if not self.folder.exists() else self.folder,
+                        exc) from None
 
     def files(self) -> list[Path]:
         if not self.folder.is_dir():
@@ -129,8 +168,7 @@ class Parts:
 
     def table(self) -> pa.Table:
         """Every row the parts hold."""
-        kind = schema(self.maneuvers, self.samples)
-        tables = [pq.read_table(p, schema=kind) for p in self.files()]
+        tables = [pq.read_table(p, schema=self.schema) for p in self.files()]
         return pa.concat_tables(tables) if tables else table_of([], self.maneuvers, self.samples)
 
     def remove(self) -> None:

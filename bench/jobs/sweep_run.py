@@ -38,7 +38,10 @@ from rich.progress import (
 )
 from rich.text import Text
 
-from bench.jobs.sweep_parts import Parts, in_plan_order, table_of, write_atomic
+from bench.jobs.sweep_lock import sweep_lock
+from bench.jobs.sweep_memory import available_memory, check_fits
+from bench.jobs.sweep_parts import OutputLost, Parts, in_plan_order, table_of, write_atomic
+from bench.jobs.sweep_scheduler import probe
 from optimizer.errors import RequestError
 from optimizer.sweep.chunks import check_chunk_size, chunk_size, split
 from optimizer.sweep.fly_rows import Chunk, fly_chunk
@@ -104,18 +107,28 @@ def run_sweep(plan: pd.DataFrame, maneuvers: Sequence[str], spec: Mapping[str, A
               on_rows: Callable[[int, int], None] | None = None) -> SweepResult:
     """Fly every design of ``plan`` (``optimizer.sweep.designs.plan_designs``) through
     ``maneuvers``. With ``out`` the finished chunks go to its parts folder first (resume)
-    and the rows to ``out`` at the end. ``on_rows(done, total)`` is called after each
-    chunk (benchmarks, tests)."""
+    and the rows to ``out`` at the end, holding ``out``'s lock (``bench.jobs.sweep_lock``)
+    throughout. ``on_rows(done, total)`` is called after each chunk (benchmarks, tests)."""
     start = time.perf_counter()
     executor = executor.check()
     if chunk is not None:
         check_chunk_size(chunk)
+    with sweep_lock(out) if out is not None else contextlib.nullcontext():
+        return _run(plan, maneuvers, spec, out, executor, chunk, progress, on_rows, start)
+
+
+def _run(plan: pd.DataFrame, maneuvers: Sequence[str], spec: Mapping[str, Any],
+         out: Path | None, executor: Executor, chunk: int | None, progress: bool,
+         on_rows: Callable[[int, int], None] | None, start: float) -> SweepResult:
+    """:func:`run_sweep` once the options are checked and the lock is held."""
     samples, seed = int(spec.get("samples", 1)), int(spec.get("seed", 0))
+    say = Console(stderr=True, soft_wrap=True, highlight=False).print
     parts = Parts.open(out, spec) if out is not None else None
+    for line in parts.drop_damaged() if parts is not None else []:
+        say(line)
     done = parts.done_ids() if parts is not None else set()
     todo = plan.loc[~plan["design_id"].isin(done)]
     resumed = len(plan) - len(todo)
-    say = Console(stderr=True, soft_wrap=True, highlight=False).print
     if parts is not None and resumed:
         say(f"resumed: {resumed} of {len(plan)} done ({parts.folder})")
     rows: list[dict[str, Any]] = []
@@ -123,6 +136,8 @@ def run_sweep(plan: pd.DataFrame, maneuvers: Sequence[str], spec: Mapping[str, A
     try:
         with opened(executor if len(todo) else Executor(), say) as runner:
             size = chunk_size(len(plan), runner.slots, chunk)
+            if samples > 1:
+                check_fits(todo, size, samples, *runner.memory())
             chunks = split(todo, maneuvers, size, samples, seed)
             with _bar(progress, len(plan), resumed) as advance:
                 for flown in runner.results(chunks):
@@ -133,17 +148,26 @@ def run_sweep(plan: pd.DataFrame, maneuvers: Sequence[str], spec: Mapping[str, A
                     advance(len(flown))
                     if on_rows is not None:
                         on_rows(resumed + advance.completed, len(plan))
-    except (KeyboardInterrupt, SweepLost):
-        if parts is not None and parts.files():
-            say(f"kept {len(parts.done_ids())} of {len(plan)} designs in {parts.folder}; run "
-                "the same command again to fly the rest")
+    except (KeyboardInterrupt, SweepLost, OutputLost):
+        _say_kept(parts, len(plan), say)
         raise
     table = parts.table() if parts is not None else table_of(rows, maneuvers, samples)
     table = in_plan_order(table, plan["design_id"])
-    if out is not None:
-        write_atomic(table, out, spec)
-        parts.remove()  # type: ignore[union-attr]
+    if parts is not None and out is not None:
+        try:
+            write_atomic(table, out, spec)
+        except OutputLost:
+            _say_kept(parts, len(plan), say)
+            raise
+        parts.remove()
     return SweepResult(table, time.perf_counter() - start, resumed, len(todo), size)
+
+
+def _say_kept(parts: Parts | None, total: int, say: Callable[[str], None]) -> None:
+    """The line an interrupted sweep ends with: what its parts keep for the next run."""
+    if parts is not None and parts.files():
+        say(f"kept {len(parts.done_ids())} of {total} designs in {parts.folder}; run the "
+            "same command again to fly the rest")
 
 
 # ------------------------------------------------------------------ progress
@@ -187,6 +211,10 @@ class _InProcess:
 
     slots = 1
 
+    def memory(self) -> tuple[int | None, str]:
+        """The bytes a chunk may take here, and whose they are."""
+        return available_memory(), "on this machine"
+
     def results(self, chunks: Sequence[Chunk]) -> Iterator[list[dict[str, Any]]]:
         for chunk in chunks:
             yield fly_chunk(chunk)
@@ -199,6 +227,21 @@ class _Dask:
         self.client, self.distributed = client, distributed
         self.slots = max(1, sum(client.nthreads().values()))
         self.where = client.scheduler.address
+
+    def memory(self) -> tuple[int | None, str]:
+        """The bytes a chunk may take on the smallest worker: its memory limit, or its
+        machine's available memory where it has none, over its threads (None: no worker
+        yet)."""
+        workers = self.client.scheduler_info(n_workers=-1).get("workers", {})
+        if not workers:
+            return None, "a worker"
+        try:
+            machines = self.client.run(available_memory)
+        except (ModuleNotFoundError, OSError, TimeoutError):  # results() says why, later
+            machines = {}
+        shares = [int(w.get("memory_limit") or machines.get(a) or 0)
+                  // max(1, int(w.get("nthreads") or 1)) for a, w in workers.items()]
+        return (min(shares) or None), "per worker thread of the cluster"
 
     def results(self, chunks: Sequence[Chunk]) -> Iterator[list[dict[str, Any]]]:
         d = self.distributed
@@ -315,7 +358,9 @@ def _quiet(name: str) -> Iterator[None]:
 
 @contextlib.contextmanager
 def _connect(d: Any, address: str) -> Iterator[Any]:
-    """A client of the scheduler at ``address``; unreachable is one line, exit 2."""
+    """A client of the scheduler at ``address``; unreachable, or something else there
+    (``bench.jobs.sweep_scheduler``), is one line, exit 2."""
+    probe(address, CONNECT_TIMEOUT_S)
     try:
         client = d.Client(address, timeout=f"{CONNECT_TIMEOUT_S:g}s", set_as_default=False)
     except (OSError, TimeoutError, ValueError, TypeError) as exc:

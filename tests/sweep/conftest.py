@@ -3,7 +3,13 @@
 
 from __future__ import annotations
 
+import os
+import signal
+import subprocess
+import sys
+import time
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
 from rotorbench_tests_services import DaskCluster, dask_cluster
@@ -42,3 +48,38 @@ def reference(tmp_path_factory: pytest.TempPathFactory):
     out = tmp_path_factory.mktemp("reference") / "sweep.parquet"
     assert main([*SWEEP, "--out", str(out)]) == 0
     return pq.read_table(out)
+
+
+#: the ``rotorbench`` command of this venv: the CLI as a user types it
+ROTORBENCH = str(Path(sys.executable).with_name("rotorbench"))
+
+
+def start_sweep(argv: list[str]) -> subprocess.Popen[str]:
+    """``rotorbench fly --sweep ...`` in its own process group, stderr captured."""
+    return subprocess.Popen([ROTORBENCH, *argv], stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True, start_new_session=True)
+
+
+def wait_for_parts(out: Path, child: subprocess.Popen[str], count: int = 1,
+                   timeout_s: float = 60.0) -> None:
+    """Until the sweep writing ``out`` has ``count`` parts; it must still be running."""
+    from bench.jobs.sweep_parts import parts_folder
+
+    deadline = time.monotonic() + timeout_s
+    while len(list(parts_folder(out).glob("part-*.parquet"))) < count:
+        assert child.poll() is None, f"the sweep ended first: {child.communicate()[1]}"
+        assert time.monotonic() < deadline, "no part within the time"
+        time.sleep(0.01)
+
+
+def run_cli(argv: list[str], timeout_s: float = 120.0) -> subprocess.CompletedProcess[str]:
+    """``rotorbench ARGV`` run to its end, as a user types it."""
+    return subprocess.run([ROTORBENCH, *argv], capture_output=True, text=True,
+                          timeout=timeout_s)
+
+
+def stop(child: subprocess.Popen[str]) -> None:
+    """SIGKILL a sweep's process group if it still runs, and reap it."""
+    if child.poll() is None:
+        os.killpg(child.pid, signal.SIGKILL)
+    child.communicate()
