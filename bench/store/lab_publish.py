@@ -43,15 +43,15 @@ def operator_name(meta: Mapping[str, Any]) -> str:
 
 
 def read_meta(run_dir: Path) -> dict[str, Any]:
-    """A run folder's run.json as an object, else one-line ``RigError`` naming the file."""
-    path = Path(run_dir) / "run.json"
+    """A run folder's run.json as an object, else one-line ``RigError`` naming the file and
+    the fault, never its content (``analysis.run_paths.read_run_json``)."""
+    from analysis.errors import LogError
+    from analysis.run_paths import read_run_json
+
     try:
-        meta = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise RigError(f"{path}: unreadable ({exc})") from None
-    if not isinstance(meta, dict):
-        raise RigError(f"{path}: unreadable (a JSON {type(meta).__name__}, not an object)")
-    return meta
+        return read_run_json(run_dir)
+    except LogError as exc:
+        raise RigError(f"unreadable: {exc}") from None
 
 
 def _rows(run_dir: Path, meta: Mapping[str, Any]) -> int:

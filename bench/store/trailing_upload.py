@@ -22,13 +22,14 @@ daemon thread while Python finalises crashed the process (SIGSEGV in
 from __future__ import annotations
 
 import atexit
-import json
 import os
 import threading
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from analysis.errors import LogError
+from analysis.run_paths import read_run_json, samples_path
 from bench.errors import RigError
 from bench.store.run_data import DataLocation
 
@@ -103,7 +104,11 @@ class TrailingUpload:
                 continue
             if run_dir.name not in self.done and self.announce is not None:
                 self.announce(meta, run_dir)
-            parts = run_dir / str(meta.get("samples") or "samples.parquet")
+            try:
+                parts = samples_path(run_dir, meta)
+            except LogError:  # names a place outside its folder: never sent, sync says why
+                self.passed.add(run_dir.name)
+                continue
             sent = self.done.setdefault(run_dir.name, set())
             new = sorted(p.relative_to(run_dir).as_posix() for p in parts.glob("*.parquet")
                          if not p.name.startswith("."))
@@ -121,10 +126,8 @@ class TrailingUpload:
             hit = self._read.get(meta_path.parent.name)
             if hit is not None and hit[0] == stamp:
                 return hit[1]
-            meta = json.loads(meta_path.read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError, ValueError):
-            return None
-        if not isinstance(meta, dict):
+            meta = read_run_json(meta_path.parent)
+        except (OSError, LogError):
             return None
         self._read[meta_path.parent.name] = (stamp, meta)
         return meta

@@ -204,8 +204,8 @@ def test_a_spool_full_of_runs_is_not_read_again(spool_run: Path, tmp_path: Path,
     import os
     import shutil
 
+    import analysis.run_paths as run_paths
     import bench.store.lab_publish as lab_publish
-    import bench.store.trailing_upload as trailing_upload
     from bench.store.trailing_upload import TrailingUpload
 
     spool = tmp_path / "spool"
@@ -214,7 +214,7 @@ def test_a_spool_full_of_runs_is_not_read_again(spool_run: Path, tmp_path: Path,
         (spool / f"old-{i}" / lab_publish.MARKER).write_text(json.dumps({"store": "lab"}))
     data = DataLocation(str(tmp_path / "share"))
     counted = _CountingJson()
-    monkeypatch.setattr(trailing_upload, "json", counted)
+    monkeypatch.setattr(run_paths, "json", counted)  # every run.json is read there
     monkeypatch.setattr(lab_publish, "json", counted)
     trailing = TrailingUpload(spool, data, period_s=60.0).start()
     trailing.stop()
