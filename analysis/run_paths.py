@@ -19,12 +19,14 @@ from typing import Any
 
 from analysis.errors import LogError, excerpt
 
-__all__ = ["EVENTS_DEFAULT", "NAME_MAX", "SAMPLES_DEFAULT", "check_inside", "events_path",
-           "files_under", "member", "read_run_json", "samples_path"]
+__all__ = ["EVENTS_DEFAULT", "LOG_NAME", "NAME_MAX", "SAMPLES_DEFAULT", "check_inside",
+           "events_path", "files_under", "log_path", "member", "read_log_tail",
+           "read_run_json", "samples_path"]
 
 NAME_MAX = 255
 SAMPLES_DEFAULT = "samples.parquet"
 EVENTS_DEFAULT = "events.csv"
+LOG_NAME = "run.log"  # the run's diagnostic log (the recorder writes it beside run.json)
 
 
 def member(run_dir: str | Path, name: object, what: str) -> Path:
@@ -122,3 +124,30 @@ def samples_path(run_dir: str | Path, meta: dict[str, Any]) -> Path:
 def events_path(run_dir: str | Path, meta: dict[str, Any]) -> Path:
     """Where the run's events table is: ``run.json``'s ``events``, inside the run folder."""
     return member(run_dir, meta.get("events") or EVENTS_DEFAULT, "run.json's events")
+
+
+def log_path(run_dir: str | Path) -> Path | None:
+    """The run's ``run.log`` when it is a regular file inside the folder (a run recorded
+    before run.log existed, or imported, has none: None)."""
+    path = member(run_dir, LOG_NAME, "the run's log")
+    return path if path.is_file() else None
+
+
+def read_log_tail(run_dir: str | Path, max_bytes: int = 256 * 1024) -> str | None:
+    """The last ``max_bytes`` of the run's ``run.log`` as text (bytes that are not UTF-8
+    shown as U+FFFD; a first line cut in two dropped), or None when there is none."""
+    path = log_path(run_dir)
+    if path is None:
+        return None
+    try:
+        with open(path, "rb") as fh:
+            size = fh.seek(0, os.SEEK_END)
+            fh.seek(max(0, size - max_bytes))
+            data = fh.read(max_bytes)
+    except OSError as exc:
+        raise LogError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    text = data.decode("utf-8", errors="replace")
+    if size > max_bytes:
+        text = f"... (the first {size - len(data)} bytes are in the file)\n" + \
+            text.split("\n", 1)[-1]
+    return text

@@ -57,6 +57,7 @@ HERE = Path(__file__).parent
 PAGE_SIZES = (25, 50, 100, 200)
 PLOT_COLUMNS = 1500  # min/max bins per time plot: about one per pixel column of a wide page
 EXPORTS = ("ardupilot", "px4", "gazebo")
+LOG_TAIL_BYTES = 64 * 1024  # the end of run.log shown on a run's page (the file: a link)
 Text = Annotated[str | None, Query(max_length=128)]
 
 
@@ -170,6 +171,21 @@ def create_app(store: Store, *, token: str | None = None, title: str = "rotorben
         return FileResponse(folder / "run.json", media_type="application/json",
                             filename=f"{run_id}.json")
 
+    @app.get("/runs/{run_id}/run.log")
+    def download_log(run_id: str) -> FileResponse:
+        from analysis.run_paths import log_path
+
+        folder = run_or_404(run_id)
+        try:  # a run.log that is a link out of its folder is not sent
+            path = log_path(folder)
+        except LogError as exc:
+            raise HTTPException(422, f"run {run_id}: {exc}") from None
+        if path is None:
+            raise HTTPException(404, f"run {run_id}: no run.log (recorded before it existed, "
+                                "or imported)")
+        return FileResponse(path, media_type="text/plain; charset=utf-8",
+                            filename=f"{run_id}.log")
+
     @app.get("/runs/{run_id}/samples.parquet")
     def download_parquet(run_id: str) -> Response:
         buf = io.BytesIO()
@@ -216,6 +232,7 @@ def create_app(store: Store, *, token: str | None = None, title: str = "rotorben
 
     @app.get("/runs/{run_id}", response_class=HTMLResponse, include_in_schema=False)
     def page_run(request: Request, run_id: str) -> Any:
+        from analysis.run_paths import read_log_tail
         from analysis.run_record import read_meta, sample_count
 
         folder = run_or_404(run_id)
@@ -224,6 +241,10 @@ def create_app(store: Store, *, token: str | None = None, title: str = "rotorben
             rows = sample_count(folder, meta)
         except LogError as exc:
             raise HTTPException(422, f"run {run_id}: {exc}") from None
+        try:
+            log_text = read_log_tail(folder, LOG_TAIL_BYTES)
+        except LogError as exc:  # a link out of the folder: said, not followed
+            log_text = str(exc)
         return templates.TemplateResponse(request, "run.html", {
             "run_id": str(meta.get("id") or run_id), "meta": meta, "rows": rows,
             "title": title,
@@ -231,7 +252,7 @@ def create_app(store: Store, *, token: str | None = None, title: str = "rotorben
             "limits": meta.get("limits") or {}, "trip": meta.get("trip"),
             "drops": {k: meta.get(k) for k in ("dropped_samples", "longest_gap_s", "drops",
                                                "link_errors") if meta.get(k) is not None},
-            "exports": EXPORTS, "columns": PLOT_COLUMNS})
+            "exports": EXPORTS, "columns": PLOT_COLUMNS, "log_text": log_text})
 
     @app.get("/compare", response_class=HTMLResponse, include_in_schema=False)
     def page_compare(request: Request, runs: Annotated[str, Query(max_length=1200)] = ""

@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import io
 import itertools
+from pathlib import Path
 
 import pandas as pd
 import pytest
+
+from bench.cli import main
 
 
 def _ids(client: object, **params: str) -> list[str]:
@@ -245,3 +248,38 @@ def test_hostile_catalog_rows_reach_nothing_outside(recorded: object, tmp_path: 
                 assert r.status_code == 404 and SECRET not in r.text, (path, r.text)
         assert client.get("/api/runs").status_code == 200
     assert {str(p) for p in tmp_path.rglob("*")} == before
+
+
+def test_the_run_page_shows_its_run_log_and_serves_it(client: object) -> None:
+    """The run's diagnostic log is on its page (its end) and downloadable whole, from
+    either store (the lab's copy came through the object store)."""
+    step, _, _ = _ids(client)
+    html = client.get(f"/runs/{step}").text
+    assert 'id="run-log"' in html and "run ended: success: sequence complete" in html
+    log = client.get(f"/runs/{step}/run.log")
+    assert log.status_code == 200 and log.headers["content-type"].startswith("text/plain")
+    assert "answered" in log.text and "run started" in log.text
+
+
+def test_a_run_log_that_links_out_is_not_served(tmp_path: Path) -> None:
+    from fastapi.testclient import TestClient
+
+    from bench.serve.app import create_app
+    from bench.store.stores import open_store
+
+    out = tmp_path / "runs"
+    assert main(["step", "--repeats", "1", "--out", str(out)]) == 0
+    (run_dir,) = out.glob("*-step1")
+    secret = tmp_path / "secret.txt"
+    secret.write_text("the content of another file\n")
+    (run_dir / "run.log").unlink()
+    (run_dir / "run.log").symlink_to(secret)
+    with TestClient(create_app(open_store(str(out)))) as c:
+        page = c.get(f"/runs/{run_dir.name}")
+        assert page.status_code == 200 and "the content of another file" not in page.text
+        assert "outside the run folder" in page.text
+        got = c.get(f"/runs/{run_dir.name}/run.log")
+        assert got.status_code == 422 and "another file" not in got.text
+        (run_dir / "run.log").unlink()
+        assert c.get(f"/runs/{run_dir.name}/run.log").status_code == 404
+        assert "no run.log" in c.get(f"/runs/{run_dir.name}").text
