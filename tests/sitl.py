@@ -221,9 +221,12 @@ class UdpFeed:
         self._thread.start()
 
     def _run(self) -> None:
+        """Late, it skips ahead instead of catching up: the firmware sets its clock rate
+        from each FDM packet's time step over the wall time between receipts, and a burst
+        of catch-up packets stamped microseconds apart would all but stop its clock."""
         due = time.monotonic()
         while not self._stop.wait(max(0.0, due - time.monotonic())):
-            due += self.period_s
+            due = max(due + self.period_s, time.monotonic())
             self.sock.sendto(self.packet(), ("127.0.0.1", self.port))
             self.sent += 1
 
