@@ -139,13 +139,6 @@ class Sitl:
         lines = [ln for ln in text.splitlines() if "[FLASH_ProgramWord]" not in ln]
         return "\n".join(lines)[-limit:]
 
-    def udp(self, port: int, packet: bytes) -> None:
-        """One datagram to the firmware's UDP ``port`` (a socket made in its namespace)."""
-        with self.inside():
-            sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        with sock:
-            sock.sendto(packet, ("127.0.0.1", port))
-
     def feed(self, port: int, packet: UdpPacket, rate_hz: float) -> UdpFeed:
         """A stream of ``packet()`` datagrams to ``port`` at ``rate_hz``, stopped with us."""
         with self.inside():
@@ -200,9 +193,10 @@ def start_sitl(workdir: Path) -> Sitl:
         proc.wait(5.0)
         raise
     sitl = Sitl(proc, workdir, netns_fd)
-    code = sitl.stop()
-    state = f"exited with {code}" if code is not None and code >= 0 and netns_fd < 0 \
+    code = proc.poll()
+    state = f"exited with {code}" if code is not None \
         else f"MSP port {MSP_PORT} not listening within {START_TIMEOUT_S:g} s"
+    sitl.stop()
     pytest.fail(f"Betaflight SITL {state}; log {sitl.log_path}:\n{sitl.log_tail()}",
                 pytrace=False)
 

@@ -17,7 +17,7 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
-from rotorbench_tests_sitl import FDM_PORT, MSP_PORT, RC_PORT, Fdm, Rc
+from rotorbench_tests_sitl import FDM_PORT, MSP_PORT, RC_PORT, Fdm, Rc, start_sitl
 
 from bench.rig.rig import load_rig
 from drivers.codecs import msp
@@ -48,6 +48,23 @@ def rig_file(tmp_path):
     sensors stay the simulated serial board, on a pty)."""
     body = f'url = "{URL}"\noptions = {{ motor = 0, timeout_s = 2.0, propellers_off = true }}'
     return load_rig(factory_rigs.write(tmp_path, {"esc": body}, RIGS / "sim-serial.toml"))
+
+
+def test_two_instances_on_the_same_ports_never_meet(sitl, rig_file, tmp_path):
+    other = start_sitl(tmp_path / "other")
+    try:
+        with sitl.inside():
+            rig = open_rig(rig_file)
+        with other.inside():
+            rig2 = open_rig(rig_file)
+        with rig, rig2:
+            rig.esc.arm()
+            rig.esc.set_pulse_us(1300)
+            read = msp.Request(msp.MSP_MOTOR)
+            assert rig.esc.client.request(read).values_us[0] == 1300
+            assert rig2.esc.client.request(read).values_us[0] == 1000
+    finally:
+        other.stop()
 
 
 def _imu(tmp_path, url=URL, **options):
