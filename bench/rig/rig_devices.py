@@ -17,7 +17,7 @@ from bench.rig.rig_table import RigTable
 
 __all__ = ["URL_SCHEMES", "DeviceConfig", "parse_device"]
 
-URL_SCHEMES = ("sim", "replay", "serial", "can", "nidaq", "tcp")
+URL_SCHEMES = ("sim", "replay", "serial", "can", "nidaq", "tcp", "msp+tcp")
 
 
 @dataclass(frozen=True)

@@ -6,7 +6,8 @@ response, no documented deadline; 100 ms is the reference's suggested client tim
 ``Sensor``; ``MspMotorEsc`` drives one motor through MSP_SET_MOTOR as an ``Esc``;
 ``MspImuSensor`` is ``MspImu`` as the IMU bench's IMU under test (``IMU_CHANNELS``).
 
-The IMU under test: Betaflight and INAV send the gyro of RAW_IMU (§1.4) in whole deg/s;
+The IMU under test: Betaflight and INAV send the gyro of RAW_IMU (§1.4) in whole deg/s
+(Betaflight 4.6.0 in fact sends 16.4 counts per deg/s: ``gyro_lsb_per_dps``);
 the accelerometer in counts, 1 g = ``acc_1g`` (Betaflight: the driver's ``acc_1G``, 2048
 for the MPU6000/6050/ICM-2060x class at ±16 g; INAV: always 512). RAW_IMU carries no time
 stamp, so a row is stamped with the host clock when its reply arrives: the FC's
@@ -55,7 +56,7 @@ class MspClient:
 
     def request(self, message: msp.MspMessage) -> msp.MspMessage:
         """Send a request (or SET command) and return the FC's reply to that command."""
-        cmd = message.cmd if isinstance(message, msp.Request) else message.CMD
+        cmd = message.cmd if isinstance(message, msp.Request | msp.Unknown) else message.CMD
         with self.lock:
             write_all(self.port, msp.encode_message(message, self.version), self.name)
             deadline = Deadline(self.timeout_s)
@@ -120,7 +121,7 @@ class MspImu:
 
     def __init__(self, client: MspClient, *, rate_hz: float = 100.0, acc_1g: float | None = None,
                  clock: Clock | None = None, url: str = "serial://msp",
-                 attitude: bool = True) -> None:
+                 attitude: bool = True, gyro_lsb_per_dps: float = 1.0) -> None:
         self.client = client
         self.rate_hz = rate_hz
         self.attitude = attitude  # False: RAW_IMU only (roll/pitch/yaw NaN), twice the rate
@@ -128,6 +129,7 @@ class MspImu:
         self.url = url
         self.variant, self.api = client.identify()
         self.acc_1g = acc_1g
+        self.gyro_lsb_per_dps = gyro_lsb_per_dps
         try:  # fail at open, not in the poller, when the scaling is unknown
             msp.imu_si(msp.RawImu((0, 0, 0), (0, 0, 0), (0, 0, 0)), self.variant, acc_1g)
         except ValueError as exc:
@@ -166,7 +168,8 @@ class MspImu:
                 return
             if not isinstance(raw, msp.RawImu) or not isinstance(att, msp.Attitude):
                 continue
-            acc, gyro = msp.imu_si(raw, self.variant, self.acc_1g)
+            acc, gyro = msp.imu_si(raw, self.variant, self.acc_1g,
+                                   gyro_lsb_per_dps=self.gyro_lsb_per_dps)
             with self._lock:
                 self._rows.append((stamp, *acc, *gyro, att.roll_rad, att.pitch_rad,
                                    att.yaw_rad))

@@ -469,12 +469,15 @@ class RawImu:
         return cls(v[0:3], v[3:6], v[6:9])
 
 
-def imu_si(msg: RawImu, variant: str, acc_1g: float | None = None
+def imu_si(msg: RawImu, variant: str, acc_1g: float | None = None, *,
+           gyro_lsb_per_dps: float = 1.0
            ) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
     """Acceleration (m/s²) and angular rate (rad/s) of a RAW_IMU reply (§1.4).
 
-    Betaflight ("BTFL"): gyro in deg/s, acc in driver counts with 1 g = ``acc_1g``
-    (e.g. 2048 for an MPU6050), which the caller must give. INAV: gyro deg/s, 1 g = 512.
+    Betaflight ("BTFL"): acc in driver counts with 1 g = ``acc_1g`` (e.g. 2048 for an
+    MPU6050, 256 for the SITL), which the caller must give. INAV: 1 g = 512. The gyro is
+    ``gyro_lsb_per_dps`` counts per deg/s: 1 as §1.4 states, but Betaflight 4.6.0 sends
+    ``gyroADCf / scale``, 16.4 per deg/s (measured on its SITL: docs/protocols.md).
     MultiWii sends raw sensor counts whose scale protocols.md does not give: refused.
     """
     if variant == "INAV":
@@ -486,7 +489,7 @@ def imu_si(msg: RawImu, variant: str, acc_1g: float | None = None
     else:
         raise ValueError(f"RAW_IMU scaling unknown for FC variant {variant!r} (§1.4)")
     acc = tuple(a / one_g * STANDARD_GRAVITY for a in msg.acc)
-    gyro = tuple(math.radians(g) for g in msg.gyro)
+    gyro = tuple(math.radians(g / gyro_lsb_per_dps) for g in msg.gyro)
     return acc, gyro  # type: ignore[return-value]
 
 

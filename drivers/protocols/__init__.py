@@ -3,10 +3,10 @@
 Importing this package registers them all in ``drivers.registry`` (``drivers.device_context``
 does): ``sim``/``replay`` (simulated and recorded devices), ``serial`` (MSP, VESC UART,
 line-printing load-cell boards, GX3), ``can`` (VESC,
-DroneCAN), ``nidaq`` (NI-DAQmx analog inputs, counters, pulse train) and ``tcp`` (PI GCS
-hexapod).
+DroneCAN), ``nidaq`` (NI-DAQmx analog inputs, counters, pulse train), ``tcp`` (PI GCS
+hexapod) and ``msp+tcp`` (a flight controller's MSP over TCP).
 """
 
-from drivers.protocols import can, nidaq, serial, sim, tcp
+from drivers.protocols import can, msp_tcp, nidaq, serial, sim, tcp
 
-__all__ = ["can", "nidaq", "serial", "sim", "tcp"]
+__all__ = ["can", "msp_tcp", "nidaq", "serial", "sim", "tcp"]

