@@ -1,11 +1,11 @@
 """A catalog design as something to fly: its vehicle, its actuator model, its report.
 
-The numbers come from the optimizer's own model grid (``optimizer.design_model.evaluate_grid``,
-with measured overrides when the grid was built with them), so the flight model and
-``evaluate`` agree on mass, inertia, hover speed and time constant. Measured actuator
-numbers, where a ``MeasuredActuator`` carries them, replace the model's: rising and
-falling time constants and latency (Paper C), k_f and k_m (static curves). A step run
-fitted on the fly arrives as plain numbers (``StepConstants``).
+The numbers come from the optimizer's own model grid
+(``optimizer.model.design_model.evaluate_grid``, with measured overrides when the grid was
+built with them), so the flight model and ``evaluate`` agree on mass, inertia, hover speed
+and time constant. Measured actuator numbers, where a ``MeasuredActuator`` carries them,
+replace the model's: rising and falling time constants and latency (Paper C), k_f and k_m
+(static curves). A step run fitted on the fly arrives as plain numbers (``StepConstants``).
 """
 
 from __future__ import annotations
@@ -143,7 +143,7 @@ def fly_report(vehicle: Vehicle, actuator: ActuatorModel, maneuvers: list[Maneuv
 
 def feasible_indices(grid: Any, extra_checks: tuple = ()) -> list[tuple[int, int, int]]:
     """Every design of a grid that meets its limit checks, in catalog order."""
-    from optimizer.selection import _feasible  # the optimizer's own feasibility rule
+    from optimizer.model.grid import meets_checks  # the optimizer's own feasibility rule
 
-    ok = _feasible(grid, (*grid.checks, *extra_checks))
+    ok = meets_checks(grid, (*grid.checks, *extra_checks))
     return [tuple(int(a) for a in idx) for idx in np.argwhere(ok)]

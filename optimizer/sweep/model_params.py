@@ -18,7 +18,6 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from optimizer import physics
 from optimizer.flight.actuators import (
     DEFAULT_FRAME_RATE_HZ,
     DEFAULT_IDLE_FRACTION,
@@ -26,6 +25,7 @@ from optimizer.flight.actuators import (
     DEFAULT_LEVELS,
 )
 from optimizer.flight.vehicle import FLIGHT_ACTUATORS, LAYOUTS
+from optimizer.model import physics
 from optimizer.sweep.flight_params import INERTIA_COLUMNS, param_columns
 
 #: the actuator source ``setup`` names for the model's time constant

@@ -44,7 +44,7 @@ def flown_design(row: Mapping[str, Any], battery: str | None = None) -> FlownDes
 def ranking_from_rows(actuators: int, rows: Iterable[Mapping[str, Any]], seconds: float,
                       packs: bool = False) -> Ranking:
     """The ranking of one actuator count's rows; ``packs``: batteries are named by their
-    pack (``cell-SxP``, as ``optimizer.packs.pack_frame`` names them)."""
+    pack (``cell-SxP``, as ``optimizer.solve.packs.pack_frame`` names them)."""
     out = [flown_design(r, f"{r['battery']}-{r['series']}S{r['parallel']}P" if packs
                         else None) for r in rows]
     rho, p = spearman(out)

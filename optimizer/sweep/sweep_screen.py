@@ -5,7 +5,7 @@ A file is refused (one line) when it cannot answer the question the flights woul
 ``roll_step``, another payload, flight options ``optimize`` does not fly with (layout, drag,
 a step run's time constants), several rows per design, or model numbers that are not this
 run's grid's (another catalog, current model or ``--measured`` store, whatever its spec
-says). The choice itself is ``optimizer.flight.choice``.
+says). The choice itself is ``optimizer.solve.roll_rise``.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ import pandas as pd
 import pyarrow.compute as pc
 
 from optimizer.errors import RequestError
-from optimizer.grid import METRIC_KEYS
+from optimizer.model.grid import METRIC_KEYS
 from optimizer.sweep.sweep_file import DESIGN_KEYS, FLAGS, open_sweep, usable_rows
 
 #: The roll rise time ``optimize --from-sweep`` screens on.

@@ -1,4 +1,4 @@
-"""Battery model (optimizer.battery) against hand-computed discharges."""
+"""Battery model (optimizer.model.battery) against hand-computed discharges."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from optimizer import battery as bat
+from optimizer.model import battery as bat
 
 
 def test_curve_passes_through_its_datasheet_points() -> None:

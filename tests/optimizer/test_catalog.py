@@ -10,9 +10,9 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from optimizer.catalog import Catalog, load_catalog
+from optimizer.catalogs.catalog import Catalog, load_catalog
+from optimizer.catalogs.model_constants import ModelConstants
 from optimizer.errors import CatalogError
-from optimizer.model_constants import ModelConstants
 
 ROOT = Path(__file__).resolve().parents[2]
 THESIS_E = ROOT / "optimizer" / "data" / "catalogs" / "thesis-e"

@@ -8,10 +8,10 @@ import json
 import pytest
 
 from bench.cli import main
-from optimizer.catalog import load_catalog
-from optimizer.design_model import evaluate_grid
+from optimizer.catalogs.catalog import load_catalog
 from optimizer.flight.design import setup
-from optimizer.measured import MeasuredActuator
+from optimizer.model.design_model import evaluate_grid
+from optimizer.model.measured import MeasuredActuator
 from tests.conftest import CATALOGS
 
 CASE_I = ["--actuators", "4", "--propeller", "P4", "--motor", "M1", "--battery", "B3"]

@@ -9,7 +9,7 @@ import sys
 import pytest
 
 from bench.cli import main
-from optimizer.selection import ENTRY_KEYS
+from optimizer.solve.selection import ENTRY_KEYS
 from tests.conftest import CATALOGS, SIZINGLAB
 
 

@@ -7,10 +7,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from optimizer.catalog import load_catalog
-from optimizer.design_model import evaluate_design, evaluate_grid
+from optimizer.catalogs.catalog import load_catalog
 from optimizer.errors import RequestError
-from optimizer.grid import METRIC_KEYS
+from optimizer.model.design_model import evaluate_design, evaluate_grid
+from optimizer.model.grid import METRIC_KEYS
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -140,7 +140,7 @@ def test_violated_limits_are_named(cat):
 
 
 def test_thrust_to_weight_check(cat):
-    from optimizer import physics
+    from optimizer.model import physics
 
     strict = _with(cat, min_thrust_to_weight=1.0)
     g = evaluate_grid(strict, 4, 1.5)
@@ -177,7 +177,7 @@ def test_motor_without_inertia_data_notes_it():
 
 
 def test_measured_time_constant_and_current_replace_the_model(cat):
-    from optimizer.measured import MeasuredActuator
+    from optimizer.model.measured import MeasuredActuator
 
     base = evaluate_grid(cat, 4)
     hover = base.extras["hover_thrust_n"][3, 2, :]  # P4 on M3, every battery
@@ -211,7 +211,7 @@ def test_measured_time_constant_and_current_replace_the_model(cat):
 
 
 def test_esc_mode_selects_overrides(cat):
-    from optimizer.measured import MeasuredActuator
+    from optimizer.model.measured import MeasuredActuator
 
     generic = MeasuredActuator("P1", "M1", time_constant_s=0.05)
     damped = MeasuredActuator("P1", "M1", esc_mode="complementary", time_constant_s=0.03)
@@ -224,7 +224,7 @@ def test_esc_mode_selects_overrides(cat):
 
 
 def test_bad_overrides(cat):
-    from optimizer.measured import MeasuredActuator
+    from optimizer.model.measured import MeasuredActuator
 
     with pytest.raises(RequestError, match="unknown motor id 'M7'"):
         evaluate_grid(cat, 4, overrides=[MeasuredActuator("P1", "M7", time_constant_s=0.1)])
@@ -243,7 +243,7 @@ def test_random_catalogs_obey_the_model_invariants():
     from hypothesis import given, settings
     from hypothesis import strategies as st
 
-    from optimizer.catalog import Catalog
+    from optimizer.catalogs.catalog import Catalog
 
     @settings(max_examples=25, deadline=None)
     @given(
@@ -305,7 +305,7 @@ def test_actuator_at_thrust_is_the_grid_chain(cat):
     """The demo's model column (one propeller and motor at a given thrust) is the grid's
     own chain: at a design's hover thrust it gives that design's time constant, current
     per actuator and hover speed, bit for bit."""
-    from optimizer.design_model import actuator_at_thrust, battery_voltage_v
+    from optimizer.model.design_model import actuator_at_thrust, battery_voltage_v
 
     g = evaluate_grid(_with(cat, min_thrust_to_weight=1.0), 6, 0.5)
     k = 2
@@ -324,9 +324,9 @@ def test_actuator_at_thrust_is_the_grid_chain(cat):
 
 def test_top_thrust_is_the_drive_at_full_throttle(cat):
     """``top_thrust_n`` (E.1 at the full-throttle speed) agrees with the eCalc-style drive
-    model at 100 % throttle, an independent path through ``optimizer.operating_points``."""
-    from optimizer import operating_points as ops
-    from optimizer.design_model import actuator_at_thrust
+    model at 100 % throttle, an independent path through ``optimizer.model.operating_points``."""
+    from optimizer.model import operating_points as ops
+    from optimizer.model.design_model import actuator_at_thrust
 
     point = actuator_at_thrust(cat, 3, 0, 2.0, 11.1)
     prop, mot = cat.propellers.iloc[3], cat.motors.iloc[0]

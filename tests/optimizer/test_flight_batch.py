@@ -9,8 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from optimizer.catalog import load_catalog
-from optimizer.design_model import evaluate_grid
+from optimizer.catalogs.catalog import load_catalog
 from optimizer.errors import RequestError
 from optimizer.flight.actuators import ActuatorModel
 from optimizer.flight.batch import DesignBatch, fly_batch
@@ -18,6 +17,7 @@ from optimizer.flight.batch_loop import simulate
 from optimizer.flight.design import feasible_indices, gains_for, setup
 from optimizer.flight.maneuvers import HOVER, MANEUVERS, Maneuver, fly
 from optimizer.flight.ranking import roll_step
+from optimizer.model.design_model import evaluate_grid
 from optimizer.sweep.ranking import rank
 from tests.conftest import CATALOGS
 

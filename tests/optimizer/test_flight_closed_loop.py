@@ -8,14 +8,14 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from optimizer.catalog import load_catalog
-from optimizer.design_model import design_record, evaluate_grid
+from optimizer.catalogs.catalog import load_catalog
 from optimizer.flight.controller import closed_loop, phase_margins
 from optimizer.flight.design import fly_report, gains_for, setup
 from optimizer.flight.maneuvers import MANEUVERS, fly
 from optimizer.flight.metrics import step_metrics
-from optimizer.objectives import single
-from optimizer.selection import optimize
+from optimizer.model.design_model import design_record, evaluate_grid
+from optimizer.solve.objectives import single
+from optimizer.solve.selection import optimize
 from optimizer.sweep.ranking import rank
 from tests.conftest import CATALOGS
 
@@ -234,8 +234,8 @@ def test_max_roll_rise_pick_is_the_best_design_that_meets_it(catalog, grid, rank
     """``optimize --max-roll-rise-ms``: flying candidates in objective order stops at the
     design a full sweep would choose: the longest flight time among every feasible design
     that hovers and rises within T (ties: catalog order, as the sweep's rows)."""
-    from optimizer.flight.choice import meet_roll_rise
-    from optimizer.selection import Requirements
+    from optimizer.solve.roll_rise import meet_roll_rise
+    from optimizer.solve.selection import Requirements
 
     meeting = [r for r in ranking.rows
                if not r.note and r.rise_time_ms is not None and r.rise_time_ms <= max_rise_ms]

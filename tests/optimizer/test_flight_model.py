@@ -7,11 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from optimizer.catalog import load_catalog
-from optimizer.design_model import evaluate_grid
+from optimizer.catalogs.catalog import load_catalog
 from optimizer.flight.actuators import ActuatorModel, RotorBank
 from optimizer.flight.mixer import Mixer, allocation_matrix, mixing_matrix
 from optimizer.flight.vehicle import Vehicle, derivative, hover_state, step, vehicle_from_grid
+from optimizer.model.design_model import evaluate_grid
 from tests.conftest import CATALOGS
 
 CATALOG = CATALOGS / "thesis-e"

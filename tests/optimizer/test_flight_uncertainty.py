@@ -16,8 +16,7 @@ import pytest
 from scipy import stats
 from scipy.special import ndtr
 
-from optimizer.catalog import load_catalog
-from optimizer.design_model import evaluate_grid
+from optimizer.catalogs.catalog import load_catalog
 from optimizer.errors import RequestError
 from optimizer.flight.actuators import ActuatorModel
 from optimizer.flight.design import StepConstants, design_index, design_std, setup
@@ -34,7 +33,8 @@ from optimizer.flight.uncertainty import (
     varies,
     with_sample,
 )
-from optimizer.measured import MeasuredActuator
+from optimizer.model.design_model import evaluate_grid
+from optimizer.model.measured import MeasuredActuator
 from tests.conftest import CATALOGS
 
 DESIGN = {"actuators": 4, "propeller": "P1", "motor": "M1", "battery": "B3", "series": 3,

@@ -1,4 +1,4 @@
-"""Flyable-design rules (optimizer.flyable): values, switches, counts, exact selection."""
+"""Flyable-design rules (optimizer.model.flyable): values, switches, counts, exact selection."""
 
 from __future__ import annotations
 
@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 
 from bench.cli import main
-from optimizer.catalog import load_catalog
-from optimizer.design_model import evaluate_design, evaluate_grid, single_design_catalog
-from optimizer.flyable import RULE_NAMES, FlyableBuilder, Rules, rule_checks, rule_of
-from optimizer.objectives import single
-from optimizer.selection import optimize
-from optimizer.sheet import design_sheet
+from optimizer.catalogs.catalog import load_catalog
+from optimizer.model.design_model import evaluate_design, evaluate_grid, single_design_catalog
+from optimizer.model.flyable import RULE_NAMES, FlyableBuilder, Rules, rule_checks, rule_of
+from optimizer.model.sheet import design_sheet
+from optimizer.solve.objectives import single
+from optimizer.solve.selection import optimize
 from tests.conftest import CATALOGS, SIZINGLAB
 
 
@@ -79,7 +79,7 @@ def test_milp_equals_enumeration_with_rules(thesis_e) -> None:
 
 
 def test_sizinglab_unflyable_best_is_removed(shared_data) -> None:
-    from optimizer.sizinglab import import_sizinglab
+    from optimizer.catalogs.sizinglab import import_sizinglab
 
     cat = import_sizinglab(SIZINGLAB)
     plain = optimize(cat, single("flight-time"), (4,), method="milp").designs[0]

@@ -18,11 +18,11 @@ import pytest
 
 from bench.cli import main
 from bench.store.catalogs import shipped_catalog, with_min_thrust_to_weight
-from optimizer.design_model import evaluate_design, evaluate_grid
-from optimizer.model_constants import DEFAULT_MIN_THRUST_TO_WEIGHT
-from optimizer.objectives import single
-from optimizer.paper_e_cases import PAPER_E_CASES
-from optimizer.selection import Requirements, optimize
+from optimizer.cases.paper_e_cases import PAPER_E_CASES
+from optimizer.catalogs.model_constants import DEFAULT_MIN_THRUST_TO_WEIGHT
+from optimizer.model.design_model import evaluate_design, evaluate_grid
+from optimizer.solve.objectives import single
+from optimizer.solve.selection import Requirements, optimize
 from tests.conftest import CATALOGS, SIZINGLAB
 
 OBJECTIVES = ("flight-time", "time-constant", "price")
@@ -31,8 +31,8 @@ ACTUATORS = ("4", "6", "8")
 
 def sheet_ratio(catalog, n: int, p: str, m: str, b: str, payload: float) -> float:
     """The eCalc-like sheet's thrust_to_weight of one design (what ``evaluate`` prints)."""
-    from optimizer.design_model import single_design_catalog
-    from optimizer.sheet import design_sheet
+    from optimizer.model.design_model import single_design_catalog
+    from optimizer.model.sheet import design_sheet
 
     record = evaluate_design(catalog, n, p, m, b, payload)
     return design_sheet(single_design_catalog(catalog, p, m, b), record)["thrust_to_weight"]
@@ -269,7 +269,7 @@ def test_margin_counts_the_no_load_current() -> None:
     are below the loss-free full-throttle thrust the check used before."""
     import dataclasses
 
-    from optimizer import physics
+    from optimizer.model import physics
 
     base = shipped_catalog("thesis-e")
     cat = dataclasses.replace(base, motors=base.motors.assign(no_load_current_a=1.5))

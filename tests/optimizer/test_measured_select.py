@@ -11,12 +11,17 @@ import pytest
 
 from bench.cli import main
 from bench.store.constants_store import ActuatorKey, ConstantsStore
-from optimizer.catalog import load_catalog
-from optimizer.design_model import MODEL_SOURCES, design_sources, evaluate_design, evaluate_grid
+from optimizer.catalogs.catalog import load_catalog
 from optimizer.errors import RequestError
-from optimizer.measured import MeasuredActuator
-from optimizer.objectives import single
-from optimizer.selection import Requirements, optimize
+from optimizer.model.design_model import (
+    MODEL_SOURCES,
+    design_sources,
+    evaluate_design,
+    evaluate_grid,
+)
+from optimizer.model.measured import MeasuredActuator
+from optimizer.solve.objectives import single
+from optimizer.solve.selection import Requirements, optimize
 from tests.conftest import CATALOGS
 
 SOURCE_KEYS = {*MODEL_SOURCES, "max_thrust"}

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from optimizer.milp_builder import Constraint, LinExpr, Model, quicksum
+from optimizer.solve.milp_builder import Constraint, LinExpr, Model, quicksum
 
 
 def test_expression_arithmetic_collects_terms() -> None:
@@ -128,7 +128,7 @@ def test_solver_stdout_noise_goes_to_stderr() -> None:
     # HiGHS sometimes writes debug lines straight to fd 1; `optimize --json` must stay clean.
     code = (
         "import os\n"
-        "from optimizer.milp_builder import _stdout_to_stderr\n"
+        "from optimizer.solve.milp_builder import _stdout_to_stderr\n"
         "with _stdout_to_stderr():\n"
         "    os.write(1, b'solver noise\\n')\n"
         "print('clean')\n"

@@ -13,8 +13,8 @@ import itertools
 import numpy as np
 import pytest
 
-from optimizer.milp_builder import Model
-from optimizer.milp_rules import (
+from optimizer.solve.milp_builder import Model
+from optimizer.solve.milp_rules import (
     breakpoints,
     exactly_one,
     piecewise_linear,

@@ -8,10 +8,10 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from optimizer import exhaustive, milp_exact
-from optimizer.catalog import Catalog, load_catalog
-from optimizer.objectives import OBJECTIVE_NAMES, single, weighted
-from optimizer.selection import Requirements, optimize
+from optimizer.catalogs.catalog import Catalog, load_catalog
+from optimizer.solve import exhaustive, milp_exact
+from optimizer.solve.objectives import OBJECTIVE_NAMES, single, weighted
+from optimizer.solve.selection import Requirements, optimize
 from tests.conftest import CATALOGS
 
 SHIPPED = ("thesis-e", "thesis-d")  # thesis-robot is the mobile-robot model, not a multirotor

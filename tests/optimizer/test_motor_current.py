@@ -13,11 +13,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from optimizer.catalog import Catalog, load_catalog
-from optimizer.design_model import evaluate_design, evaluate_grid
+from optimizer.catalogs.catalog import Catalog, load_catalog
 from optimizer.errors import CatalogError
-from optimizer.objectives import single
-from optimizer.selection import Requirements, optimize
+from optimizer.model.design_model import evaluate_design, evaluate_grid
+from optimizer.solve.objectives import single
+from optimizer.solve.selection import Requirements, optimize
 from tests.conftest import SIZINGLAB
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -225,7 +225,7 @@ def test_no_load_current_column_is_optional_and_validated(tmp_path) -> None:
 
 
 def test_sizinglab_maps_no_load_and_continuous_current(shared_data) -> None:
-    from optimizer.sizinglab import import_sizinglab
+    from optimizer.catalogs.sizinglab import import_sizinglab
 
     folder = SIZINGLAB
     raw = pd.read_csv(folder / "Motors_Data.csv", sep=";")

@@ -1,4 +1,4 @@
-"""Cells in series and parallel (optimizer.packs): hand-computed packs, exact selection."""
+"""Cells in series and parallel (optimizer.solve.packs): hand-computed packs, exact selection."""
 
 from __future__ import annotations
 
@@ -7,11 +7,11 @@ import pandas as pd
 import pytest
 
 from bench.cli import main
-from optimizer.catalog import Catalog, load_catalog
-from optimizer.design_model import evaluate_grid
+from optimizer.catalogs.catalog import Catalog, load_catalog
 from optimizer.errors import RequestError
-from optimizer.objectives import single
-from optimizer.packs import cells_of, optimize_packs, pack_frame, parse_counts, with_packs
+from optimizer.model.design_model import evaluate_grid
+from optimizer.solve.objectives import single
+from optimizer.solve.packs import cells_of, optimize_packs, pack_frame, parse_counts, with_packs
 from tests.conftest import CATALOGS, SIZINGLAB
 
 
@@ -107,7 +107,7 @@ def test_decomposition_equals_one_big_grid(thesis_e) -> None:
 
 
 def test_sizinglab_milp_equals_enumeration(shared_data) -> None:
-    from optimizer.sizinglab import import_sizinglab
+    from optimizer.catalogs.sizinglab import import_sizinglab
 
     cat = import_sizinglab(SIZINGLAB)
     a = optimize_packs(cat, single("flight-time"), (4,), method="milp", series=(3, 4),

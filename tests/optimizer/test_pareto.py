@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from bench.cli import main
-from optimizer.pareto import enumerate_front, is_nondominated, milp_front
-from optimizer.selection import ENTRY_KEYS
+from optimizer.solve.pareto import enumerate_front, is_nondominated, milp_front
+from optimizer.solve.selection import ENTRY_KEYS
 from tests.conftest import CATALOGS
 
 
@@ -68,8 +68,8 @@ def test_thesis_e_four_actuators_front(capsys, tmp_path) -> None:
 
 
 def test_merged_front_over_actuator_counts_is_not_dominated(capsys, fixtures_dir) -> None:
-    from optimizer.catalog import load_catalog
-    from optimizer.design_model import evaluate_grid
+    from optimizer.catalogs.catalog import load_catalog
+    from optimizer.model.design_model import evaluate_grid
 
     cat_dir = CATALOGS / "thesis-d"
     doc = run(capsys, "--catalog", str(cat_dir), "--x", "price", "--y", "flight-time",

@@ -1,11 +1,11 @@
-"""(E.1) and (E.2) in every form ``optimizer.physics`` holds them agree with each other."""
+"""(E.1) and (E.2) in every form ``optimizer.model.physics`` holds them agree with each other."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from optimizer import physics
+from optimizer.model import physics
 
 CT, CP, RHO, D = 0.1215, 0.0518, 1.225, 0.2032  # APC 8x4.5MR, ISA, 8 in
 

@@ -10,9 +10,9 @@ import pandas as pd
 import pytest
 
 from bench.cli import main
-from optimizer.catalog import load_catalog
-from optimizer.design_model import evaluate_grid
-from optimizer.propdata import catalog_curves, load_curves, match, match_report
+from optimizer.catalogs.catalog import load_catalog
+from optimizer.model.design_model import evaluate_grid
+from optimizer.model.propdata import catalog_curves, load_curves, match, match_report
 from tests.conftest import CATALOGS, SIZINGLAB
 
 
@@ -36,7 +36,7 @@ def test_coefficients_from_thrust_and_torque(curves, shared_data) -> None:
 
 
 def test_matches_and_misses(curves, shared_data, fixtures_dir) -> None:
-    from optimizer.sizinglab import import_sizinglab
+    from optimizer.catalogs.sizinglab import import_sizinglab
 
     lab = import_sizinglab(SIZINGLAB)
     found = match(lab, curves)
@@ -60,7 +60,7 @@ def test_constant_coefficients_reproduce_the_thesis_grid(fixtures_dir) -> None:
 
 
 def test_hover_with_data_is_self_consistent(curves, shared_data) -> None:
-    from optimizer.sizinglab import import_sizinglab
+    from optimizer.catalogs.sizinglab import import_sizinglab
 
     lab = import_sizinglab(SIZINGLAB)
     table = catalog_curves(lab, curves)

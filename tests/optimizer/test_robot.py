@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
+from optimizer.cases.robot import load_robot, solve_robot
 from optimizer.errors import CatalogError
-from optimizer.robot import load_robot, solve_robot
 from tests.conftest import CATALOGS
 
 

@@ -8,9 +8,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from optimizer.errors import RequestError
-from optimizer.grid import METRIC_KEYS, Check, DesignGrid
-from optimizer.objectives import parse_weights, single, weighted
-from optimizer.selection import (
+from optimizer.model.grid import METRIC_KEYS, Check, DesignGrid
+from optimizer.solve.objectives import parse_weights, single, weighted
+from optimizer.solve.selection import (
     TIE_ORDER,
     Requirements,
     break_ties,
@@ -228,6 +228,6 @@ def test_property_milp_and_enumeration_pick_the_same_designs(seed, counts, objec
 
 
 def _ranges(grids, obj):
-    from optimizer.objectives import metric_ranges
+    from optimizer.solve.objectives import metric_ranges
 
     return metric_ranges(grids, [g.feasible() for g in grids], obj.metrics)

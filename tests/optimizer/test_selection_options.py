@@ -1,16 +1,16 @@
-"""optimizer.selection_options.solve: which options combine, and what each adds."""
+"""optimizer.solve.selection_options.solve: which options combine, and what each adds."""
 
 from __future__ import annotations
 
 import pytest
 
-from optimizer.catalog import load_catalog
+from optimizer.cases.paper_e_cases import PAPER_E_CASES
+from optimizer.catalogs.catalog import load_catalog
 from optimizer.errors import RequestError
-from optimizer.flyable import Rules
-from optimizer.objectives import single
-from optimizer.paper_e_cases import PAPER_E_CASES
-from optimizer.selection import Requirements, optimize
-from optimizer.selection_options import solve
+from optimizer.model.flyable import Rules
+from optimizer.solve.objectives import single
+from optimizer.solve.selection import Requirements, optimize
+from optimizer.solve.selection_options import solve
 from tests.conftest import CATALOGS
 
 CAT = load_catalog(CATALOGS / "thesis-e")
@@ -24,7 +24,7 @@ class _Measured:
         self.annotated = 0
 
     def build_grid(self, catalog, n, payload_kg):
-        from optimizer.design_model import evaluate_grid
+        from optimizer.model.design_model import evaluate_grid
 
         self.built.append(n)
         return evaluate_grid(catalog, n, payload_kg)
@@ -75,7 +75,7 @@ def test_paper_e_cases_are_the_three_tables():
 
 
 def test_packs_refuse_measured_and_add_rule_reports_per_count():
-    from optimizer.selection_options import solve_packs
+    from optimizer.solve.selection_options import solve_packs
 
     with pytest.raises(RequestError, match="--series/--parallel do not combine with --measured"):
         solve_packs(CAT, single("flight-time"), (4,), Requirements(), "milp", (3,), (1,),
@@ -89,7 +89,7 @@ def test_packs_refuse_measured_and_add_rule_reports_per_count():
 
 
 def test_roll_rise_option_refuses_the_thesis_method():
-    from optimizer.selection_options import meet_roll_rise_option
+    from optimizer.solve.selection_options import meet_roll_rise_option
 
     with pytest.raises(RequestError, match="--max-roll-rise-ms works with --method milp"):
         meet_roll_rise_option(None, CAT, single("flight-time"), Requirements(), "thesis", 100.0)

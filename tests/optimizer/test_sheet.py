@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 from bench.cli import main
-from optimizer import operating_points as ops
-from optimizer import physics
-from optimizer.catalog import load_catalog
-from optimizer.design_model import evaluate_design, single_design_catalog
-from optimizer.sheet import design_sheet, drive_of
+from optimizer.catalogs.catalog import load_catalog
+from optimizer.model import operating_points as ops
+from optimizer.model import physics
+from optimizer.model.design_model import evaluate_design, single_design_catalog
+from optimizer.model.sheet import design_sheet, drive_of
 from tests.conftest import CATALOGS
 
 CASE_I = ("P4", "M1", "B3")  # Case I's best thesis-e design, 4 actuators (Table E.8)
@@ -78,7 +78,7 @@ def test_the_two_current_models_differ_by_the_copper_loss(case_i) -> None:
 
 def test_drive_model_current_is_the_motor_electric_power(fixtures_dir) -> None:
     """Hand-computed: I_b = (K_e omega + R I_w) I_w / B_V with I_w = Q / K_t + I_0."""
-    from optimizer.design_model import hover_actuator
+    from optimizer.model.design_model import hover_actuator
 
     kt, r, i0, v = 0.025, 0.1, 0.5, 12.0
     ct, cp, rho, d, thrust = 0.1, 0.05, 1.225, 0.254, 5.0

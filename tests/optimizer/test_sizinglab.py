@@ -5,17 +5,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from optimizer.catalog import load_catalog
-from optimizer.errors import CatalogError
-from optimizer.objectives import single
-from optimizer.selection import Requirements, optimize
-from optimizer.sizinglab import (
+from optimizer.catalogs.catalog import load_catalog
+from optimizer.catalogs.sizinglab import (
     PROP_MASS_COEF_G,
     PROP_MASS_EXPONENT,
     import_sizinglab,
     import_to_folder,
     motor_inertia_kgm2,
 )
+from optimizer.errors import CatalogError
+from optimizer.solve.objectives import single
+from optimizer.solve.selection import Requirements, optimize
 from tests.conftest import SIZINGLAB
 
 

@@ -15,7 +15,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from bench.cli import main
-from optimizer.pareto import RTOL, enumerate_front
+from optimizer.solve.pareto import RTOL, enumerate_front
 from optimizer.sweep.sweep_file import SPEC_KEY, front, open_sweep
 from tests.test_cli_errors import run_bad
 
@@ -101,7 +101,7 @@ def _walk(ys: np.ndarray) -> list[int]:
 
 @pytest.mark.parametrize("seed", range(6))
 def test_near_ties_count_as_one_point_as_in_the_milp_front(seed: int) -> None:
-    """Points closer than RTOL are one point of the front (``optimizer.pareto``); runs of
+    """Points closer than RTOL are one point of the front (``optimizer.solve.pareto``); runs of
     such near-ties are walked in order, the rest vectorised: the same as the walk."""
     rng = np.random.default_rng(seed)
     base = np.sort(rng.random(40))[::-1] * 10.0 ** int(rng.integers(0, 4))
@@ -120,8 +120,8 @@ def feasible_rows(n_list: tuple[int, ...] = (4, 6, 8)) -> list[dict[str, Any]]:
     """Every design of thesis-e that ``pareto`` may offer (hover margin 1.2), grid order,
     as a sweep row (rise time made up: only the static columns matter here)."""
     from bench.store.catalogs import load, with_min_thrust_to_weight
-    from optimizer.design_model import evaluate_grid
-    from optimizer.grid import METRIC_KEYS
+    from optimizer.model.design_model import evaluate_grid
+    from optimizer.model.grid import METRIC_KEYS
 
     catalog = with_min_thrust_to_weight(load(None), 1.2)
     rows = []

@@ -25,10 +25,10 @@ def flown_rows() -> list[dict[str, Any]]:
     """Every design ``optimize --actuators 4`` may offer, flown through ``roll_step`` by the
     scalar code of ``optimize --max-roll-rise-ms`` (``optimizer.flight.ranking``)."""
     from bench.store.catalogs import load, with_min_thrust_to_weight
-    from optimizer.design_model import evaluate_grid
     from optimizer.flight.design import feasible_indices
     from optimizer.flight.ranking import roll_step
-    from optimizer.grid import METRIC_KEYS
+    from optimizer.model.design_model import evaluate_grid
+    from optimizer.model.grid import METRIC_KEYS
 
     catalog = with_min_thrust_to_weight(load(None), 1.2)
     grid = evaluate_grid(catalog, 4)

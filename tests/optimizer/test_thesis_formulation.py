@@ -8,10 +8,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from optimizer.catalog import Catalog, load_catalog
-from optimizer.design_model import evaluate_grid
+from optimizer.catalogs.catalog import Catalog, load_catalog
 from optimizer.errors import RequestError
-from optimizer.thesis_formulation import (
+from optimizer.model.design_model import evaluate_grid
+from optimizer.solve.thesis_formulation import (
     THESIS_REGIONS,
     THESIS_VARIABLE_COUNTS,
     build_thesis_model,
@@ -269,7 +269,7 @@ def test_design_entry_has_the_cli_keys(thesis_e):
 
 
 def test_large_catalogs_are_refused_with_a_clear_message(thesis_e, monkeypatch):
-    import optimizer.thesis_formulation as tf
+    import optimizer.solve.thesis_formulation as tf
 
     monkeypatch.setattr(tf, "MAX_COMBINATIONS", 47)  # thesis-e has 4 x 3 x 4 = 48
     with pytest.raises(RequestError, match=r"48 \(propeller, motor, battery\) combinations"):

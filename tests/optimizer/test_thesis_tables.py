@@ -10,8 +10,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from optimizer.catalog import load_catalog
-from optimizer.design_model import evaluate_design
+from optimizer.catalogs.catalog import load_catalog
+from optimizer.model.design_model import evaluate_design
 
 # (table, N_a, payload kg, propeller, motor, battery, time constant ms, flight time min, price)
 PAPER_E = [

@@ -24,8 +24,8 @@ from pathlib import Path
 import numpy as np
 
 from optimizer.errors import CatalogError
-from optimizer.milp_builder import Model, quicksum
-from optimizer.milp_rules import exactly_one, piecewise_linear
+from optimizer.solve.milp_builder import Model, quicksum
+from optimizer.solve.milp_rules import exactly_one, piecewise_linear
 
 
 @dataclass(frozen=True)

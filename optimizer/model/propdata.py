@@ -23,9 +23,9 @@ from typing import Any
 
 import numpy as np
 
-from optimizer import physics
-from optimizer.catalog import Catalog
-from optimizer.sizinglab import _read as read_sizinglab_table
+from optimizer.catalogs.catalog import Catalog
+from optimizer.catalogs.sizinglab import _read as read_sizinglab_table
+from optimizer.model import physics
 
 FILE = "APC_STATIC-data-all-props.csv"
 RHO_APC = 1.225
@@ -165,7 +165,7 @@ def match_report(catalog: Catalog, table: CatalogCurves) -> dict[str, Any]:
 
 def compare_for_design(single: Catalog, record: dict[str, Any], curve: Any) -> dict[str, Any]:
     """evaluate --prop-data: hover and full throttle with measured vs constant C_t, C_p."""
-    from optimizer.sheet import design_sheet
+    from optimizer.model.sheet import design_sheet
 
     table = catalog_curves(single, load_curves(data_folder()))
     report = match_report(single, table)
@@ -176,8 +176,8 @@ def compare_for_design(single: Catalog, record: dict[str, Any], curve: Any) -> d
     const = {k: record[k] for k in ("max_thrust_n", "hover_throttle_pct", "efficiency_g_per_w",
                                    "hover_electric_power_w")}
     n = int(record["actuators"])
-    from optimizer import operating_points as ops
-    from optimizer.sheet import drive_of, pack_of
+    from optimizer.model import operating_points as ops
+    from optimizer.model.sheet import drive_of, pack_of
 
     weight = float(record["total_mass_kg"]) * single.constants.gravity_m_s2
     hover = ops.at_thrust(drive_of(single, table.coefficients), weight / n,
@@ -201,7 +201,7 @@ def compare_for_design(single: Catalog, record: dict[str, Any], curve: Any) -> d
 
 
 def data_folder() -> Path:
-    """The SizingLab folder the package ships (``optimizer.sizinglab.DEFAULT_FOLDER``)."""
-    from optimizer.sizinglab import DEFAULT_FOLDER
+    """The SizingLab folder the package ships (``optimizer.catalogs.sizinglab.DEFAULT_FOLDER``)."""
+    from optimizer.catalogs.sizinglab import DEFAULT_FOLDER
 
     return DEFAULT_FOLDER

@@ -1,6 +1,6 @@
 """The contract between the design model and the selection layer.
 
-The model (``optimizer.design_model``) computes every quantity of every discrete design
+The model (``optimizer.model.design_model``) computes every quantity of every discrete design
 exactly; the selection layer (enumeration, MILP) only chooses among them. A
 ``DesignGrid`` holds, for one actuator count and one payload, every metric on the
 full (propeller, motor, battery) product as arrays of shape ``(P, M, B)``, and the
@@ -10,6 +10,7 @@ can be tested on synthetic grids and works for any model that fills one.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -68,8 +69,18 @@ class DesignGrid:
 
     def feasible(self) -> np.ndarray:
         """Boolean (P, M, B): every check satisfied (with a tiny relative tolerance)."""
-        ok = np.ones(self.shape, dtype=bool)
-        for check in self.checks:
-            tol = 1e-9 * np.maximum(1.0, np.abs(np.asarray(check.limit, float)))
-            ok &= np.broadcast_to(check.margin() >= -tol, self.shape)
-        return ok
+        return meets_checks(self, self.checks)
+
+
+def meets_checks(grid: DesignGrid, checks: Sequence[Check]) -> np.ndarray:
+    """Boolean (P, M, B): every one of ``checks`` satisfied on ``grid``.
+
+    The one feasibility test (a tiny relative tolerance on each limit): selection, the
+    flyable-rule reports and the flight model's design lists all use it, so they agree
+    on which designs are feasible.
+    """
+    ok = np.ones(grid.shape, dtype=bool)
+    for check in checks:
+        tol = 1e-9 * np.maximum(1.0, np.abs(np.asarray(check.limit, float)))
+        ok &= np.broadcast_to(check.margin() >= -tol, grid.shape)
+    return ok

@@ -1,4 +1,4 @@
-"""The thesis' mixed-logical rules as building blocks on :mod:`optimizer.milp_builder`.
+"""The thesis' mixed-logical rules as building blocks on :mod:`optimizer.solve.milp_builder`.
 
 Section 2.4 and Paper E section 3 take these rules from Bemporad & Morari (1999)
 and Mignone (2002); each function below adds exactly the rows the thesis prints:
@@ -25,7 +25,7 @@ from typing import Literal
 import numpy as np
 from scipy.optimize import brentq
 
-from optimizer.milp_builder import ExprLike, LinExpr, Model, Var, as_expr, quicksum
+from optimizer.solve.milp_builder import ExprLike, LinExpr, Model, Var, as_expr, quicksum
 
 #: default epsilon of Rules 19a/19b: the thesis says "machine precision"; HiGHS works
 #: to a feasibility tolerance of 1e-6, so anything smaller is the same as zero.

@@ -31,7 +31,7 @@ DEFAULT_MIN_THRUST_TO_WEIGHT = 1.2
 
 @dataclass(frozen=True)
 class ModelConstants:
-    """Physical constants and model readings used by ``optimizer.design_model``.
+    """Physical constants and model readings used by ``optimizer.model.design_model``.
 
     Defaults are the readings that reproduce Paper E's Tables E.8-E.10 (see
     docs/thesis-reproduction.md), except ``price_includes_propellers`` which follows

@@ -27,7 +27,7 @@ from typing import Literal
 import numpy as np
 
 from optimizer.errors import RequestError
-from optimizer.grid import DesignGrid
+from optimizer.model.grid import DesignGrid
 
 Sense = Literal["min", "max"]
 

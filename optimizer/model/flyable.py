@@ -34,10 +34,10 @@ from typing import Any
 
 import numpy as np
 
-from optimizer import operating_points as ops
-from optimizer.catalog import Catalog
+from optimizer.catalogs.catalog import Catalog
 from optimizer.errors import RequestError
-from optimizer.grid import Check, DesignGrid
+from optimizer.model import operating_points as ops
+from optimizer.model.grid import Check, DesignGrid, meets_checks
 
 RULE_NAMES: tuple[str, ...] = (
     "tip-speed", "frame", "kv-prop", "c-rate", "hover-throttle", "response"
@@ -86,7 +86,7 @@ def rule_checks(
     coefficients: ops.Coefficients | None = None,
 ) -> tuple[Check, ...]:
     """The enabled rules as checks on ``grid`` (built from ``catalog``)."""
-    from optimizer.sheet import drive_of, pack_of
+    from optimizer.model.sheet import drive_of, pack_of
 
     rules = rules.validate()
     n = grid.n_actuators
@@ -147,10 +147,8 @@ class RuleReport:
 
 def report(grid: DesignGrid, checks: Sequence[Check]) -> RuleReport:
     """Count what the rule checks in ``checks`` remove from ``grid``'s feasible designs."""
-    from optimizer.selection import _feasible
-
     def passes(cs: Sequence[Check]) -> np.ndarray:
-        return _feasible(grid, cs)  # the selection's own test, same tolerance
+        return meets_checks(grid, cs)  # the selection's own test, same tolerance
 
     base = passes([c for c in checks if rule_of(c) is None])
     names = list(dict.fromkeys(r for c in checks if (r := rule_of(c)) is not None))
@@ -167,7 +165,7 @@ def report(grid: DesignGrid, checks: Sequence[Check]) -> RuleReport:
 
 @dataclass
 class FlyableBuilder:
-    """A ``build_grid`` for ``optimizer.selection.optimize`` that adds the rule checks.
+    """A ``build_grid`` for ``optimizer.solve.selection.optimize`` that adds the rule checks.
 
     ``reports`` collects one ``RuleReport`` per grid built.
     """
@@ -180,7 +178,7 @@ class FlyableBuilder:
 
     def __call__(self, catalog: Catalog, n: int, payload: float) -> DesignGrid:
         if self.base is None:
-            from optimizer.design_model import evaluate_grid
+            from optimizer.model.design_model import evaluate_grid
 
             grid = evaluate_grid(catalog, n, payload)
         else:

@@ -1,6 +1,6 @@
 """One design as eCalc shows it: full throttle, hover throttle, partial load, battery.
 
-``design_sheet`` adds to ``optimizer.design_model.evaluate_design``'s record (the thesis'
+``design_sheet`` adds to ``optimizer.model.design_model.evaluate_design``'s record (the thesis'
 hover numbers, unchanged) what a designer reads on an eCalc sheet: maximum thrust per
 actuator, thrust-to-weight, hover throttle, efficiency, the partial-load table, the
 Shepherd-model flight time beside the thesis' constant-voltage one, C-rate checks
@@ -15,11 +15,11 @@ from typing import Any
 
 import numpy as np
 
-from optimizer import battery as bat
-from optimizer import operating_points as ops
-from optimizer import physics
-from optimizer.catalog import Catalog
-from optimizer.design_model import battery_voltage_v
+from optimizer.catalogs.catalog import Catalog
+from optimizer.model import battery as bat
+from optimizer.model import operating_points as ops
+from optimizer.model import physics
+from optimizer.model.design_model import battery_voltage_v
 
 
 def drive_of(catalog: Catalog, coefficients: ops.Coefficients | None = None) -> ops.Drive:
@@ -193,7 +193,7 @@ def hover_shortfall(catalog: Catalog, n: int, propeller: str, motor: str, batter
     needed, 4279 rpm at full throttle; the thesis' own pick P1/M1/B1 hovers). Full
     throttle is the steady state (E.4)-(E.7), the sheet's ``max_thrust_n``.
     """
-    from optimizer.design_model import evaluate_grid, single_design_catalog
+    from optimizer.model.design_model import evaluate_grid, single_design_catalog
 
     single = single_design_catalog(catalog, propeller, motor, battery)
     grid = evaluate_grid(single, n, payload_kg)

@@ -1,7 +1,7 @@
 """Exact Pareto fronts of two objectives: epsilon-constraint MILP, checked by enumeration.
 
 For costs ``cx``, ``cy`` (both minimised; "max" metrics negated as in
-``optimizer.objectives``) over the feasible designs of one grid, the front is the set of
+``optimizer.solve.objectives``) over the feasible designs of one grid, the front is the set of
 non-dominated points. The epsilon-constraint method walks it from the best ``cx``:
 
 1. ``x* = min cx`` subject to ``cy <= eps`` (eps = +inf first);
@@ -9,7 +9,7 @@ non-dominated points. The epsilon-constraint method walks it from the best ``cx`
    point is non-dominated, not merely weakly);
 3. record the point, set ``eps = y* - tol`` and repeat until step 1 is infeasible.
 
-Each step is the exact block MILP of ``optimizer.milp_exact`` (HiGHS, zero gap). The
+Each step is the exact block MILP of ``optimizer.solve.milp_exact`` (HiGHS, zero gap). The
 epsilon row ``sum_c cy_c u_c <= eps`` is applied as a column filter (every column with
 ``cy_c > eps`` dropped): since exactly one column is chosen, the two are the same set of
 integer solutions, and the filter keeps the block model's LP relaxation integral (the
@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from optimizer import milp_exact
+from optimizer.solve import milp_exact
 
 #: Relative tolerance below which two costs are the same point of the front.
 RTOL = 1e-9

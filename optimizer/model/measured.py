@@ -3,8 +3,9 @@
 Paper E notes after (E.39) that measured time constants, where available for a
 combination, should replace the datasheet estimates. A bench run of one propeller on one
 motor (optionally with a given ESC mode) yields a ``MeasuredActuator``: its 63 % time
-constant and its current at a set of thrusts. ``optimizer.design_model.evaluate_grid`` uses them
-for every design built from that pair and marks those cells as measured.
+constant and its current at a set of thrusts.
+``optimizer.model.design_model.evaluate_grid`` uses them for every design built from that
+pair and marks those cells as measured.
 
 Extrapolation rule (no measured number is ever extended beyond what was measured):
 - the current is interpolated linearly between measured (thrust, current) points only;

@@ -1,6 +1,6 @@
 """Hover physics of Papers D and E as numpy functions that broadcast.
 
-Every function takes SI arrays of any broadcastable shape, so ``optimizer.design_model`` can
+Every function takes SI arrays of any broadcastable shape, so ``optimizer.model.design_model`` can
 evaluate the whole (propeller, motor, battery) product at once. Equation numbers refer to
 the thesis: Øyvind Magnussen, "Multirotor Design Optimization: The Mechatronic Approach",
 PhD thesis, University of Agder, 2015.

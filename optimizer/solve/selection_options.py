@@ -1,18 +1,18 @@
-"""Design selection with the options a request may add to ``optimizer.selection.optimize``.
+"""Design selection with the options a request may add to ``optimizer.solve.selection.optimize``.
 
 Three options change how the grid is built, and so how ``optimize`` is called:
 
 * measured overrides (a store's ``MeasuredActuator`` set: something with ``build_grid``
   and ``annotate``, e.g. ``bench.store.measured_constants.MeasuredSet``): every design then
   carries ``sources`` naming what was measured;
-* the flyable-design rules (``optimizer.flyable.Rules``): the result then carries
+* the flyable-design rules (``optimizer.model.flyable.Rules``): the result then carries
   ``rule_reports``, what each rule removed;
 * APC propeller data (:func:`prop_data_option`: a ``build`` grid builder, its
   ``coefficients`` and the match ``report``).
 
 Two more change what is solved: cells in series and parallel (:func:`solve_packs`,
-``optimizer.packs``) and a closed-loop roll rise limit (:func:`meet_roll_rise_option`,
-``optimizer.flight.choice``). Which combinations work is decided here, once, for
+``optimizer.solve.packs``) and a closed-loop roll rise limit (:func:`meet_roll_rise_option`,
+``optimizer.solve.roll_rise``). Which combinations work is decided here, once, for
 ``rotorbench optimize`` and the demo.
 """
 
@@ -21,7 +21,7 @@ from __future__ import annotations
 from typing import Any, Protocol
 
 from optimizer.errors import RequestError
-from optimizer.objectives import Objective
+from optimizer.solve.objectives import Objective
 
 __all__ = ["MeasuredGrids", "grid_builder", "meet_roll_rise_option", "pack_grid_builder",
            "prop_data_option", "solve", "solve_packs"]
@@ -38,10 +38,10 @@ class MeasuredGrids(Protocol):
 def solve(catalog: Any, objective: Objective, actuators: tuple[int, ...], requirements: Any,
           method: str, measured: MeasuredGrids | None = None, rules: Any = None,
           prop_data: dict[str, Any] | None = None) -> Any:
-    """``optimizer.selection.optimize``, with the measured overrides when given (then every
+    """``optimizer.solve.selection.optimize``, with the measured overrides when given (then every
     design carries ``sources``) and the flyable-design rules when given (then the result
     carries ``rule_reports``)."""
-    from optimizer.selection import optimize
+    from optimizer.solve.selection import optimize
 
     if method == "thesis" and (measured is not None or rules is not None):
         raise RequestError("--measured and --flyable work with --method milp or exact (the "
@@ -67,7 +67,7 @@ def grid_builder(measured: MeasuredGrids | None, rules: Any,
         build, coefficients = prop_data["build"], prop_data["coefficients"]
     builder = None
     if rules is not None:
-        from optimizer.flyable import FlyableBuilder
+        from optimizer.model.flyable import FlyableBuilder
 
         build = builder = FlyableBuilder(rules, build, coefficients=coefficients)
     return build, builder
@@ -78,8 +78,8 @@ def prop_data_option(catalog: Any) -> dict[str, Any]:
     grid with them), ``coefficients`` and ``report`` (which catalog propellers matched)."""
     from functools import partial
 
-    from optimizer.design_model import evaluate_grid
-    from optimizer.propdata import catalog_curves, data_folder, load_curves, match_report
+    from optimizer.model.design_model import evaluate_grid
+    from optimizer.model.propdata import catalog_curves, data_folder, load_curves, match_report
 
     table = catalog_curves(catalog, load_curves(data_folder()))
     return {"build": partial(evaluate_grid, coefficients=table.coefficients),
@@ -90,10 +90,10 @@ def solve_packs(catalog: Any, objective: Objective, actuators: tuple[int, ...],
                 requirements: Any, method: str, series: tuple[int, ...],
                 parallel: tuple[int, ...], measured: MeasuredGrids | None = None,
                 rules: Any = None, prop_data: dict[str, Any] | None = None) -> Any:
-    """``optimizer.packs.optimize_packs`` (S and P chosen too) with the same options as
+    """``optimizer.solve.packs.optimize_packs`` (S and P chosen too) with the same options as
     :func:`solve` except measured overrides; the rule reports of the per-S grids are
     added up per actuator count."""
-    from optimizer.packs import optimize_packs
+    from optimizer.solve.packs import optimize_packs
 
     build, builder = pack_grid_builder(measured, rules, prop_data)
     result = optimize_packs(catalog, objective, actuators, requirements, method, series,
@@ -135,9 +135,9 @@ def meet_roll_rise_option(result: Any, catalog: Any, objective: Objective, requi
                           method: str, max_roll_rise_ms: float,
                           measured: MeasuredGrids | None = None, screen: Any = None) -> Any:
     """A roll rise limit on a selection: fly the picks, then candidates in objective order
-    (``optimizer.flight.choice.meet_roll_rise``), on the measured grids when given; with
+    (``optimizer.solve.roll_rise.meet_roll_rise``), on the measured grids when given; with
     ``screen`` (``optimizer.sweep.sweep_screen.roll_screen``) read from a sweep file."""
-    from optimizer.flight.choice import meet_roll_rise
+    from optimizer.solve.roll_rise import meet_roll_rise
 
     if method == "thesis":
         raise RequestError("--max-roll-rise-ms works with --method milp or exact")

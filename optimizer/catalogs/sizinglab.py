@@ -51,9 +51,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from optimizer.catalog import Catalog, check_unique_header
+from optimizer.catalogs.catalog import Catalog, check_unique_header
+from optimizer.catalogs.shipped_data import SIZINGLAB
 from optimizer.errors import CatalogError
-from optimizer.shipped_data import SIZINGLAB
 
 #: The Apache-2.0 copies shipped with the package (optimizer/data/sizinglab, see its SOURCE.md).
 DEFAULT_FOLDER = SIZINGLAB

@@ -27,12 +27,12 @@ import numpy as np
 from optimizer.errors import RequestError
 from optimizer.flight.ranking import first_meeting
 from optimizer.flight.vehicle import FLIGHT_ACTUATORS
-from optimizer.objectives import Objective, metric_ranges
-from optimizer.selection import (
+from optimizer.model.grid import meets_checks
+from optimizer.solve.objectives import Objective, metric_ranges
+from optimizer.solve.selection import (
     Requirements,
     SelectionResult,
     _design_at,
-    _feasible,
     pick_best,
 )
 
@@ -60,10 +60,10 @@ def meet_roll_rise(result: SelectionResult, catalog: Any, objective: Objective,
             raise RequestError(f"--max-roll-rise-ms: the flight model flies N = 4, 6 or 8, "
                                f"not {d.actuators}")
     if build_grid is None:
-        from optimizer.design_model import evaluate_grid as build_grid
+        from optimizer.model.design_model import evaluate_grid as build_grid
     grids = {d.actuators: build_grid(catalog, d.actuators, requirements.payload_kg)
              for d in result.designs}
-    oks = {n: _feasible(g, (*g.checks, *requirements.checks(g))) for n, g in grids.items()}
+    oks = {n: meets_checks(g, (*g.checks, *requirements.checks(g))) for n, g in grids.items()}
     ranges = (metric_ranges(grids.values(), oks.values(), objective.metrics)
               if objective.needs_ranges() else None)
     designs = []

@@ -1,11 +1,12 @@
 """Component catalogs: read, validate and convert datasheet tables to SI.
 
 A catalog is a folder with ``propellers.csv``, ``motors.csv``, ``batteries.csv`` and an
-optional ``catalog.toml`` (model constants, see ``optimizer.model_constants``). Datasheet units
-live only here: columns are converted by name (``mass_g`` -> ``mass_kg``, ``capacity_mah``
--> ``capacity_ah``, ``kv_rpm_per_v`` -> ``kv_rad_s_per_v``, ...). Every bad value raises
-``CatalogError`` naming the file, the data row (1-based, header excluded) with its CSV line,
-and the column. The same validation runs for catalogs built in code (``Catalog.from_frames``).
+optional ``catalog.toml`` (model constants, see ``optimizer.catalogs.model_constants``).
+Datasheet units live only here: columns are converted by name (``mass_g`` -> ``mass_kg``,
+``capacity_mah`` -> ``capacity_ah``, ``kv_rpm_per_v`` -> ``kv_rad_s_per_v``, ...). Every
+bad value raises ``CatalogError`` naming the file, the data row (1-based, header excluded)
+with its CSV line, and the column. The same validation runs for catalogs built in code
+(``Catalog.from_frames``).
 A physical size a part cannot lack (mass, capacity, K_V, diameter, winding resistance,
 C_t, C_p) must be > 0: a 0 g battery made the optimizer promise an 85 min flight.
 """
@@ -21,8 +22,12 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from optimizer.catalogs.model_constants import (
+    ModelConstants,
+    constants_from_mapping,
+    load_constants,
+)
 from optimizer.errors import CatalogError
-from optimizer.model_constants import ModelConstants, constants_from_mapping, load_constants
 
 RPM_PER_V_TO_RAD_S_PER_V = 2.0 * math.pi / 60.0
 #: The largest number a catalog cell may hold (the free-form "no limit" stand-in is 1e9;
@@ -89,7 +94,7 @@ BATTERY_CURRENT = (_col("max_current_a"), _col("c_rating", rule=">0"))
 BATTERY_OPTIONAL = (
     *BATTERY_CURRENT,
     _col("nominal_voltage_v", rule=">0"),
-    # battery model (optimizer.battery): burst C rating and measured pack resistance
+    # battery model (optimizer.model.battery): burst C rating and measured pack resistance
     _col("burst_c_rating", rule=">0"),
     _col("resistance_mohm", "resistance_ohm", 1e-3),
 )
@@ -379,8 +384,8 @@ def load_catalog(path: str | Path) -> Catalog:
         )
     if (folder / "robot.toml").is_file() and not (folder / FILES[0]).is_file():
         raise CatalogError(f"{folder}: the section 2.4.1 mobile-robot example (robot.toml), not "
-                           "a multirotor catalog: it is solved by optimizer.robot.solve_robot "
-                           "(docs/thesis-formulation.md)")
+                           "a multirotor catalog: it is solved by "
+                           "optimizer.cases.robot.solve_robot (docs/thesis-formulation.md)")
     tables = [_read_csv(folder / name) for name in FILES]
     constants = load_constants(folder / "catalog.toml")
     return Catalog._build(*tables, constants, str(folder))

@@ -132,7 +132,7 @@ class LinExpr:
     def __mul__(self, k: float) -> LinExpr:
         if isinstance(k, (Var, LinExpr)):
             raise TypeError(
-                "product of two expressions is not linear; use a rule (optimizer.milp_rules)"
+                "product of two expressions is not linear; use a rule (optimizer.solve.milp_rules)"
             )
         k = float(k)
         return LinExpr({v: c * k for v, c in self.terms.items()}, self.constant * k)

@@ -1,13 +1,13 @@
 """The design model: every metric of every (propeller, motor, battery) design at hover.
 
-``evaluate_grid`` fills an ``optimizer.grid.DesignGrid`` for one actuator count and
+``evaluate_grid`` fills an ``optimizer.model.grid.DesignGrid`` for one actuator count and
 payload with numpy broadcasting over the axes (P, M, B); ``evaluate_design`` reads one
-design out of it. The physics is Papers D and E (see ``optimizer.physics``); the open
-readings of the printed equations are catalog constants (``optimizer.model_constants``).
+design out of it. The physics is Papers D and E (see ``optimizer.model.physics``); the open
+readings of the printed equations are catalog constants (``optimizer.catalogs.model_constants``).
 One actuator's chain from its thrust to speed, power, current and time constant is
 ``hover_actuator``, run by ``evaluate_grid`` on every design and by ``actuator_at_thrust``
 on one propeller and motor at any thrust (what a bench measurement is compared with).
-(Named ``design_model`` to set it apart from ``optimizer.milp_builder``, which builds MILPs.)
+(Named ``design_model`` to set it apart from ``optimizer.solve.milp_builder``, which builds MILPs.)
 
 Metric definitions (all at hover, the operating point of Paper E's flight time):
 - ``propeller_power_w``: power of one propeller, x17 (E.61-E.63).
@@ -34,12 +34,12 @@ from typing import Any
 
 import numpy as np
 
-from optimizer import physics
-from optimizer.catalog import Catalog
+from optimizer.catalogs.catalog import Catalog
 from optimizer.errors import RequestError
-from optimizer.grid import METRIC_KEYS, Check, DesignGrid
-from optimizer.measured import MeasuredActuator, select_overrides
-from optimizer.operating_points import Coefficients, Drive, at_throttle, speed_for_thrust
+from optimizer.model import physics
+from optimizer.model.grid import METRIC_KEYS, Check, DesignGrid
+from optimizer.model.measured import MeasuredActuator, select_overrides
+from optimizer.model.operating_points import Coefficients, Drive, at_throttle, speed_for_thrust
 
 
 @dataclass(frozen=True)
@@ -207,7 +207,7 @@ def evaluate_grid(
 
     ``overrides`` replace the modelled time constant and hover current of given
     (propeller, motor[, ``esc_mode``]) pairs; ``ModelGrid.measured`` says where.
-    ``coefficients`` (rpm -> C_t, C_p on the propeller axis, ``optimizer.propdata``)
+    ``coefficients`` (rpm -> C_t, C_p on the propeller axis, ``optimizer.model.propdata``)
     replace the constant coefficients at hover (opt-in; the thesis uses constants).
     """
     n, payload = _check_request(n_actuators, payload_kg)
@@ -364,7 +364,7 @@ def _measured_top_thrust(
     voltage: np.ndarray,
 ) -> np.ndarray | None:
     """Limit array of the "measured max thrust" check: the sweep's top thrust where it
-    applies (see ``optimizer.measured``), +inf (no limit) elsewhere; None if no sweep."""
+    applies (see ``optimizer.model.measured``), +inf (no limit) elsewhere; None if no sweep."""
     limit = np.full(shape, np.inf)
     for (i, j), item in by_index.items():
         top = item.top_thrust_n

@@ -50,7 +50,7 @@ and scipy's wrapper spend 4-7 s per million columns on set-up and presolve.
 Costs are divided by their mean magnitude (no shift: the scale must not need
 the optimum) and HiGHS runs with ``mip_rel_gap = mip_abs_gap = 0`` and tight
 feasibility tolerances, so the returned design is optimal to ~1e-9 relative,
-far inside the tie tolerance of ``optimizer.selection``.
+far inside the tie tolerance of ``optimizer.solve.selection``.
 """
 
 from __future__ import annotations
@@ -63,7 +63,7 @@ import numpy as np
 from scipy import sparse
 from scipy.optimize import Bounds, LinearConstraint, milp
 
-from optimizer.exhaustive import SolveOutcome
+from optimizer.solve.exhaustive import SolveOutcome
 
 Formulation = Literal["block", "unit", "factored"]
 

@@ -8,7 +8,7 @@ limit and rule follow), P times its capacity and current limit, S P times its ma
 price, and resistance S R_cell / P. Identical cells are listed once.
 
 Every (cell, S, P) becomes one battery of the design grid, so selection stays the exact
-choice of ``optimizer.selection`` (MILP or enumeration over precomputed designs). To keep
+choice of ``optimizer.solve.selection`` (MILP or enumeration over precomputed designs). To keep
 memory bounded, :func:`optimize_packs` solves one grid per series count S (decomposition
 by battery voltage, section 4.2 of the project's notes reference/design-optimization.md,
 not shipped) and carries the best cost found so far as an objective cutoff into the next S
@@ -27,11 +27,11 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from optimizer.catalog import Catalog
+from optimizer.catalogs.catalog import Catalog
 from optimizer.errors import RequestError
-from optimizer.grid import DesignGrid
-from optimizer.objectives import Objective
-from optimizer.selection import (
+from optimizer.model.grid import DesignGrid
+from optimizer.solve.objectives import Objective
+from optimizer.solve.selection import (
     TIE_ORDER,
     DesignResult,
     Requirements,
@@ -145,7 +145,7 @@ def optimize_packs(
         raise RequestError("series/parallel selection works with --method milp or exact")
     req = (requirements or Requirements()).validate()
     if build_grid is None:
-        from optimizer.design_model import evaluate_grid as build_grid
+        from optimizer.model.design_model import evaluate_grid as build_grid
     cells = cells_of(catalog)
     designs: list[DesignResult] = []
     for n in dict.fromkeys(actuators):
@@ -182,7 +182,7 @@ class _Cutoff:
     def __init__(self, grid: DesignGrid, objective: Objective, incumbent: float) -> None:
         from dataclasses import replace
 
-        from optimizer.grid import Check
+        from optimizer.model.grid import Check
 
         self.any_left = True
         if not math.isfinite(incumbent):

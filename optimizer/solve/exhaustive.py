@@ -3,7 +3,7 @@
 The model already computed every metric of every (propeller, motor, battery)
 combination exactly; enumeration is one vectorised masked ``argmin`` over the
 cost array. It returns the optimal cost value; the tie-break on the set of
-designs that reach it is shared with the MILP (``optimizer.selection``).
+designs that reach it is shared with the MILP (``optimizer.solve.selection``).
 """
 
 from __future__ import annotations

@@ -17,7 +17,7 @@ and "motor @ maximum" sheets; docs/sizing.md cites them):
 * hover throttle: ``V_m`` needed at the hover speed over ``V_b``.
 
 Every function broadcasts over the design grid. Propeller coefficients are constants or,
-with measured data (``optimizer.propdata``), functions of the speed: ``coefficients``
+with measured data (``optimizer.model.propdata``), functions of the speed: ``coefficients``
 then maps rpm to (C_t, C_p) and the speed is found by fixed-point iteration.
 """
 
@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from optimizer import physics
+from optimizer.model import physics
 
 #: Throttle rows of the partial-load table, percent (eCalc: 10 % steps).
 THROTTLE_PCT = np.arange(10, 101, 10)
@@ -54,7 +54,7 @@ class Drive:
     #: rpm -> (C_t, C_p) from measured data; None: the constants ct, cp
     coefficients: Coefficients | None = None
     #: what the battery delivers: "drive" (V_m I, winding loss included) or "thesis" (the
-    #: shaft power, (E.67)); ``optimizer.model_constants.ModelConstants.current_model``
+    #: shaft power, (E.67)); ``optimizer.catalogs.model_constants.ModelConstants.current_model``
     current_model: str = "drive"
 
     def coeffs(self, rpm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

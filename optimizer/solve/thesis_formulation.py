@@ -1,6 +1,6 @@
 """Paper E's own MILP (section 3, Tables E.1-E.4, eqs. E.12-E.74), built from the rules.
 
-Why keep it: the default selector (``optimizer.milp_exact``) is exact because it
+Why keep it: the default selector (``optimizer.solve.milp_exact``) is exact because it
 precomputes every design; the thesis instead keeps the physics inside the MILP and
 linearises the nonlinear parts (``n^3 = (n^2)^1.5`` and the squared arm distances)
 with region Booleans. This module rebuilds that formulation so its answer, size,
@@ -16,13 +16,13 @@ Structure (one MILP per actuator count, as the thesis does):
   from the roll and pitch axes, their squares (PWL), the actuator and frame inertia
   sets (Rule 4 / Rule 1), the frame lengths and the PWL z-sets.
 * Constants per component and per combination (masses, prices, arm lengths, battery
-  voltage, ``J``, the time constants of E.32-E.39) come from ``optimizer.design_model``, so
+  voltage, ``J``, the time constants of E.32-E.39) come from ``optimizer.model.design_model``, so
   the two formulations share one physics.
 
 Readings (see docs/thesis-formulation.md): (E.70)-(E.71) "x20 = x19" is used as
 ``x20 >= x19`` with ``T_F`` the required flight time (an equality would fix the
 capacity); (E.55) is used with the ``1/3`` of (E.52) (a rod about its end); the
-limits of ``optimizer.design_model`` (motor power and current, battery current) are added as
+limits of ``optimizer.model.design_model`` (motor power and current, battery current) are added as
 linear rows on x17 and x18; any other check is enforced per combination with
 ``d_p + d_m + d_b <= 2`` cuts (exact, no linearisation).
 """
@@ -37,18 +37,18 @@ from typing import Any
 
 import numpy as np
 
-from optimizer import physics
-from optimizer.catalog import Catalog
-from optimizer.design_model import (
+from optimizer.catalogs.catalog import Catalog
+from optimizer.errors import RequestError
+from optimizer.model import physics
+from optimizer.model.design_model import (
     design_record,
     evaluate_grid,
     motor_inertia_kgm2,
     propeller_inertia_kgm2,
 )
-from optimizer.errors import RequestError
-from optimizer.grid import METRIC_KEYS
-from optimizer.milp_builder import LinExpr, Model, Solution, Var, quicksum
-from optimizer.milp_rules import exactly_one, piecewise_linear, rule1_product, rule4_product
+from optimizer.model.grid import METRIC_KEYS
+from optimizer.solve.milp_builder import LinExpr, Model, Solution, Var, quicksum
+from optimizer.solve.milp_rules import exactly_one, piecewise_linear, rule1_product, rule4_product
 
 #: Objective name (CLI) -> (Table E.2 variable, sense).
 OBJECTIVES: dict[str, tuple[str, str]] = {
@@ -135,8 +135,8 @@ class ThesisResult:
     """One thesis-formulation MILP (one actuator count) and its check against the model.
 
     ``linearised`` holds the MILP's own values (x-variables converted to the metric
-    units of ``optimizer.grid``); ``exact`` the model's values at the chosen design
-    (``optimizer.design_model.design_record`` keys); ``errors`` their relative difference.
+    units of ``optimizer.model.grid``); ``exact`` the model's values at the chosen design
+    (``optimizer.model.design_model.design_record`` keys); ``errors`` their relative difference.
     """
 
     n_actuators: int
@@ -306,7 +306,7 @@ def build_thesis_model(
     price_p = col(props, "price") if c.price_includes_propellers else np.zeros(len(props))
     price_m, price_b = col(mots, "price"), col(bats, "price")
     ah_b = col(bats, "capacity_ah")
-    volt_b = grid.extras["voltage_v"][0, 0, :]  # B_V (E.67), reading of optimizer.design_model
+    volt_b = grid.extras["voltage_v"][0, 0, :]  # B_V (E.67), design_model's reading
     arm_p = grid.extras["arm_length_m"][:, 0, 0]  # L_f(D_i, N_a) (E.23)-(E.25)
     j_m, j_p = motor_inertia_kgm2(catalog), propeller_inertia_kgm2(catalog)
     tau_s = grid.metrics["time_constant_ms"] * 1e-3  # (E.32)-(E.39), per combination
@@ -438,7 +438,7 @@ def build_thesis_model(
     # Roll and pitch inertias (E.42)-(E.59): N_a/2 arm pairs, factor 2 per pair.
     half = na // 2 if na % 2 == 0 else na
     pair = 2.0 if na % 2 == 0 else 1.0
-    angles = (2 * np.arange(half) + 1) * np.pi / na  # arms as in optimizer.physics
+    angles = (2 * np.arange(half) + 1) * np.pi / na  # arms as in optimizer.model.physics
     axis_terms: dict[str, LinExpr] = {}
     for axis, factor in (("roll", np.abs(np.sin(angles))), ("pitch", np.abs(np.cos(angles)))):
         act_terms, frame_terms = [], []
@@ -485,7 +485,7 @@ def build_thesis_model(
     model.add(x13 == x["x9"] + x["x11"], name="E.58")
     model.add(x14 == x["x10"] + x["x12"], name="E.59")
 
-    # Limits of optimizer.design_model as linear rows; other checks as per-combination cuts.
+    # Limits of optimizer.model.design_model as linear rows; other checks as per-combination cuts.
     limits = {
         "motor power": lambda: x17 <= lin(col(mots, "max_power_w"), d_motor),
         "motor current": lambda: x18 / na <= lin(col(mots, "max_current_a"), d_motor),
@@ -515,7 +515,7 @@ def build_thesis_model(
 
 
 def _linearised_values(sol: Solution, payload_kg: float, na: int) -> dict[str, float]:
-    """The MILP's x-variables in the units of ``optimizer.grid`` metrics."""
+    """The MILP's x-variables in the units of ``optimizer.model.grid`` metrics."""
     x21 = sol["x21"]
     return {
         "flight_time_min": 60.0 / x21 if x21 > 0 else math.inf,

@@ -3,7 +3,7 @@
 For each actuator count the model builds a ``DesignGrid`` (payload is an input
 of the grid); the grid's physical limits plus the request's requirements
 (minimum flight time, maximum time constant) give the feasible set; the chosen
-method (``milp``: ``optimizer.milp_exact``, ``exact``: ``optimizer.exhaustive``)
+method (``milp``: ``optimizer.solve.milp_exact``, ``exact``: ``optimizer.solve.exhaustive``)
 finds the optimal cost; the tie-break below picks one design among those that
 reach it; infeasible actuator counts get an explanation from the closest design.
 
@@ -36,11 +36,11 @@ from typing import Any, Literal
 
 import numpy as np
 
-from optimizer import exhaustive, milp_exact
 from optimizer.errors import RequestError
-from optimizer.exhaustive import SolveOutcome
-from optimizer.grid import METRIC_KEYS, Check, DesignGrid
-from optimizer.objectives import Objective, metric_ranges
+from optimizer.model.grid import METRIC_KEYS, Check, DesignGrid, meets_checks
+from optimizer.solve import exhaustive, milp_exact
+from optimizer.solve.exhaustive import SolveOutcome
+from optimizer.solve.objectives import Objective, metric_ranges
 
 Method = Literal["milp", "exact", "thesis"]
 METHODS: tuple[str, ...] = ("milp", "exact", "thesis")
@@ -417,7 +417,7 @@ def select_from_grids(
     if method not in METHODS:
         raise RequestError(f"unknown method {method!r}; expected one of {', '.join(METHODS)}")
     checks_per_grid = [(*g.checks, *req.checks(g)) for g in grids]
-    feasible = [_feasible(g, checks) for g, checks in zip(grids, checks_per_grid, strict=True)]
+    feasible = [meets_checks(g, checks) for g, checks in zip(grids, checks_per_grid, strict=True)]
     ranges = metric_ranges(grids, feasible, objective.metrics) if objective.needs_ranges() else None
     designs = []
     for n, (grid, checks, ok) in enumerate(zip(grids, checks_per_grid, feasible, strict=True)):
@@ -427,14 +427,6 @@ def select_from_grids(
         gtime = grid_times[n] if grid_times is not None else 0.0
         designs.append(_result(grid, checks, cost, ok, outcome, objective, method, gtime))
     return SelectionResult(objective, method, req, designs, pick_best(designs), source)
-
-
-def _feasible(grid: DesignGrid, checks: Sequence[Check]) -> np.ndarray:
-    ok = np.ones(grid.shape, dtype=bool)
-    for check in checks:
-        tol = 1e-9 * np.maximum(1.0, np.abs(np.asarray(check.limit, float)))
-        ok &= np.broadcast_to(check.margin() >= -tol, grid.shape)
-    return ok
 
 
 def _design_at(grid: DesignGrid, index: tuple[int, int, int]) -> dict[str, Any]:
@@ -552,7 +544,7 @@ def optimize(
     if not actuators:
         raise RequestError("actuators: give at least one actuator count, e.g. 4 6 8")
     if build_grid is None:
-        from optimizer.design_model import evaluate_grid as build_grid
+        from optimizer.model.design_model import evaluate_grid as build_grid
     grids, times = [], []
     for n in dict.fromkeys(actuators):
         start = time.perf_counter()
@@ -582,7 +574,7 @@ def _select_thesis(
     source: str,
 ) -> SelectionResult:
     """Paper E's formulation per actuator count; designs evaluated by the exact model."""
-    from optimizer.thesis_formulation import solve_thesis
+    from optimizer.solve.thesis_formulation import solve_thesis
 
     if catalog.constants.current_model != "thesis":
         raise RequestError(
@@ -602,7 +594,7 @@ def _select_thesis(
     designs = []
     for grid, gtime in zip(grids, times, strict=True):
         checks = (*grid.checks, *req.checks(grid))
-        ok = _feasible(grid, checks)
+        ok = meets_checks(grid, checks)
         cost = objective.cost(grid, None)
         start = time.perf_counter()
         res = solve_thesis(

@@ -2,7 +2,7 @@
 
 The parts go through ``Catalog.from_frames`` (the same validation as a catalog folder),
 so a bad value is reported like a bad catalog cell. Values a datasheet often lacks:
-propeller mass from the SizingLab power law (``optimizer.sizinglab``), prices 0, and
+propeller mass from the SizingLab power law (``optimizer.catalogs.sizinglab``), prices 0, and
 limits not given are :data:`NO_LIMIT` (reported as "not given", never violated).
 """
 
@@ -13,10 +13,10 @@ from typing import Any
 
 import pandas as pd
 
-from optimizer.catalog import MAX_VALUE, Catalog
+from optimizer.catalogs.catalog import MAX_VALUE, Catalog
+from optimizer.catalogs.model_constants import ModelConstants
+from optimizer.catalogs.sizinglab import PROP_MASS_COEF_G, PROP_MASS_EXPONENT
 from optimizer.errors import CatalogError, RequestError
-from optimizer.model_constants import ModelConstants
-from optimizer.sizinglab import PROP_MASS_COEF_G, PROP_MASS_EXPONENT
 
 #: Stand-in for a limit the user did not give (A, W): large, finite, never binding.
 NO_LIMIT = 1e9
