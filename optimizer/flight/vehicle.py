@@ -33,8 +33,10 @@ from typing import Any
 
 import numpy as np
 
+from optimizer.catalogs.catalog import Catalog
 from optimizer.errors import RequestError
 from optimizer.model import physics
+from optimizer.model.design_model import ModelGrid
 
 LAYOUTS = ("x", "plus")
 #: Actuator counts the flight model flies (alternating spin needs an even count).
@@ -130,7 +132,7 @@ def rotor_constants(ct: float, cp: float, rho: float, diameter_m: float) -> tupl
             float(physics.torque_per_omega2(cp, rho, diameter_m)))
 
 
-def vehicle_from_grid(catalog: Any, grid: Any, index: tuple[int, int, int],
+def vehicle_from_grid(catalog: Catalog, grid: ModelGrid, index: tuple[int, int, int],
                       layout: str = "x", drag_n_s_m: float = 0.0) -> Vehicle:
     """The ``Vehicle`` of design ``index`` (propeller, motor, battery) of a model grid."""
     i, j, k = index

@@ -24,10 +24,12 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from optimizer.catalogs.catalog import Catalog
 from optimizer.errors import RequestError
 from optimizer.flight.ranking import first_meeting
 from optimizer.flight.vehicle import FLIGHT_ACTUATORS
-from optimizer.model.grid import meets_checks
+from optimizer.model.design_model import ModelGrid
+from optimizer.model.grid import DesignGrid, meets_checks
 from optimizer.solve.objectives import Objective, metric_ranges
 from optimizer.solve.selection import (
     Requirements,
@@ -43,10 +45,10 @@ class RollScreen(Protocol):
 
     source: str
 
-    def on_grid(self, grid: Any) -> Any: ...
+    def on_grid(self, grid: DesignGrid) -> Any: ...
 
 
-def meet_roll_rise(result: SelectionResult, catalog: Any, objective: Objective,
+def meet_roll_rise(result: SelectionResult, catalog: Catalog, objective: Objective,
                    requirements: Requirements, max_rise_ms: float,
                    build_grid: Callable[[Any, int, float], Any] | None = None,
                    screen: RollScreen | None = None, **setup_kwargs: Any) -> SelectionResult:
@@ -97,7 +99,7 @@ def meet_roll_rise(result: SelectionResult, catalog: Any, objective: Objective,
 Index = tuple[int, int, int]
 
 
-def _fly(pick: Index, grid: Any, cost: np.ndarray, ok: np.ndarray, catalog: Any,
+def _fly(pick: Index, grid: ModelGrid, cost: np.ndarray, ok: np.ndarray, catalog: Catalog,
          max_rise_ms: float, setup_kwargs: dict[str, Any]
          ) -> tuple[Index | None, dict[str, Any], str]:
     """Fly the pick, then the others in objective order (ties in catalog order), until one
@@ -116,7 +118,7 @@ def _fly(pick: Index, grid: Any, cost: np.ndarray, ok: np.ndarray, catalog: Any,
     return found, info, f"(flew all {len(flown)}; {best_txt})"
 
 
-def _read(pick: Index, grid: Any, cost: np.ndarray, ok: np.ndarray, screen: RollScreen,
+def _read(pick: Index, grid: DesignGrid, cost: np.ndarray, ok: np.ndarray, screen: RollScreen,
           max_rise_ms: float) -> tuple[Index | None, dict[str, Any], str]:
     """The choice :func:`_fly` would make, read off the sweep file: the pick if it meets T,
     else the lowest cost among the designs that do (``argmin``: ties in catalog order)."""

@@ -36,6 +36,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from optimizer.catalogs.catalog import Catalog
 from optimizer.errors import RequestError
 from optimizer.model.grid import METRIC_KEYS, Check, DesignGrid, meets_checks
 from optimizer.solve import exhaustive, milp_exact
@@ -523,7 +524,7 @@ def pick_best(designs: Sequence[DesignResult]) -> DesignResult | None:
 
 
 def optimize(
-    catalog: Any,
+    catalog: Catalog,
     objective: Objective,
     actuators: Sequence[int] = (4, 6, 8),
     requirements: Requirements | None = None,
@@ -565,7 +566,7 @@ def optimize(
 
 
 def _select_thesis(
-    catalog: Any,
+    catalog: Catalog,
     grids: Sequence[DesignGrid],
     times: Sequence[float],
     objective: Objective,

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from typing import Any, Protocol
 
+from optimizer.catalogs.catalog import Catalog
 from optimizer.errors import RequestError
 from optimizer.solve.objectives import Objective
 
@@ -30,12 +31,12 @@ __all__ = ["MeasuredGrids", "grid_builder", "meet_roll_rise_option", "pack_grid_
 class MeasuredGrids(Protocol):
     """Measured overrides as a grid builder: builds grids with them, then marks sources."""
 
-    def build_grid(self, catalog: Any, n: int, payload_kg: float) -> Any: ...
+    def build_grid(self, catalog: Catalog, n: int, payload_kg: float) -> Any: ...
 
     def annotate(self, result: Any) -> None: ...
 
 
-def solve(catalog: Any, objective: Objective, actuators: tuple[int, ...], requirements: Any,
+def solve(catalog: Catalog, objective: Objective, actuators: tuple[int, ...], requirements: Any,
           method: str, measured: MeasuredGrids | None = None, rules: Any = None,
           prop_data: dict[str, Any] | None = None) -> Any:
     """``optimizer.solve.selection.optimize``, with the measured overrides when given (then every
@@ -73,7 +74,7 @@ def grid_builder(measured: MeasuredGrids | None, rules: Any,
     return build, builder
 
 
-def prop_data_option(catalog: Any) -> dict[str, Any]:
+def prop_data_option(catalog: Catalog) -> dict[str, Any]:
     """The APC static C_t(rpm), C_p(rpm) as a ``prop_data`` option: ``build`` (the model
     grid with them), ``coefficients`` and ``report`` (which catalog propellers matched)."""
     from functools import partial
@@ -86,7 +87,7 @@ def prop_data_option(catalog: Any) -> dict[str, Any]:
             "coefficients": table.coefficients, "report": match_report(catalog, table)}
 
 
-def solve_packs(catalog: Any, objective: Objective, actuators: tuple[int, ...],
+def solve_packs(catalog: Catalog, objective: Objective, actuators: tuple[int, ...],
                 requirements: Any, method: str, series: tuple[int, ...],
                 parallel: tuple[int, ...], measured: MeasuredGrids | None = None,
                 rules: Any = None, prop_data: dict[str, Any] | None = None) -> Any:
@@ -131,7 +132,7 @@ def _sum_reports(reports: list[Any]) -> list[dict[str, Any]]:
     return list(out.values())
 
 
-def meet_roll_rise_option(result: Any, catalog: Any, objective: Objective, requirements: Any,
+def meet_roll_rise_option(result: Any, catalog: Catalog, objective: Objective, requirements: Any,
                           method: str, max_roll_rise_ms: float,
                           measured: MeasuredGrids | None = None, screen: Any = None) -> Any:
     """A roll rise limit on a selection: fly the picks, then candidates in objective order

@@ -41,12 +41,13 @@ from optimizer.catalogs.catalog import Catalog
 from optimizer.errors import RequestError
 from optimizer.model import physics
 from optimizer.model.design_model import (
+    ModelGrid,
     design_record,
     evaluate_grid,
     motor_inertia_kgm2,
     propeller_inertia_kgm2,
 )
-from optimizer.model.grid import METRIC_KEYS
+from optimizer.model.grid import METRIC_KEYS, DesignGrid
 from optimizer.solve.milp_builder import LinExpr, Model, Solution, Var, quicksum
 from optimizer.solve.milp_rules import exactly_one, piecewise_linear, rule1_product, rule4_product
 
@@ -270,7 +271,7 @@ class _Built:
     d_prop: list[Var]
     d_motor: list[Var]
     d_batt: list[Var]
-    grid: Any
+    grid: ModelGrid
 
 
 def build_thesis_model(
@@ -532,7 +533,7 @@ def _linearised_values(sol: Solution, payload_kg: float, na: int) -> dict[str, f
 
 
 def exact_optimum(
-    grid: Any,
+    grid: DesignGrid,
     objective: ObjectiveSpec,
     min_flight_time_min: float | None = None,
     max_time_constant_ms: float | None = None,

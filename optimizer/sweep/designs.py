@@ -20,10 +20,12 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from optimizer.catalogs.catalog import Catalog
 from optimizer.errors import RequestError
 from optimizer.flight.design import design_std, feasible_indices, setup
 from optimizer.flight.uncertainty import QUANTITIES
 from optimizer.flight.vehicle import FLIGHT_ACTUATORS
+from optimizer.model.design_model import ModelGrid
 from optimizer.model.grid import METRIC_KEYS
 from optimizer.sweep.flight_params import STD_PREFIX, param_columns, params_of
 from optimizer.sweep.keys import DESIGN_KEYS, design_id
@@ -42,7 +44,7 @@ class Packs:
     parallel: tuple[int, ...] = (1,)
 
 
-def plan_designs(catalog: Any, actuators: Sequence[int], payload_kg: float = 0.0,
+def plan_designs(catalog: Catalog, actuators: Sequence[int], payload_kg: float = 0.0,
                  build_grid: GridBuilder | None = None, packs: Packs | None = None,
                  **setup_kwargs: Any) -> pd.DataFrame:
     """One row per design to fly, in a fixed order: actuator counts as given, series
@@ -75,7 +77,7 @@ def plan_designs(catalog: Any, actuators: Sequence[int], payload_kg: float = 0.0
     return plan
 
 
-def grid_designs(catalog: Any, grid: Any, *, packs: bool = False,
+def grid_designs(catalog: Catalog, grid: ModelGrid, *, packs: bool = False,
                  **setup_kwargs: Any) -> pd.DataFrame:
     """The plan rows of every design of ``grid`` that meets its checks. ``packs``: the
     catalog's batteries are packs (``optimizer.solve.packs.pack_frame``), keyed by their cell."""
@@ -124,7 +126,7 @@ def grid_designs(catalog: Any, grid: Any, *, packs: bool = False,
     return frame
 
 
-def thrust_to_weight(catalog: Any, grid: Any) -> np.ndarray:
+def thrust_to_weight(catalog: Catalog, grid: ModelGrid) -> np.ndarray:
     """Full-throttle thrust of all actuators over the weight, (P, M, B): the grid's own
     where its hover-margin check computed it, else the same formula (E.1, E.4-E.7 with
     I_0; ``optimizer.model.design_model.evaluate_grid``) on the grid's voltage and hover thrust."""
