@@ -27,8 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-#: Nodes of the discharge integral on x in [0, X_MAX] (uniform; the error of the
-#: trapezoid rule against the closed form is < 1e-4 relative, tests/optimizer/test_battery.py).
+#: Nodes of the discharge integral on x in [0, X_MAX] (uniform; the error of the trapezoid
+#: rule against the closed form is < 1e-4 relative, tests/optimizer/model/test_battery.py).
 NODES = 600
 X_MAX = 0.999
 

@@ -171,7 +171,7 @@ class FlyableBuilder:
     """
 
     rules: Rules
-    base: Callable[[Any, int, float], DesignGrid] | None = None
+    base: Callable[[Catalog, int, float], DesignGrid] | None = None
     reports: list[RuleReport] = field(default_factory=list)
     #: measured C_t(rpm), C_p(rpm) for the full-throttle and hover rule values
     coefficients: ops.Coefficients | None = None

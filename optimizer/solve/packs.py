@@ -22,7 +22,6 @@ import math
 import re
 import time
 from collections.abc import Callable, Sequence
-from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -135,7 +134,7 @@ def optimize_packs(
     series: Sequence[int] = (2, 3, 4, 5, 6),
     parallel: Sequence[int] = (1, 2, 3, 4),
     *,
-    build_grid: Callable[[Any, int, float], DesignGrid] | None = None,
+    build_grid: Callable[[Catalog, int, float], DesignGrid] | None = None,
 ) -> SelectionResult:
     """Best design per actuator count with the pack's S and P chosen too (exact)."""
     if not objective.is_single:

@@ -50,7 +50,7 @@ class RollScreen(Protocol):
 
 def meet_roll_rise(result: SelectionResult, catalog: Catalog, objective: Objective,
                    requirements: Requirements, max_rise_ms: float,
-                   build_grid: Callable[[Any, int, float], Any] | None = None,
+                   build_grid: Callable[[Catalog, int, float], Any] | None = None,
                    screen: RollScreen | None = None, **setup_kwargs: Any) -> SelectionResult:
     """``result`` with every actuator count's design replaced by the best one that
     meets the roll rise time (or made infeasible with the reason); flown, or read from

@@ -530,7 +530,7 @@ def optimize(
     requirements: Requirements | None = None,
     method: str = "milp",
     *,
-    build_grid: Callable[[Any, int, float], DesignGrid] | None = None,
+    build_grid: Callable[[Catalog, int, float], DesignGrid] | None = None,
     milp_options: dict[str, Any] | None = None,
     thesis_options: dict[str, Any] | None = None,
 ) -> SelectionResult:

@@ -32,7 +32,7 @@ from optimizer.sweep.keys import DESIGN_KEYS, design_id
 from optimizer.sweep.model_params import model_params, modelled
 
 #: a grid builder as ``optimizer.solve.selection.optimize`` takes it: (catalog, N, payload) -> grid
-GridBuilder = Callable[[Any, int, float], Any]
+GridBuilder = Callable[[Catalog, int, float], Any]
 
 
 @dataclass(frozen=True)

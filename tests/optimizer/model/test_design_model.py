@@ -12,7 +12,7 @@ from optimizer.errors import RequestError
 from optimizer.model.design_model import evaluate_design, evaluate_grid
 from optimizer.model.grid import METRIC_KEYS
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 
 
 @pytest.fixture(scope="module")

@@ -32,7 +32,7 @@ METRIC = {
 
 @pytest.fixture(scope="module")
 def thesis_e() -> Catalog:
-    return load_catalog(Path(__file__).resolve().parents[2] / "optimizer/data/catalogs/thesis-e")
+    return load_catalog(Path(__file__).resolve().parents[3] / "optimizer/data/catalogs/thesis-e")
 
 
 def brute_force(catalog, n, objective, payload=0.0, min_ft=None, max_tau=None):

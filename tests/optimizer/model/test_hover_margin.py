@@ -189,7 +189,7 @@ def test_thesis_rules_reproduce_tables_e8_to_e10(capsys) -> None:
     each case's objective and payload) the picks are those of before the margin and their
     numbers are the tables': flight times of E.8/E.9 within 0.5 %, time constants of E.10
     within 1 ms. The default margin changes Case II (4 actuators: M2) and Case III."""
-    from tests.optimizer.test_thesis_tables import PAPER_E
+    from tests.optimizer.cases.test_thesis_tables import PAPER_E
 
     printed = {(table, n): (tau, minutes) for table, n, _, _, _, _, tau, minutes, _ in PAPER_E}
     _, doc = run_json(capsys, "optimize", "--paper-e-cases")
@@ -245,7 +245,7 @@ def test_which_thesis_designs_cannot_hover() -> None:
     hovers with margin (lowest thrust-to-weight 1.55 >= 1.2); of the thesis' model's own
     exact optima (Paper E's cases under --thesis-rules) Case II with 4 actuators and Case
     III with 4 and 6 cannot hover, and Case III with 8 hovers below the 1.2 margin."""
-    from tests.optimizer.test_thesis_tables import D_PAYLOAD_KG, PAPER_D, PAPER_E
+    from tests.optimizer.cases.test_thesis_tables import D_PAYLOAD_KG, PAPER_D, PAPER_E
 
     cat = shipped_catalog("thesis-e")
     printed = [sheet_ratio(cat, n, p, m, b, pay) for _, n, pay, p, m, b, *_ in PAPER_E]

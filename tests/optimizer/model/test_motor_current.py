@@ -20,7 +20,7 @@ from optimizer.solve.objectives import single
 from optimizer.solve.selection import Requirements, optimize
 from tests.conftest import SIZINGLAB
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 CATALOGS = ROOT / "optimizer" / "data" / "catalogs"
 ISSUE_KEYS = (
     "actuators, feasible, propeller, motor, battery, flight_time_min, time_constant_ms, price, "

@@ -14,7 +14,7 @@ from optimizer.catalogs.catalog import Catalog, load_catalog
 from optimizer.catalogs.model_constants import ModelConstants
 from optimizer.errors import CatalogError
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 THESIS_E = ROOT / "optimizer" / "data" / "catalogs" / "thesis-e"
 
 

@@ -133,7 +133,7 @@ def test_solver_stdout_noise_goes_to_stderr() -> None:
         "    os.write(1, b'solver noise\\n')\n"
         "print('clean')\n"
     )
-    root = Path(__file__).resolve().parents[2]
+    root = Path(__file__).resolve().parents[3]
     proc = subprocess.run(
         [sys.executable, "-c", code], cwd=root, capture_output=True, text=True, check=True
     )

@@ -33,7 +33,7 @@ PAPER_E = [
 def thesis_e(request):
     from pathlib import Path
 
-    root = Path(__file__).resolve().parents[2]
+    root = Path(__file__).resolve().parents[3]
     return load_catalog(root / "optimizer" / "data" / "catalogs" / "thesis-e")
 
 
@@ -88,7 +88,7 @@ D_PAYLOAD_KG = 0.5  # "lift an SLR camera at 0.5 kg" (Paper D section 4.1)
 def thesis_d():
     from pathlib import Path
 
-    root = Path(__file__).resolve().parents[2]
+    root = Path(__file__).resolve().parents[3]
     return load_catalog(root / "optimizer" / "data" / "catalogs" / "thesis-d")
 
 
