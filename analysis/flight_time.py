@@ -4,7 +4,7 @@
 measured current (A) when the step-responses have reached steady-state and by the number
 of actuators." The current per actuator at the hover thrust comes from the measured
 static curves (thrust and current against speed). A bench supply at another voltage than
-the flight battery is rescaled at equal electrical power, as ``optimizer.measured`` does.
+the flight battery is rescaled at equal electrical power, as ``optimizer.model.measured`` does.
 """
 
 from __future__ import annotations

@@ -11,7 +11,7 @@ share: the catalog (:func:`add_catalog_args`), the hover margin (:func:`add_hove
 (:func:`add_rule_args`, :func:`rules_from_args`), plus their JSON encoder
 (:func:`json_default`) and the exit status when nothing is feasible. The work behind
 them lives in library modules (``bench.store.catalogs``, ``bench.store.measured_constants``,
-``optimizer.flyable``); here is only argparse and output.
+``optimizer.model.flyable``); here is only argparse and output.
 
 A command that would run for minutes (a demo, a calibration on the rig) and then fail to
 write its result wastes the run; a traceback at the end says nothing useful. So each
@@ -344,7 +344,7 @@ def add_catalog_args(p: argparse.ArgumentParser) -> None:
 
 def add_hover_args(p: argparse.ArgumentParser) -> None:
     """``--min-thrust-to-weight`` and ``--thesis-rules``: which designs a command may offer."""
-    from optimizer.model_constants import DEFAULT_MIN_THRUST_TO_WEIGHT
+    from optimizer.catalogs.model_constants import DEFAULT_MIN_THRUST_TO_WEIGHT
 
     g = p.add_argument_group("hover margin (docs/optimizer.md)")
     g.add_argument("--min-thrust-to-weight", type=float, default=None, metavar="R",
@@ -393,7 +393,7 @@ def hover_margin_from_args(args: argparse.Namespace,
                            implied_by: str | None = None) -> HoverMargin:
     """The run's :class:`HoverMargin`. ``implied_by`` names an option that means the thesis'
     rules unless ``--min-thrust-to-weight`` is given (``--paper-e-cases``)."""
-    from optimizer.model_constants import DEFAULT_MIN_THRUST_TO_WEIGHT
+    from optimizer.catalogs.model_constants import DEFAULT_MIN_THRUST_TO_WEIGHT
 
     given = getattr(args, "min_thrust_to_weight", None)
     if given is not None and not (math.isfinite(given) and given >= 1.0):
@@ -464,8 +464,8 @@ RULE_FLAGS = ("--no-rule", "--tip-speed-max", "--max-wheelbase-m", "--hover-thro
 
 
 def add_rule_args(p: argparse.ArgumentParser) -> None:
-    """``--flyable`` and its rule switches (optimizer.flyable)."""
-    from optimizer.flyable import RULE_NAMES, Rules
+    """``--flyable`` and its rule switches (optimizer.model.flyable)."""
+    from optimizer.model.flyable import RULE_NAMES, Rules
 
     d = Rules()
     g = p.add_argument_group("flyable-design rules (docs/sizing.md)")
@@ -489,7 +489,7 @@ def add_rule_args(p: argparse.ArgumentParser) -> None:
 
 def rules_from_args(args: argparse.Namespace) -> Any:
     """The ``Rules`` of ``--flyable`` (None without it)."""
-    from optimizer.flyable import RULE_NAMES, Rules
+    from optimizer.model.flyable import RULE_NAMES, Rules
 
     if not getattr(args, "flyable", False):
         refuse_unused(args, RULE_FLAGS, "without --flyable")
@@ -504,7 +504,7 @@ def rules_from_args(args: argparse.Namespace) -> Any:
 
 
 def add_pack_args(p: argparse._ActionsContainer) -> None:
-    """``--series`` and ``--parallel``: cells in series and parallel (optimizer.packs)."""
+    """``--series`` and ``--parallel``: cells in series and parallel (optimizer.solve.packs)."""
     p.add_argument("--series", default=None, metavar="S",
                    help="choose cells in series too, e.g. 2-6 (the catalog's batteries read "
                    "as cells, docs/sizing.md)")
@@ -518,7 +518,7 @@ def packs_from_args(args: argparse.Namespace) -> tuple[tuple[int, ...], tuple[in
         return None
     if args.series is None:
         raise RequestError("--parallel needs --series (e.g. --series 2-6 --parallel 1-4)")
-    from optimizer.packs import parse_counts
+    from optimizer.solve.packs import parse_counts
 
     return (parse_counts(args.series, "--series"),
             parse_counts(args.parallel or "1", "--parallel"))

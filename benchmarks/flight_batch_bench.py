@@ -23,11 +23,11 @@ import sys  # noqa: E402
 import time  # noqa: E402
 import timeit  # noqa: E402
 
-from optimizer.catalog import load_catalog  # noqa: E402
-from optimizer.design_model import evaluate_grid  # noqa: E402
+from optimizer.catalogs.catalog import load_catalog  # noqa: E402
 from optimizer.flight.batch import DesignBatch, fly_batch  # noqa: E402
 from optimizer.flight.design import feasible_indices, gains_for, setup  # noqa: E402
 from optimizer.flight.maneuvers import MANEUVERS, Maneuver, fly  # noqa: E402
+from optimizer.model.design_model import evaluate_grid  # noqa: E402
 
 CATALOG = "optimizer/data/catalogs/thesis-e"
 SHORT = Maneuver("roll_step", "roll", MANEUVERS["roll_step"].amplitude, 1.5)

@@ -22,13 +22,13 @@ import math
 
 import numpy as np
 
-from optimizer.catalog import load_catalog
-from optimizer.design_model import evaluate_grid
+from optimizer.catalogs.catalog import load_catalog
 from optimizer.flight.actuators import ActuatorModel, RotorBank
 from optimizer.flight.design import design_index, gains_for, setup
 from optimizer.flight.maneuvers import HOVER, fly
 from optimizer.flight.reference import integrate_held, lag_mean, step_held
 from optimizer.flight.vehicle import hover_state
+from optimizer.model.design_model import evaluate_grid
 
 CATALOG = "optimizer/data/catalogs/thesis-e"
 PULSE_S = 0.2

@@ -13,8 +13,8 @@ import pandas as pd
 from rich.console import Console
 from rich.table import Table
 
-from optimizer.catalog import Catalog
-from optimizer.design_model import evaluate_grid
+from optimizer.catalogs.catalog import Catalog
+from optimizer.model.design_model import evaluate_grid
 
 SIZES = (200, 150, 40)
 REPEATS = 7

@@ -3,7 +3,7 @@
 Prints three tables (measured on this machine, nothing hard-coded):
 1. Paper E's test cases I-III (thesis-e catalog) x actuator counts: the default
    MILP's solve time (target < 0.2 s each), enumeration, and the thesis
-   formulation (``optimizer.thesis_formulation``) beside it, with their choices.
+   formulation (``optimizer.solve.thesis_formulation``) beside it, with their choices.
 2. A generated, seeded, physically plausible catalog of 200 propellers x 150
    motors x 40 batteries: per actuator count the grid build, MILP and
    enumeration times, their ratio and whether they agree (targets: MILP < 10 s,
@@ -29,11 +29,11 @@ from rich.table import Table
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from optimizer import exhaustive, milp_exact  # noqa: E402
-from optimizer.catalog import Catalog, load_catalog  # noqa: E402
-from optimizer.design_model import evaluate_grid  # noqa: E402
-from optimizer.objectives import single  # noqa: E402
-from optimizer.selection import Requirements, optimize, select_from_grids  # noqa: E402
+from optimizer.catalogs.catalog import Catalog, load_catalog  # noqa: E402
+from optimizer.model.design_model import evaluate_grid  # noqa: E402
+from optimizer.solve import exhaustive, milp_exact  # noqa: E402
+from optimizer.solve.objectives import single  # noqa: E402
+from optimizer.solve.selection import Requirements, optimize, select_from_grids  # noqa: E402
 
 PAPER_E_CASES = (
     ("I", "flight-time", 0.0),
@@ -102,7 +102,7 @@ def _ids(d) -> str:
 
 
 def paper_e_table(console: Console) -> None:
-    from optimizer.thesis_formulation import solve_thesis
+    from optimizer.solve.thesis_formulation import solve_thesis
 
     catalog = load_catalog(REPO / "optimizer" / "data" / "catalogs" / "thesis-e")
     table = Table(title="Paper E test cases, thesis-e catalog", title_justify="left")
@@ -256,7 +256,7 @@ def scaling_table(console: Console, seed: int) -> None:
 
 
 def sizinglab_table(console: Console) -> None:
-    from optimizer.sizinglab import DEFAULT_FOLDER, import_sizinglab
+    from optimizer.catalogs.sizinglab import DEFAULT_FOLDER, import_sizinglab
 
     folder = Path(os.environ.get("ROTORBENCH_SIZINGLAB", DEFAULT_FOLDER))
     if not folder.is_dir():

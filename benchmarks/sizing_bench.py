@@ -25,16 +25,16 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from optimizer import battery as bat  # noqa: E402
-from optimizer.catalog import load_catalog  # noqa: E402
-from optimizer.design_model import evaluate_design, evaluate_grid, single_design_catalog  # noqa: E402
-from optimizer.flyable import FlyableBuilder, Rules  # noqa: E402
-from optimizer.objectives import single  # noqa: E402
-from optimizer.packs import optimize_packs  # noqa: E402
-from optimizer.pareto import enumerate_front, milp_front  # noqa: E402
-from optimizer.selection import optimize  # noqa: E402
-from optimizer.sheet import design_sheet  # noqa: E402
-from optimizer.sizinglab import DEFAULT_FOLDER, import_sizinglab  # noqa: E402
+from optimizer.catalogs.catalog import load_catalog  # noqa: E402
+from optimizer.catalogs.sizinglab import DEFAULT_FOLDER, import_sizinglab  # noqa: E402
+from optimizer.model import battery as bat  # noqa: E402
+from optimizer.model.design_model import evaluate_design, evaluate_grid, single_design_catalog  # noqa: E402
+from optimizer.model.flyable import FlyableBuilder, Rules  # noqa: E402
+from optimizer.model.sheet import design_sheet  # noqa: E402
+from optimizer.solve.objectives import single  # noqa: E402
+from optimizer.solve.packs import optimize_packs  # noqa: E402
+from optimizer.solve.pareto import enumerate_front, milp_front  # noqa: E402
+from optimizer.solve.selection import optimize  # noqa: E402
 
 
 def series_parallel(lab, counts) -> None:

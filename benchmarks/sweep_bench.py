@@ -35,10 +35,10 @@ sys.path.insert(0, str(REPO))
 
 from bench.jobs.sweep_run import Executor, opened  # noqa: E402
 from bench.store.catalogs import with_min_thrust_to_weight  # noqa: E402
-from optimizer.catalog import load_catalog  # noqa: E402
+from optimizer.catalogs.catalog import load_catalog  # noqa: E402
+from optimizer.catalogs.model_constants import DEFAULT_MIN_THRUST_TO_WEIGHT  # noqa: E402
 from optimizer.flight.maneuvers import MANEUVERS  # noqa: E402
-from optimizer.flyable import FlyableBuilder, Rules  # noqa: E402
-from optimizer.model_constants import DEFAULT_MIN_THRUST_TO_WEIGHT  # noqa: E402
+from optimizer.model.flyable import FlyableBuilder, Rules  # noqa: E402
 from optimizer.sweep.chunks import DEFAULT_CHUNK_SIZE, chunk_size, split  # noqa: E402
 from optimizer.sweep.designs import plan_designs  # noqa: E402
 from optimizer.sweep.fly_rows import fly_chunk  # noqa: E402

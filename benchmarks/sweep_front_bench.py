@@ -7,7 +7,7 @@ the rows never rose, 3 % errors, 10 % cannot hover) of each size, then measures:
 1. the front of flight time vs roll rise time read from the file (two columns and the
    filters read, the front's rows taken from their row groups);
 2. the same file read whole by pandas, for scale (what a naive reader pays first);
-3. ``optimizer.pareto.enumerate_front`` on its worst case (every point on the front, so
+3. ``optimizer.solve.pareto.enumerate_front`` on its worst case (every point on the front, so
    the tolerance walk sees every one) against its sort alone (``np.lexsort``).
 
 Prints wall and CPU seconds and ratios (the CPU time is this process's: on a shared
@@ -30,7 +30,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from optimizer.flight.maneuvers import MANEUVERS
-from optimizer.pareto import enumerate_front
+from optimizer.solve.pareto import enumerate_front
 from optimizer.sweep.sweep_file import SPEC_KEY, STATIC_KEYS, front, open_sweep
 
 

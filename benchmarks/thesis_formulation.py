@@ -18,9 +18,9 @@ from rich.table import Table
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from optimizer.catalog import load_catalog  # noqa: E402
-from optimizer.robot import load_robot, solve_robot  # noqa: E402
-from optimizer.thesis_formulation import (  # noqa: E402
+from optimizer.cases.robot import load_robot, solve_robot  # noqa: E402
+from optimizer.catalogs.catalog import load_catalog  # noqa: E402
+from optimizer.solve.thesis_formulation import (  # noqa: E402
     OBJECTIVES,
     THESIS_REGIONS,
     THESIS_VARIABLE_COUNTS,

@@ -20,8 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from optimizer.catalog import load_catalog
-from optimizer.design_model import evaluate_grid
+from optimizer.catalogs.catalog import load_catalog
 from optimizer.flight.design import gains_for, setup
 from optimizer.flight.maneuvers import MANEUVERS, fly
 from optimizer.flight.uncertainty import (
@@ -30,6 +29,7 @@ from optimizer.flight.uncertainty import (
     draw_many,
     percentile_columns,
 )
+from optimizer.model.design_model import evaluate_grid
 
 CATALOG = "optimizer/data/catalogs/thesis-e"
 NOMINAL = (0.040, 0.060, 0.012, 1.2e-6, 2.0e-8)

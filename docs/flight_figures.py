@@ -19,12 +19,12 @@ import numpy as np
 
 from bench.figures.fly_figures import pyplot
 from bench.store.measured_constants import load_measured_set
-from optimizer.catalog import load_catalog
-from optimizer.design_model import evaluate_grid
+from optimizer.catalogs.catalog import load_catalog
 from optimizer.flight.design import gains_for, setup
 from optimizer.flight.maneuvers import MANEUVERS, fly
-from optimizer.objectives import single
-from optimizer.selection import optimize
+from optimizer.model.design_model import evaluate_grid
+from optimizer.solve.objectives import single
+from optimizer.solve.selection import optimize
 from optimizer.sweep.ranking import rank
 
 ROOT = Path(__file__).resolve().parents[1]

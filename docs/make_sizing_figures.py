@@ -3,7 +3,7 @@
     .venv/bin/python docs/make_sizing_figures.py
 
 Every figure comes from the commands or modules the docs describe: ``evaluate --plot``,
-``pareto --plot`` and ``optimizer.battery``.
+``pareto --plot`` and ``optimizer.model.battery``.
 """
 
 from __future__ import annotations
@@ -39,10 +39,10 @@ def discharge_figure(path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from optimizer import battery as bat
-    from optimizer.catalog import load_catalog
-    from optimizer.design_model import evaluate_design, single_design_catalog
-    from optimizer.sheet import design_sheet, pack_of
+    from optimizer.catalogs.catalog import load_catalog
+    from optimizer.model import battery as bat
+    from optimizer.model.design_model import evaluate_design, single_design_catalog
+    from optimizer.model.sheet import design_sheet, pack_of
 
     base = load_catalog(REPO / "optimizer" / "data" / "catalogs" / "thesis-e")
     ids = ("P4", "M1", "B3")
@@ -98,7 +98,7 @@ def run(img: Path = IMG, lab: Path = SIZINGLAB) -> list[Path]:
     if lab.is_dir():
         import tempfile
 
-        from optimizer.sizinglab import import_to_folder
+        from optimizer.catalogs.sizinglab import import_to_folder
 
         with tempfile.TemporaryDirectory() as tmp:
             folder = import_to_folder(lab, Path(tmp) / "sizinglab")

@@ -33,8 +33,8 @@ def test_catalog_toml_not_utf8(tmp_path: Path, capsys, fixtures_dir: Path) -> No
 
 def test_robot_toml_and_csv_not_utf8(tmp_path: Path, fixtures_dir: Path) -> None:
     """The mobile-robot example's robot.toml and batteries.csv read the locale's encoding."""
+    from optimizer.cases.robot import load_robot
     from optimizer.errors import CatalogError
-    from optimizer.robot import load_robot
 
     robot = tmp_path / "robot"
     shutil.copytree(CATALOGS / "thesis-robot", robot)

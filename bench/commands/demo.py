@@ -7,7 +7,7 @@ Paper C's Step 1 and Step 2 around its own hover thrust; one combination also ru
 three ESC modes. Every run is fitted and its constants stored; then Paper E's three test
 cases are optimized with the datasheet model and with the measured constants, and the
 tables (Table C.1, E.8-E.10-like selections, E.11, E.13, E.14) and figures are written.
-The designs come from the real optimizer (``optimizer.selection.optimize``, exact MILP,
+The designs come from the real optimizer (``optimizer.solve.selection.optimize``, exact MILP,
 the CLI's tie rules) with ``optimize``'s hover margin (``--min-thrust-to-weight``, default
 1.2; ``--thesis-rules`` for the thesis' model, where some exact optima cannot hover).
 The output folder is built beside its final name and renamed into place at the end; an
@@ -34,7 +34,7 @@ from analysis.atomic_files import temp_beside
 from bench.cli_support import add_hover_args, check_writable, hover_margin_from_args, seed_arg
 from bench.errors import RigError
 from bench.figures.owned_folder import refuse_foreign, write_manifest
-from optimizer.paper_e_cases import PAPER_E_CASES
+from optimizer.cases.paper_e_cases import PAPER_E_CASES
 
 G0 = 9.80665
 ACTUATORS = (4, 6, 8)
@@ -73,8 +73,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def combo_rig(base: Any, catalog: Any, i: int, j: int, mode: str, seed: int) -> Any:
     """The default sim rig with propeller ``i`` on motor ``j`` of the catalog."""
     from bench.rig.rig import Limits
-    from optimizer.design_model import battery_voltage_v, motor_inertia_kgm2, propeller_inertia_kgm2
-    from optimizer.physics import torque_constant
+    from optimizer.model.design_model import (
+        battery_voltage_v,
+        motor_inertia_kgm2,
+        propeller_inertia_kgm2,
+    )
+    from optimizer.model.physics import torque_constant
 
     prop = catalog.propellers.iloc[i]
     mot = catalog.motors.iloc[j]
@@ -99,9 +103,9 @@ def _optimize_cases(catalog: Any, measured: Any, progress: Any, task: Any) -> li
     """Paper E's test cases by the real optimizer (exact MILP, the CLI's tie rules), with
     the datasheet model and with the measured constants where the store has them
     (``catalog`` carries the run's hover margin)."""
-    from optimizer.objectives import single
-    from optimizer.selection import Requirements
-    from optimizer.selection_options import solve
+    from optimizer.solve.objectives import single
+    from optimizer.solve.selection import Requirements
+    from optimizer.solve.selection_options import solve
 
     cases = []
     for case, title, objective, payload in PAPER_E_CASES:
@@ -257,7 +261,7 @@ def _measured_vs_model(catalog: Any, measured: Any) -> Any:
     numbers come from the optimizer's design model (``actuator_at_thrust``: E.20, E.35,
     E.67 and the full-throttle thrust), the same code that sizes the designs."""
     from analysis.report import Table
-    from optimizer.design_model import actuator_at_thrust, battery_voltage_v
+    from optimizer.model.design_model import actuator_at_thrust, battery_voltage_v
 
     volt = float(np.max(battery_voltage_v(catalog)))
     rows = []
@@ -352,7 +356,7 @@ def _tables_and_figures(console, catalog, fits, statics, step2_runs, measured, c
                 e14.append((tag, None, d.metrics["flight_time_min"]))
                 summary.setdefault("notes", []).append(f"{tag}: {exc}")
     ts = f["Table"]("Paper E test cases: datasheet model vs measured constants "
-                    "(optimizer.selection, milp; * best count)",
+                    "(optimizer.solve.selection, milp; * best count)",
                     ("case-N", "constants", "design (P M B)", "tau [ms]", "flight [min]",
                      "measured metrics"), tuple(sel_rows))
     cmp_table = _measured_vs_model(catalog, measured)

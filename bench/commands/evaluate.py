@@ -34,7 +34,7 @@ from optimizer.errors import RequestError
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    from optimizer.freeform import FIELDS
+    from optimizer.catalogs.freeform import FIELDS
 
     p = subparsers.add_parser(
         "evaluate",
@@ -66,7 +66,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _catalog_and_ids(args: argparse.Namespace) -> tuple[Any, tuple[str, str, str]]:
-    from optimizer.freeform import freeform_catalog, given
+    from optimizer.catalogs.freeform import freeform_catalog, given
 
     margin = hover_margin_from_args(args)
     ids = (args.propeller, args.motor, args.battery)
@@ -90,7 +90,7 @@ def _with_pack(catalog: Any, battery_id: str) -> Any:
     built from the catalog's cell; any other id is looked up as it is."""
     import re
 
-    from optimizer.packs import with_packs
+    from optimizer.solve.packs import with_packs
 
     m = re.fullmatch(r"(.+)-(\d+)S(\d+)P", str(battery_id))
     if battery_id in catalog.battery_ids or not m or m.group(1) not in catalog.battery_ids:
@@ -99,10 +99,10 @@ def _with_pack(catalog: Any, battery_id: str) -> Any:
 
 
 def evaluate(args: argparse.Namespace) -> dict[str, Any]:
-    from optimizer import battery as bat
-    from optimizer.design_model import MODEL_SOURCES, evaluate_design, single_design_catalog
-    from optimizer.freeform import NO_LIMIT
-    from optimizer.sheet import design_sheet
+    from optimizer.catalogs.freeform import NO_LIMIT
+    from optimizer.model import battery as bat
+    from optimizer.model.design_model import MODEL_SOURCES, evaluate_design, single_design_catalog
+    from optimizer.model.sheet import design_sheet
 
     if args.actuators < 3:
         raise RequestError(f"--actuators: expected a count >= 3, got {args.actuators}")
@@ -129,7 +129,7 @@ def evaluate(args: argparse.Namespace) -> dict[str, Any]:
     record.update(design_sheet(single, record, curve))
     record["rules"] = flyable_rules(single, args.actuators, args.payload_kg)
     if args.prop_data:
-        from optimizer.propdata import compare_for_design
+        from optimizer.model.propdata import compare_for_design
 
         record["propeller_data"] = compare_for_design(single, record, curve)
     # limits a free-form user did not give are not checks
@@ -146,12 +146,12 @@ def evaluate(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def flyable_rules(single: Any, n: int, payload_kg: float) -> list[dict[str, Any]]:
-    """The flyable-design rules (optimizer.flyable defaults) on this design, for reading:
+    """The flyable-design rules (optimizer.model.flyable defaults) on this design, for reading:
     ``feasible`` stays the catalog's limits; ``optimize --flyable`` enforces them."""
     import numpy as np
 
-    from optimizer.design_model import evaluate_grid
-    from optimizer.flyable import Rules, rule_checks, rule_of
+    from optimizer.model.design_model import evaluate_grid
+    from optimizer.model.flyable import Rules, rule_checks, rule_of
 
     grid = evaluate_grid(single, n, payload_kg)
     out = []

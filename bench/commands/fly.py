@@ -140,7 +140,7 @@ def step_run_mismatch(step: Any, propeller: str, motor: str) -> str | None:
 
 
 def _grid(args: argparse.Namespace, catalog: Any, n: int) -> Any:
-    from optimizer.design_model import evaluate_grid
+    from optimizer.model.design_model import evaluate_grid
 
     measured = measured_from_args(args, catalog)
     if measured is not None:
@@ -215,9 +215,9 @@ def handler(args: argparse.Namespace) -> int:
 
 
 def _one(args: argparse.Namespace, catalog: Any, grid: Any, step: Any, measured: Any) -> int:
-    from optimizer.design_model import design_record
     from optimizer.flight.design import design_index, fly_report, setup
     from optimizer.flight.maneuvers import MANEUVERS, maneuver
+    from optimizer.model.design_model import design_record
 
     index = design_index(grid, args.propeller, args.motor, args.battery)
     record = design_record(grid, *index)
@@ -288,7 +288,7 @@ def _sweep(args: argparse.Namespace, catalog: Any, counts: list[int], step: Any,
     print the ranking."""
     from bench.jobs.sweep_run import Executor, run_sweep
     from optimizer.flight.maneuvers import MANEUVERS
-    from optimizer.selection_options import grid_builder, pack_grid_builder
+    from optimizer.solve.selection_options import grid_builder, pack_grid_builder
     from optimizer.sweep.designs import Packs, plan_designs
     from optimizer.sweep.spec import sweep_spec
 

@@ -13,7 +13,7 @@ from pathlib import Path
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    from optimizer.sizinglab import DEFAULT_FOLDER
+    from optimizer.catalogs.sizinglab import DEFAULT_FOLDER
 
     p = subparsers.add_parser(
         "import-sizinglab",
@@ -29,8 +29,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def handler(args: argparse.Namespace) -> int:
     from bench.cli_support import check_writable
-    from optimizer.catalog import load_catalog
-    from optimizer.sizinglab import import_to_folder
+    from optimizer.catalogs.catalog import load_catalog
+    from optimizer.catalogs.sizinglab import import_to_folder
 
     check_writable(args.out, "--out", folder=True, beside=True)
     out = import_to_folder(args.source, args.out)

@@ -37,10 +37,10 @@ from bench.cli_support import (
 )
 from bench.figures.design_tables import print_table
 from bench.store.catalogs import load
+from optimizer.cases.paper_e_cases import PAPER_E_CASES
 from optimizer.errors import RequestError
-from optimizer.objectives import OBJECTIVE_NAMES, Objective, parse_weights, single, weighted
-from optimizer.paper_e_cases import PAPER_E_CASES
-from optimizer.selection_options import (
+from optimizer.solve.objectives import OBJECTIVE_NAMES, Objective, parse_weights, single, weighted
+from optimizer.solve.selection_options import (
     meet_roll_rise_option,
     prop_data_option,
     solve,
@@ -125,7 +125,7 @@ def run_paper_e_cases(args: argparse.Namespace, catalog: Any, margin: HoverMargi
     from rich.console import Console
     from rich.progress import Progress
 
-    from optimizer.selection import Requirements
+    from optimizer.solve.selection import Requirements
 
     catalog = margin.apply(catalog)
     measured = measured_from_args(args, catalog)
@@ -159,8 +159,8 @@ def run_paper_e_cases(args: argparse.Namespace, catalog: Any, margin: HoverMargi
 
 
 def _hover_warnings(result: Any, catalog: Any, payload_kg: float) -> list[str]:
-    """``optimizer.sheet.hover_warnings`` for the feasible designs of one result."""
-    from optimizer.sheet import hover_warnings
+    """``optimizer.model.sheet.hover_warnings`` for the feasible designs of one result."""
+    from optimizer.model.sheet import hover_warnings
 
     return hover_warnings(catalog, [(d.actuators, d.propeller, d.motor, d.battery)
                                     for d in result.designs if d.feasible], payload_kg)
@@ -177,7 +177,7 @@ def build_objective(args: argparse.Namespace) -> Objective:
 
 
 def handler(args: argparse.Namespace) -> int:
-    from optimizer.selection import Requirements
+    from optimizer.solve.selection import Requirements
 
     for n in args.actuators:
         if n < 3:

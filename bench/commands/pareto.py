@@ -1,6 +1,6 @@
 """``rotorbench pareto``: the exact front of two objectives (e.g. flight time vs time constant).
 
-Per actuator count the epsilon-constraint MILP (``optimizer.pareto``) walks the
+Per actuator count the epsilon-constraint MILP (``optimizer.solve.pareto``) walks the
 non-dominated designs; the fronts of several counts are merged by dominance. Every design
 hovers with the margin of ``--min-thrust-to-weight`` (default 1.2; ``--thesis-rules``
 drops it), a check of the grid the front is solved on. ``--check``
@@ -42,7 +42,7 @@ PLOT_CLOUD_MAX = 200_000
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    from optimizer.objectives import METRICS
+    from optimizer.solve.objectives import METRICS
 
     p = subparsers.add_parser(
         "pareto",
@@ -75,10 +75,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def compute(args: argparse.Namespace) -> dict[str, Any]:
-    from optimizer import pareto
-    from optimizer.design_model import evaluate_grid
-    from optimizer.objectives import METRICS, single
-    from optimizer.selection import DesignResult, _design_at
+    from optimizer.model.design_model import evaluate_grid
+    from optimizer.solve import pareto
+    from optimizer.solve.objectives import METRICS, single
+    from optimizer.solve.selection import DesignResult, _design_at
 
     if args.x == args.y:
         raise RequestError(f"--x and --y are both {args.x}; give two different objectives")
@@ -94,7 +94,7 @@ def compute(args: argparse.Namespace) -> dict[str, Any]:
     rules = rules_from_args(args)
     build: Any = evaluate_grid
     if rules is not None:
-        from optimizer.flyable import FlyableBuilder
+        from optimizer.model.flyable import FlyableBuilder
 
         build = FlyableBuilder(rules)
     ox, oy = single(args.x), single(args.y)
@@ -135,7 +135,7 @@ def compute(args: argparse.Namespace) -> dict[str, Any]:
     for d in front:  # solve_time_s here: the whole front of its actuator count
         d.pop("objective_cost", None)
     spec_x, spec_y = ox.terms[0][0], oy.terms[0][0]
-    from optimizer.sheet import hover_warnings
+    from optimizer.model.sheet import hover_warnings
 
     warnings = hover_warnings(catalog, [(d["actuators"], d["propeller"], d["motor"],
                                          d["battery"]) for d in front], args.payload_kg)

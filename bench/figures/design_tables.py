@@ -12,7 +12,7 @@ import math
 from typing import Any
 
 from bench.store.measured_constants import is_measured
-from optimizer.selection import TIE_ORDER, TIE_RTOL
+from optimizer.solve.selection import TIE_ORDER, TIE_RTOL
 
 __all__ = ["MEASURED_MARK", "ROWS", "format_cell", "print_table"]
 
@@ -137,7 +137,7 @@ _TIE_WORDS = {"flight_time_min": "longer flight time", "price": "lower price",
 
 
 def _tie_order(objective: Any) -> str:
-    """optimizer.selection's tie-break order in words, without the objective's metric."""
+    """optimizer.solve.selection's tie-break order in words, without the objective's metric."""
     own = set(getattr(objective, "metrics", ())) if getattr(objective, "is_single", False) \
         else set()
     words = [_TIE_WORDS.get(m, m) for m, _ in TIE_ORDER if m not in own]

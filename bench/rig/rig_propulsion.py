@@ -24,7 +24,7 @@ from bench.errors import RigError, ThrustOutsideMap
 from bench.rig.input_paths import check_input
 from bench.rig.rig_devices import DeviceConfig, parse_device
 from bench.rig.rig_table import RigTable
-from optimizer.shipped_data import CATALOGS
+from optimizer.catalogs.shipped_data import CATALOGS
 
 __all__ = ["ESC_MODES", "LIMIT_MAXIMA", "ROLES", "Components", "EscConfig", "Limits",
            "SimConfig", "ThrustMap", "make_thrust_map", "parse", "read_thrust_map"]

@@ -14,8 +14,8 @@ import os
 from pathlib import Path
 from typing import Any
 
+from optimizer.catalogs.shipped_data import CATALOGS
 from optimizer.errors import CatalogError
-from optimizer.shipped_data import CATALOGS
 
 __all__ = ["SHIPPED_CATALOGS", "default_catalog", "load", "shipped_catalog", "with_current_model",
            "with_min_thrust_to_weight"]
@@ -33,7 +33,7 @@ def default_catalog() -> Path:
 
 def shipped_catalog(name: str) -> Any:
     """The shipped catalog ``name`` (e.g. ``thesis-e``), whatever the environment says."""
-    from optimizer.catalog import load_catalog
+    from optimizer.catalogs.catalog import load_catalog
 
     return load_catalog(SHIPPED_CATALOGS / name)
 
@@ -49,7 +49,7 @@ def load(path: Path | None, current_model: str | None = None) -> Any:
     """Load a catalog; a missing default catalog is a clear error, not a traceback.
 
     ``current_model`` (``--current-model``) replaces the catalog's ``current_model``
-    constant for this run (``optimizer.model_constants``); None keeps the catalog's.
+    constant for this run (``optimizer.catalogs.model_constants``); None keeps the catalog's.
     """
     catalog = _load(path)
     return with_current_model(catalog, current_model)
@@ -80,7 +80,7 @@ def with_min_thrust_to_weight(catalog: Any, ratio: float | None) -> Any:
 
 
 def _load(path: Path | None) -> Any:
-    from optimizer.catalog import load_catalog
+    from optimizer.catalogs.catalog import load_catalog
 
     folder = _shipped_name(path) if path is not None else default_catalog()
     if path is None and not folder.is_dir():

@@ -2,7 +2,7 @@
 constants stage (the first, run -> store, is ``bench.store.constants_fit``).
 
 ``load_measured`` turns the rows of ``<root>/constants.sqlite`` into
-``optimizer.measured.MeasuredActuator`` overrides, one per (propeller, motor, ESC mode).
+``optimizer.model.measured.MeasuredActuator`` overrides, one per (propeller, motor, ESC mode).
 ``load_measured_set`` picks those of one catalog and one ESC mode as a ``MeasuredSet``,
 which builds the optimizer's grids with them and names each design's sources. Library
 code rather than CLI code: ``optimize``, ``evaluate``, ``fly``, the demo and the docs'
@@ -29,12 +29,12 @@ __all__ = ["MeasuredSet", "find_store", "is_measured", "load_measured", "load_me
 
 def load_measured(root: Path, catalog: str | None = None,
                   rows: list[ConstantsRow] | None = None) -> list[Any]:
-    """The stored constants as ``optimizer.measured.MeasuredActuator`` overrides: the time
+    """The stored constants as ``optimizer.model.measured.MeasuredActuator`` overrides: the time
     constant is the mean of the rising and falling ones (Table E.13 compares that mean
     with the model), the current from the static curves; one per (propeller, motor, ESC
     mode), the most recent when several batteries/ESCs were measured. A mode without a
     sweep of its own takes the static curves of the same pair in another mode."""
-    from optimizer.measured import MeasuredActuator
+    from optimizer.model.measured import MeasuredActuator
 
     by: dict[tuple[str, str, str], dict[str, ConstantsRow]] = {}
     for row in (rows if rows is not None else ConstantsStore(root).rows()):
@@ -78,10 +78,10 @@ _FLIGHT_FIELDS = (("tau_up_s", "step", "tau_up_s"), ("tau_down_s", "step", "tau_
 def _flight_extras(step: ConstantsRow | None, static: ConstantsRow | None) -> dict[str, float]:
     """The flight model's optional constants (``MeasuredActuator`` tau_up_s ... k_m_nm_s2)
     where the store has them as positive finite numbers (latency >= 0), each with its
-    spread (``optimizer.measured.STD_OF``) where the store has that as a finite number
+    spread (``optimizer.model.measured.STD_OF``) where the store has that as a finite number
     >= 0: a store written before the spreads were kept gives constants without any."""
     from bench.store.constants_fit import STD_KEYS
-    from optimizer.measured import STD_OF
+    from optimizer.model.measured import STD_OF
 
     rows = {"step": step, "static": static}
     out = {}
@@ -108,7 +108,7 @@ class MeasuredSet:
 
     def build_grid(self, catalog: Any, n: int, payload_kg: float) -> Any:
         """``optimize(build_grid=...)``: the model grid with the overrides; kept for sources."""
-        from optimizer.design_model import evaluate_grid
+        from optimizer.model.design_model import evaluate_grid
 
         grid = evaluate_grid(
             catalog, n, payload_kg, overrides=self.overrides, esc_mode=self.esc_mode
@@ -118,7 +118,7 @@ class MeasuredSet:
 
     def annotate(self, result: Any) -> None:
         """Add ``sources`` to every design of a selection result built by ``build_grid``."""
-        from optimizer.design_model import design_sources
+        from optimizer.model.design_model import design_sources
 
         for d in result.designs:
             grid = self.grids.get(d.actuators)

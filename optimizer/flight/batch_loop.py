@@ -6,7 +6,7 @@ simulator) and stay plain floats, which is fastest for one design. This is their
 implementation on purpose, for many designs: each function here repeats their
 floating-point operations in the same order on arrays of shape (B,) (one number per
 design) or (N, B) (rotor x design), so a design flown here ends on the numbers ``fly``
-ends on (tests/optimizer/test_flight_batch.py compares them).
+ends on (tests/optimizer/flight/test_batch.py compares them).
 Their branches become masks (``np.where``), Python's ``round`` is numpy's (both round half
 to even) and sums over rotors are left folds like the scalar loops. Where a scalar step
 adds a zero or multiplies by one, leaving it out changes at most the sign of a zero.

@@ -1,11 +1,11 @@
 """A catalog design as something to fly: its vehicle, its actuator model, its report.
 
-The numbers come from the optimizer's own model grid (``optimizer.design_model.evaluate_grid``,
-with measured overrides when the grid was built with them), so the flight model and
-``evaluate`` agree on mass, inertia, hover speed and time constant. Measured actuator
-numbers, where a ``MeasuredActuator`` carries them, replace the model's: rising and
-falling time constants and latency (Paper C), k_f and k_m (static curves). A step run
-fitted on the fly arrives as plain numbers (``StepConstants``).
+The numbers come from the optimizer's own model grid
+(``optimizer.model.design_model.evaluate_grid``, with measured overrides when the grid was
+built with them), so the flight model and ``evaluate`` agree on mass, inertia, hover speed
+and time constant. Measured actuator numbers, where a ``MeasuredActuator`` carries them,
+replace the model's: rising and falling time constants and latency (Paper C), k_f and k_m
+(static curves). A step run fitted on the fly arrives as plain numbers (``StepConstants``).
 """
 
 from __future__ import annotations
@@ -16,12 +16,15 @@ from typing import Any
 
 import numpy as np
 
+from optimizer.catalogs.catalog import Catalog
 from optimizer.errors import RequestError
 from optimizer.flight.actuators import ActuatorModel
 from optimizer.flight.controller import Gains, design_gains, phase_margins
 from optimizer.flight.maneuvers import DT_S, HOVER, Maneuver, fly
 from optimizer.flight.uncertainty import std_of
 from optimizer.flight.vehicle import Vehicle, vehicle_from_grid
+from optimizer.model.design_model import ModelGrid
+from optimizer.model.grid import DesignGrid
 
 
 @dataclass(frozen=True)
@@ -38,7 +41,8 @@ class StepConstants:
     propeller: str | None = None
 
 
-def design_index(grid: Any, propeller: str, motor: str, battery: str) -> tuple[int, int, int]:
+def design_index(grid: DesignGrid, propeller: str, motor: str, battery: str
+                 ) -> tuple[int, int, int]:
     """(i, j, k) of the named design in a grid; unknown ids name the catalog's."""
     out = []
     for ids, wanted, kind in ((grid.propeller_ids, propeller, "propeller"),
@@ -51,7 +55,7 @@ def design_index(grid: Any, propeller: str, motor: str, battery: str) -> tuple[i
     return out[0], out[1], out[2]
 
 
-def setup(catalog: Any, grid: Any, index: tuple[int, int, int], *, layout: str = "x",
+def setup(catalog: Catalog, grid: ModelGrid, index: tuple[int, int, int], *, layout: str = "x",
           step: StepConstants | None = None, drag_n_s_m: float = 0.0
           ) -> tuple[Vehicle, ActuatorModel]:
     """Vehicle and actuator of design ``index``: model, measured overrides, or a step fit."""
@@ -79,7 +83,7 @@ def setup(catalog: Any, grid: Any, index: tuple[int, int, int], *, layout: str =
     return vehicle, ActuatorModel(up, down, latency, source=source, **kwargs)
 
 
-def design_std(grid: Any, index: tuple[int, int, int], step: StepConstants | None = None
+def design_std(grid: DesignGrid, index: tuple[int, int, int], step: StepConstants | None = None
                ) -> dict[str, float]:
     """The std of each constant ``setup`` flies design ``index`` with
     (``optimizer.flight.uncertainty.QUANTITIES``): the measured override's spreads, 0
@@ -141,9 +145,9 @@ def fly_report(vehicle: Vehicle, actuator: ActuatorModel, maneuvers: list[Maneuv
     return report, flights
 
 
-def feasible_indices(grid: Any, extra_checks: tuple = ()) -> list[tuple[int, int, int]]:
+def feasible_indices(grid: DesignGrid, extra_checks: tuple = ()) -> list[tuple[int, int, int]]:
     """Every design of a grid that meets its limit checks, in catalog order."""
-    from optimizer.selection import _feasible  # the optimizer's own feasibility rule
+    from optimizer.model.grid import meets_checks  # the optimizer's own feasibility rule
 
-    ok = _feasible(grid, (*grid.checks, *extra_checks))
+    ok = meets_checks(grid, (*grid.checks, *extra_checks))
     return [tuple(int(a) for a in idx) for idx in np.argwhere(ok)]

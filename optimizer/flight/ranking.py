@@ -18,10 +18,13 @@ from typing import Any
 import numpy as np
 from scipy.stats import spearmanr
 
+from optimizer.catalogs.catalog import Catalog
 from optimizer.flight.actuators import ActuatorModel
 from optimizer.flight.design import gains_for, setup
 from optimizer.flight.maneuvers import MANEUVERS, fly
 from optimizer.flight.vehicle import Vehicle
+from optimizer.model.design_model import ModelGrid
+from optimizer.model.grid import DesignGrid
 
 
 @dataclass(frozen=True)
@@ -70,7 +73,7 @@ class Ranking:
         }
 
 
-def roll_step(catalog: Any, grid: Any, index: tuple[int, int, int], **kwargs: Any
+def roll_step(catalog: Catalog, grid: ModelGrid, index: tuple[int, int, int], **kwargs: Any
               ) -> FlownDesign:
     """Fly ``roll_step`` for one design of a grid (``kwargs`` go to ``design.setup``)."""
     vehicle, actuator = setup(catalog, grid, index, **kwargs)
@@ -78,7 +81,7 @@ def roll_step(catalog: Any, grid: Any, index: tuple[int, int, int], **kwargs: An
     return _row(grid, index, vehicle, actuator, f.figures)
 
 
-def _row(grid: Any, index: tuple[int, int, int], vehicle: Vehicle, actuator: ActuatorModel,
+def _row(grid: DesignGrid, index: tuple[int, int, int], vehicle: Vehicle, actuator: ActuatorModel,
          fig: dict[str, Any]) -> FlownDesign:
     i, j, k = index
     return FlownDesign(
@@ -101,7 +104,7 @@ def spearman(rows: Sequence[FlownDesign]) -> tuple[float, float]:
     return float(res.statistic), float(res.pvalue)
 
 
-def first_meeting(candidates: Sequence[tuple[int, int, int]], catalog: Any, grid: Any,
+def first_meeting(candidates: Sequence[tuple[int, int, int]], catalog: Catalog, grid: ModelGrid,
                   max_rise_ms: float, **kwargs: Any
                   ) -> tuple[tuple[int, int, int] | None, list[FlownDesign]]:
     """Fly ``candidates`` (best objective first) until one rises in roll within

@@ -1,7 +1,7 @@
 """Robust designs: flown samples of a design's measured constants, and their percentiles.
 
 A measured actuator carries the spread of one measurement of its constants
-(``optimizer.measured.MeasuredActuator`` ``*_std_*``: one edge of the step run, one speed
+(``optimizer.model.measured.MeasuredActuator`` ``*_std_*``: one edge of the step run, one speed
 level of the sweep). Flying a design M times with its constants drawn from that spread
 shows what a built copy may do; the figures are then summarised as 5th, 50th and 95th
 percentiles.
@@ -43,7 +43,7 @@ from scipy.special import ndtr, ndtri
 from optimizer.errors import RequestError
 from optimizer.flight.actuators import ActuatorModel
 from optimizer.flight.vehicle import Vehicle
-from optimizer.measured import STD_OF, MeasuredActuator
+from optimizer.model.measured import STD_OF, MeasuredActuator
 
 __all__ = [
     "DESIGN_KEYS",

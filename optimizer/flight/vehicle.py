@@ -18,10 +18,10 @@ Like Paper B, the reaction torque of accelerating rotors and rotor gyroscopic to
 are neglected. Integration: ``step``, second order in dt, with the rotor thrusts held over
 a tick (its order is tested against ``optimizer.flight.reference``).
 
-Design parameters come from the optimizer's model (``optimizer.design_model.evaluate_grid``):
+Design parameters come from the optimizer's model (``optimizer.model.design_model.evaluate_grid``):
 take-off mass, roll and pitch inertia (E.58-E.59), arm length (D.4), hover speed; rotor
 constants k_f = C_t rho D^4 / (2 pi)^2 and k_m = C_p rho D^5 / (2 pi)^3 follow from
-(E.1)-(E.3) via ``optimizer.physics``. The yaw inertia is roll + pitch (perpendicular-axis
+(E.1)-(E.3) via ``optimizer.model.physics``. The yaw inertia is roll + pitch (perpendicular-axis
 theorem: the model's masses all lie in the rotor plane).
 """
 
@@ -33,8 +33,10 @@ from typing import Any
 
 import numpy as np
 
-from optimizer import physics
+from optimizer.catalogs.catalog import Catalog
 from optimizer.errors import RequestError
+from optimizer.model import physics
+from optimizer.model.design_model import ModelGrid
 
 LAYOUTS = ("x", "plus")
 #: Actuator counts the flight model flies (alternating spin needs an even count).
@@ -130,7 +132,7 @@ def rotor_constants(ct: float, cp: float, rho: float, diameter_m: float) -> tupl
             float(physics.torque_per_omega2(cp, rho, diameter_m)))
 
 
-def vehicle_from_grid(catalog: Any, grid: Any, index: tuple[int, int, int],
+def vehicle_from_grid(catalog: Catalog, grid: ModelGrid, index: tuple[int, int, int],
                       layout: str = "x", drag_n_s_m: float = 0.0) -> Vehicle:
     """The ``Vehicle`` of design ``index`` (propeller, motor, battery) of a model grid."""
     i, j, k = index

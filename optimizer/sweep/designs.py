@@ -1,8 +1,8 @@
 """Which designs a sweep flies: every one ``optimize`` would consider with the same options.
 
-The grids are ``optimize``'s own (``optimizer.selection_options.grid_builder``: measured
+The grids are ``optimize``'s own (``optimizer.solve.selection_options.grid_builder``: measured
 overrides, the flyable rules; with cells in series and parallel one grid per series count,
-as ``optimizer.packs.optimize_packs`` builds them), and a design is in the sweep when it
+as ``optimizer.solve.packs.optimize_packs`` builds them), and a design is in the sweep when it
 meets every check of its grid (the hover margin, the rules, the limits:
 ``optimizer.flight.design.feasible_indices``). Each becomes one row of a plan: its keys,
 id, the static numbers, the flight model's parameters as numbers and the measured
@@ -20,29 +20,31 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from optimizer.catalogs.catalog import Catalog
 from optimizer.errors import RequestError
 from optimizer.flight.design import design_std, feasible_indices, setup
 from optimizer.flight.uncertainty import QUANTITIES
 from optimizer.flight.vehicle import FLIGHT_ACTUATORS
-from optimizer.grid import METRIC_KEYS
+from optimizer.model.design_model import ModelGrid
+from optimizer.model.grid import METRIC_KEYS
 from optimizer.sweep.flight_params import STD_PREFIX, param_columns, params_of
 from optimizer.sweep.keys import DESIGN_KEYS, design_id
 from optimizer.sweep.model_params import model_params, modelled
 
-#: a grid builder as ``optimizer.selection.optimize`` takes it: (catalog, N, payload) -> grid
-GridBuilder = Callable[[Any, int, float], Any]
+#: a grid builder as ``optimizer.solve.selection.optimize`` takes it: (catalog, N, payload) -> grid
+GridBuilder = Callable[[Catalog, int, float], Any]
 
 
 @dataclass(frozen=True)
 class Packs:
     """Cells in series and in parallel (``--series``, ``--parallel``): the catalog's
-    batteries read as cells (``optimizer.packs``)."""
+    batteries read as cells (``optimizer.solve.packs``)."""
 
     series: tuple[int, ...]
     parallel: tuple[int, ...] = (1,)
 
 
-def plan_designs(catalog: Any, actuators: Sequence[int], payload_kg: float = 0.0,
+def plan_designs(catalog: Catalog, actuators: Sequence[int], payload_kg: float = 0.0,
                  build_grid: GridBuilder | None = None, packs: Packs | None = None,
                  **setup_kwargs: Any) -> pd.DataFrame:
     """One row per design to fly, in a fixed order: actuator counts as given, series
@@ -53,14 +55,14 @@ def plan_designs(catalog: Any, actuators: Sequence[int], payload_kg: float = 0.0
         if n not in FLIGHT_ACTUATORS:
             raise RequestError(f"--actuators: the flight model flies 4, 6 or 8, got {n}")
     if build_grid is None:
-        from optimizer.design_model import evaluate_grid as build_grid
+        from optimizer.model.design_model import evaluate_grid as build_grid
     frames = []
     for n in dict.fromkeys(actuators):
         if packs is None:
             frames.append(grid_designs(catalog, build_grid(catalog, n, payload_kg),
                                        **setup_kwargs))
             continue
-        from optimizer.packs import cells_of, packs_at
+        from optimizer.solve.packs import cells_of, packs_at
 
         cells = cells_of(catalog)
         for s in packs.series:
@@ -75,10 +77,10 @@ def plan_designs(catalog: Any, actuators: Sequence[int], payload_kg: float = 0.0
     return plan
 
 
-def grid_designs(catalog: Any, grid: Any, *, packs: bool = False,
+def grid_designs(catalog: Catalog, grid: ModelGrid, *, packs: bool = False,
                  **setup_kwargs: Any) -> pd.DataFrame:
     """The plan rows of every design of ``grid`` that meets its checks. ``packs``: the
-    catalog's batteries are packs (``optimizer.packs.pack_frame``), keyed by their cell."""
+    catalog's batteries are packs (``optimizer.solve.packs.pack_frame``), keyed by their cell."""
     idx = np.array(feasible_indices(grid), dtype=int).reshape(-1, 3)
     ii, jj, kk = idx[:, 0], idx[:, 1], idx[:, 2]
     bats = catalog.batteries
@@ -124,15 +126,15 @@ def grid_designs(catalog: Any, grid: Any, *, packs: bool = False,
     return frame
 
 
-def thrust_to_weight(catalog: Any, grid: Any) -> np.ndarray:
+def thrust_to_weight(catalog: Catalog, grid: ModelGrid) -> np.ndarray:
     """Full-throttle thrust of all actuators over the weight, (P, M, B): the grid's own
     where its hover-margin check computed it, else the same formula (E.1, E.4-E.7 with
-    I_0; ``optimizer.design_model.evaluate_grid``) on the grid's voltage and hover thrust."""
+    I_0; ``optimizer.model.design_model.evaluate_grid``) on the grid's voltage and hover thrust."""
     extras = grid.extras
     if "thrust_to_weight" in extras:
         return np.asarray(extras["thrust_to_weight"])
-    from optimizer.operating_points import at_throttle
-    from optimizer.sheet import drive_of
+    from optimizer.model.operating_points import at_throttle
+    from optimizer.model.sheet import drive_of
 
     top = at_throttle(drive_of(catalog), 1.0, extras["voltage_v"])
     return np.broadcast_to(top.thrust_n / extras["hover_thrust_n"], grid.shape)

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from optimizer import physics
+from optimizer.catalogs.catalog import Catalog
 from optimizer.flight.actuators import (
     DEFAULT_FRAME_RATE_HZ,
     DEFAULT_IDLE_FRACTION,
@@ -26,13 +26,15 @@ from optimizer.flight.actuators import (
     DEFAULT_LEVELS,
 )
 from optimizer.flight.vehicle import FLIGHT_ACTUATORS, LAYOUTS
+from optimizer.model import physics
+from optimizer.model.design_model import ModelGrid
 from optimizer.sweep.flight_params import INERTIA_COLUMNS, param_columns
 
 #: the actuator source ``setup`` names for the model's time constant
 MODEL_SOURCE = "model (E.35)"
 
 
-def modelled(grid: Any, idx: np.ndarray, step: Any = None) -> np.ndarray:
+def modelled(grid: ModelGrid, idx: np.ndarray, step: Any = None) -> np.ndarray:
     """Which designs (rows of ``idx``) fly the model's numbers alone: no measured override
     of their actuator, no measured time constant, no step run."""
     if step is not None:
@@ -47,7 +49,7 @@ def modelled(grid: Any, idx: np.ndarray, step: Any = None) -> np.ndarray:
     return ok
 
 
-def model_params(catalog: Any, grid: Any, idx: np.ndarray, layout: str = "x",
+def model_params(catalog: Catalog, grid: ModelGrid, idx: np.ndarray, layout: str = "x",
                  drag_n_s_m: float = 0.0) -> pd.DataFrame:
     """``params_of(*setup(...))`` of each design ``idx`` (n, 3) from the model alone, one
     row each, and a bool column ``valid``: the numbers ``Vehicle`` would accept (the

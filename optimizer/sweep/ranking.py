@@ -12,7 +12,9 @@ import time
 from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
+from optimizer.catalogs.catalog import Catalog
 from optimizer.flight.ranking import FlownDesign, Ranking, spearman
+from optimizer.model.design_model import ModelGrid
 from optimizer.sweep.chunks import split
 from optimizer.sweep.designs import grid_designs
 from optimizer.sweep.fly_rows import fly_chunk
@@ -44,14 +46,14 @@ def flown_design(row: Mapping[str, Any], battery: str | None = None) -> FlownDes
 def ranking_from_rows(actuators: int, rows: Iterable[Mapping[str, Any]], seconds: float,
                       packs: bool = False) -> Ranking:
     """The ranking of one actuator count's rows; ``packs``: batteries are named by their
-    pack (``cell-SxP``, as ``optimizer.packs.pack_frame`` names them)."""
+    pack (``cell-SxP``, as ``optimizer.solve.packs.pack_frame`` names them)."""
     out = [flown_design(r, f"{r['battery']}-{r['series']}S{r['parallel']}P" if packs
                         else None) for r in rows]
     rho, p = spearman(out)
     return Ranking(actuators, out, rho, p, seconds)
 
 
-def rank(catalog: Any, grid: Any, progress: Callable[[int, int], None] | None = None,
+def rank(catalog: Catalog, grid: ModelGrid, progress: Callable[[int, int], None] | None = None,
          **setup_kwargs: Any) -> Ranking:
     """Fly every feasible design of ``grid`` through ``roll_step`` (in this process, in
     batch flights of ``RANK_CHUNK`` designs, ``progress`` told after each); Spearman rho

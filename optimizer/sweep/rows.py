@@ -14,7 +14,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from optimizer.flight.uncertainty import PERCENTILES
-from optimizer.grid import METRIC_KEYS
+from optimizer.model.grid import METRIC_KEYS
 from optimizer.sweep.keys import DESIGN_KEYS
 
 #: figures of every maneuver (``optimizer.flight.maneuvers.figures``)

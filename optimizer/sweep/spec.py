@@ -17,6 +17,8 @@ from typing import Any
 
 import pandas as pd
 
+from optimizer.catalogs.catalog import Catalog
+
 #: the Parquet key-value metadata key that holds the spec (and marks a sweep file)
 METADATA_KEY = "rotorbench_sweep"
 #: the layout of the rows and parts; a resume across layouts is refused
@@ -39,7 +41,7 @@ def frame_digest(frame: pd.DataFrame) -> str:
     return h.hexdigest()[:16]
 
 
-def catalog_digest(catalog: Any) -> str:
+def catalog_digest(catalog: Catalog) -> str:
     """A digest of the catalog's parts and constants (its content, whatever its path)."""
     h = hashlib.sha256()
     for frame in (catalog.propellers, catalog.motors, catalog.batteries):
@@ -49,7 +51,7 @@ def catalog_digest(catalog: Any) -> str:
     return h.hexdigest()[:16]
 
 
-def sweep_spec(catalog: Any, plan: pd.DataFrame, maneuvers: Sequence[str],
+def sweep_spec(catalog: Catalog, plan: pd.DataFrame, maneuvers: Sequence[str],
                options: Mapping[str, Any], samples: int = 1, seed: int = 0
                ) -> dict[str, Any]:
     """The spec of a sweep: ``options`` are the command's (payload, actuators, hover

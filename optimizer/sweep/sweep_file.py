@@ -1,7 +1,7 @@
 """The closed-loop sweep file (``rotorbench fly --sweep --out SWEEP.parquet``), read back.
 
 One Parquet row per design: its keys (``DESIGN_KEYS``), the static model numbers
-(``optimizer.grid.METRIC_KEYS``, ``thrust_to_weight``), ``can_hover``, per flown maneuver M
+(``optimizer.model.grid.METRIC_KEYS``, ``thrust_to_weight``), ``can_hover``, per flown maneuver M
 ``M_rise_time_ms``, ``M_overshoot_pct``, ``M_settling_time_ms``, ``M_saturation_pct`` (null
 where undefined: never rose, never settled; robust sweeps add ``_p05``/``_p50``/``_p95``),
 and ``error`` (null when the design flew). The key-value metadata ``rotorbench_sweep``
@@ -29,8 +29,8 @@ import pyarrow.parquet as pq
 
 from optimizer.errors import RequestError
 from optimizer.flight.maneuvers import MANEUVERS
-from optimizer.objectives import METRICS, Sense
-from optimizer.pareto import enumerate_front
+from optimizer.solve.objectives import METRICS, Sense
+from optimizer.solve.pareto import enumerate_front
 from optimizer.sweep.keys import DESIGN_KEYS as KEYS
 from optimizer.sweep.rows import STATIC
 from optimizer.sweep.spec import METADATA_KEY
@@ -287,7 +287,7 @@ class SweepFront:
 def front(sweep: SweepFile, x_name: str, y_name: str,
           actuators: list[int] | None = None) -> SweepFront:
     """The exact front of two columns over the rows that flew and hover
-    (``optimizer.pareto.enumerate_front``: equal points keep the first row of the file)."""
+    (``optimizer.solve.pareto.enumerate_front``: equal points keep the first row of the file)."""
     x, y = sweep.axis(x_name, "--x"), sweep.axis(y_name, "--y")
     if x.column == y.column:
         raise RequestError(f"--x {x_name} and --y {y_name} are both the column {x.column}; "

@@ -5,7 +5,7 @@ A file is refused (one line) when it cannot answer the question the flights woul
 ``roll_step``, another payload, flight options ``optimize`` does not fly with (layout, drag,
 a step run's time constants), several rows per design, or model numbers that are not this
 run's grid's (another catalog, current model or ``--measured`` store, whatever its spec
-says). The choice itself is ``optimizer.flight.choice``.
+says). The choice itself is ``optimizer.solve.roll_rise``.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ import pandas as pd
 import pyarrow.compute as pc
 
 from optimizer.errors import RequestError
-from optimizer.grid import METRIC_KEYS
+from optimizer.model.grid import METRIC_KEYS, DesignGrid
 from optimizer.sweep.sweep_file import DESIGN_KEYS, FLAGS, open_sweep, usable_rows
 
 #: The roll rise time ``optimize --from-sweep`` screens on.
@@ -57,7 +57,7 @@ class RollScreen:
     rise_ms: np.ndarray  # NaN where unusable
     metrics: dict[str, np.ndarray]
 
-    def on_grid(self, grid: Any) -> ScreenedGrid:
+    def on_grid(self, grid: DesignGrid) -> ScreenedGrid:
         """The rise times on ``grid``'s (P, M, B) after checking that the file's model
         numbers are this grid's (same catalog, payload, current model, measured data)."""
         rows = np.flatnonzero(self.actuators == grid.n_actuators)
@@ -86,7 +86,8 @@ class RollScreen:
     def _name(self, row: int) -> str:
         return "/".join(str(self.ids[c].iloc[row]) for c in ("propeller", "motor", "battery"))
 
-    def _check_model(self, grid: Any, rows: np.ndarray, index: tuple[np.ndarray, ...]) -> None:
+    def _check_model(self, grid: DesignGrid, rows: np.ndarray,
+                     index: tuple[np.ndarray, ...]) -> None:
         for key in METRIC_KEYS:
             here = np.broadcast_to(np.asarray(grid.metrics[key], float), grid.shape)[index]
             there = self.metrics[key][rows]

@@ -15,11 +15,11 @@ from bench.store.measured_constants import (
     load_measured,
     load_measured_set,
 )
-from optimizer.catalog import load_catalog
+from optimizer.catalogs.catalog import load_catalog
 from optimizer.errors import RequestError
-from optimizer.objectives import single
-from optimizer.selection import Requirements
-from optimizer.selection_options import solve
+from optimizer.solve.objectives import single
+from optimizer.solve.selection import Requirements
+from optimizer.solve.selection_options import solve
 from tests.conftest import CATALOGS
 
 CATALOG = CATALOGS / "thesis-e"

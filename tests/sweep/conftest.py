@@ -15,7 +15,7 @@ import pytest
 from rotorbench_tests_services import DaskCluster, dask_cluster
 
 from bench.store.catalogs import with_min_thrust_to_weight
-from optimizer.catalog import load_catalog
+from optimizer.catalogs.catalog import load_catalog
 from tests.conftest import CATALOGS
 
 

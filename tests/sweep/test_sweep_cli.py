@@ -16,7 +16,7 @@ from rotorbench_tests_services import free_port
 
 from bench.cli import main
 from bench.jobs.sweep_parts import parts_folder
-from optimizer.grid import METRIC_KEYS
+from optimizer.model.grid import METRIC_KEYS
 from optimizer.sweep.keys import DESIGN_KEYS, design_id
 from optimizer.sweep.rows import columns
 from tests.sweep.conftest import SWEEP

@@ -8,12 +8,12 @@ import pytest
 
 from bench.cli import main
 from bench.store.catalogs import with_min_thrust_to_weight
-from optimizer.catalog import load_catalog
-from optimizer.design_model import evaluate_grid
+from optimizer.catalogs.catalog import load_catalog
 from optimizer.flight.maneuvers import MANEUVERS, fly
 from optimizer.flight.ranking import roll_step, spearman
-from optimizer.flyable import FlyableBuilder, Rules
-from optimizer.packs import cells_of, packs_at
+from optimizer.model.design_model import evaluate_grid
+from optimizer.model.flyable import FlyableBuilder, Rules
+from optimizer.solve.packs import cells_of, packs_at
 from optimizer.sweep.chunks import DEFAULT_CHUNK_SIZE, MIN_CHUNK_SIZE, chunk_size, split
 from optimizer.sweep.designs import Packs, grid_designs, plan_designs, thrust_to_weight
 from optimizer.sweep.flight_params import flight_of
@@ -167,7 +167,7 @@ def test_rank_flies_what_one_design_flies(thesis_e) -> None:
     """The ranking from the sweep engine's rows equals flying each design alone
     (``optimizer.flight.ranking.roll_step``, what optimize --max-roll-rise-ms flies), on
     the P1 and P2 designs with M1 (the progress callback sees each batch flight)."""
-    from optimizer.catalog import Catalog
+    from optimizer.catalogs.catalog import Catalog
 
     small = Catalog(thesis_e.propellers.iloc[:2], thesis_e.motors.iloc[:1],
                     thesis_e.batteries, thesis_e.constants, thesis_e.source)

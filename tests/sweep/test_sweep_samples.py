@@ -132,8 +132,8 @@ def test_measured_spreads_reach_the_plan_and_the_draws(thesis_e) -> None:
     """A measured actuator with spreads (as the constants store loads it) overrides its
     designs' numbers in the plan, brings its spreads (std_*), and only its designs' samples
     spread; the others keep the model's numbers and no spread."""
-    from optimizer.design_model import evaluate_grid
-    from optimizer.measured import MeasuredActuator
+    from optimizer.model.design_model import evaluate_grid
+    from optimizer.model.measured import MeasuredActuator
 
     prop, motor = thesis_e.propellers["id"].iloc[0], thesis_e.motors["id"].iloc[0]
     measured = MeasuredActuator(prop, motor, tau_up_s=0.030, tau_down_s=0.045,
