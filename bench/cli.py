@@ -140,7 +140,7 @@ def _check_inputs(parser: argparse.ArgumentParser, argv: Sequence[str],
                   args: argparse.Namespace) -> None:
     """Refuse an input path that is a symlink loop, a device or a FIFO before any command
     reads it (``decode /dev/zero`` filled 18 GB; a looping --rig link was a traceback)."""
-    from bench.rig.input_paths import check_input
+    from bench.paths.inputs import check_input
 
     flags = _flags(parser, argv)
     for dest, value in vars(args).items():
@@ -167,9 +167,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help()
         return 2
     configure_logging(getattr(args, "verbose", 0) or 0, getattr(args, "log_level", None))
-    from bench.cli_support import option_defaults
+    from bench.cli_args.option_values import option_defaults
 
-    args._defaults = option_defaults(parser, args)  # for cli_support.refuse_unused
+    args._defaults = option_defaults(parser, args)  # for refuse_unused
     try:
         _check_inputs(parser, argv, args)
         from bench.run.sigterm import sigterm_as_interrupt

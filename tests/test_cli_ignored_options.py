@@ -1,5 +1,5 @@
 """Options that would be silently ignored are refused, one line, exit 2; one
-mechanism for all (``bench.cli_support.refuse_unused``)."""
+mechanism for all (``bench.cli_args.option_values.refuse_unused``)."""
 
 from __future__ import annotations
 

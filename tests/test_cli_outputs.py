@@ -16,8 +16,8 @@ from pathlib import Path
 
 import pytest
 
-from bench.cli_support import check_writable
 from bench.errors import RigError
+from bench.paths.outputs import check_writable
 from tests.test_cli_errors import _imported_run, run_bad
 
 

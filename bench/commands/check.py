@@ -7,8 +7,8 @@ import json
 import math
 from pathlib import Path
 
-from bench.cli_support import check_writable
 from bench.errors import RigError
+from bench.paths.outputs import check_writable
 
 #: the longest wait for one device a user may ask (time arithmetic overflows on 1e308)
 MAX_TIMEOUT_S = 3600.0

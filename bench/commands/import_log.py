@@ -94,7 +94,7 @@ def write_run(out: Path, samples, meta: dict) -> Path:
 
 def handler(args: argparse.Namespace) -> int:
     from analysis.importers import JITTER_MAX_PERIODS, detect_format, import_log
-    from bench.cli_support import check_writable
+    from bench.paths.outputs import check_writable
     from bench.run.run_ids import check_run_id
 
     if args.out.exists():

@@ -17,8 +17,8 @@ from pathlib import Path
 from typing import Any
 
 from bench.errors import RigError, ThrustOutsideMap
+from bench.paths.inputs import check_input
 from bench.plans.run_budget import check_duration
-from bench.rig.input_paths import check_input
 
 G0 = 9.80665  # standard gravity, m/s^2 (grams-force -> newtons)
 

@@ -27,8 +27,8 @@ from typing import Any
 
 from analysis.atomic_files import write_atomically
 from bench.errors import RigError
+from bench.paths.inputs import check_input
 from bench.rig import rig_imu, rig_propulsion
-from bench.rig.input_paths import check_input
 from bench.rig.rig_devices import URL_SCHEMES, DeviceConfig
 from bench.rig.rig_imu import HEXAPOD_LIMIT_MAXIMA, HexapodSettings, ImuSettings, ImuSimConfig
 from bench.rig.rig_propulsion import (

@@ -11,12 +11,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bench.cli_support import (
+from bench.cli_args.option_values import option_defaults
+from bench.cli_args.sizing_args import (
     add_measured_args,
     add_rule_args,
     json_default,
     measured_from_args,
-    option_defaults,
     rules_from_args,
 )
 from bench.errors import RigError
