@@ -27,8 +27,8 @@ from typing import Any, TypeVar
 
 import numpy as np
 
+from bench.engine.run_loop import OperatorStop
 from bench.errors import RigError
-from bench.run.run_loop import OperatorStop
 
 __all__ = ["LIVE_CHANNELS", "LiveView", "RingBuffer", "WindowLost", "binding_fault",
            "run_with_live_view"]

@@ -19,7 +19,7 @@ __all__ = ["add_common_arguments", "dry_run_text", "load_rig_from_args", "parse_
 
 
 def add_common_arguments(p: argparse.ArgumentParser) -> None:
-    from bench.run.safety import LIMIT_FIELDS
+    from bench.engine.safety import LIMIT_FIELDS
 
     p.add_argument("--rig", type=Path, default=None,
                    help="rig file (TOML); default: the simulated rig bench/data/rigs/sim.toml")
@@ -71,8 +71,8 @@ def load_rig_from_args(args: argparse.Namespace,
 
 
 def parse_limits(items: list[str]) -> dict[str, float]:
-    """``--limit NAME=VALUE`` items as a dict (names of ``bench.run.safety.LIMIT_FIELDS``)."""
-    from bench.run.safety import LIMIT_FIELDS
+    """``--limit NAME=VALUE`` items as a dict (names of ``bench.engine.safety.LIMIT_FIELDS``)."""
+    from bench.engine.safety import LIMIT_FIELDS
 
     out = {}
     for item in items:
@@ -91,7 +91,7 @@ def parse_limits(items: list[str]) -> dict[str, float]:
 
 def run_options_from_args(args: argparse.Namespace) -> Any:
     """The loop settings of ``--tick``, ``--realtime`` and ``--live`` (which implies it)."""
-    from bench.runners.runner import RunOptions
+    from bench.plan_runner.runner import RunOptions
 
     return RunOptions(tick_s=args.tick, realtime=bool(args.realtime or args.live))
 
@@ -99,10 +99,10 @@ def run_options_from_args(args: argparse.Namespace) -> Any:
 def dry_run_text(rig: Any, seq: Any, note: str | None = None) -> str:
     """The dry run the command prints: ``note``, the rig's ESC, every step with times and
     commands, the projection."""
+    from bench.engine.safety import effective_limits
+    from bench.plan_runner.session import plan_for
     from bench.plans.run_budget import check_budget, project, row_rate_hz
     from bench.plans.sequences import format_plan
-    from bench.run.safety import effective_limits
-    from bench.runners.session import plan_for
 
     effective_limits(rig.limits, seq.limits, source=f"sequence {seq.name!r}",
                      thrust_setpoints_n=seq.thrust_setpoints_n)

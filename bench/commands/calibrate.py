@@ -32,15 +32,15 @@ from analysis.imu_calibration import (
 from analysis.imu_log import load_calibration_log, load_imu_log, write_table
 from bench.cli_args.option_values import refuse_unused, seed_arg
 from bench.cli_args.store_args import add_store_args, publish_runs, recording_store
+from bench.engine.recorder import new_run_id
 from bench.errors import RigError
 from bench.figures.calibration_report import mat, show_calibration, show_stages, show_truth, vec
 from bench.jobs.calibration_stages import calibrate_frame, collect_log, plans_for
 from bench.jobs.run_progress import JobOutput, run_calibration_with_progress
 from bench.paths.outputs import check_writable
+from bench.plan_runner.runner import HexapodRunOptions
 from bench.plans.calibration_sequences import format_plan, paper_a_sequences
 from bench.rig.rig import default_imu_rig_path, is_imu_rig, load_imu_rig
-from bench.run.recorder import new_run_id
-from bench.runners.runner import HexapodRunOptions
 
 
 class _OptionalAction(argparse.HelpFormatter):

@@ -70,8 +70,8 @@ def handler(args: argparse.Namespace) -> int:
     from bench.console.manual import DEFAULT_RATE_US_S
     from bench.console.server import ConsoleBench
     from bench.live import _qt_binding_missing, check_display
+    from bench.plan_runner.runner import RunOptions
     from bench.rig.rig import is_imu_rig, load_imu_rig
-    from bench.runners.runner import RunOptions
 
     store = recording_store(args, warn=lambda line: print(line, file=sys.stderr))
     # a lab store records into the spool, published at exit
@@ -130,7 +130,7 @@ def handler(args: argparse.Namespace) -> int:
 
 
 def _tightened(rig: Any, extra: dict[str, float]) -> dict[str, float]:
-    from bench.run.safety import effective_limits
+    from bench.engine.safety import effective_limits
 
     return effective_limits(rig.limits, extra, source="--limit")
 

@@ -144,11 +144,11 @@ def handler(args: argparse.Namespace) -> int:
     from analysis.static_curves import fit_static_run
     from analysis.step_response import fit_run
     from analysis.validation import validate_run
+    from bench.plan_runner.runner import RunOptions
+    from bench.plan_runner.session import run_sequence
     from bench.plans.sequences import step1, step2, sweep
     from bench.plans.thrust_map import fit_sweep_run
     from bench.rig.rig import default_rig_path, load_rig
-    from bench.runners.runner import RunOptions
-    from bench.runners.session import run_sequence
     from bench.store.catalogs import shipped_catalog
     from bench.store.constants_fit import fit_for_store
     from bench.store.constants_store import ConstantsStore

@@ -13,10 +13,10 @@ from pathlib import Path
 from typing import Any
 
 from bench.jobs.run_progress import JobOutput, report, run_with_progress
+from bench.plan_runner.runner import RunOptions
 from bench.plans.plan_specs import sweep_sequence
 from bench.plans.thrust_map import fit_sweep_run
 from bench.rig.rig import is_shipped_rig, map_goes_to_copy, rig_copy_path, save_thrust_map
-from bench.runners.runner import RunOptions
 
 __all__ = ["measure_map"]
 

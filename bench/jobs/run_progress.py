@@ -22,16 +22,16 @@ import numpy as np
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
+from bench.engine.safety import effective_limits
+from bench.engine.sigterm import sigterm_as_interrupt
 from bench.errors import RecordingError
 from bench.paths.outputs import check_writable
+from bench.plan_runner.runner import HexapodRunOptions, RunOptions
+from bench.plan_runner.session import RunOutcome, plan_for, run_sequence
 from bench.plans.calibration_sequences import HexapodSegment
 from bench.plans.run_budget import Budget, check_budget, project, row_rate_hz
 from bench.plans.sequences import Plan, Segment
 from bench.plans.sequences import Sequence as PlanSequence
-from bench.run.safety import effective_limits
-from bench.run.sigterm import sigterm_as_interrupt
-from bench.runners.runner import HexapodRunOptions, RunOptions
-from bench.runners.session import RunOutcome, plan_for, run_sequence
 from bench.store.indexed_run import RunInterrupted, RunRecordingFailed
 
 if TYPE_CHECKING:  # the calibration stages (pandas, the IMU fits) load only for a calibration

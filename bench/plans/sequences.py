@@ -220,7 +220,7 @@ class Sequence:
 def _limits_from(raw: Any, source: str) -> dict[str, float]:
     """A sequence file's ``limits`` table: known names, finite numbers (whether they
     tighten the rig's limits is checked against the rig, ``safety.effective_limits``)."""
-    from bench.run.safety import LIMIT_FIELDS
+    from bench.engine.safety import LIMIT_FIELDS
 
     if not isinstance(raw, Mapping):
         raise RigError(f"{source}: limits: expected a table of NAME = number, got {raw!r}")

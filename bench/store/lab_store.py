@@ -20,8 +20,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from bench.engine.run_ids import check_run_id
 from bench.errors import RigError
-from bench.run.run_ids import check_run_id
 from bench.store.lab_catalog import (
     CatalogIdentity,
     CatalogUnavailable,

@@ -10,11 +10,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from bench.plan_runner.runner import HexapodRunOptions
+from bench.plan_runner.session import run_stage
 from bench.plans.calibration_sequences import Move, Rest, SetPivot, compile_plan
 from bench.plans.sequences import Sequence
 from bench.rig.rig import default_imu_rig_path, load_imu_rig
-from bench.runners.runner import HexapodRunOptions
-from bench.runners.session import run_stage
 from drivers.contracts import Fault, HexapodLimits
 from drivers.errors import DeviceError
 from drivers.factory import open_rig

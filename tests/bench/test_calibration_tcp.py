@@ -14,11 +14,11 @@ import pytest
 
 from analysis.imu_calibration import load_calibration
 from bench.cli import main
+from bench.plan_runner.runner import HexapodRunOptions
+from bench.plan_runner.session import run_stage
 from bench.plans.calibration_sequences import Move, Rest, SetPivot, compile_plan
 from bench.plans.sequences import Sequence
 from bench.rig.rig import load_imu_rig
-from bench.runners.runner import HexapodRunOptions
-from bench.runners.session import run_stage
 from drivers.backends.pi_hexapod import PiHexapod
 from drivers.errors import DeviceError
 from drivers.factory import open_rig

@@ -18,8 +18,8 @@ pytest.importorskip("pytestqt")
 
 from bench.console.control_tab import ControlTab
 from bench.console.link import RING_NAMES
+from bench.engine.safety import LIMIT_FIELDS
 from bench.live import RingBuffer
-from bench.run.safety import LIMIT_FIELDS
 
 REPO = Path(__file__).resolve().parents[2]
 

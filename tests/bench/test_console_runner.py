@@ -16,10 +16,10 @@ from bench.console.envelope import RollingEnvelope, envelope, envelopes
 from bench.console.link import BenchLink
 from bench.console.manual import ConsoleRunner, Setpoint, manual_sequence
 from bench.errors import RigError
+from bench.plan_runner.runner import RunOptions
+from bench.plan_runner.session import esc_range_of, run_sequence
 from bench.plans.sequences import EscRange
 from bench.rig.rig import default_rig_path, load_rig
-from bench.runners.runner import RunOptions
-from bench.runners.session import esc_range_of, run_sequence
 from bench.store.run_index import RunIndex
 from drivers.factory import open_rig
 

@@ -11,11 +11,11 @@ from pathlib import Path
 
 import pytest
 
-import bench.run.recorder as recorder_module
+import bench.engine.recorder as recorder_module
 from analysis.run_record import read_run
 from bench.cli import main
+from bench.engine.recorder import RunRecorder
 from bench.errors import RecordingError
-from bench.run.recorder import RunRecorder
 
 
 @pytest.fixture

@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 
 from bench.cli import main
+from bench.engine.drops import DropCounter
+from bench.engine.recorder import RunRecorder
+from bench.engine.safety import effective_limits
+from bench.plan_runner.runner import Runner, RunOptions
+from bench.plan_runner.session import esc_range_of, plan_for
 from bench.plans.sequences import step1
 from bench.rig.rig import load_rig
-from bench.run.drops import DropCounter
-from bench.run.recorder import RunRecorder
-from bench.run.safety import effective_limits
-from bench.runners.runner import Runner, RunOptions
-from bench.runners.session import esc_range_of, plan_for
 from drivers.contracts import Fault
 from drivers.factory import open_rig
 

@@ -15,10 +15,10 @@ from typing import Any
 import numpy as np
 import pytest
 
+from bench.plan_runner.runner import HexapodRunner, HexapodRunOptions
 from bench.plans.calibration_sequences import Move, Rest, SetPivot, compile_plan
 from bench.plans.sequences import Sequence
 from bench.rig.rig import default_imu_rig_path, load_imu_rig
-from bench.runners.runner import HexapodRunner, HexapodRunOptions
 from drivers.contracts import POSE_CHANNELS
 from drivers.errors import DeviceError
 from drivers.factory import open_rig

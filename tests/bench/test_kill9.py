@@ -21,9 +21,9 @@ CHILD = """
 import sys
 from pathlib import Path
 from bench.rig.rig import load_rig
-from bench.runners.runner import RunOptions
+from bench.plan_runner.runner import RunOptions
 from bench.plans.sequences import step1
-from bench.runners.session import run_sequence
+from bench.plan_runner.session import run_sequence
 from drivers.factory import open_rig
 
 rig = load_rig(sys.argv[1])

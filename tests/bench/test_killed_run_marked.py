@@ -13,14 +13,14 @@ from pathlib import Path
 import numpy as np
 
 from analysis.run_record import read_run
-from bench.run.recorder import RunRecorder
+from bench.engine.recorder import RunRecorder
 from bench.store.run_index import RunIndex
 
 DIES = """
 import os, sys
 from pathlib import Path
 import numpy as np
-from bench.run.recorder import RunRecorder
+from bench.engine.recorder import RunRecorder
 from bench.store.run_index import RunIndex
 
 root = Path(sys.argv[1])

@@ -124,8 +124,8 @@ def _step_plan(repeats):
 
 
 def _runner(fakes, tmp_path, repeats, spy):
-    from bench.run.recorder import RunRecorder
-    from bench.runners.runner import Runner
+    from bench.engine.recorder import RunRecorder
+    from bench.plan_runner.runner import Runner
 
     esc, plan = _step_plan(repeats)
     rig = fakes.FakeRig()

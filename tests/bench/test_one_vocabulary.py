@@ -10,6 +10,7 @@ import pytest
 from bench.commands.step import build as build_step
 from bench.commands.sweep import build as build_sweep
 from bench.errors import RigError
+from bench.plan_runner.session import plan_for
 from bench.plans.calibration_sequences import Move, compile_plan, paper_a_sequences
 from bench.plans.plan_specs import plan_sequence
 from bench.plans.sequences import Checkpoint, Plan, Sequence, step1
@@ -21,7 +22,6 @@ from bench.rig.rig import (
     load_imu_rig,
     load_rig,
 )
-from bench.runners.session import plan_for
 
 
 def test_one_rig_config_for_both_benches() -> None:

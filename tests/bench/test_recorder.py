@@ -13,7 +13,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from bench.run.recorder import BASE_COLUMNS, SAMPLES_DIR, RunRecorder
+from bench.engine.recorder import BASE_COLUMNS, SAMPLES_DIR, RunRecorder
 from bench.store.run_index import RunIndex
 
 
@@ -111,7 +111,7 @@ def test_run_json_text_is_the_indented_dump_and_reuses_unchanged_values(tmp_path
     first write for the last): byte for byte what ``json.dump(indent=2)`` writes."""
     from pathlib import Path
 
-    from bench.run.recorder import _json_text, _jsonable, atomic_write_json
+    from bench.engine.recorder import _json_text, _jsonable, atomic_write_json
 
     plan = {"segments": [{"index": i, "label": "step\nup", "us": 1000.0 + i, "sp": None,
                           "nan": float("nan"), "x": np.float64(1.5), "e": [], "d": {}}
@@ -182,7 +182,7 @@ def test_parts_are_encoded_losslessly_and_compactly(tmp_path):
 def test_written_behind_parts_hold_ten_seconds(tmp_path):
     """A simulated run written behind (``write_behind``) cuts parts of 10 s of rig time: a
     tenth of the files (and of a lab store's uploads); nothing is lost."""
-    from bench.run.recorder import BEHIND_PART_S
+    from bench.engine.recorder import BEHIND_PART_S
 
     rec = RunRecorder(tmp_path / "r", {})
     rec.write_behind()

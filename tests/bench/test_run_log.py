@@ -12,11 +12,11 @@ from pathlib import Path
 
 import pytest
 
+from bench.engine import run_log
+from bench.engine.recorder import RunRecorder
+from bench.engine.watchdog import where
+from bench.plan_runner.runner import Runner, RunOptions
 from bench.plans.sequences import EscRange, compile_plan, step1
-from bench.run import run_log
-from bench.run.recorder import RunRecorder
-from bench.run.watchdog import where
-from bench.runners.runner import Runner, RunOptions
 
 ESC = EscRange(idle_us=1000.0, min_us=1050.0, max_us=1900.0)
 CLI = [sys.executable, "-m", "bench.cli"]

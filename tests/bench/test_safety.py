@@ -10,12 +10,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from bench.engine.recorder import RunRecorder
+from bench.engine.safety import SafetySupervisor, effective_limits
 from bench.errors import RigError
+from bench.plan_runner.runner import Runner, RunOptions
 from bench.plans.sequences import EscRange, Sequence, compile_plan, step1
 from bench.rig.rig import Limits
-from bench.run.recorder import RunRecorder
-from bench.run.safety import SafetySupervisor, effective_limits
-from bench.runners.runner import Runner, RunOptions
 from drivers.contracts import Block
 from drivers.errors import DeviceError
 

@@ -12,12 +12,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from bench.engine.recorder import BASE_COLUMNS, RunRecorder
+from bench.engine.safety import effective_limits
+from bench.plan_runner.runner import Runner, RunOptions
+from bench.plan_runner.session import esc_range_of, plan_for, run_sequence
 from bench.plans.sequences import step1
 from bench.rig.rig import load_rig
-from bench.run.recorder import BASE_COLUMNS, RunRecorder
-from bench.run.safety import effective_limits
-from bench.runners.runner import Runner, RunOptions
-from bench.runners.session import esc_range_of, plan_for, run_sequence
 from bench.store.run_index import RunIndex
 from drivers.contracts import Fault
 from drivers.errors import DeviceError

@@ -7,7 +7,7 @@ from types import SimpleNamespace
 
 import pytest
 
-from bench.run.run_loop import SafeRunLoop
+from bench.engine.run_loop import SafeRunLoop
 from drivers.contracts import MonotonicClock
 from drivers.sim.clock import SimClock
 from drivers.wire_sim.paced_clock import PacedClock

@@ -1,4 +1,4 @@
-"""Batches of ticks on the simulated rig (``bench.run.run_loop``): the same record as tick by
+"""Batches of ticks on the simulated rig (``bench.engine.run_loop``): the same record as tick by
 tick, and a run that ends inside a batch ends on the same tick and sample."""
 
 from __future__ import annotations
@@ -9,12 +9,12 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from bench.engine.recorder import RunRecorder
+from bench.engine.safety import effective_limits
+from bench.plan_runner.runner import Runner, RunOptions
+from bench.plan_runner.session import esc_range_of, plan_for
 from bench.plans.sequences import step1
 from bench.rig.rig import load_rig
-from bench.run.recorder import RunRecorder
-from bench.run.safety import effective_limits
-from bench.runners.runner import Runner, RunOptions
-from bench.runners.session import esc_range_of, plan_for
 from drivers.factory import open_rig
 
 

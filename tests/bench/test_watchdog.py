@@ -7,9 +7,9 @@ import time
 
 import pytest
 
+from bench.engine.watchdog import GuardedEsc, HostWatchdog, WatchdogTrip
+from bench.plan_runner.runner import Runner, RunOptions
 from bench.plans.sequences import EscRange, compile_plan, step1
-from bench.run.watchdog import GuardedEsc, HostWatchdog, WatchdogTrip
-from bench.runners.runner import Runner, RunOptions
 
 ESC = EscRange(1000.0, 1050.0, 2000.0)
 
@@ -86,7 +86,7 @@ def test_guarded_esc_clamps_commands_to_the_rig_range():
 
 
 def test_stalled_runner_is_stopped_by_the_watchdog(fakes, tmp_path):
-    from bench.run.recorder import RunRecorder
+    from bench.engine.recorder import RunRecorder
 
     rig = fakes.FakeRig()
     rig.faults.stall_at_s = rig.clock.t + 3.3  # spinning at the high level
@@ -113,7 +113,7 @@ def test_a_signal_inside_the_watchdogs_start_still_ends_safely_and_recorded(
     finally, and the run was never recorded (seen with `kill` on `rotorbench demo`)."""
     import threading
 
-    from bench.run.recorder import RunRecorder
+    from bench.engine.recorder import RunRecorder
 
     real_start = threading.Thread.start
 

@@ -7,7 +7,7 @@ import time
 
 import pytest
 
-from bench.run.watchdog import GuardedEsc, HostWatchdog, WatchdogTrip
+from bench.engine.watchdog import GuardedEsc, HostWatchdog, WatchdogTrip
 
 
 class Esc:

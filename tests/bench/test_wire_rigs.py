@@ -4,7 +4,7 @@
 and ``sim-can.toml`` (VESC on python-can's virtual bus + the board) run the real backends
 against simulated devices driven by the plant of ``sim.toml``, in real time. These tests
 run ``rotorbench step`` / ``fit`` / ``check`` through the CLI and the runner through
-``bench.runners.session``; each wire run takes a few seconds of wall time.
+``bench.plan_runner.session``; each wire run takes a few seconds of wall time.
 """
 
 from __future__ import annotations
@@ -17,10 +17,10 @@ import pytest
 
 from analysis.run_record import read_run
 from bench.cli import main
+from bench.plan_runner.runner import RunOptions
+from bench.plan_runner.session import run_sequence
 from bench.plans.sequences import Arm, Disarm, Sequence, Tare, ThrottleStep
 from bench.rig.rig import default_rig_path, load_rig
-from bench.runners.runner import RunOptions
-from bench.runners.session import run_sequence
 from drivers.errors import DeviceError
 from drivers.factory import open_rig
 

@@ -6,8 +6,8 @@ import re
 
 import pytest
 
-from bench.run.recorder import new_run_id
-from bench.run.run_ids import uuid7
+from bench.engine.recorder import new_run_id
+from bench.engine.run_ids import uuid7
 
 
 def test_uuid7_layout_and_order() -> None:
@@ -23,7 +23,7 @@ def test_run_ids_of_one_microsecond_differ_and_keep_their_name() -> None:
 
 
 def test_every_kind_of_real_run_id_is_one() -> None:
-    from bench.run.run_ids import is_run_id
+    from bench.engine.run_ids import is_run_id
 
     made = [new_run_id(name) for name in ("step1", "sweep", "calibration", "imu-static")]
     imported = ["good", "log_2024-05-01", "stand-a.csv", "run:1+2"]  # `import --out` names
@@ -35,8 +35,8 @@ def test_every_kind_of_real_run_id_is_one() -> None:
     "x" * 129, "a..b", "-rf", "a b", "a\nb", "é", None, 12, ["a"],
 ])
 def test_what_is_not_a_run_id_is_refused_naming_where(bad: object) -> None:
+    from bench.engine.run_ids import check_run_id, is_run_id
     from bench.errors import RigError
-    from bench.run.run_ids import check_run_id, is_run_id
 
     assert not is_run_id(bad)
     with pytest.raises(RigError, match=r"^spool run\.json: .* is not a run id") as err:
@@ -48,6 +48,6 @@ def test_what_is_not_a_run_id_is_refused_naming_where(bad: object) -> None:
 @pytest.mark.parametrize("name", ["my sequence", "a/../../b", "x\\y", "n\x00", "é" * 10,
                                   "z" * 300, "..", ""])
 def test_a_sequence_name_of_any_kind_gives_a_run_id(name: str) -> None:
-    from bench.run.run_ids import is_run_id
+    from bench.engine.run_ids import is_run_id
 
     assert is_run_id(new_run_id(name))

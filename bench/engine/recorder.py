@@ -35,8 +35,8 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from bench.engine import run_log
 from bench.errors import RecordingError, RigError
-from bench.run import run_log
 from drivers.worker import Worker
 
 __all__ = ["BASE_COLUMNS", "BEHIND_PART_S", "RunRecorder", "atomic_write_json", "new_run_id",
@@ -67,8 +67,8 @@ def software_version() -> str:
 def new_run_id(name: str) -> str:
     """``<UTC stamp>-<8 hex>-<name>``: sorts by start time, says what the run is, and stays
     unique across benches that start runs in the same microsecond (the hex digits are
-    random bits of a UUIDv7, ``bench.run.run_ids``)."""
-    from bench.run.run_ids import run_id_name, uuid7
+    random bits of a UUIDv7, ``bench.engine.run_ids``)."""
+    from bench.engine.run_ids import run_id_name, uuid7
 
     stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%S_%fZ")
     return f"{stamp}-{uuid7().hex[-8:]}-{run_id_name(name)}"
@@ -252,7 +252,7 @@ class RunRecorder:
                          pid=os.getpid(), samples=SAMPLES_DIR, events="events.csv",
                          log=run_log.LOG_NAME)
         # the run's diagnostic log: the lines since its devices began to open, if a
-        # capture was started then (bench.runners.session), else from here
+        # capture was started then (bench.plan_runner.session), else from here
         self._log_capture = contextlib.ExitStack()
         self._log_capture.enter_context(run_log.capture())
         try:

@@ -3,7 +3,7 @@ one path component.
 
 Two benches that start a run in the same microsecond still get different ids: 74 of the
 128 bits are random. A run id keeps the readable stamp in front and the name at the end
-and carries 8 hex digits of the UUID between them (``bench.run.recorder.new_run_id``):
+and carries 8 hex digits of the UUID between them (``bench.engine.recorder.new_run_id``):
 ``20261127T081500_123456Z-9f3c01d2-step1``.
 
 A run id names a folder in a store, a spool, a cache and an object key, and it arrives

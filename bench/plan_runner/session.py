@@ -2,7 +2,7 @@
 
 :func:`record_plan` is the only place a run folder is made: it creates the run folder and
 its index row (``bench.store.indexed_run``), hands the recorder to the bench's runner (the one
-runner module, :mod:`bench.runners.runner`) and records whatever happened. Each bench only says
+runner module, :mod:`bench.plan_runner.runner`) and records whatever happened. Each bench only says
 what goes into ``run.json`` and how its devices are opened:
 
 - :func:`run_sequence` (propulsion stand): compiles the sequence against the rig (ESC
@@ -25,14 +25,11 @@ from typing import Any
 
 import numpy as np
 
-from bench.plans.calibration_sequences import HexapodSegment
-from bench.plans.sequences import EscRange, Plan, Segment, Sequence, compile_plan
-from bench.plans.thrust_map import StaticThrustMap
-from bench.run import run_log
-from bench.run.recorder import BASE_COLUMNS, RunRecorder
-from bench.run.safety import effective_limits, limits_dict
-from bench.runners.hexapod_parts import RECORD_BASE, ImuBenchLike
-from bench.runners.runner import (
+from bench.engine import run_log
+from bench.engine.recorder import BASE_COLUMNS, RunRecorder
+from bench.engine.safety import effective_limits, limits_dict
+from bench.plan_runner.hexapod_parts import RECORD_BASE, ImuBenchLike
+from bench.plan_runner.runner import (
     HexapodRunner,
     HexapodRunOptions,
     OpenRigLike,
@@ -40,6 +37,9 @@ from bench.runners.runner import (
     RunOptions,
     RunResult,
 )
+from bench.plans.calibration_sequences import HexapodSegment
+from bench.plans.sequences import EscRange, Plan, Segment, Sequence, compile_plan
+from bench.plans.thrust_map import StaticThrustMap
 from bench.store.indexed_run import indexed_run
 
 __all__ = ["RunOutcome", "esc_range_of", "plan_for", "record_plan", "rig_summary",

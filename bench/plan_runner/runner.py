@@ -1,22 +1,22 @@
 """The runner: one module, one loop, for every bench.
 
 :class:`PlanRunner` carries a compiled plan out on the rig clock on the safe run loop
-(:class:`bench.run.run_loop.SafeRunLoop`: whatever ends the run, its ``finally`` makes the
+(:class:`bench.engine.run_loop.SafeRunLoop`: whatever ends the run, its ``finally`` makes the
 actuators safe first, then records the exit status and the reason). Every segment of a
 plan carries the step it came from; the runner dispatches on the step's *type* to the
 handlers the bench registered (``STEP_BEGIN``/``STEP_END``), never on a string kind.
 
 A bench contributes only what is its own:
 
-- the propulsion stand (:class:`Runner`): the ESC behind :class:`bench.run.watchdog.GuardedEsc`,
+- the propulsion stand (:class:`Runner`): the ESC behind :class:`bench.engine.watchdog.GuardedEsc`,
   its steps (arm, tare, disarm; every other step commands the ESC on every tick, the
-  failsafe's heartbeat), the limits of :class:`bench.run.safety.SafetySupervisor` on every
-  sample (tared thrust), rows aligned by :class:`bench.run.alignment.BlockAligner` with the
+  failsafe's heartbeat), the limits of :class:`bench.engine.safety.SafetySupervisor` on every
+  sample (tared thrust), rows aligned by :class:`bench.engine.alignment.BlockAligner` with the
   command history; safe state: ESC idle and disarmed.
 - the IMU bench (:class:`HexapodRunner`): the hexapod behind
-  :class:`bench.runners.hexapod_parts.GuardedHexapod`, its steps (set pivot, move), every logged
-  hexapod sample against :class:`bench.runners.hexapod_parts.HexapodSupervisor`, rows merged by
-  :class:`bench.runners.hexapod_parts.RowMerger`; safe state: hexapod stopped.
+  :class:`bench.plan_runner.hexapod_parts.GuardedHexapod`, its steps (set pivot, move), every logged
+  hexapod sample against :class:`bench.plan_runner.hexapod_parts.HexapodSupervisor`, rows merged by
+  :class:`bench.plan_runner.hexapod_parts.RowMerger`; safe state: hexapod stopped.
 
 A move's time base is the moment the hexapod is told to start it, after the upload: on a
 real controller the upload (hundreds of GCS commands) takes wall time, and the run's
@@ -37,21 +37,21 @@ from typing import Any, ClassVar, Protocol
 
 import numpy as np
 
+from bench.engine.alignment import BlockAligner
+from bench.engine.recorder import BASE_COLUMNS, RunRecorder
+from bench.engine.run_loop import EPS, OperatorStop, RunResult, SafeRunLoop
+from bench.engine.safety import SafetySupervisor
+from bench.engine.watchdog import GuardedEsc, HostWatchdog
 from bench.errors import RigError
-from bench.plans.calibration_sequences import HexapodSegment, Move, SetPivot
-from bench.plans.sequences import Arm, Disarm, EscRange, Plan, Segment, Tare
-from bench.run.alignment import BlockAligner
-from bench.run.recorder import BASE_COLUMNS, RunRecorder
-from bench.run.run_loop import EPS, OperatorStop, RunResult, SafeRunLoop
-from bench.run.safety import SafetySupervisor
-from bench.run.watchdog import GuardedEsc, HostWatchdog
-from bench.runners.hexapod_parts import (
+from bench.plan_runner.hexapod_parts import (
     RECORD_BASE,
     GuardedHexapod,
     HexapodSupervisor,
     ImuBenchLike,
     RowMerger,
 )
+from bench.plans.calibration_sequences import HexapodSegment, Move, SetPivot
+from bench.plans.sequences import Arm, Disarm, EscRange, Plan, Segment, Tare
 from drivers.contracts import Block, Clock, Esc, Sensor, Trajectory
 from drivers.errors import DeviceError
 
@@ -173,7 +173,7 @@ class Runner(PlanRunner):
 
     safe_stop_label = "idle + disarm"
     stale_hint = "; limits cannot be checked without data"
-    batches = True  # see bench.run.run_loop: simulated rigs run whole batches of ticks
+    batches = True  # see bench.engine.run_loop: simulated rigs run whole batches of ticks
     rig: OpenRigLike
     plan: Plan
     options: RunOptions

@@ -1,4 +1,4 @@
-"""What the IMU bench contributes to the one runner (:mod:`bench.runners.runner`): its actuator
+"""What the IMU bench contributes to the one runner (:mod:`bench.plan_runner.runner`): its actuator
 guard, its limit check and its row merging.
 
 - :class:`GuardedHexapod`: the hexapod's commands, shared by the runner and the host
@@ -20,10 +20,10 @@ from typing import Protocol
 
 import numpy as np
 
+from bench.engine.safety import Trip
+from bench.engine.watchdog import WatchdogTrip
 from bench.plans.calibration_sequences import HexapodSegment, phase_at, step_at
 from bench.plans.sequences import Plan
-from bench.run.safety import Trip
-from bench.run.watchdog import WatchdogTrip
 from drivers.contracts import (
     ACCELERATION_CHANNELS,
     BODY_CHANNELS,

@@ -6,8 +6,9 @@ error or a bug) its ``finally`` makes the actuators safe first (the subclass's
 :meth:`SafeRunLoop._safe_stop`: ESC idle + disarmed, hexapod stopped) with a second Ctrl-C
 or SIGTERM held until that is done and the record written, then stops the watchdog and
 records the exit status (``success``, ``abort`` or ``fail``) and the reason.
-:class:`bench.runners.runner.Runner` (ESC) and :class:`bench.runners.runner.HexapodRunner` (hexapod)
-fill in the devices: what to drain, what one segment does, how to read and check a tick.
+:class:`bench.plan_runner.runner.Runner` (ESC) and
+:class:`bench.plan_runner.runner.HexapodRunner` (hexapod) fill in the devices: what to
+drain, what one segment does, how to read and check a tick.
 
 A simulated rig run flat out (not paced, no live window) is carried out in batches of
 ticks: commands and sleeps tick by tick as always, but the devices are read, checked and
@@ -33,11 +34,11 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from bench.engine.drops import DropCounter
+from bench.engine.recorder import RunRecorder
+from bench.engine.safety import LimitTrip, Trip
+from bench.engine.watchdog import HostWatchdog, WatchdogTrip
 from bench.errors import RecordingError
-from bench.run.drops import DropCounter
-from bench.run.recorder import RunRecorder
-from bench.run.safety import LimitTrip, Trip
-from bench.run.watchdog import HostWatchdog, WatchdogTrip
 from drivers.contracts import Block, Clock
 from drivers.errors import DeviceError
 
