@@ -25,7 +25,7 @@ sys.path.insert(0, str(REPO))
 from bench.engine.safety import effective_limits  # noqa: E402
 from bench.plan_runner.runner import Runner, RunOptions  # noqa: E402
 from bench.plan_runner.session import esc_range_of, plan_for, run_sequence  # noqa: E402
-from bench.plans.sequences import step1  # noqa: E402
+from bench.plans.stand_sequences import step1  # noqa: E402
 from bench.rig.rig import default_rig_path, load_rig, save_thrust_map  # noqa: E402
 from drivers.factory import open_rig  # noqa: E402
 

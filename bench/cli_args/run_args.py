@@ -48,22 +48,23 @@ def add_common_arguments(p: argparse.ArgumentParser) -> None:
     add_store_args(p, records=True)
 
 
-def load_rig_from_args(args: argparse.Namespace,
+def load_rig_from_args(args: argparse.Namespace, prefer_out_copy: bool = False,
                        tell: Callable[[str], None] | None = None) -> Any:
     """The rig of ``--rig`` (default: the sim rig), with ``--esc-mode`` applied.
 
-    ``tell`` (the command's output): for a read-only rig (shipped, or not writable) use
-    the copy an earlier sweep stored under ``<out>/rigs/`` with its measured map, if there
-    is one, and say so through ``tell``.
+    ``prefer_out_copy``: for a read-only rig (shipped, or not writable) use the copy an
+    earlier sweep stored under ``<out>/rigs/`` with its measured map, if there is one, and
+    say so through ``tell`` (the command's output).
     """
     from bench.rig.rig import default_rig_path, load_rig, map_goes_to_copy, rig_copy_path
 
     rig = load_rig(args.rig or default_rig_path())
-    if tell is not None and map_goes_to_copy(rig):
+    if prefer_out_copy and map_goes_to_copy(rig):
         copy = rig_copy_path(rig.path, args.out)
         if copy.is_file():
-            tell(f"rig file: {copy} (the copy of read-only {rig.path} that holds the "
-                  "map a sweep measured)")
+            if tell is not None:
+                tell(f"rig file: {copy} (the copy of read-only {rig.path} that holds the "
+                     "map a sweep measured)")
             rig = load_rig(copy)
     if args.esc_mode:
         rig = rig.with_esc_mode(args.esc_mode)

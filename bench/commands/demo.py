@@ -146,7 +146,7 @@ def handler(args: argparse.Namespace) -> int:
     from analysis.validation import validate_run
     from bench.plan_runner.runner import RunOptions
     from bench.plan_runner.session import run_sequence
-    from bench.plans.sequences import step1, step2, sweep
+    from bench.plans.stand_sequences import step1, step2, sweep
     from bench.plans.thrust_map import fit_sweep_run
     from bench.rig.rig import default_rig_path, load_rig
     from bench.store.catalogs import shipped_catalog

@@ -58,7 +58,7 @@ def handler(args: argparse.Namespace) -> int:
 
     output = JobOutput(out=print, err=_to_stderr)
     store = recording_store(args, warn=_to_stderr)  # before the rig: a lab store spools
-    rig = load_rig_from_args(args, tell=print)
+    rig = load_rig_from_args(args, prefer_out_copy=True, tell=print)
     seq = build(args)
     check_limits(rig, seq)  # before a sweep for a missing map could start
     options = run_options_from_args(args)  # a bad --tick: the dry run says so too

@@ -44,7 +44,7 @@ def handler(args: argparse.Namespace) -> int:
     from bench.jobs.run_progress import JobOutput
 
     store = recording_store(args, warn=_to_stderr)  # before the rig: a lab store spools
-    rig = load_rig_from_args(args, tell=print)
+    rig = load_rig_from_args(args, prefer_out_copy=True, tell=print)
     options = run_options_from_args(args)  # a bad --tick: the dry run says so too
     if args.dry_run:
         print(dry_run_text(rig, build(args)))

@@ -12,7 +12,7 @@ from bench.cli import main
 from bench.errors import RigError
 from bench.plan_runner.runner import RunOptions
 from bench.plan_runner.session import run_sequence
-from bench.plans.sequences import hover_band_n, step1, sweep
+from bench.plans.stand_sequences import hover_band_n, step1, sweep
 from bench.rig.rig import default_rig_path, load_rig
 from bench.store.constants_store import ConstantsStore
 from bench.store.measured_constants import load_measured

@@ -17,7 +17,7 @@ from analysis.exports import (
 from bench.cli import main
 from bench.plan_runner.runner import RunOptions
 from bench.plan_runner.session import run_sequence
-from bench.plans.sequences import hover_band_n, step1, sweep
+from bench.plans.stand_sequences import hover_band_n, step1, sweep
 from bench.rig.rig import default_rig_path, load_rig
 from drivers.factory import open_rig
 

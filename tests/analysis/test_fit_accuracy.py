@@ -25,7 +25,8 @@ from analysis.validation import validate_run
 from bench.cli import main
 from bench.plan_runner.runner import RunOptions
 from bench.plan_runner.session import run_sequence
-from bench.plans.sequences import G0, hover_band_n, step1, step2
+from bench.plans.sequences import G0
+from bench.plans.stand_sequences import hover_band_n, step1, step2
 from bench.rig.rig import default_rig_path, load_rig
 from drivers.factory import open_rig
 

@@ -23,7 +23,7 @@ from analysis.static_curves import (
 )
 from bench.plan_runner.runner import RunOptions
 from bench.plan_runner.session import run_sequence
-from bench.plans.sequences import sweep
+from bench.plans.stand_sequences import sweep
 from bench.rig.rig import default_rig_path, load_rig
 from drivers.factory import open_rig
 

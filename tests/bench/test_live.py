@@ -116,7 +116,8 @@ def test_live_view_draws_one_time_axis_and_blits_unchanged_axes():
 
 
 def _step_plan(repeats):
-    from bench.plans.sequences import EscRange, compile_plan, step1
+    from bench.plans.sequences import EscRange, compile_plan
+    from bench.plans.stand_sequences import step1
 
     esc = EscRange(1000.0, 1050.0, 2000.0)
     return esc, compile_plan(step1(repeats=repeats), esc,

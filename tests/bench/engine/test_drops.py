@@ -14,7 +14,7 @@ from bench.engine.recorder import RunRecorder
 from bench.engine.safety import effective_limits
 from bench.plan_runner.runner import Runner, RunOptions
 from bench.plan_runner.session import esc_range_of, plan_for
-from bench.plans.sequences import step1
+from bench.plans.stand_sequences import step1
 from bench.rig.rig import load_rig
 from drivers.contracts import Fault
 from drivers.factory import open_rig

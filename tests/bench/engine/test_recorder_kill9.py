@@ -22,7 +22,7 @@ import sys
 from pathlib import Path
 from bench.rig.rig import load_rig
 from bench.plan_runner.runner import RunOptions
-from bench.plans.sequences import step1
+from bench.plans.stand_sequences import step1
 from bench.plan_runner.session import run_sequence
 from drivers.factory import open_rig
 

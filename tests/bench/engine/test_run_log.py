@@ -16,7 +16,8 @@ from bench.engine import run_log
 from bench.engine.recorder import RunRecorder
 from bench.engine.watchdog import where
 from bench.plan_runner.runner import Runner, RunOptions
-from bench.plans.sequences import EscRange, compile_plan, step1
+from bench.plans.sequences import EscRange, compile_plan
+from bench.plans.stand_sequences import step1
 
 ESC = EscRange(idle_us=1000.0, min_us=1050.0, max_us=1900.0)
 CLI = [sys.executable, "-m", "bench.cli"]

@@ -14,7 +14,8 @@ from bench.engine.recorder import RunRecorder
 from bench.engine.safety import SafetySupervisor, effective_limits
 from bench.errors import RigError
 from bench.plan_runner.runner import Runner, RunOptions
-from bench.plans.sequences import EscRange, Sequence, compile_plan, step1
+from bench.plans.sequences import EscRange, Sequence, compile_plan
+from bench.plans.stand_sequences import step1
 from bench.rig.rig import Limits
 from drivers.contracts import Block
 from drivers.errors import DeviceError

@@ -9,7 +9,8 @@ import pytest
 
 from bench.engine.watchdog import GuardedEsc, HostWatchdog, WatchdogTrip
 from bench.plan_runner.runner import Runner, RunOptions
-from bench.plans.sequences import EscRange, compile_plan, step1
+from bench.plans.sequences import EscRange, compile_plan
+from bench.plans.stand_sequences import step1
 
 ESC = EscRange(1000.0, 1050.0, 2000.0)
 

@@ -16,7 +16,7 @@ from bench.engine.recorder import BASE_COLUMNS, RunRecorder
 from bench.engine.safety import effective_limits
 from bench.plan_runner.runner import Runner, RunOptions
 from bench.plan_runner.session import esc_range_of, plan_for, run_sequence
-from bench.plans.sequences import step1
+from bench.plans.stand_sequences import step1
 from bench.rig.rig import load_rig
 from bench.store.run_index import RunIndex
 from drivers.contracts import Fault

@@ -13,7 +13,8 @@ from bench.errors import RigError
 from bench.plan_runner.session import plan_for
 from bench.plans.calibration_sequences import Move, compile_plan, paper_a_sequences
 from bench.plans.plan_specs import plan_sequence
-from bench.plans.sequences import Checkpoint, Plan, Sequence, step1
+from bench.plans.sequences import Checkpoint, Plan, Sequence
+from bench.plans.stand_sequences import step1
 from bench.rig.rig import (
     RigConfig,
     default_imu_rig_path,

@@ -18,11 +18,8 @@ from bench.plans.sequences import (
     ThrustStep,
     compile_plan,
     format_plan,
-    hover_band_n,
-    step1,
-    step2,
-    sweep,
 )
+from bench.plans.stand_sequences import hover_band_n, step1, step2, sweep
 
 ESC = EscRange(idle_us=1000.0, min_us=1000.0, max_us=2000.0)
 
