@@ -21,7 +21,8 @@ from bench.errors import RigError
 from bench.paths.inputs import refuse_loop
 from optimizer.errors import RequestError
 
-__all__ = ["FIGURE_SUFFIXES", "check_figure_path", "check_folder_to_read", "check_writable"]
+__all__ = ["FIGURE_SUFFIXES", "check_figure_path", "check_folder_to_read", "check_writable",
+           "permits_writing"]
 
 
 def check_folder_to_read(path: Path, flag: str = "--out") -> Path:
@@ -108,3 +109,10 @@ def _probe(folder: Path) -> str | None:
     os.close(fd)
     os.unlink(name)
     return None
+
+
+def permits_writing(path: Path) -> bool:
+    """Whether ``path``'s permissions let this user write it (``os.access``): the quick
+    choice of where a new file goes (beside a rig, or in a copy), never a refusal, which
+    :func:`check_writable` makes by probing."""
+    return os.access(path, os.W_OK)

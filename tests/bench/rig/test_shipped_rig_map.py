@@ -89,8 +89,8 @@ def test_step_on_a_read_only_rig_without_map_sweeps_into_a_copy(sim_rig_path, tm
     Tests run as root, where chmod does not stop writes, so write access is faked.
     """
     rig_dir = sim_rig_path.parent
-    real = rig_module._writable
-    monkeypatch.setattr(rig_module, "_writable",
+    real = rig_module.permits_writing
+    monkeypatch.setattr(rig_module, "permits_writing",
                         lambda p: not Path(p).resolve().is_relative_to(rig_dir) and real(p))
     before = _hashes(rig_dir)
     out = tmp_path / "runs"
