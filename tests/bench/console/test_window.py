@@ -232,13 +232,13 @@ def window_process(tmp_path):
 def _spin(bench):
     bench.handle("arm", None)
     deadline = time.monotonic() + 30
-    while time.monotonic() < deadline and not (bench.engine and bench.engine.runner
-                                               and bench.engine.runner.in_manual):
+    while time.monotonic() < deadline and not (bench.run and bench.run.runner
+                                               and bench.run.runner.in_manual):
         time.sleep(0.02)
     bench.handle("throttle", 0.3)
-    while time.monotonic() < deadline and bench.engine.runner.esc.last_us != 1300.0:
+    while time.monotonic() < deadline and bench.run.runner.esc.last_us != 1300.0:
         time.sleep(0.02)
-    assert bench.engine.runner.esc.last_us == 1300.0 and bench.busy
+    assert bench.run.runner.esc.last_us == 1300.0 and bench.busy
 
 
 def _wait_end(bench, timeout_s=10.0):
@@ -256,7 +256,7 @@ def _signal_mid_run(window_process, sig, what):
     sent = time.monotonic()
     os.kill(proc.pid, sig)
     _wait_end(bench)
-    delay = bench.engine.runner.safe_at - sent
+    delay = bench.run.runner.safe_at - sent
     print(f"window {what} -> ESC idle and disarmed in {delay * 1e3:.0f} ms "
           f"(heartbeat bound {HEARTBEAT_BOUND_S:g} s)")
     assert opener.esc_safe()
@@ -333,7 +333,7 @@ def test_the_imu_tab_calibrates_an_imu_rig_stage_by_stage(qtbot, imu_console, tm
     assert '"format": "rotorbench-imu-calibration/1"' in win.imu.result.toPlainText()
     assert win.imu.table.rowCount() == 5  # one recorded run per stage, from the index
     bench.handle("arm", None)  # the bench refuses propulsion requests on an IMU rig
-    assert bench.engine.kind == "calibration"
+    assert bench.run.kind == "calibration"
 
 
 def test_aborting_a_calibration_stops_the_hexapod_and_records_the_stage(qtbot, imu_console):
