@@ -1,6 +1,6 @@
 """Read a run folder (``run.json``, samples, events) without importing ``bench``.
 
-The folder format is the one ``bench.run.recorder`` writes (DESIGN.md "Run records"):
+The folder format is the one ``bench.engine.recorder`` writes (DESIGN.md "Run records"):
 ``run.json`` with the metadata, the samples as one Parquet file or a folder of Parquet
 parts (hidden temporary names are skipped, so a crashed run stays readable) and an
 ``events.csv`` table. Analysis reads logs from any source through this one function, so

@@ -10,7 +10,7 @@ exceptions with an ``exit_code`` attribute; they are printed as one line and
 the process exits with that code, without a traceback. Anything else is a bug
 and keeps its traceback.
 
-The modules log to ``logging`` (``bench.run.run_log``: every run keeps its lines in
+The modules log to ``logging`` (``bench.engine.run_log``: every run keeps its lines in
 ``run.log``); on the terminal, stderr shows warnings, ``-v`` adds what the bench does
 and ``-vv`` the details; ``--log-level`` names the level. stdout keeps only the
 command's own output (tables, JSON).
@@ -84,7 +84,7 @@ def configure_logging(verbose: int = 0, level: str | None = None) -> logging.Han
     """stderr's share of the log: ``level``, else warnings and up, ``-v`` info, ``-vv``
     debug, of the project's loggers (other libraries': warnings, whatever the level).
     Returns the handler (a second call replaces the first's)."""
-    from bench.run.run_log import PACKAGES
+    from bench.engine.run_log import PACKAGES
 
     if level is None:
         level = ("warning", "info", "debug")[min(max(verbose, 0), 2)]
@@ -140,7 +140,7 @@ def _check_inputs(parser: argparse.ArgumentParser, argv: Sequence[str],
                   args: argparse.Namespace) -> None:
     """Refuse an input path that is a symlink loop, a device or a FIFO before any command
     reads it (``decode /dev/zero`` filled 18 GB; a looping --rig link was a traceback)."""
-    from bench.rig.input_paths import check_input
+    from bench.paths.inputs import check_input
 
     flags = _flags(parser, argv)
     for dest, value in vars(args).items():
@@ -167,18 +167,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help()
         return 2
     configure_logging(getattr(args, "verbose", 0) or 0, getattr(args, "log_level", None))
-    from bench.cli_support import option_defaults
+    from bench.cli_args.option_values import option_defaults
 
-    args._defaults = option_defaults(parser, args)  # for cli_support.refuse_unused
+    args._defaults = option_defaults(parser, args)  # for refuse_unused
     try:
         _check_inputs(parser, argv, args)
-        from bench.run.sigterm import sigterm_as_interrupt
+        from bench.engine.sigterm import sigterm_as_interrupt
 
         # `kill PID` ends every command like Ctrl-C (safe stop, clean-up), exit 143
         with _plain_numbers(), sigterm_as_interrupt():
             return int(args.func(args) or 0)
     except KeyboardInterrupt as exc:
-        if "SIGTERM" in exc.args:  # bench.run.sigterm.sigterm_as_interrupt
+        if "SIGTERM" in exc.args:  # bench.engine.sigterm.sigterm_as_interrupt
             print("rotorbench: terminated", file=sys.stderr)
             return 143  # 128 + SIGTERM, as a shell reports a process ended by `kill`
         print("rotorbench: interrupted", file=sys.stderr)

@@ -16,6 +16,7 @@ binding are the optional ``live`` extra, imported only in the window process.
 
 from __future__ import annotations
 
+import logging
 import multiprocessing as mp
 import os
 import signal
@@ -26,13 +27,14 @@ from typing import Any, TypeVar
 
 import numpy as np
 
+from bench.engine.run_loop import OperatorStop
 from bench.errors import RigError
-from bench.run.run_loop import OperatorStop
 
 __all__ = ["LIVE_CHANNELS", "LiveView", "RingBuffer", "WindowLost", "binding_fault",
            "run_with_live_view"]
 
 T = TypeVar("T")
+_log = logging.getLogger(__name__)
 
 # (column, plot title, unit)
 LIVE_CHANNELS = (
@@ -426,7 +428,8 @@ def run_with_live_view(work: Callable[[Callable[[Mapping[str, np.ndarray]], None
                        rate_hint_hz: float = 25_000.0,
                        window_s: float = 10.0, close_when_done: bool = False,
                        interval_ms: int = 50, ready_timeout_s: float = 60.0,
-                       stats: dict[str, Any] | None = None) -> T:
+                       stats: dict[str, Any] | None = None,
+                       tell: Callable[[str], None] | None = None) -> T:
     """Run ``work(on_rows)`` here while a live window in its own process shows its rows.
 
     The window opens (and its binding is checked) before ``work`` starts; a window that
@@ -434,7 +437,8 @@ def run_with_live_view(work: Callable[[Callable[[Mapping[str, np.ndarray]], None
     ends the run safely at the next tick (:class:`WindowLost`); Ctrl-C and SIGTERM act on
     the run as without ``--live``. After the run the window stays open with the final
     rows until the operator closes it (at once with ``close_when_done``). ``stats``, if
-    given, receives the window's ``frames`` and ``seconds`` and its ``exitcode``.
+    given, receives the window's ``frames`` and ``seconds`` and its ``exitcode``;
+    ``tell`` (the command's stderr; else the log) hears how to close the finished window.
     """
     check_display()
     problem = _qt_binding_missing()
@@ -454,7 +458,7 @@ def run_with_live_view(work: Callable[[Callable[[Mapping[str, np.ndarray]], None
         status = getattr(getattr(value, "result", value), "status", None)
         window.finished(str(status or "done"))
         if not close_when_done:
-            print(f"live view: run finished; {_how_to_exit()}", file=sys.stderr, flush=True)
+            (tell or _log.warning)(f"live view: run finished; {_how_to_exit()}")
         window.wait_closed()
     finally:
         window.close()

@@ -1,6 +1,6 @@
 """Benchmark: Paper C Step 1 (20 repeats) on the simulated rig at 25 kHz, wall time and
 real-time factor, with and without recording, for several command-loop ticks; also the
-runner without its batches of ticks (``bench.run.run_loop``: one read per tick, as on
+runner without its batches of ticks (``bench.engine.run_loop``: one read per tick, as on
 hardware) to show what the batches gain. ``step_command.py`` times the whole command.
 
 The rig is a temporary copy of the default sim rig; its static thrust map is taken from
@@ -22,11 +22,11 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from bench.plans.sequences import step1  # noqa: E402
+from bench.engine.safety import effective_limits  # noqa: E402
+from bench.plan_runner.runner import Runner, RunOptions  # noqa: E402
+from bench.plan_runner.session import esc_range_of, plan_for, run_sequence  # noqa: E402
+from bench.plans.stand_sequences import step1  # noqa: E402
 from bench.rig.rig import default_rig_path, load_rig, save_thrust_map  # noqa: E402
-from bench.run.safety import effective_limits  # noqa: E402
-from bench.runners.runner import Runner, RunOptions  # noqa: E402
-from bench.runners.session import esc_range_of, plan_for, run_sequence  # noqa: E402
 from drivers.factory import open_rig  # noqa: E402
 
 REPEATS = 3

@@ -23,8 +23,8 @@ from rich.table import Table
 from analysis.imu_calibration import TABLE_A2, calibrate
 from analysis.imu_log import load_calibration_log
 from bench.jobs.calibration_stages import collect_log, run_calibration
+from bench.plan_runner.runner import HexapodRunOptions
 from bench.rig.rig import default_imu_rig_path, load_imu_rig
-from bench.runners.runner import HexapodRunOptions
 
 
 def _rel(a, b) -> float:

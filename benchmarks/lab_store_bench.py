@@ -141,7 +141,7 @@ def breakdown(run: Path, url: str, server_pid: int) -> None:
     """Where the lab store's time goes, piece by piece, for one recorded run."""
     import pyarrow.parquet as pq
 
-    from bench.run.recorder import part_encoding
+    from bench.engine.recorder import part_encoding
     from bench.store.lab_catalog import LabCatalog, run_from_meta
     from bench.store.run_data import DataLocation
 

@@ -27,7 +27,7 @@ import pyarrow.parquet as pq
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from bench.run.recorder import BASE_COLUMNS, SAMPLES_DIR, RunRecorder  # noqa: E402
+from bench.engine.recorder import BASE_COLUMNS, SAMPLES_DIR, RunRecorder  # noqa: E402
 
 BENCH_RATE_HZ = 25_000.0
 

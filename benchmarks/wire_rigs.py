@@ -2,7 +2,7 @@
 
 1. ``rotorbench step`` (Step 1, ``--repeats`` up/down steps) on sim.toml, sim-serial.toml and
    sim-can.toml, then ``rotorbench fit --json``: latency, tau up/down and gain per rig.
-2. A hold at 1500 us through ``bench.runners.session.run_sequence`` with a device failing after
+2. A hold at 1500 us through ``bench.plan_runner.session.run_sequence`` with a device failing after
    1.2 s (board unplugged, board silent, VESC gone, flight controller silent): the time
    from the backend's first DeviceError (detection) to the plant's ESC at idle, and
    whether the rows up to the fault reached the run folder.
@@ -27,10 +27,10 @@ from rich.table import Table
 
 from analysis.run_record import read_run
 from bench.cli import main
+from bench.plan_runner.runner import RunOptions
+from bench.plan_runner.session import run_sequence
 from bench.plans.sequences import Arm, Disarm, Sequence, Tare, ThrottleStep
 from bench.rig.rig import default_rig_path, load_rig
-from bench.runners.runner import RunOptions
-from bench.runners.session import run_sequence
 from drivers.errors import DeviceError
 from drivers.factory import open_rig
 

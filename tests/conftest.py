@@ -31,6 +31,19 @@ CATALOGS = REPO / "optimizer" / "data" / "catalogs"
 SIZINGLAB = REPO / "optimizer" / "data" / "sizinglab"
 
 
+def run_bad(capsys: pytest.CaptureFixture[str], *argv: str) -> str:
+    """Run the CLI in-process; assert the user-error contract (exit code 2, one line on
+    stderr, no traceback); return the stderr line."""
+    from bench.cli import main
+
+    code = main(list(argv))
+    raw = capsys.readouterr().err
+    assert code == 2, raw
+    assert raw.count("\n") == 1 and raw.endswith("\n"), repr(raw)  # one line, no blank
+    assert raw.startswith("rotorbench: error: "), repr(raw)
+    return raw.strip()
+
+
 @pytest.fixture
 def fixtures_dir() -> Path:
     return FIXTURES

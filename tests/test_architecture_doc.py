@@ -11,7 +11,8 @@ REPO = Path(__file__).resolve().parents[1]
 DOC = REPO / "docs" / "architecture.md"
 #: rooms whose modules the table lists one by one (console/ and commands/ are described
 #: as a whole: a window's parts, one module per subcommand)
-LISTED = ("run", "rig", "plans", "store", "runners", "figures", "jobs", "qt", "serve")
+LISTED = ("engine", "rig", "plans", "store", "plan_runner", "figures", "jobs", "qt", "serve",
+          "paths", "cli_args")
 
 
 def _rooms_table() -> dict[str, str]:

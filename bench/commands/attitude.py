@@ -42,7 +42,7 @@ from analysis.errors import LogError
 from analysis.imu_calibration import load_calibration
 from analysis.imu_log import write_table
 from analysis.imu_recording import ImuRecording, load_recording
-from bench.cli_support import check_writable
+from bench.paths.outputs import check_writable
 
 _PAPER_B_FILTERS = ("paper-b", "paper-b-printed")
 _PAPER_B_OPTIONS = ("gain", "acc_lowpass", "bias_seconds")

@@ -30,22 +30,17 @@ from analysis.imu_calibration import (
     save_calibration,
 )
 from analysis.imu_log import load_calibration_log, load_imu_log, write_table
-from bench.cli_support import (
-    add_store_args,
-    check_writable,
-    publish_runs,
-    recording_store,
-    refuse_unused,
-    seed_arg,
-)
+from bench.cli_args.option_values import refuse_unused, seed_arg
+from bench.cli_args.store_args import add_store_args, publish_runs, recording_store
+from bench.engine.recorder import new_run_id
 from bench.errors import RigError
-from bench.figures.calibration_report import mat, print_calibration, print_stages, print_truth, vec
+from bench.figures.calibration_report import mat, show_calibration, show_stages, show_truth, vec
 from bench.jobs.calibration_stages import calibrate_frame, collect_log, plans_for
-from bench.jobs.run_progress import run_calibration_with_progress
+from bench.jobs.run_progress import JobOutput, run_calibration_with_progress
+from bench.paths.outputs import check_writable
+from bench.plan_runner.runner import HexapodRunOptions
 from bench.plans.calibration_sequences import format_plan, paper_a_sequences
 from bench.rig.rig import default_imu_rig_path, is_imu_rig, load_imu_rig
-from bench.run.recorder import new_run_id
-from bench.runners.runner import HexapodRunOptions
 
 
 class _OptionalAction(argparse.HelpFormatter):
@@ -142,7 +137,7 @@ def handler(args: argparse.Namespace) -> int:
     mounting = tuple(args.mounting_deg) if args.mounting_deg else None
     cal = calibrate_frame(df, mounting, math.radians(args.gyro_range_dps),
                           args.acc_range_g * 9.80665, args.max_lag)
-    print_calibration(cal, Console())
+    show_calibration(cal, Console().print)
     finish(cal, df, args, args.out, str(args.from_log))
     return 0
 
@@ -244,7 +239,7 @@ def _check_toml(path) -> None:
 
 
 def run_on_rig(args: argparse.Namespace) -> int:
-    store = recording_store(args, out_attr="runs")  # a lab store records into the spool
+    store = recording_store(args, out_attr="runs", warn=_to_stderr)  # a lab store spools
     rig = _load(args)
     options = HexapodRunOptions(tick_s=args.tick, realtime=bool(args.realtime),
                                 trajectory_rate_hz=rig.hexapod.trajectory_rate_hz)
@@ -268,15 +263,16 @@ def run_on_rig(args: argparse.Namespace) -> int:
                        f"({exc.strerror or exc})") from None
     run = run_calibration_with_progress(
         rig, plans, args.runs, quick=args.quick, options=options,
-        extra_meta={"calibration_session": session, "quick": bool(args.quick)})
+        extra_meta={"calibration_session": session, "quick": bool(args.quick)},
+        output=JobOutput(out=print, err=_to_stderr))
     console = Console()
-    print_stages(run, console)
+    show_stages(run, console.print)
     if not run.complete:
         failed = run.stages[-1].result if run.stages else None
         print(f"calibration stopped at stage {len(run.stages)}/{run.planned}: "
               f"{failed.status + ': ' + failed.reason if failed else 'no stage ran'}; "
               "no calibration written", file=sys.stderr)
-        publish_runs(store)
+        publish_runs(store, tell=print)
         return 1
     log_path = collect_log([s.run_dir for s in run.stages], args.runs / f"{session}.parquet")
     print(f"wrote {log_path}", file=sys.stderr)
@@ -284,9 +280,13 @@ def run_on_rig(args: argparse.Namespace) -> int:
     cal = calibrate_frame(df, rig.imu.measured_mounting_deg, rig.imu.value("gyro_range_rad_s"),
                           rig.imu.value("acc_range_m_s2"), max_lag_s=0.5)
     cal.source = str(log_path)
-    print_calibration(cal, console)
+    show_calibration(cal, console.print)
     if run.truth is not None:
-        print_truth(cal, run.truth, console)
+        show_truth(cal, run.truth, console.print)
     finish(cal, df, args, out, str(log_path))
-    publish_runs(store)
+    publish_runs(store, tell=print)
     return 0
+
+
+def _to_stderr(line: str) -> None:
+    print(line, file=sys.stderr, flush=True)

@@ -7,8 +7,8 @@ import json
 import math
 from pathlib import Path
 
-from bench.cli_support import check_writable
 from bench.errors import RigError
+from bench.paths.outputs import check_writable
 
 #: the longest wait for one device a user may ask (time arithmetic overflows on 1e308)
 MAX_TIMEOUT_S = 3600.0
@@ -46,9 +46,9 @@ def _fmt(v: object) -> str:
 
 def deep(args: argparse.Namespace, path: Path) -> int:
     """``--deep``: the bring-up report (bench/rig/bringup.py), printed and saved."""
+    from bench.engine.recorder import atomic_write_json
     from bench.rig.bringup import bringup_report
     from bench.rig.rig import load_any_rig
-    from bench.run.recorder import atomic_write_json
 
     seconds = 2.0 if args.seconds is None else args.seconds
     if not (math.isfinite(seconds) and 0 < seconds <= 600):

@@ -10,8 +10,11 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from bench import cli_support as cli
+from bench.cli_args.option_values import seed_arg
+from bench.cli_args.run_args import load_rig_from_args, parse_limits
+from bench.cli_args.store_args import DEFAULT_OUT, add_store_args, publish_runs, recording_store
 from bench.errors import RigError
+from bench.paths.outputs import check_figure_path, check_writable
 
 SELFTEST_MIN_FPS = 30.0
 SELFTEST_MIN_SIZE = (800, 500)
@@ -27,11 +30,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "tab runs the Paper A calibration.")
     p.add_argument("--rig", type=Path, default=None,
                    help="rig file (TOML); default: the simulated rig bench/data/rigs/sim.toml")
-    p.add_argument("--out", type=Path, default=cli.DEFAULT_OUT,
+    p.add_argument("--out", type=Path, default=DEFAULT_OUT,
                    help="output root for run folders and runs.sqlite (default: ./runs); with "
                         "a lab --store, the data location")
-    cli.add_store_args(p, records=True)
-    p.add_argument("--seed", type=cli.seed_arg, default=None, help="seed of the simulated rig")
+    add_store_args(p, records=True)
+    p.add_argument("--seed", type=seed_arg, default=None, help="seed of the simulated rig")
     p.add_argument("--limit", action="append", default=[], metavar="NAME=VALUE",
                    help="start with a tighter limit (loosening is refused)")
     p.add_argument("--rate", type=float, default=None,
@@ -67,28 +70,29 @@ def handler(args: argparse.Namespace) -> int:
     from bench.console.manual import DEFAULT_RATE_US_S
     from bench.console.server import ConsoleBench
     from bench.live import _qt_binding_missing, check_display
+    from bench.plan_runner.runner import RunOptions
     from bench.rig.rig import is_imu_rig, load_imu_rig
-    from bench.runners.runner import RunOptions
 
-    store = cli.recording_store(args)  # a lab store records into the spool, published at exit
+    store = recording_store(args, warn=lambda line: print(line, file=sys.stderr))
+    # a lab store records into the spool, published at exit
     imu = args.rig is not None and is_imu_rig(args.rig)
-    rig = load_imu_rig(args.rig) if imu else cli.load_rig_from_args(args)
+    rig = load_imu_rig(args.rig) if imu else load_rig_from_args(args)
     if imu and (args.limit or args.selftest):
         raise RigError(f"{args.rig}: an IMU-bench rig; --limit and --selftest are for "
                        "propulsion rigs (the hexapod's limits are in its rig file)")
-    limits = {} if imu else _tightened(rig, cli.parse_limits(args.limit))
+    limits = {} if imu else _tightened(rig, parse_limits(args.limit))
     if args.rate is not None and not (args.rate > 0 and args.rate < 1e5):
         raise RigError(f"--rate {args.rate:g}: expected a rate limit in us/s > 0")
     if not 0 < args.window <= 60:  # written so that nan fails too
         raise RigError(f"--window {args.window:g}: expected 0 < seconds <= 60")
     _check_selftest_args(args)
     options = RunOptions(tick_s=args.tick, realtime=True)
-    cli.check_writable(args.out, "--out", folder=True)
+    check_writable(args.out, "--out", folder=True)
     if args.selftest:
         os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
         if args.screenshot is None:
             args.screenshot = args.out / "console-selftest.png"
-        cli.check_figure_path(args.screenshot, "--screenshot", suffixes=(".png",))
+        check_figure_path(args.screenshot, "--screenshot", suffixes=(".png",))
     check_display("console", "")
     problem = _qt_binding_missing()
     if problem is not None:
@@ -113,7 +117,7 @@ def handler(args: argparse.Namespace) -> int:
         if proc.is_alive():
             proc.terminate()
             proc.join(3)
-    cli.publish_runs(store)
+    publish_runs(store, tell=print)
     if bench.fatal:
         raise RigError(bench.fatal)
     for info in bench.finished:
@@ -126,7 +130,7 @@ def handler(args: argparse.Namespace) -> int:
 
 
 def _tightened(rig: Any, extra: dict[str, float]) -> dict[str, float]:
-    from bench.run.safety import effective_limits
+    from bench.engine.safety import effective_limits
 
     return effective_limits(rig.limits, extra, source="--limit")
 

@@ -16,14 +16,13 @@ from pathlib import Path
 from rich.console import Console
 from rich.table import Table
 
-from bench.cli_support import (
+from bench.cli_args.store_args import (
     DEFAULT_RUNS_ROOT,
     add_store_args,
-    check_folder_to_read,
-    check_writable,
     run_folder_arg,
     store_from_args,
 )
+from bench.paths.outputs import check_folder_to_read, check_writable
 from bench.store.constants_fit import STD_KEYS, fit_for_store
 from bench.store.lab_catalog import StoredConstants
 

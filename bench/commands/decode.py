@@ -43,7 +43,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def handler(args: argparse.Namespace) -> int:
-    from bench.cli_support import refuse_unused
+    from bench.cli_args.option_values import refuse_unused
 
     if args.protocol != "gcs":  # the other protocols tell host and device frames apart
         refuse_unused(args, ("--side",), f"for --protocol {args.protocol} (only gcs has sides)")

@@ -31,9 +31,11 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from analysis.atomic_files import temp_beside
-from bench.cli_support import add_hover_args, check_writable, hover_margin_from_args, seed_arg
+from bench.cli_args.option_values import seed_arg
+from bench.cli_args.sizing_args import add_hover_args, hover_margin_from_args
 from bench.errors import RigError
-from bench.figures.owned_folder import refuse_foreign, write_manifest
+from bench.paths.outputs import check_writable
+from bench.paths.owned_folder import refuse_foreign, write_manifest
 from optimizer.cases.paper_e_cases import PAPER_E_CASES
 
 G0 = 9.80665
@@ -41,7 +43,7 @@ ACTUATORS = (4, 6, 8)
 #: Written into every demo output; only a folder holding it may be replaced.
 MARKER = ".rotorbench-demo"
 MARKER_TEXT = "rotorbench demo output; `rotorbench demo --out` may replace this folder\n"
-#: What a demo folder held before its manifest (:mod:`bench.figures.owned_folder`).
+#: What a demo folder held before its manifest (:mod:`bench.paths.owned_folder`).
 DEMO_NAMES = (MARKER, "demo.json", "runs", "figures", "tables")
 #: Metric keys whose source the designs table reports.
 SOURCE_KEYS = ("time_constant_ms", "current_a", "power_w", "flight_time_min")
@@ -146,11 +148,11 @@ def handler(args: argparse.Namespace) -> int:
     from analysis.static_curves import fit_static_run
     from analysis.step_response import fit_run
     from analysis.validation import validate_run
-    from bench.plans.sequences import step1, step2, sweep
+    from bench.plan_runner.runner import RunOptions
+    from bench.plan_runner.session import run_sequence
+    from bench.plans.stand_sequences import step1, step2, sweep
     from bench.plans.thrust_map import fit_sweep_run
     from bench.rig.rig import default_rig_path, load_rig
-    from bench.runners.runner import RunOptions
-    from bench.runners.session import run_sequence
     from bench.store.catalogs import shipped_catalog
     from bench.store.constants_fit import fit_for_store
     from bench.store.constants_store import ConstantsStore
@@ -312,12 +314,12 @@ def _tables_and_figures(console, catalog, fits, statics, step2_runs, measured, c
                                  title=f"Step 2, {m}: RMS error first order "
                                        f"{v.rms_first_order_pct:.1f} % of the band")
     # Tables E.8-E.10: the optimizer's designs, datasheet model and measured constants
-    from bench.figures.design_tables import print_table
+    from bench.figures.design_tables import show_table
 
     sel_rows, e11, e13, e14 = [], [], [], []
     for case, title, pair in cases:
-        print_table(pair["model"], title=f"{title}: datasheet model", console=console)
-        print_table(pair["measured"], console=console,
+        show_table(pair["model"], console.print, title=f"{title}: datasheet model")
+        show_table(pair["measured"], console.print,
                     title=f"{title}: measured constants ({measured.esc_mode} ESC) where stored")
         for label in ("model", "measured"):
             for d in pair[label].designs:

@@ -18,16 +18,16 @@ import time
 from pathlib import Path
 from typing import Any
 
-from bench.cli_support import (
+from bench.cli_args.sizing_args import (
     add_catalog_args,
     add_hover_args,
     add_measured_args,
-    check_figure_path,
     hover_margin_from_args,
     json_default,
     measured_from_args,
 )
 from bench.figures.design_tables import MEASURED_MARK, ROWS, format_cell
+from bench.paths.outputs import check_figure_path
 from bench.store.catalogs import load, with_current_model
 from bench.store.measured_constants import is_measured
 from optimizer.errors import RequestError

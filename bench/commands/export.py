@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from analysis.errors import LogError
-from bench.cli_support import add_store_args, run_folder_arg
+from bench.cli_args.store_args import add_store_args, run_folder_arg
 from bench.errors import RigError
 
 G0 = 9.80665
@@ -72,7 +72,7 @@ def build(args: argparse.Namespace) -> dict[str, Any]:
     which the web view's downloads use too), after the options are checked."""
     from analysis.exports import export_params
     from analysis.run_record import read_run
-    from bench.cli_support import refuse_unused
+    from bench.cli_args.option_values import refuse_unused
 
     if args.target != "ardupilot":  # MOT_THST_HOVER is ArduPilot's; PX4, Gazebo have none
         refuse_unused(args, ("--hover-thrust", "--auw-kg", "--motors"),

@@ -11,7 +11,7 @@ from typing import Any
 
 from rich.console import Console
 
-from bench.cli_support import add_store_args, run_folder_arg
+from bench.cli_args.store_args import add_store_args, run_folder_arg
 from bench.errors import RigError
 
 

@@ -32,23 +32,22 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from bench.cli_support import (
+from bench.cli_args.option_values import refuse_unused
+from bench.cli_args.sizing_args import (
     RULE_FLAGS,
     add_catalog_args,
     add_hover_args,
     add_measured_args,
     add_pack_args,
     add_rule_args,
-    add_store_args,
-    check_writable,
     hover_margin_from_args,
     json_default,
     measured_from_args,
     packs_from_args,
-    refuse_unused,
     rules_from_args,
-    run_folder_arg,
 )
+from bench.cli_args.store_args import add_store_args, run_folder_arg
+from bench.paths.outputs import check_writable
 from bench.store.catalogs import load
 from optimizer.errors import RequestError
 

@@ -4,7 +4,7 @@ The format is read from the header unless ``--format`` forces it (``--map`` impl
 the output line says which was taken and how.
 
 Parsing lives in ``analysis.importers``; this is the glue that writes the run folder with
-``bench.run.recorder.RunRecorder`` into a temporary folder beside ``DIR`` and renames it into
+``bench.engine.recorder.RunRecorder`` into a temporary folder beside ``DIR`` and renames it into
 place, so an interrupted import leaves nothing half-written under the final name.
 """
 
@@ -56,7 +56,7 @@ def parse_mapping(items: list[str]) -> dict[str, str]:
 def write_run(out: Path, samples, meta: dict) -> Path:
     """Write ``samples`` (a DataFrame with run columns) and ``meta`` as a run folder; the
     run's reason names the log (``meta["import"]["source_file"]``)."""
-    from bench.run.recorder import BASE_COLUMNS, RunRecorder
+    from bench.engine.recorder import BASE_COLUMNS, RunRecorder
 
     out = Path(out)
     if out.exists():
@@ -94,8 +94,8 @@ def write_run(out: Path, samples, meta: dict) -> Path:
 
 def handler(args: argparse.Namespace) -> int:
     from analysis.importers import JITTER_MAX_PERIODS, detect_format, import_log
-    from bench.cli_support import check_writable
-    from bench.run.run_ids import check_run_id
+    from bench.engine.run_ids import check_run_id
+    from bench.paths.outputs import check_writable
 
     if args.out.exists():
         raise RigError(f"--out {args.out}: already exists (choose a new run folder)")

@@ -28,7 +28,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def handler(args: argparse.Namespace) -> int:
-    from bench.cli_support import check_writable
+    from bench.paths.outputs import check_writable
     from optimizer.catalogs.catalog import load_catalog
     from optimizer.catalogs.sizinglab import import_to_folder
 

@@ -19,7 +19,8 @@ import json
 from pathlib import Path
 from typing import Any
 
-from bench.cli_support import (
+from bench.cli_args.option_values import refuse_unused
+from bench.cli_args.sizing_args import (
     EXIT_NO_FEASIBLE,
     RULE_FLAGS,
     HoverMargin,
@@ -32,10 +33,9 @@ from bench.cli_support import (
     json_default,
     measured_from_args,
     packs_from_args,
-    refuse_unused,
     rules_from_args,
 )
-from bench.figures.design_tables import print_table
+from bench.figures.design_tables import show_table
 from bench.store.catalogs import load
 from optimizer.cases.paper_e_cases import PAPER_E_CASES
 from optimizer.errors import RequestError
@@ -151,7 +151,7 @@ def run_paper_e_cases(args: argparse.Namespace, catalog: Any, margin: HoverMargi
         print(json.dumps(doc, indent=2, default=json_default))
     else:
         for _, title, res, warnings in results:
-            print_table(res, title=title)
+            show_table(res, Console(soft_wrap=False).print, title=title)
             for line in warnings:
                 print(f"warning: {line}")
         print(margin.describe(catalog))
@@ -236,7 +236,9 @@ def handler(args: argparse.Namespace) -> int:
             doc["propeller_data"] = prop_data["report"]
         print(json.dumps(doc, indent=2, default=json_default))
     else:
-        print_table(result)
+        from rich.console import Console
+
+        show_table(result, Console(soft_wrap=False).print)
         for d in result.designs:
             info = d.extra.get("flight")
             if info and d.feasible:

@@ -21,19 +21,18 @@ from typing import Any
 
 import numpy as np
 
-from bench.cli_support import (
+from bench.cli_args.option_values import given_options, refuse_unused
+from bench.cli_args.sizing_args import (
     EXIT_NO_FEASIBLE,
     RULE_FLAGS,
     add_catalog_args,
     add_hover_args,
     add_rule_args,
-    check_figure_path,
-    given_options,
     hover_margin_from_args,
     json_default,
-    refuse_unused,
     rules_from_args,
 )
+from bench.paths.outputs import check_figure_path
 from bench.store.catalogs import load
 from optimizer.errors import RequestError
 

@@ -25,12 +25,13 @@ from typing import Any
 
 from rich.console import Console
 
-from bench.cli_support import add_store_args, check_writable, run_folder_arg
+from bench.cli_args.store_args import add_store_args, run_folder_arg
 from bench.errors import RigError
-from bench.figures.owned_folder import refuse_foreign, write_manifest
+from bench.paths.outputs import check_writable
+from bench.paths.owned_folder import refuse_foreign, write_manifest
 
 G0 = 9.80665
-#: What a report folder held before its manifest (:mod:`bench.figures.owned_folder`).
+#: What a report folder held before its manifest (:mod:`bench.paths.owned_folder`).
 REPORT_NAMES = ("report.json", "table_c1.csv", "static_curves.csv", "validation.csv",
                 "steps.png", "static_*.png", "validation_*.png")
 

@@ -12,8 +12,9 @@ from pathlib import Path
 from rich.console import Console
 from rich.table import Table
 
-from bench.cli_support import add_store_args, check_folder_to_read, check_writable, store_from_args
+from bench.cli_args.store_args import add_store_args, store_from_args
 from bench.errors import RigError
+from bench.paths.outputs import check_folder_to_read, check_writable
 from bench.store.run_index import INDEX_NAME, RunIndex
 
 

@@ -19,8 +19,8 @@ import argparse
 import os
 from pathlib import Path
 
-from bench.cli_support import check_folder_to_read
 from bench.errors import RigError
+from bench.paths.outputs import check_folder_to_read
 from bench.store.store_url import STORE_ENV, parse_store, redact
 
 

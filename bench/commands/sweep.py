@@ -3,8 +3,16 @@
 from __future__ import annotations
 
 import argparse
+import sys
 
-from bench import cli_support as cli
+from bench.cli_args.run_args import (
+    add_common_arguments,
+    dry_run_text,
+    load_rig_from_args,
+    parse_limits,
+    run_options_from_args,
+)
+from bench.cli_args.store_args import publish_runs, recording_store
 from bench.plans.plan_specs import sweep_sequence
 from bench.plans.sequences import Sequence
 
@@ -18,7 +26,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "(or read-only) rig is never rewritten: the rig is copied to "
                     "OUT/rigs/ with the map beside it, and step/sweep with the same --out "
                     "use that copy.")
-    cli.add_common_arguments(p)
+    add_common_arguments(p)
     p.add_argument("--start-us", type=float, default=1100.0)
     p.add_argument("--end-us", type=float, default=1900.0)
     p.add_argument("--duration", type=float, default=20.0, help="ramp time in seconds (20)")
@@ -28,22 +36,27 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def build(args: argparse.Namespace) -> Sequence:
     return sweep_sequence(args.start_us, args.end_us, args.duration,
-                          cli.parse_limits(args.limit))
+                          parse_limits(args.limit))
 
 
 def handler(args: argparse.Namespace) -> int:
     from bench.jobs.map_sweep import measure_map
+    from bench.jobs.run_progress import JobOutput
 
-    store = cli.recording_store(args)  # before the rig: a lab store records into the spool
-    rig = cli.load_rig_from_args(args, prefer_out_copy=True)
-    options = cli.run_options_from_args(args)  # a bad --tick: the dry run says so too
+    store = recording_store(args, warn=_to_stderr)  # before the rig: a lab store spools
+    rig = load_rig_from_args(args, prefer_out_copy=True, tell=print)
+    options = run_options_from_args(args)  # a bad --tick: the dry run says so too
     if args.dry_run:
-        cli.print_dry_run(rig, build(args))
+        print(dry_run_text(rig, build(args)))
         return 0
     _, code = measure_map(rig, args.out, start_us=args.start_us, end_us=args.end_us,
-                          duration_s=args.duration, limits=cli.parse_limits(args.limit),
+                          duration_s=args.duration, limits=parse_limits(args.limit),
                           save=not args.no_save_map, seed=args.seed,
                           options=options, live=args.live,
-                          confirmed=args.yes)
-    cli.publish_runs(store)
+                          confirmed=args.yes, output=JobOutput(out=print, err=_to_stderr))
+    publish_runs(store, tell=print)
     return code
+
+
+def _to_stderr(line: str) -> None:
+    print(line, file=sys.stderr, flush=True)

@@ -9,8 +9,8 @@ from typing import Any
 from pyqtgraph.Qt import QtCore, QtGui, QtWidgets
 
 from bench.console.plots import LivePlots
+from bench.engine.safety import LIMIT_FIELDS
 from bench.live import RingBuffer
-from bench.run.safety import LIMIT_FIELDS
 
 __all__ = ["ControlTab", "LimitsPanel", "ThrottleSlider"]
 

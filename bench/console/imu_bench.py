@@ -63,15 +63,15 @@ class ImuCalibration:
 
     def run(self) -> dict[str, Any]:
         from analysis.imu_log import load_calibration_log
+        from bench.engine.recorder import new_run_id
         from bench.jobs.calibration_stages import (
             calibrate_frame,
             collect_log,
             plans_for,
             run_calibration,
         )
+        from bench.plan_runner.runner import HexapodRunOptions
         from bench.plans.calibration_sequences import paper_a_sequences
-        from bench.run.recorder import new_run_id
-        from bench.runners.runner import HexapodRunOptions
 
         rig = self.rig
         seqs = paper_a_sequences(rig.imu.value("rate_hz"), quick=self.quick)

@@ -1,12 +1,12 @@
 """Manual control as a run mode: a plan step whose command comes from the console.
 
 A manual session is an ordinary sequence (arm, tare, a long hold, disarm) run by
-:class:`ConsoleRunner`, a :class:`bench.runners.runner.Runner` that, during the hold marked manual,
-commands each tick the operator's throttle target moved towards by at most the rate limit.
+:class:`ConsoleRunner`, a :class:`bench.plan_runner.runner.Runner` that, during the hold marked
+manual, commands each tick the operator's throttle target moved towards by at most the rate limit.
 Everything else is the Runner's: the ESC range clamp and the watchdog (GuardedEsc), limits
 checked on every sample, the safe stop in a ``finally``, the record. The runner also asks
 ``guard`` every tick whether the console still lives, and its limits can be tightened
-during the run (never loosened: :func:`bench.run.safety.effective_limits`).
+during the run (never loosened: :func:`bench.engine.safety.effective_limits`).
 """
 
 from __future__ import annotations
@@ -20,10 +20,10 @@ from typing import Any
 
 import numpy as np
 
+from bench.engine.run_loop import EPS, OperatorStop
+from bench.engine.safety import SafetySupervisor, Trip, effective_limits
+from bench.plan_runner.runner import Runner
 from bench.plans.sequences import Arm, Checkpoint, Disarm, EscRange, Hold, Segment, Sequence, Tare
-from bench.run.run_loop import EPS, OperatorStop
-from bench.run.safety import SafetySupervisor, Trip, effective_limits
-from bench.runners.runner import Runner
 from drivers.errors import DeviceError
 
 __all__ = [

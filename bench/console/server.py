@@ -3,7 +3,7 @@
 :class:`ConsoleBench` runs in the ``rotorbench console`` process. Its :meth:`serve` loop
 (main thread) reads the window's requests, sends state ten times a second and watches the
 window; each run (manual session, plan, tare) goes through
-:func:`bench.runners.session.run_sequence` on a worker thread with a
+:func:`bench.plan_runner.session.run_sequence` on a worker thread with a
 :class:`bench.console.manual.ConsoleRunner`, so it is recorded and indexed like any CLI run and ends
 safe whatever happens. The window can only ask; limits can only be tightened; a lost window (closed,
 crashed, frozen) stops the run at its next tick (ESC idle and disarmed) and ends :meth:`serve`.
@@ -22,12 +22,12 @@ from typing import Any
 
 from bench.console.link import BenchLink
 from bench.console.manual import DEFAULT_RATE_US_S, ConsoleRunner, Setpoint, manual_sequence
+from bench.engine.safety import LIMIT_FIELDS, effective_limits, limits_dict
 from bench.errors import RigError
+from bench.plan_runner.runner import RunOptions
+from bench.plan_runner.session import esc_range_of, plan_for, run_sequence
 from bench.plans.plan_specs import plan_sequence
 from bench.plans.sequences import Segment, Sequence, Tare
-from bench.run.safety import LIMIT_FIELDS, effective_limits, limits_dict
-from bench.runners.runner import RunOptions
-from bench.runners.session import esc_range_of, plan_for, run_sequence
 
 __all__ = ["ActiveRun", "ConsoleBench"]
 

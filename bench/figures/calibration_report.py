@@ -2,21 +2,22 @@
 
 ``rotorbench calibrate`` prints these for a log (``--from-log``) and for a calibration on
 the rig (the stages run, and on a simulated rig the estimates against the simulator's
-hidden truth); the printing lives here so the command stays a thin argument parser.
+hidden truth); the tables are built here, each handed to ``show`` (the command's
+``Console.print``), so the command stays a thin argument parser.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
-from rich.console import Console
 from rich.table import Table
 
 from analysis.imu_calibration import Calibration
 
-__all__ = ["mat", "print_calibration", "print_stages", "print_truth", "vec"]
+__all__ = ["mat", "show_calibration", "show_stages", "show_truth", "vec"]
 
 _XYZ = ("x", "y", "z")
 
@@ -29,7 +30,7 @@ def mat(k) -> str:
     return "\n".join(vec(row, "{:+.4f}") for row in np.asarray(k))
 
 
-def print_calibration(cal: Calibration, console: Console) -> None:
+def show_calibration(cal: Calibration, show: Callable[..., None]) -> None:
     s = Table(title="IMU calibration (Paper A)")
     s.add_column("quantity")
     s.add_column("value")
@@ -43,7 +44,7 @@ def print_calibration(cal: Calibration, console: Console) -> None:
     s.add_row(f"K_a (A.14), cond {cal.conditioning.get('acc', float('nan')):.2f}",
               mat(cal.k_acc))
     s.add_row("lever arm R, m", vec(cal.lever_arm_m, "{:+.4f}"))
-    console.print(s)
+    show(s)
 
     d = Table(title="K split into rotation, scale, non-orthogonality (A.15-A.16)",
               caption=cal.decomposition.get("convention", ""))
@@ -57,7 +58,7 @@ def print_calibration(cal: Calibration, console: Console) -> None:
         vs = p.get("rotation_vs_measured_deg")
         d.add_row(name, vec(p["euler_deg"], "{:.3f}"), vec(p["scale"], "{:.4f}"),
                   vec(p["nonorthogonality_deg"], "{:+.3f}"), "-" if vs is None else f"{vs:.3f}")
-    console.print(d)
+    show(d)
 
     est = cal.lever_arm_estimates
     la = Table(title="Lever arm estimates from α (A.11), m (Table A.1 layout)")
@@ -71,11 +72,11 @@ def print_calibration(cal: Calibration, console: Console) -> None:
     for ax in _XYZ:
         row = est.get("omega2_m", {}).get(ax, {})
         la.add_row(f"ω_{ax} (ω² term)", *(f"{row[c]:+.3f}" if c in row else "-" for c in _XYZ))
-    console.print(la)
+    show(la)
 
     v = cal.verification_rms
     if v is None:
-        console.print("no 'verify' phase in the log: verification RMS not computed")
+        show("no 'verify' phase in the log: verification RMS not computed")
     else:
         t = Table(title=f"Verification RMS (A.19) on the independent motion, "
                         f"{v['samples']} samples (Table A.2)")
@@ -89,12 +90,12 @@ def print_calibration(cal: Calibration, console: Console) -> None:
                 t.add_row(f"{short}_{ax} ({unit})", f"{v[kind]['raw'][i]:.4f}",
                           f"{v[kind]['corrected'][i]:.4f}", f"{pct[i]:.3f} %",
                           f"{v[pk][i]:.2f} %", f"{v['table_a2'][kind][i]:.4f}")
-        console.print(t)
+        show(t)
     for w in cal.warnings:
-        console.print(f"[yellow]warning:[/yellow] {w}")
+        show(f"[yellow]warning:[/yellow] {w}")
 
 
-def print_stages(run: Any, console: Console) -> None:
+def show_stages(run: Any, show: Callable[..., None]) -> None:
     t = Table(title="calibration stages (one recorded run each)")
     for col in ("stage", "status", "rows", "rig time (s)", "run folder"):
         t.add_column(col)
@@ -102,7 +103,7 @@ def print_stages(run: Any, console: Console) -> None:
         r = s.result
         t.add_row(s.plan.sequence.name, f"{r.status}: {r.reason}", str(r.rows),
                   f"{r.t_end_s:.1f}", str(s.run_dir))
-    console.print(t)
+    show(t)
 
 
 def _rel(a, b) -> float:
@@ -110,7 +111,7 @@ def _rel(a, b) -> float:
     return float(np.linalg.norm(a - b) / np.linalg.norm(b))
 
 
-def print_truth(cal: Calibration, truth: dict, console: Console) -> None:
+def show_truth(cal: Calibration, truth: dict, show: Callable[..., None]) -> None:
     """The estimates against the simulator's hidden truth (simulated rigs only)."""
     t = Table(title="against the simulated IMU's truth")
     for col in ("quantity", "estimated", "true", "error"):
@@ -131,4 +132,4 @@ def print_truth(cal: Calibration, truth: dict, console: Console) -> None:
     psi = cal.decomposition.get("gyro", {}).get("euler_deg", [math.nan] * 3)
     t.add_row("mounting φ, θ, ψ (deg, from K_ω)", vec(psi, "{:.3f}"),
               vec(truth["mounting_deg"], "{:.3f}"), "")
-    console.print(t)
+    show(t)

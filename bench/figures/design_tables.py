@@ -1,4 +1,4 @@
-"""Selection results as text: the Table E.8-shaped table ``optimize`` and the demo print.
+"""Selection results as text: the Table E.8-shaped table ``optimize`` and the demo show.
 
 One column per actuator count, rows = the quantities of Paper E's tables, the best count
 marked, infeasible counts with their reason, and cells measured on the bench (``--measured``)
@@ -9,12 +9,13 @@ several commands, so it lives here rather than in one of them.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
 from bench.store.measured_constants import is_measured
 from optimizer.solve.selection import TIE_ORDER, TIE_RTOL
 
-__all__ = ["MEASURED_MARK", "ROWS", "format_cell", "print_table"]
+__all__ = ["MEASURED_MARK", "ROWS", "format_cell", "show_table"]
 
 #: Marks a table cell whose number was measured on the bench (--measured).
 MEASURED_MARK = "(m)"
@@ -47,12 +48,11 @@ def format_cell(value: Any, fmt: str) -> str:
     return format(value, fmt)
 
 
-def print_table(result: Any, title: str | None = None, console: Any = None) -> None:
-    """Rich table like Table E.8: one column per actuator count, best marked."""
-    from rich.console import Console
+def show_table(result: Any, show: Callable[..., None], title: str | None = None) -> None:
+    """Rich table like Table E.8: one column per actuator count, best marked, and its
+    notes; each goes to ``show``, the command's ``Console.print``."""
     from rich.table import Table
 
-    console = console or Console(soft_wrap=False)
     req = result.requirements
     bits = [f"objective {result.objective.name}", f"payload {req.payload_kg:g} kg"]
     if req.min_flight_time_min is not None:
@@ -83,21 +83,21 @@ def print_table(result: Any, title: str | None = None, console: Any = None) -> N
     table.add_row("Status", *(_status(d) for d in result.designs))
     if any(not d.feasible for d in result.designs):
         table.add_row("Reason", *(d.reason or "" for d in result.designs))
-    console.print(table)
+    show(table)
     if best is None:
-        console.print("No feasible design for any actuator count.", style="bold red")
+        show("No feasible design for any actuator count.", style="bold red")
     else:
-        console.print(
+        show(
             f"Best: {best.actuators} actuators, propeller {best.propeller}, motor "
             f"{best.motor}, battery {best.battery}"
         )
     for line in tie_notes(result):
-        console.print(line, style="dim")
+        show(line, style="dim")
     if any_measured:
-        console.print(f"{MEASURED_MARK} measured on the bench (runs in --json 'sources'); "
+        show(f"{MEASURED_MARK} measured on the bench (runs in --json 'sources'); "
                       "other numbers from the datasheet model", style="dim")
     if result.source:
-        console.print(f"Catalog: {result.source}", style="dim")
+        show(f"Catalog: {result.source}", style="dim")
 
 
 _PARTS = ("propeller", "motor", "battery")

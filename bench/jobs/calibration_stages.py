@@ -2,8 +2,8 @@
 
 ``run_calibration`` opens the IMU bench once (the IMU keeps its clock across stages, as on
 a real bench), runs each stage's plan through the one recording path
-(:func:`bench.runners.session.run_stage`: the runner of :mod:`bench.runners.runner`) into its own
-run folder (indexed in ``runs.sqlite`` like every other run), stops at the
+(:func:`bench.plan_runner.session.run_stage`: the runner of :mod:`bench.plan_runner.runner`)
+into its own run folder (indexed in ``runs.sqlite`` like every other run), stops at the
 first stage that does not succeed, and closes the devices (hexapod stopped) whatever
 happened. ``collect_log`` joins the stages' samples on the rig clock into one calibration
 log in the format of :mod:`analysis.imu_log`, which :mod:`analysis.imu_calibration` reads.
@@ -22,7 +22,10 @@ import numpy as np
 import pandas as pd
 
 from analysis.imu_calibration import Calibration, calibrate
+from bench.engine import run_log
 from bench.errors import RigError
+from bench.plan_runner.runner import HexapodRunOptions
+from bench.plan_runner.session import RunOutcome, run_stage
 from bench.plans.calibration_sequences import (
     HexapodSegment,
     compile_plan,
@@ -30,9 +33,6 @@ from bench.plans.calibration_sequences import (
 )
 from bench.plans.sequences import Plan
 from bench.plans.sequences import Sequence as PlanSequence
-from bench.run import run_log
-from bench.runners.runner import HexapodRunOptions
-from bench.runners.session import RunOutcome, run_stage
 from drivers.contracts import Trajectory
 
 __all__ = ["CalibrationRun", "calibrate_frame", "collect_log", "plans_for", "preflight",

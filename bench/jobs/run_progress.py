@@ -1,7 +1,9 @@
 """Running a plan with a progress bar: what the CLI and the console's tests share for both
 benches (a propulsion sequence, or every stage of an IMU calibration).
 
-The bar goes to stderr; Ctrl-C or SIGTERM make the run safe (ESC idle and disarmed, or
+The bar goes to stderr; the lines a user reads (the result, where an interrupted run
+went) go through the :class:`JobOutput` the command passes in, so a job prints nothing
+itself. Ctrl-C or SIGTERM make the run safe (ESC idle and disarmed, or
 the hexapod stopped), record it and end with one line naming the run folder; a failed
 write (disk full) becomes a one-line error; a user error leaves only its own line.
 """
@@ -12,6 +14,7 @@ import contextlib
 import sys
 import threading
 from collections.abc import Callable, Iterator, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -19,22 +22,23 @@ import numpy as np
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-from bench.cli_support import check_writable
+from bench.engine.safety import effective_limits
+from bench.engine.sigterm import sigterm_as_interrupt
 from bench.errors import RecordingError
+from bench.paths.outputs import check_writable
+from bench.plan_runner.runner import HexapodRunOptions, RunOptions
+from bench.plan_runner.session import RunOutcome, plan_for, run_sequence
 from bench.plans.calibration_sequences import HexapodSegment
 from bench.plans.run_budget import Budget, check_budget, project, row_rate_hz
 from bench.plans.sequences import Plan, Segment
 from bench.plans.sequences import Sequence as PlanSequence
-from bench.run.safety import effective_limits
-from bench.run.sigterm import sigterm_as_interrupt
-from bench.runners.runner import HexapodRunOptions, RunOptions
-from bench.runners.session import RunOutcome, plan_for, run_sequence
 from bench.store.indexed_run import RunInterrupted, RunRecordingFailed
 
 if TYPE_CHECKING:  # the calibration stages (pandas, the IMU fits) load only for a calibration
     from bench.jobs.calibration_stages import CalibrationRun
 
 __all__ = [
+    "JobOutput",
     "check_budget_of",
     "check_limits",
     "erase_on_user_error",
@@ -45,6 +49,15 @@ __all__ = [
     "say_where_an_interrupted_run_went",
     "sigterm_as_interrupt",
 ]
+
+
+@dataclass(frozen=True)
+class JobOutput:
+    """Where a job's words go, given by the command that runs it: ``out`` the result
+    lines (stdout), ``err`` notes and warnings (stderr), one line a call."""
+
+    out: Callable[[str], None]
+    err: Callable[[str], None]
 
 
 def err_console() -> Console:
@@ -84,7 +97,8 @@ def command_line() -> list[str]:
 def run_with_progress(rig: Any, seq: PlanSequence, out: Path, *, seed: int | None = None,
                       options: RunOptions | None = None, live: bool = False,
                       confirmed: bool = False,
-                      extra_meta: Mapping[str, Any] | None = None) -> RunOutcome:
+                      extra_meta: Mapping[str, Any] | None = None,
+                      output: JobOutput) -> RunOutcome:
     """Run one propulsion sequence with a progress bar on stderr (and the live view if
     ``live``); the checks (limits, budget, writable ``out``) come before any device."""
     from drivers.factory import open_rig
@@ -108,12 +122,12 @@ def run_with_progress(rig: Any, seq: PlanSequence, out: Path, *, seed: int | Non
                             on_rows=on_rows, on_progress=on_progress, stop_event=stop,
                             extra_meta=meta)
 
-    with say_where_an_interrupted_run_went("run", "ESC idle and disarmed"):
+    with say_where_an_interrupted_run_went("run", "ESC idle and disarmed", output.err):
         with progress, sigterm_as_interrupt(stop), erase_on_user_error(progress):
             if live:
                 from bench.live import run_with_live_view
 
-                outcome = run_with_live_view(work)
+                outcome = run_with_live_view(work, tell=output.err)
             else:
                 outcome = work(None)
             progress.update(task, completed=outcome.result.t_end_s)
@@ -122,8 +136,8 @@ def run_with_progress(rig: Any, seq: PlanSequence, out: Path, *, seed: int | Non
 
 def run_calibration_with_progress(rig: Any, plans: Sequence[Plan], runs: Path, *,
                                   quick: bool, options: HexapodRunOptions,
-                                  extra_meta: Mapping[str, Any] | None = None
-                                  ) -> CalibrationRun:
+                                  extra_meta: Mapping[str, Any] | None = None,
+                                  output: JobOutput) -> CalibrationRun:
     """Every stage of an IMU calibration with one progress bar over all stages."""
     from bench.jobs.calibration_stages import run_calibration
 
@@ -147,7 +161,8 @@ def run_calibration_with_progress(rig: Any, plans: Sequence[Plan], runs: Path, *
 
     seqs: list[PlanSequence] = [p.sequence for p in plans]
     meta = {"command_line": command_line(), **dict(extra_meta or {})}
-    with say_where_an_interrupted_run_went("calibration stage", "hexapod stopped"), \
+    with say_where_an_interrupted_run_went("calibration stage", "hexapod stopped",
+                                           output.err), \
             progress, sigterm_as_interrupt(stop), erase_on_user_error(progress):
         return run_calibration(rig, runs, quick=quick, options=options, sequences=seqs,
                                on_stage=on_stage, on_progress=on_progress, stop_event=stop,
@@ -155,15 +170,16 @@ def run_calibration_with_progress(rig: Any, plans: Sequence[Plan], runs: Path, *
 
 
 @contextlib.contextmanager
-def say_where_an_interrupted_run_went(what: str, safe: str) -> Iterator[None]:
-    """Ctrl-C / SIGTERM: one line on stderr naming the run folder and its recorded status
+def say_where_an_interrupted_run_went(what: str, safe: str,
+                                      err: Callable[[str], None]) -> Iterator[None]:
+    """Ctrl-C / SIGTERM: one line to ``err`` (stderr) naming the run folder and its recorded status
     (after the progress bar has stopped), then the interrupt goes on (exit 130). A run
     aborted by a failed write (disk full) becomes the one-line error (exit 2) saying the
     same in this bench's words: what was made safe, where the partial run is."""
     try:
         yield
     except RunInterrupted as exc:
-        print(f"rotorbench: {exc.summary(what, safe)}", file=sys.stderr, flush=True)
+        err(f"rotorbench: {exc.summary(what, safe)}")
         raise
     except RunRecordingFailed as exc:
         raise RecordingError(exc.summary(what, safe)) from None
@@ -183,11 +199,11 @@ def erase_on_user_error(progress: Progress) -> Iterator[None]:
         raise
 
 
-def report(outcome: RunOutcome) -> int:
+def report(outcome: RunOutcome, output: JobOutput) -> int:
     """One line for the finished run (and the safe stop's complaints); the exit code."""
     res = outcome.result
-    print(f"{outcome.run_dir}: {res.status}: {res.reason} ({res.rows} samples, "
-          f"{res.t_end_s:.2f} s)")
+    output.out(f"{outcome.run_dir}: {res.status}: {res.reason} ({res.rows} samples, "
+               f"{res.t_end_s:.2f} s)")
     if res.safe_stop_errors:
-        print(f"warning: safe stop reported: {'; '.join(res.safe_stop_errors)}", file=sys.stderr)
+        output.err(f"warning: safe stop reported: {'; '.join(res.safe_stop_errors)}")
     return 0 if res.status == "success" else 1

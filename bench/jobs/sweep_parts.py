@@ -27,8 +27,8 @@ from typing import Any
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from bench.cli_support import check_writable
 from bench.errors import RigError
+from bench.paths.outputs import check_writable
 from optimizer.errors import RequestError
 from optimizer.sweep.rows import columns
 from optimizer.sweep.spec import METADATA_KEY, spec_difference

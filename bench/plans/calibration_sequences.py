@@ -2,7 +2,7 @@
 
 The IMU bench's own steps (set pivot, rest, move) beside the shared ones of
 :mod:`bench.plans.sequences` (``Checkpoint``); every compiled segment carries its step, and the
-one runner (:mod:`bench.runners.runner`) dispatches on the step's type.
+one runner (:mod:`bench.plan_runner.runner`) dispatches on the step's type.
 
 A sequence (:class:`bench.plans.sequences.Sequence`, one class for every bench) is a list of
 small steps: set the pivot, rest (record with

@@ -13,7 +13,8 @@ from pathlib import Path
 from typing import Any
 
 from bench.errors import RigError
-from bench.plans.sequences import Sequence, load_sequence, step1, step2, sweep
+from bench.plans.sequences import Sequence, load_sequence
+from bench.plans.stand_sequences import step1, step2, sweep
 
 __all__ = ["named_step_sequence", "plan_sequence", "sweep_sequence", "with_limits"]
 

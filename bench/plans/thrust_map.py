@@ -19,8 +19,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.polynomial import Polynomial
 
+from bench.engine.recorder import atomic_write_json
 from bench.errors import RigError, ThrustOutsideMap
-from bench.run.recorder import atomic_write_json
 
 if TYPE_CHECKING:  # pandas is imported where a sweep is fitted: a step run needs only the map
     import pandas as pd

@@ -3,13 +3,14 @@
 Qt's offscreen plugin (tests, the self-test, screenshots, a console started over SSH
 with ``QT_QPA_PLATFORM=offscreen``) prints "This plugin does not support
 propagateSizeHints()" each time a window's size hints change: a flood that hides real
-warnings. The handler drops that one message and passes every other one on as Qt would
-(to stderr, one line).
+warnings. The handler drops that one message and passes every other one on to the log
+(``bench.qt.qt_messages``): a window process has no handler of its own, so Python's last
+resort writes it to stderr as one line, as Qt would.
 """
 
 from __future__ import annotations
 
-import sys
+import logging
 from typing import Any
 
 __all__ = ["DROPPED", "filter_qt_messages"]
@@ -18,12 +19,13 @@ __all__ = ["DROPPED", "filter_qt_messages"]
 DROPPED = ("does not support propagateSizeHints()",)
 
 _installed = False
+_log = logging.getLogger(__name__)
 
 
 def _handler(_kind: Any, _context: Any, message: str) -> None:
     if any(d in message for d in DROPPED):
         return
-    print(message, file=sys.stderr, flush=True)
+    _log.warning(message)
 
 
 def filter_qt_messages() -> None:

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from bench.run.drops import DropCounter  # the run's counting rule, the same numbers
+from bench.engine.drops import DropCounter  # the run's counting rule, the same numbers
 from drivers.contracts import Block
 from drivers.factory import open_rig
 

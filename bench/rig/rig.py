@@ -27,8 +27,9 @@ from typing import Any
 
 from analysis.atomic_files import write_atomically
 from bench.errors import RigError
+from bench.paths.inputs import check_input
+from bench.paths.outputs import permits_writing
 from bench.rig import rig_imu, rig_propulsion
-from bench.rig.input_paths import check_input
 from bench.rig.rig_devices import URL_SCHEMES, DeviceConfig
 from bench.rig.rig_imu import HEXAPOD_LIMIT_MAXIMA, HexapodSettings, ImuSettings, ImuSimConfig
 from bench.rig.rig_propulsion import (
@@ -81,10 +82,6 @@ def is_shipped_rig(path: str | os.PathLike[str]) -> bool:
     return Path(path).resolve().is_relative_to(default_rig_path().parent.resolve())
 
 
-def _writable(path: Path) -> bool:
-    return os.access(path, os.W_OK)
-
-
 def map_goes_to_copy(rig: RigConfig) -> bool:
     """True if a new thrust map may not be written beside ``rig``'s file.
 
@@ -95,7 +92,7 @@ def map_goes_to_copy(rig: RigConfig) -> bool:
         return True
     target = rig.thrust_map_path or rig.path.with_name(f"{rig.path.stem}.thrust_map.csv")
     needed = [target.parent] + [p for p in (rig.path, target) if p.exists()]
-    return not all(_writable(p) for p in needed)
+    return not all(permits_writing(p) for p in needed)
 
 
 def rig_copy_path(rig_path: str | os.PathLike[str], out: str | os.PathLike[str]) -> Path:

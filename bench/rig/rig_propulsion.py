@@ -21,7 +21,7 @@ from urllib.parse import urlsplit
 import numpy as np
 
 from bench.errors import RigError, ThrustOutsideMap
-from bench.rig.input_paths import check_input
+from bench.paths.inputs import check_input
 from bench.rig.rig_devices import DeviceConfig, parse_device
 from bench.rig.rig_table import RigTable
 from optimizer.catalogs.shipped_data import CATALOGS

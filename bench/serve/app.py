@@ -6,7 +6,7 @@ Pages: ``/`` (runs, filtered and paged; running runs refresh themselves), ``/run
 same data as JSON under ``/api/``; the OpenAPI description is ``/openapi.json``.
 
 A run id is only ever looked up in the store (``Store.run_folder``) and must be one
-(``bench.run.run_ids.is_run_id``, the same test the stores apply to ids they read from
+(``bench.engine.run_ids.is_run_id``, the same test the stores apply to ids they read from
 run folders and catalog rows): no path is built from a request, so ``../`` and friends
 have nothing to reach. The store's SQL binds every value. A folder store is opened
 read-only: the app never writes.
@@ -35,8 +35,8 @@ from fastapi.responses import (
 from fastapi.templating import Jinja2Templates
 
 from analysis.errors import LogError
+from bench.engine.run_ids import is_run_id
 from bench.errors import RigError
-from bench.run.run_ids import is_run_id
 from bench.serve.run_views import (
     RecordCache,
     SeriesCache,

@@ -14,8 +14,8 @@ from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
+from bench.engine.recorder import BASE_COLUMNS, RunRecorder, new_run_id
 from bench.errors import RecordingError, RigError
-from bench.run.recorder import BASE_COLUMNS, RunRecorder, new_run_id
 from bench.store.run_index import RunIndex
 
 __all__ = ["RunInterrupted", "RunRecordingFailed", "indexed_run"]

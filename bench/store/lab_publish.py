@@ -37,7 +37,7 @@ def bench_name(meta: Mapping[str, Any]) -> str:
 
 def operator_name(meta: Mapping[str, Any]) -> str:
     """The run's operator (the recorder writes it), else whoever publishes it."""
-    from bench.run.recorder import operator
+    from bench.engine.recorder import operator
 
     return str(meta.get("operator") or operator())
 

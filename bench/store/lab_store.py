@@ -14,14 +14,14 @@ from __future__ import annotations
 
 import atexit
 import json
+import logging
 import os
-import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from bench.engine.run_ids import check_run_id
 from bench.errors import RigError
-from bench.run.run_ids import check_run_id
 from bench.store.lab_catalog import (
     CatalogIdentity,
     CatalogUnavailable,
@@ -34,6 +34,8 @@ from bench.store.run_summary import RunFilter, RunSummary
 from bench.store.spool_destinations import Destination, Ledger, same_address
 from bench.store.store_url import redact, show_params
 from bench.store.trailing_upload import TrailingUpload
+
+_log = logging.getLogger(__name__)
 
 __all__ = ["DATA_SETTING", "LabStore", "PushReport", "SyncReport", "default_spool", "open_lab",
            "sync_every_destination", "where_going"]
@@ -80,6 +82,9 @@ class LabStore:
     trailing: TrailingUpload | None = None
     away: str | None = None  # why the catalog could not be asked for its data location
     _told: set[str] = field(default_factory=set)  # run folders a note was printed for
+    #: where the at-exit note of runs left in the spool goes: the recording command's
+    #: stderr (``bench.cli_args.store_args.recording_store``), else the log
+    exit_notice: Callable[[str], None] = _log.warning
 
     @property
     def data(self) -> DataLocation:
@@ -151,8 +156,8 @@ class LabStore:
         except OSError:
             return
         for run_dir in left:
-            print(f"spooled: {run_dir} waits for the lab store; deliver it with "
-                  f"{self._sync_hint()}", file=sys.stderr)
+            self.exit_notice(f"spooled: {run_dir} waits for the lab store; deliver it "
+                             f"with {self._sync_hint()}")
 
     def _stop_trailing(self) -> dict[str, set[str]]:
         sent = self.trailing.stop() if self.trailing is not None else {}

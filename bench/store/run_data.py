@@ -8,7 +8,7 @@ broke off has no ``run.json`` there and is uploaded again by ``store sync``.
 
 Run ids and file names come from run folders and catalog rows other people write, so
 every one is checked before a path or key is built from it: the run id by
-``bench.run.run_ids.check_run_id``, a file of the run by ``analysis.run_paths`` (inside
+``bench.engine.run_ids.check_run_id``, a file of the run by ``analysis.run_paths`` (inside
 the run folder, links followed), a downloaded key to stay inside the cache's run folder.
 A catalog row's ``data`` is used only when it is the store's own URI of that run
 (``row_location``); a lab that saved no data location trusts its rows to name it.
@@ -22,8 +22,8 @@ from typing import Any
 
 from analysis.errors import LogError
 from analysis.run_paths import files_under, member
+from bench.engine.run_ids import check_run_id
 from bench.errors import RigError
-from bench.run.run_ids import check_run_id
 
 __all__ = ["DataLocation", "DataUnavailable", "refuse_credentials", "row_location"]
 

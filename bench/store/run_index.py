@@ -118,7 +118,7 @@ class RunIndex:
                         last_sample_t_s=last_t, rows=rows_on_disk,
                         marked_killed_utc=_utc_now())
             try:
-                from bench.run.recorder import atomic_write_json
+                from bench.engine.recorder import atomic_write_json
 
                 atomic_write_json(run_dir / "run.json", meta)
             except OSError:

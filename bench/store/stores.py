@@ -108,7 +108,7 @@ class FolderStore:
                        data=str(Path(r.data).resolve()))
 
     def run_folder(self, run_id: str) -> Path:
-        from bench.run.run_ids import check_run_id
+        from bench.engine.run_ids import check_run_id
         from bench.store.run_index import INDEX_NAME, RunIndex
 
         check_run_id(run_id, f"store {self.root}: run")

@@ -10,10 +10,10 @@ import pytest
 
 from bench.cli import main
 from bench.errors import RigError
-from bench.plans.sequences import hover_band_n, step1, sweep
+from bench.plan_runner.runner import RunOptions
+from bench.plan_runner.session import run_sequence
+from bench.plans.stand_sequences import hover_band_n, step1, sweep
 from bench.rig.rig import default_rig_path, load_rig
-from bench.runners.runner import RunOptions
-from bench.runners.session import run_sequence
 from bench.store.constants_store import ConstantsStore
 from bench.store.measured_constants import load_measured
 from drivers.factory import open_rig

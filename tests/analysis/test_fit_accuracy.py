@@ -23,10 +23,11 @@ from analysis.static_curves import TABLE_C2
 from analysis.step_response import fit_run
 from analysis.validation import validate_run
 from bench.cli import main
-from bench.plans.sequences import G0, hover_band_n, step1, step2
+from bench.plan_runner.runner import RunOptions
+from bench.plan_runner.session import run_sequence
+from bench.plans.sequences import G0
+from bench.plans.stand_sequences import hover_band_n, step1, step2
 from bench.rig.rig import default_rig_path, load_rig
-from bench.runners.runner import RunOptions
-from bench.runners.session import run_sequence
 from drivers.factory import open_rig
 
 HOVER_N = 0.25 * G0  # Paper C: 250 g per rotor of the 1 kg quadcopter

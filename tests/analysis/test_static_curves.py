@@ -21,10 +21,10 @@ from analysis.static_curves import (
     lsq_through_origin,
     motor_constants,
 )
-from bench.plans.sequences import sweep
+from bench.plan_runner.runner import RunOptions
+from bench.plan_runner.session import run_sequence
+from bench.plans.stand_sequences import sweep
 from bench.rig.rig import default_rig_path, load_rig
-from bench.runners.runner import RunOptions
-from bench.runners.session import run_sequence
 from drivers.factory import open_rig
 
 

@@ -116,7 +116,8 @@ def test_live_view_draws_one_time_axis_and_blits_unchanged_axes():
 
 
 def _step_plan(repeats):
-    from bench.plans.sequences import EscRange, compile_plan, step1
+    from bench.plans.sequences import EscRange, compile_plan
+    from bench.plans.stand_sequences import step1
 
     esc = EscRange(1000.0, 1050.0, 2000.0)
     return esc, compile_plan(step1(repeats=repeats), esc,
@@ -124,8 +125,8 @@ def _step_plan(repeats):
 
 
 def _runner(fakes, tmp_path, repeats, spy):
-    from bench.run.recorder import RunRecorder
-    from bench.runners.runner import Runner
+    from bench.engine.recorder import RunRecorder
+    from bench.plan_runner.runner import Runner
 
     esc, plan = _step_plan(repeats)
     rig = fakes.FakeRig()

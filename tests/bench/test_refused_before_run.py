@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from bench.cli import main
-from tests.test_cli_errors import run_bad
+from tests.conftest import run_bad
 
 FIXTURE_RIGS = Path(__file__).resolve().parents[2] / "bench" / "data" / "rigs"
 

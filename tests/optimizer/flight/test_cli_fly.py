@@ -105,10 +105,10 @@ def test_measured_actuator_numbers_reach_the_flight_model() -> None:
 
 
 def test_step_run_is_fitted_on_the_fly(capsys, tmp_path) -> None:
-    from bench.plans.sequences import hover_band_n, step1
+    from bench.plan_runner.runner import RunOptions
+    from bench.plan_runner.session import run_sequence
+    from bench.plans.stand_sequences import hover_band_n, step1
     from bench.rig.rig import default_rig_path, load_rig
-    from bench.runners.runner import RunOptions
-    from bench.runners.session import run_sequence
     from bench.store.constants_fit import fit_for_store
     from drivers.factory import open_rig
 

@@ -17,7 +17,7 @@ import pytest
 from bench.cli import main
 from optimizer.solve.pareto import RTOL, enumerate_front
 from optimizer.sweep.sweep_file import SPEC_KEY, front, open_sweep
-from tests.test_cli_errors import run_bad
+from tests.conftest import run_bad
 
 SPEC = {"catalog": "thesis-e", "options": {"payload_kg": 0.0}, "maneuvers": ["roll_step"]}
 

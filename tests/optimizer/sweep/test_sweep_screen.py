@@ -14,8 +14,8 @@ import pyarrow.parquet as pq
 import pytest
 
 from bench.cli import main
+from tests.conftest import run_bad
 from tests.optimizer.sweep.test_sweep_file import SPEC, write_sweep
-from tests.test_cli_errors import run_bad
 
 DESIGN = ("actuators", "propeller", "motor", "battery")
 

@@ -1,1 +1,0 @@
-"""The safe run loop and its parts (limits, watchdog, drops, recorder); no plans."""
