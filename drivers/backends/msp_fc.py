@@ -6,8 +6,9 @@ response, no documented deadline; 100 ms is the reference's suggested client tim
 ``Sensor``; ``MspMotorEsc`` drives one motor through MSP_SET_MOTOR as an ``Esc``;
 ``MspImuSensor`` is ``MspImu`` as the IMU bench's IMU under test (``IMU_CHANNELS``).
 
-The IMU under test: Betaflight and INAV send the gyro of RAW_IMU (§1.4) in whole deg/s
-(Betaflight 4.6.0 in fact sends 16.4 counts per deg/s: ``gyro_lsb_per_dps``);
+The IMU under test: INAV sends the gyro of RAW_IMU (§1.4) in whole deg/s, Betaflight in
+the gyro's counts, 16.4 per deg/s (``msp.BTFL_GYRO_LSB_PER_DPS``; ``gyro_lsb_per_dps``
+for a gyro at another range);
 the accelerometer in counts, 1 g = ``acc_1g`` (Betaflight: the driver's ``acc_1G``, 2048
 for the MPU6000/6050/ICM-2060x class at ±16 g; INAV: always 512). RAW_IMU carries no time
 stamp, so a row is stamped with the host clock when its reply arrives: the FC's
@@ -121,7 +122,7 @@ class MspImu:
 
     def __init__(self, client: MspClient, *, rate_hz: float = 100.0, acc_1g: float | None = None,
                  clock: Clock | None = None, url: str = "serial://msp",
-                 attitude: bool = True, gyro_lsb_per_dps: float = 1.0) -> None:
+                 attitude: bool = True, gyro_lsb_per_dps: float | None = None) -> None:
         self.client = client
         self.rate_hz = rate_hz
         self.attitude = attitude  # False: RAW_IMU only (roll/pitch/yaw NaN), twice the rate

@@ -469,27 +469,37 @@ class RawImu:
         return cls(v[0:3], v[3:6], v[6:9])
 
 
+#: Betaflight's RAW_IMU gyro is ``gyroADCf / gyro.scale`` (msp.c): the sensor's own counts,
+#: 16.4 per deg/s for the +-2000 deg/s range its gyros run at (MPU6000, ICM-426xx, BMI270)
+#: and for the SITL's virtual gyro, measured on Betaflight 4.6.0 (docs/protocols.md).
+#: INAV sends whole deg/s (``gyroRateDps``).
+BTFL_GYRO_LSB_PER_DPS = 16.4
+
+
 def imu_si(msg: RawImu, variant: str, acc_1g: float | None = None, *,
-           gyro_lsb_per_dps: float = 1.0
+           gyro_lsb_per_dps: float | None = None
            ) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
     """Acceleration (m/s²) and angular rate (rad/s) of a RAW_IMU reply (§1.4).
 
     Betaflight ("BTFL"): acc in driver counts with 1 g = ``acc_1g`` (e.g. 2048 for an
-    MPU6050, 256 for the SITL), which the caller must give. INAV: 1 g = 512. The gyro is
-    ``gyro_lsb_per_dps`` counts per deg/s: 1 as §1.4 states, but Betaflight 4.6.0 sends
-    ``gyroADCf / scale``, 16.4 per deg/s (measured on its SITL: docs/protocols.md).
-    MultiWii sends raw sensor counts whose scale protocols.md does not give: refused.
+    MPU6050, 256 for the SITL), which the caller must give; the gyro in sensor counts,
+    ``BTFL_GYRO_LSB_PER_DPS`` per deg/s unless ``gyro_lsb_per_dps`` says otherwise (a
+    gyro run at another range). INAV: 1 g = 512, the gyro in whole deg/s (§1.4's "deg/s"
+    holds for INAV only). MultiWii sends raw sensor counts whose scale protocols.md does
+    not give: refused.
     """
     if variant == "INAV":
         one_g = float(INAV_ACC_1G if acc_1g is None else acc_1g)
+        lsb = 1.0 if gyro_lsb_per_dps is None else gyro_lsb_per_dps
     elif variant == "BTFL":
         if acc_1g is None:
             raise ValueError("Betaflight RAW_IMU acc is in driver counts: give acc_1g")
         one_g = float(acc_1g)
+        lsb = BTFL_GYRO_LSB_PER_DPS if gyro_lsb_per_dps is None else gyro_lsb_per_dps
     else:
         raise ValueError(f"RAW_IMU scaling unknown for FC variant {variant!r} (§1.4)")
     acc = tuple(a / one_g * STANDARD_GRAVITY for a in msg.acc)
-    gyro = tuple(math.radians(g / gyro_lsb_per_dps) for g in msg.gyro)
+    gyro = tuple(math.radians(g / lsb) for g in msg.gyro)
     return acc, gyro  # type: ignore[return-value]
 
 

@@ -104,7 +104,8 @@ def open_msp_imu(ctx: Any, spec: DeviceUrl, open_link: Callable[[], Any]) -> Sen
     from drivers.wire_sim.plant_peers import BTFL_ACC_1G
 
     acc_1g = spec.number("acc_1g", lo=1.0, hi=32768.0) if spec.has("acc_1g") else None
-    gyro_lsb = spec.number("gyro_lsb_per_dps", 1.0, lo=1e-3, hi=1e3)
+    gyro_lsb = spec.number("gyro_lsb_per_dps", lo=1e-3, hi=1e3) \
+        if spec.has("gyro_lsb_per_dps") else None  # None: the firmware's own (msp.imu_si)
     rate_hz = spec.number("rate_hz", ctx.rig.imu.value("rate_hz"), lo=0.1, hi=2000.0)
     timeout_s = spec.number("timeout_s", msp_fc.DEFAULT_TIMEOUT_S, lo=0.005, hi=5.0)
     version = spec.integer("msp_version", 1, lo=1, hi=2)

@@ -3,12 +3,13 @@
 Answers (protocols.md §1): API_VERSION, FC_VARIANT ("BTFL"), FC_VERSION, BOARD_INFO,
 BUILD_INFO, UID, ACC_TRIM, NAME (what yamspy's ``MSPy.basic_info`` asks at connect),
 STATUS and STATUS_EX (bit 0 of the flight-mode flags set while ``armed``), ANALOG (from
-``battery() -> (V, A)``), RAW_IMU (acc in counts with ``acc_1g``, gyro in whole deg/s,
-§1.4), ATTITUDE (0.1° roll/pitch, whole-degree yaw, §1.5), MOTOR, SET_MOTOR (ack; values
-apply only while disarmed, and a payload shorter than ``motor_count`` motors is refused,
-§1.7); anything else gets the error reply ``$M!`` as Betaflight sends for a command it
-does not know. Like Betaflight and INAV, the motor-test values have no expiry: when the
-host stops sending, the motors keep the last value (docs/protocols.md, dead host).
+``battery() -> (V, A)``), RAW_IMU (acc in counts with ``acc_1g``; gyro in counts,
+``gyro_lsb_per_dps``: Betaflight's 16.4, or 1 for INAV's whole deg/s), ATTITUDE (0.1°
+roll/pitch, whole-degree yaw, §1.5), MOTOR, SET_MOTOR (ack; values apply only while
+disarmed, and a payload shorter than ``motor_count`` motors is refused, §1.7); anything
+else gets the error reply ``$M!`` as Betaflight sends for a command it does not know.
+Like Betaflight and INAV, the motor-test values have no expiry: when the host stops
+sending, the motors keep the last value (docs/protocols.md, dead host).
 The IMU values come from ``imu(t_s) -> (acc_m_s2, gyro_rad_s, (roll, pitch, yaw) rad)``.
 """
 
@@ -34,13 +35,15 @@ def _i16(x: float) -> int:
 class SimFlightController(PtySimulator):
     """MSP responder; ``armed`` switches SET_MOTOR off like the real firmware."""
 
-    def __init__(self, imu: ImuModel, *, acc_1g: int = 2048, motor_count: int = 4,
+    def __init__(self, imu: ImuModel, *, acc_1g: int = 2048,
+                 gyro_lsb_per_dps: float = msp.BTFL_GYRO_LSB_PER_DPS, motor_count: int = 4,
                  api: tuple[int, int] = (1, 46), version: tuple[int, int, int] = (4, 5, 0),
                  battery: Callable[[], tuple[float, float]] = lambda: (0.0, 0.0)) -> None:
         self.imu = imu
         self.version = version  # what this simulator reports; not a claim about a firmware
         self.battery = battery
         self.acc_1g = acc_1g
+        self.gyro_lsb_per_dps = gyro_lsb_per_dps
         self.motor_count = motor_count
         self.api = api  # what this simulator reports; not a claim about a real firmware
         self.armed = False
@@ -112,6 +115,6 @@ class SimFlightController(PtySimulator):
             if cmd == msp.MSP_ATTITUDE:
                 return enc(msp.Attitude(*att))
             counts = tuple(_i16(a / msp.STANDARD_GRAVITY * self.acc_1g) for a in acc)
-            dps = tuple(_i16(math.degrees(g)) for g in gyro)
-            return enc(msp.RawImu(counts, dps, (0, 0, 0)))  # type: ignore[arg-type]
+            rates = tuple(_i16(math.degrees(g) * self.gyro_lsb_per_dps) for g in gyro)
+            return enc(msp.RawImu(counts, rates, (0, 0, 0)))  # type: ignore[arg-type]
         return enc(msp.ErrorReply(cmd))

@@ -364,7 +364,8 @@ def start_msp_peer(sim: SimImuRig, clock: SimClock, *, variant: str = "BTFL",
                 return msp.encode_message(msp.FcVariant(variant))
             return super()._reply(m)
 
-    return PlantFc(_PlantImu(sim, clock), acc_1g=acc_1g).start()
+    gyro_lsb = 1.0 if variant == "INAV" else msp.BTFL_GYRO_LSB_PER_DPS
+    return PlantFc(_PlantImu(sim, clock), acc_1g=acc_1g, gyro_lsb_per_dps=gyro_lsb).start()
 
 
 def start_gx3_peer(sim: SimImuRig, clock: SimClock) -> Any:

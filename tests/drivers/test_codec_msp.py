@@ -69,12 +69,17 @@ def test_set_motor_pads_to_eight_and_refuses_out_of_range():
 
 
 def test_imu_si_by_firmware():
-    m = msp.RawImu((0, 0, 2048), (90, 0, -180), (0, 0, 0))
+    """Betaflight sends the gyro's counts (16.4 per deg/s, measured on its SITL), INAV
+    whole deg/s."""
+    m = msp.RawImu((0, 0, 2048), (1476, 0, -2952), (0, 0, 0))  # 90 and -180 deg/s x 16.4
     acc, gyro = msp.imu_si(m, "BTFL", acc_1g=2048)
     assert acc[2] == pytest.approx(9.80665)
     assert gyro == pytest.approx((math.pi / 2, 0, -math.pi))
-    acc, _ = msp.imu_si(msp.RawImu((0, 0, 512), (0, 0, 0), (0, 0, 0)), "INAV")
+    _, gyro = msp.imu_si(m, "BTFL", acc_1g=2048, gyro_lsb_per_dps=32.8)  # a +-1000 range
+    assert gyro == pytest.approx((math.pi / 4, 0, -math.pi / 2))
+    acc, gyro = msp.imu_si(msp.RawImu((0, 0, 512), (90, 0, -180), (0, 0, 0)), "INAV")
     assert acc[2] == pytest.approx(9.80665)
+    assert gyro == pytest.approx((math.pi / 2, 0, -math.pi))
     with pytest.raises(ValueError, match="acc_1g"):
         msp.imu_si(m, "BTFL")
     with pytest.raises(ValueError, match="MWII"):

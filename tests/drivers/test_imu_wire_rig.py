@@ -94,8 +94,9 @@ def test_msp_rows_are_si_at_the_imu_rate_on_the_host_clock(bench) -> None:
     assert abs(b.t_s[-1] - bench.clock.now()) < 0.3
     gyro = np.column_stack([b.values[c] for c in IMU_CHANNELS[:3]])
     acc = np.column_stack([b.values[c] for c in IMU_CHANNELS[3:]])
-    # Betaflight sends whole deg/s: every gyro value is a multiple of 1 deg/s
-    np.testing.assert_allclose(np.degrees(gyro), np.round(np.degrees(gyro)), atol=1e-9)
+    # Betaflight sends the gyro's counts: every value is a multiple of 1/16.4 deg/s
+    counts = np.degrees(gyro) * 16.4
+    np.testing.assert_allclose(counts, np.round(counts), atol=1e-6)
     # accelerometer counts with 1 g = 2048: a multiple of g/2048; at rest |a| is ~1 g
     np.testing.assert_allclose(acc * 2048 / G, np.round(acc * 2048 / G), atol=1e-6)
     assert np.linalg.norm(acc, axis=1).mean() == pytest.approx(_at_rest(bench), abs=0.02)

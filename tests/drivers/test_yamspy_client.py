@@ -82,7 +82,8 @@ def test_yamspy_reads_values_in_its_own_units(board):
     assert b.ANALOG["voltage"] == pytest.approx(12.34) and b.ANALOG["amperage"] == 1.5
     _ask(b, "MSP_RAW_IMU")
     assert b.SENSOR_DATA["accelerometer"] == [0, 0, 2048]
-    assert b.SENSOR_DATA["gyroscope"] == [10, 0, 0]  # Betaflight: whole deg/s
+    # Betaflight: the gyro's counts, 16.4 per deg/s (10 deg/s here)
+    assert b.SENSOR_DATA["gyroscope"] == [164, 0, 0]
     sim.armed = True
     _ask(b, "MSP_STATUS_EX")
     assert b.CONFIG["mode"] & 1  # the arming bit yamspy shows
