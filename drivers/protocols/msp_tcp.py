@@ -6,7 +6,8 @@ connection: ser2net or a WiFi-MSP bridge in front of a real FC, or Betaflight's 
 (UART n on TCP 5760 + n; the default port 5761 is its MSP port). The connection carries
 only whole MSP request frames (``drivers.backends.msp_tcp``). One connection per FC:
 Betaflight serves one client per port, so a second role on the same host and port is
-refused here rather than dropped by the firmware.
+refused here rather than dropped by the firmware. With ``launch = "betaflight-sitl"`` the
+bench starts the SITL itself for the run (``drivers.protocols.betaflight_sitl``).
 """
 
 from __future__ import annotations
@@ -42,6 +43,10 @@ def _link(ctx: Any, spec: DeviceUrl) -> Any:
 @register(SCHEME, None, ("esc",), summary="a flight controller's MSP over TCP",
           example=EXAMPLE)
 def msp_tcp_esc(ctx: Any, spec: DeviceUrl) -> Esc:
+    if spec.has("launch"):  # the bench starts the firmware (Betaflight SITL) itself
+        from drivers.protocols.betaflight_sitl import open_sitl_esc
+
+        return open_sitl_esc(ctx, spec, lambda: _link(ctx, spec))
     return open_msp_esc(ctx, spec, lambda _motor: _link(ctx, spec))
 
 

@@ -1,0 +1,59 @@
+"""``msp+tcp://127.0.0.1:5761`` with ``launch = "betaflight-sitl"``: the bench runs the firmware.
+
+The ESC role is then the real Betaflight 4.6.0 SITL's motor test, started by the bench for
+the run: the firmware as a child process (``drivers.backends.betaflight_sitl``), the rig's
+simulated plant as its vehicle (``drivers.wire_sim.sitl_plant``: FDM in, motor output
+to the plant's ESC) and the MSP client on its TCP port, as with any ``msp+tcp://`` FC.
+The sensors are the wire-level simulated ones (``serial://sim/loadcell``...) on the same
+plant. The ESC comes wrapped in :class:`drivers.command_delay.OutputTimedEsc`, which
+times each command to the firmware's output for ``run.json``.
+
+Closing order (the rig's ``close()``): the ESC sends every motor to 1000, the MSP
+connection closes, then the plant's owner stops the peer (after the idle output reached
+the plant) and the firmware (SIGTERM, then SIGKILL), whatever happened before.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from drivers.contracts import Esc
+from drivers.device_options import DeviceUrl
+from drivers.registry import backend
+
+__all__ = ["LAUNCHERS", "open_sitl_esc"]
+
+LAUNCHERS = ("betaflight-sitl",)
+LOOPBACK = ("127.0.0.1", "localhost")
+
+
+def open_sitl_esc(ctx: Any, spec: DeviceUrl, open_link: Callable[[], Any]) -> Esc:
+    """Launch the firmware and its plant peer, then open the motor test over MSP."""
+    from drivers.command_delay import OutputTimedEsc
+    from drivers.protocols.serial import open_msp_esc
+    from drivers.wire_sim.sitl_plant import SitlPlantPeer
+
+    spec.text("launch", choices=LAUNCHERS)
+    if spec.host not in LOOPBACK:
+        raise spec.fail("launch", f"the launched firmware listens on this machine: use "
+                                  f"msp+tcp://127.0.0.1:5761, not host {spec.host!r}")
+    binary_opt = spec.raw("sitl_binary", "")
+    if not isinstance(binary_opt, str):
+        raise spec.fail("sitl_binary", f"expected a path, got {binary_opt!r}")
+    rate_hz = spec.number("fdm_rate_hz", 250.0, lo=100.0, hi=1000.0)
+    motor = spec.integer("motor", 0, lo=0, hi=3)  # the SITL drives 4 motors
+    launcher = backend("betaflight_sitl", spec)
+    binary = launcher.find_binary(binary_opt or None)  # before anything starts
+    wire = ctx.world()  # the rig's plant; its owner stops what is added below, last
+    ctx.wire = wire
+    firmware = launcher.SitlProcess.launch(binary)
+    wire.add("sitl:firmware", firmware, firmware.stop)
+    peer = SitlPlantPeer(wire.plant, motor, rate_hz=rate_hz).start()
+    wire.add("sitl:plant", peer, peer.stop)  # stopped before the firmware
+    ctx.peers[spec.role] = peer
+    esc = open_msp_esc(ctx, spec, lambda _motor: open_link())
+    ctx.answers[spec.role] += (f"; Betaflight SITL launched by the bench (pid "
+                               f"{firmware.proc.pid}, MSP port open after "
+                               f"{firmware.started_s:.2f} s), FDM at {rate_hz:g} Hz")
+    return OutputTimedEsc(esc, peer, "Betaflight SITL")
