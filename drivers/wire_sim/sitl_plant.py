@@ -38,6 +38,7 @@ from drivers.errors import DeviceError
 __all__ = ["SitlPlantPeer"]
 
 IDLE_WAIT_S = 0.3  # at stop: how long the firmware's output may take to reach idle
+MAX_SILENCE_S = 0.5  # fed but no motor update for this long: the firmware stalled
 
 
 class SitlPlantPeer:
@@ -53,6 +54,9 @@ class SitlPlantPeer:
         self.fdm_sent = 0
         self.updates = 0  # motor updates received
         self.last_us = math.nan
+        self.error: DeviceError | None = None  # why the loop stopped, if it failed
+        self.last_update_t = math.nan  # arrival of the latest motor update (monotonic)
+        self._fed_since = math.nan  # feeding (again) since
         self._changes: list[tuple[float, float]] = []
         self._lock = threading.Lock()
         self._feeding = threading.Event()
@@ -70,11 +74,44 @@ class SitlPlantPeer:
         self._thread = threading.Thread(target=self._run, name="sitl-plant", daemon=True)
 
     def start(self) -> Self:
+        self._fed_since = time.monotonic()
         self._thread.start()
         return self
 
+    def wait_output(self, timeout_s: float) -> None:
+        """Return once the firmware's first motor update has arrived, or raise."""
+        deadline = time.monotonic() + timeout_s
+        while self.updates == 0:
+            if self.error is not None:
+                raise self.error
+            if time.monotonic() > deadline:
+                raise DeviceError(f"the Betaflight SITL sent no motor output within "
+                                  f"{timeout_s:g} s of the first FDM packet ({self.fdm_sent} "
+                                  f"sent to UDP {FDM_PORT}, none back on {MOTOR_RAW_PORT})")
+            time.sleep(0.01)
+
+    def check(self) -> None:
+        """Raise if the loop failed or a fed firmware has gone silent (its output no
+        longer reaches the plant: the bench must stop, not command a deaf rig)."""
+        if self.error is not None:
+            raise self.error
+        if not self._feeding.is_set():
+            return
+        heard = max(self.last_update_t if self.updates else -math.inf, self._fed_since)
+        silent = time.monotonic() - heard
+        if silent > MAX_SILENCE_S:
+            raise DeviceError(f"the Betaflight SITL's motor output stopped: nothing on UDP "
+                              f"{MOTOR_RAW_PORT} for {silent:.2f} s while fed FDM")
+
     # -- the loop -------------------------------------------------------------------------
     def _run(self) -> None:
+        try:
+            self._loop()
+        except Exception as exc:  # the bench reads it on its next command
+            self.error = DeviceError(f"Betaflight SITL plant peer stopped: "
+                                     f"{type(exc).__name__}: {exc}")
+
+    def _loop(self) -> None:
         """Late, it skips ahead instead of sending a burst: the firmware's clock rate
         follows each packet's time step over the wall time between receipts."""
         due = time.monotonic()
@@ -106,6 +143,7 @@ class SitlPlantPeer:
             self._apply(t, motors[self.motor_index])
 
     def _apply(self, t: float, pulse_us: float) -> None:
+        self.last_update_t = t
         self.updates += 1
         self.plant.command_pulse(pulse_us)
         if pulse_us != self.last_us:
@@ -124,6 +162,7 @@ class SitlPlantPeer:
         self._feeding.clear()
 
     def resume(self) -> None:
+        self._fed_since = time.monotonic()
         self._feeding.set()
 
     def stop(self) -> None:
