@@ -34,7 +34,7 @@ from drivers.errors import DeviceError
 from drivers.factory import open_rig
 from drivers.sim_worlds import build_sim_rig
 
-pytestmark = pytest.mark.slow(wall_s=40)
+pytestmark = pytest.mark.slow(wall_s=25)
 
 ROOT = Path(__file__).resolve().parents[2]
 RIG = ROOT / "bench" / "data" / "rigs" / "betaflight-sitl.toml"
@@ -99,7 +99,7 @@ def test_check_step_and_fit_run_through_the_firmware(tmp_path, capsys):
     assert "flight controller BTFL, MSP API 1.47" in check.stdout
     _no_firmware_left(tmp_path)
 
-    step = _in_namespace(tmp_path, _cli("step", "--rig", str(RIG), "--repeats", "2",
+    step = _in_namespace(tmp_path, _cli("step", "--rig", str(RIG), "--repeats", "3",
                                         "--out", str(out)))
     assert step.returncode == 0, step.stderr[-2000:]
     assert "success" in step.stdout
@@ -117,7 +117,8 @@ def test_check_step_and_fit_run_through_the_firmware(tmp_path, capsys):
 
     assert main(["fit", str(run_dir), "--json"]) == 0
     fit = json.loads(capsys.readouterr().out)
-    assert fit["repeats_up"] == fit["repeats_down"] == 2
+    # an edge with a gap in its rows (a stall of the shared host) is left out by the fit
+    assert min(fit["repeats_up"], fit["repeats_down"]) >= 2, fit["edges"]
     tau_up, tau_down = _true_taus()
     assert fit["tau_up_ms"] == pytest.approx(tau_up, rel=0.05), (fit, tau_up)
     assert fit["tau_down_ms"] == pytest.approx(tau_down, rel=0.05), (fit, tau_down)
@@ -240,8 +241,11 @@ def test_an_aborted_run_ends_idle_with_the_firmware_stopped(netns, tmp_path):
         assert seen["rig"].wire.peers == {}  # the plant's owner stopped the peer
         assert seen["rig"].wire.plant.pulse_us == 1000
         assert seen["rpm"] > 3000  # it was running at 1500 us when the run aborted
-        rig, rpm = seen["rig"], seen["rpm"]
-        assert _wait(lambda rig=rig, rpm=rpm: rig.truth().rpm < 0.2 * rpm, 1.0)
+        time.sleep(0.05)  # the simulated ESC's own latency (12 ms)
+        first = seen["rig"].truth()
+        assert first.duty < 0.01  # the ESC drives no more: the rotor coasts down
+        time.sleep(0.3)
+        assert seen["rig"].truth().rpm < 0.9 * min(first.rpm, seen["rpm"])
         if case == "stop":  # the firmware was alive: its own last output was idle
             assert seen["peer"].last_us == 1000
             assert meta[DELAY]["seen"] >= 2  # 1500, and the idle of the safe stop
