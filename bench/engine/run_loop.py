@@ -432,9 +432,14 @@ class SafeRunLoop:
             drops = self.drops.summary()
             self._add_link_errors(drops)
             marks = ["drops"] if drops["dropped_samples"] or drops["link_errors"] else []
+            figures: dict[str, Any] = {}  # what a device measured over the run
+            devices = getattr(self.rig, "devices", None)
+            for dev in devices.values() if isinstance(devices, Mapping) else ():
+                with contextlib.suppress(Exception):  # never costs the run its record
+                    figures.update(getattr(dev, "run_figures", dict)())
             self.recorder.finish(res.status, res.reason, trip=trip.to_dict() if trip else None,
                                  safe_stop_errors=errors, duration_s=res.t_end_s,
-                                 **drops, marks=marks, **self._finish_fields())
+                                 **drops, marks=marks, **figures, **self._finish_fields())
 
 
 @contextlib.contextmanager

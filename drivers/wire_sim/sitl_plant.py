@@ -1,0 +1,181 @@
+"""The simulated plant as the Betaflight SITL's vehicle: FDM in, motor output out.
+
+The firmware answers every FDM packet it accepts with one motor update and sends nothing
+while FDM is silent (betaflight-sitl.md §1.4), so this peer is the firmware's heartbeat
+as well as its world: one thread sends a level, resting FDM packet every
+``1 / rate_hz`` (>= 100 Hz: slower than 50 Hz the firmware's clock stops following the
+stamps) to UDP 9003 and, between packets, reads the motor updates from UDP 9001
+(``servo_packet_raw``: microseconds in Betaflight's motor order, no re-ordering or
+rescaling, and none for the firmware's stale re-sync reply). Each update sets the
+:class:`~drivers.wire_sim.plant_peers.WirePlant`'s ESC command at its arrival, so the
+motor, propeller, load cell and power sensor see what the firmware outputs, when it
+outputs it, and never what the bench asked for.
+
+``changes()`` keeps each change of the watched motor's output with its arrival time
+(host monotonic clock): the other half of the command-to-output delay
+(``drivers.command_delay``).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import select
+import socket
+import threading
+import time
+from typing import Any, Self
+
+from drivers.codecs.sitl import (
+    FDM_PORT,
+    MOTOR_RAW_PORT,
+    MOTOR_RAW_SIZE,
+    decode_motor_raw,
+    encode_fdm_at_rest,
+)
+from drivers.errors import DeviceError
+
+__all__ = ["SitlPlantPeer"]
+
+IDLE_WAIT_S = 0.3  # at stop: how long the firmware's output may take to reach idle
+MAX_SILENCE_S = 0.5  # fed but no motor update for this long: the firmware stalled
+
+
+class SitlPlantPeer:
+    """FDM feeder and motor listener on loopback, driving ``plant`` from motor
+    ``motor_index`` (0 = Betaflight motor 1)."""
+
+    def __init__(self, plant: Any, motor_index: int, *, rate_hz: float = 250.0,
+                 host: str = "127.0.0.1") -> None:
+        self.plant = plant
+        self.motor_index = motor_index
+        self.period_s = 1.0 / rate_hz
+        self.host = host
+        self.fdm_sent = 0
+        self.updates = 0  # motor updates received
+        self.last_us = math.nan
+        self.error: DeviceError | None = None  # why the loop stopped, if it failed
+        self.last_update_t = math.nan  # arrival of the latest motor update (monotonic)
+        self._fed_since = math.nan  # feeding (again) since
+        self._changes: list[tuple[float, float]] = []
+        self._lock = threading.Lock()
+        self._feeding = threading.Event()
+        self._feeding.set()
+        self._stop = threading.Event()
+        self._rx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        try:
+            self._rx.bind((host, MOTOR_RAW_PORT))
+        except OSError as exc:
+            self._rx.close()
+            raise DeviceError(f"cannot listen for the SITL's motor output on UDP "
+                              f"{host}:{MOTOR_RAW_PORT}: {exc.strerror or exc}") from None
+        self._rx.setblocking(False)
+        self._tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self._thread = threading.Thread(target=self._run, name="sitl-plant", daemon=True)
+
+    def start(self) -> Self:
+        self._fed_since = time.monotonic()
+        self._thread.start()
+        return self
+
+    def wait_output(self, timeout_s: float) -> None:
+        """Return once the firmware's first motor update has arrived, or raise."""
+        deadline = time.monotonic() + timeout_s
+        while self.updates == 0:
+            if self.error is not None:
+                raise self.error
+            if time.monotonic() > deadline:
+                raise DeviceError(f"the Betaflight SITL sent no motor output within "
+                                  f"{timeout_s:g} s of the first FDM packet ({self.fdm_sent} "
+                                  f"sent to UDP {FDM_PORT}, none back on {MOTOR_RAW_PORT})")
+            time.sleep(0.01)
+
+    def check(self) -> None:
+        """Raise if the loop failed or a fed firmware has gone silent (its output no
+        longer reaches the plant: the bench must stop, not command a deaf rig)."""
+        if self.error is not None:
+            raise self.error
+        if not self._feeding.is_set():
+            return
+        heard = max(self.last_update_t if self.updates else -math.inf, self._fed_since)
+        silent = time.monotonic() - heard
+        if silent > MAX_SILENCE_S:
+            raise DeviceError(f"the Betaflight SITL's motor output stopped: nothing on UDP "
+                              f"{MOTOR_RAW_PORT} for {silent:.2f} s while fed FDM")
+
+    # -- the loop -------------------------------------------------------------------------
+    def _run(self) -> None:
+        try:
+            self._loop()
+        except Exception as exc:  # the bench reads it on its next command
+            self.error = DeviceError(f"Betaflight SITL plant peer stopped: "
+                                     f"{type(exc).__name__}: {exc}")
+
+    def _loop(self) -> None:
+        """Late, it skips ahead instead of sending a burst: the firmware's clock rate
+        follows each packet's time step over the wall time between receipts."""
+        due = time.monotonic()
+        while not self._stop.is_set():
+            now = time.monotonic()
+            if now >= due:
+                if self._feeding.is_set():
+                    with contextlib.suppress(OSError):  # no route yet: try next period
+                        self._tx.sendto(encode_fdm_at_rest(now), (self.host, FDM_PORT))
+                        self.fdm_sent += 1
+                due = max(due + self.period_s, now)
+            with contextlib.suppress(OSError, ValueError):
+                ready, _, _ = select.select([self._rx], [], [], max(0.0, due - time.monotonic()))
+                if ready:
+                    self._drain()
+
+    def _drain(self) -> None:
+        while True:
+            try:
+                data = self._rx.recv(256)
+            except BlockingIOError:
+                return
+            t = time.monotonic()
+            if len(data) != MOTOR_RAW_SIZE:
+                continue
+            motors = decode_motor_raw(data).motor_us
+            if self.motor_index >= len(motors) or not math.isfinite(motors[self.motor_index]):
+                continue
+            self._apply(t, motors[self.motor_index])
+
+    def _apply(self, t: float, pulse_us: float) -> None:
+        self.last_update_t = t
+        self.updates += 1
+        self.plant.command_pulse(pulse_us)
+        if pulse_us != self.last_us:
+            with self._lock:
+                self._changes.append((t, pulse_us))
+        self.last_us = pulse_us
+
+    # -- what the bench and the tests read ----------------------------------------------
+    def changes(self, since: float = -math.inf) -> list[tuple[float, float]]:
+        """(arrival time, us) of each change of the motor's output since ``since``."""
+        with self._lock:
+            return [c for c in self._changes if c[0] >= since]
+
+    def pause(self) -> None:
+        """Stop feeding FDM: the firmware then sends no motor output (tests)."""
+        self._feeding.clear()
+
+    def resume(self) -> None:
+        self._fed_since = time.monotonic()
+        self._feeding.set()
+
+    def stop(self) -> None:
+        """Let the firmware's idle output (the bench sent 1000 before closing) reach the
+        plant, stop the loop, then idle the plant: its ESC has lost the signal."""
+        deadline = time.monotonic() + IDLE_WAIT_S
+        idle = self.plant.settings.idle_us
+        while (self._thread.is_alive() and self._feeding.is_set() and not self.last_us <= idle
+               and time.monotonic() < deadline):
+            time.sleep(0.01)
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(1.0)
+        self._rx.close()
+        self._tx.close()
+        self.plant.command_pulse(idle)
