@@ -24,10 +24,10 @@ import pytest
 from rotorbench_tests_sitl import Sitl, _preconditions, sitl_binary
 
 from analysis.step_response import fit_step_response
+from bench.plan_runner.runner import RunOptions
+from bench.plan_runner.session import run_sequence
 from bench.plans.sequences import Arm, Disarm, Sequence, ThrottleStep
 from bench.rig.rig import load_rig
-from bench.runners.runner import RunOptions
-from bench.runners.session import run_sequence
 from drivers.codecs import msp
 from drivers.command_delay import match_delays
 from drivers.errors import DeviceError
