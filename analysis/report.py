@@ -10,7 +10,7 @@ from __future__ import annotations
 import csv
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -19,8 +19,8 @@ from rich.table import Table as RichTable
 
 from analysis.step_response import StepResponse
 
-__all__ = ["Table", "table_c1", "table_e11", "table_e12", "table_e13", "table_e14",
-           "write_csv"]
+__all__ = ["OUTPUT_DELAY", "Table", "output_delay_line", "table_c1", "table_e11", "table_e12",
+           "table_e13", "table_e14", "write_csv"]
 
 G0 = 9.80665
 
@@ -135,3 +135,26 @@ def table_e14(rows: Sequence[tuple[str, float, float]]) -> Table:
     """Table E.14: flight time from measured current T_e vs the optimizer's T_o (min)."""
     return Table("Table E.14: flight times", ("design", "T_e [min]", "T_o [min]"),
                  tuple(rows))
+
+
+#: run.json's summary of the delay from each command the bench sent to the firmware's
+#: first output carrying it (a rig whose ESC is a flight controller's firmware)
+OUTPUT_DELAY = "command_to_output_delay_s"
+
+
+def output_delay_line(meta: Mapping[str, Any]) -> str | None:
+    """One line on the run's command-to-output delay, or None when the run has none."""
+    d = meta.get(OUTPUT_DELAY)
+    if not isinstance(d, Mapping):
+        return None
+    if d.get("median") is None:
+        return f"command to firmware output: no command seen ({d.get('commands', 0)} sent)"
+
+    def ms(key: str) -> str:
+        v = d.get(key)
+        return f"{float(v) * 1e3:.1f} ms" if isinstance(v, int | float) else "n/a"
+
+    missed = d.get("missed") or 0
+    return (f"command to firmware output: median {ms('median')}, p95 {ms('p95')}, max "
+            f"{ms('max')} over {d.get('seen')} commands"
+            + (f" ({missed} without an output)" if missed else ""))

@@ -38,7 +38,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def handler(args: argparse.Namespace) -> int:
-    from analysis.report import table_c1
+    from analysis.report import OUTPUT_DELAY, output_delay_line, table_c1
     from analysis.run_record import read_run
     from analysis.step_response import fit_run
 
@@ -50,13 +50,16 @@ def handler(args: argparse.Namespace) -> int:
     summary = fit.summary()
     summary["run"] = str(record.path)
     summary["esc_mode"] = record.components.get("esc_mode")
+    if record.meta.get(OUTPUT_DELAY) is not None:  # an ESC that is a firmware: it was timed
+        summary[OUTPUT_DELAY] = record.meta[OUTPUT_DELAY]
     if args.json:
         print(json.dumps(summary, indent=2, allow_nan=False))
         return 0
     label = str(record.components.get("esc_mode") or record.id)
     console = Console(width=shutil.get_terminal_size((160, 24)).columns)
     console.print(table_c1([(label, fit)]).to_rich())
-    for line in text_summary(summary):
+    delay = output_delay_line(record.meta)
+    for line in [*text_summary(summary), *([delay] if delay else [])]:
         console.print(line, highlight=False, markup=False)
     return 0
 

@@ -76,7 +76,7 @@ def _motor(args: argparse.Namespace, records: list[Any]):
 def build(args: argparse.Namespace, out: Path, console: Console) -> dict[str, Any]:
     from analysis.errors import LogError
     from analysis.figures import plot_static, plot_steps, plot_validation
-    from analysis.report import Table, table_c1, write_csv
+    from analysis.report import OUTPUT_DELAY, Table, output_delay_line, table_c1, write_csv
     from analysis.run_record import read_run
     from analysis.static_curves import fit_static_run, from_parameters
     from analysis.step_response import fit_run
@@ -111,6 +111,10 @@ def build(args: argparse.Namespace, out: Path, console: Console) -> dict[str, An
             notes.append(f"{rec.id}: {rec.meta['dropped_samples']} samples missed or late "
                          f"(longest gap {rec.meta.get('longest_gap_s') or 0:.3f} s; run.json "
                          "drops)")
+        delay = output_delay_line(rec.meta)
+        if delay is not None:
+            summary.setdefault(OUTPUT_DELAY, {})[rec.id] = rec.meta[OUTPUT_DELAY]
+            notes.append(f"{rec.id}: {delay}")
         if rec.meta.get("link_errors"):
             notes.append(f"{rec.id}: {rec.meta['link_errors']} frames lost on device links "
                          "(run.json drops.<role>.link_errors)")

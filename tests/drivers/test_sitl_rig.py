@@ -122,6 +122,14 @@ def test_check_step_and_fit_run_through_the_firmware(tmp_path, capsys):
     tau_up, tau_down = _true_taus()
     assert fit["tau_up_ms"] == pytest.approx(tau_up, rel=0.05), (fit, tau_up)
     assert fit["tau_down_ms"] == pytest.approx(tau_down, rel=0.05), (fit, tau_down)
+    assert fit[DELAY] == delay  # fit and report say what the run measured
+    assert main(["fit", str(run_dir)]) == 0
+    assert "command to firmware output: median" in capsys.readouterr().out
+    assert main(["report", str(run_dir), "--out", str(tmp_path / "report")]) == 0
+    capsys.readouterr()
+    report = json.loads((tmp_path / "report" / "report.json").read_text())
+    assert report[DELAY][run_dir.name] == delay
+    assert any("command to firmware output" in n for n in report["notes"])
 
 
 def test_missing_package_port_in_use_and_early_exit_are_one_line_exit_2(tmp_path):
