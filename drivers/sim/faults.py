@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, TypeAlias
+from typing import Any, TypeAlias, TypedDict
 
 import numpy as np
 
@@ -35,6 +35,15 @@ class FaultSwitch:
 #: ``FaultSwitches.snapshot``: generator state, switches, stuck values, last values.
 FaultsSnapshot: TypeAlias = tuple[
     Mapping[str, Any], list[FaultSwitch], dict[str, float] | None, dict[str, float]]
+
+
+class FaultOptions(TypedDict, total=False):
+    """The keywords of ``FaultSwitches.inject`` (and of the devices' ``inject``)."""
+
+    at_s: float
+    until_s: float
+    probability: float | None
+    fill_nan: bool
 
 
 class FaultSwitches:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
+from typing import Unpack
 
 import numpy as np
 
@@ -25,7 +26,7 @@ from drivers.sim.acquisition import (
     VOLTAGE_OUT_V,
     SimDaq,
 )
-from drivers.sim.faults import FaultsSnapshot, FaultSwitches
+from drivers.sim.faults import FaultOptions, FaultsSnapshot, FaultSwitches
 from drivers.sim.sensor_params import SensorParams
 
 __all__ = ["CALIBRATION_KEYS", "SensorParams", "SimLoadCell", "SimPowerSensor", "SimRpmSensor",
@@ -155,7 +156,7 @@ class SimSensor:
         self.next_n, self.closed, faults = snap
         self.faults.restore(faults)
 
-    def inject(self, fault: Fault | str, **kwargs: float) -> None:
+    def inject(self, fault: Fault | str, **kwargs: Unpack[FaultOptions]) -> None:
         """Switch a fault on for a window of sim time, see ``FaultSwitches.inject``."""
         self.faults.inject(fault, **kwargs)
 
