@@ -118,19 +118,21 @@ def msp_imu(ctx: Any, spec: DeviceUrl) -> Sensor:
     rate_hz = spec.number("rate_hz", ctx.rig.imu.value("rate_hz"), lo=0.1, hi=2000.0)
     timeout_s = spec.number("timeout_s", msp_fc.DEFAULT_TIMEOUT_S, lo=0.005, hi=5.0)
     version = spec.integer("msp_version", 1, lo=1, hi=2)
-    start = None
+    start: Callable[[], Any] | None = None
     if spec.is_wire_sim:
         spec.number("time_scale", 1.0, lo=1e-3, hi=1e3)  # the world's clock reads it
         sim_1g = msp.INAV_ACC_1G if variant == "INAV" else spec.integer(
             "sim_acc_1g", BTFL_ACC_1G, lo=1, hi=32767)  # the simulated FC's driver
 
-        def start() -> Any:
+        def start_peer() -> Any:
             from drivers.wire_sim.plant_peers import start_msp_peer
 
             peer = start_msp_peer(ctx.world(), ctx.clock, variant=variant, acc_1g=round(sim_1g))
             ctx.peers[spec.role] = peer
             ctx.on_close(peer.stop)  # after the port (closers run last-in first-out)
             return peer
+
+        start = start_peer
 
     link, _ = port(ctx, spec, "msp", 115_200, start)
     client = msp_fc.MspClient(link, spec.url, timeout_s=timeout_s, version=version)
@@ -292,17 +294,19 @@ def gx3_reference(ctx: Any, spec: DeviceUrl) -> Sensor:
     window_s = spec.number("time_window_s", 5.0, lo=0.1, hi=3600.0)
     stale_s = spec.number("stale_s", 0.2, lo=0.01, hi=60.0)
     open_timeout_s = spec.number("open_timeout_s", 1.0, lo=0.05, hi=30.0)
-    start = None
+    start: Callable[[], Any] | None = None
     if spec.is_wire_sim:
         spec.number("time_scale", 1.0, lo=1e-3, hi=1e3)  # the world's clock reads it
 
-        def start() -> Any:
+        def start_peer() -> Any:
             from drivers.wire_sim.plant_peers import start_gx3_peer
 
             peer = start_gx3_peer(ctx.world(), ctx.clock)
             ctx.peers[spec.role] = peer
             ctx.on_close(peer.stop)  # after the port (closers run last-in first-out)
             return peer
+
+        start = start_peer
 
     link, _ = port(ctx, spec, "gx3", 115_200, start)
     stale = stale_s * getattr(ctx.clock, "time_scale", 1.0)
