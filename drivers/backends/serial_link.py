@@ -27,7 +27,6 @@ if sys.platform != "win32":
     TermiosError = _termios_error
 
 
-
 def list_ports() -> list[tuple[str, str, str]]:
     """(device, description, hwid) of every serial port pyserial sees, sorted by device."""
     from serial.tools import list_ports as pyserial_list_ports
