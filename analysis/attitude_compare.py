@@ -87,8 +87,10 @@ def error_figure(rec: ImuRecording, rows: list[ComparisonRow], path: str | Path,
     fig, axes = plt.subplots(2, 1, figsize=(11, 6.5), sharex=True)
     t = rec.t_s - rec.t_s[0]
     colors = plt.cm.tab20(np.linspace(0.0, 1.0, 20))
+    q_ref = rec.ref_quat
+    if q_ref is None:
+        raise ValueError(f"{rec.source} has no reference orientation to compare against")
     for i, row in enumerate(rows):
-        q_ref = rec.ref_quat
         qe = row.run.quat
         if not row.run.nine_d and row.score.heading_offset_rad:
             qe = quat.multiply(quat.from_axis_angle([0, 0, 1], -row.score.heading_offset_rad),

@@ -102,13 +102,20 @@ def _c(x: Array) -> Array:
     return np.ascontiguousarray(x, dtype=float)
 
 
+def _mag(rec: ImuRecording) -> Array:
+    """The magnetometer samples a 9D filter reads (``run_filter`` checked they exist)."""
+    if rec.mag_ut is None:
+        raise ValueError(f"{rec.source} has no magnetometer samples")
+    return _c(rec.mag_ut)
+
+
 def _ts(rec: ImuRecording) -> float:
     return 1.0 / rec.rate_hz
 
 
 def _offline_vqf(rec: ImuRecording, nine_d: bool) -> Array:
     vqf = import_extra("vqf", "imu", "the default filter (VQF)")
-    mag = _c(rec.mag_ut) if nine_d else None
+    mag = _mag(rec) if nine_d else None
     out = vqf.offlineVQF(_c(rec.gyro_rad_s), _c(rec.acc_m_s2), mag, _ts(rec))
     return out["quat9D" if nine_d else "quat6D"]
 
@@ -117,7 +124,7 @@ def _online_vqf(rec: ImuRecording, nine_d: bool) -> Array:
     vqf = import_extra("vqf", "imu", "VQF")
     f = vqf.VQF(_ts(rec))
     if nine_d:
-        return f.updateBatch(_c(rec.gyro_rad_s), _c(rec.acc_m_s2), _c(rec.mag_ut))["quat9D"]
+        return f.updateBatch(_c(rec.gyro_rad_s), _c(rec.acc_m_s2), _mag(rec))["quat9D"]
     return f.updateBatch(_c(rec.gyro_rad_s), _c(rec.acc_m_s2))["quat6D"]
 
 
@@ -173,7 +180,7 @@ def _ahrs(name: str, rec: ImuRecording, nine_d: bool) -> Array:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         q = cls(gyr=_c(rec.gyro_rad_s), acc=_c(rec.acc_m_s2),
-                mag=_c(rec.mag_ut) if nine_d else None, frequency=rec.rate_hz).Q
+                mag=_mag(rec) if nine_d else None, frequency=rec.rate_hz).Q
     if nine_d and name == "Madgwick":  # ahrs Madgwick MARG: x north, z up (NWU)
         q = quat.multiply(_NWU_TO_ENU, q)
     return q

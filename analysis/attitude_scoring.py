@@ -89,7 +89,7 @@ def score(q_est: ArrayLike, q_ref: ArrayLike, movement: ArrayLike | None = None,
     qr = np.asarray(q_ref, dtype=float)
     if qe.shape != qr.shape or qe.ndim != 2 or qe.shape[1] != 4:
         raise ValueError(f"estimate {qe.shape} and reference {qr.shape} must both be (n, 4)")
-    ok = np.isfinite(qr).all(axis=1) & np.isfinite(qe).all(axis=1)
+    ok = np.all(np.isfinite(qr), axis=1) & np.all(np.isfinite(qe), axis=1)
     if movement is not None:
         mov = np.asarray(movement, dtype=bool)
         if mov.shape != ok.shape:

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from datetime import timedelta
 from typing import Any
 
 import numpy as np
@@ -234,29 +235,29 @@ def gazebo_params(k_f: float, moment_constant_m: float, tau_up_s: float | None,
                   tau_down_s: float | None, omega_max: float, reaches_full_command: bool,
                   notes: tuple[str, ...] = ()) -> dict[str, Any]:
     """Parameters of the Gazebo multirotor motor model plugin (``notes``: the fit's own)."""
-    notes = list(notes)
+    remarks = list(notes)
     if not (math.isfinite(k_f) and k_f > 0):
         raise LogError("motorConstant: no thrust-vs-speed data")
     if not math.isfinite(moment_constant_m):
-        notes.append("momentConstant: no torque in the data")
+        remarks.append("momentConstant: no torque in the data")
     elif moment_constant_m < 0:
-        notes.append("momentConstant: the log's torque has the opposite sign to its thrust "
+        remarks.append("momentConstant: the log's torque has the opposite sign to its thrust "
                      "(the stand's sign convention for this rotation); exported as the "
                      "magnitude, the spin direction is the model's turningDirection")
     # the plugin applies drag torque = -turningDirection * momentConstant * thrust, so
     # momentConstant is a positive magnitude; the rotor's direction is set per motor
     moment_constant_m = abs(moment_constant_m)
     if tau_up_s is None or tau_down_s is None:
-        notes.append("timeConstantUp/Down: give a step run (--step-run) to fit them")
+        remarks.append("timeConstantUp/Down: give a step run (--step-run) to fit them")
     if not reaches_full_command:
-        notes.append("maxRotVelocity: the highest speed in the data, below full command")
+        remarks.append("maxRotVelocity: the highest speed in the data, below full command")
 
     def num(x: float | None, nd: int = 6) -> float | None:
         return None if x is None or not math.isfinite(x) else float(f"{x:.{nd}g}")
 
     return {"motorConstant": num(k_f), "momentConstant": num(moment_constant_m),
             "timeConstantUp": num(tau_up_s, 4), "timeConstantDown": num(tau_down_s, 4),
-            "maxRotVelocity": num(omega_max, 5), "notes": notes}
+            "maxRotVelocity": num(omega_max, 5), "notes": remarks}
 
 
 # --- from run folders ---------------------------------------------------------------------
@@ -303,8 +304,8 @@ def check_static_coverage(record: RunRecord, act: np.ndarray) -> None:
     if a.size < 2:
         return  # ThrustCurve refuses too few points with its own message
     window = pd.Series(a, index=pd.to_timedelta(t, unit="s")).rolling(
-        pd.Timedelta(seconds=STEADY_WINDOW_S))
-    spread = (window.max() - window.min()).to_numpy()
+        timedelta(seconds=STEADY_WINDOW_S))
+    spread = np.asarray(window.max()) - np.asarray(window.min())
     steady = np.unique(a[(spread <= STEADY_SPREAD) & (t >= STEADY_WINDOW_S)])
     edges = np.concatenate([[a.min()], steady, [a.max()]])
     k = int(np.argmax(np.diff(edges)))

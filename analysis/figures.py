@@ -20,6 +20,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.figure import Figure
 
 from analysis.static_curves import RPM_TO_RAD_S, StaticCurves
 from analysis.step_response import StepResponse, first_order_step
@@ -30,7 +31,7 @@ __all__ = ["plot_static", "plot_steps", "plot_validation"]
 G0 = 9.80665
 
 
-def _save(fig: plt.Figure, path: Path, dpi: int = 90) -> Path:
+def _save(fig: Figure, path: Path, dpi: int = 90) -> Path:
     path = Path(path)
     tmp = path.with_name(f".{path.stem}.tmp.png")
     fig.savefig(tmp, dpi=dpi)

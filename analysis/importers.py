@@ -222,7 +222,7 @@ def _numeric(df: pd.DataFrame, header: str, path: Path) -> np.ndarray:
     if df.attrs.get("dialect", Dialect()).decimal == ",":
         raw = raw.str.replace(",", ".", regex=False)
     empty = raw.to_numpy() == ""
-    values = pd.to_numeric(raw.where(~empty, "nan"), errors="coerce").to_numpy(dtype=float)
+    values = np.asarray(pd.to_numeric(raw.where(~empty, "nan"), errors="coerce"), dtype=float)
     bad = ~np.isfinite(values) & ~empty
     if bad.any():
         row = int(np.flatnonzero(bad)[0])
@@ -283,6 +283,14 @@ def _order_time(t: np.ndarray, path: Path, time_col: str, raw: pd.Series | None,
                             "max_step_back_s": float(np.max(back, initial=0.0)),
                             "jitter_bound_s": bound, "median_period_s": period}
     return order, info
+
+
+def _series(df: pd.DataFrame, name: str) -> pd.Series:
+    """The column ``name`` (the readers rename a repeated name, so one label, one column)."""
+    column = df[name]
+    if not isinstance(column, pd.Series):
+        raise TypeError(f"column {name!r} is not one column")
+    return column
 
 
 def _frame(columns: Mapping[str, np.ndarray], path: Path, *, time_col: str = "t_s",
@@ -370,7 +378,7 @@ def import_rcbenchmark(path: str | Path) -> tuple[pd.DataFrame, dict[str, Any]]:
     if not np.any(np.nan_to_num(cols.get("rpm_optical", np.zeros(1))) > 0):
         cols.pop("rpm_optical", None)
         used.pop("rpm_optical", None)
-    frame, order = _frame(cols, path, time_col=used["t_s"], raw_time=df[used["t_s"]],
+    frame, order = _frame(cols, path, time_col=used["t_s"], raw_time=_series(df, used["t_s"]),
                           first_line=_first_line(df))
     meta = {"format": "rcbenchmark", "source_file": str(path), "columns": used,
             "control_protocol": first[0].strip() if skip else None, "time_order": order,
@@ -428,7 +436,7 @@ def import_esc32(path: str | Path) -> tuple[pd.DataFrame, dict[str, Any]]:
     if len(cols) == 1:
         raise LogError(f"{path}: none of the ESC32 telemetry columns "
                        f"{[h for h, _ in _ESC32_MAP]} (columns: {_names(df.columns, 8)})")
-    frame, order = _frame(cols, path, time_col=stamp_col, raw_time=df[stamp_col],
+    frame, order = _frame(cols, path, time_col=stamp_col, raw_time=_series(df, stamp_col),
                           first_line=_first_line(df))
     meta = {"format": "esc32", "source_file": str(path), "columns": used,
             "start_time": str(start), "time_order": order,
@@ -463,7 +471,7 @@ def import_csv(path: str | Path, mapping: Mapping[str, str] | None = None
     cols = {run_col: _numeric(df, file_col, path) * _unit_factor(file_col, run_col, str(path))
             for run_col, file_col in mapping.items()}
     # a CSV of run columns has one row per instant: a repeated time is refused
-    frame, order = _frame(cols, path, time_col=mapping["t_s"], raw_time=df[mapping["t_s"]],
+    frame, order = _frame(cols, path, time_col=mapping["t_s"], raw_time=_series(df, mapping["t_s"]),
                           first_line=_first_line(df), allow_repeats=False)
     meta = {"format": "csv", "source_file": str(path), "columns": dict(mapping),
             "time_order": order, "cut_last_line": df.attrs.get("cut_last_line"),

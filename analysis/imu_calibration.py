@@ -158,7 +158,7 @@ def angular_acceleration(t: Array, omega: Array, window_s: float = 0.15) -> Arra
         if win > len(grid):
             d = np.gradient(wg, grid, axis=0)
         else:
-            d = savgol_filter(wg, win, 2, deriv=1, delta=dt, axis=0)
+            d = np.asarray(savgol_filter(wg, win, 2, deriv=1, delta=dt, axis=0))
         out[seg] = d if even else np.column_stack([np.interp(ts, grid, c) for c in d.T])
     return out
 
@@ -194,8 +194,8 @@ def fit_forward(truth: Array, reading: Array, intercept: bool) -> tuple[Array, A
     """
     x = np.c_[truth, np.ones(len(truth))] if intercept else truth
     coef, *_ = np.linalg.lstsq(x, reading, rcond=None)
-    f = coef[:3].T
-    b = coef[3] if intercept else np.zeros(3)
+    f = np.asarray(coef[:3].T, dtype=np.float64)
+    b = np.asarray(coef[3], dtype=np.float64) if intercept else np.zeros(3)
     return f, b
 
 
@@ -436,17 +436,18 @@ def calibrate(
     cond_g = excitation_condition(g["omega"], centred=False)
     _check_condition("gyro", cond_g, warn_condition, max_condition, notes)
     f_g, _ = fit_forward(g["omega"], g["gyro"] - bias, intercept=False)  # (A.7)-(A.9)
-    k_gyro = np.linalg.inv(f_g)
+    k_gyro = np.asarray(np.linalg.inv(f_g), dtype=np.float64)
 
     a = ph["acc"]
     cond_a = excitation_condition(a["f"], centred=True)
     _check_condition("accelerometer", cond_a, warn_condition, max_condition, notes)
     r = np.zeros(3)
     lever: dict[str, Any] = {}
+    acc_bias, k_acc = np.zeros(3), np.eye(3)  # replaced by the first pass (there is one)
     for _ in range(max(1, iterations)):
         f_imu = a["f"] + np.cross(a["alpha"], r) + np.cross(a["omega"], np.cross(a["omega"], r))
         f_a, acc_bias = fit_forward(f_imu, a["acc"], intercept=True)
-        k_acc = np.linalg.inv(f_a)
+        k_acc = np.asarray(np.linalg.inv(f_a), dtype=np.float64)
         lever = _lever_arm(ph, k_acc, acc_bias)
         r = lever["r"]
 
@@ -473,7 +474,7 @@ def calibrate(
         warnings=notes,
         source=str(df.attrs.get("path", "")),
     )
-    if (df["phase"] == "verify").any():
+    if bool((df["phase"] == "verify").any()):
         cal.verification_rms = _verify(cal, aligned_phase(df, "verify", offset))
     return cal
 

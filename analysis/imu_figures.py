@@ -15,6 +15,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
 
 from analysis.atomic_files import write_atomically
 from analysis.imu_calibration import Calibration, aligned_phase, apply_calibration
@@ -24,14 +26,14 @@ __all__ = ["verification_figures"]
 _XYZ = ("x", "y", "z")
 
 
-def _save(fig: plt.Figure, path: Path) -> Path:
+def _save(fig: Figure, path: Path) -> Path:
     try:
         return write_atomically(path, lambda tmp: fig.savefig(tmp, dpi=110), suffix=".png")
     finally:
         plt.close(fig)
 
 
-def _panel(ax: plt.Axes, t: np.ndarray, truth: np.ndarray, cor: np.ndarray, raw: np.ndarray,
+def _panel(ax: Axes, t: np.ndarray, truth: np.ndarray, cor: np.ndarray, raw: np.ndarray,
            label: str, unit: str) -> None:
     ax.plot(t, raw, color="0.6", lw=0.8, label=f"{label} raw (IMU)")
     ax.plot(t, cor, color="tab:blue", lw=0.8, label=f"{label} corrected")

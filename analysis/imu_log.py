@@ -7,6 +7,7 @@ row; the CSV line is one more because of the header) and the column.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -58,6 +59,7 @@ def read_table(path: str | Path) -> pd.DataFrame:
         raise LogError(f"{path}: expected a .csv or .parquet log, got {suffix or 'no suffix'!r}")
     if not path.is_file():
         raise LogError(f"{path}: file not found")
+    header: list[Any] = []  # the CSV's first row as written
     try:
         if suffix == ".csv":
             df = pd.read_csv(path, dtype={"phase": str})
@@ -91,7 +93,7 @@ def _numeric(df: pd.DataFrame, path: Path, columns: tuple[str, ...],
     """Convert columns to float in place; the first bad cell is reported."""
     for c in columns:
         raw = df[c]
-        values = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=float)
+        values = np.asarray(pd.to_numeric(raw, errors="coerce"), dtype=float)
         bad = ~np.isfinite(values)
         if allow_nan:  # empty cells are allowed, text and infinities are not
             bad = np.isinf(values) | (np.isnan(values) & ~pd.isna(raw).to_numpy())

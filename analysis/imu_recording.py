@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -64,7 +65,7 @@ class ImuRecording:
 
         ``mag_ut``: corrected magnetometer samples of those rows (default: the rows kept).
         """
-        def sub(a: Array | None) -> Array | None:
+        def sub(a: NDArray[Any] | None) -> NDArray[Any] | None:
             return None if a is None else a[keep]
         return replace(self, t_s=t_s, gyro_rad_s=gyro, acc_m_s2=acc,
                        mag_ut=sub(self.mag_ut) if mag_ut is None else mag_ut,
@@ -100,13 +101,11 @@ def uniform_grid(rec: ImuRecording, jitter: float = UNIFORM_JITTER) -> UniformGr
     n = int(np.ceil((t[-1] - t[0]) / dt - 1e-9)) + 1
     tg = t[0] + np.arange(n) * dt
 
-    def on_grid(a: Array | None) -> Array | None:
-        if a is None:
-            return None
+    def on_grid(a: Array) -> Array:
         return np.stack([np.interp(tg, t, a[:, i]) for i in range(a.shape[1])], axis=1)
 
     grid = ImuRecording(rec.source, tg, on_grid(rec.gyro_rad_s), on_grid(rec.acc_m_s2),
-                        on_grid(rec.mag_ut))
+                        None if rec.mag_ut is None else on_grid(rec.mag_ut))
     idx = np.clip(np.searchsorted(tg, t, side="right") - 1, 0, n - 2)
     u = np.clip((t - tg[idx]) / dt, 0.0, 1.0)
     return UniformGrid(grid, idx, u)
@@ -204,11 +203,14 @@ def load_recording(path: str | Path) -> ImuRecording:
     df = load_attitude_log(path)
     gyro, acc = imu_columns(df)
 
+    def columns(names: tuple[str, ...]) -> Array:
+        return df[list(names)].to_numpy(dtype=float)
+
     def cols(names: tuple[str, ...]) -> Array | None:
-        return df[list(names)].to_numpy(dtype=float) if names[0] in df.columns else None
+        return columns(names) if names[0] in df.columns else None
 
     mov = df[MOVEMENT_COLUMN].to_numpy() > 0.5 if MOVEMENT_COLUMN in df.columns else None
-    rec = ImuRecording(str(path), df["t_s"].to_numpy(dtype=float), cols(gyro), cols(acc),
+    rec = ImuRecording(str(path), df["t_s"].to_numpy(dtype=float), columns(gyro), columns(acc),
                        cols(MAG_COLUMNS), cols(REF_QUAT_COLUMNS), mov)
     return _check_scorable(rec, f"columns {','.join(REF_QUAT_COLUMNS)}",
                            f"column {MOVEMENT_COLUMN}")

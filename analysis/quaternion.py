@@ -88,10 +88,10 @@ def rotate(q: ArrayLike, v: ArrayLike) -> Array:
 
 def from_axis_angle(axis: ArrayLike, angle: ArrayLike) -> Array:
     """Unit quaternion for a rotation by ``angle`` (rad) about ``axis`` (B.1, 2.18)."""
-    axis = np.asarray(axis, dtype=float)
-    axis = axis / np.linalg.norm(axis, axis=-1, keepdims=True)
-    half = 0.5 * np.asarray(angle, dtype=float)[..., None]
-    return np.concatenate([np.cos(half), np.sin(half) * axis], axis=-1)
+    unit = np.asarray(axis, dtype=np.float64)
+    unit = unit / np.linalg.norm(unit, axis=-1, keepdims=True)
+    half = 0.5 * np.asarray(angle, dtype=np.float64)[..., None]
+    return np.concatenate([np.cos(half), np.sin(half) * unit], axis=-1)
 
 
 def derivative(q: ArrayLike, omega_b: ArrayLike) -> Array:

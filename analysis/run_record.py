@@ -196,7 +196,8 @@ def _sample_parts(run_dir: Path, path: Path, *, empty: bool = False) -> list[Pat
 def _read_samples(run_dir: Path, path: Path) -> pd.DataFrame:
     parts = _sample_parts(run_dir, path)
     try:  # the parts listed, not the folder: pyarrow would walk its sub-folders and links
-        df = pd.read_parquet([str(p) for p in parts] if path.is_dir() else path)
+        # pandas annotates one path, but hands a list of part files to pyarrow as it is
+        df = pd.read_parquet([str(p) for p in parts] if path.is_dir() else path)  # pyright: ignore[reportArgumentType]
     except Exception as exc:  # pyarrow raises several types for damaged files
         raise LogError(_not_parquet(path, exc)) from None
     if "t_s" not in df.columns:
@@ -251,9 +252,11 @@ def esc_frame_s(record: RunRecord) -> float:
     """The ESC input frame period from run.json (``rig.esc.frame_rate_hz``), or NaN."""
     rig = record.meta.get("rig")
     esc = rig.get("esc") if isinstance(rig, dict) else None
-    rate = esc.get("frame_rate_hz") if isinstance(esc, dict) else None
+    value = esc.get("frame_rate_hz") if isinstance(esc, dict) else None
+    if not isinstance(value, int | float | str):
+        return math.nan
     try:
-        rate = float(rate)
+        rate = float(value)
     except (TypeError, ValueError):
         return math.nan
     return 1.0 / rate if rate > 0 else math.nan

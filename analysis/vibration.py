@@ -111,18 +111,17 @@ def vibration_vs_speed(samples: pd.DataFrame, bins: int = 12) -> VibrationCurve 
     df = pd.DataFrame({"bin": k, "rpm": rpm, **{c: samples[c].to_numpy(float) for c in cols}})
     df = df[turning].dropna()
     g = df.groupby("bin")
-    n = g.size()
+    n = g.size().to_numpy()  # every per-bin result below is in the same (bin) order
     if level:
-        value = g[LEVEL_COLUMN].median()
+        value = np.asarray(g[LEVEL_COLUMN].median(), dtype=float)
     else:  # per-bin variance of each axis about its own mean, summed over the axes
-        value = np.sqrt(sum(g[c].var(ddof=0) for c in axes))
-    keep = n.index[n.to_numpy() >= 3]
-    if keep.empty:
+        value = np.sqrt(np.sum([np.asarray(g[c].var(ddof=0), dtype=float) for c in axes], axis=0))
+    keep = n >= 3
+    if not keep.any():
         return None
     return VibrationCurve(
         source=", ".join(cols), kind="logged level" if level else "rms of acceleration",
-        rpm=g["rpm"].median()[keep].to_numpy(), level_m_s2=value[keep].to_numpy(float),
-        samples=n[keep].to_numpy())
+        rpm=np.asarray(g["rpm"].median())[keep], level_m_s2=value[keep], samples=n[keep])
 
 
 def _longest_true(mask: np.ndarray) -> tuple[int, int]:

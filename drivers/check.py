@@ -21,6 +21,7 @@ import numpy as np
 from drivers.contracts import Clock, Esc, Hexapod, Sensor
 from drivers.errors import DeviceError
 from drivers.factory import IMU_ROLES, ROLES, open_context, open_devices
+from drivers.rig_view import RigView
 
 __all__ = ["DeviceReport", "check_rig"]
 
@@ -115,7 +116,7 @@ def _check_world(ctx: Any, roles: list[str], timeout_s: float) -> list[DeviceRep
     return out
 
 
-def check_rig(rig: Any, timeout_s: float = 2.0) -> list[DeviceReport]:
+def check_rig(rig: RigView, timeout_s: float = 2.0) -> list[DeviceReport]:
     """One report per device role, in the bench's order (esc, load_cell, power, rpm;
     hexapod, imu, reference_imu)."""
     ctx = open_context(rig)  # a rig that mixes what cannot mix is refused in one line

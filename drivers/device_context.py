@@ -18,6 +18,7 @@ from drivers.contracts import Clock, Sensor
 from drivers.device_options import DeviceUrl
 from drivers.errors import DeviceError
 from drivers.registry import lookup
+from drivers.rig_view import RigView
 from drivers.role_views import SharedSensor
 
 __all__ = ["DEFAULT_COLUMNS", "DeviceContext"]
@@ -33,7 +34,7 @@ class DeviceContext:
     the ``sim`` host's peers read: a ``drivers.sim_worlds`` object of the rig's bench.
     """
 
-    def __init__(self, rig: Any, clock: Clock, specs: dict[str, DeviceUrl], *,
+    def __init__(self, rig: RigView, clock: Clock, specs: dict[str, DeviceUrl], *,
                  world: Callable[[], Any] | None = None, seed: int | None = None) -> None:
         self.rig = rig
         self.clock = clock

@@ -9,12 +9,14 @@ the device table and the key, and unknown keys are refused (a typo must not be i
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 from urllib.parse import parse_qsl, urlsplit
 
 from drivers.errors import DeviceError
+from drivers.rig_view import DeviceView
 
 __all__ = ["DeviceUrl", "parse_device"]
 
@@ -119,8 +121,8 @@ class DeviceUrl:
         return {k: v for k, v in self.options.items() if k not in exclude}
 
 
-def parse_device(rig_path: Any, role: str, dev: Any) -> DeviceUrl:
-    """Split ``dev.url`` and merge its query with ``dev.options`` (duck-typed DeviceConfig)."""
+def parse_device(rig_path: str | os.PathLike[str], role: str, dev: DeviceView) -> DeviceUrl:
+    """Split ``dev.url`` and merge its query with ``dev.options`` (a rig's DeviceConfig)."""
     url = str(dev.url)
     parts = urlsplit(url)
     options: dict[str, Any] = {}

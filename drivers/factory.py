@@ -1,9 +1,9 @@
 """Rig files -> opened devices, whatever the bench: one opener, devices by role.
 
 ``open_rig(rig)`` takes a validated rig config (``bench.rig.rig.RigConfig``, of either bench,
-used duck-typed so ``drivers`` does not import ``bench``) and returns an :class:`OpenRig`:
-the clock and the devices by role (``esc``, ``load_cell``, ``power``, ``rpm``; ``hexapod``,
-``imu``, ``reference_imu``).
+seen as a ``drivers.rig_view.RigView`` so ``drivers`` does not import ``bench``) and returns
+an :class:`OpenRig`: the clock and the devices by role (``esc``, ``load_cell``, ``power``,
+``rpm``; ``hexapod``, ``imu``, ``reference_imu``).
 Each device is opened by its entry in the protocol registry (``drivers.registry``, entries
 in ``drivers.protocols``): a lookup by URL scheme, ``protocol`` option and role.
 
@@ -24,6 +24,7 @@ Problems raise ``DeviceError`` naming the rig file, the device table and the fie
 from __future__ import annotations
 
 import logging
+import os
 from collections.abc import Iterator, Mapping, MutableMapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -36,6 +37,7 @@ from drivers.device_context import DeviceContext
 from drivers.device_options import DeviceUrl, parse_device
 from drivers.errors import DeviceError
 from drivers.registry import schemes
+from drivers.rig_view import DeviceView, RigView
 from drivers.sim.faults import FaultSwitches
 from drivers.sim.rig import ESC_FAULTS, PlantTruth
 from drivers.sim.sensors import SimSensor, check_calibration
@@ -186,7 +188,7 @@ class _Sensors(MutableMapping[str, Sensor]):
         return len(self._rig._sensor_roles)
 
 
-def validate_device(rig_path: Any, role: str, dev: Any) -> None:
+def validate_device(rig_path: str | os.PathLike[str], role: str, dev: DeviceView) -> None:
     """Check a device's calibration and options as its opener will use them, before any
     device opens or run folder exists (``bench.rig.rig.load_rig`` calls this).
 
@@ -207,12 +209,12 @@ def validate_device(rig_path: Any, role: str, dev: Any) -> None:
         check_calibration(role, calibration, table)
 
 
-def device_specs(rig: Any) -> dict[str, DeviceUrl]:
+def device_specs(rig: RigView) -> dict[str, DeviceUrl]:
     """Every device of the rig with its URL split and options merged (see device_options)."""
     return {role: parse_device(rig.path, role, dev) for role, dev in rig.devices.items()}
 
 
-def is_imu_bench(rig: Any) -> bool:
+def is_imu_bench(rig: RigView) -> bool:
     """The IMU bench is the rig with a hexapod; every other rig is a propulsion stand."""
     return "hexapod" in rig.devices
 
@@ -221,7 +223,7 @@ def _simulated(spec: DeviceUrl) -> bool:
     return spec.scheme == "sim" or spec.host == SIM_HOST
 
 
-def _propulsion(rig: Any, specs: dict[str, DeviceUrl], seed: int | None) -> DeviceContext:
+def _propulsion(rig: RigView, specs: dict[str, DeviceUrl], seed: int | None) -> DeviceContext:
     if {s.scheme for s in specs.values()} <= {"sim", "replay"}:
         sim = build_sim_rig(rig, seed=seed, calibrations=True,
                             urls={r: s.url for r, s in specs.items() if s.scheme == "sim"})
@@ -244,7 +246,7 @@ def _propulsion(rig: Any, specs: dict[str, DeviceUrl], seed: int | None) -> Devi
     return ctx
 
 
-def _time_scale(rig: Any, specs: dict[str, DeviceUrl]) -> float | None:
+def _time_scale(rig: RigView, specs: dict[str, DeviceUrl]) -> float | None:
     """``time_scale`` of the serial peers (they must agree); None without serial peers."""
     scales = {role: s.number("time_scale", 1.0, lo=1e-3, hi=1e3)
               for role, s in specs.items() if s.scheme == "serial" and s.host == SIM_HOST}
@@ -254,7 +256,7 @@ def _time_scale(rig: Any, specs: dict[str, DeviceUrl]) -> float | None:
     return next(iter(scales.values()), None)
 
 
-def _imu_bench(rig: Any, specs: dict[str, DeviceUrl], seed: int | None) -> DeviceContext:
+def _imu_bench(rig: RigView, specs: dict[str, DeviceUrl], seed: int | None) -> DeviceContext:
     real = [r for r, s in specs.items() if not _simulated(s)]
     if real and len(real) != len(specs):
         sims = [r for r in specs if r not in real]
@@ -271,7 +273,7 @@ def _imu_bench(rig: Any, specs: dict[str, DeviceUrl], seed: int | None) -> Devic
     return ctx
 
 
-def open_context(rig: Any, *, seed: int | None = None) -> DeviceContext:
+def open_context(rig: RigView, *, seed: int | None = None) -> DeviceContext:
     """The device context of a rig (clock, simulated world), before any device opens."""
     specs = device_specs(rig)
     known = schemes()
@@ -283,7 +285,7 @@ def open_context(rig: Any, *, seed: int | None = None) -> DeviceContext:
     return _propulsion(rig, specs, seed)
 
 
-def open_rig(rig: Any, *, seed: int | None = None) -> OpenRig:
+def open_rig(rig: RigView, *, seed: int | None = None) -> OpenRig:
     """Open every device the rig config names; see the module docstring."""
     return open_devices(open_context(rig, seed=seed))
 

@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Any
 
 from drivers.contracts import Fault, HexapodLimits
 from drivers.errors import DeviceError
+from drivers.rig_view import RigView, imu_sim, propulsion_sim, section
 from drivers.sim.esc import EscSettings
 from drivers.sim.plant import PlantParams
 from drivers.sim.rig import SimRig
@@ -58,20 +59,21 @@ def sim_faults(device: Any, options: Mapping[str, Any], role: str, table: str = 
             raise DeviceError(f"{where}: bad fault spec {spec!r}: {exc}") from None
 
 
-def build_sim_rig(rig: Any, *, seed: int | None = None, urls: dict[str, str] | None = None,
+def build_sim_rig(rig: RigView, *, seed: int | None = None, urls: dict[str, str] | None = None,
                   calibrations: bool = False) -> SimRig:
     """The seeded simulated propulsion rig of a rig file's ``[sim]`` and ``[esc]`` tables.
 
     ``calibrations``: take the sensors' calibration tables from the rig's devices (the
     ``sim://`` rig); wire-level peers report calibrated values like their firmware.
     """
+    sim = propulsion_sim(rig)
     try:
-        params = PlantParams.with_overrides(dict(rig.sim.plant))
+        params = PlantParams.with_overrides(dict(sim.plant))
         sensor_params = SensorParams.with_overrides(
-            {"noise": bool(rig.sim.noise), **dict(rig.sim.sensors)})
+            {"noise": bool(sim.noise), **dict(sim.sensors)})
     except KeyError as exc:
         raise DeviceError(f"{rig.path}: [sim] unknown plant/sensor parameter {exc}") from None
-    e = rig.esc
+    e = section(rig, rig.esc, "esc")
     esc_settings = EscSettings(e.frame_rate_hz, e.min_us, e.max_us, e.idle_us, e.arm_us,
                                e.timeout_s)
     devices = rig.devices
@@ -81,8 +83,8 @@ def build_sim_rig(rig: Any, *, seed: int | None = None, urls: dict[str, str] | N
         params=params,
         sensor_params=sensor_params,
         esc_settings=esc_settings,
-        esc_mode=rig.sim.esc_mode,
-        seed=int(rig.sim.seed if seed is None else seed),
+        esc_mode=sim.esc_mode,
+        seed=int(sim.seed if seed is None else seed),
         urls=urls,
         load_cell_cal=cal["load_cell"],
         power_cal=cal["power"],
@@ -90,19 +92,21 @@ def build_sim_rig(rig: Any, *, seed: int | None = None, urls: dict[str, str] | N
     )
 
 
-def wire_plant(rig: Any, seed: int | None = None) -> Any:
+def wire_plant(rig: RigView, seed: int | None = None) -> Any:
     """The propulsion plant on the wall clock, owner of the rig's wire-level peers."""
     from drivers.wire_sim.plant_peers import WirePlant, WireSims
 
     return WireSims(WirePlant(build_sim_rig(rig, seed=seed)))
 
 
-def build_sim_imu_rig(rig: Any, seed: int | None, time_scale: float | None) -> SimImuRig:
+def build_sim_imu_rig(rig: RigView, seed: int | None, time_scale: float | None) -> SimImuRig:
     """The seeded simulated IMU bench; on the wall clock (``time_scale``) if not None."""
     from drivers.sim.imu_rig import SimImuRig, imu_model
 
+    sim = imu_sim(rig)
+    imu = section(rig, rig.imu, "imu")
     try:
-        model = imu_model({**dict(rig.imu.params), **dict(rig.sim.imu)}, noise=rig.sim.noise)
+        model = imu_model({**dict(imu.params), **dict(sim.imu)}, noise=sim.noise)
     except KeyError as exc:
         raise DeviceError(f"{rig.path}: unknown IMU parameter {exc}") from None
     clock = None
@@ -110,8 +114,9 @@ def build_sim_imu_rig(rig: Any, seed: int | None, time_scale: float | None) -> S
         from drivers.wire_sim.paced_clock import PacedClock
 
         clock = PacedClock(time_scale)
-    hx = rig.hexapod
+    hx = section(rig, rig.hexapod, "hexapod")
+    reference = section(rig, rig.reference_imu, "reference_imu")
     return SimImuRig(model, HexapodLimits(**dict(hx.limits)), seed=int(
-        rig.sim.seed if seed is None else seed), log_rate_hz=hx.log_rate_hz,
-        cg_m=tuple(rig.sim.cg_m) if rig.sim.cg_m is not None else tuple(hx.pivot_m),
-        reference=dict(rig.reference_imu), clock=clock)
+        sim.seed if seed is None else seed), log_rate_hz=hx.log_rate_hz,
+        cg_m=sim.cg_m if sim.cg_m is not None else hx.pivot_m,
+        reference=dict(reference), clock=clock)

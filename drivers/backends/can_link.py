@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable
+from typing import Any
 
 import can
 
@@ -25,7 +26,7 @@ def detect_configs(interface: str) -> list[tuple[str, str]]:
     return [(str(c.get("interface", interface)), str(c.get("channel", ""))) for c in configs]
 
 
-def open_bus(interface: str, channel: str, **kwargs: object) -> can.BusABC:
+def open_bus(interface: str, channel: str, **kwargs: Any) -> can.BusABC:
     """``can.Bus`` with errors turned into ``DeviceError`` naming interface and channel."""
     try:
         return can.Bus(interface=interface, channel=channel, **kwargs)

@@ -69,7 +69,7 @@ class DroneCanEsc(HostGuardedCanEsc):
                                                 s.max_us),),
                           extra={"esc_index": s.esc_index, "node_id": s.node_id})
 
-    def _broadcast(self, msg: dc.DroneCanMessage) -> None:
+    def _broadcast(self, msg: dc.KnownMessage) -> None:
         tid = self._tid[msg.DTID]
         self._tid[msg.DTID] = (tid + 1) & 0x1F
         for frame in dc.encode(msg, self.settings.node_id, tid, self.settings.priority):

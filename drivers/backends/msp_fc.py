@@ -57,7 +57,10 @@ class MspClient:
 
     def request(self, message: msp.MspMessage) -> msp.MspMessage:
         """Send a request (or SET command) and return the FC's reply to that command."""
-        cmd = message.cmd if isinstance(message, msp.Request | msp.Unknown) else message.CMD
+        if isinstance(message, msp.Request | msp.Ack | msp.ErrorReply | msp.Unknown):
+            cmd = message.cmd  # the messages without a CMD of their own
+        else:
+            cmd = message.CMD
         with self.lock:
             write_all(self.port, msp.encode_message(message, self.version), self.name)
             deadline = Deadline(self.timeout_s)

@@ -368,7 +368,9 @@ class NiPwmEsc:
         high = pulse_us * 1e-6
         self._pulse_us = pulse_us
         try:
-            self._writer.write_one_sample_pulse_time(high, self.period_s - high, timeout=0.1)
+            # nidaqmx leaves timeout unannotated (its default 10 reads as an int); it takes s
+            self._writer.write_one_sample_pulse_time(
+                high, self.period_s - high, timeout=0.1)  # pyright: ignore[reportArgumentType]
         except nidaqmx.errors.DaqError as exc:
             raise _daq(f"pulse update on {self.settings.counter}", exc) from None
 

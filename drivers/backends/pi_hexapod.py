@@ -361,10 +361,10 @@ class _Differentiator:
             if edge.any():
                 seg = buf[first - base:first - base + w]
                 k = i[edge] - first
-                vel[edge] = savgol_filter(seg, w, 3, deriv=1, delta=h, axis=0,
-                                          mode="interp")[k]
-                acc[edge] = savgol_filter(seg, w, 3, deriv=2, delta=h, axis=0,
-                                          mode="interp")[k]
+                vel[edge] = np.asarray(savgol_filter(seg, w, 3, deriv=1, delta=h, axis=0,
+                                                     mode="interp"))[k]
+                acc[edge] = np.asarray(savgol_filter(seg, w, 3, deriv=2, delta=h, axis=0,
+                                                     mode="interp"))[k]
         return vel, acc
 
 
@@ -700,7 +700,7 @@ class PiHexapod:
             self._rest_anchor, self._rest_k = float(t[-1]), 1
         return self._block(t, p, vel, acc)
 
-    def _block(self, t: Array, pose: Array, vel: Array, acc: Array) -> Block:
+    def _block(self, t: NDArray[np.floating], pose: Array, vel: Array, acc: Array) -> Block:
         return log_block(t, pose, vel, acc, self.gravity)
 
     # ------------------------------------------------------------------ stop

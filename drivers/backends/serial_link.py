@@ -7,17 +7,24 @@ path) and use ``read_some`` / ``write_all`` so that timeouts and disconnects bec
 
 from __future__ import annotations
 
+import sys
 import time
 
 import serial
 
-try:  # pyserial's POSIX port lets termios.error (not an OSError) escape flush()
-    from termios import error as TermiosError
-except ImportError:  # Windows
-    class TermiosError(Exception):  # type: ignore[no-redef]
-        """Never raised: Windows has no termios."""
-
 from drivers.errors import DeviceError
+
+
+class _NoTermiosError(Exception):
+    """Never raised: Windows has no termios."""
+
+
+# pyserial's POSIX port lets termios.error (not an OSError) escape flush()
+TermiosError: type[Exception] = _NoTermiosError
+if sys.platform != "win32":
+    from termios import error as _termios_error
+
+    TermiosError = _termios_error
 
 
 def list_ports() -> list[tuple[str, str, str]]:
@@ -40,7 +47,9 @@ def open_port(url: str, baudrate: int, *, timeout_s: float = 0.01) -> serial.Ser
 def read_some(port: serial.SerialBase, name: str) -> bytes:
     """Whatever arrived (waits at most the port's read timeout); '' when nothing did."""
     try:
-        n = port.in_waiting
+        # pyserial defines in_waiting on each platform's Serial class, not on SerialBase;
+        # every port opened here (serial_for_url) has it
+        n = port.in_waiting  # pyright: ignore[reportAttributeAccessIssue]
         return port.read(n if n > 0 else 1)
     except (serial.SerialException, OSError, TermiosError, TypeError) as exc:
         raise DeviceError(f"{name}: serial read failed, device gone? ({exc})") from None

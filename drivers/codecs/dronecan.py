@@ -213,7 +213,9 @@ class Unknown:
     payload_hex: str
 
 
-DroneCanMessage = RawCommand | EscStatus | NodeStatus | Unknown
+#: The messages this codec interprets (each knows its data type id, ``DTID``).
+KnownMessage = RawCommand | EscStatus | NodeStatus
+DroneCanMessage = KnownMessage | Unknown
 
 _TYPES: dict[int, type] = {RAW_COMMAND_DTID: RawCommand, STATUS_DTID: EscStatus,
                            NODE_STATUS_DTID: NodeStatus}

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import re
 import struct
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 from drivers.codecs.checksums import sum16
@@ -233,7 +234,7 @@ Gx3Message = (AccelRate | DeltaAngleVelocity | ContinuousAck | Matrix | ScaledMa
               | AccelRateMag | AccelRateMagMatrix | GyroBias | Euler | EulerRates | Reply)
 
 
-def _vec(v: tuple[float, ...], scale: float = 1.0) -> tuple[float, float, float]:
+def _vec(v: Sequence[float], scale: float = 1.0) -> tuple[float, float, float]:
     return (v[0] * scale, v[1] * scale, v[2] * scale)
 
 

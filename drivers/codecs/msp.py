@@ -129,7 +129,7 @@ class MspDecoder(FrameDecoder):
 
     def try_frame(self, buf: bytes | bytearray, i: int) -> Attempt:
         att = self._try_raw(buf, i)
-        if not self.typed or att.status is not Status.OK:
+        if not self.typed or att.status is not Status.OK or att.message is None:
             return att
         try:
             return Attempt(Status.OK, att.length, parse(att.message))

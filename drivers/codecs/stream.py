@@ -115,7 +115,7 @@ class FrameDecoder(ABC, Generic[M]):
         self.stats = DecoderStats()
 
     @abstractmethod
-    def try_frame(self, buf: bytes | bytearray, start: int) -> Attempt[M]:
+    def try_frame(self, buf: bytes | bytearray, start: int, /) -> Attempt[M]:
         """Judge the candidate frame starting at ``buf[start]`` (never raises)."""
 
     def feed(self, data: bytes | bytearray) -> list[M]:

@@ -142,20 +142,22 @@ def msp_imu(ctx: Any, spec: DeviceUrl) -> Sensor:
     from drivers.codecs import msp
     from drivers.wire_sim.plant_peers import BTFL_ACC_1G
 
-    start = None
+    start: Callable[[], Any] | None = None
     if spec.is_wire_sim:
         variant = spec.text("sim_variant", "BTFL", choices=("BTFL", "INAV"))
         spec.number("time_scale", 1.0, lo=1e-3, hi=1e3)  # the world's clock reads it
         sim_1g = msp.INAV_ACC_1G if variant == "INAV" else spec.integer(
             "sim_acc_1g", BTFL_ACC_1G, lo=1, hi=32767)  # the simulated FC's driver
 
-        def start() -> Any:
+        def start_peer() -> Any:
             from drivers.wire_sim.plant_peers import start_msp_peer
 
             peer = start_msp_peer(ctx.world(), ctx.clock, variant=variant, acc_1g=round(sim_1g))
             ctx.peers[spec.role] = peer
             ctx.on_close(peer.stop)  # after the port (closers run last-in first-out)
             return peer
+
+        start = start_peer
 
     return open_msp_imu(ctx, spec, lambda: port(ctx, spec, "msp", 115_200, start)[0])
 
@@ -310,17 +312,19 @@ def gx3_reference(ctx: Any, spec: DeviceUrl) -> Sensor:
     window_s = spec.number("time_window_s", 5.0, lo=0.1, hi=3600.0)
     stale_s = spec.number("stale_s", 0.2, lo=0.01, hi=60.0)
     open_timeout_s = spec.number("open_timeout_s", 1.0, lo=0.05, hi=30.0)
-    start = None
+    start: Callable[[], Any] | None = None
     if spec.is_wire_sim:
         spec.number("time_scale", 1.0, lo=1e-3, hi=1e3)  # the world's clock reads it
 
-        def start() -> Any:
+        def start_peer() -> Any:
             from drivers.wire_sim.plant_peers import start_gx3_peer
 
             peer = start_gx3_peer(ctx.world(), ctx.clock)
             ctx.peers[spec.role] = peer
             ctx.on_close(peer.stop)  # after the port (closers run last-in first-out)
             return peer
+
+        start = start_peer
 
     link, _ = port(ctx, spec, "gx3", 115_200, start)
     stale = stale_s * getattr(ctx.clock, "time_scale", 1.0)

@@ -17,9 +17,10 @@ from drivers.contracts import Hexapod
 from drivers.device_options import DeviceUrl
 from drivers.errors import DeviceError
 from drivers.registry import register
+from drivers.rig_view import RigView, section
 
 
-def open_pi_hexapod(rig: Any, url: str, options: dict[str, Any], clock: Any,
+def open_pi_hexapod(rig: RigView, url: str, options: dict[str, Any], clock: Any,
                     default_timeout_s: float) -> Hexapod:
     """The PI GCS backend on ``url`` (tcp://host:port), set up from the rig file."""
     from drivers.backends.pi_hexapod import (
@@ -48,11 +49,12 @@ def open_pi_hexapod(rig: Any, url: str, options: dict[str, Any], clock: Any,
     def connect() -> Any:
         return open_tcp(host, port, timeout_s=min(timeout_s, 2.0))
 
+    hexapod = section(rig, rig.hexapod, "hexapod")
     sock = connect()
     try:
         return PiHexapod(sock, url=url, timeout_s=timeout_s, connect=connect,
-                         limits=rig.hexapod.hexapod_limits(), clock=clock,
-                         log_rate_hz=rig.hexapod.log_rate_hz, dialect=dialect,
+                         limits=hexapod.hexapod_limits(), clock=clock,
+                         log_rate_hz=hexapod.log_rate_hz, dialect=dialect,
                          start_tolerance=tolerance, derivative_window=window)
     except BaseException:
         sock.close()

@@ -15,12 +15,13 @@ or the drivers, so the rig builds on the drivers and the drivers on the DAQ, no 
 from __future__ import annotations
 
 import math
-from typing import Protocol
+from collections.abc import Mapping
+from typing import Any, Protocol, TypeAlias
 
 import numpy as np
 
 from drivers.sim.clock import SimClock
-from drivers.sim.load_cell_filter import SecondOrderLowPass, bilinear_low_pass
+from drivers.sim.load_cell_filter import PartSnapshot, SecondOrderLowPass, bilinear_low_pass
 from drivers.sim.plant import Plant
 from drivers.sim.sensor_params import VIBRATION_REF_RPM, SensorParams
 from drivers.worker import Worker
@@ -59,6 +60,10 @@ class SampleClock:
         return nominal + np.take(self._jitter, np.arange(n0, n1), mode="wrap")
 
 
+#: ``ColumnBuffer.snapshot``: the buffer (by reference), its first index, its live range.
+BufferSnapshot: TypeAlias = tuple[np.ndarray, int, int, int]
+
+
 class ColumnBuffer:
     """Rows indexed by sample number, appended at the end and trimmed from the front."""
 
@@ -79,13 +84,13 @@ class ColumnBuffer:
         self._buf = np.empty_like(self._buf)
         self.first, self._start, self._end = n, 0, 0
 
-    def snapshot(self) -> tuple[object, ...]:
+    def snapshot(self) -> BufferSnapshot:
         """O(1): columns before ``_end`` are never written again (appends go after it or
         into a new buffer), so the buffer is kept by reference."""
         return self._buf, self.first, self._start, self._end
 
-    def restore(self, snap: tuple[object, ...]) -> None:
-        self._buf, self.first, self._start, self._end = snap  # type: ignore[assignment]
+    def restore(self, snap: BufferSnapshot) -> None:
+        self._buf, self.first, self._start, self._end = snap
 
     def append(self, rows: np.ndarray) -> None:
         k = rows.shape[1]
@@ -115,6 +120,12 @@ class ColumnBuffer:
 T_S, BRIDGE_V, CURRENT_OUT_V, VOLTAGE_OUT_V, HALL_PERIOD_S, ACC_X_M_S2 = range(6)
 
 
+#: ``Acquisition.snapshot``: buffer, generator state, noise rows drawn ahead, load-cell
+#: filter, then magnet edges seen, the last edge's time and the period (RPM pickup).
+AcquisitionSnapshot: TypeAlias = tuple[BufferSnapshot, Mapping[str, Any], np.ndarray,
+                                       tuple[PartSnapshot, ...], int, float, float]
+
+
 class Acquisition:
     """The DAQ task: every channel of the rig sampled at once on the sample clock."""
 
@@ -127,7 +138,7 @@ class Acquisition:
         # noise rows drawn ahead of need (see ``_noise``); the rng's state is after them
         self._ahead = np.empty((0, 3))
         self._drawing = Worker("sim-noise")
-        self._rng_before: dict[str, object] = {}  # the state before the rows being drawn
+        self._rng_before: Mapping[str, Any] = {}  # the state before the rows being drawn
         self.rows = 6 if p.vibration else 5
         self.buffer = ColumnBuffer(self.rows)
         # the accelerometer's noise by sample index (a table drawn once, like the clock's
@@ -145,24 +156,24 @@ class Acquisition:
         ])
         self._noise_sigma_row = self._noise_sigma.T.copy()
         self._lsb = 2.0 * p.adc_range_v / 2**p.adc_bits
-        self._count = 0  # magnet edges seen so far
-        self._last_edge = -math.inf
-        self._period = math.inf
+        self._count: int = 0  # magnet edges seen so far
+        self._last_edge: float = -math.inf
+        self._period: float = math.inf
 
-    def snapshot(self) -> tuple[object, ...]:
+    def snapshot(self) -> AcquisitionSnapshot:
         # rows still being drawn are not waited for: the generator's state before them
         # goes into the snapshot, and a restore draws them again if they are needed
         rng = self._rng_before if self._drawing.pending else self.rng.bit_generator.state
         return (self.buffer.snapshot(), rng, self._ahead, self._cell.snapshot(),
                 self._count, self._last_edge, self._period)
 
-    def restore(self, snap: tuple[object, ...]) -> None:
+    def restore(self, snap: AcquisitionSnapshot) -> None:
         if self._drawing.pending:
             self._drawing.result()  # the thread must be done with the generator
-        buffer, rng, self._ahead, cell, self._count, self._last_edge, self._period = snap  # type: ignore[assignment]
-        self.buffer.restore(buffer)  # type: ignore[arg-type]
+        buffer, rng, self._ahead, cell, self._count, self._last_edge, self._period = snap
+        self.buffer.restore(buffer)
         self.rng.bit_generator.state = rng
-        self._cell.restore(cell)  # type: ignore[arg-type]
+        self._cell.restore(cell)
 
     # Reads at least this long (samples) draw the next read's noise in the background.
     DRAW_AHEAD = 4096

@@ -14,11 +14,12 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass
+from typing import Unpack
 
 from drivers.contracts import ChannelInfo, DeviceInfo, Fault
 from drivers.errors import DeviceError
 from drivers.sim.clock import SimClock
-from drivers.sim.faults import FaultSwitches
+from drivers.sim.faults import FaultOptions, FaultsSnapshot, FaultSwitches
 from drivers.sim.plant import EscFrameSource, EscScheme, PlantParams
 
 
@@ -156,12 +157,12 @@ class SimEsc:
             },
         )
 
-    def snapshot(self) -> tuple[object, ...]:
+    def snapshot(self) -> tuple[float, bool, FaultsSnapshot]:
         return self.last_pulse_us, self.closed, self.faults.snapshot()
 
-    def restore(self, snap: tuple[object, ...]) -> None:
-        self.last_pulse_us, self.closed, faults = snap  # type: ignore[assignment]
-        self.faults.restore(faults)  # type: ignore[arg-type]
+    def restore(self, snap: tuple[float, bool, FaultsSnapshot]) -> None:
+        self.last_pulse_us, self.closed, faults = snap
+        self.faults.restore(faults)
 
     def _check(self, what: str) -> None:
         if self.closed:
@@ -196,7 +197,7 @@ class SimEsc:
             self.disarm()
             self.closed = True
 
-    def inject(self, fault: Fault | str, **kwargs: float) -> None:
+    def inject(self, fault: Fault | str, **kwargs: Unpack[FaultOptions]) -> None:
         """Switch a fault on (TIMEOUT or DISCONNECT), see ``FaultSwitches.inject``."""
         self.faults.inject(fault, **kwargs)
 

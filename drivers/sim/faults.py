@@ -8,7 +8,9 @@ TIMEOUT and DISCONNECT make reads and commands raise ``DeviceError``.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any, TypeAlias, TypedDict
 
 import numpy as np
 
@@ -28,6 +30,20 @@ class FaultSwitch:
 
     def active(self, t: float) -> bool:
         return self.at_s <= t < self.until_s
+
+
+#: ``FaultSwitches.snapshot``: generator state, switches, stuck values, last values.
+FaultsSnapshot: TypeAlias = tuple[
+    Mapping[str, Any], list[FaultSwitch], dict[str, float] | None, dict[str, float]]
+
+
+class FaultOptions(TypedDict, total=False):
+    """The keywords of ``FaultSwitches.inject`` (and of the devices' ``inject``)."""
+
+    at_s: float
+    until_s: float
+    probability: float | None
+    fill_nan: bool
 
 
 class FaultSwitches:
@@ -68,17 +84,17 @@ class FaultSwitches:
             self.switches = [s for s in self.switches if s.fault is not f]
         self._stuck = None
 
-    def snapshot(self) -> tuple[object, ...]:
+    def snapshot(self) -> FaultsSnapshot:
         stuck = None if self._stuck is None else dict(self._stuck)
         return self.rng.bit_generator.state, list(self.switches), stuck, dict(self._last)
 
-    def restore(self, snap: tuple[object, ...]) -> None:
+    def restore(self, snap: FaultsSnapshot) -> None:
         """Back to a ``snapshot`` (a simulated rig's checkpoint)."""
         rng, switches, stuck, last = snap
         self.rng.bit_generator.state = rng
-        self.switches = list(switches)  # type: ignore[call-overload]
-        self._stuck = None if stuck is None else dict(stuck)  # type: ignore[call-overload]
-        self._last = dict(last)  # type: ignore[call-overload]
+        self.switches = list(switches)
+        self._stuck = None if stuck is None else dict(stuck)
+        self._last = dict(last)
 
     def _find(self, fault: Fault, t: float) -> FaultSwitch | None:
         for s in self.switches:

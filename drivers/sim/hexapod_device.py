@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Unpack
 
 import numpy as np
 from numpy.typing import NDArray
@@ -36,7 +37,7 @@ from drivers.hexapod_kinematics import (
 )
 from drivers.hexapod_log import checked_spline, log_block
 from drivers.sim.clock import SimClock
-from drivers.sim.faults import FaultSwitches
+from drivers.sim.faults import FaultOptions, FaultSwitches
 
 __all__ = ["SimHexapodDevice"]
 
@@ -211,7 +212,7 @@ class SimHexapodDevice:
             pass
         self.closed = True
 
-    def inject(self, fault: Fault | str, **kwargs: float) -> None:
+    def inject(self, fault: Fault | str, **kwargs: Unpack[FaultOptions]) -> None:
         self.faults.inject(fault, **kwargs)
 
     def _check(self, what: str) -> None:

@@ -80,11 +80,11 @@ class ImuModel:
 
     def k_gyro(self) -> Array:
         """The true correction matrix K_ω of (A.5)."""
-        return np.linalg.inv(self.forward_gyro())
+        return np.asarray(np.linalg.inv(self.forward_gyro()), dtype=np.float64)
 
     def k_acc(self) -> Array:
         """The true correction matrix K_a of (A.3)."""
-        return np.linalg.inv(self.forward_acc())
+        return np.asarray(np.linalg.inv(self.forward_acc()), dtype=np.float64)
 
     def noise_std(self) -> tuple[float, float]:
         """White-noise standard deviation per sample (gyro, acc), bandwidth rate/2."""

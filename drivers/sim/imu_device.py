@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import Unpack
 
 import numpy as np
 from numpy.typing import NDArray
@@ -32,7 +33,7 @@ from drivers.contracts import (
 )
 from drivers.errors import DeviceError
 from drivers.sim.clock import SimClock
-from drivers.sim.faults import FaultSwitches
+from drivers.sim.faults import FaultOptions, FaultSwitches
 from drivers.sim.hexapod_device import SimHexapodDevice
 from drivers.sim.imu import ImuModel, SimImu
 
@@ -125,7 +126,7 @@ class SimImuDevice:
                 for c in IMU_CHANNELS}
         return self.faults.apply(block, full)
 
-    def inject(self, fault: Fault | str, **kwargs: float) -> None:
+    def inject(self, fault: Fault | str, **kwargs: Unpack[FaultOptions]) -> None:
         self.faults.inject(fault, **kwargs)
 
     def close(self) -> None:
@@ -170,7 +171,7 @@ class SimReferenceImu:
         block = Block(t, {c: data[:, i] for i, c in enumerate(REFERENCE_IMU_CHANNELS)})
         return self.faults.apply(block, dict.fromkeys(REFERENCE_IMU_CHANNELS, 1.0))
 
-    def inject(self, fault: Fault | str, **kwargs: float) -> None:
+    def inject(self, fault: Fault | str, **kwargs: Unpack[FaultOptions]) -> None:
         self.faults.inject(fault, **kwargs)
 
     def close(self) -> None:

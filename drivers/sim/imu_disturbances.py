@@ -38,6 +38,8 @@ from numpy.typing import NDArray
 from scipy.signal import savgol_filter
 from scipy.spatial.transform import Rotation, Slerp
 
+from drivers.sim.imu_tumble import Recording
+
 __all__ = [
     "UNDISTURBED",
     "VARIANTS",
@@ -54,7 +56,6 @@ __all__ = [
 ]
 
 Array = NDArray[np.float64]
-Recording = dict[str, Array]
 G = 9.80665
 
 
@@ -156,8 +157,8 @@ def add_swing(rec: Recording, lever_m: tuple[float, float, float] = (0.0, 0.1, 0
     differentiated; the gyro itself is kept.
     """
     dt = float(np.median(np.diff(rec["t_s"])))
-    w = savgol_filter(rec["gyro"], window, 2, axis=0)
-    alpha = savgol_filter(rec["gyro"], window, 2, deriv=1, delta=dt, axis=0)
+    w = np.asarray(savgol_filter(rec["gyro"], window, 2, axis=0))
+    alpha = np.asarray(savgol_filter(rec["gyro"], window, 2, deriv=1, delta=dt, axis=0))
     r = np.asarray(lever_m, dtype=float)
     return _copy(rec, acc=rec["acc"] + np.cross(alpha, r) + np.cross(w, np.cross(w, r)))
 
@@ -288,7 +289,7 @@ def slow_down(rec: Recording, factor: float = 3.0, seed: int = 0, rest_s: float 
     acc = renoise(lerp(rec["acc"]), rec["acc"][rest].std(axis=0))
     mag = renoise(lerp(rec["mag"]), rec["mag"][rest].std(axis=0))
     q = rec["quat"]
-    finite = np.isfinite(q).all(axis=1)
+    finite = np.all(np.isfinite(q), axis=1)
     quat = Slerp(np.arange(n0), _rot(q))(np.clip(src, 0, n0 - 1)).as_quat()[:, [3, 0, 1, 2]]
     quat[~(finite[lo] & finite[lo + 1])] = np.nan
     movement = rec["movement"][lo] & rec["movement"][lo + 1]

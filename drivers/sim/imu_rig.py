@@ -48,14 +48,17 @@ class SimImuRig:
         streams = np.random.SeedSequence(self.seed).spawn(3)
         self.clock = clock if clock is not None else SimClock()  # wire rigs: a paced clock
         self.model = model
-        self.cg_m = tuple(float(v) for v in cg_m)
+        x, y, z = cg_m
+        self.cg_m = (float(x), float(y), float(z))
         self.hexapod = SimHexapodDevice(self.clock, limits, log_rate_hz=log_rate_hz,
                                         rng=np.random.default_rng(streams[0]))
         self.imu = SimImuDevice(self.clock, self.hexapod, model,
                                 np.random.default_rng(streams[1]), cg_m=self.cg_m)
         self.reference_imu = SimReferenceImu(self.clock, self.hexapod,
                                              np.random.default_rng(streams[2]),
-                                             **dict(reference or {}))
+                                             # the rig file's [reference_imu] numbers
+                                             # (rate, noises), never the url
+                                             **dict(reference or {}))  # pyright: ignore[reportArgumentType]
 
     def truth(self) -> dict[str, Any]:
         """What the calibration should find (K in the A.5 direction, R from the CG)."""

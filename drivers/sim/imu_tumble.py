@@ -11,6 +11,8 @@ noise and constant gyro bias are seeded. Quaternions: scalar-first, sensor to EN
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -20,6 +22,8 @@ __all__ = ["EARTH_FIELD_UT", "simulate_angles", "simulate_tumble", "simulate_ups
 G = 9.80665
 EARTH_FIELD_UT = np.array([0.0, 20.0, -44.0])  # ENU, mid-latitude north, dip ≈ 65°
 Array = NDArray[np.float64]
+#: A recording's columns: float arrays, and the bool mask ``movement``.
+Recording = dict[str, NDArray[Any]]
 
 
 def _envelope(t: Array, start: float, ramp: float) -> tuple[Array, Array]:
@@ -34,7 +38,7 @@ def simulate_angles(t: Array, angles: Array, rates: Array, seed: int = 0,
                     lin_acc: Array | None = None,
                     gyro_bias_rad_s: tuple = (0.01, -0.008, 0.005),
                     gyro_noise_rad_s: float = 0.004, acc_noise_m_s2: float = 0.03,
-                    mag_noise_ut: float = 0.3) -> dict[str, Array]:
+                    mag_noise_ut: float = 0.3) -> Recording:
     """IMU samples for Z-Y-X angles ``(n, 3)`` (roll, pitch, yaw) and their time derivatives."""
     rng = np.random.default_rng(seed)
     phi, th, psi = angles.T
@@ -70,7 +74,7 @@ def simulate_angles(t: Array, angles: Array, rates: Array, seed: int = 0,
 
 def simulate_tumble(duration_s: float = 60.0, rate_hz: float = 285.714, seed: int = 0,
                     rest_s: float = 3.0, roll_rate_rad_s: float = 1.2,
-                    lin_acc_m_s2: float = 0.5, **noise) -> dict[str, Array]:
+                    lin_acc_m_s2: float = 0.5, **noise) -> Recording:
     """``t_s, gyro (rad/s), acc (m/s²), mag (µT), quat (truth), movement`` arrays.
 
     ``noise``: keyword arguments of :func:`simulate_angles` (bias and noise levels).
@@ -94,7 +98,7 @@ def simulate_tumble(duration_s: float = 60.0, rate_hz: float = 285.714, seed: in
 
 def simulate_upside_down(duration_s: float = 60.0, rate_hz: float = 285.714, seed: int = 0,
                          rest_s: float = 3.0, yaw_rate_rad_s: float = 0.5,
-                         wobble_rad: float = 0.05, **noise) -> dict[str, Array]:
+                         wobble_rad: float = 0.05, **noise) -> Recording:
     """Upside down (roll 180°): at rest, then wobbling by ``wobble_rad`` and turning about
     the vertical.
 
@@ -119,7 +123,7 @@ def simulate_wrist_turns(duration_s: float = 40.0, rate_hz: float = 285.714, see
                          rest_s: float = 3.0, amp_rad: tuple[float, float, float] = (1.0, 0.7,
                                                                                  1.5),
                          freq_hz: tuple[float, float, float] = (1.3, 0.9, 0.6), **noise
-                         ) -> dict[str, Array]:
+                         ) -> Recording:
     """Fast hand-like turning: roll, pitch, yaw swinging by ``amp_rad`` at ``freq_hz``
     (random phases), 7 rad/s typical, 12 rad/s peak, after a rest of ``rest_s``. The sensor
     turns about itself; :func:`drivers.sim.imu_disturbances.add_swing` moves the pivot."""
@@ -145,7 +149,7 @@ def orientation_tour_targets(seed: int = 0) -> Array:
     ups = [(d - 1.0) / np.linalg.norm(d - 1.0) for d in dirs if np.any(d != 1.0)]
     out = []
     for up in ups:  # the rotation taking the sensor's `up` to earth z, then a heading
-        tilt, _ = Rotation.align_vectors([[0.0, 0.0, 1.0]], [up])
+        tilt = Rotation.align_vectors([[0.0, 0.0, 1.0]], [up])[0]
         r = Rotation.from_euler("z", rng.uniform(-np.pi, np.pi)) * tilt
         out.append(r.as_quat()[[3, 0, 1, 2]])
     return np.array(out)
@@ -156,7 +160,7 @@ def simulate_orientation_tour(rate_hz: float = 285.714, seed: int = 0, rest_s: f
                               targets: Array | None = None,
                               gyro_bias_rad_s: tuple = (0.01, -0.008, 0.005),
                               gyro_noise_rad_s: float = 0.004, acc_noise_m_s2: float = 0.03,
-                              mag_noise_ut: float = 0.3) -> dict[str, Array]:
+                              mag_noise_ut: float = 0.3) -> Recording:
     """A sensor visiting ``targets`` (default :func:`orientation_tour_targets`) in turn.
 
     It rests ``rest_s`` level, then turns to each target at a constant body rate in

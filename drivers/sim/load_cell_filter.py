@@ -17,8 +17,12 @@ computed and its real part doubled. No Python loop runs per sample.
 from __future__ import annotations
 
 import math
+from typing import TypeAlias
 
 import numpy as np
+
+#: One first-order part's state: ``w`` before the chunk, samples done in it, running sum.
+PartSnapshot: TypeAlias = tuple[tuple[float, float], int, tuple[float, float]]
 
 __all__ = ["SecondOrderLowPass", "bilinear_low_pass"]
 
@@ -139,11 +143,11 @@ class _FirstOrder:
         np.subtract(sum_r, sum_i, out=out)
         out += free
 
-    def snapshot(self) -> tuple[object, ...]:
+    def snapshot(self) -> PartSnapshot:
         return self.state, self.offset, self.running
 
-    def restore(self, snap: tuple[object, ...]) -> None:
-        self.state, self.offset, self.running = snap  # type: ignore[assignment]
+    def restore(self, snap: PartSnapshot) -> None:
+        self.state, self.offset, self.running = snap
 
 
 class SecondOrderLowPass:
@@ -186,10 +190,10 @@ class SecondOrderLowPass:
             y += w
         return y
 
-    def snapshot(self) -> tuple[object, ...]:
+    def snapshot(self) -> tuple[PartSnapshot, ...]:
         """The filter's state, for ``restore`` (a simulated rig's checkpoint)."""
         return tuple(part.snapshot() for part in self._parts)
 
-    def restore(self, snap: tuple[object, ...]) -> None:
+    def restore(self, snap: tuple[PartSnapshot, ...]) -> None:
         for part, state in zip(self._parts, snap, strict=True):
-            part.restore(state)  # type: ignore[arg-type]
+            part.restore(state)

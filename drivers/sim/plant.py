@@ -430,8 +430,8 @@ class Plant:
         v_drive = d * p.supply_v
         kt, ke, kq, j = p.kt_nm_a, p.ke_v_s_rad, self._kq, p.j_kg_m2
         omega, theta, i_w = self.omega, self.theta, self.i_w
-        if p.use_inductance:
-            decay = math.exp(-h * r_tot / p.l_h)  # exact current step for frozen omega (C.1)
+        # exact current step for frozen omega (C.1); read only with the inductance on
+        decay = math.exp(-h * r_tot / p.l_h) if p.use_inductance else 0.0
 
         # diode scheme: below the back-emf the current is discontinuous; each PWM period it
         # rises from 0 during the on time and decays through the body diode (to 0) after
@@ -552,4 +552,8 @@ class EscFrameSource:
     frame_ns: int
 
     def latch(self, k: int) -> float:  # pragma: no cover - interface only
+        raise NotImplementedError
+
+    def steady_frames(self, k: int, limit: int) -> int:  # pragma: no cover - interface only
+        """How many frames from ``k`` on (at most ``limit``) latch the frame ``k``'s duty."""
         raise NotImplementedError

@@ -8,14 +8,15 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import NamedTuple
 
 import numpy as np
 
 from drivers.contracts import Fault
-from drivers.sim.acquisition import SampleClock, SimDaq
+from drivers.sim.acquisition import AcquisitionSnapshot, SampleClock, SimDaq
 from drivers.sim.clock import SimClock
 from drivers.sim.esc import EscModel, EscSettings, SimEsc
-from drivers.sim.faults import FaultSwitches
+from drivers.sim.faults import FaultsSnapshot, FaultSwitches
 from drivers.sim.plant import (
     EscScheme,
     OperatingPoint,
@@ -111,6 +112,17 @@ class PlantTruth:
         return self.esc.min_us + duty * (self.esc.max_us - self.esc.min_us)
 
 
+class Checkpoint(NamedTuple):
+    """``SimRig.checkpoint``: the state of each part, for ``SimRig.restore``."""
+
+    clock: int
+    esc_model: tuple[object, ...]  # EscModel's fields by name (EscModel._STATE)
+    plant: tuple[object, ...]  # Plant's fields by name, then its trajectory's snapshot
+    acquisition: AcquisitionSnapshot
+    esc: tuple[float, bool, FaultsSnapshot]
+    sensors: tuple[tuple[int, bool, FaultsSnapshot], ...]
+
+
 class SimRig:
     """One seeded plant plus its devices on a shared simulated clock."""
 
@@ -158,23 +170,24 @@ class SimRig:
         self.rpm = SimRpmSensor(self.daq, urls["rpm"], seeds[4], magnets)
         self.sensors = {"load_cell": self.load_cell, "power": self.power, "rpm": self.rpm}
 
-    def checkpoint(self) -> tuple[object, ...]:
+    def checkpoint(self) -> Checkpoint:
         """The whole simulated state (clock, ESC, plant, acquisition, devices) for
         ``restore``: a runner can run ticks ahead and take them back. O(1) in the length
         of the run (sample and trajectory buffers are kept by reference)."""
-        return (self.clock.snapshot(), self.esc_model.snapshot(), self.plant.snapshot(),
-                self.acquisition.snapshot(), self.esc.snapshot(),
-                tuple(s.snapshot() for s in self.sensors.values()))
+        return Checkpoint(self.clock.snapshot(), self.esc_model.snapshot(),
+                          self.plant.snapshot(), self.acquisition.snapshot(),
+                          self.esc.snapshot(),
+                          tuple(s.snapshot() for s in self.sensors.values()))
 
-    def restore(self, checkpoint: tuple[object, ...]) -> None:
+    def restore(self, checkpoint: Checkpoint) -> None:
         """Back to the state of a ``checkpoint``; what ran since never happened."""
         clock, esc_model, plant, acquisition, esc, sensors = checkpoint
-        self.clock.restore(clock)  # type: ignore[arg-type]
-        self.esc_model.restore(esc_model)  # type: ignore[arg-type]
-        self.plant.restore(plant)  # type: ignore[arg-type]
-        self.acquisition.restore(acquisition)  # type: ignore[arg-type]
-        self.esc.restore(esc)  # type: ignore[arg-type]
-        for sensor, snap in zip(self.sensors.values(), sensors, strict=True):  # type: ignore[call-overload]
+        self.clock.restore(clock)
+        self.esc_model.restore(esc_model)
+        self.plant.restore(plant)
+        self.acquisition.restore(acquisition)
+        self.esc.restore(esc)
+        for sensor, snap in zip(self.sensors.values(), sensors, strict=True):
             sensor.restore(snap)
 
     def samples_taken(self) -> int:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
+from typing import Unpack
 
 import numpy as np
 
@@ -25,7 +26,7 @@ from drivers.sim.acquisition import (
     VOLTAGE_OUT_V,
     SimDaq,
 )
-from drivers.sim.faults import FaultSwitches
+from drivers.sim.faults import FaultOptions, FaultsSnapshot, FaultSwitches
 from drivers.sim.sensor_params import SensorParams
 
 __all__ = ["CALIBRATION_KEYS", "SensorParams", "SimLoadCell", "SimPowerSensor", "SimRpmSensor",
@@ -148,14 +149,14 @@ class SimSensor:
     def close(self) -> None:
         self.closed = True
 
-    def snapshot(self) -> tuple[object, ...]:
+    def snapshot(self) -> tuple[int, bool, FaultsSnapshot]:
         return self.next_n, self.closed, self.faults.snapshot()
 
-    def restore(self, snap: tuple[object, ...]) -> None:
-        self.next_n, self.closed, faults = snap  # type: ignore[assignment]
-        self.faults.restore(faults)  # type: ignore[arg-type]
+    def restore(self, snap: tuple[int, bool, FaultsSnapshot]) -> None:
+        self.next_n, self.closed, faults = snap
+        self.faults.restore(faults)
 
-    def inject(self, fault: Fault | str, **kwargs: float) -> None:
+    def inject(self, fault: Fault | str, **kwargs: Unpack[FaultOptions]) -> None:
         """Switch a fault on for a window of sim time, see ``FaultSwitches.inject``."""
         self.faults.inject(fault, **kwargs)
 

@@ -7,7 +7,12 @@ acquisition no longer needs them.
 
 from __future__ import annotations
 
+from typing import TypeAlias
+
 import numpy as np
+
+#: ``Trajectory.snapshot``: buffer (by reference), live range, points not flushed yet.
+TrajectorySnapshot: TypeAlias = tuple[np.ndarray, int, int, list[tuple[float, ...]]]
 
 
 class Trajectory:
@@ -66,15 +71,15 @@ class Trajectory:
     def size(self) -> int:
         return self._end - self._start + len(self.pending)
 
-    def snapshot(self) -> tuple[object, ...]:
+    def snapshot(self) -> TrajectorySnapshot:
         """O(1): points before ``_end`` are never written again (appends go after it or
         into a new buffer, trims only move ``_start``), so the buffer is kept by reference."""
         return self._buf, self._start, self._end, list(self.pending)
 
-    def restore(self, snap: tuple[object, ...]) -> None:
+    def restore(self, snap: TrajectorySnapshot) -> None:
         buf, start, end, pending = snap
-        self._buf, self._start, self._end = buf, start, end  # type: ignore[assignment]
-        self.pending = list(pending)  # type: ignore[call-overload]
+        self._buf, self._start, self._end = buf, start, end
+        self.pending = list(pending)
 
     def trim_before(self, t: float) -> None:
         """Drop points not needed to interpolate at times >= t (keeps one point before t)."""

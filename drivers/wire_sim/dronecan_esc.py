@@ -51,7 +51,7 @@ class SimDroneCanEsc(SimCanNode):
                         self.raw = m.cmd[self.esc_index]
                         self._last_cmd = time.monotonic()
 
-    def _publish(self, msg: dc.DroneCanMessage) -> None:
+    def _publish(self, msg: dc.KnownMessage) -> None:
         tid = self._tid[msg.DTID]
         self._tid[msg.DTID] = (tid + 1) & 0x1F
         for f in dc.encode(msg, self.node_id, tid):

@@ -33,13 +33,17 @@ import math
 import socket
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from drivers.codecs import gcs
 from drivers.contracts import HexapodLimitError, Trajectory
 from drivers.errors import DeviceError
+
+if TYPE_CHECKING:  # the simulated IMU bench's hexapod, when the controller drives one
+    from drivers.sim.hexapod_device import SimHexapodDevice
 
 PIVOT_AXES = ("R", "S", "T")  # §6.3 [U]: pivot coordinate names, unverified in the sources
 _SI_PER_WIRE = np.array([1e-3, 1e-3, 1e-3, math.pi / 180, math.pi / 180, math.pi / 180])
@@ -78,7 +82,7 @@ class SimPiController:
     """Loopback TCP server; ``start()`` returns it, ``address`` is (host, port)."""
 
     def __init__(self, *, velocity: float = 10.0, limit: float = 50.0,
-                 host: str = "127.0.0.1", port: int = 0, plant=None,
+                 host: str = "127.0.0.1", port: int = 0, plant: SimHexapodDevice | None = None,
                  servo_cycle_s: float = gcs.SERVO_CYCLE_S_C887,
                  recorder_points: int = 1 << 22, max_wave_points: int = 1 << 20,
                  travel: dict[str, tuple[float, float]] | None = None,
@@ -89,14 +93,14 @@ class SimPiController:
         self.travel = {a: (-limit, limit) for a in gcs.HEXAPOD_AXES}
         self.travel.update(travel or {})
         self.referenced = referenced  # FRF?: a C-887 references all axes at once (FRF X)
-        self.servo = dict.fromkeys(gcs.HEXAPOD_AXES, servo)  # SVO?
+        self.servo: dict[str, bool] = dict.fromkeys(gcs.HEXAPOD_AXES, servo)  # SVO?
         self.plant = plant
         self.servo_cycle_s = servo_cycle_s
         self.recorder_points = recorder_points
         self.max_wave_points = max_wave_points
         self._now: Callable[[], float] = plant.clock.now if plant is not None else time.monotonic
-        self.axes = {a: _Axis() for a in gcs.HEXAPOD_AXES}
-        self.pivot = dict.fromkeys(PIVOT_AXES, 0.0)
+        self.axes: dict[str, _Axis] = {a: _Axis() for a in gcs.HEXAPOD_AXES}
+        self.pivot: dict[str, float] = dict.fromkeys(PIVOT_AXES, 0.0)
         self.error = 0
         self.commands: list[gcs.GcsCommand] = []
         # wave generator and data recorder state
@@ -245,7 +249,7 @@ class SimPiController:
         except ValueError:
             raise _Refused(1) from None
 
-    def _values(self, values: dict[str, float]) -> bytes:
+    def _values(self, values: Mapping[str, float]) -> bytes:
         return gcs.encode_reply(f"{k}={v:.6f}" for k, v in values.items())
 
     def _ready_to_move(self) -> None:
@@ -259,7 +263,7 @@ class SimPiController:
             self._fail(7)  # position out of limits
             return
         if self.plant is not None:
-            self._plant_move(targets, now)
+            self._plant_move(self.plant, targets, now)
             return
         cur = {a: ax.value(now) for a, ax in self.axes.items()}
         dist = max(abs(targets[a] - cur[a]) for a in targets)
@@ -268,9 +272,10 @@ class SimPiController:
             ax = self.axes[a]
             ax.start, ax.target, ax.t0, ax.duration = cur[a], v, now, duration
 
-    def _plant_move(self, targets: dict[str, float], now: float) -> None:
+    def _plant_move(self, plant: SimHexapodDevice, targets: dict[str, float],
+                    now: float) -> None:
         """MOV on a plant: a raised-cosine path whose peak speed is the system velocity."""
-        if self.plant.is_moving():
+        if plant.is_moving():
             raise _Refused(17)
         here = self._poses(np.array([now]))[0]
         goal = here.copy()
@@ -282,15 +287,16 @@ class SimPiController:
         duration = max(math.pi / 2 * dist / max(self.velocity, 1e-9), 2.0 / _MOVE_RATE_HZ)
         s = (1.0 - np.cos(np.pi * np.linspace(0.0, 1.0, round(duration * _MOVE_RATE_HZ) + 1)))
         poses = (here + np.outer(s / 2.0, goal - here)) * _SI_PER_WIRE
-        poses[0] = self.plant.kinematics_at(np.array([now]))[0][0]
-        self._plant_run(Trajectory("MOV", (len(poses) - 1) / duration, poses))
+        poses[0] = plant.kinematics_at(np.array([now]))[0][0]
+        self._plant_run(plant, Trajectory("MOV", (len(poses) - 1) / duration, poses))
         for a, v in targets.items():
             self.axes[a].target = v  # MOV? answers the last commanded target
 
-    def _plant_run(self, traj: Trajectory) -> None:
+    @staticmethod
+    def _plant_run(plant: SimHexapodDevice, traj: Trajectory) -> None:
         try:
-            self.plant.upload(traj)
-            self.plant.start()
+            plant.upload(traj)
+            plant.start()
         except HexapodLimitError:
             raise _Refused(7) from None
         except DeviceError:
@@ -350,14 +356,16 @@ class SimPiController:
         if self.plant is not None:
             if self._moving(now):
                 raise _Refused(17)
-            self._plant_run(self._wave_trajectory(go, now))
+            self._plant_run(self.plant, self._wave_trajectory(go, now))
         self.wave_running = set(go)
         self.record_t0 = now  # the recorder restarts with the generators [U]
 
     def _wave_trajectory(self, generators: set[int], now: float) -> Trajectory:
         rates = {self.wave_rate.get(g, 1) for g in generators}
-        tables = [self.wave_tables.get(self.wave_select.get(g, -1)) for g in generators]
-        if len(rates) != 1 or any(t is None or len(t) < 2 for t in tables) or \
+        tables = [t for g in generators
+                  if (t := self.wave_tables.get(self.wave_select.get(g, -1))) is not None]
+        if len(rates) != 1 or len(tables) != len(generators) or \
+                any(len(t) < 2 for t in tables) or \
                 len({len(t) for t in tables}) != 1 or \
                 any(self.wave_cycles.get(g, 1) != 1 for g in generators):
             raise _Refused(17)  # the simulator runs equal tables once, at one rate
@@ -379,11 +387,12 @@ class SimPiController:
             raise _Refused(17)
         period = self.record_rate * self.servo_cycle_s
         available = 0
-        if self.record_t0 is not None:
-            available = min(math.floor((now - self.record_t0) / period + 1e-9) + 1,
-                            self.recorder_points)
+        t0 = self.record_t0
+        if t0 is not None:
+            available = min(math.floor((now - t0) / period + 1e-9) + 1, self.recorder_points)
         k = np.arange(offset - 1, min(offset - 1 + count, available))
-        poses = self._poses(self.record_t0 + k * period) if k.size else np.empty((0, 6))
+        # no points without a start (available is 0)
+        poses = self._poses(t0 + k * period) if t0 is not None and k.size else np.empty((0, 6))
         cols = []
         for table in tables:
             axis, option = self.record_tables[table]
@@ -431,7 +440,7 @@ class SimPiController:
                 self._fail(15)
                 return gcs.encode_reply(["0"]) if name == "ONT?" else self._values({})
             if name == "POS?":
-                pose = dict(zip(gcs.HEXAPOD_AXES, self._poses(np.array([now]))[0],
+                pose: dict[str, float] = dict(zip(gcs.HEXAPOD_AXES, self._poses(np.array([now]))[0],
                                 strict=True))
                 return self._values({a: pose[a] for a in axes})
             if name == "MOV?":
@@ -441,8 +450,9 @@ class SimPiController:
             pairs = self._axis_pairs(args, self.axes)
             if pairs is not None:
                 if name == "MVR":
-                    base = dict(zip(gcs.HEXAPOD_AXES, self._poses(np.array([now]))[0],
-                                    strict=True)) if self.plant is not None else \
+                    base: dict[str, float] = dict(zip(
+                        gcs.HEXAPOD_AXES, self._poses(np.array([now]))[0], strict=True)) \
+                        if self.plant is not None else \
                         {a: ax.target for a, ax in self.axes.items()}
                     pairs = {a: base[a] + v for a, v in pairs.items()}
                 self._move(pairs, now)
@@ -455,7 +465,8 @@ class SimPiController:
                 else:
                     self.pivot.update(pairs)
                     if self.plant is not None:
-                        self.plant.set_pivot(tuple(self.pivot[a] * 1e-3 for a in PIVOT_AXES))
+                        r, s, t = (self.pivot[a] * 1e-3 for a in PIVOT_AXES)
+                        self.plant.set_pivot((r, s, t))
             return None
         if name == "SPI?":
             return self._values(self.pivot)

@@ -392,8 +392,8 @@ def start_gx3_peer(sim: SimImuRig, clock: SimClock) -> Any:
             ticks = round(t * gx3.TICKS_PER_SECOND) & 0xFFFFFFFF
             if cmd != gx3.EULER_RATES:
                 return super()._packet(cmd)
-            _, rate, euler = sample(t)
-            return gx3.encode_reply(gx3.EulerRates(ticks, *euler, rate))
+            _, rate, (roll, pitch, yaw) = sample(t)
+            return gx3.encode_reply(gx3.EulerRates(ticks, roll, pitch, yaw, rate))
 
         def handle(self, data: bytes) -> bytes:
             seen = len(self.requests)
