@@ -22,6 +22,7 @@ daemon thread while Python finalises crashed the process (SIGSEGV in
 from __future__ import annotations
 
 import atexit
+import logging
 import os
 import threading
 from collections.abc import Callable
@@ -32,6 +33,8 @@ from analysis.errors import LogError
 from analysis.run_paths import read_run_json, samples_path
 from bench.errors import RigError
 from bench.store.run_data import DataLocation
+
+log = logging.getLogger(__name__)
 
 __all__ = ["TrailingUpload"]
 
@@ -81,6 +84,9 @@ class TrailingUpload:
             except (RigError, OSError) as exc:  # the store or the spool went away: the
                 # publish at the end (or store sync) decides
                 self.failed = str(exc)
+                # (a data location holds no credentials: run_data refuses them)
+                log.info("trailing upload stopped (the publish at the end decides): %s",
+                         self.failed)
                 return
             except RuntimeError:
                 # the interpreter is shutting down (a SIGTERM ended the command): Python
