@@ -164,7 +164,59 @@ class Sitl:
         return self.proc.returncode
 
 
+#: launches tried before a test fails (Betaflight's own SITL harness tries 3 as well)
+LAUNCHES = 3
+#: how long a launched firmware may take to run its gyro/PID task (MSP_STATUS_EX cycleTime)
+RUNNING_TIMEOUT_S = 2.0
+
+
 def start_sitl(workdir: Path) -> Sitl:
+    """A running SITL whose control loop runs: launched in ``workdir`` (a fresh folder per
+    try) in a new network namespace, its MSP port listening and its ``MSP_STATUS_EX``
+    cycle time above zero. Some launches of 4.6.0 never run their gyro task (MSP answers,
+    MSP_MOTOR reads 0, no motor output): such a one is stopped and launched again, up to
+    ``LAUNCHES`` times; then the test fails with the end of the last log."""
+    why = ""
+    for attempt in range(1, LAUNCHES + 1):
+        sitl = _launch(workdir / f"launch-{attempt}")
+        why = _control_loop_runs(sitl)
+        if not why:
+            return sitl
+        sitl.stop()
+    pytest.fail(f"Betaflight SITL: {LAUNCHES} launches, none usable ({why}); log "
+                f"{sitl.log_path}:\n{sitl.log_tail()}", pytrace=False)
+
+
+def _control_loop_runs(sitl: Sitl) -> str:
+    """'' once MSP_STATUS_EX reports a cycle time (the gyro/PID task runs), else why not.
+    The connection is closed again: the firmware serves one MSP client per port."""
+    from drivers.codecs import msp
+
+    deadline = time.monotonic() + RUNNING_TIMEOUT_S
+    try:
+        with sitl.inside():
+            sock = socket.create_connection(("127.0.0.1", MSP_PORT), RUNNING_TIMEOUT_S)
+        with sock:
+            sock.settimeout(0.5)
+            decoder = msp.MspDecoder(typed=True)
+            while time.monotonic() < deadline:
+                sock.sendall(msp.encode_message(msp.Request(msp.MSP_STATUS_EX)))
+                replies: list[object] = []
+                while not replies:
+                    data = sock.recv(4096)
+                    if not data:
+                        return "the firmware closed its MSP port"
+                    replies = decoder.feed(data)
+                status = replies[-1]
+                if isinstance(status, msp.StatusEx) and status.cycle_time_us > 0:
+                    return ""
+                time.sleep(0.05)
+    except OSError as exc:
+        return f"MSP: {exc}"
+    return f"its control loop did not run within {RUNNING_TIMEOUT_S:g} s (cycle time 0)"
+
+
+def _launch(workdir: Path) -> Sitl:
     """Launch the SITL in ``workdir`` in a new network namespace; return once its MSP port
     listens (at most ``START_TIMEOUT_S``), or fail with the end of its log."""
     _preconditions()

