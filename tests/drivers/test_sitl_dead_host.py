@@ -1,0 +1,168 @@
+"""A dead bench against the real firmware: the motor test outlives a SIGKILLed host.
+
+The test starts Betaflight 4.6.0 SITL in its own network namespace (``tests/sitl.py``),
+feeds it FDM and reads its motor output (UDP 9001) itself, so the firmware and its output
+outlive the bench. The bench is a child process (``nsenter`` into that namespace) that
+opens a rig whose ESC is ``msp+tcp://127.0.0.1:5761`` (no ``launch``: the launcher would
+stop the firmware with the bench), commands a steady 1400 us on every tick, as the
+command loop does, and is SIGKILLed: the motor keeps 1400 us, because Betaflight has no
+motor-test timeout. That is why the MSP ESC opens only with ``propellers_off = true``
+(docs/protocols.md, "A dead host stops the motor").
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+import signal
+import socket
+import struct
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+from rotorbench_tests_sitl import FDM_PORT, MSP_PORT, Fdm
+
+from bench.rig.rig import load_rig
+from drivers.codecs import msp
+from drivers.factory import open_rig
+
+pytestmark = pytest.mark.slow(wall_s=12)
+
+_spec = importlib.util.spec_from_file_location("rotorbench_tests_factory_rigs",
+                                               Path(__file__).with_name("factory_rigs.py"))
+assert _spec is not None and _spec.loader is not None
+factory_rigs = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(factory_rigs)
+
+ROOT = Path(__file__).resolve().parents[2]
+RIGS = ROOT / "bench" / "data" / "rigs"
+URL = f"msp+tcp://127.0.0.1:{MSP_PORT}"
+HELD_US = 1400
+
+BENCH = f"""
+import sys, time
+from bench.rig.rig import load_rig
+from drivers.factory import open_rig
+rig = open_rig(load_rig(sys.argv[1]))
+rig.esc.arm()
+rig.esc.set_pulse_us({HELD_US})
+print("ready", flush=True)
+while True:  # the command loop: the same command on every tick
+    rig.esc.set_pulse_us({HELD_US})
+    time.sleep(0.02)
+"""
+
+
+class MotorOutput:
+    """The firmware's motor 1 on UDP 9001 (``servo_packet_raw``), each update timed."""
+
+    def __init__(self, sitl) -> None:
+        with sitl.inside():
+            self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            self.sock.bind(("127.0.0.1", 9001))
+        self.sock.settimeout(0.1)
+        self.log: list[tuple[float, float]] = []
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            try:
+                data = self.sock.recv(256)
+            except OSError:
+                continue
+            if len(data) == 68:
+                self.log.append((time.monotonic(), struct.unpack("<H2x16f", data)[1]))
+
+    @property
+    def last(self) -> float:
+        return self.log[-1][1] if self.log else float("nan")
+
+    def since(self, t0: float) -> list[tuple[float, float]]:
+        return [(t - t0, v) for t, v in self.log if t >= t0]
+
+    def wait(self, what: str, cond, timeout_s: float) -> float:
+        end = time.monotonic() + timeout_s
+        while time.monotonic() < end:
+            if self.log and cond(self.last):
+                return time.monotonic()
+            time.sleep(0.002)
+        pytest.fail(f"motor output: {what} not within {timeout_s:g} s (last {self.last})")
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(1.0)
+        self.sock.close()
+
+
+def _rig(tmp_path: Path, options: str) -> Path:
+    body = f'url = "{URL}"\noptions = {{ motor = 0, timeout_s = 2.0{options} }}'
+    return factory_rigs.write(tmp_path, {"esc": body}, RIGS / "sim-serial.toml")
+
+
+def _bench(sitl, rig: Path, tmp_path: Path) -> subprocess.Popen[str]:
+    """The bench as a child in the firmware's namespace; returns once it commands 1400."""
+    with open(tmp_path / "bench.err", "w") as err:
+        proc = subprocess.Popen(
+            ["nsenter", f"--net=/proc/{sitl.proc.pid}/ns/net", sys.executable, "-c", BENCH,
+             str(rig)], cwd=ROOT, stdout=subprocess.PIPE, stderr=err, text=True,
+            start_new_session=True)
+    assert proc.stdout is not None
+    line = proc.stdout.readline()
+    if line.strip() != "ready":
+        _kill(proc)
+        pytest.fail(f"bench child: {(tmp_path / 'bench.err').read_text()[-2000:]}")
+    return proc
+
+
+def _kill(proc: subprocess.Popen[str]) -> None:
+    """SIGKILL the bench child (its session: nsenter and python)."""
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait(5)
+    if proc.stdout is not None:
+        proc.stdout.close()
+
+
+@pytest.fixture
+def fed(sitl):
+    """The SITL fed a resting FDM stream at 250 Hz, its motor output read. FDM starts
+    after the first MSP reply and the first motor update is awaited, as the launched rig
+    does: FDM sent earlier often left the firmware's gyro task (and its output, baro
+    calibration and RX processing) dead for good (docs/sim-rig.md)."""
+    with sitl.inside():
+        sock = socket.create_connection(("127.0.0.1", MSP_PORT), 2.0)
+    with sock:
+        sock.settimeout(3.0)
+        sock.sendall(msp.request(msp.MSP_API_VERSION))
+        assert sock.recv(64)[:3] == b"$M>"
+    out = MotorOutput(sitl)
+    sitl.feed(FDM_PORT, Fdm().packet, 250.0)
+    try:
+        out.wait("the first motor update", lambda v: v == v, 1.0)
+        yield sitl, out
+    finally:
+        out.close()
+
+
+def test_a_killed_bench_leaves_the_motor_test_running(fed, tmp_path):
+    sitl, out = fed
+    bench = _bench(sitl, _rig(tmp_path, ", propellers_off = true"), tmp_path)
+    out.wait("1400 us", lambda v: v == HELD_US, 2.0)
+    _kill(bench)
+    t_kill = time.monotonic()
+    time.sleep(3.0)
+    after = out.since(t_kill)
+    assert len(after) > 500  # the firmware kept sending (one update per FDM packet)...
+    assert {v for _, v in after} == {HELD_US}  # ...and every one still 1400 us
+    print(f"motor test: still {HELD_US} us {after[-1][0]:.2f} s after SIGKILL "
+          f"({len(after)} updates)")
+    with sitl.inside():  # clean up: the value only goes with a new motor test command
+        rig = open_rig(load_rig(_rig(tmp_path, ", propellers_off = true")))
+    with rig:
+        rig.esc.arm()
+    out.wait("1000 us after the clean-up", lambda v: v == 1000, 1.0)
