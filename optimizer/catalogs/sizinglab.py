@@ -42,6 +42,10 @@ thrust-to-weight requirement of 2 at full voltage (the raw lists include
 motors that cannot lift anything with these propellers).
 """
 
+# pandas-stubs type a column read or a boolean row selection as Series | DataFrame | scalar,
+# which this reader of semicolon tables indexes both ways.
+# pyright: reportArgumentType=false, reportAttributeAccessIssue=false
+
 from __future__ import annotations
 
 import math

@@ -15,6 +15,11 @@ pitch (within ``PITCH_TOL_IN``); among several, the APC family named in the cata
 constants; ``match_report`` lists both.
 """
 
+# pandas-stubs type a boolean row selection, a groupby key and a row's cell loosely
+# (Series | ndarray | Hashable), which this reader of the APC table uses as frames and numbers.
+# pyright: reportArgumentType=false, reportAttributeAccessIssue=false, reportCallIssue=false
+# pyright: reportGeneralTypeIssues=false, reportOperatorIssue=false
+
 from __future__ import annotations
 
 from dataclasses import dataclass

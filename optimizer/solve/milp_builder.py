@@ -17,6 +17,10 @@ Example::
     sol["y"], sol.objective, sol.status   # 7.0, 6.0, 'optimal'
 """
 
+# scipy's stubs type Bounds' lb/ub as floats (arrays are documented) and a sparse array's
+# shape as optional.
+# pyright: reportArgumentType=false, reportReturnType=false
+
 from __future__ import annotations
 
 import contextlib

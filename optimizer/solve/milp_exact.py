@@ -53,6 +53,10 @@ feasibility tolerances, so the returned design is optimal to ~1e-9 relative,
 far inside the tie tolerance of ``optimizer.solve.selection``.
 """
 
+# scipy's stubs type Bounds' lb/ub as floats (arrays are documented); the HiGHS result is
+# passed on as an object.
+# pyright: reportArgumentType=false, reportAttributeAccessIssue=false
+
 from __future__ import annotations
 
 import time

@@ -16,6 +16,10 @@ by default they are computed from the variable bounds (interval arithmetic), so
 every continuous variable used in ``f`` needs finite bounds.
 """
 
+# scipy's and numpy's stubs: brentq's result includes its full_output tuple, np.interp of a
+# float is a float64 where the breakpoint code passes numpy scalars as arrays.
+# pyright: reportArgumentType=false, reportReturnType=false
+
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
