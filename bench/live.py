@@ -172,7 +172,8 @@ class LiveView:
         self.curves: dict[str, Any] = {}
         first = None
         for row, (col, name, unit) in enumerate(LIVE_CHANNELS):
-            plot = self.win.addPlot(row=row, col=0)
+            # a PlotItem hands its ViewBox's methods on at run time, which its stubs omit
+            plot: Any = self.win.ci.addPlot(row=row, col=0)
             plot.setLabel("left", name, units=unit)
             plot.setDownsampling(auto=True, mode="peak")
             plot.setClipToView(True)

@@ -241,12 +241,14 @@ def _check_toml(path) -> None:
 def run_on_rig(args: argparse.Namespace) -> int:
     store = recording_store(args, out_attr="runs", warn=_to_stderr)  # a lab store spools
     rig = _load(args)
+    hexapod, imu = rig.hexapod, rig.imu
+    assert hexapod is not None and imu is not None  # an IMU rig has both (load_imu_rig)
     options = HexapodRunOptions(tick_s=args.tick, realtime=bool(args.realtime),
-                                trajectory_rate_hz=rig.hexapod.trajectory_rate_hz)
-    seqs = paper_a_sequences(rig.imu.value("rate_hz"), quick=args.quick)
+                                trajectory_rate_hz=hexapod.trajectory_rate_hz)
+    seqs = paper_a_sequences(imu.value("rate_hz"), quick=args.quick)
     plans = plans_for(rig, seqs)
     if args.dry_run:
-        print(f"rig {rig.name} ({rig.path}); pivot {vec(rig.hexapod.pivot_m, '{:g}')} m; "
+        print(f"rig {rig.name} ({rig.path}); pivot {vec(hexapod.pivot_m, '{:g}')} m; "
               f"{len(plans)} stages, {sum(p.duration_s for p in plans):.1f} s")
         for plan in plans:
             print()
@@ -277,8 +279,8 @@ def run_on_rig(args: argparse.Namespace) -> int:
     log_path = collect_log([s.run_dir for s in run.stages], args.runs / f"{session}.parquet")
     print(f"wrote {log_path}", file=sys.stderr)
     df = load_calibration_log(log_path)
-    cal = calibrate_frame(df, rig.imu.measured_mounting_deg, rig.imu.value("gyro_range_rad_s"),
-                          rig.imu.value("acc_range_m_s2"), max_lag_s=0.5)
+    cal = calibrate_frame(df, imu.measured_mounting_deg, imu.value("gyro_range_rad_s"),
+                          imu.value("acc_range_m_s2"), max_lag_s=0.5)
     cal.source = str(log_path)
     show_calibration(cal, console.print)
     if run.truth is not None:

@@ -76,7 +76,7 @@ def handler(args: argparse.Namespace) -> int:
     store = recording_store(args, warn=lambda line: print(line, file=sys.stderr))
     # a lab store records into the spool, published at exit
     imu = args.rig is not None and is_imu_rig(args.rig)
-    rig = load_imu_rig(args.rig) if imu else load_rig_from_args(args)
+    rig = load_imu_rig(args.rig) if imu and args.rig is not None else load_rig_from_args(args)
     if imu and (args.limit or args.selftest):
         raise RigError(f"{args.rig}: an IMU-bench rig; --limit and --selftest are for "
                        "propulsion rigs (the hexapod's limits are in its rig file)")

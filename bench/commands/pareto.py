@@ -119,7 +119,8 @@ def compute(args: argparse.Namespace) -> dict[str, Any]:
             entry["check_agrees"] = other.indices.tolist() == res.indices.tolist()
         per.append(entry)
         for flat in res.indices:
-            idx = tuple(int(v) for v in np.unravel_index(flat, grid.shape))
+            i, j, k = (int(v) for v in np.unravel_index(flat, grid.shape))
+            idx = (i, j, k)
             d = DesignResult(
                 actuators=n, feasible=True, **_design_at(grid, idx), cost=float(cx.flat[flat]),
                 solve_time_s=res.time_s, grid_time_s=grid_time, method=res.method,
@@ -166,8 +167,8 @@ def compute_from_file(args: argparse.Namespace) -> dict[str, Any]:
     refuse_unused(args, CATALOG_ONLY, "with --from (the sweep file holds the designs and "
                   "their numbers)")
     sweep = open_sweep(args.source)
-    only = given_options(args, "--actuators") and list(dict.fromkeys(args.actuators))
-    res = front(sweep, args.x, args.y, only or None)
+    only = list(dict.fromkeys(args.actuators)) if given_options(args, "--actuators") else None
+    res = front(sweep, args.x, args.y, only)
     catalog = sweep.spec.get("catalog")
     name = Path(str(catalog)).name if isinstance(catalog, str) else sweep.path.name
     return {

@@ -16,6 +16,7 @@ from bench.cli_args.store_args import add_store_args, store_from_args
 from bench.errors import RigError
 from bench.paths.outputs import check_folder_to_read, check_writable
 from bench.store.run_index import INDEX_NAME, RunIndex
+from bench.store.stores import Store
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -57,7 +58,7 @@ def drops_text(run_dir: Path) -> str:
     return f"{text}, ! {link} link errors" if link else text
 
 
-def _lab_listing(args: argparse.Namespace, store: object) -> int:
+def _lab_listing(args: argparse.Namespace, store: Store) -> int:
     from bench.store.run_summary import RunFilter
 
     if args.rebuild:

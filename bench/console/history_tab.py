@@ -181,7 +181,7 @@ class HistoryTab(QtWidgets.QWidget):
         proc.setProcessChannelMode(QtCore.QProcess.ProcessChannelMode.MergedChannels)
 
         def finished(code: int, _status: Any) -> None:
-            text = bytes(proc.readAll()).decode(errors="replace")
+            text = bytes(proc.readAll().data()).decode(errors="replace")
             self.output.appendPlainText(text.strip() or f"(exit {code})")
             if done is not None and code == 0:
                 done(text)

@@ -99,7 +99,8 @@ class LivePlots(QtWidgets.QWidget):
         self.curves: dict[str, Any] = {}
         first = None
         for i, (key, title, unit) in enumerate(PLOT_CHANNELS):
-            plot = self.graphics.addPlot(row=i // 2, col=i % 2)
+            # a PlotItem hands its ViewBox's methods on at run time, which its stubs omit
+            plot: Any = self.graphics.ci.addPlot(row=i // 2, col=i % 2)
             plot.setLabel("left", title, units=unit)
             plot.setMenuEnabled(False)
             # x is time relative to the newest row: a fixed range, so the time axes are
@@ -138,7 +139,9 @@ class LivePlots(QtWidgets.QWidget):
         self._env: RollingEnvelope | None = None
         self._total = 0
         self._yrange: dict[str, tuple[float, float]] = {}
-        self.graphics.scene().sigMouseMoved.connect(self._cursor)
+        # pyqtgraph's scene is its GraphicsScene; its stubs give Qt's QGraphicsScene
+        self.graphics.scene().sigMouseMoved.connect(  # pyright: ignore[reportAttributeAccessIssue]
+            self._cursor)
         self.timer = QtCore.QTimer(self)
         self.timer.timeout.connect(self.refresh)
         self.timer.start(frame_ms)
@@ -199,6 +202,7 @@ class LivePlots(QtWidgets.QWidget):
                 t = rows["t_s"]
         if t.size == 0:
             return
+        assert env is not None  # a restart made one
         env.update(t, derived(rows))
         x, ys = env.lines()
         for key, curve in self.curves.items():

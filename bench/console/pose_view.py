@@ -36,7 +36,7 @@ BASE_JOINTS = _ring(BASE_RADIUS_M, 50.0)
 PLATE_JOINTS = _ring(PLATE_RADIUS_M, 10.0)
 
 
-def plate_points(pose: Sequence[float]) -> np.ndarray:
+def plate_points(pose: Sequence[float] | np.ndarray) -> np.ndarray:
     """The plate's six joints in the base frame for ``pose`` = (x, y, z m, roll, pitch,
     yaw rad), translations magnified by :data:`TRANSLATION_GAIN`; (6, 3)."""
     p = np.asarray(pose, dtype=float)
@@ -72,7 +72,7 @@ class PoseView(QtWidgets.QWidget):
         self.pose = np.zeros(6)
         self.show_pose(self.pose)
 
-    def show_pose(self, pose: Sequence[float]) -> None:
+    def show_pose(self, pose: Sequence[float] | np.ndarray) -> None:
         self.pose = np.asarray(pose, dtype=float)
         plate = plate_points(self.pose)
         for title, (h, v) in self.views.items():

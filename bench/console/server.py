@@ -99,8 +99,7 @@ class ConsoleBench:
         if not self.imu:
             raise RigError("calibrate: this is a propulsion rig; the IMU tab calibrates "
                            "IMU-bench rigs ([rig] kind = \"imu\")")
-        if self.busy:
-            raise RigError(f"calibrate: a {self.run.kind} run is going on; stop it first")
+        self._refuse_if_busy("calibrate")
         run = ActiveRun("calibration", None, threading.Event())
         run.imu = ImuCalibration(self.rig, self.out, bool((payload or {}).get("quick", True)),
                                  run.stop, self.link.lost)
@@ -112,6 +111,7 @@ class ConsoleBench:
 
     def _on_arm(self, _payload: Any) -> None:
         self._propulsion("arm")
+        assert self.esc is not None  # a propulsion rig has its ESC range
         seq, index = manual_sequence(rate_us_s=self.rate_us_s)
         setpoint = Setpoint(self.esc, self.rate_us_s)
         self._start("manual", seq, setpoint=setpoint, manual_index=index,
@@ -197,13 +197,17 @@ class ConsoleBench:
     def busy(self) -> bool:
         return self.run is not None and self.run.ended_at is None
 
+    def _refuse_if_busy(self, what: str) -> None:
+        run = self.run
+        if run is not None and run.ended_at is None:  # busy
+            raise RigError(f"{what}: a {run.kind} run is going on; stop it first")
+
     def _tighter(self) -> dict[str, float]:
         return {k: v for k, v in self.limits.items() if self.rig_limits.get(k) != v}
 
     def _start(self, kind: str, seq: Sequence, *, setpoint: Setpoint | None = None,
                manual_index: int | None = None, meta: dict[str, Any] | None = None) -> None:
-        if self.busy:
-            raise RigError(f"{kind}: a {self.run.kind} run is going on; stop it first")
+        self._refuse_if_busy(kind)
         if self.link.lost() is not None:
             raise RigError("the console is gone; nothing starts")
         seq = dataclasses.replace(seq, limits={**seq.limits, **self._tighter()})
@@ -288,6 +292,7 @@ class ConsoleBench:
             from bench.console.imu_bench import imu_rig_info
 
             return {**base, **imu_rig_info(self.rig)}
+        assert self.esc is not None  # a propulsion rig has its ESC range
         tm = getattr(self.rig, "thrust_map", None)
         thrust_cap_us = None
         if tm is not None and "thrust_n" in self.rig_limits:

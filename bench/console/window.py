@@ -94,7 +94,9 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         layout.addWidget(self.tabs, 1)
         self.setCentralWidget(body)
         self._keys = _StopKeys(self.stop)
-        QtWidgets.QApplication.instance().installEventFilter(self._keys)
+        app = QtWidgets.QApplication.instance()
+        assert app is not None  # a window lives in the application
+        app.installEventFilter(self._keys)
         # timers: heartbeat, messages, device values
         self.beat_timer = QtCore.QTimer(self)
         self.beat_timer.timeout.connect(link.beat)
@@ -209,6 +211,7 @@ class ConsoleWindow(QtWidgets.QMainWindow):
     def wait_for(self, predicate: Any, timeout_s: float) -> bool:
         """Process events until ``predicate()`` (self-test and docs script)."""
         app = QtWidgets.QApplication.instance()
+        assert app is not None  # a window lives in the application
         deadline = time.monotonic() + timeout_s
         while time.monotonic() < deadline:
             app.processEvents(QtCore.QEventLoop.ProcessEventsFlag.AllEvents, 20)

@@ -369,7 +369,9 @@ class RunRecorder:
         final = self.run_dir / SAMPLES_DIR / name
         tmp = final.with_name(f".{name}.tmp")
         try:
-            pq.write_table(table, tmp, compression=self.compression, write_statistics=["t_s"],
+            pq.write_table(table, tmp, compression=self.compression,
+                           # pyarrow takes a list of columns here; its stubs say only bool
+                           write_statistics=["t_s"],  # pyright: ignore[reportArgumentType]
                            **part_encoding(cols))
             os.replace(tmp, final)
         except OSError as exc:

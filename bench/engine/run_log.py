@@ -65,11 +65,13 @@ class RunLogCapture(logging.Handler):
         except OSError:  # the run folder cannot take it: the run itself says so
             return
         handler.setFormatter(self.formatter)
+        stream = handler.stream
+        assert stream is not None  # delay=False: the handler opened its file
         with contextlib.suppress(OSError):
             for line in self._pending:
-                handler.stream.write(line + "\n")
+                stream.write(line + "\n")
             if self._dropped:
-                handler.stream.write(f"... {self._dropped} earlier lines not kept\n")
+                stream.write(f"... {self._dropped} earlier lines not kept\n")
             handler.flush()
         self._pending, self._dropped = [], 0
         self._file, self.path = handler, path

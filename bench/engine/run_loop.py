@@ -30,7 +30,7 @@ import threading
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any, Protocol, cast
 
 import numpy as np
 
@@ -311,6 +311,7 @@ class SafeRunLoop:
             ends.append(self._now_rel())
             taken.append(sim.samples_taken())
 
+        raw: dict[str, Block] = {}
         try:
             self._ticks(stop, end, each_tick, acquire=False, after=tick_end)
             raw = self._read_devices()
@@ -411,7 +412,8 @@ class SafeRunLoop:
             if not callable(count):
                 continue
             try:
-                errors = {k: int(v) for k, v in count().items() if v}
+                counts = cast("Mapping[str, Any]", count())
+                errors = {k: int(v) for k, v in counts.items() if v}
             except Exception:  # a counter must never cost the run its record
                 continue
             if errors:

@@ -107,7 +107,8 @@ def effective_limits(rig_limits: Any, sequence_limits: Mapping[str, float],
     tightened = getattr(rig_limits, "tightened", None)
     if callable(tightened) and sequence_limits:
         other = dataclasses.replace(rig_limits, **dict(sequence_limits)) \
-            if dataclasses.is_dataclass(rig_limits) else dict(sequence_limits)
+            if dataclasses.is_dataclass(rig_limits) and not isinstance(rig_limits, type) \
+            else dict(sequence_limits)
         merged = limits_dict(tightened(other))
     else:
         merged.update({k: float(v) for k, v in sequence_limits.items()})

@@ -52,7 +52,7 @@ def drawn(plan: pd.DataFrame) -> np.ndarray:
     cols = [c for c in plan.columns if c.startswith(STD_PREFIX)]
     if not cols:
         return np.zeros(len(plan), bool)
-    return (plan[cols].to_numpy(float) > 0).any(axis=1)
+    return np.asarray((plan[cols].to_numpy(float) > 0).any(axis=1))
 
 
 def chunk_bytes(designs: int, drawn_designs: int, samples: int) -> int:

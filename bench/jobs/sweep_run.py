@@ -127,7 +127,7 @@ def _run(plan: pd.DataFrame, maneuvers: Sequence[str], spec: Mapping[str, Any],
     for line in parts.drop_damaged() if parts is not None else []:
         say(line)
     done = parts.done_ids() if parts is not None else set()
-    todo = plan.loc[~plan["design_id"].isin(done)]
+    todo = plan.loc[~plan["design_id"].isin(list(done))]
     resumed = len(plan) - len(todo)
     if parts is not None and resumed:
         say(f"resumed: {resumed} of {len(plan)} done ({parts.folder})")

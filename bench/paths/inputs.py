@@ -35,7 +35,7 @@ def refuse_loop(path: Path, where: str, point_at: str = "a file") -> int | None:
         return None
 
 
-def check_input(path: Path | str, flag: str = "") -> Path:
+def check_input(path: str | os.PathLike[str], flag: str = "") -> Path:
     """``path`` unchanged, or RigError if it is a symlink loop or not a regular file or
     folder; ``flag`` (``--rig``) prefixes the message."""
     path = Path(path)

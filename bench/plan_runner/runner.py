@@ -66,11 +66,15 @@ log = logging.getLogger(__name__)
 
 
 class OpenRigLike(Protocol):
-    """What the runner needs of ``drivers.factory.OpenRig``."""
+    """What the runner and its session need of ``drivers.factory.OpenRig`` (read-only)."""
 
-    clock: Clock
-    esc: Esc
-    sensors: Mapping[str, Sensor]
+    @property
+    def clock(self) -> Clock: ...
+    @property
+    def esc(self) -> Esc: ...
+    @property
+    def sensors(self) -> Mapping[str, Sensor]: ...
+    def close(self) -> object: ...
 
 
 #: the shortest command/read period: the loop is Python on a desktop OS, which does not
@@ -200,10 +204,10 @@ class Runner(PlanRunner):
                     for role, s in rig.sensors.items()}
         self.aligner = BlockAligner(channels, self.options.base_sensor)
         self.tare_offset_n = 0.0
-        self._cmd_t = np.zeros(1)
-        self._cmd_us = np.array([esc_range.idle_us])
-        self._cmd_sp = np.array([math.nan])
-        self._cmd_seg = np.array([-1], dtype=np.int32)
+        self._cmd_t: np.ndarray = np.zeros(1)
+        self._cmd_us: np.ndarray = np.array([esc_range.idle_us])
+        self._cmd_sp: np.ndarray = np.array([math.nan])
+        self._cmd_seg: np.ndarray = np.array([-1], dtype=np.int32)
         self._tare_sum = 0.0
         self._tare_n = 0
 

@@ -77,13 +77,14 @@ def thrust_to_us_of(rig: Any):
 
     Memoised: a plan asks it once per thrust step, and a long plan (a typo's 100 000
     repeats, refused by its budget) has few setpoints but hundreds of thousands of steps."""
-    tm = getattr(rig, "thrust_map", None)
+    tm: Any = getattr(rig, "thrust_map", None)
     if tm is None:
         return None
     if callable(getattr(tm, "command_for", None)):
         return functools.lru_cache(maxsize=1024)(lambda f: float(tm.command_for(f)))
-    return functools.lru_cache(maxsize=1024)(
-        StaticThrustMap.from_rig(tm, source=f"{_rig_name(rig)}: thrust_map").command_for)
+    static = StaticThrustMap.from_rig(tm, source=f"{_rig_name(rig)}: thrust_map")
+    assert static is not None  # from_rig gives None for None only
+    return functools.lru_cache(maxsize=1024)(static.command_for)
 
 
 def plan_for(rig: Any, seq: Sequence, dry_run: bool = False) -> Plan:

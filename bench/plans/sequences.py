@@ -177,7 +177,7 @@ class Sequence:
                 raise RigError(f"{source}: steps[{i}]: expected a table with a kind, "
                                f"got {raw!r}")
             kind = raw.get("kind")
-            cls = _STEP_TYPES.get(kind)
+            cls = _STEP_TYPES.get(kind) if isinstance(kind, str) else None
             if cls is None:
                 raise RigError(f"{source}: steps[{i}].kind: expected one of "
                                f"{sorted(_STEP_TYPES)}, got {kind!r}")
@@ -189,14 +189,16 @@ class Sequence:
             for f in dataclasses.fields(cls):
                 value = raw.get(f.name)
                 if f.name in raw and "float" in str(f.type):
-                    ok = isinstance(value, int | float) and not isinstance(value, bool)
+                    number = value if isinstance(value, int | float) \
+                        and not isinstance(value, bool) else None
+                    ok = number is not None
                     if not ok and not (value is None and "None" in str(f.type)):
                         raise RigError(f"{source}: steps[{i}].{f.name}: expected a number, "
                                        f"got {value!r}")
-                    if ok and not math.isfinite(value):
+                    if number is not None and not math.isfinite(number):
                         raise RigError(f"{source}: steps[{i}].{f.name}: expected a finite "
                                        f"number, got {value!r}")
-                    if ok and f.name.endswith("_s") and value < 0:
+                    if number is not None and f.name.endswith("_s") and number < 0:
                         raise RigError(f"{source}: steps[{i}].{f.name}: expected a time "
                                        f">= 0 s, got {value!r}")
             try:

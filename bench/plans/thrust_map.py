@@ -74,7 +74,7 @@ class StaticThrustMap:
                                    "wider range", float(lo), float(hi))
         return float(np.interp(thrust_n, self.thrust_n, self.command_us))
 
-    def thrust_at(self, command_us: float | np.ndarray) -> np.ndarray:
+    def thrust_at(self, command_us: float | np.ndarray) -> np.ndarray | float:
         return np.interp(command_us, self.command_us, self.thrust_n)
 
 
@@ -161,7 +161,7 @@ def fit_sweep_run(run_dir: Path) -> SweepFit:
         samples = pd.read_parquet(samples_path(run_dir, meta))
     except LogError as exc:
         raise RigError(str(exc)) from None
-    rows = samples[samples["step"] == ramp["index"]]
+    rows = samples.loc[samples["step"] == ramp["index"]]
     fit = fit_sweep(rows, source=str(run_dir))
     atomic_write_json(run_dir / "static_map.json", fit.to_dict())
     return fit

@@ -159,7 +159,8 @@ def parse(path: Path, top: RigTable) -> dict[str, Any]:
     rt = top.table("reference_imu", required=False) or RigTable(path, "reference_imu", {})
     rt.only(*REFERENCE_KEYS)
     reference = {k: rt.number(k, lo=0.0, hi=1e6) for k in REFERENCE_KEYS if k in rt.data}
-    if reference.get("rate_hz", 1.0) <= 0:
+    rate_hz = reference.get("rate_hz", 1.0)
+    if rate_hz is not None and rate_hz <= 0:
         rt.fail("rate_hz", "expected a positive rate")
 
     st = top.table("sim", required=False) or RigTable(path, "sim", {})

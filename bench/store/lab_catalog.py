@@ -266,8 +266,8 @@ class LabCatalog:
                 "SELECT motor, propeller, esc, esc_mode, battery, kind, catalog, run_id, "
                 f"run_path, fitted_utc, data, recorded_by FROM {table} ORDER BY motor, "
                 "propeller, esc, esc_mode, battery, kind, id").fetchall()
-        return [StoredConstants(*r[:9], r[9].isoformat(timespec="seconds"), dict(r[10]),
-                                str(r[11])) for r in rows]
+        return [StoredConstants(*r[:9], fitted_utc=r[9].isoformat(timespec="seconds"),
+                                data=dict(r[10]), recorded_by=str(r[11])) for r in rows]
 
 
 def _filters(where: RunFilter) -> tuple[str, list[Any]]:

@@ -45,8 +45,8 @@ def load_measured(root: Path, catalog: str | None = None,
         if prev is None or row.fitted_utc >= prev.fitted_utc:
             slot[row.kind] = row
     out = []
-    for (prop, motor, mode), rows in sorted(by.items()):
-        step, static = rows.get("step"), rows.get("static")
+    for (prop, motor, mode), kinds in sorted(by.items()):
+        step, static = kinds.get("step"), kinds.get("static")
         if static is None:  # steady curves hardly depend on the ESC mode: borrow one
             static = next((r["static"] for (p2, m2, _), r in sorted(by.items())
                            if (p2, m2) == (prop, motor) and "static" in r), None)
@@ -87,7 +87,9 @@ def _flight_extras(step: ConstantsRow | None, static: ConstantsRow | None) -> di
     out = {}
     for name, kind, key in _FLIGHT_FIELDS:
         row = rows[kind]
-        x = None if row is None else finite_number(row.data.get(key))
+        if row is None:
+            continue
+        x = finite_number(row.data.get(key))
         if x is None or not (x > 0 or (name == "latency_s" and x >= 0)):
             continue
         out[name] = x
@@ -150,7 +152,7 @@ def load_measured_set(folder: Path | str, catalog: Any, esc_mode: str | None,
                       rows: list[ConstantsRow] | None = None) -> MeasuredSet:
     """Overrides for ``catalog`` (matched by its folder name) and one ESC mode (None: the
     mode stored for the most combinations; a tie is refused)."""
-    root = folder if rows is not None else find_store(Path(folder))  # rows: the lab's
+    root = Path(folder) if rows is not None else find_store(Path(folder))  # rows: the lab's
     name = Path(str(catalog.source)).name
     overrides = load_measured(root, catalog=name, rows=rows)
     if not overrides:

@@ -20,6 +20,7 @@ import csv
 import tomllib
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -185,7 +186,7 @@ def solve_robot(problem: RobotProblem, time_limit: float = 10.0) -> RobotResult:
     """Build and solve the robot MILP; battery None when no battery meets the limit."""
     model = build_robot_model(problem)
     sol = model.solve(time_limit=time_limit)
-    common = dict(
+    common: dict[str, Any] = dict(
         n_vars=model.n_vars,
         n_binary=model.count("binary"),
         n_constraints=model.n_constraints,

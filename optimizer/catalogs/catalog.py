@@ -363,7 +363,8 @@ class Catalog:
             consts = constants
         else:
             consts = constants_from_mapping(dict(constants), f"{source}/catalog.toml")
-        return cls._build(*tables, consts, source)
+        props, mots, bats = tables
+        return cls._build(props, mots, bats, consts, source)
 
     @classmethod
     def _build(
@@ -386,6 +387,6 @@ def load_catalog(path: str | Path) -> Catalog:
         raise CatalogError(f"{folder}: the section 2.4.1 mobile-robot example (robot.toml), not "
                            "a multirotor catalog: it is solved by "
                            "optimizer.cases.robot.solve_robot (docs/thesis-formulation.md)")
-    tables = [_read_csv(folder / name) for name in FILES]
+    props, mots, bats = (_read_csv(folder / name) for name in FILES)
     constants = load_constants(folder / "catalog.toml")
-    return Catalog._build(*tables, constants, str(folder))
+    return Catalog._build(props, mots, bats, constants, str(folder))

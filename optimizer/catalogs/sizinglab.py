@@ -47,6 +47,7 @@ from __future__ import annotations
 import math
 import re
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 import pandas as pd
@@ -113,14 +114,15 @@ def _read(path: Path, needed: tuple[str, ...], positive: tuple[str, ...] = ()) -
     for col in needed:
         if col in ("TYPE", "Model", "Brand"):
             continue
-        values = pd.to_numeric(frame[col], errors="coerce")
+        column: pd.Series = frame.loc[:, col]
+        values = cast(pd.Series, pd.to_numeric(column, errors="coerce"))  # a column's numbers
         bad = np.flatnonzero(values.isna().to_numpy())
         if bad.size:
             row = int(bad[0]) + 2  # 1-based, after the header line
             got = frame[col].iloc[bad[0]]
             raise CatalogError(f"{path}: line {row}, column {col}: expected a number, got {got!r}")
         if col in positive:
-            _check_positive(path, frame.assign(**{col: values}), col, frame[col])
+            _check_positive(path, frame.assign(**{col: values}), col, column)
         frame[col] = values
     return frame
 
@@ -151,14 +153,14 @@ def _unique(ids: list[str]) -> list[str]:
 def propellers_frame(folder: Path) -> pd.DataFrame:
     """APC MR propellers with static Ct/Cp (catalog columns, datasheet units)."""
     data = _read(folder / "Propeller_Data.csv", _PROP_COLS, ("DIAMETER_IN", "BETA"))
-    static = data[data["J_adv-ratio"] == 0]
+    static = data.loc[data["J_adv-ratio"] == 0]
     if static.empty:
         raise CatalogError(f"{folder / 'Propeller_Data.csv'}: no static rows (J_adv-ratio = 0)")
     for col in ("Ct", "Cp"):  # other advance ratios may reach zero thrust, a static row not
         _check_positive(folder / "Propeller_Data.csv", static, col,
                         data.attrs["as_written"][col], " in a static row (J_adv-ratio = 0)")
-    grouped = static.groupby(["DIAMETER_IN", "BETA"], sort=True)[["Ct", "Cp"]].mean()
-    grouped = grouped.reset_index()
+    means: pd.DataFrame = static.groupby(["DIAMETER_IN", "BETA"], sort=True)[["Ct", "Cp"]].mean()
+    grouped = means.reset_index()
     d_in = grouped["DIAMETER_IN"].to_numpy(float)
     pitch_in = grouped["BETA"].to_numpy(float) * d_in
     names = [f"APC {d:g}x{p:.1f}MR" for d, p in zip(d_in, pitch_in, strict=True)]

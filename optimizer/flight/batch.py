@@ -50,7 +50,7 @@ def fly_batch(batch: DesignBatch, man: Maneuver, dt: float = DT_S,
 
 def _figures(batch: DesignBatch, man: Maneuver, trace: Trace) -> list[dict[str, Any]]:
     """Each design's figures from the stored ticks, as ``maneuvers.figures``."""
-    final_ok = np.isfinite(trace.final).all(axis=0)
+    final_ok = np.asarray(np.isfinite(trace.final).all(axis=0))
     out: list[dict[str, Any]] = []
     if man.axis == "hover":
         for i in range(len(batch)):

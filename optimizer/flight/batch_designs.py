@@ -216,7 +216,7 @@ def _errors(n_rotors: int, layout: str, arrays: dict[str, np.ndarray],
           & (a["levels"] >= 2) & (a["levels"] == np.round(a["levels"]))
           & (a["idle_fraction"] >= 0) & (a["idle_fraction"] < 1))
     errors = [""] * ok.size
-    for i in np.flatnonzero(~ok):
+    for i in np.flatnonzero(~ok).tolist():
         v = {k: float(x[i]) for k, x in a.items()}
         try:
             Vehicle(v["mass_kg"], (v["ixx"], v["iyy"], v["izz"]), n_rotors, v["arm_m"],

@@ -253,124 +253,147 @@ def simulate(batch: DesignBatch, man: Maneuver, dt: float) -> Trace:
 
     b = mass.size
     zeros = np.zeros(b)
-    px, py, pz, vx, vy, vz = (zeros,) * 6
-    qw, qx, qy, qz = np.ones(b), zeros, zeros, zeros
-    wx, wy, wz = zeros, zeros, zeros
-    i_x = i_y = i_z = i_climb = zeros
-    hold = np.zeros(b, bool)
+    # the state carried from tick to tick, (B,) each: declared, so that a type checker
+    # reads them at these types in the tick below, rather than inferring them around the loop
+    px: np.ndarray = zeros
+    py: np.ndarray = zeros
+    pz: np.ndarray = zeros
+    vx: np.ndarray = zeros
+    vy: np.ndarray = zeros
+    vz: np.ndarray = zeros
+    qw: np.ndarray = np.ones(b)
+    qx: np.ndarray = zeros
+    qy: np.ndarray = zeros
+    qz: np.ndarray = zeros
+    wx: np.ndarray = zeros
+    wy: np.ndarray = zeros
+    wz: np.ndarray = zeros
+    i_x: np.ndarray = zeros
+    i_y: np.ndarray = zeros
+    i_z: np.ndarray = zeros
+    i_climb: np.ndarray = zeros
+    hold: np.ndarray = np.zeros(b, bool)
     sat = np.zeros((steps, b), bool)
     signal = np.empty((0 if man.axis == "hover" else steps, b))
     angle = ANGLES.get(man.axis)
     h = 0.5 * dt
     d6 = dt * dt / 6.0
+
+    def tick(k: int) -> None:
+        """One tick of every design: the loop body, a function so that a type checker reads
+        the state at its declared types rather than inferring them around the loop."""
+        nonlocal px, py, pz, vx, vy, vz, qw, qx, qy, qz, wx, wy, wz
+        nonlocal i_x, i_y, i_z, i_climb, hold
+        stepped = k >= k_step
+        t_w, t_x, t_y, t_z = tables[stepped]
+        z_d = z_step if stepped else 0.0
+        # ---- CascadeController.update: q_e = q_d^-1 (x) q (B.2, B.3)
+        ew = _combine(t_w, (qw, qx, qy, qz), zeros)
+        ex = _combine(t_x, (qx, qw, qz, qy), zeros)
+        ey = _combine(t_y, (qy, qz, qw, qx), zeros)
+        ez = _combine(t_z, (qz, qy, qx, qw), zeros)
+        sign = np.where(ew >= 0.0, -2.0, 2.0)  # 2 q_e1:3 ~ angle error (B.26)
+        ax, ay, az = sign * ex, sign * ey, sign * ez
+        # square-root limit per axis: min(max(w, -cap), cap) is copysign(cap, w)
+        # where |w| > cap
+        cap = np.sqrt(stop_x * np.abs(ax))
+        sx = np.minimum(np.maximum(ka * ax, -cap), cap)
+        cap = np.sqrt(stop_y * np.abs(ay))
+        sy = np.minimum(np.maximum(ka * ay, -cap), cap)
+        cap = np.sqrt(stop_z * np.abs(az))
+        sz = np.minimum(np.maximum(ka * az, -cap), cap)
+        er_x, er_y, er_z = sx - wx, sy - wy, sz - wz
+        ez_m = z_d - pz  # altitude hold
+        cap = np.sqrt(stop_v * np.abs(ez_m))
+        climb = np.minimum(np.maximum(ka * ez_m, -cap), cap)
+        ev = climb - vz
+        if hold.any():  # conditional integration: hold while saturated
+            i_x = np.where(hold, i_x, i_x + er_x * dt)
+            i_y = np.where(hold, i_y, i_y + er_y * dt)
+            i_z = np.where(hold, i_z, i_z + er_z * dt)
+            i_climb = np.where(hold, i_climb, i_climb + ev * dt)
+        else:
+            i_x, i_y, i_z = i_x + er_x * dt, i_y + er_y * dt, i_z + er_z * dt
+            i_climb = i_climb + ev * dt
+        mx = ixx_kp * (er_x + wi * i_x)
+        my = iyy_kp * (er_y + wi * i_y)
+        mz = izz_kp * (er_z + wi * i_z)
+        accel = kp * (ev + wi * i_climb)
+        level_xy = qx * qx + qy * qy
+        tilt = np.maximum(0.5, 1.0 - 2.0 * level_xy)
+        thrust = mass * (g + accel) / tilt
+        # ---- Mixer.mix, then the rotors' speed commands
+        forces, hold = mixer.mix(mx, my, mz, thrust)
+        sat[k] = hold
+        w = rotors.step(np.where(forces > 0.0, np.sqrt(forces * inv_kf), 0.0))
+        # (2.43)/(B.11): thrusts and drag torques of the rotor speeds
+        w2 = w * w
+        f = k_f * w2
+        f_tot = _fold(f)
+        m_x = _fold(ys * f)
+        m_y = -_fold(xs * f)  # 0 - a - b = -(a + b): rounding is symmetric
+        m_z = -_fold(drag_torque * w2)
+        fy = None
+        if gusty and k_step <= k < k_step + k_gust:
+            shape = 0.5 * (1.0 - math.cos(2.0 * math.pi * (k - k_step) / k_gust))
+            fy = gust_f * shape
+            m_x = m_x + gust_m * shape
+            m_y = m_y + gust_m * shape
+        # ---- vehicle.step (fx = fz = 0; fy only in a gust)
+        t2 = f_tot * 2.0
+        acc_x = t2 * (qx * qz + qw * qy)
+        acc_y = t2 * (qy * qz - qw * qx)
+        acc_z = f_tot * (1.0 - 2.0 * level_xy)
+        if fy is not None:
+            acc_y = acc_y + fy
+        if drag:
+            acc_x, acc_y, acc_z = acc_x - cd * vx, acc_y - cd * vy, acc_z - cd * vz
+        acc_x, acc_y, acc_z = acc_x * inv_m, acc_y * inv_m, acc_z * inv_m - g
+        mxx = wx + h * (m_x + d_iyz * wy * wz) / ixx
+        myy = wy + h * (m_y + d_izx * wz * wx) / iyy
+        mzz = wz + h * (m_z + d_ixy * wx * wy) / izz
+        nx = wx + dt * (m_x + d_iyz * myy * mzz) / ixx
+        ny = wy + dt * (m_y + d_izx * mzz * mxx) / iyy
+        nz = wz + dt * (m_z + d_ixy * mxx * myy) / izz
+        ox, oy, oz = 0.5 * (wx + nx), 0.5 * (wy + ny), 0.5 * (wz + nz)
+        rate = np.sqrt(ox * ox + oy * oy + oz * oz)
+        half = 0.5 * rate * dt
+        c = np.cos(half)
+        kq = np.where(rate > 0.0, np.sin(half) / rate, 0.5 * dt)
+        rx, ry, rz = kq * ox, kq * oy, kq * oz
+        pw_ = qw * c - qx * rx - qy * ry - qz * rz
+        px_ = qw * rx + qx * c + qy * rz - qz * ry
+        py_ = qw * ry - qx * rz + qy * c + qz * rx
+        pz_ = qw * rz + qx * ry - qy * rx + qz * c
+        norm = 1.0 / np.sqrt(pw_ * pw_ + px_ * px_ + py_ * py_ + pz_ * pz_)
+        pw_, px_, py_, pz_ = pw_ * norm, px_ * norm, py_ * norm, pz_ * norm
+        # at the step's end: the new attitude, drag on the Euler-predicted velocity
+        b_x = t2 * (px_ * pz_ + pw_ * py_)
+        b_y = t2 * (py_ * pz_ - pw_ * px_)
+        b_z = f_tot * (1.0 - 2.0 * (px_ * px_ + py_ * py_))
+        if fy is not None:
+            b_y = b_y + fy
+        if drag:
+            b_x = b_x - cd * (vx + dt * acc_x)
+            b_y = b_y - cd * (vy + dt * acc_y)
+            b_z = b_z - cd * (vz + dt * acc_z)
+        b_x, b_y, b_z = b_x * inv_m, b_y * inv_m, b_z * inv_m - g
+        px = px + dt * vx + d6 * (2.0 * acc_x + b_x)
+        py = py + dt * vy + d6 * (2.0 * acc_y + b_y)
+        pz = pz + dt * vz + d6 * (2.0 * acc_z + b_z)
+        vx, vy, vz = vx + h * (acc_x + b_x), vy + h * (acc_y + b_y), vz + h * (acc_z + b_z)
+        qw, qx, qy, qz = pw_, px_, py_, pz_
+        wx, wy, wz = nx, ny, nz
+        # ---- what the figures read
+        if angle is not None:
+            signal[k] = angle(qw, qx, qy, qz)
+        elif man.axis == "altitude":
+            signal[k] = pz
+        elif gusty:
+            signal[k] = gust_tilt(roll_angle(qw, qx, qy, qz), pitch_angle(qw, qx, qy, qz))
+
     with np.errstate(all="ignore"):
         for k in range(steps):
-            stepped = k >= k_step
-            t_w, t_x, t_y, t_z = tables[stepped]
-            z_d = z_step if stepped else 0.0
-            # ---- CascadeController.update: q_e = q_d^-1 (x) q (B.2, B.3)
-            ew = _combine(t_w, (qw, qx, qy, qz), zeros)
-            ex = _combine(t_x, (qx, qw, qz, qy), zeros)
-            ey = _combine(t_y, (qy, qz, qw, qx), zeros)
-            ez = _combine(t_z, (qz, qy, qx, qw), zeros)
-            sign = np.where(ew >= 0.0, -2.0, 2.0)  # 2 q_e1:3 ~ angle error (B.26)
-            ax, ay, az = sign * ex, sign * ey, sign * ez
-            # square-root limit per axis: min(max(w, -cap), cap) is copysign(cap, w)
-            # where |w| > cap
-            cap = np.sqrt(stop_x * np.abs(ax))
-            sx = np.minimum(np.maximum(ka * ax, -cap), cap)
-            cap = np.sqrt(stop_y * np.abs(ay))
-            sy = np.minimum(np.maximum(ka * ay, -cap), cap)
-            cap = np.sqrt(stop_z * np.abs(az))
-            sz = np.minimum(np.maximum(ka * az, -cap), cap)
-            er_x, er_y, er_z = sx - wx, sy - wy, sz - wz
-            ez_m = z_d - pz  # altitude hold
-            cap = np.sqrt(stop_v * np.abs(ez_m))
-            climb = np.minimum(np.maximum(ka * ez_m, -cap), cap)
-            ev = climb - vz
-            if hold.any():  # conditional integration: hold while saturated
-                i_x = np.where(hold, i_x, i_x + er_x * dt)
-                i_y = np.where(hold, i_y, i_y + er_y * dt)
-                i_z = np.where(hold, i_z, i_z + er_z * dt)
-                i_climb = np.where(hold, i_climb, i_climb + ev * dt)
-            else:
-                i_x, i_y, i_z = i_x + er_x * dt, i_y + er_y * dt, i_z + er_z * dt
-                i_climb = i_climb + ev * dt
-            mx = ixx_kp * (er_x + wi * i_x)
-            my = iyy_kp * (er_y + wi * i_y)
-            mz = izz_kp * (er_z + wi * i_z)
-            accel = kp * (ev + wi * i_climb)
-            level_xy = qx * qx + qy * qy
-            tilt = np.maximum(0.5, 1.0 - 2.0 * level_xy)
-            thrust = mass * (g + accel) / tilt
-            # ---- Mixer.mix, then the rotors' speed commands
-            forces, hold = mixer.mix(mx, my, mz, thrust)
-            sat[k] = hold
-            w = rotors.step(np.where(forces > 0.0, np.sqrt(forces * inv_kf), 0.0))
-            # (2.43)/(B.11): thrusts and drag torques of the rotor speeds
-            w2 = w * w
-            f = k_f * w2
-            f_tot = _fold(f)
-            m_x = _fold(ys * f)
-            m_y = -_fold(xs * f)  # 0 - a - b = -(a + b): rounding is symmetric
-            m_z = -_fold(drag_torque * w2)
-            fy = None
-            if gusty and k_step <= k < k_step + k_gust:
-                shape = 0.5 * (1.0 - math.cos(2.0 * math.pi * (k - k_step) / k_gust))
-                fy = gust_f * shape
-                m_x = m_x + gust_m * shape
-                m_y = m_y + gust_m * shape
-            # ---- vehicle.step (fx = fz = 0; fy only in a gust)
-            t2 = f_tot * 2.0
-            acc_x = t2 * (qx * qz + qw * qy)
-            acc_y = t2 * (qy * qz - qw * qx)
-            acc_z = f_tot * (1.0 - 2.0 * level_xy)
-            if fy is not None:
-                acc_y = acc_y + fy
-            if drag:
-                acc_x, acc_y, acc_z = acc_x - cd * vx, acc_y - cd * vy, acc_z - cd * vz
-            acc_x, acc_y, acc_z = acc_x * inv_m, acc_y * inv_m, acc_z * inv_m - g
-            mxx = wx + h * (m_x + d_iyz * wy * wz) / ixx
-            myy = wy + h * (m_y + d_izx * wz * wx) / iyy
-            mzz = wz + h * (m_z + d_ixy * wx * wy) / izz
-            nx = wx + dt * (m_x + d_iyz * myy * mzz) / ixx
-            ny = wy + dt * (m_y + d_izx * mzz * mxx) / iyy
-            nz = wz + dt * (m_z + d_ixy * mxx * myy) / izz
-            ox, oy, oz = 0.5 * (wx + nx), 0.5 * (wy + ny), 0.5 * (wz + nz)
-            rate = np.sqrt(ox * ox + oy * oy + oz * oz)
-            half = 0.5 * rate * dt
-            c = np.cos(half)
-            kq = np.where(rate > 0.0, np.sin(half) / rate, 0.5 * dt)
-            rx, ry, rz = kq * ox, kq * oy, kq * oz
-            pw_ = qw * c - qx * rx - qy * ry - qz * rz
-            px_ = qw * rx + qx * c + qy * rz - qz * ry
-            py_ = qw * ry - qx * rz + qy * c + qz * rx
-            pz_ = qw * rz + qx * ry - qy * rx + qz * c
-            norm = 1.0 / np.sqrt(pw_ * pw_ + px_ * px_ + py_ * py_ + pz_ * pz_)
-            pw_, px_, py_, pz_ = pw_ * norm, px_ * norm, py_ * norm, pz_ * norm
-            # at the step's end: the new attitude, drag on the Euler-predicted velocity
-            b_x = t2 * (px_ * pz_ + pw_ * py_)
-            b_y = t2 * (py_ * pz_ - pw_ * px_)
-            b_z = f_tot * (1.0 - 2.0 * (px_ * px_ + py_ * py_))
-            if fy is not None:
-                b_y = b_y + fy
-            if drag:
-                b_x = b_x - cd * (vx + dt * acc_x)
-                b_y = b_y - cd * (vy + dt * acc_y)
-                b_z = b_z - cd * (vz + dt * acc_z)
-            b_x, b_y, b_z = b_x * inv_m, b_y * inv_m, b_z * inv_m - g
-            px = px + dt * vx + d6 * (2.0 * acc_x + b_x)
-            py = py + dt * vy + d6 * (2.0 * acc_y + b_y)
-            pz = pz + dt * vz + d6 * (2.0 * acc_z + b_z)
-            vx, vy, vz = vx + h * (acc_x + b_x), vy + h * (acc_y + b_y), vz + h * (acc_z + b_z)
-            qw, qx, qy, qz = pw_, px_, py_, pz_
-            wx, wy, wz = nx, ny, nz
-            # ---- what the figures read
-            if angle is not None:
-                signal[k] = angle(qw, qx, qy, qz)
-            elif man.axis == "altitude":
-                signal[k] = pz
-            elif gusty:
-                signal[k] = gust_tilt(roll_angle(qw, qx, qy, qz), pitch_angle(qw, qx, qy, qz))
+            tick(k)
     final = np.array([px, py, pz, vx, vy, vz, qw, qx, qy, qz, wx, wy, wz])
     return Trace(np.arange(steps) * dt + dt, sat, signal, final, w_hover, rotors.omega_min)

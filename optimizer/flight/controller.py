@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from scipy import signal
@@ -84,7 +84,7 @@ def design_gains(tau_s: float, delay_s: float) -> Gains:
     hi = 1.0
     while phase_excess(hi) > 0:
         hi *= 2.0
-    w_c = brentq(phase_excess, 1e-6, hi, xtol=1e-9)
+    w_c = cast(float, brentq(phase_excess, 1e-6, hi, xtol=1e-9))  # a root, no full_output
     w_i = w_c / INTEGRAL_RATIO
     k_p = w_c * math.sqrt(1.0 + (w_c * tau_s) ** 2) / math.sqrt(1.0 + (w_i / w_c) ** 2)
 
@@ -93,7 +93,7 @@ def design_gains(tau_s: float, delay_s: float) -> Gains:
         t = loop / (1.0 + loop)
         return float(np.angle(t)) + math.pi / 2 - math.radians(ATTITUDE_PHASE_MARGIN_DEG)
 
-    w_o = brentq(closed_phase, 1e-3 * w_c, w_c, xtol=1e-9)
+    w_o = cast(float, brentq(closed_phase, 1e-3 * w_c, w_c, xtol=1e-9))
     loop = _rate_loop(w_o, k_p, w_i, tau_s, delay_s)
     k_a = w_o / abs(loop / (1.0 + loop))
     return Gains(float(k_p), float(w_i), float(k_a), float(w_c), float(w_o), float(tau_s),

@@ -150,4 +150,4 @@ def feasible_indices(grid: DesignGrid, extra_checks: tuple = ()) -> list[tuple[i
     from optimizer.model.grid import meets_checks  # the optimizer's own feasibility rule
 
     ok = meets_checks(grid, (*grid.checks, *extra_checks))
-    return [tuple(int(a) for a in idx) for idx in np.argwhere(ok)]
+    return [(int(i), int(j), int(k)) for i, j, k in np.argwhere(ok)]

@@ -91,7 +91,8 @@ class Flight:
     figures: dict[str, Any] = field(default_factory=dict)
 
 
-def _euler_quaternion(roll: float, pitch: float, yaw: float) -> tuple[float, ...]:
+def _euler_quaternion(roll: float, pitch: float, yaw: float
+                      ) -> tuple[float, float, float, float]:
     """(B.21) quaternion of roll, pitch, yaw (Z-Y-X rotation, scalar first)."""
     cr, sr = math.cos(roll / 2), math.sin(roll / 2)
     cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
@@ -100,7 +101,7 @@ def _euler_quaternion(roll: float, pitch: float, yaw: float) -> tuple[float, ...
             cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy)
 
 
-def step_quaternion(man: Maneuver) -> tuple[float, ...]:
+def step_quaternion(man: Maneuver) -> tuple[float, float, float, float]:
     """The attitude setpoint after the step (level for a maneuver of no attitude axis)."""
     command = {"roll": (man.amplitude, 0.0, 0.0), "pitch": (0.0, man.amplitude, 0.0),
                "yaw": (0.0, 0.0, man.amplitude)}.get(man.axis)
@@ -212,9 +213,11 @@ def response_figures(man: Maneuver, t: np.ndarray, signal: np.ndarray,
     out: dict[str, Any] = {}
     if man.axis == "gust":
         d = metrics.disturbance_metrics(t, signal, t_step, math.radians(GUST_BAND_DEG))
+        peak = d["peak"]
+        assert peak is not None  # always a number (the settling time may be None)
         out.update({"rise_time_ms": None, "overshoot_pct": None,
                     "settling_time_ms": d["settling_time_ms"],
-                    "peak_tilt_deg": math.degrees(d["peak"])})
+                    "peak_tilt_deg": math.degrees(peak)})
     else:
         out.update(metrics.step_metrics(t, signal, t_step, 0.0, man.amplitude))
     out["saturation_pct"] = 100.0 * float(np.mean(saturated))

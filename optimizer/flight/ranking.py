@@ -101,7 +101,9 @@ def spearman(rows: Sequence[FlownDesign]) -> tuple[float, float]:
     tau = np.array([r.time_constant_ms for r in rows])
     rise = np.array([math.inf if r.rise_time_ms is None else r.rise_time_ms for r in rows])
     res = spearmanr(tau, rise)
-    return float(res.statistic), float(res.pvalue)
+    # scipy's result class is made at run time; its stubs do not name its fields
+    return (float(res.statistic),  # pyright: ignore[reportAttributeAccessIssue]
+            float(res.pvalue))  # pyright: ignore[reportAttributeAccessIssue]
 
 
 def first_meeting(candidates: Sequence[tuple[int, int, int]], catalog: Catalog, grid: ModelGrid,

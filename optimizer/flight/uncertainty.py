@@ -91,7 +91,7 @@ def _canonical(design: Mapping[str, Any]) -> list[Any]:
     out: list[Any] = []
     for key in DESIGN_KEYS:
         v = design.get(key)
-        if _absent(v):
+        if v is None or _absent(v):
             out.append(None)
         elif key in ("propeller", "motor", "battery"):
             out.append(str(v))

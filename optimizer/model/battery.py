@@ -99,7 +99,7 @@ def pack_resistance_ohm(
     return np.where(np.isnan(given), estimate, given)
 
 
-def load_current_a(power_w, open_circuit_v, resistance_ohm) -> np.ndarray:
+def load_current_a(power_w, open_circuit_v, resistance_ohm) -> np.ndarray | float:
     """Current drawn by a constant-power load from a source E with series resistance R.
 
     V I = P with V = E - R I: I = (E - sqrt(E^2 - 4 R P)) / (2 R) (the smaller root; the
@@ -154,7 +154,7 @@ def discharge(
 
 def _discharge(p, s, q, r, x, curve: CellCurve, nodes: int) -> Discharge:
     e = s * curve.open_circuit_v(x)
-    i = load_current_a(p, e, r)
+    i = np.asarray(load_current_a(p, e, r))  # arrays in, an array out
     v = e - r * i
     margin = np.where(np.isfinite(v), v - s * curve.cutoff_v, -np.inf)
     ok = np.logical_and.accumulate(margin >= 0, axis=-1)

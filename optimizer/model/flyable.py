@@ -112,11 +112,13 @@ def rule_checks(
     if "c-rate" in on or "hover-throttle" in on:
         hover = ops.at_thrust(drive, grid.extras["hover_thrust_n"], v_b)  # type: ignore
     if "c-rate" in on:
+        assert hover is not None  # set just above for this rule
         out.append(Check("rule c-rate: hover battery current (continuous)", "A",
                          n * hover.battery_current_a, pack["continuous_a"]))
         out.append(Check("rule c-rate: full-throttle battery current (burst)", "A",
                          n * top.battery_current_a, pack["burst_a"]))
     if "hover-throttle" in on:
+        assert hover is not None  # set just above for this rule
         pct = 100.0 * hover.throttle
         lo, hi = rules.hover_throttle_pct
         out.append(Check("rule hover-throttle: hover throttle (min)", "%", pct,

@@ -85,7 +85,7 @@ def hover_torque_nm(power_w, n_rev_s):
     return power_w / (TWO_PI * np.asarray(n_rev_s, float))
 
 
-def winding_current_a(torque_nm, kt, no_load_current_a=0.0):
+def winding_current_a(torque_nm, kt, no_load_current_a: np.ndarray | float = 0.0):
     """Motor winding (torque) current I_w = Q / K_t + I_0.
 
     (E.5)-(E.7): the motor torque is K_t I; the no-load current I_0 (friction and iron

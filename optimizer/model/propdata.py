@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -63,13 +63,14 @@ def load_curves(folder: str | Path) -> list[PropCurve]:
     """All propellers of the APC static file in ``folder`` with their coefficient curves."""
     # the SizingLab reader: semicolons, needed columns, numbers checked (line and column)
     data = read_sizinglab_table(Path(folder) / FILE, _COLS)
-    data = data[data["THRUST(LBF)"] >= MIN_THRUST_LBF]
-    data = data[data["TORQUE(IN.LBF)"] >= MIN_TORQUE_IN_LBF]
+    data = data.loc[data["THRUST(LBF)"] >= MIN_THRUST_LBF]
+    data = data.loc[data["TORQUE(IN.LBF)"] >= MIN_TORQUE_IN_LBF]
     out = []
-    for (comp, family, d_in, p_in, blades), rows in data.groupby(
+    for key, group in data.groupby(
         ["COMP", "TYPE", "DIAMETER(IN)", "PITCH(IN)", "BLADE(nb)"], sort=True
     ):
-        rows = rows.sort_values("RPM")
+        comp, family, d_in, p_in, blades = cast(tuple[Any, ...], key)  # one per grouped column
+        rows = group.sort_values("RPM")
         n = rows["RPM"].to_numpy(float) / 60.0
         d = float(d_in) * 0.0254
         thrust = rows["THRUST(LBF)"].to_numpy(float) * LBF_TO_N
@@ -95,12 +96,13 @@ def match(catalog: Catalog, curves: list[PropCurve]) -> list[PropCurve | None]:
     out: list[PropCurve | None] = []
     props = catalog.propellers
     for _, row in props.iterrows():
-        d_in = float(row["diameter_m"]) / 0.0254
-        pitch = row.get("pitch_m", np.nan)
-        p_in = float(pitch) / 0.0254 if pitch is not None and np.isfinite(pitch) else None
-        if p_in is None:
+        diameter: Any = row["diameter_m"]  # the row's cells, as the catalog holds them
+        d_in = float(diameter) / 0.0254
+        pitch: Any = row.get("pitch_m", np.nan)  # a number, NaN or None
+        if pitch is None or not np.isfinite(pitch):
             out.append(None)
             continue
+        p_in = float(pitch) / 0.0254
         cands = [c for c in curves if abs(c.diameter_in - d_in) <= 0.01
                  and abs(c.pitch_in - p_in) <= PITCH_TOL_IN and c.blades == 2]
         fam = _family(str(row["name"]))

@@ -222,7 +222,8 @@ class MilpArrays:
 
     @property
     def shape(self) -> tuple[int, int]:
-        return self.A.shape
+        # scipy's stubs leave a sparse array's shape optional; a built matrix has one
+        return self.A.shape  # pyright: ignore[reportReturnType]
 
 
 @dataclass(frozen=True)
@@ -430,15 +431,18 @@ class Model:
             options["time_limit"] = float(time_limit)
         if extra_options:
             options.update(extra_options)
+        # scipy's LinearConstraint and Bounds are unannotated: the checker takes lb and ub to
+        # be floats, the type of their defaults (-inf, inf); they take arrays
         constraints = (
-            [LinearConstraint(arrays.A, arrays.row_lb, arrays.row_ub)] if self.n_constraints else []
+            [LinearConstraint(arrays.A, arrays.row_lb, arrays.row_ub)]  # pyright: ignore[reportArgumentType]
+            if self.n_constraints else []
         )
         t0 = time.perf_counter()
         with _stdout_to_stderr():
             res = milp(
                 arrays.c,
                 integrality=arrays.integrality,
-                bounds=Bounds(arrays.lb, arrays.ub),
+                bounds=Bounds(arrays.lb, arrays.ub),  # pyright: ignore[reportArgumentType]
                 constraints=constraints,
                 options=dict(options),  # milp mutates its options dict
             )

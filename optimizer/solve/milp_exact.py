@@ -61,7 +61,7 @@ from typing import Literal
 
 import numpy as np
 from scipy import sparse
-from scipy.optimize import Bounds, LinearConstraint, milp
+from scipy.optimize import Bounds, LinearConstraint, OptimizeResult, milp
 
 from optimizer.solve.exhaustive import SolveOutcome
 
@@ -147,7 +147,7 @@ def _run(
     formulation: str,
     time_limit_s: float,
     presolve: bool,
-) -> tuple[object, int | None]:
+) -> tuple[OptimizeResult, int | None]:
     """One HiGHS solve; returns the result and the chosen position in ``keep``."""
     if formulation == "block":
         c_all, integrality, constraints = _block_model(c, keep, shape)
@@ -187,7 +187,9 @@ def _block_model(
     lb = np.concatenate([np.zeros(k), [1.0]])
     c_all = np.concatenate([c, np.zeros(k)])
     integrality = np.concatenate([np.zeros(n), np.ones(k)])
-    return c_all, integrality, [LinearConstraint(a, lb, lb)]
+    # scipy's LinearConstraint is unannotated: the checker takes lb and ub to be floats, the
+    # type of their defaults (-inf, inf); they take arrays
+    return c_all, integrality, [LinearConstraint(a, lb, lb)]  # pyright: ignore[reportArgumentType]
 
 
 def _unit_model(c: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[LinearConstraint]]:
@@ -232,4 +234,5 @@ def _factored_model(
     )
     c_all = np.concatenate([c, np.zeros(offset - n)])
     integrality = np.concatenate([np.zeros(n), np.ones(offset - n)])
-    return c_all, integrality, [LinearConstraint(a, np.concatenate(lbs), np.concatenate(ubs))]
+    lb, ub = np.concatenate(lbs), np.concatenate(ubs)
+    return c_all, integrality, [LinearConstraint(a, lb, ub)]  # pyright: ignore[reportArgumentType]

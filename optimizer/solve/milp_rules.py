@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, cast
 
 import numpy as np
 from scipy.optimize import brentq
@@ -160,7 +160,7 @@ class PiecewiseLinear:
     #: g at the breakpoints (the interpolant's nodes)
     values: np.ndarray
 
-    def approx(self, x: float | np.ndarray) -> np.ndarray:
+    def approx(self, x: float | np.ndarray) -> np.ndarray | float:
         """The interpolant the MILP uses, evaluated outside the solver."""
         return np.interp(x, self.breakpoints, self.values)
 
@@ -185,13 +185,18 @@ def breakpoints(
         return np.linspace(x_min, x_max, regions + 1)
     if spacing != "y":
         raise ValueError(f"spacing must be 'x' or 'y', got {spacing!r}")
-    y0, y1 = float(func(np.float64(x_min))), float(func(np.float64(x_max)))
+
+    def g(x: float) -> float:
+        # func is written for arrays and called on numpy scalars (which act as 0-d arrays)
+        return float(func(np.float64(x)))  # pyright: ignore[reportArgumentType]
+
+    y0, y1 = g(x_min), g(x_max)
     if not y1 > y0:
         raise ValueError("y-spacing needs a strictly increasing function")
     xs = [x_min]
     for k in range(1, regions):
         target = y0 + (y1 - y0) * k / regions
-        xs.append(brentq(lambda t, tg=target: float(func(np.float64(t))) - tg, x_min, x_max))
+        xs.append(cast(float, brentq(lambda t, tg=target: g(t) - tg, x_min, x_max)))  # a root
     xs.append(x_max)
     return np.asarray(xs, float)
 

@@ -162,6 +162,7 @@ def optimize_packs(
             res = select_from_grids([cut.grid], objective, req, method, grid_times=[gtime],
                                     source=catalog.source).designs[0]
             if res.feasible:
+                assert res.index is not None  # a feasible design has its grid index
                 row = packs.iloc[res.index[2]]
                 res.extra.update({"series": int(row["series"]), "parallel": int(row["parallel"]),
                                   "cell": str(row["cell"])})

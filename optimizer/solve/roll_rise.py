@@ -106,8 +106,7 @@ def _fly(pick: Index, grid: ModelGrid, cost: np.ndarray, ok: np.ndarray, catalog
     meets T: (it or None, the ``flight`` info, why none did)."""
     flat = np.flatnonzero(ok.ravel())
     order = flat[np.argsort(cost.ravel()[flat], kind="stable")]
-    candidates = [pick] + [tuple(int(a) for a in np.unravel_index(f, grid.shape))
-                           for f in order]
+    candidates = [pick] + [_index(np.unravel_index(f, grid.shape)) for f in order]
     candidates = list(dict.fromkeys(candidates))  # the MILP's pick first, once
     found, flown = first_meeting(candidates, catalog, grid, max_rise_ms, **setup_kwargs)
     info = {"flown": len(flown),
@@ -116,6 +115,12 @@ def _fly(pick: Index, grid: ModelGrid, cost: np.ndarray, ok: np.ndarray, catalog
                    and not r.note), default=None)
     best_txt = "none rose" if fastest is None else f"fastest {fastest:.0f} ms"
     return found, info, f"(flew all {len(flown)}; {best_txt})"
+
+
+def _index(where: tuple[Any, ...]) -> Index:
+    """A design's (propeller, motor, battery) index from numpy's per-axis indices."""
+    i, j, k = (int(a) for a in where)
+    return i, j, k
 
 
 def _read(pick: Index, grid: DesignGrid, cost: np.ndarray, ok: np.ndarray, screen: RollScreen,
@@ -130,7 +135,7 @@ def _read(pick: Index, grid: DesignGrid, cost: np.ndarray, ok: np.ndarray, scree
     elif meets.any():
         flat = np.flatnonzero(meets.ravel())
         best = flat[np.argmin(cost.ravel()[flat])]
-        found = tuple(int(a) for a in np.unravel_index(best, grid.shape))
+        found = _index(np.unravel_index(best, grid.shape))
     absent = ok & ~screened.present
     better = absent & (cost < cost[found]) if found is not None else absent
     info = {"source": screen.source, "flown": 0,

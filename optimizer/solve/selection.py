@@ -460,7 +460,7 @@ def _result(
     method: str,
     grid_time: float,
 ) -> DesignResult:
-    common = dict(
+    common: dict[str, Any] = dict(
         actuators=grid.n_actuators,
         solve_time_s=outcome.solve_time_s,
         grid_time_s=grid_time,
@@ -608,7 +608,7 @@ def _select_thesis(
             **options,
         )
         wall = time.perf_counter() - start
-        common = dict(
+        common: dict[str, Any] = dict(
             actuators=grid.n_actuators,
             solve_time_s=res.solve_time_s,
             grid_time_s=gtime,

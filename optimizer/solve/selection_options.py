@@ -54,7 +54,9 @@ def solve(catalog: Catalog, objective: Objective, actuators: tuple[int, ...], re
     if measured is not None:
         measured.annotate(result)
     if builder is not None:
-        result.rule_reports = [r.to_dict() for r in builder.reports]
+        # an attribute of this result only (not a field of every SelectionResult)
+        result.rule_reports = [  # pyright: ignore[reportAttributeAccessIssue]
+            r.to_dict() for r in builder.reports]
     return result
 
 
@@ -100,7 +102,9 @@ def solve_packs(catalog: Catalog, objective: Objective, actuators: tuple[int, ..
     result = optimize_packs(catalog, objective, actuators, requirements, method, series,
                             parallel, build_grid=build)
     if builder is not None:
-        result.rule_reports = _sum_reports(builder.reports)
+        # an attribute of this result only (not a field of every SelectionResult)
+        result.rule_reports = _sum_reports(  # pyright: ignore[reportAttributeAccessIssue]
+            builder.reports)
     return result
 
 

@@ -112,7 +112,8 @@ def grid_designs(catalog: Catalog, grid: ModelGrid, *, packs: bool = False,
     errors = [""] * len(idx)
     spread = pd.DataFrame(0.0, index=flight.index, columns=list(QUANTITIES))
     for row in np.flatnonzero(alone):  # measured numbers, a step run or a refusal: setup's
-        index = tuple(int(v) for v in idx[row])
+        i, j, k = (int(v) for v in idx[row])
+        index = (i, j, k)
         # the measured spreads of the constants flown (``--samples`` draws from them)
         spread.iloc[row] = pd.Series(design_std(grid, index, step))[list(QUANTITIES)]
         try:

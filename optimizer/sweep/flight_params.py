@@ -48,7 +48,8 @@ def params_of(vehicle: Vehicle, actuator: ActuatorModel) -> dict[str, Any]:
 def flight_of(params: Mapping[str, Any]) -> tuple[Vehicle, ActuatorModel]:
     """The ``Vehicle`` and ``ActuatorModel`` of :func:`params_of`'s numbers (validated
     again by their own checks)."""
+    ixx, iyy, izz = (float(params[c]) for c in INERTIA_COLUMNS)
     vehicle = Vehicle(**{n: params[f"vehicle_{n}"] for n in _vehicle_fields()},
-                      inertia_kgm2=tuple(float(params[c]) for c in INERTIA_COLUMNS))
+                      inertia_kgm2=(ixx, iyy, izz))
     actuator = ActuatorModel(**{n: params[f"actuator_{n}"] for n in _actuator_fields()})
     return vehicle, actuator

@@ -106,16 +106,18 @@ def _fly_group(chunk: Chunk, designs: pd.DataFrame, n: int, layout: str,
                rows: list[dict[str, Any]]) -> None:
     """Fly designs of one rotor count and layout (and their samples) into ``rows``."""
     arrays = {arg: designs[col].to_numpy(float) for arg, col in BATCH.items()}
-    nominal = DesignBatch.from_arrays(n, layout, **arrays)
+    # the columns by argument name; the checker cannot match a dict's keys to parameters
+    nominal = DesignBatch.from_arrays(n, layout, **arrays)  # pyright: ignore[reportArgumentType]
     gains = np.stack([nominal.k_p, nominal.w_i, nominal.k_a], axis=1)
     m = chunk.samples
     drawn = np.zeros(len(designs), bool)
     batch = nominal
+    std: dict[str, np.ndarray] = {}
     if m > 1:
         std = {q: designs[STD_PREFIX + q].to_numpy(float) for q in DRAWN}
         drawn = varies(std)
     if drawn.any():
-        sub = designs[drawn]
+        sub = designs.loc[drawn]
         samples = draw_many({q: arrays[arg][drawn] for q, arg in DRAWN.items()},
                             {q: v[drawn] for q, v in std.items()}, m,
                             design_seeds(sub[list(DESIGN_KEYS)].to_dict("records"),
@@ -124,9 +126,10 @@ def _fly_group(chunk: Chunk, designs: pd.DataFrame, n: int, layout: str,
         for q, arg in DRAWN.items():  # samples 1 .. m-1 of each drawn design, in order
             extra[arg] = samples[q][:, 1:].ravel()
         both = {arg: np.concatenate([arrays[arg], extra[arg]]) for arg in arrays}
-        batch = DesignBatch.from_arrays(
-            n, layout, **both, gains=np.concatenate([gains, np.repeat(gains[drawn], m - 1,
-                                                                      axis=0)]))
+        all_gains = np.concatenate([gains, np.repeat(gains[drawn], m - 1, axis=0)])
+        # the columns by argument name, as above
+        batch = DesignBatch.from_arrays(n, layout, gains=all_gains,
+                                        **both)  # pyright: ignore[reportArgumentType]
     where = _sample_rows(drawn, m)
     for name in chunk.maneuvers:
         figures = fly_batch(batch, maneuver(name))

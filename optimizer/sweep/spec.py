@@ -16,6 +16,7 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 import pandas as pd
+from pandas.util import hash_pandas_object
 
 from optimizer.catalogs.catalog import Catalog
 
@@ -37,7 +38,9 @@ def _version() -> str:
 def frame_digest(frame: pd.DataFrame) -> str:
     """SHA-256 (16 hex digits) of a frame's columns and values, row order included."""
     h = hashlib.sha256(json.dumps(list(map(str, frame.columns))).encode())
-    h.update(pd.util.hash_pandas_object(frame, index=False).to_numpy().tobytes())
+    # pandas-stubs do not type pandas.util's functions
+    hashed = hash_pandas_object(frame, index=False)  # pyright: ignore[reportCallIssue]
+    h.update(hashed.to_numpy().tobytes())
     return h.hexdigest()[:16]
 
 

@@ -263,7 +263,9 @@ def usable_rows(sweep: SweepFile, table: pa.Table, columns: list[str],
         keep[hit] = False
         return int(hit.sum())
 
-    errors = drop(pc.is_valid(table.column("error")).to_numpy(zero_copy_only=False))
+    # pyarrow.compute makes its functions at import; its stubs do not list is_valid
+    valid = pc.is_valid(table.column("error"))  # pyright: ignore[reportAttributeAccessIssue]
+    errors = drop(valid.to_numpy(zero_copy_only=False))
     hover = pc.fill_null(table.column("can_hover"), False).to_numpy(zero_copy_only=False)
     cannot = drop(~hover.astype(bool))
     missing = {c: drop(~np.isfinite(sweep.floats(table, c))) for c in dict.fromkeys(columns)}
