@@ -60,7 +60,7 @@ TIE_ORDER: tuple[tuple[str, str], ...] = (
     ("pitch_inertia_kgm2", "min"),
 )
 
-#: JSON keys of every design entry (the issue's list), in order.
+#: JSON keys of every design entry (docs/optimizer.md), in order.
 ENTRY_KEYS: tuple[str, ...] = (
     "actuators",
     "feasible",
