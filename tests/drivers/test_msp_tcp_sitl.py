@@ -17,10 +17,11 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
-from rotorbench_tests_sitl import FDM_PORT, MSP_PORT, RC_PORT, Fdm, Rc, start_sitl
+from rotorbench_tests_sitl import Fdm, Rc, start_sitl
 
 from bench.rig.rig import load_rig
 from drivers.codecs import msp
+from drivers.codecs.sitl import FDM_PORT, MSP_PORT, RC_PORT
 from drivers.contracts import MonotonicClock
 from drivers.device_context import DeviceContext
 from drivers.device_options import parse_device

@@ -16,7 +16,6 @@ import importlib.util
 import os
 import signal
 import socket
-import struct
 import subprocess
 import sys
 import threading
@@ -24,10 +23,11 @@ import time
 from pathlib import Path
 
 import pytest
-from rotorbench_tests_sitl import FDM_PORT, MSP_PORT, Fdm
+from rotorbench_tests_sitl import Fdm
 
 from bench.rig.rig import load_rig
 from drivers.codecs import msp
+from drivers.codecs.sitl import FDM_PORT, MOTOR_RAW_PORT, MSP_PORT, decode_motor_raw
 from drivers.factory import open_rig
 
 pytestmark = pytest.mark.slow(wall_s=12)
@@ -63,7 +63,7 @@ class MotorOutput:
     def __init__(self, sitl) -> None:
         with sitl.inside():
             self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-            self.sock.bind(("127.0.0.1", 9001))
+            self.sock.bind(("127.0.0.1", MOTOR_RAW_PORT))
         self.sock.settimeout(0.1)
         self.log: list[tuple[float, float]] = []
         self._stop = threading.Event()
@@ -76,8 +76,11 @@ class MotorOutput:
                 data = self.sock.recv(256)
             except OSError:
                 continue
-            if len(data) == 68:
-                self.log.append((time.monotonic(), struct.unpack("<H2x16f", data)[1]))
+            try:
+                motor_us = decode_motor_raw(data).motor_us
+            except ValueError:  # not a servo_packet_raw
+                continue
+            self.log.append((time.monotonic(), motor_us[0]))
 
     @property
     def last(self) -> float:
