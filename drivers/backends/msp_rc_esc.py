@@ -37,6 +37,7 @@ ARM_FLAGS = {1 << 1: "FAILSAFE", 1 << 2: "RX_FAILSAFE", 1 << 3: "NOT_DISARMED",
              1 << 28: "ARM_SWITCH"}
 ARM_SWITCH = 1 << 28
 DISARM_WAIT_S = 1.0
+ARM_WAIT_S = 1.0  # switch on to armed: 0.06-0.11 s measured on the SITL
 
 
 def _flags(bits: int) -> str:
@@ -75,6 +76,11 @@ class MspRcEsc:
         self._thread = threading.Thread(target=self._send_loop, name=f"msp-rc-{url}",
                                         daemon=True)
         self._thread.start()
+        try:
+            self._wait_ready()
+        except BaseException:
+            self.close()
+            raise
 
     # -- set-up ---------------------------------------------------------------------------
 
@@ -175,34 +181,40 @@ class MspRcEsc:
                    "arm_aux": self.arm_range.aux + 1,
                    "dead_host": "the FC's receiver failsafe: throttle low, then disarmed"})
 
+    def _wait_ready(self) -> None:
+        """Wait (at open, not in the command loop) until only the ARM switch keeps the FC
+        from arming: the boot grace (5 s after the FC starts), 0.5 s of valid RC, an
+        established attitude."""
+        deadline = time.monotonic() + self.arm_timeout_s
+        while True:
+            if self._error is not None:
+                raise self._error
+            flags = self._status().arming_disable_flags
+            if not flags & ~ARM_SWITCH:
+                return
+            if time.monotonic() > deadline:
+                raise DeviceError(f"{self.url}: the flight controller does not allow arming "
+                                  f"within {self.arm_timeout_s:g} s ({_flags(flags)})")
+            time.sleep(0.05)
+
     def arm(self) -> None:
-        """Switch ARM on once the FC allows it (boot grace, RC, attitude), throttle low."""
+        """ARM switch on with the throttle low; returns once the FC says armed."""
         with self._lock:
             if self._error is not None:
                 raise self._error
             self._stalled = False
             self._throttle = rc.THROTTLE_LOW_US
             self._last_host_t = time.monotonic()
-        deadline = time.monotonic() + self.arm_timeout_s
-        status = self._status()
-        while status.arming_disable_flags & ~ARM_SWITCH and time.monotonic() < deadline:
-            time.sleep(0.05)
-            self._touch()
-            status = self._status()
-        if status.arming_disable_flags & ~ARM_SWITCH:
-            raise DeviceError(f"{self.url}: the flight controller does not allow arming "
-                              f"within {self.arm_timeout_s:g} s "
-                              f"({_flags(status.arming_disable_flags)})")
-        with self._lock:
             self._arm_on = True
+        deadline = time.monotonic() + ARM_WAIT_S
         while not self._status().armed:
             if time.monotonic() > deadline:
+                flags = _flags(self._status().arming_disable_flags)
                 self.disarm()
                 raise DeviceError(f"{self.url}: the flight controller did not arm within "
-                                  f"{self.arm_timeout_s:g} s "
-                                  f"({_flags(self._status().arming_disable_flags)})")
+                                  f"{ARM_WAIT_S:g} s ({flags})")
             time.sleep(0.02)
-            self._touch()
+        self._touch()
 
     def _touch(self) -> None:
         with self._lock:
