@@ -37,7 +37,8 @@ ARM_FLAGS = {1 << 1: "FAILSAFE", 1 << 2: "RX_FAILSAFE", 1 << 3: "NOT_DISARMED",
              1 << 28: "ARM_SWITCH"}
 ARM_SWITCH = 1 << 28
 DISARM_WAIT_S = 1.0
-ARM_WAIT_S = 1.0  # switch on to armed: 0.06-0.11 s measured on the SITL
+ARM_WAIT_S = 2.0  # switch on to armed: 0.06-0.11 s measured on the SITL
+SWITCH_CYCLE_S = 0.3  # not armed after this long: switch off for half of it, then on
 
 
 def _flags(bits: int) -> str:
@@ -194,8 +195,9 @@ class MspRcEsc:
                 return
             if time.monotonic() > deadline:
                 raise DeviceError(f"{self.url}: the flight controller does not allow arming "
-                                  f"within {self.arm_timeout_s:g} s ({_flags(flags)})")
-            time.sleep(0.05)
+                                  f"within {self.arm_timeout_s:g} s ({_flags(flags)}; "
+                                  f"{self.frames} RC frames sent)")
+            time.sleep(0.2)  # the RC frames share the FC's one command per 10 ms
 
     def arm(self) -> None:
         """ARM switch on with the throttle low; returns once the FC says armed."""
@@ -207,14 +209,25 @@ class MspRcEsc:
             self._last_host_t = time.monotonic()
             self._arm_on = True
         deadline = time.monotonic() + ARM_WAIT_S
+        cycle_at = time.monotonic() + SWITCH_CYCLE_S
         while not self._status().armed:
+            if time.monotonic() > cycle_at:  # the FC may want the switch seen off again
+                self._set_switch(False)      # (e.g. just after a failsafe): cycle it
+                time.sleep(SWITCH_CYCLE_S / 2)
+                self._set_switch(True)
+                cycle_at = time.monotonic() + SWITCH_CYCLE_S
             if time.monotonic() > deadline:
                 flags = _flags(self._status().arming_disable_flags)
                 self.disarm()
                 raise DeviceError(f"{self.url}: the flight controller did not arm within "
                                   f"{ARM_WAIT_S:g} s ({flags})")
             time.sleep(0.02)
+            self._touch()  # arming is the host at work, not a stalled host
         self._touch()
+
+    def _set_switch(self, on: bool) -> None:
+        with self._lock:
+            self._arm_on = on
 
     def _touch(self) -> None:
         with self._lock:

@@ -139,11 +139,23 @@ def _kill(proc: subprocess.Popen[str]) -> None:
 
 @pytest.fixture
 def fed(sitl):
-    """The SITL fed a resting FDM stream at 250 Hz, its motor output read."""
-    sitl.feed(FDM_PORT, Fdm().packet, 250.0)
+    """The SITL fed a resting FDM stream at 250 Hz, its motor output read. FDM starts
+    after the first MSP reply and the first motor update is awaited, as the launched rig
+    does: FDM sent earlier often left the firmware's gyro task (and its output, baro
+    calibration and RX processing) dead for good (docs/sim-rig.md)."""
+    with sitl.inside():
+        sock = socket.create_connection(("127.0.0.1", MSP_PORT), 2.0)
+    with sock:
+        sock.settimeout(3.0)
+        sock.sendall(msp.request(msp.MSP_API_VERSION))
+        assert sock.recv(64)[:3] == b"$M>"
     out = MotorOutput(sitl)
-    yield sitl, out
-    out.close()
+    sitl.feed(FDM_PORT, Fdm().packet, 250.0)
+    try:
+        out.wait("the first motor update", lambda v: v == v, 1.0)
+        yield sitl, out
+    finally:
+        out.close()
 
 
 def test_a_killed_bench_leaves_the_motor_test_running(fed, tmp_path):
