@@ -52,7 +52,7 @@ class MspRcEsc:
 
     def __init__(self, client: Any, motor_index: int, *, min_us: float = 1000.0,
                  max_us: float = 2000.0, url: str = "msp", rate_hz: float = 50.0,
-                 host_timeout_s: float = 0.5, failsafe_delay_s: float = 0.3,
+                 host_timeout_s: float = 0.5, failsafe_delay_s: float = 1.0,
                  arm_timeout_s: float = 10.0) -> None:
         self.client = client
         self.motor_index = motor_index
