@@ -40,6 +40,7 @@ log = logging.getLogger(__name__)
 def open_sitl_esc(ctx: Any, spec: DeviceUrl, share_link: Callable[[Any], Any]) -> Esc:
     """Launch the firmware and its plant peer, then open the motor test over MSP;
     ``share_link(port)`` makes the connected port the rig's link to the firmware."""
+    from drivers.backends.msp_rc_esc import MspRcEsc
     from drivers.command_delay import OutputTimedEsc
     from drivers.protocols.serial import open_msp_esc
 
@@ -64,6 +65,8 @@ def open_sitl_esc(ctx: Any, spec: DeviceUrl, share_link: Callable[[Any], Any]) -
     ctx.answers[spec.role] += (f"; Betaflight SITL launched by the bench (pid "
                                f"{firmware.proc.pid}, MSP port open after "
                                f"{firmware.started_s:.2f} s), FDM at {rate_hz:g} Hz")
+    if isinstance(esc, MspRcEsc):
+        return esc  # the RC path maps the command onto the throttle: no value to match
     return OutputTimedEsc(esc, peer, "Betaflight SITL")
 
 

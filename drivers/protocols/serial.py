@@ -79,8 +79,14 @@ def port(ctx: Any, spec: DeviceUrl, protocol: str, default_baud: int,
 # -- MSP: motor-test ESC, IMU under test ---------------------------------------------------------
 # The openers below take the link from their transport (this serial port, or msp+tcp://):
 # one home for the MSP roles whatever carries the bytes.
+CONTROLS = ("rc", "motor_test")  # the MSP ESC's paths; rc unless propellers_off
+
+
 def open_msp_esc(ctx: Any, spec: DeviceUrl, open_link: Callable[[int], Any]) -> Esc:
-    """The FC's motor test as the ESC; ``open_link(motor)`` gives the connected port."""
+    """The FC's motor as the ESC: ``control = "rc"`` (the default with a propeller on: the
+    FC armed on its MSP receiver, whose failsafe stops the motor when the host dies) or
+    ``"motor_test"`` (MSP_SET_MOTOR, only with ``propellers_off``); ``open_link(motor)``
+    gives the connected port."""
     msp_fc = backend("msp_fc", spec)
     motor = spec.integer("motor", 0, lo=0, hi=7)
     version = spec.integer("version", 1, lo=1, hi=2)
@@ -91,8 +97,22 @@ def open_msp_esc(ctx: Any, spec: DeviceUrl, open_link: Callable[[int], Any]) -> 
     ctx.answers[spec.role] = (f"flight controller {variant}, MSP API "
                               f"{api.api_major}.{api.api_minor}, motor {motor}")
     e = ctx.rig.esc
-    esc = msp_fc.MspMotorEsc(client, motor, min_us=e.min_us, max_us=e.max_us, url=spec.url,
-                             propellers_off=spec.flag("propellers_off", False))
+    propellers_off = spec.flag("propellers_off", False)
+    control = spec.text("control", "motor_test" if propellers_off else "rc",
+                        choices=CONTROLS)
+    if control == "rc":  # a dead host stops the motor: the FC's receiver failsafe
+        from drivers.backends.msp_rc_esc import MspRcEsc
+
+        ctx.answers[spec.role] += ", armed on its MSP receiver"
+        esc: Esc = MspRcEsc(
+            client, motor, min_us=e.min_us, max_us=e.max_us, url=spec.url,
+            rate_hz=spec.number("rc_rate_hz", 50.0, lo=20.0, hi=100.0),
+            host_timeout_s=spec.number("host_timeout_s", 0.5, lo=0.05, hi=10.0),
+            failsafe_delay_s=spec.number("failsafe_delay_s", 1.0, lo=0.1, hi=20.0),
+            arm_timeout_s=spec.number("arm_timeout_s", 10.0, lo=0.5, hi=60.0))
+    else:
+        esc = msp_fc.MspMotorEsc(client, motor, min_us=e.min_us, max_us=e.max_us,
+                                 url=spec.url, propellers_off=propellers_off)
     ctx.probes[spec.role] = lambda _t: (client.identify(), ctx.answers[spec.role])[1]
     return esc
 

@@ -50,7 +50,12 @@ def _open(tmp_path, devices, base=None):
     ('url = "serial://sim/msp"\noptions = { motr = 1, propellers_off = true }',
      r"\[devices.esc\] options.motr: unknown option for this device \(known: .*motor"),
     ('url = "serial://sim/msp"\noptions = { motor = 9 }', r"options.motor: 9 outside 0..7"),
-    ('url = "serial://sim/msp"', r"\[devices.esc\] .*propellers-on run: Betaflight and INAV"),
+    ('url = "serial://sim/msp"\noptions = { control = "motor_test" }',
+     r"\[devices.esc\] .*propellers-on run: Betaflight and INAV"),
+    ('url = "serial://sim/msp"',  # propellers on: the RC path, which this FC cannot serve
+     r"\[devices.esc\] .*refused MSP_FAILSAFE_CONFIG: the RC control path needs Betaflight"),
+    ('url = "serial://sim/msp"\noptions = { control = "pwm" }',
+     r"options.control: .*rc, motor_test"),
     ('url = "serial://sim/msp"\noptions = { propellers_off = "yes" }',
      r"options.propellers_off: expected true or false"),
     ('url = "serial://sim/msp"\noptions = { protocol = "loadcell" }',
