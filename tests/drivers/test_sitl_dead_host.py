@@ -1,21 +1,30 @@
-"""A dead bench against the real firmware: the motor test outlives a SIGKILLed host.
+"""A dead bench against the real firmware: what the motor does after SIGKILL.
 
-The test starts Betaflight 4.6.0 SITL in its own network namespace (``tests/sitl.py``),
+Each test starts Betaflight 4.6.0 SITL in its own network namespace (``tests/sitl.py``),
 feeds it FDM and reads its motor output (UDP 9001) itself, so the firmware and its output
 outlive the bench. The bench is a child process (``nsenter`` into that namespace) that
 opens a rig whose ESC is ``msp+tcp://127.0.0.1:5761`` (no ``launch``: the launcher would
 stop the firmware with the bench), commands a steady 1400 us on every tick, as the
-command loop does, and is SIGKILLed: the motor keeps 1400 us, because Betaflight has no
-motor-test timeout. That is why the MSP ESC opens only with ``propellers_off = true``
-(docs/protocols.md, "A dead host stops the motor").
+command loop does, and is SIGKILLed:
+
+* the motor test (``propellers_off = true``) keeps 1400 us: Betaflight has no motor-test
+  timeout, which is why it opens only with ``propellers_off = true``;
+* the RC path (the default without ``propellers_off``) goes to idle and then disarms: the
+  firmware's receiver failsafe, because the bench's ``MSP_SET_RAW_RC`` frames stop.
+
+No UDP RC packet is ever sent here: it would switch the firmware's receiver from MSP to
+UDP for good, and UDP RC never times out. Numbers: docs/protocols.md, "A dead host stops
+the motor".
 """
 
 from __future__ import annotations
 
 import importlib.util
+import math
 import os
 import signal
 import socket
+import statistics
 import subprocess
 import sys
 import threading
@@ -26,11 +35,12 @@ import pytest
 from rotorbench_tests_sitl import Fdm
 
 from bench.rig.rig import load_rig
+from drivers.backends.msp_rc_esc import MspRcEsc
 from drivers.codecs import msp
 from drivers.codecs.sitl import FDM_PORT, MOTOR_RAW_PORT, MSP_PORT, decode_motor_raw
 from drivers.factory import open_rig
 
-pytestmark = pytest.mark.slow(wall_s=12)
+pytestmark = pytest.mark.slow(wall_s=40)
 
 _spec = importlib.util.spec_from_file_location("rotorbench_tests_factory_rigs",
                                                Path(__file__).with_name("factory_rigs.py"))
@@ -42,6 +52,9 @@ ROOT = Path(__file__).resolve().parents[2]
 RIGS = ROOT / "bench" / "data" / "rigs"
 URL = f"msp+tcp://127.0.0.1:{MSP_PORT}"
 HELD_US = 1400
+IDLE_US = 1055  # armed low: 1000 + motor_idle 5.5 %
+IDLE_BOUND_S = 1.0  # SIGKILL to idle: the 300 ms channel hold, then the firmware's RX task
+STOP_BOUND_S = 2.0  # SIGKILL to disarmed: failsafe_delay_s 1.0, then the next FDM reply
 
 BENCH = f"""
 import sys, time
@@ -169,3 +182,52 @@ def test_a_killed_bench_leaves_the_motor_test_running(fed, tmp_path):
     with rig:
         rig.esc.arm()
     out.wait("1000 us after the clean-up", lambda v: v == 1000, 1.0)
+
+
+def test_a_killed_bench_on_the_rc_path_stops_the_motor(fed, tmp_path):
+    sitl, out = fed
+    idle, off = [], []
+    for _ in range(2):  # the second bench re-arms the same firmware after its failsafe
+        bench = _bench(sitl, _rig(tmp_path, ""), tmp_path)
+        out.wait("1400 us", lambda v: abs(v - HELD_US) <= 3, 2.0)
+        t_kill = time.monotonic()
+        _kill(bench)
+        out.wait("disarmed", lambda v: v == 1000, STOP_BOUND_S + 1.0)
+        after = out.since(t_kill)
+        idle.append(next(t for t, v in after if v <= IDLE_US))
+        off.append(next(t for t, v in after if v == 1000))
+    print(f"RC path, SIGKILL to idle: {[round(t, 3) for t in idle]} s, to disarmed: "
+          f"{[round(t, 3) for t in off]} s (median {statistics.median(off):.3f})")
+    assert min(idle) > 0.1  # the failsafe, not the kill itself: RXLOSS needs 150 ms
+    assert max(idle) < IDLE_BOUND_S
+    assert max(off) < STOP_BOUND_S
+
+
+def test_the_rc_path_follows_the_command_and_ends_disarmed(fed, tmp_path):
+    sitl, out = fed
+    with sitl.inside():
+        rig = open_rig(load_rig(_rig(tmp_path, "")))
+    with rig:
+        esc = rig.esc
+        assert isinstance(esc, MspRcEsc)  # no propellers_off: the RC path
+        assert esc.describe().extra["control"] == "rc"
+        esc.arm()
+        assert esc.client.armed()
+        out.wait("armed idle", lambda v: v == IDLE_US, 1.0)
+        t_first = math.nan
+        for us in (1200.0, 1500.0, 1800.0, 1300.0, 1600.0):
+            end = time.monotonic() + 0.6
+            while time.monotonic() < end:
+                esc.set_pulse_us(us)
+                time.sleep(0.02)
+            assert abs(out.last - us) <= 3.0, (us, out.last)
+            t_first = time.monotonic() if math.isnan(t_first) else t_first
+        # no receiver failsafe while the bench lived: it would show as idle (the channel
+        # hold ended) or 1000 us (disarmed) between commands that never went below 1200
+        assert min(v for _, v in out.since(t_first)) > 1200 - 5
+        assert esc.client.armed()
+        print(f"RC path: {esc.frames} frames, longest gap while armed "
+              f"{esc.max_frame_gap_s * 1e3:.0f} ms")
+    # closed: throttle low, ARM off, the FC says disarmed and the motor is at 1000
+    out.wait("1000 us", lambda v: v == 1000, 1.0)
+    assert sitl.alive()
