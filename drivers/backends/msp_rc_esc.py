@@ -38,6 +38,7 @@ ARM_FLAGS = {1 << 1: "FAILSAFE", 1 << 2: "RX_FAILSAFE", 1 << 3: "NOT_DISARMED",
 ARM_SWITCH = 1 << 28
 DISARM_WAIT_S = 1.0
 ARM_WAIT_S = 2.0  # switch on to armed: 0.06-0.11 s measured on the SITL
+READY_POLL_S = 0.5  # at open: how often to ask whether the FC would arm
 SWITCH_CYCLE_S = 0.3  # not armed after this long: switch off for half of it, then on
 
 
@@ -73,11 +74,12 @@ class MspRcEsc:
         self._error: DeviceError | None = None
         self.frames = 0
         self.max_frame_gap_s = 0.0  # between acknowledged frames while armed
-        self._configure_failsafe()
-        self.arm_range = self._arm_range()
         self._stop = threading.Event()
+        self._frame_done = threading.Event()
         self._thread = threading.Thread(target=self._send_loop, name=f"msp-rc-{url}",
                                         daemon=True)
+        self._configure_failsafe()
+        self.arm_range = self._arm_range()
         self._thread.start()
         try:
             self._wait_ready()
@@ -100,6 +102,11 @@ class MspRcEsc:
         return bytes.fromhex(getattr(reply, "payload_hex", ""))
 
     def _status(self) -> msp.StatusEx:
+        """STATUS_EX, sent just after an RC frame went through (while the sender runs):
+        the FC answers one command at a time, so a poll never delays a due frame."""
+        if self._thread.is_alive():
+            self._frame_done.clear()
+            self._frame_done.wait(2 * self.period_s)
         reply = self.client.request(msp.Request(msp.MSP_STATUS_EX))
         if not isinstance(reply, msp.StatusEx):
             raise DeviceError(f"{self.url}: unexpected status reply {reply!r}")
@@ -172,6 +179,7 @@ class MspRcEsc:
                 self.max_frame_gap_s = max(self.max_frame_gap_s, now - last_ok)
             last_ok = now
             self.frames += 1
+            self._frame_done.set()
 
     def _check(self) -> None:
         if self._error is not None:
@@ -209,7 +217,8 @@ class MspRcEsc:
                 raise DeviceError(f"{self.url}: the flight controller does not allow arming "
                                   f"within {self.arm_timeout_s:g} s ({_flags(flags)}; "
                                   f"{self.frames} RC frames sent)")
-            time.sleep(0.2)  # the RC frames share the FC's one command per 10 ms
+            time.sleep(READY_POLL_S)  # the RC frames come first: RX_FAILSAFE clears only
+            # after 0.5 s of frames never 150 ms apart
 
     def arm(self) -> None:
         """ARM switch on with the throttle low; returns once the FC says armed. The host
