@@ -28,8 +28,9 @@ class ScriptedFc:
         self.failsafe = FAILSAFE_1S_DROP
         self.lock = threading.RLock()
 
-    def request(self, m):
-        if isinstance(m, msp.Request) and m.cmd == msp.MSP_STATUS_EX:
+    def request(self, m: msp.Request | msp.Unknown) -> object:
+        if isinstance(m, msp.Request):
+            assert m.cmd == msp.MSP_STATUS_EX, m
             return msp.StatusEx(125, 0, 0, int(self.armed), 0)
         if m.cmd == rc.MSP_FAILSAFE_CONFIG:
             return msp.Unknown(msp.REPLY, m.cmd, self.failsafe.hex())
