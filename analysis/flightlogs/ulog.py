@@ -45,7 +45,7 @@ def read_ulog(path: str | Path) -> FlightLog:
             ulog = pyulog.ULog(fh, list(TOPICS), True)
     except OSError as exc:
         raise LogError(f"{path}: cannot read ({exc.strerror or exc})") from None
-    except Exception as exc:  # noqa: BLE001 - pyulog raises bare exceptions on bad files
+    except Exception as exc:  # pyulog raises bare exceptions on bad files
         raise LogError(f"{path}: not a readable ULog ({type(exc).__name__}: "
                        f"{str(exc)[:120]})") from None
     gyro = _topic(ulog, "sensor_combined")
