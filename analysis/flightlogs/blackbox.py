@@ -126,7 +126,7 @@ def _read_log(fh: BinaryIO, start: int, end: int, where: str, max_rows: int
     i_def, p_def = head.frames["I"], head.frames["P"]
     nf = len(i_def.names)
     offset, carry = start + head.length, b""
-    rows = garbage_bytes = garbage_runs = dropped_p = frame_bytes = 0
+    rows = garbage_bytes = garbage_runs = dropped_p = 0
     events: dict[str, int] = {}
     ended = truncated_rows = False
     markers = np.frombuffer(b"IPSGHE", np.uint8)
@@ -177,7 +177,6 @@ def _read_log(fh: BinaryIO, start: int, end: int, where: str, max_rows: int
         p_ok = (k == _P) & (last_i > last_bad)
         dropped_p += int(((k == _P) & ~p_ok).sum())
         m_idx = np.flatnonzero((k == _I) | p_ok)
-        frame_bytes += int(lengths[m_idx].sum())
         is_i = k[m_idx] == _I
         m = np.zeros((len(m_idx), nf), np.int64)
         m[is_i] = _decode(buf, st[m_idx[is_i]], i_def.encoding, nf)
@@ -196,7 +195,7 @@ def _read_log(fh: BinaryIO, start: int, end: int, where: str, max_rows: int
             break
     return _flight_log(head, cols, where, rows=rows, ended=ended, truncated=truncated_rows,
                        garbage=(garbage_runs, garbage_bytes), dropped_p=dropped_p,
-                       frame_bytes=frame_bytes, events=events, max_rows=max_rows)
+                       events=events, max_rows=max_rows)
 
 
 def _vbat_scale(firmware: str) -> tuple[float, str]:
@@ -208,13 +207,15 @@ def _vbat_scale(firmware: str) -> tuple[float, str]:
 
 
 def _flight_log(head: Header, cols: _Columns, where: str, *, rows: int, ended: bool,
-                truncated: bool, garbage: tuple[int, int], dropped_p: int, frame_bytes: int,
+                truncated: bool, garbage: tuple[int, int], dropped_p: int,
                 events: dict[str, int], max_rows: int) -> FlightLog:
-    if rows == 0 or garbage[1] > 9 * frame_bytes:
+    # random bytes decode as the odd frame between many broken ones; a real log's
+    # damage is a few places among many frames (a zero-filled tail is one place)
+    if rows == 0 or garbage[0] > rows:
         raise LogError(f"{where}: no main frame decodes (header read; "
                        f"{garbage[1]} bytes of data did not parse as frames"
-                       + (f", {frame_bytes} did: random data or another format?)" if rows
-                          else ")"))
+                       + (f" in {garbage[0]} places, {rows} frames did: random data or "
+                          "another format?)" if rows else ")"))
     t = cols.get("time")
     d = np.diff(t)
     t = t + np.concatenate([[0], np.cumsum(np.where(d < -(1 << 31), 1 << 32, 0))])

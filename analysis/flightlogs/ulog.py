@@ -20,11 +20,12 @@ from analysis.errors import LogError
 from analysis.extras import import_extra
 from analysis.flightlogs.flight_log import AXES, FlightLog, hold
 
-__all__ = ["MAGIC", "TOPICS", "read_ulog"]
+__all__ = ["MAGIC", "MAX_BYTES", "TOPICS", "read_ulog"]
 
 MAGIC = b"ULog\x01\x12\x35"
 TOPICS = ("sensor_combined", "vehicle_angular_velocity", "vehicle_rates_setpoint",
           "actuator_motors", "actuator_outputs", "esc_status", "battery_status")
+MAX_BYTES = 1 << 31  # pyulog holds the chosen topics in memory: refuse beyond 2 GiB
 _PWM_RANGE = (500.0, 2500.0)  # an output channel wholly inside is a pulse width in µs
 
 
@@ -39,6 +40,11 @@ def _topic(ulog: Any, name: str) -> Any | None:
 def read_ulog(path: str | Path) -> FlightLog:
     """The log's flight columns; ``LogError`` if it is no readable ULog or has no gyro."""
     path = Path(path)
+    size = path.stat().st_size
+    if size > MAX_BYTES:
+        raise LogError(f"{path}: {size / 2**30:.1f} GiB is more than the {MAX_BYTES >> 30} GiB "
+                       "this reader takes (pyulog reads a whole topic into memory); cut the "
+                       "log with PX4's tools first")
     pyulog = import_extra("pyulog", "flightlogs", "reading PX4 ULog files")
     try:  # an open file: pyulog leaves its own handle open when it raises
         with open(path, "rb") as fh:
