@@ -1,4 +1,4 @@
-"""PX4 ULog in: the two real PX4 logs shipped in fixtures/flightlogs/ulog, imported as runs
+"""PX4 ULog in: the two real PX4 logs shipped in fixtures/data/px4_ulog, imported as runs
 of kind flight, checked against the topics read independently with pyulog."""
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from analysis.flightlogs import detect_flight_format, read_flight_log
 from analysis.run_record import read_run
 from bench.cli import main
 
-ULOG = Path(__file__).resolve().parents[2] / "fixtures" / "flightlogs" / "ulog"
+ULOG = Path(__file__).resolve().parents[2] / "fixtures" / "data" / "px4_ulog"
 EVENTS = ULOG / "sample_px4_events.ulg"
 SMALL = ULOG / "sample_log_small.ulg"
 
