@@ -66,11 +66,11 @@ def find_logs(fh: BinaryIO, size: int) -> list[tuple[int, int]]:
 
 
 class _Columns:
-    """The run columns of one log, gathered window by window."""
+    """The run columns of one log, gathered window by window: only these main-frame
+    fields (and motor[0], which other motors' I frames predict from) are predicted."""
 
     def __init__(self, head: Header, where: str) -> None:
         names = head.frames["I"].names
-        self.index = {n: k for k, n in enumerate(names)}
         if names[:2] != ["loopIteration", "time"]:
             raise LogError(f"{where}: main frames start with {names[:2]}, not loopIteration, "
                            "time (not a Betaflight/INAV flight log?)")
@@ -78,25 +78,31 @@ class _Columns:
         wanted += [f"gyroADC[{k}]" for k in range(3)] + [f"setpoint[{k}]" for k in range(4)]
         wanted += [f"motor[{k}]" for k in range(8)] + [f"eRPM[{k}]" for k in range(8)]
         wanted += ["vbatLatest", "vbat", "amperageLatest", "amperage"]
-        self.keep = [n for n in wanted if n in self.index]
+        self.keep = [n for n in wanted if n in names]
+        self.fields = [names.index(n) for n in self.keep]
+        self.index = {n: k for k, n in enumerate(self.keep)}  # name -> column of m
         self.parts: dict[str, list[np.ndarray]] = {n: [] for n in self.keep}
 
     def add(self, m: np.ndarray) -> None:
-        for n in self.keep:
-            self.parts[n].append(m[:, self.index[n]].copy())
+        for n, k in self.index.items():
+            self.parts[n].append(m[:, k].copy())
 
     def get(self, name: str) -> np.ndarray:
         parts = self.parts[name]
         return np.concatenate(parts) if parts else np.zeros(0, np.int64)
 
 
-def _decode(buf: np.ndarray, starts: np.ndarray, encodings: list[int], n_fields: int
+def _decode(buf: np.ndarray, starts: np.ndarray, encodings: list[int], column: np.ndarray
             ) -> np.ndarray:
-    out = np.zeros((len(starts), n_fields), np.int64)
+    """Decode every field of these frames (to find where each ends), keeping the fields
+    that have a ``column`` (>= 0) in the returned values."""
+    out = np.zeros((len(starts), int(column.max()) + 1), np.int64)
     pos = starts + 1
     for enc, idx in groups(encodings):
         values, pos = decode_group(buf, pos, enc, len(idx))
-        out[:, idx] = values[:, :len(idx)]
+        for j, f in enumerate(idx):
+            if column[f] >= 0:
+                out[:, column[f]] = values[:, j]
     return out
 
 
@@ -121,10 +127,12 @@ def _read_log(fh: BinaryIO, start: int, end: int, where: str, max_rows: int
                            f"({ENCODING_NAMES.get(enc, 'unknown')}), which this decoder does "
                            "not read") from None
     rx = frame_regex(bodies)
-    predictor = Predictor(head, where)
     cols = _Columns(head, where)
+    predictor = Predictor(head, where, cols.fields)
     i_def, p_def = head.frames["I"], head.frames["P"]
-    nf = len(i_def.names)
+    column = np.full(len(i_def.names), -1)
+    column[cols.fields] = np.arange(len(cols.fields))
+    nf = len(cols.fields)
     offset, carry = start + head.length, b""
     rows = garbage_bytes = garbage_runs = dropped_p = 0
     events: dict[str, int] = {}
@@ -179,8 +187,8 @@ def _read_log(fh: BinaryIO, start: int, end: int, where: str, max_rows: int
         m_idx = np.flatnonzero((k == _I) | p_ok)
         is_i = k[m_idx] == _I
         m = np.zeros((len(m_idx), nf), np.int64)
-        m[is_i] = _decode(buf, st[m_idx[is_i]], i_def.encoding, nf)
-        m[~is_i] = _decode(buf, st[m_idx[~is_i]], p_def.encoding, nf)
+        m[is_i] = _decode(buf, st[m_idx[is_i]], i_def.encoding, column)
+        m[~is_i] = _decode(buf, st[m_idx[~is_i]], p_def.encoding, column)
         seg = np.maximum.accumulate(np.where(is_i, np.arange(len(m_idx)), 0)) if len(
             m_idx) else np.zeros(0, np.int64)
         predictor.apply(m, is_i, np.arange(len(m_idx)) - seg)

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from analysis.errors import LogError
-from analysis.flightlogs.blackbox_header import FrameDef, Header
+from analysis.flightlogs.blackbox_header import Header
 
 __all__ = ["PREDICTOR_NAMES", "Predictor"]
 
@@ -56,51 +56,52 @@ def _inc_steps(i_int: int, num: int, den: int) -> np.ndarray:
 class Predictor:
     """Applies one log's I and P predictors to decoded main-frame values."""
 
-    def __init__(self, head: Header, where: str) -> None:
+    def __init__(self, head: Header, where: str, fields: list[int]) -> None:
+        """``fields``: the main-frame fields decoded (their indices, in column order);
+        a field's prediction reads only its own history, and motor[0]'s."""
         i_def, p_def = head.frames["I"], head.frames["P"]
         for letter, fdef, ok in (("I", i_def, _MAIN_OK_I), ("P", p_def, _MAIN_OK_P)):
-            for name, pred in zip(fdef.names, fdef.predictor, strict=True):
-                if pred not in ok:
-                    raise LogError(f"{where}: field {name} of {letter} frames uses predictor "
-                                   f"{pred} ({PREDICTOR_NAMES.get(pred, 'unknown')}), which "
-                                   "this decoder does not read in main frames")
-        self.i_def, self.p_def = i_def, p_def
+            for k in fields:
+                if fdef.predictor[k] not in ok:
+                    pred = fdef.predictor[k]
+                    raise LogError(f"{where}: field {fdef.names[k]} of {letter} frames uses "
+                                   f"predictor {pred} ({PREDICTOR_NAMES.get(pred, 'unknown')}), "
+                                   "which this decoder does not read in main frames")
         motor = head.ints("motorOutput")
         minthrottle = head.int("minthrottle", 0)
-        self.const = {MINTHROTTLE: minthrottle, P1500: 1500, VBATREF: head.int("vbatref", 0),
-                      MINMOTOR: motor[0] if motor else minthrottle}
-        self.motor0 = i_def.names.index("motor[0]") if "motor[0]" in i_def.names else -1
-        for fdef, letter in ((i_def, "I"), (p_def, "P")):
-            if MOTOR_0 in fdef.predictor and self.motor0 < 0:
-                raise LogError(f"{where}: {letter} frames predict from motor[0], which the "
-                               "header does not define")
+        const = {MINTHROTTLE: minthrottle, P1500: 1500, VBATREF: head.int("vbatref", 0),
+                 MINMOTOR: motor[0] if motor else minthrottle}
+        m0 = i_def.names.index("motor[0]") if "motor[0]" in i_def.names else -1
+        self.i_pred = np.array([i_def.predictor[k] for k in fields])
+        self.p_pred = np.array([p_def.predictor[k] for k in fields])
+        if (MOTOR_0 in self.i_pred or MOTOR_0 in self.p_pred) and m0 not in fields:
+            raise LogError(f"{where}: fields predict from motor[0], which the header does "
+                           "not define")
+        self.motor0 = fields.index(m0) if m0 in fields else -1
+        self.i_const = np.array([const.get(int(p), 0) for p in self.i_pred], np.int64)
+        self.p_const = np.array([const.get(int(p), 0) for p in self.p_pred], np.int64)
         self.steps = _inc_steps(*_intervals(head))
-        self.signed = np.array(i_def.signed, bool)
+        self.unsigned = np.array([not i_def.signed[k] for k in fields], bool)
 
-    def _wrap(self, v: np.ndarray) -> np.ndarray:
-        """32-bit fields: int32 if signed, uint32 if not (as the firmware stores them)."""
-        u = v & 0xFFFFFFFF
-        return np.where(self.signed, ((v + (1 << 31)) & 0xFFFFFFFF) - (1 << 31), u)
-
-    def _consts(self, fdef: FrameDef) -> np.ndarray:
-        return np.array([self.const.get(p, 0) for p in fdef.predictor], np.int64)
+    def _wrap(self, v: np.ndarray) -> None:
+        """Unsigned fields are uint32 in the firmware (``time`` wraps after 71.6 min)."""
+        v[:, self.unsigned] &= 0xFFFFFFFF
 
     def apply(self, m: np.ndarray, is_i: np.ndarray, seg_pos: np.ndarray) -> None:
         """Predict in place. ``m``: raw values (main frames in file order, segments
         consecutive); ``is_i``: I rows; ``seg_pos``: each row's place in its segment."""
-        i_pred = np.array(self.i_def.predictor)
         rows = np.flatnonzero(is_i)
-        v = m[rows] + self._consts(self.i_def)
+        v = m[rows] + self.i_const
         if self.motor0 >= 0:
-            v[:, i_pred == MOTOR_0] += v[:, self.motor0][:, None]
-        m[rows] = self._wrap(v)
-        p_pred = np.array(self.p_def.predictor)
+            v[:, self.i_pred == MOTOR_0] += v[:, self.motor0][:, None]
+        self._wrap(v)
+        m[rows] = v
+        p_pred = self.p_pred
         prev = np.flatnonzero(p_pred == PREVIOUS)
         line = np.flatnonzero(p_pred == STRAIGHT_LINE)
         avg = np.flatnonzero(p_pred == AVERAGE_2)
         inc = np.flatnonzero(p_pred == INC)
         m0 = np.flatnonzero(p_pred == MOTOR_0)
-        consts = self._consts(self.p_def)
         if len(seg_pos) == 0:
             return
         order = np.argsort(seg_pos, kind="stable")
@@ -113,7 +114,7 @@ class Predictor:
                 continue
             p1 = m[r - 1]
             p2 = m[r - 2] if j >= 2 else p1
-            v = m[r] + consts
+            v = m[r] + self.p_const
             v[:, prev] += p1[:, prev]
             v[:, line] += 2 * p1[:, line] - p2[:, line]
             s = p1[:, avg] + p2[:, avg]
@@ -121,4 +122,5 @@ class Predictor:
             v[:, inc] += p1[:, inc] + steps[p1[:, inc] % len(steps)]
             if len(m0):
                 v[:, m0] += v[:, self.motor0][:, None]
-            m[r] = self._wrap(v)
+            self._wrap(v)
+            m[r] = v
