@@ -48,7 +48,10 @@ def read_flight_log(path: str | Path, fmt: str, *, max_rows: int | None = None
     if fmt == "ulog":
         from analysis.flightlogs.ulog import read_ulog
 
-        return [read_ulog(path)]
+        log = read_ulog(path)
+        if max_rows is not None:
+            log.keep_first(max_rows)
+        return [log]
     if fmt == "blackbox":
         from analysis.flightlogs.blackbox import read_blackbox
 

@@ -40,6 +40,13 @@ class FlightLog:
     def rows(self) -> int:
         return len(self.columns["t_s"])
 
+    def keep_first(self, n: int) -> None:
+        """Keep the first ``n`` rows (``--max-rows``), saying so in the notes."""
+        if self.rows > n:
+            self.meta.setdefault("notes", []).append(
+                f"kept the first {n} of {self.rows} rows (--max-rows)")
+            self.columns = {c: v[:n] for c, v in self.columns.items()}
+
     def run_meta(self) -> dict[str, Any]:
         """The metadata for ``run.json``'s ``flight`` entry."""
         return {**self.meta, "units": dict(self.units), "sources": dict(self.sources)}

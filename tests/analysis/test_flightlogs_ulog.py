@@ -3,6 +3,7 @@ of kind flight, checked against the topics read independently with pyulog."""
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -94,3 +95,18 @@ def test_a_ulog_header_on_random_bytes_is_one_line_exit_2(tmp_path, capsys):
     assert main(["import", str(bad), "--out", str(tmp_path / "r")]) == 2
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1 and str(bad) in err
+
+
+def test_max_rows_keeps_the_first_rows_and_says_so(tmp_path, capsys):
+    out = tmp_path / "px4"
+    assert main(["import", str(SMALL), "--max-rows", "100", "--out", str(out)]) == 0
+    assert "kept the first 100 of 1298 rows (--max-rows)" in capsys.readouterr().out
+    assert len(read_run(out).samples) == 100
+
+
+def test_without_the_flightlogs_extra_a_ulog_says_which_extra(tmp_path, capsys, monkeypatch):
+    monkeypatch.setitem(sys.modules, "pyulog", None)  # import pyulog now raises ImportError
+    assert main(["import", str(SMALL), "--out", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "rotorbench[flightlogs]" in err
+    assert not (tmp_path / "r").exists()
