@@ -110,3 +110,22 @@ def test_without_the_flightlogs_extra_a_ulog_says_which_extra(tmp_path, capsys, 
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "rotorbench[flightlogs]" in err
     assert not (tmp_path / "r").exists()
+
+
+def test_a_flight_run_is_indexed_like_a_bench_run(tmp_path, capsys):
+    from bench.store.run_index import RunIndex
+
+    assert main(["import", str(EVENTS), "--out", str(tmp_path / "runs" / "px4")]) == 0
+    capsys.readouterr()
+    index = RunIndex(tmp_path / "runs")
+    assert index.rebuild().indexed == 1
+    (row,) = index.list()
+    assert row.status == "success" and "sample_px4_events.ulg" in row.reason
+
+
+def test_another_format_forced_as_ulog_is_one_line_exit_2(tmp_path, capsys):
+    other = tmp_path / "x.ulg"
+    other.write_bytes(b"\xa3\x95\x80" + bytes(300))  # a DataFlash start
+    assert main(["import", str(other), "--format", "ulog", "--out", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "not a readable ULog" in err
