@@ -116,6 +116,7 @@ class Predictor:
             bounds = np.concatenate([[0], np.cumsum(counts)])
         steps = self.steps
         for j in range(1, seg_len):
+            r: np.ndarray | None = None
             if cube is not None:
                 p1 = cube[:, j - 1]
                 p2 = cube[:, j - 2] if j >= 2 else p1
@@ -138,5 +139,5 @@ class Predictor:
             self._wrap(v)
             if cube is not None:
                 cube[:, j] = v
-            else:
+            elif r is not None:
                 m[r] = v
