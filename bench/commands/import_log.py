@@ -156,6 +156,9 @@ def import_flight(args: argparse.Namespace, fmt: str, how: str) -> int:
     from analysis.flightlogs import read_flight_log
     from bench.engine.run_ids import check_run_id
 
+    for flag, value in (("--log", args.log_index), ("--max-rows", args.max_rows)):
+        if value is not None and value < 1:
+            raise RigError(f"{flag} {value}: expected a whole number of at least 1")
     logs = read_flight_log(args.file, fmt, max_rows=args.max_rows)
     picked = list(enumerate(logs, start=1))
     if args.log_index is not None:

@@ -213,3 +213,15 @@ def test_a_dataflash_file_forced_as_blackbox_is_refused(tmp_path, capsys):
     path.write_bytes(b"\xa3\x95\x80" + bytes(200))
     err = _one_line_exit_2(tmp_path, capsys, path, "--format", "blackbox")
     assert "no blackbox log" in err
+
+
+def test_log_and_max_rows_must_be_at_least_one(tmp_path, capsys):
+    path, _, _ = _log(tmp_path, n=200)
+    err = _one_line_exit_2(tmp_path, capsys, path, "--max-rows", "0")
+    assert "--max-rows 0: expected a whole number of at least 1" in err
+    err = _one_line_exit_2(tmp_path, capsys, path, "--log", "2")
+    assert "--log 2: " in err and "holds 1 log" in err
+    csv = tmp_path / "s.csv"
+    csv.write_text("t_s,thrust_n\n0,1\n0.01,1.1\n", encoding="utf-8")
+    err = _one_line_exit_2(tmp_path, capsys, csv, "--log", "1")
+    assert "apply to flight logs only" in err
