@@ -44,6 +44,9 @@ WINDOW = 8 << 20  # bytes read and decoded at a time
 MAX_ROWS = 20_000_000  # rows kept per log unless told otherwise (~2.8 h at 2 kHz)
 _TAIL = 1024  # frames are < 256 bytes: a frame starting this far from a window's end is whole
 _GARBAGE, _I, _P, _E, _OTHER = 0, 1, 2, 3, 4
+_FLAGS = ("_is_i", "_resumes")
+_MAX_JUMP_US = 10_000_000  # a main frame this far ahead of the last is corrupt
+_MAX_JUMP_ITERATIONS = 5000
 
 
 def find_logs(fh: BinaryIO, size: int) -> list[tuple[int, int]]:
@@ -74,18 +77,22 @@ class _Columns:
         if names[:2] != ["loopIteration", "time"]:
             raise LogError(f"{where}: main frames start with {names[:2]}, not loopIteration, "
                            "time (not a Betaflight/INAV flight log?)")
-        wanted = ["time"]
+        wanted = ["loopIteration", "time"]
         wanted += [f"gyroADC[{k}]" for k in range(3)] + [f"setpoint[{k}]" for k in range(4)]
         wanted += [f"motor[{k}]" for k in range(8)] + [f"eRPM[{k}]" for k in range(8)]
         wanted += ["vbatLatest", "vbat", "amperageLatest", "amperage"]
         self.keep = [n for n in wanted if n in names]
         self.fields = [names.index(n) for n in self.keep]
         self.index = {n: k for k, n in enumerate(self.keep)}  # name -> column of m
-        self.parts: dict[str, list[np.ndarray]] = {n: [] for n in self.keep}
+        self.parts: dict[str, list[np.ndarray]] = {n: [] for n in [*self.keep, *_FLAGS]}
 
-    def add(self, m: np.ndarray) -> None:
+    def add(self, m: np.ndarray, is_i: np.ndarray, resumes: np.ndarray) -> None:
+        """Rows of main frames, with which are I frames and how many LOGGING_RESUME
+        events came before each."""
         for n, k in self.index.items():
             self.parts[n].append(m[:, k].copy())
+        self.parts["_is_i"].append(is_i.astype(np.int64))
+        self.parts["_resumes"].append(resumes.astype(np.int64))
 
     def get(self, name: str) -> np.ndarray:
         parts = self.parts[name]
@@ -134,7 +141,7 @@ def _read_log(fh: BinaryIO, start: int, end: int, where: str, max_rows: int
     column[cols.fields] = np.arange(len(cols.fields))
     nf = len(cols.fields)
     offset, carry = start + head.length, b""
-    rows = garbage_bytes = garbage_runs = dropped_p = 0
+    rows = garbage_bytes = garbage_runs = dropped_p = resumes = 0
     events: dict[str, int] = {}
     ended = truncated_rows = False
     markers = np.frombuffer(b"IPSGHE", np.uint8)
@@ -176,9 +183,13 @@ def _read_log(fh: BinaryIO, start: int, end: int, where: str, max_rows: int
         bad = k == _GARBAGE
         garbage_runs += int(bad.sum())
         garbage_bytes += int(lengths[:end_at][bad].sum())
+        resume = np.zeros(len(k), np.int64)
         for e in np.flatnonzero(k == _E):
             name = EVENTS.get(items[e][1], str(items[e][1]))
             events[name] = events.get(name, 0) + 1
+            resume[e] = name == "LOGGING_RESUME"
+        resume = np.cumsum(resume) + resumes
+        resumes = int(resume[-1]) if len(resume) else resumes
         idx = np.arange(len(k))
         last_i = np.maximum.accumulate(np.where(k == _I, idx, -1)) if len(k) else idx
         last_bad = np.maximum.accumulate(np.where(bad, idx, -1)) if len(k) else idx
@@ -193,7 +204,7 @@ def _read_log(fh: BinaryIO, start: int, end: int, where: str, max_rows: int
             m_idx) else np.zeros(0, np.int64)
         predictor.apply(m, is_i, np.arange(len(m_idx)) - seg)
         take = min(len(m), max_rows - rows)
-        cols.add(m[:take])
+        cols.add(m[:take], is_i[:take], resume[m_idx[:take]])
         rows += take
         if take < len(m):
             truncated_rows = True
@@ -204,6 +215,39 @@ def _read_log(fh: BinaryIO, start: int, end: int, where: str, max_rows: int
     return _flight_log(head, cols, where, rows=rows, ended=ended, truncated=truncated_rows,
                        garbage=(garbage_runs, garbage_bytes), dropped_p=dropped_p,
                        events=events, max_rows=max_rows)
+
+
+def _accepted(it: np.ndarray, t: np.ndarray, is_i: np.ndarray, resumes: np.ndarray
+              ) -> np.ndarray:
+    """Which main frames to keep: a frame whose iteration or time (uint32 µs, compared
+    modulo 2^32 so a wrap is no jump) steps back, or ahead by the format's bounds, is
+    corrupt; a P frame is kept only after a kept I frame of its segment. A LOGGING_RESUME
+    event excuses the jump after it. One Python step per segment (an I frame every
+    ~32 ms), vectorised within."""
+    n = len(t)
+    wrap = 1 << 32
+    # within a segment: each step forward by less than the bound; a bad step drops the
+    # rest of the segment (its predictions came from the bad frame)
+    step = np.diff(t) % wrap
+    bad = np.concatenate([[False], (step == 0) | (step >= _MAX_JUMP_US)]) & ~is_i
+    seg = np.cumsum(is_i) - 1  # segment of each row (-1: before the first I frame)
+    cum_bad = np.cumsum(bad)
+    starts = np.flatnonzero(is_i)
+    good = (seg >= 0) & (cum_bad == cum_bad[starts][np.maximum(seg, 0)])
+    idx = np.where(good, np.arange(n), -1)
+    last_good = np.maximum.accumulate(idx)[[*(starts[1:] - 1).tolist(), n - 1]].tolist()
+    # across segments: an I frame is checked against the last frame kept before it
+    keep_seg = np.zeros(len(starts), bool)
+    tl, il, rl = t.tolist(), it.tolist(), resumes.tolist()
+    last = -1
+    for s_, a in enumerate(starts.tolist()):
+        if last >= 0 and rl[a] == rl[last]:
+            if not ((tl[a] - tl[last]) % wrap < _MAX_JUMP_US
+                    and 0 <= il[a] - il[last] < _MAX_JUMP_ITERATIONS):
+                continue
+        keep_seg[s_] = True
+        last = last_good[s_]
+    return good & keep_seg[np.maximum(seg, 0)]
 
 
 def _vbat_scale(firmware: str) -> tuple[float, str]:
@@ -225,12 +269,15 @@ def _flight_log(head: Header, cols: _Columns, where: str, *, rows: int, ended: b
                        + (f" in {garbage[0]} places, {rows} frames did: random data or "
                           "another format?)" if rows else ")"))
     t = cols.get("time")
-    d = np.diff(t)
-    t = t + np.concatenate([[0], np.cumsum(np.where(d < -(1 << 31), 1 << 32, 0))])
-    ok = np.concatenate([[True], t[1:] > np.maximum.accumulate(t)[:-1]])
+    ok = _accepted(cols.get("loopIteration"), t, cols.get("_is_i") == 1, cols.get("_resumes"))
     notes: list[str] = []
     if not ok.all():
-        notes.append(f"dropped {int((~ok).sum())} frames whose time stepped back")
+        notes.append(f"dropped {int((~ok).sum())} frames whose time or iteration jumped "
+                     f"back, or ahead by {_MAX_JUMP_US / 1e6:g} s or {_MAX_JUMP_ITERATIONS} "
+                     "iterations or more (a damaged I frame and its P frames)")
+    t = t[ok]
+    d = np.diff(t)
+    t = t + np.concatenate([[0], np.cumsum(np.where(d < -(1 << 31), 1 << 32, 0))])
     hires = head.int("blackbox_high_resolution", 0) == 1
     res = 10.0 if hires else 1.0
     deg = math.pi / 180.0
@@ -239,7 +286,7 @@ def _flight_log(head: Header, cols: _Columns, where: str, *, rows: int, ended: b
                          "looptime_us": head.int("looptime", 0),
                          "events": events, "log_end": ended, "notes": notes,
                          "high_resolution": hires})
-    log.add("t_s", (t[ok] - t[0]) * 1e-6, "s", "time (µs)")
+    log.add("t_s", (t - t[0]) * 1e-6, "s", "time (µs)")
     scale = head.float_bits("gyro_scale", 1.0) / res * deg
     for k, axis in enumerate(AXES):
         if f"gyroADC[{k}]" in cols.index:

@@ -225,3 +225,32 @@ def test_log_and_max_rows_must_be_at_least_one(tmp_path, capsys):
     csv.write_text("t_s,thrust_n\n0,1\n0.01,1.1\n", encoding="utf-8")
     err = _one_line_exit_2(tmp_path, capsys, csv, "--log", "1")
     assert "apply to flight logs only" in err
+
+
+def test_an_i_frame_far_ahead_in_time_drops_its_segment_only(tmp_path, capsys):
+    lay, s = w.quad_layout(), w.Settings()
+    rows = w.flight_rows(800, lay, s)
+    seg = s.i_interval // s.p_interval  # frames per I-frame segment
+    bad = slice(10 * seg, 11 * seg)
+    written = rows.copy()
+    written[bad, 1] += 60_000_000  # one segment 60 s ahead: its I frame and P frames
+    path = tmp_path / "jump.bbl"
+    path.write_bytes(w.blackbox_log(written, lay, s))
+    (log,) = read_flight_log(path, "blackbox")
+    kept = np.delete(rows, np.arange(800)[bad], axis=0)
+    assert log.rows == 800 - seg
+    np.testing.assert_array_equal(log.columns["t_s"], (kept[:, 1] - kept[0, 1]) * 1e-6)
+    assert any("jumped" in n for n in log.meta["notes"])
+
+
+def test_time_wraps_past_32_bits_without_a_jump(tmp_path):
+    lay, s = w.quad_layout(), w.Settings()
+    rows = w.flight_rows(600, lay, s)
+    rows[:, 1] += (1 << 32) - 1_000_000 - rows[300, 1]  # the µs clock wraps at row ~300
+    written = rows.copy()
+    written[:, 1] &= 0xFFFFFFFF
+    path = tmp_path / "wrap.bbl"
+    path.write_bytes(w.blackbox_log(written, lay, s))
+    (log,) = read_flight_log(path, "blackbox")
+    assert log.rows == 600
+    np.testing.assert_array_equal(log.columns["t_s"], (rows[:, 1] - rows[0, 1]) * 1e-6)
