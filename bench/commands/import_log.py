@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from analysis.flightlogs import FLIGHT_FORMATS
 from bench.errors import RigError
 
 COMMAND = "import"
@@ -27,15 +28,18 @@ COMMAND = "import"
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
-        COMMAND, help="import a thrust-stand log (RCbenchmark, ESC32, any CSV) as a run",
+        COMMAND, help="import a thrust-stand log (RCbenchmark, ESC32, any CSV) or a flight "
+                      "log (blackbox, ULog, DataFlash) as a run",
         description="Reads another bench's log and writes a run folder with the run's column "
-                    "names and SI units (units from the file's column names). A CSV whose "
+                    "names and SI units (units from the file's column names). A flight log "
+                    "(Betaflight/INAV blackbox, PX4 ULog, ArduPilot DataFlash) becomes a run of "
+                    "kind flight (docs/flight-logs.md). A CSV whose "
                     "columns already carry run names (t_s, throttle_us, thrust_n, rpm, ...) "
                     "needs no --map. The format is detected from the header; --format "
                     "forces one, --map implies csv.")
     p.add_argument("file", type=Path, help="log file")
     p.add_argument("--format", dest="fmt",
-                   choices=("rcbenchmark", "esc32", "csv", "blackbox", "ulog", "dataflash"),
+                   choices=("rcbenchmark", "esc32", "csv", *FLIGHT_FORMATS),
                    default=None, help="force the format (default: detected from the header)")
     p.add_argument("--map", dest="mapping", action="append", default=[],
                    metavar="RUNCOL=FILECOL", help="csv only: take a run column from a file "
@@ -110,11 +114,14 @@ def handler(args: argparse.Namespace) -> int:
     check_run_id(args.out.name, f"--out {args.out}: the folder's name (the run's id)")
     check_writable(args.out, "--out", folder=True, beside=True)
     mapping = parse_mapping(args.mapping) or None
-    if not mapping and args.fmt in (None, "blackbox", "ulog", "dataflash"):
+    if args.fmt in FLIGHT_FORMATS or (not args.fmt and not mapping):
         from analysis.flightlogs import detect_flight_format
 
         flight = args.fmt or detect_flight_format(args.file)
         if flight:
+            if mapping:
+                raise RigError(f"--map applies to --format csv only (the {flight} fields "
+                               "are known)")
             return import_flight(args, flight, "--format" if args.fmt else
                                  "detected from its first bytes")
     if args.log_index is not None or args.max_rows is not None:

@@ -254,3 +254,9 @@ def test_time_wraps_past_32_bits_without_a_jump(tmp_path):
     (log,) = read_flight_log(path, "blackbox")
     assert log.rows == 600
     np.testing.assert_array_equal(log.columns["t_s"], (rows[:, 1] - rows[0, 1]) * 1e-6)
+
+
+def test_map_with_a_flight_log_is_refused_in_one_line(tmp_path, capsys):
+    path, _, _ = _log(tmp_path, n=100)
+    err = _one_line_exit_2(tmp_path, capsys, path, "--format", "blackbox", "--map", "t_s=x")
+    assert "--map applies to --format csv only" in err
