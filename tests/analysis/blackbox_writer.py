@@ -103,15 +103,27 @@ class Layout:
     p_enc: list[int]
 
 
-def quad_layout(motors: int = 4) -> Layout:
+def quad_layout(motors: int = 4, *, full: bool = False) -> Layout:
+    """Betaflight's main fields for a quad; ``full`` adds the rest a 4.5/4.6 log carries by
+    default (axisD, axisF, baroAlt and rssi in the tag8_8svb group, gyroUnfilt, accSmooth,
+    debug[0..7])."""
     rows: list[tuple[str, int, int, int, int, int]] = [  # name, signed, Ipred, Ienc, Ppred, Penc
         ("loopIteration", 0, 0, 1, 6, 9), ("time", 0, 0, 1, 2, 0)]
     rows += [(f"axisP[{k}]", 1, 0, 0, 1, 0) for k in range(3)]
     rows += [(f"axisI[{k}]", 1, 0, 0, 1, 7) for k in range(3)]
+    if full:
+        rows += [(f"axisD[{k}]", 1, 0, 0, 1, 0) for k in range(2)]
+        rows += [(f"axisF[{k}]", 1, 0, 0, 1, 0) for k in range(3)]
     rows += [(f"rcCommand[{k}]", int(k < 3), 0, 0 if k < 3 else 1, 1, 8) for k in range(4)]
     rows += [(f"setpoint[{k}]", 1, 0, 0, 1, 8) for k in range(4)]
     rows += [("vbatLatest", 0, 9, 3, 1, 6), ("amperageLatest", 1, 0, 0, 1, 6)]
+    if full:
+        rows += [("baroAlt", 1, 0, 0, 1, 6), ("rssi", 0, 0, 1, 1, 6)]
     rows += [(f"gyroADC[{k}]", 1, 0, 0, 3, 0) for k in range(3)]
+    if full:
+        rows += [(f"gyroUnfilt[{k}]", 1, 0, 0, 3, 0) for k in range(3)]
+        rows += [(f"accSmooth[{k}]", 1, 0, 0, 3, 0) for k in range(3)]
+        rows += [(f"debug[{k}]", 1, 0, 0, 3, 0) for k in range(8)]
     rows += [(f"motor[{k}]", 0, 11 if k == 0 else 5, 1 if k == 0 else 0, 3, 0)
              for k in range(motors)]
     rows += [(f"eRPM[{k}]", 0, 0, 1, 1, 0) for k in range(motors)]
@@ -244,6 +256,11 @@ def flight_rows(n: int, layout: Layout, s: Settings, seed: int = 0) -> np.ndarra
     rows[:, col["rcCommand[3]"]] = 1400
     rows[:, col["vbatLatest"]] = 1650 - np.arange(n) // 5000
     rows[:, col["amperageLatest"]] = 1500 + rng.integers(-50, 50, n)
+    for name, k in col.items():  # the full layout's other fields: noise of their size
+        if name.startswith(("axisD", "axisF", "gyroUnfilt", "accSmooth", "debug", "baroAlt")):
+            rows[:, k] = rng.integers(-2000, 2000, n)
+        elif name == "rssi":
+            rows[:, k] = rng.integers(0, 1024, n)
     m = 0
     while f"motor[{m}]" in col:
         rows[:, col[f"motor[{m}]"]] = 900 + (600 * np.sin(ph + m)).astype(np.int64) + \

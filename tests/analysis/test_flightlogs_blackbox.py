@@ -68,6 +68,23 @@ def test_every_kept_field_round_trips_in_si_units(tmp_path):
     assert log.meta["events"] == {"SYNC_BEEP": 1, "LOG_END": 1}
 
 
+def test_the_full_betaflight_field_set_round_trips(tmp_path):
+    """A 4-field tag8_8svb group, average-2 fields of any sign (gyroUnfilt, accSmooth,
+    debug), 8 motors."""
+    lay, s = w.quad_layout(8, full=True), w.Settings()
+    rows = w.flight_rows(2500, lay, s, seed=7)
+    path = tmp_path / "LOG00004.BFL"
+    path.write_bytes(w.blackbox_log(rows, lay, s))
+    (log,) = read_flight_log(path, "blackbox")
+    col = {name: k for k, name in enumerate(lay.names)}
+    assert log.rows == 2500 and log.meta["notes"] == []
+    for m in range(8):
+        np.testing.assert_array_equal(log.columns[f"motor{m + 1}_dshot"],
+                                      rows[:, col[f"motor[{m}]"]])
+    np.testing.assert_allclose(log.columns["gyro_z_rad_s"], rows[:, col["gyroADC[2]"]] * DEG)
+    np.testing.assert_allclose(log.columns["current_a"], rows[:, col["amperageLatest"]] * 0.01)
+
+
 def test_high_resolution_and_analog_motors(tmp_path):
     path, rows, col = _log(tmp_path, n=400, high_resolution=1, motor_output=(1070, 2000))
     (log,) = read_flight_log(path, "blackbox")
