@@ -200,6 +200,8 @@ def _predict(pred: int, k: int, layout: Layout, s: Settings, cur: list[int],
         return 2 * p1[k] - p2[k] if p1 and p2 else 0
     if pred == 3:
         return _trunc_half(p1[k] + p2[k]) if p1 and p2 else 0
+    if pred == 4:
+        return 1070  # the header's minthrottle
     if pred == 5:
         return cur[layout.names.index("motor[0]")]
     if pred == 9:

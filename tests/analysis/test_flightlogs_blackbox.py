@@ -85,6 +85,25 @@ def test_the_full_betaflight_field_set_round_trips(tmp_path):
     np.testing.assert_allclose(log.columns["current_a"], rows[:, col["amperageLatest"]] * 0.01)
 
 
+def test_an_inav_log_with_its_field_names_and_minthrottle(tmp_path):
+    """INAV names the battery fields vbat/amperage and predicts motor[0] from minthrottle
+    (its predictor list ends before minmotor); analog outputs are µs."""
+    lay, s = w.quad_layout(), w.Settings(firmware="INAV 7.1.2 (a1b2c3d) MATEKF405",
+                                          motor_output=(1070, 2000))
+    rows = w.flight_rows(700, lay, s, seed=3)
+    lay.names = [{"vbatLatest": "vbat", "amperageLatest": "amperage"}.get(n, n)
+                 for n in lay.names]
+    lay.i_pred = [4 if p == 11 else p for p in lay.i_pred]
+    rows[:, lay.names.index("motor[0]")] += 400  # analog: 1070..2000 µs
+    path = tmp_path / "LOG00005.TXT"
+    path.write_bytes(w.blackbox_log(rows, lay, s))
+    (log,) = read_flight_log(path, "blackbox")
+    assert log.meta["firmware"].startswith("INAV")
+    np.testing.assert_allclose(log.columns["voltage_v"], rows[:, lay.names.index("vbat")] * 0.01)
+    np.testing.assert_array_equal(log.columns["motor1_us"], rows[:, lay.names.index("motor[0]")])
+    assert log.sources["voltage_v"].startswith("vbat ")
+
+
 def test_high_resolution_and_analog_motors(tmp_path):
     path, rows, col = _log(tmp_path, n=400, high_resolution=1, motor_output=(1070, 2000))
     (log,) = read_flight_log(path, "blackbox")
