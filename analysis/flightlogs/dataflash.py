@@ -43,6 +43,8 @@ FORMAT_CHARS: dict[str, tuple[str | tuple[str, tuple[int]], float]] = {
     "L": ("<i4", 1e-7), "M": ("u1", 1.0), "q": ("<i8", 1.0), "Q": ("<u8", 1.0),
     "g": ("<f2", 1.0)}
 _WANTED = ("IMU", "RATE", "RCOU", "ESC", "BAT")
+_NEEDS = {"IMU": ("TimeUS", "GyrX", "GyrY", "GyrZ"), "RATE": ("TimeUS",), "RCOU": ("TimeUS",),
+          "ESC": ("TimeUS", "RPM"), "BAT": ("TimeUS",)}  # columns a kept message must have
 _FMT_RX = re.compile(re.escape(HEAD + bytes([FMT_TYPE])) + b".{%d}" % (FMT_LEN - 3), re.DOTALL)
 
 
@@ -157,8 +159,14 @@ def _collect(fh: BinaryIO, size: int, formats: dict[int, MessageFormat], max_row
 
 
 def _col(arr: np.ndarray, mf_format: str, columns: list[str], name: str) -> np.ndarray:
+    """A numeric column scaled by its format character; NaN where the FMT (another
+    layout, or damaged) made it text or an array."""
+    v = arr[name]
+    if v.dtype.kind not in "iuf" or v.ndim != 1:
+        return np.full(len(arr), np.nan)
     scale = FORMAT_CHARS[mf_format[columns.index(name)]][1]
-    return arr[name].astype(float) * scale
+    with np.errstate(invalid="ignore"):  # a damaged float32 may be a signalling NaN
+        return v.astype(float) * scale
 
 
 def read_dataflash(path: str | Path, *, max_rows: int | None = None) -> FlightLog:
@@ -173,6 +181,17 @@ def read_dataflash(path: str | Path, *, max_rows: int | None = None) -> FlightLo
     except OSError as exc:
         raise LogError(f"{path}: cannot read ({exc.strerror or exc})") from None
     by_name = {mf.name: mf for mf in formats.values()}
+    notes: list[str] = []
+    for name in list(arrays):
+        cols = by_name[name].columns
+        missing = [c for c in _NEEDS[name] if c not in cols
+                   or arrays[name][c].dtype.kind not in "iuf" or arrays[name][c].ndim != 1]
+        if missing:  # another layout, or a damaged FMT
+            del arrays[name]
+            if name == "IMU":
+                raise LogError(f"{where}: the IMU message has no numeric {', '.join(missing)} "
+                               f"(its FMT columns: {','.join(by_name[name].columns)[:80]})")
+            notes.append(f"left out {name}: its FMT has no numeric {', '.join(missing)}")
     if "IMU" not in arrays:
         raise LogError(f"{where}: no IMU message ({messages} messages of "
                        f"{len(formats)} types; the gyro is the time base)")
@@ -180,6 +199,8 @@ def read_dataflash(path: str | Path, *, max_rows: int | None = None) -> FlightLo
     if "I" in f.columns:
         imu = imu[imu["I"] == 0]
     imu = imu[:max_rows]
+    if len(imu) == 0:
+        raise LogError(f"{where}: no IMU message of instance 0 (the gyro is the time base)")
     t_us = imu["TimeUS"].astype(np.int64)
     order = np.argsort(t_us, kind="stable")
     imu, t_us = imu[order], t_us[order]
@@ -187,7 +208,6 @@ def read_dataflash(path: str | Path, *, max_rows: int | None = None) -> FlightLo
     imu, t_us = imu[ok], t_us[ok]
     t0 = int(t_us[0])
     base = (t_us - t0) * 1e-6
-    notes: list[str] = []
     if cut:
         notes.append(f"kept the first {max_rows} IMU samples (--max-rows); the rest of the "
                      "log was not read")
