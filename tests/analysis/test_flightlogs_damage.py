@@ -73,3 +73,27 @@ def test_damaged_logs_import_or_are_refused_never_a_traceback(tmp_path, fmt):
             assert all(len(v) == len(t) for v in log.columns.values())
         outcomes["imported"] += 1
     assert outcomes["imported"] > 30  # much damage leaves most of the log readable
+
+
+def test_damaged_ulogs_say_one_line_through_the_command(tmp_path, capsys):
+    """pyulog prints its own warnings on a damaged file: the command keeps them to one
+    note, so the output stays the import line and notes, or one error line."""
+    from bench.cli import main
+
+    valid = (Path(__file__).resolve().parents[2] / "fixtures" / "data" / "px4_ulog"
+             / "sample_px4_events.ulg").read_bytes()
+    rng = np.random.default_rng(4)
+    path = tmp_path / "damaged.ulg"
+    codes = set()
+    for k in range(8):
+        path.write_bytes(_damage(valid, rng))
+        out_dir = tmp_path / f"r{k}"
+        code = main(["import", str(path), "--out", str(out_dir)])
+        out, err = capsys.readouterr()
+        codes.add(code)
+        assert "Traceback" not in out + err
+        if code == 0:
+            assert all(line.startswith(f"{out_dir}: ") for line in out.splitlines())
+        else:
+            assert code == 2 and len(err.strip().splitlines()) == 1 and not out_dir.exists()
+    assert 0 in codes
