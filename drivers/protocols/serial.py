@@ -37,17 +37,6 @@ def _label(spec: DeviceUrl, protocol: str) -> str:
     return spec.path.strip("/") or protocol
 
 
-def plant_peer(ctx: Any, key: str, start: Callable[[Any], Any]) -> Any:
-    """A propulsion peer ``start(plant)`` in this process, on the rig's wire plant (one
-    per ``key``); the plant's owner stops it after the host side has closed."""
-    wire = ctx.world()
-    ctx.wire = wire
-    if key not in wire.peers:
-        peer = start(wire.plant)
-        wire.add(key, peer, peer.stop)
-    return wire.peers[key]
-
-
 def serial_peer(ctx: Any, spec: DeviceUrl, kind: str, *args: Any) -> Any:
     """The propulsion peer ``plant_peers.SERIAL_PEERS[kind]`` of ``serial://sim/<label>``,
     started in the world's process (one per label); its ``path`` is the pty to open."""

@@ -44,8 +44,8 @@ from drivers.sim.imu import ImuModel, SimImu
 from drivers.sim.imu_rig import SimImuRig
 from drivers.sim.rig import PlantTruth, SimRig
 
-__all__ = ["BTFL_ACC_1G", "ESC_TEMPERATURE_C", "SERIAL_PEERS", "ProcessWireSims", "RemotePlant",
-           "WirePlant", "WireSims", "start_gx3_peer", "start_msp_peer"]
+__all__ = ["BTFL_ACC_1G", "CAN_PEERS", "ESC_TEMPERATURE_C", "SERIAL_PEERS", "ProcessWireSims",
+           "RemotePlant", "WirePlant", "WireSims", "start_gx3_peer", "start_msp_peer"]
 
 BTFL_ACC_1G = 2048  # protocols.md §1.4: Betaflight MPU6000/6050-class acc_1G (512 * 4), ±16 g
 _MAX_BURST = 16  # GX3 packets written per wakeup of the simulated device at most
@@ -181,6 +181,23 @@ class WireSims:
         """:meth:`start_peer` for another process: what it opens."""
         return self.start_peer(key, kind, args).path
 
+    def connect_can(self, channel: str, port: int) -> None:
+        """The nodes' end of the host's CAN ``channel``: a socket to loopback ``port``."""
+        import socket
+
+        from drivers.wire_sim.can_socket import SocketCanLink
+
+        link = SocketCanLink(socket.create_connection(("127.0.0.1", port)),
+                             f"sim nodes on {channel}")
+        self.add(f"can-link:{channel}", link, link.close)
+
+    def start_can_peer(self, key: str, kind: str, channel: str, args: tuple = ()) -> None:
+        """The CAN node ``CAN_PEERS[kind](plant, link, *args)`` on ``channel`` (one per
+        ``key``)."""
+        if key not in self.peers:
+            peer = CAN_PEERS[kind](self.plant, self.peers[f"can-link:{channel}"], *args)
+            self.add(key, peer, peer.stop)
+
     def close(self) -> None:
         errors = []
         for stop in reversed(self._stops):
@@ -256,6 +273,30 @@ class ProcessWireSims(WireSims):
             peer.path = path
             self.add(key, peer, peer.stop)
         return self.peers[key]
+
+    def bridge_can(self, channel: str, link: Any) -> None:
+        """Joins ``link`` (the nodes' end of the host's virtual ``channel``) to the world's
+        nodes by a loopback socket (``drivers.wire_sim.can_socket``)."""
+        import socket
+
+        from drivers.wire_sim.can_socket import SocketCanLink, relay
+
+        with socket.create_server(("127.0.0.1", 0)) as server:
+            server.settimeout(10.0)
+            self.plant.world.request("call", None, ("connect_can",),
+                                     (channel, server.getsockname()[1]))
+            conn, _ = server.accept()
+        conn.settimeout(None)
+        far = SocketCanLink(conn, f"world's nodes on {channel}")
+        relay(link, far)
+        self.add(f"can-bridge:{channel}", far, far.close)
+
+    def start_can_peer(self, key: str, kind: str, channel: str, args: tuple = ()) -> None:
+        if key not in self.peers:
+            world = self.plant.world
+            world.request("call", None, ("start_can_peer",), (key, kind, channel, args))
+            peer = world.remote(key)
+            self.add(key, peer, peer.stop)
 
 
 
@@ -407,6 +448,7 @@ def start_kiss_esc(plant: WirePlant, pole_pairs: int, period_s: float):
 SERIAL_PEERS: dict[str, Callable[..., Any]] = {
     "msp": start_msp_fc, "loadcell": start_loadcell_board, "vesc": start_vesc_uart,
     "kiss": start_kiss_esc}
+CAN_PEERS: dict[str, Callable[..., Any]] = {"vesc": start_vesc, "dronecan": start_dronecan_esc}
 
 
 # -- IMU-bench peers ------------------------------------------------------------------------------
