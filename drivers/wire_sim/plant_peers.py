@@ -254,7 +254,7 @@ class RemotePlant:
 
     def close(self) -> None:
         """Stops the world's process (its peers and plant first)."""
-        if self._final is None and self.world.process.is_alive():
+        if self._final is None and self.world.alive:
             self._final = {"pulse_us": self.pulse_us, "idle_since": self.idle_since()}
         self.world.close()
 

@@ -4,10 +4,11 @@ Why: as threads of the host's process the simulated devices share its interprete
 so a loaded machine (or a busy host) starves them and they answer late; in a process of
 their own they are scheduled like the firmware they stand for.
 
-:class:`WorldProcess` starts the child (the ``spawn`` start method: no copy of the host's
-threads or locks), which calls ``build(*args)`` (an importable function, so it pickles by
-name) for the world object and then serves requests over a pipe until told to stop or
-until its parent dies (the pipe reads end of file; the parent's pid is checked too). A
+:class:`WorldProcess` starts the child (``python -m`` this module: a fresh interpreter,
+no copy of the host's threads or locks, and unlike multiprocessing's ``spawn`` it does not
+import the host's ``__main__``), which calls ``build(*args)`` (an importable function, so
+it pickles by name) for the world object and then serves requests over a socket pair
+until told to stop or until its parent dies (end of file; the parent's pid is checked too). A
 request names an object of the world (``None``: the world itself; else a key of its
 ``peers``) and an attribute path on it, to call or to read. :class:`Remote` is the host's
 handle on such an object. The devices' transports (pty paths, loopback ports) work across
@@ -16,18 +17,22 @@ processes as they do across a cable; the world reports what to open in the repli
 
 from __future__ import annotations
 
-import multiprocessing
 import os
+import socket
+import subprocess
+import sys
 import threading
 import time
 from collections.abc import Callable
+from multiprocessing.connection import Connection
+from pathlib import Path
 from typing import Any
 
 from drivers.errors import DeviceError
 
 __all__ = ["Remote", "WorldProcess"]
 
-_START_TIMEOUT_S = 30.0  # a spawned interpreter imports numpy and scipy: seconds when loaded
+_START_TIMEOUT_S = 30.0  # a fresh interpreter imports numpy and scipy: seconds when loaded
 _STOP_TIMEOUT_S = 5.0
 _PARENT_CHECK_S = 0.5
 
@@ -36,19 +41,27 @@ class WorldProcess:
     """The host's side of a world served by a child process (see module doc)."""
 
     def __init__(self, build: Callable[..., Any], *args: Any, name: str = "sim-world") -> None:
-        ctx = multiprocessing.get_context("spawn")
-        self._conn, child_conn = ctx.Pipe()
+        ours, theirs = socket.socketpair()
         self._lock = threading.Lock()
         self.name = name
-        self.process = ctx.Process(target=_serve, args=(child_conn, os.getpid(), build, args),
-                                   name=name, daemon=True)
-        self.process.start()
-        child_conn.close()
+        root = str(Path(__file__).resolve().parents[2])  # where ``drivers`` is importable
+        env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+            p for p in (root, os.environ.get("PYTHONPATH", "")) if p)}
+        self.process = subprocess.Popen(
+            [sys.executable, "-m", __name__, str(theirs.fileno()), str(os.getpid())],
+            pass_fds=(theirs.fileno(),), env=env, stdin=subprocess.DEVNULL)
+        theirs.close()
+        self._conn = Connection(ours.detach())
+        self._conn.send((build, args))
         if not self._conn.poll(_START_TIMEOUT_S):
             self.close()
             raise DeviceError(f"{name}: the simulated devices' process did not start in "
                               f"{_START_TIMEOUT_S:g} s")
-        self._reply()
+        try:
+            self._reply()
+        except BaseException:
+            self.close()
+            raise
 
     def request(self, op: str, key: str | None, attrs: tuple[str, ...], args: tuple = ()) -> Any:
         """``op`` "call" or "get" on ``attrs`` of the world's object ``key``."""
@@ -58,7 +71,7 @@ class WorldProcess:
                 return self._reply()
             except (EOFError, OSError, BrokenPipeError):
                 raise DeviceError(f"{self.name}: the simulated devices' process is gone "
-                                  f"(exit code {self.process.exitcode})") from None
+                                  f"(exit code {self.process.poll()})") from None
 
     def _reply(self) -> Any:
         status, value = self._conn.recv()
@@ -66,21 +79,26 @@ class WorldProcess:
             raise DeviceError(f"{self.name}: {value}")
         return value
 
+    @property
+    def alive(self) -> bool:
+        return self.process.poll() is None
+
     def remote(self, key: str | None) -> Remote:
         return Remote(self, key)
 
     def close(self) -> None:
         """Stop the world (its devices first), then the process; safe to call twice."""
-        if self.process.is_alive():
+        if self.alive:
             try:
                 with self._lock:
                     self._conn.send(("stop", None, (), ()))
             except OSError:
                 pass
-            self.process.join(_STOP_TIMEOUT_S)
-        if self.process.is_alive():
-            self.process.kill()
-            self.process.join(_STOP_TIMEOUT_S)
+            try:
+                self.process.wait(_STOP_TIMEOUT_S)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+                self.process.wait(_STOP_TIMEOUT_S)
         self._conn.close()
 
 
@@ -105,11 +123,12 @@ class Remote:
 
 
 # -- the child ---------------------------------------------------------------------------
-def _serve(conn: Any, parent_pid: int, build: Callable[..., Any], args: tuple) -> None:
+def _serve(conn: Connection, parent_pid: int) -> None:
     """The child's main: build the world, report ready, serve until stop or orphaned."""
     threading.Thread(target=_watch_parent, args=(parent_pid,), name="parent-watch",
                      daemon=True).start()
     try:
+        build, args = conn.recv()
         world = build(*args)
     except BaseException as exc:
         conn.send(("err", f"building the simulated world: {exc!r}"))
@@ -140,3 +159,7 @@ def _watch_parent(parent_pid: int) -> None:
     while os.getppid() == parent_pid:
         time.sleep(_PARENT_CHECK_S)
     os._exit(0)
+
+
+if __name__ == "__main__":
+    _serve(Connection(int(sys.argv[1])), int(sys.argv[2]))
