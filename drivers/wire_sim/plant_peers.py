@@ -32,17 +32,18 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from drivers.codecs import gx3, msp
 from drivers.errors import DeviceError
 from drivers.sim.clock import SimClock
 from drivers.sim.imu import ImuModel, SimImu
-from drivers.sim.imu_rig import SimImuRig
 from drivers.sim.rig import PlantTruth, SimRig
+
+if TYPE_CHECKING:  # the IMU bench's world (scipy) loads only for its peers
+    from drivers.sim.imu_rig import SimImuRig
 
 __all__ = ["BTFL_ACC_1G", "CAN_PEERS", "ESC_TEMPERATURE_C", "SERIAL_PEERS", "ProcessWireSims",
            "RemotePlant", "WirePlant", "WireSims", "start_gx3_peer", "start_msp_peer"]
@@ -511,6 +512,8 @@ def start_msp_peer(sim: SimImuRig, clock: SimClock, *, variant: str = "BTFL",
 
 def start_gx3_peer(sim: SimImuRig, clock: SimClock) -> Any:
     """A 3DM-GX3-25 on a pty; its timer and its stream run on the plant's clock."""
+    from scipy.spatial.transform import Rotation
+
     from drivers.wire_sim.gx3 import SimGx3
 
     ref = sim.reference_imu
