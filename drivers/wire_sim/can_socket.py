@@ -14,6 +14,7 @@ import socket
 import struct
 import threading
 from collections.abc import Callable
+from typing import Any
 
 from drivers.codecs.can_log import CanFrame
 from drivers.errors import DeviceError
@@ -79,7 +80,14 @@ class SocketCanLink:
                 self._thread.join(timeout=1.0)
 
 
-def relay(a: object, b: object) -> None:
-    """Every frame heard on link ``a`` is sent on ``b`` and back (both CanLink-like)."""
-    a.subscribe(b.send)  # type: ignore[attr-defined]
-    b.subscribe(a.send)  # type: ignore[attr-defined]
+def relay(a: Any, b: Any) -> Callable[[], None]:
+    """Every frame heard on link ``a`` is sent on ``b`` and back (both CanLink-like);
+    returns the undo, to call before either link closes."""
+    a.subscribe(b.send)
+    b.subscribe(a.send)
+
+    def undo() -> None:
+        a.unsubscribe(b.send)
+        b.unsubscribe(a.send)
+
+    return undo

@@ -289,8 +289,8 @@ class ProcessWireSims(WireSims):
             conn, _ = server.accept()
         conn.settimeout(None)
         far = SocketCanLink(conn, f"world's nodes on {channel}")
-        relay(link, far)
-        self.add(f"can-bridge:{channel}", far, far.close)
+        undo = relay(link, far)
+        self.add(f"can-bridge:{channel}", far, lambda: (undo(), far.close()))
 
     def start_can_peer(self, key: str, kind: str, channel: str, args: tuple = ()) -> None:
         if key not in self.peers:
