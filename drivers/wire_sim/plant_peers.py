@@ -290,7 +290,12 @@ class ProcessWireSims(WireSims):
         conn.settimeout(None)
         far = SocketCanLink(conn, f"world's nodes on {channel}")
         undo = relay(link, far)
-        self.add(f"can-bridge:{channel}", far, lambda: (undo(), far.close()))
+
+        def stop() -> None:
+            undo()
+            far.close()
+
+        self.add(f"can-bridge:{channel}", far, stop)
 
     def start_can_peer(self, key: str, kind: str, channel: str, args: tuple = ()) -> None:
         if key not in self.peers:
