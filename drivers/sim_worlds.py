@@ -93,9 +93,11 @@ def build_sim_rig(rig: RigView, *, seed: int | None = None, urls: dict[str, str]
     )
 
 
-def wire_plant(rig: RigView, seed: int | None = None) -> Any:
+def wire_plant(rig: RigView, seed: int | None = None, *, own_process: bool = True) -> Any:
     """The propulsion plant on the wall clock, owner of the rig's wire-level peers: served
-    with its serial peers by a child process (``drivers.wire_sim.world_process``)."""
+    with them by a child process (``drivers.wire_sim.world_process``), or in this one."""
+    if not own_process:
+        return wire_sims(rig, seed)
     from drivers.wire_sim.plant_peers import ProcessWireSims, RemotePlant
     from drivers.wire_sim.world_process import WorldProcess
 
