@@ -20,6 +20,7 @@ from typing import Any, Protocol, TypeAlias
 
 import numpy as np
 
+from drivers.sim.cell_errors import CellErrorState, apply_cell_errors
 from drivers.sim.clock import SimClock
 from drivers.sim.load_cell_filter import PartSnapshot, SecondOrderLowPass, bilinear_low_pass
 from drivers.sim.plant import Plant
@@ -123,7 +124,8 @@ T_S, BRIDGE_V, CURRENT_OUT_V, VOLTAGE_OUT_V, HALL_PERIOD_S, ACC_X_M_S2 = range(6
 #: ``Acquisition.snapshot``: buffer, generator state, noise rows drawn ahead, load-cell
 #: filter, then magnet edges seen, the last edge's time and the period (RPM pickup).
 AcquisitionSnapshot: TypeAlias = tuple[BufferSnapshot, Mapping[str, Any], np.ndarray,
-                                       tuple[PartSnapshot, ...], int, float, float]
+                                       tuple[PartSnapshot, ...], int, float, float,
+                                       CellErrorState, tuple[tuple[float, float, float], ...]]
 
 
 class Acquisition:
@@ -156,6 +158,10 @@ class Acquisition:
         ])
         self._noise_sigma_row = self._noise_sigma.T.copy()
         self._lsb = 2.0 * p.adc_range_v / 2**p.adc_bits
+        self._cell_errors = p.load_cell_errors
+        self._cell_state = CellErrorState()
+        # forces put on the cell besides the rotor's (calibration weights): (from t_s, N, ramp_s)
+        self.applied: tuple[tuple[float, float, float], ...] = ()
         self._count: int = 0  # magnet edges seen so far
         self._last_edge: float = -math.inf
         self._period: float = math.inf
@@ -165,12 +171,15 @@ class Acquisition:
         # goes into the snapshot, and a restore draws them again if they are needed
         rng = self._rng_before if self._drawing.pending else self.rng.bit_generator.state
         return (self.buffer.snapshot(), rng, self._ahead, self._cell.snapshot(),
-                self._count, self._last_edge, self._period)
+                self._count, self._last_edge, self._period, self._cell_state.copy(),
+                self.applied)
 
     def restore(self, snap: AcquisitionSnapshot) -> None:
         if self._drawing.pending:
             self._drawing.result()  # the thread must be done with the generator
-        buffer, rng, self._ahead, cell, self._count, self._last_edge, self._period = snap
+        (buffer, rng, self._ahead, cell, self._count, self._last_edge, self._period,
+         cell_state, self.applied) = snap
+        self._cell_state = cell_state.copy()
         self.buffer.restore(buffer)
         self.rng.bit_generator.state = rng
         self._cell.restore(cell)
@@ -215,13 +224,29 @@ class Acquisition:
         t = clock.nominal(n0, n1)
         rows = np.empty((self.rows, n1 - n0))
         rows[T_S] = clock.stamps(n0, n1, t)
-        self._analog(t, rows)
+        self._analog(t, rows, n0)
         rows[HALL_PERIOD_S] = self._counter(t)
         if self.rows > ACC_X_M_S2:
             rows[ACC_X_M_S2] = self._vibration(n0, n1, t)
         buf.append(rows)
 
-    def _analog(self, t: np.ndarray, rows: np.ndarray) -> None:
+    def apply_force(self, t_s: float, force_n: float, ramp_s: float = 0.5) -> None:
+        """From sim time ``t_s`` on, ``force_n`` (a calibration weight's) acts on the cell
+        besides the rotor's thrust (0 takes it off), reached linearly over ``ramp_s``: a
+        weight lowered by hand or by a fixture, not dropped (a drop rings the cell past
+        its load, onto the other branch of its hysteresis)."""
+        self.applied = (*self.applied, (t_s, force_n, max(ramp_s, 1e-9)))
+
+    def _applied(self, t: np.ndarray) -> np.ndarray:
+        """The applied force at each sample time: ramps between the values set."""
+        total = np.zeros_like(t)
+        before = 0.0
+        for start, value, ramp in self.applied:  # a few weights: one pass each
+            total += (value - before) * np.clip((t - start) / ramp, 0.0, 1.0)
+            before = value
+        return total
+
+    def _analog(self, t: np.ndarray, rows: np.ndarray, n0: int) -> None:
         p = self.params
         plant = self.plant
         traj = plant.traj
@@ -230,7 +255,13 @@ class Acquisition:
         omega = np.interp(t, t_tr, traj.column("omega"))
         i_bus = np.interp(t, t_tr, traj.column("i_bus"))
         force = plant.params.thrust_k * omega * omega  # (E.1)
+        if self.applied:
+            force = force + self._applied(t)
         felt = self._cell(force)
+        if self._cell_errors.any:
+            r = p.load_cell_range_n
+            felt = r * apply_cell_errors(self._cell_errors, self._cell_state, felt / r, n0,
+                                         1.0 / p.sample_rate_hz)
         out = rows[BRIDGE_V : VOLTAGE_OUT_V + 1]
         np.multiply(felt, p.load_cell_v_per_n, out=out[0])
         out[0] += p.load_cell_offset_v
