@@ -16,6 +16,7 @@ def _hold(errors: CellErrors, loads: list[float], hold_s: float = 2.0, chunk: in
           ) -> list[float]:
     """The output at the end of each hold, fed in reads of ``chunk`` samples."""
     state, n, ends = CellErrorState(), 0, []
+    out = np.zeros(1)
     for x in loads:
         xs = np.full(int(hold_s * FS), x)
         for k in range(0, xs.size, chunk):
