@@ -25,10 +25,11 @@ from analysis.metrology.force_calibration import (
 )
 from analysis.metrology.gum import rectangular
 from analysis.metrology.reference_force import Gravity, conventional_weight_force
-from bench.engine.recorder import RunRecorder, new_run_id, utc_now
+from bench.engine.recorder import RunRecorder, utc_now
 from bench.errors import RigError
 from bench.sensor_calibration.loaders import Loader
 from bench.sensor_calibration.plan import CELLS, CalibrationPlan
+from bench.store.indexed_run import indexed_run
 
 __all__ = ["Acceptance", "CalibrationOutcome", "run_sensor_calibration"]
 
@@ -76,48 +77,54 @@ def run_sensor_calibration(rig_cfg: Any, rig: Any, plan: CalibrationPlan, loader
     channel = CELLS[plan.cell][1]
     role, sensor = _sensor_for(rig, channel)
     clock = rig.clock
-    steps = plan.steps()
-    run_dir = out / new_run_id(f"calibration-{plan.cell}")
     run_meta = {"kind": "calibration", "rig": rig_cfg.name, "sequence": "calibrate-sensors",
                 "plan": plan.as_dict(), **(meta or {})}
-    recorder = RunRecorder(run_dir, run_meta, base_columns=("t_s", channel, "reference",
-                                                            "step"))
-    points: list[CalibrationPoint] = []
-    status, reason = "fail", "stopped before the end"
-    t0 = clock.now()
-    try:
-        for i, (mass, direction) in enumerate(steps, start=1):
-            force = _reference(plan, mass, gravity)
-            loader.load(force, mass, i, len(steps))
-            _drain(sensor)  # what came while the weight went on is not part of the hold
-            recorder.event(clock.now() - t0, "step", i, f"{mass * 1e3:g} g {direction}")
-            _read_for(clock, sensor, channel, plan.settle_s)
-            t, y = _read_for(clock, sensor, channel, plan.hold_s)
-            if t.size < 2:
-                raise RigError(f"{role}: {t.size} readings in a {plan.hold_s:g} s hold")
-            recorder.append({"t_s": t - t0, channel: y, "reference": np.full(t.size, force),
-                             "step": np.full(t.size, float(i))})
-            u_force = _u_force_independent(plan, mass, gravity)
-            points.append(CalibrationPoint(force, u_force, direction, t - t0, y))
-            if on_step is not None:
-                on_step(i, len(steps), f"{mass * 1e3:g} g {direction}: "
-                                       f"{float(np.mean(y)):.5g} {channel}")
-        fit = fit_force_calibration(points, u_rel_systematic=math.hypot(
-            gravity.u / gravity.g, BUOYANCY_U_REL, _u_arm_rel(plan)),
-            systematic_note=f"g {gravity.g:.5f} m/s^2 ({gravity.source}), buoyancy"
-                            + (f", arm {plan.arm_m:g} m" if plan.arm_m else ""))
-        record = _record(rig_cfg, role, sensor, channel, plan, gravity, fit, acceptance,
-                         run_dir.name, recorder.meta)
+    with indexed_run(out, f"calibration-{plan.cell}", run_meta,
+                     base_columns=("t_s", channel, "reference", "step")) as recorder:
+        try:
+            points = _series(clock, sensor, role, channel, plan, loader, gravity, recorder,
+                             on_step)
+            fit = fit_force_calibration(points, u_rel_systematic=math.hypot(
+                gravity.u / gravity.g, BUOYANCY_U_REL, _u_arm_rel(plan)),
+                systematic_note=f"g {gravity.g:.5f} m/s^2 ({gravity.source}), buoyancy"
+                                + (f", arm {plan.arm_m:g} m" if plan.arm_m else ""))
+        except BaseException as exc:
+            recorder.finish("fail", f"calibration stopped: {exc}" if str(exc)
+                            else "calibration stopped")
+            raise
+        record = _record(role, sensor, channel, plan, gravity, fit, acceptance,
+                         recorder.run_dir.name, rig_cfg.name, recorder.meta)
         failed = record["acceptance"]["failed"]
-        status = "success"
-        reason = ("calibration accepted" if not failed
-                  else "calibration outside its acceptance limits: " + "; ".join(failed))
-        recorder.finish(status, reason, calibration=record)
-        return CalibrationOutcome(run_dir, fit, record)
-    except BaseException as exc:
-        if not recorder.closed:
-            recorder.finish(status, f"{reason}: {exc}" if str(exc) else reason)
-        raise
+        recorder.finish("success", "calibration accepted" if not failed else
+                        "calibration outside its acceptance limits: " + "; ".join(failed),
+                        calibration=record)
+    return CalibrationOutcome(recorder.run_dir, fit, record)
+
+
+def _series(clock: Any, sensor: Any, role: str, channel: str, plan: CalibrationPlan,
+            loader: Loader, gravity: Gravity, recorder: RunRecorder,
+            on_step: Callable[[int, int, str], None] | None) -> list[CalibrationPoint]:
+    """Each weight on, settled, held and recorded: the points of the fit."""
+    steps = plan.steps()
+    points: list[CalibrationPoint] = []
+    t0 = clock.now()
+    for i, (mass, direction) in enumerate(steps, start=1):
+        force = _reference(plan, mass, gravity)
+        loader.load(force, mass, i, len(steps))
+        sensor.read_block()  # what came while the weight went on is not part of the hold
+        recorder.event(clock.now() - t0, "step", i, f"{mass * 1e3:g} g {direction}")
+        _read_for(clock, sensor, channel, plan.settle_s)
+        t, y = _read_for(clock, sensor, channel, plan.hold_s)
+        if t.size < 2:
+            raise RigError(f"{role}: {t.size} readings in a {plan.hold_s:g} s hold")
+        recorder.append({"t_s": t - t0, channel: y, "reference": np.full(t.size, force),
+                         "step": np.full(t.size, float(i))})
+        points.append(CalibrationPoint(force, _u_force_independent(plan, mass, gravity),
+                                       direction, t - t0, y))
+        if on_step is not None:
+            on_step(i, len(steps), f"{mass * 1e3:g} g {direction}: "
+                                   f"{float(np.mean(y)):.5g} {channel}")
+    return points
 
 
 def _reference(plan: CalibrationPlan, mass: float, gravity: Gravity) -> float:
@@ -134,10 +141,6 @@ def _u_force_independent(plan: CalibrationPlan, mass: float, gravity: Gravity) -
 
 def _u_arm_rel(plan: CalibrationPlan) -> float:
     return plan.arm_u_m / plan.arm_m if plan.cell == "torque" and plan.arm_m else 0.0
-
-
-def _drain(sensor: Any) -> None:
-    sensor.read_block()
 
 
 def _read_for(clock: Any, sensor: Any, channel: str, seconds: float
@@ -158,21 +161,19 @@ def _read_for(clock: Any, sensor: Any, channel: str, seconds: float
     return np.concatenate(ts), np.concatenate(ys)
 
 
-def _record(rig_cfg: Any, role: str, sensor: Any, channel: str, plan: CalibrationPlan,
-            gravity: Gravity, fit: ForceCalibration, acceptance: Acceptance, run_id: str,
+def _record(role: str, sensor: Any, channel: str, plan: CalibrationPlan, gravity: Gravity,
+            fit: ForceCalibration, acceptance: Acceptance, run_id: str, rig_name: str,
             meta: dict[str, Any]) -> dict[str, Any]:
     """The calibration record (ISO/IEC 17025 7.8 and 6.4.13: what, when, who, with what,
     the results with their uncertainty, the acceptance and the next due date)."""
     now = datetime.now(UTC)
     info = sensor.describe()
     failed = fit.failed(acceptance.limits())
-    dev = rig_cfg.devices.get(role) if hasattr(rig_cfg, "devices") else None
     return {
         "id": run_id,
-        "bench": meta.get("bench") or rig_cfg.name,
-        "rig": rig_cfg.name,
-        "sensor": {"role": role, "channel": channel, "url": info.url, "model": info.model,
-                   "rig_calibration": dict(getattr(dev, "calibration", {}) or {})},
+        "bench": meta.get("bench") or rig_name,
+        "rig": rig_name,
+        "sensor": {"role": role, "channel": channel, "url": info.url, "model": info.model},
         "date_utc": utc_now(),
         "valid_until_utc": (now + timedelta(days=acceptance.validity_days)).strftime(
             "%Y-%m-%dT%H:%M:%SZ"),

@@ -65,6 +65,10 @@ def test_the_calibration_finds_the_hidden_errors_within_its_uncertainty(tmp_path
     run = read_run(Path(tmp_path / "runs" / record["id"]))
     assert run.meta["kind"] == "calibration" and run.meta["calibration"] == record
     assert set(run.samples["step"].unique()) == set(range(1, 10))
+    from bench.store.run_index import RunIndex
+
+    rows = RunIndex(tmp_path / "runs").list()
+    assert [(r.sequence, r.status) for r in rows] == [("calibrate-sensors", "success")]
 
 
 def test_a_cell_outside_its_acceptance_limits_is_recorded_and_exits_1(tmp_path, capsys):
