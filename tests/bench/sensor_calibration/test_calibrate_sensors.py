@@ -111,3 +111,43 @@ def test_without_an_operator_or_a_fixture_it_stops_in_one_line(tmp_path, capsys,
     plan.write_text("[calibration]\nmasses_g = [0, 100, 200]\nspeed = 3\n")
     assert main(["calibrate-sensors", "--yes", "--plan", str(plan)]) == 2
     assert "[calibration] speed: unknown key" in capsys.readouterr().err
+
+
+def test_runs_apply_the_newest_calibration_and_refuse_a_failed_one(tmp_path, capsys, caplog):
+    """A step run after a calibration reads through it (its id in run.json, the thrust
+    corrected by the fitted gain); a newer calibration outside its limits stops the next
+    run in one line unless --accept-uncalibrated, which then applies nothing."""
+    out = tmp_path / "runs"
+    rig = _rig(tmp_path, 11, "latitude_deg = 52.27\nhysteresis_max_pct = 5\n")
+    step = ["step", "--rig", str(rig), "--repeats", "1", "--out", str(out)]
+    assert main(step) == 0  # before any calibration: the datasheet scale
+    assert main(["calibrate-sensors", "--rig", str(rig), "--yes", "--hold-s", "1",
+                 "--out", str(out)]) == 0
+    assert main(step) == 0
+    capsys.readouterr()
+    runs = sorted(p for p in out.iterdir() if p.name.endswith("step1"))
+    before, after = (read_run(p) for p in runs)
+    (cal_dir,) = out.glob("*calibration-thrust")
+    record = json.loads((cal_dir / "run.json").read_text())["calibration"]
+    assert "calibrations" not in before.meta
+    assert after.meta["calibrations"]["thrust_n"]["id"] == record["id"]
+    assert after.meta["calibrations"]["thrust_n"]["state"] == "valid"
+    # the same seeded plant, read through the gain: the held thrust scales by it
+    hold = lambda r: r.samples["thrust_n"].to_numpy()[-2000:].mean()  # noqa: E731
+    assert hold(after) / hold(before) == pytest.approx(record["applies"]["gain"], rel=2e-3)
+
+    strict = tmp_path / "strict.toml"
+    strict.write_text(rig.read_text().replace("hysteresis_max_pct = 5",
+                                              "hysteresis_max_pct = 0.01"))
+    strict_cal = ["calibrate-sensors", "--rig", str(strict), "--yes", "--hold-s", "1",
+                  "--out", str(out)]
+    assert main(strict_cal) == 1  # not accepted, and the newest for this rig
+    capsys.readouterr()
+    strict_step = ["step", "--rig", str(strict), "--repeats", "1", "--out", str(out)]
+    assert main(strict_step) == 2
+    err = capsys.readouterr().err
+    assert "failed its acceptance limits" in err and "--accept-uncalibrated" in err
+    assert len(err.strip().splitlines()) == 1
+    assert main([*strict_step, "--accept-uncalibrated"]) == 0
+    last = read_run(sorted(p for p in out.iterdir() if p.name.endswith("step1"))[-1])
+    assert last.meta["calibrations"]["thrust_n"]["state"] == "not accepted: not applied"
