@@ -57,7 +57,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _plan(args: argparse.Namespace):
-    from bench.sensor_calibration.plan import CalibrationPlan, parse_masses_g, plan_from_file
+    from bench.plans.weight_series import CalibrationPlan, parse_masses_g, plan_from_file
 
     base = plan_from_file(args.plan) if args.plan is not None else CalibrationPlan()
     given = {"cell": args.cell, "weight_class": args.weight_class, "arm_m": args.arm_m,
@@ -79,9 +79,9 @@ def handler(args: argparse.Namespace) -> int:
     from analysis.metrology.reference_force import local_gravity
     from bench.cli_args.run_args import load_rig_from_args
     from bench.engine.recorder import operator
+    from bench.jobs.sensor_calibration import Acceptance, run_sensor_calibration
+    from bench.jobs.weight_loaders import OperatorLoader, sim_fixture
     from bench.paths.outputs import check_writable
-    from bench.sensor_calibration.loaders import OperatorLoader, sim_fixture
-    from bench.sensor_calibration.procedure import Acceptance, run_sensor_calibration
     from drivers.factory import open_rig
 
     plan = _plan(args)

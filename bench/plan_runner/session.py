@@ -190,7 +190,7 @@ def _run_opened(rig: Any, seq: Sequence, out_root: Path,
     devices = open_rig(rig, seed=seed)
     try:
         if getattr(rig, "calibration", None) is not None:  # a propulsion stand's cells
-            from bench.sensor_calibration.applied import apply_calibrations
+            from bench.plan_runner.cell_calibrations import apply_calibrations
 
             calibrations = apply_calibrations(
                 rig, devices, out_root, accept_uncalibrated=options.accept_uncalibrated)

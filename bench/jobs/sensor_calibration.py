@@ -27,8 +27,8 @@ from analysis.metrology.gum import rectangular
 from analysis.metrology.reference_force import Gravity, conventional_weight_force
 from bench.engine.recorder import RunRecorder, utc_now
 from bench.errors import RigError
-from bench.sensor_calibration.loaders import Loader
-from bench.sensor_calibration.plan import CELLS, CalibrationPlan
+from bench.jobs.weight_loaders import Loader
+from bench.plans.weight_series import CELLS, CalibrationPlan
 from bench.store.indexed_run import indexed_run
 
 __all__ = ["Acceptance", "CalibrationOutcome", "run_sensor_calibration"]
