@@ -134,7 +134,7 @@ def _report(outcome, as_json: bool) -> None:
     budget = fit.scale_budget
     ch = fit.characteristics()
     unit = "N m" if rec["applies"]["channel"] == "torque_nm" else "N"
-    print(f"{outcome.run_dir}: calibration {rec['id']}")
+    print(f"{outcome.run_dir}: calibration {rec['id']} (figure calibration.png)")
     print(f"  gain {fit.scale:.6g} +- {budget.expanded * abs(fit.scale):.2g} (k = 2), "
           f"offset {fit.offset:.5g} {unit}: {rec['applies']['rule']}")
     print("  " + ", ".join(f"{k.replace('_', ' ')} {v * 100:.3g} %" for k, v in ch.items())

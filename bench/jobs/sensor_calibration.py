@@ -1,6 +1,7 @@
 """Run a calibration series on an opened stand and record it as a run of kind
-``calibration``: every reading of every hold kept (samples), one event per step, and the
-fitted calibration record in ``run.json`` (``calibration``). A calibration is a run like
+``calibration``: every reading of every hold kept (samples), one event per step, the
+fitted calibration record in ``run.json`` (``calibration``) and its figure
+(``calibration.png``). A calibration is a run like
 any other, so the folder store, the lab catalog and the web view keep it as they keep runs:
 versioned by its id, never overwritten.
 
@@ -18,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from analysis.metrology.calibration_figure import plot_calibration
 from analysis.metrology.force_calibration import (
     CalibrationPoint,
     ForceCalibration,
@@ -33,6 +35,8 @@ from bench.store.indexed_run import indexed_run
 
 __all__ = ["Acceptance", "CalibrationOutcome", "run_sensor_calibration"]
 
+#: The figure of the calibration, in its run folder.
+FIGURE = "calibration.png"
 #: A read of the cell while a step settles or holds: often enough for any driver's buffer.
 POLL_S = 0.05
 #: Buoyancy: the air's density is not measured; 1.2 kg/m^3 +-10 % (sea level to 1000 m,
@@ -95,6 +99,7 @@ def run_sensor_calibration(rig_cfg: Any, rig: Any, plan: CalibrationPlan, loader
         record = _record(role, sensor, channel, plan, gravity, fit, acceptance,
                          recorder.run_dir.name, rig_cfg.name, recorder.meta)
         failed = record["acceptance"]["failed"]
+        plot_calibration(record, recorder.run_dir / FIGURE)
         recorder.finish("success", "calibration accepted" if not failed else
                         "calibration outside its acceptance limits: " + "; ".join(failed),
                         calibration=record)

@@ -65,6 +65,7 @@ def test_the_calibration_finds_the_hidden_errors_within_its_uncertainty(tmp_path
     run = read_run(Path(tmp_path / "runs" / record["id"]))
     assert run.meta["kind"] == "calibration" and run.meta["calibration"] == record
     assert set(run.samples["step"].unique()) == set(range(1, 10))
+    assert (run.path / "calibration.png").stat().st_size > 10_000
     from bench.store.run_index import RunIndex
 
     rows = RunIndex(tmp_path / "runs").list()
