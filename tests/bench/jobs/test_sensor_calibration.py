@@ -152,3 +152,34 @@ def test_runs_apply_the_newest_calibration_and_refuse_a_failed_one(tmp_path, cap
     assert main([*strict_step, "--accept-uncalibrated"]) == 0
     last = read_run(sorted(p for p in out.iterdir() if p.name.endswith("step1"))[-1])
     assert last.meta["calibrations"]["thrust_n"]["state"] == "not accepted: not applied"
+
+
+def test_the_web_view_shows_the_record_and_its_figure_and_survives_a_hostile_one(
+        tmp_path, capsys):
+    from fastapi.testclient import TestClient
+
+    from bench.serve.app import create_app
+    from bench.store.stores import open_store
+
+    out = tmp_path / "runs"
+    assert main(["calibrate-sensors", "--yes", "--hold-s", "1", "--masses-g", "0,200,1000",
+                 "--operator", "A. Tester", "--out", str(out)]) == 0
+    capsys.readouterr()
+    (run_dir,) = out.glob("*calibration-thrust")
+    with TestClient(create_app(open_store(str(out)))) as client:
+        page = client.get(f"/runs/{run_dir.name}")
+        assert page.status_code == 200
+        assert 'id="calibration"' in page.text and "A. Tester" in page.text
+        assert "accepted" in page.text and "budget of the gain" in page.text
+        fig = client.get(f"/runs/{run_dir.name}/calibration.png")
+        assert fig.status_code == 200 and fig.content[:4] == b"\x89PNG"
+        meta = json.loads((run_dir / "run.json").read_text())
+        meta["calibration"]["result"]["scale"] = "<script>alert(1)</script>"
+        meta["calibration"]["operator"] = "<b>x</b>"
+        (run_dir / "run.json").write_text(json.dumps(meta))
+        (run_dir / "calibration.png").unlink()
+        (run_dir / "calibration.png").symlink_to("/etc/passwd")
+        page = client.get(f"/runs/{run_dir.name}")
+        assert page.status_code == 200 and 'id="calibration"' not in page.text
+        assert "<script>alert(1)</script>" not in page.text  # escaped in run.json's text
+        assert client.get(f"/runs/{run_dir.name}/calibration.png").status_code == 422
