@@ -99,7 +99,7 @@ def handler(args: argparse.Namespace) -> int:
     meta = {"operator": args.operator or operator(), "command_line": sys.argv[1:]}
     with open_rig(rig_cfg, seed=args.seed) as rig:
         if args.yes:
-            loader = sim_fixture(rig)
+            loader = sim_fixture(rig, plan.cell)
             if loader is None:
                 raise RigError(f"--yes: {rig_cfg.path} has no automatic fixture the bench "
                                "can drive; calibrate step by step (without --yes)")

@@ -73,7 +73,7 @@ class CellCalibration:
         info: dict[str, Any] = {"kind": "cell calibration", "status": "fail", "reason": "",
                                 "run_dir": "", "trip": None, "rows": 0, "t_end_s": 0.0}
         with self.open_rig(self.rig, seed=self.seed) as rig:
-            loader = sim_fixture(rig) if self.automatic else self
+            loader = sim_fixture(rig, self.plan.cell) if self.automatic else self
             if loader is None:
                 raise RigError("automatic: this rig has no fixture the bench can drive; "
                                "place the weights by hand")

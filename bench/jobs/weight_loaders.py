@@ -14,7 +14,7 @@ __all__ = ["FixtureLoader", "Loader", "OperatorLoader", "sim_fixture"]
 
 class Loader(Protocol):
     def load(self, force: float, mass_kg: float, step: int, total: int) -> None:
-        """Return once ``mass_kg`` (its ``force`` on the cell) is on the cell."""
+        """Return once ``mass_kg`` (its ``force``, or torque on an arm) is on the cell."""
         ...
 
 
@@ -42,16 +42,18 @@ class FixtureLoader:
         self.place(force)
 
 
-def sim_fixture(rig: Any) -> FixtureLoader | None:
-    """The simulated stand's fixture (weights lowered onto its simulated cell at the
-    simulated time), or None: a real stand has no fixture the bench knows of."""
+def sim_fixture(rig: Any, cell: str = "thrust") -> FixtureLoader | None:
+    """The simulated stand's fixture (weights lowered onto its simulated thrust cell, or
+    hung on its torque cell's arm, at the simulated time), or None: a real stand has no
+    fixture the bench knows of."""
     sim = getattr(rig, "sim", None)
     acquisition = getattr(sim, "acquisition", None)
     if sim is None or acquisition is None:
         return None
     clock = sim.clock
+    apply = acquisition.apply_torque if cell == "torque" else acquisition.apply_force
 
-    def place(force: float) -> None:
-        acquisition.apply_force(clock.now_ns() * 1e-9, force)
+    def place(load: float) -> None:
+        apply(clock.now_ns() * 1e-9, load)
 
     return FixtureLoader(place)

@@ -47,6 +47,14 @@ class SensorParams:
     vibration_blade_pass_m_s2: float = 0.0  # (assumption)
     vibration_noise_m_s2: float = 0.05  # accelerometer noise per sample (assumption)
     vibration_blades: int = 2  # propeller blades: blade-pass = blades x rotor frequency
+    # An optional torque cell beside the load cell (a two-axis thrust/torque stand, channel
+    # torque_nm of the load-cell device): 0 (the default) has none. It feels the rotor's
+    # reaction torque k_q w^2 (E.2) and weights hung on a calibration arm.
+    torque_cell_range_nm: float = 0.0
+    torque_cell_v_per_nm: float = 2.0  # bridge + amplifier sensitivity (assumption)
+    torque_cell_offset_v: float = -0.004  # zero offset of its bridge
+    torque_cell_noise_nm: float = 0.004  # white noise at 25 kHz (assumption)
+    torque_cell_error_seed: int = -1  # its hidden errors, drawn as the load cell's
     # The load cell's hidden errors (drivers.sim.cell_errors), what a calibration finds:
     # drawn from load_cell_error_seed (>= 0), else the four values below (0: a perfect cell).
     load_cell_error_seed: int = -1
@@ -70,6 +78,17 @@ class SensorParams:
             return CellErrors.drawn(int(self.load_cell_error_seed))
         return CellErrors(self.load_cell_scale_error, self.load_cell_nonlinearity,
                           self.load_cell_hysteresis, self.load_cell_creep)
+
+    @property
+    def torque_cell_errors(self) -> CellErrors:
+        """The torque cell's hidden errors (none unless ``torque_cell_error_seed`` >= 0)."""
+        if self.torque_cell_error_seed >= 0:
+            return CellErrors.drawn(int(self.torque_cell_error_seed))
+        return CellErrors()
+
+    @property
+    def torque_cell(self) -> bool:
+        return self.torque_cell_range_nm > 0.0
 
     @property
     def vibration(self) -> bool:

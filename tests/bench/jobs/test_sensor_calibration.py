@@ -28,11 +28,12 @@ def _rig(tmp_path: Path, seed: int, calibration: str = "latitude_deg = 52.27\n")
     return path
 
 
-def _truth_gain(errors: CellErrors, record: dict) -> tuple[float, float]:
-    """The gain and hysteresis the hidden cell really has over the series' loads: the
-    least-squares line through its noise-free output at each step, and its largest
-    up/down difference (fraction of the calibration's full-scale output)."""
-    r = SensorParams().load_cell_range_n
+def _truth_gain(errors: CellErrors, record: dict, r: float | None = None
+                ) -> tuple[float, float]:
+    """The gain and hysteresis the hidden cell (range ``r``) really has over the series'
+    loads: the least-squares line through its noise-free output at each step, and its
+    largest up/down difference (fraction of the calibration's full-scale output)."""
+    r = r or SensorParams().load_cell_range_n
     pts = record["result"]["points"]
     f = np.array([p["force"] for p in pts])
     branch = [1 if p["direction"] == "up" else -1 for p in pts]
@@ -70,6 +71,27 @@ def test_the_calibration_finds_the_hidden_errors_within_its_uncertainty(tmp_path
 
     rows = RunIndex(tmp_path / "runs").list()
     assert [(r.sequence, r.status) for r in rows] == [("calibrate-sensors", "success")]
+
+
+def test_the_torque_cell_is_calibrated_with_weights_on_its_arm(tmp_path, capsys):
+    rig = _rig(tmp_path, 11, "latitude_deg = 52.27\nhysteresis_max_pct = 5\n")
+    rig.write_text(rig.read_text().replace(
+        "load_cell_error_seed = 11", "load_cell_error_seed = 11\ntorque_cell_range_nm = 0.5\n"
+        "torque_cell_error_seed = 5"))
+    code = main(["calibrate-sensors", "--rig", str(rig), "--yes", "--json", "--cell", "torque",
+                 "--arm-m", "0.1", "--arm-u-m", "0.0002", "--masses-g", "0,50,100,200,300",
+                 "--hold-s", "1", "--out", str(tmp_path / "runs")])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    record = json.loads(out[out.index("{"):])
+    assert record["applies"]["channel"] == "torque_nm" and record["arm_m"] == 0.1
+    gain, _hyst = _truth_gain(CellErrors.drawn(5), record, r=0.5)
+    fit = record["result"]
+    assert abs(fit["scale"] - gain) <= 2 * fit["u_scale"], (fit["scale"], gain)
+    arm = next(t for t in fit["scale_budget"]["budget"] if t["name"].startswith("reference"))
+    assert arm["u"] == pytest.approx(0.002, rel=0.01)  # 0.2 mm on 100 mm dominates g
+    assert max(p["force"] for p in fit["points"]) == pytest.approx(0.3 * 9.8125 * 0.1,
+                                                                     rel=1e-3)
 
 
 def test_a_cell_outside_its_acceptance_limits_is_recorded_and_exits_1(tmp_path, capsys):
