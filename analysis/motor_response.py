@@ -58,7 +58,8 @@ def fit_motor_response(t_s: np.ndarray, command: np.ndarray, rpm: np.ndarray,
     u = np.asarray(command, float)
     w = np.asarray(rpm, float)
     ok = np.isfinite(t) & np.isfinite(u) & np.isfinite(w)
-    nan = MotorResponse(motor, math.nan, math.nan, math.nan, (math.nan,) * 3, math.nan, 0)
+    nan = MotorResponse(motor, math.nan, math.nan, math.nan, (math.nan, math.nan, math.nan),
+                        math.nan, 0)
     if ok.sum() < MIN_SAMPLES:
         return _why(nan, f"{int(ok.sum())} samples with command and speed (need "
                          f"{MIN_SAMPLES})")
