@@ -74,19 +74,24 @@ def fit_motor_response(t_s: np.ndarray, command: np.ndarray, rpm: np.ndarray,
     if fs <= 2.5 * SMOOTH_HZ:
         return _why(nan, f"speed logged at {fs:.0f} Hz: too slow to see a time constant of "
                          "tens of ms (needs > 100 Hz)")
-    ws = sosfiltfilt(butter(2, SMOOTH_HZ, fs=fs, output="sos"), w)
+    # the same zero-phase low-pass on speed and on the map's regressors: a linear filter
+    # commutes with the model, so the smoothed signals obey it too
+    sos = butter(2, SMOOTH_HZ, fs=fs, output="sos")
+    ws = sosfiltfilt(sos, w)
     dw = np.gradient(ws, dt)
+    u1, u2 = sosfiltfilt(sos, u), sosfiltfilt(sos, u * u)
     turning = ws > 0.1 * np.nanmax(ws)
     best: tuple[float, np.ndarray, float, int] | None = None
     for d in DEAD_TIMES_S:
         k = round(d / dt)
-        ud = np.concatenate((np.full(k, u[0]), u[:u.size - k])) if k else u
+        ud1 = np.concatenate((np.full(k, u1[0]), u1[:u1.size - k])) if k else u1
+        ud2 = np.concatenate((np.full(k, u2[0]), u2[:u2.size - k])) if k else u2
         use = turning.copy()
         use[:k] = False
         if use.sum() < MIN_SAMPLES:
             continue
         rising = (dw > 0)[use]
-        x = np.column_stack((np.ones(int(use.sum())), ud[use], ud[use] ** 2,
+        x = np.column_stack((np.ones(int(use.sum())), ud1[use], ud2[use],
                              -dw[use] * rising, -dw[use] * ~rising))
         coef, *_ = np.linalg.lstsq(x, ws[use], rcond=None)
         rms = float(np.sqrt(np.mean((x @ coef - ws[use]) ** 2)))
