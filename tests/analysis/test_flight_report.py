@@ -17,7 +17,7 @@ from analysis.run_record import RunRecord
 RATE = 1000.0
 
 
-def _flight(seconds: float = 40.0, rpm: bool = True) -> RunRecord:
+def _flight(seconds: float = 25.0, rpm: bool = True) -> RunRecord:
     rng = np.random.default_rng(2)
     t = np.arange(0.0, seconds, 1.0 / RATE)
     cols: dict[str, np.ndarray] = {"t_s": t}
