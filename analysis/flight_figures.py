@@ -50,7 +50,7 @@ def plot_noise(rep: FlightReport, path: Path, blades: int = 2) -> Path | None:
     for ax, axis in zip(subs[0], axes, strict=True):
         with np.errstate(divide="ignore", invalid="ignore"):
             db = 10 * np.log10(m.psd[axis])
-        ax.pcolormesh(m.freqs_hz, m.throttle_edges * 100, db, shading="flat", cmap="viridis")
+        ax.pcolormesh(m.freqs_hz, centres, db, shading="nearest", cmap="viridis")
         ok = np.isfinite(m.rotor_hz)
         if ok.any():
             ax.plot(m.rotor_hz[ok], centres[ok], "w--", lw=1, label="rotor")

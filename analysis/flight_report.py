@@ -70,16 +70,23 @@ def throttle_of(rec: RunRecord) -> np.ndarray | None:
 
 
 def hover_summary(rec: RunRecord) -> dict[str, float]:
-    """Median throttle, current, voltage and power over the samples where every body rate
-    is small and the throttle is inside its middle 80 % (take-off and landing out)."""
+    """Median throttle, current, voltage and power over the samples where the vehicle
+    flies (throttle above a third of its top, at least 0.1: idle on the ground is out),
+    every body rate is small and the throttle is inside the flight's middle 80 % (climbs
+    and descents out)."""
     t = rec.column("t_s")
     thr = throttle_of(rec)
     rates = [g for a in AXES if (g := _col(rec, f"gyro_{a}_rad_s")) is not None]
     if thr is None or not rates:
         return {}
     calm = np.all(np.abs(np.vstack(rates)) < HOVER_RATE_RAD_S, axis=0)
-    lo, hi = np.nanpercentile(thr, [10, 90]) if np.isfinite(thr).any() else (0.0, 0.0)
-    mask = calm & (thr >= lo) & (thr <= hi) & np.isfinite(thr)
+    if not np.isfinite(thr).any():
+        return {"hover_s": 0.0}
+    flying = np.isfinite(thr) & (thr > max(0.1, np.nanpercentile(thr, 95) / 3))
+    if not flying.any():
+        return {"hover_s": 0.0}
+    lo, hi = np.nanpercentile(thr[flying], [10, 90])
+    mask = calm & flying & (thr >= lo) & (thr <= hi)
     span = float(np.sum(np.diff(t)[mask[:-1]])) if t.size > 1 else 0.0
     if span < HOVER_MIN_S:
         return {"hover_s": span}

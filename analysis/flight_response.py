@@ -50,6 +50,10 @@ MIN_HIGH_WINDOWS = 10
 HIST_BINS = 1000
 HIST_RANGE = (-1.5, 3.5)
 HIST_SIGMA = 7.0  # bins, along the amplitude
+#: a response whose final value is outside this never followed its setpoint (a vehicle on
+#: the ground, an axis without stick input): no numbers (PIDtoolbox's quality gate keeps
+#: 0.5 < response < 3 over 200-500 ms for the same reason)
+FINAL_RANGE = (0.5, 2.0)
 
 
 @dataclass(frozen=True)
@@ -221,6 +225,12 @@ def flight_step_responses(t_s: np.ndarray, setpoint: dict[str, np.ndarray],
         if (not low.any() and high.sum() < MIN_HIGH_WINDOWS) or h1 is None:
             out[axis] = _why(empty, f"no window's setpoint exceeds {MIN_INPUT_DPS:g} deg/s: "
                                     "no stick input to respond to")
+            continue
+        final = response_metrics(t_resp, h1)["final"]
+        if not FINAL_RANGE[0] <= final <= FINAL_RANGE[1]:
+            out[axis] = _why(empty, f"the gyro does not follow the setpoint (the response "
+                                    f"settles at {final:.2f} of it, {segments} segments): "
+                                    "on the ground, or too little stick input")
             continue
         use = low if low.any() else high
         step_pa = _mode_average(steps[use])

@@ -64,6 +64,13 @@ def fit_motor_response(t_s: np.ndarray, command: np.ndarray, rpm: np.ndarray,
         return _why(nan, f"{int(ok.sum())} samples with command and speed (need "
                          f"{MIN_SAMPLES})")
     t, u, w = t[ok], u[ok], w[ok]
+    # a speed held between slower updates (ESC telemetry under a faster gyro clock): its
+    # own rate is how often it changes
+    changes = int(np.count_nonzero(np.diff(w)))
+    span = float(t[-1] - t[0])
+    if span > 0 and changes / span <= 2.5 * SMOOTH_HZ:
+        return _why(nan, f"speed updated at {changes / span:.0f} Hz: too slow to see a time "
+                         "constant of tens of ms (needs > 100 Hz)")
     dt = float(np.median(np.diff(t)))
     if not dt > 0:
         return _why(nan, "the log's time does not advance")

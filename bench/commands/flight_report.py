@@ -162,8 +162,9 @@ def _print(s: dict[str, Any], out: Path) -> None:
                             f"dead time {r['dead_time_ms']:.1f} ms"))
     h = s["hover"]
     if "throttle" in h:
-        extra = "".join(f", {k.replace('_', ' ')} {h[k]:.3g}" for k in
-                        ("current_a", "voltage_v", "power_w") if k in h)
+        extra = "".join(f", {label} {h[k]:.3g} {unit}" for k, label, unit in
+                        (("current_a", "current", "A"), ("voltage_v", "voltage", "V"),
+                         ("power_w", "power", "W")) if k in h)
         print(f"  hover ({h['hover_s']:.1f} s): throttle {100 * h['throttle']:.1f} %{extra}")
     for r in s["design_vs_flight"]:
         pred = "-" if r["predicted"] is None else f"{r['predicted']:.4g}"
