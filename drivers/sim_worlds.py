@@ -6,7 +6,8 @@ peers that the same world drives on the wall clock. Each bench brings its world:
 
 * the propulsion stand: :func:`build_sim_rig` (``drivers.sim.rig.SimRig`` from the rig's
   ``[sim]`` and ``[esc]`` tables); its wire peers run on a
-  :class:`drivers.wire_sim.plant_peers.WirePlant` (:func:`wire_plant`);
+  :class:`drivers.wire_sim.plant_peers.WirePlant` (:func:`wire_plant`), in a child
+  process of its own with its serial peers;
 * the IMU bench: :func:`build_sim_imu_rig` (``drivers.sim.imu_rig.SimImuRig``), on a
   :class:`drivers.wire_sim.paced_clock.PacedClock` when serial peers need the wall clock.
 
@@ -30,7 +31,7 @@ if TYPE_CHECKING:  # the IMU world (scipy splines) loads only for an IMU bench
     from drivers.sim.imu_rig import SimImuRig
 
 __all__ = ["PROPULSION_SENSORS", "build_sim_imu_rig", "build_sim_rig", "sim_faults",
-           "wire_plant"]
+           "wire_plant", "wire_sims"]
 
 PROPULSION_SENSORS = ("load_cell", "power", "rpm")
 
@@ -92,8 +93,19 @@ def build_sim_rig(rig: RigView, *, seed: int | None = None, urls: dict[str, str]
     )
 
 
-def wire_plant(rig: RigView, seed: int | None = None) -> Any:
-    """The propulsion plant on the wall clock, owner of the rig's wire-level peers."""
+def wire_plant(rig: RigView, seed: int | None = None, *, own_process: bool = True) -> Any:
+    """The propulsion plant on the wall clock, owner of the rig's wire-level peers: served
+    with them by a child process (``drivers.wire_sim.world_process``), or in this one."""
+    if not own_process:
+        return wire_sims(rig, seed)
+    from drivers.wire_sim.plant_peers import ProcessWireSims, RemotePlant
+    from drivers.wire_sim.world_process import WorldProcess
+
+    return ProcessWireSims(RemotePlant(WorldProcess(wire_sims, rig, seed, name="wire-plant")))
+
+
+def wire_sims(rig: RigView, seed: int | None = None) -> Any:
+    """The propulsion plant and its peers in this process (the world process's world)."""
     from drivers.wire_sim.plant_peers import WirePlant, WireSims
 
     return WireSims(WirePlant(build_sim_rig(rig, seed=seed)))

@@ -22,7 +22,7 @@ from rotorbench_tests_services import pg_cluster, pg_url, s3, s3_env  # noqa: E4
 
 REPO = Path(__file__).resolve().parents[1]
 FIXTURES = REPO / "fixtures"
-#: The open test data (BROAD trial 07, esc_test logs), each with LICENSE and SOURCE.md.
+#: The open test data (BROAD trial 07, esc_test logs, PX4 ULogs), each with LICENSE and SOURCE.md.
 #: The name is historical: they lived in a folder beside the repository before they shipped.
 SHARED_DATA = FIXTURES / "data"
 #: the files the package ships (package data, not test fixtures)

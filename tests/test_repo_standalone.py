@@ -38,7 +38,7 @@ def test_nothing_reaches_beside_the_repository() -> None:
 
 
 @pytest.mark.parametrize("data_set", ["optimizer/data/sizinglab", "fixtures/data/broad",
-                                      "fixtures/data/esc_test"])
+                                      "fixtures/data/esc_test", "fixtures/data/px4_ulog"])
 def test_each_shipped_data_set_has_its_licence_and_source(data_set: str) -> None:
     folder = REPO / data_set
     assert (folder / "LICENSE").stat().st_size > 500

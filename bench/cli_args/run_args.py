@@ -45,6 +45,9 @@ def add_common_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--tick", type=float, default=0.02,
                    help="command/read period in seconds; limits are checked on every "
                         "sample, the reaction comes within one tick (default 0.02)")
+    p.add_argument("--accept-uncalibrated", action="store_true",
+                   help="run although the newest calibration of a cell failed its "
+                        "acceptance limits (it is then not applied; run.json says so)")
     add_store_args(p, records=True)
 
 
@@ -94,7 +97,8 @@ def run_options_from_args(args: argparse.Namespace) -> Any:
     """The loop settings of ``--tick``, ``--realtime`` and ``--live`` (which implies it)."""
     from bench.plan_runner.runner import RunOptions
 
-    return RunOptions(tick_s=args.tick, realtime=bool(args.realtime or args.live))
+    return RunOptions(tick_s=args.tick, realtime=bool(args.realtime or args.live),
+                      accept_uncalibrated=bool(getattr(args, "accept_uncalibrated", False)))
 
 
 def dry_run_text(rig: Any, seq: Any, note: str | None = None) -> str:

@@ -1,7 +1,10 @@
 """``rotorbench import FILE [--format F] --out DIR``: another bench's log as a run folder.
 
 The format is read from the header unless ``--format`` forces it (``--map`` implies csv);
-the output line says which was taken and how.
+the output line says which was taken and how. Flight logs (Betaflight/INAV blackbox, PX4
+ULog, ArduPilot DataFlash; ``analysis.flightlogs``) become runs of kind ``flight``; a
+blackbox file holding several logs gives one run each (``DIR``, ``DIR-2``, ...) unless
+``--log N`` picks one.
 
 Parsing lives in ``analysis.importers``; this is the glue that writes the run folder with
 ``bench.engine.recorder.RunRecorder`` into a temporary folder beside ``DIR`` and renames it into
@@ -17,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from analysis.flightlogs import FLIGHT_FORMATS
 from bench.errors import RigError
 
 COMMAND = "import"
@@ -24,18 +28,26 @@ COMMAND = "import"
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
-        COMMAND, help="import a thrust-stand log (RCbenchmark, ESC32, any CSV) as a run",
+        COMMAND, help="import a thrust-stand log (RCbenchmark, ESC32, any CSV) or a flight "
+                      "log (blackbox, ULog, DataFlash) as a run",
         description="Reads another bench's log and writes a run folder with the run's column "
-                    "names and SI units (units from the file's column names). A CSV whose "
+                    "names and SI units (units from the file's column names). A flight log "
+                    "(Betaflight/INAV blackbox, PX4 ULog, ArduPilot DataFlash) becomes a run of "
+                    "kind flight (docs/flight-logs.md). A CSV whose "
                     "columns already carry run names (t_s, throttle_us, thrust_n, rpm, ...) "
                     "needs no --map. The format is detected from the header; --format "
                     "forces one, --map implies csv.")
     p.add_argument("file", type=Path, help="log file")
-    p.add_argument("--format", dest="fmt", choices=("rcbenchmark", "esc32", "csv"),
+    p.add_argument("--format", dest="fmt",
+                   choices=("rcbenchmark", "esc32", "csv", *FLIGHT_FORMATS),
                    default=None, help="force the format (default: detected from the header)")
     p.add_argument("--map", dest="mapping", action="append", default=[],
                    metavar="RUNCOL=FILECOL", help="csv only: take a run column from a file "
                                                   "column (repeatable)")
+    p.add_argument("--log", dest="log_index", type=int, default=None, metavar="N",
+                   help="flight logs: import only the N-th log of the file (1 = first)")
+    p.add_argument("--max-rows", type=int, default=None, metavar="N",
+                   help="flight logs: keep at most N rows per log (default 20,000,000)")
     p.add_argument("--out", type=Path, required=True, help="run folder to create")
     p.set_defaults(func=handler)
 
@@ -102,6 +114,18 @@ def handler(args: argparse.Namespace) -> int:
     check_run_id(args.out.name, f"--out {args.out}: the folder's name (the run's id)")
     check_writable(args.out, "--out", folder=True, beside=True)
     mapping = parse_mapping(args.mapping) or None
+    if args.fmt in FLIGHT_FORMATS or (not args.fmt and not mapping):
+        from analysis.flightlogs import detect_flight_format
+
+        flight = args.fmt or detect_flight_format(args.file)
+        if flight:
+            if mapping:
+                raise RigError(f"--map applies to --format csv only (the {flight} fields "
+                               "are known)")
+            return import_flight(args, flight, "--format" if args.fmt else
+                                 "detected from its first bytes")
+    if args.log_index is not None or args.max_rows is not None:
+        raise RigError("--log and --max-rows apply to flight logs only")
     if args.fmt:
         fmt, how = args.fmt, "--format"
     elif mapping:
@@ -129,4 +153,41 @@ def handler(args: argparse.Namespace) -> int:
         print(f"dropped line {cut['line']} ({cut['text'][:40]!r}): the file ends inside it "
               "(no line break; the logger stopped mid-line?); recorded in run.json "
               "import.cut_last_line")
+    return 0
+
+
+def import_flight(args: argparse.Namespace, fmt: str, how: str) -> int:
+    """Each log of a flight-log file as a run of kind ``flight``."""
+    import pandas as pd
+
+    from analysis.flightlogs import read_flight_log
+    from bench.engine.run_ids import check_run_id
+
+    for flag, value in (("--log", args.log_index), ("--max-rows", args.max_rows)):
+        if value is not None and value < 1:
+            raise RigError(f"{flag} {value}: expected a whole number of at least 1")
+    logs = read_flight_log(args.file, fmt, max_rows=args.max_rows)
+    picked = list(enumerate(logs, start=1))
+    if args.log_index is not None:
+        if not 1 <= args.log_index <= len(logs):
+            raise RigError(f"--log {args.log_index}: {args.file} holds {len(logs)} "
+                           f"log{'s' if len(logs) != 1 else ''}")
+        picked = [picked[args.log_index - 1]]
+    outs = [args.out if k == 0 else args.out.with_name(f"{args.out.name}-{k + 1}")
+            for k in range(len(picked))]
+    for out in outs:
+        if out.exists():
+            raise RigError(f"--out {out}: already exists (choose a new run folder)")
+        check_run_id(out.name, f"--out {out}: the folder's name (the run's id)")
+    for out, (number, log) in zip(outs, picked, strict=True):
+        source = {"source_file": str(args.file), "format": fmt, "format_taken": how,
+                  "log_in_file": number, "logs_in_file": len(logs)}
+        meta = {"kind": "flight", "components": {}, "import": source,
+                "flight": log.run_meta()}
+        write_run(out, pd.DataFrame(log.columns, copy=False), meta)
+        cols = ", ".join(log.columns)
+        print(f"{out}: imported {log.rows} rows from {args.file} (log {number} of "
+              f"{len(logs)}; {fmt}, {how}); columns {cols}")
+        for note in log.meta.get("notes", []):
+            print(f"{out}: {note}")
     return 0

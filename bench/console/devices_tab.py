@@ -1,5 +1,6 @@
 """The devices tab: each device of the rig with its state (check result, answering,
-last value), check and load-cell tare."""
+last value), check, load-cell tare and the load cell's calibration with known weights
+(prompted step by step, or by the simulated stand's fixture)."""
 
 from __future__ import annotations
 
@@ -39,8 +40,29 @@ class DevicesTab(QtWidgets.QWidget):
         buttons.addWidget(self.check_button)
         buttons.addWidget(self.tare_button)
         buttons.addStretch(1)
+        # the load cell's calibration with known weights (docs/calibration.md)
+        self.masses = QtWidgets.QLineEdit("0,100,200,500,1000")
+        self.masses.setToolTip("the weights in grams, ascending from 0")
+        self.automatic = QtWidgets.QCheckBox("automatic fixture")
+        self.calibrate_button = QtWidgets.QPushButton("Calibrate load cell")
+        self.placed_button = QtWidgets.QPushButton("Weight placed")
+        self.placed_button.setEnabled(False)
+        for b in (self.calibrate_button, self.placed_button):
+            b.setFocusPolicy(QtCore.Qt.FocusPolicy.NoFocus)
+        self.calibrate_button.clicked.connect(self._calibrate)
+        self.placed_button.clicked.connect(self._placed)
+        self.prompt = QtWidgets.QLabel("")
+        self.prompt.setWordWrap(True)
+        cal = QtWidgets.QHBoxLayout()
+        cal.addWidget(QtWidgets.QLabel("weights (g):"))
+        cal.addWidget(self.masses, 1)
+        cal.addWidget(self.automatic)
+        cal.addWidget(self.calibrate_button)
+        cal.addWidget(self.placed_button)
         layout = QtWidgets.QVBoxLayout(self)
         layout.addLayout(buttons)
+        layout.addLayout(cal)
+        layout.addWidget(self.prompt)
         layout.addWidget(self.info)
         layout.addWidget(self.table, 1)
         self.roles: list[str] = []
@@ -48,6 +70,32 @@ class DevicesTab(QtWidgets.QWidget):
     def _ask(self, kind: str, text: str) -> None:
         self.info.setText(text)
         self.request(kind, None)
+
+    def _calibrate(self) -> None:
+        self.info.setText("calibrating the load cell (motor stopped)...")
+        self.request("calibrate_cell", {"masses_g": self.masses.text(),
+                                        "automatic": self.automatic.isChecked()})
+
+    def _placed(self) -> None:
+        self.placed_button.setEnabled(False)
+        self.request("cell_placed", None)
+
+    def show_prompt(self, prompt: dict[str, Any]) -> None:
+        """The bench asks for the next weight."""
+        self.prompt.setText(str(prompt.get("text", "")))
+        self.placed_button.setEnabled(True)
+
+    def show_calibration(self, result: dict[str, Any]) -> None:
+        self.prompt.setText("")
+        self.placed_button.setEnabled(False)
+        if result.get("status") != "success":
+            self.info.setText(f"calibration failed: {result.get('reason')}")
+            return
+        verdict = "accepted" if result.get("passed") else "NOT accepted: " + "; ".join(
+            result.get("failed", []))
+        self.info.setText(f"calibration: gain {result['gain']:.6g} +- "
+                          f"{2 * result['u_gain']:.2g} (k = 2), {verdict}; recorded in "
+                          f"{result['run_dir']}; later runs apply it")
 
     def _set(self, row: int, col: int, text: str) -> None:
         self.table.setItem(row, col, QtWidgets.QTableWidgetItem(text))

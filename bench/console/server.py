@@ -49,6 +49,7 @@ class ActiveRun:
     result: dict[str, Any] | None = None
     ended_at: float | None = None  # time.monotonic() when the run (and its safe stop) ended
     imu: Any = None  # an IMU-bench calibration (bench.console.imu_bench.ImuCalibration)
+    cell: Any = None  # a load-cell calibration (bench.console.cell_calibration)
 
 
 class ConsoleBench:
@@ -108,6 +109,33 @@ class ConsoleBench:
         self.run = run
         run.thread.start()
         self.send_state(force=True)
+
+    def _on_calibrate_cell(self, payload: Any) -> None:
+        from bench.console.cell_calibration import CellCalibration, plan_of
+
+        self._propulsion("calibrate the load cell")
+        self._refuse_if_busy("calibrate the load cell")
+        spec = dict(payload or {})
+        plan = plan_of(spec)
+        if self._open_rig is None:
+            from drivers.factory import open_rig
+        else:
+            open_rig = self._open_rig
+        run = ActiveRun("cell calibration", None, threading.Event())
+        run.cell = CellCalibration(self.rig, self.out, plan, bool(spec.get("automatic")),
+                                   run.stop, self.link.send, self.link.lost, open_rig,
+                                   self.seed)
+        run.thread = threading.Thread(target=self._work, args=(run, run.cell.run),
+                                      name="rotorbench-console-cell-calibration", daemon=True)
+        self.run = run
+        run.thread.start()
+        self.send_state(force=True)
+
+    def _on_cell_placed(self, _payload: Any) -> None:
+        run = self.run
+        if run is None or run.cell is None or run.ended_at is not None:
+            raise RigError("weight placed: no load-cell calibration is asking for one")
+        run.cell.placed()
 
     def _on_arm(self, _payload: Any) -> None:
         self._propulsion("arm")
@@ -263,7 +291,7 @@ class ConsoleBench:
             info["tare_offset_n"] = runner.tare_offset_n
             if runner.recorder is not None:
                 info["run_dir"] = str(runner.recorder.run_dir)
-        if run.imu is not None and error is not None:
+        if (run.imu is not None or run.cell is not None) and error is not None:
             info["reason"] = f"calibration: {type(error).__name__}: {error}"
         self._finished(run, info)
 
@@ -318,6 +346,8 @@ class ConsoleBench:
                                "imu": None}
         if run is not None and run.ended_at is None and run.imu is not None:
             out.update(kind=run.kind, imu=dict(run.imu.progress))
+        elif run is not None and run.ended_at is None and run.cell is not None:
+            out.update(kind=run.kind, cell_prompt=run.cell.prompt)
         elif run is not None and run.ended_at is None:
             runner = run.runner
             out.update(kind=run.kind, progress=run.progress)

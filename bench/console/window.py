@@ -153,6 +153,8 @@ class ConsoleWindow(QtWidgets.QMainWindow):
                 self.show_finished(payload)
             elif kind == "devices":
                 self.devices.show_reports(payload)
+            elif kind == "cell_prompt":
+                self.devices.show_prompt(payload)
             elif kind == "preview":
                 self.plans.show_preview(payload)
             elif kind == "error":
@@ -194,6 +196,8 @@ class ConsoleWindow(QtWidgets.QMainWindow):
             self.banner.show()
         if info["kind"] == "tare":
             self.devices.show_tare(info)
+        if info["kind"] == "cell calibration":
+            self.devices.show_calibration(info)
         if info["kind"] == "calibration":
             self.imu.show_finished(info)
         self.plans.show_finished(info)

@@ -108,6 +108,7 @@ class RunOptions:
     realtime: bool = False
     base_sensor: str = "load_cell"
     stale_s: float = 0.25  # a sensor silent this long (rig time) ends the run: limits blind
+    accept_uncalibrated: bool = False  # run although the cells' calibration failed
 
     def __post_init__(self) -> None:
         check_tick(self.tick_s, self.watchdog_timeout_s)

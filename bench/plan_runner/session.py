@@ -189,6 +189,14 @@ def _run_opened(rig: Any, seq: Sequence, out_root: Path,
     """``run_sequence`` from the devices' opening on."""
     devices = open_rig(rig, seed=seed)
     try:
+        if getattr(rig, "calibration", None) is not None:  # a propulsion stand's cells
+            from bench.plan_runner.cell_calibrations import apply_calibrations
+
+            calibrations = apply_calibrations(
+                rig, devices, out_root, accept_uncalibrated=options.accept_uncalibrated)
+            if calibrations:
+                meta = {**meta, "calibrations": calibrations}
+
         def run(recorder: RunRecorder) -> RunResult:
             try:
                 runner = runner_factory(devices, plan, esc_range_of(rig), limits, recorder,

@@ -38,6 +38,7 @@ from bench.rig.rig_propulsion import (
     LIMIT_MAXIMA,
     PULSE_RANGE_US,
     ROLES,
+    CalibrationSite,
     Components,
     EscConfig,
     Limits,
@@ -121,6 +122,7 @@ class RigConfig:
     hexapod: HexapodSettings | None = None
     imu: ImuSettings | None = None
     reference_imu: Mapping[str, float] | None = None
+    calibration: CalibrationSite | None = None
 
     @property
     def kind(self) -> str:

@@ -90,6 +90,19 @@ class Components:
 
 
 @dataclass(frozen=True)
+class CalibrationSite:
+    """The rig file's ``[calibration]``: the site's gravity (latitude and height, or a
+    measured g) and a sensor calibration's acceptance limits and validity."""
+
+    latitude_deg: float | None = None
+    height_m: float = 0.0
+    g_m_s2: float | None = None
+    nonlinearity_max_pct: float = 0.5
+    hysteresis_max_pct: float = 0.5
+    validity_days: float = 180.0
+
+
+@dataclass(frozen=True)
 class EscConfig:
     """ESC input protocol: PWM frame rate and pulse widths (us)."""
 
@@ -179,6 +192,28 @@ def _limits(path: Path, t: RigTable) -> Limits:
         t.fail("voltage_min_v", f"{vals['voltage_min_v']} V must be below voltage_max_v "
                                 f"{vals['voltage_max_v']} V")
     return Limits(**vals, source=str(path))  # type: ignore[arg-type]
+
+
+def _calibration(t: RigTable | None) -> CalibrationSite:
+    """``[calibration]``: where the bench stands (local g) and what a sensor calibration
+    must meet to be accepted (fractions in per cent of full scale), and for how long."""
+    if t is None:
+        return CalibrationSite()
+    t.only(*(f.name for f in fields(CalibrationSite)))
+    d = CalibrationSite()
+
+    def given(key: str, default: float, lo: float, hi: float, unit: str) -> float:
+        value = t.number(key, default, lo=lo, hi=hi, unit=unit)
+        return default if value is None else value
+
+    return CalibrationSite(
+        latitude_deg=t.number("latitude_deg", None, lo=-90.0, hi=90.0, unit="deg"),
+        height_m=given("height_m", d.height_m, -500.0, 9000.0, "m"),
+        g_m_s2=t.number("g_m_s2", None, lo=9.7, hi=9.9, unit="m/s^2"),
+        nonlinearity_max_pct=given("nonlinearity_max_pct", d.nonlinearity_max_pct, 0.0,
+                                   100.0, "%"),
+        hysteresis_max_pct=given("hysteresis_max_pct", d.hysteresis_max_pct, 0.0, 100.0, "%"),
+        validity_days=given("validity_days", d.validity_days, 1.0, 3650.0, "days"))
 
 
 def _esc(t: RigTable | None) -> EscConfig:
@@ -309,7 +344,8 @@ def _check_devices(path: Path, devices: Mapping[str, DeviceConfig]) -> None:
 
 def parse(path: Path, top: RigTable) -> dict[str, Any]:
     """A propulsion rig file's tables as the fields of :class:`bench.rig.rig.RigConfig`."""
-    top.only("rig", "devices", "limits", "components", "esc", "sim", "thrust_map")
+    top.only("rig", "devices", "limits", "components", "esc", "sim", "thrust_map",
+             "calibration")
     rig = top.table("rig")
     assert rig is not None
     rig.only("name", "description")
@@ -325,6 +361,7 @@ def parse(path: Path, top: RigTable) -> dict[str, Any]:
     limits = _limits(path, top.table("limits"))  # type: ignore[arg-type]
     components = _components(path, top.table("components"))  # type: ignore[arg-type]
     esc = _esc(top.table("esc", required=False))
+    calibration = _calibration(top.table("calibration", required=False))
     sim = _sim(top.table("sim", required=False), components.esc_mode)
     tm_path: Path | None = None
     thrust_map: ThrustMap | None = None
@@ -336,4 +373,5 @@ def parse(path: Path, top: RigTable) -> dict[str, Any]:
             thrust_map = read_thrust_map(tm_path)
     return {"path": path, "name": name, "devices": devices, "limits": limits,
             "components": components, "esc": esc, "sim": sim, "thrust_map": thrust_map,
-            "thrust_map_path": tm_path, "description": rig.text("description", "")}
+            "thrust_map_path": tm_path, "description": rig.text("description", ""),
+            "calibration": calibration}

@@ -40,6 +40,7 @@ from bench.errors import RigError
 from bench.serve.run_views import (
     RecordCache,
     SeriesCache,
+    calibration_view,
     command_edges,
     export_of,
     fits_of,
@@ -186,6 +187,19 @@ def create_app(store: Store, *, token: str | None = None, title: str = "rotorben
         return FileResponse(path, media_type="text/plain; charset=utf-8",
                             filename=f"{run_id}.log")
 
+    @app.get("/runs/{run_id}/calibration.png")
+    def download_calibration_figure(run_id: str) -> FileResponse:
+        from analysis.run_paths import member
+
+        folder = run_or_404(run_id)
+        try:  # a figure that is a link out of its folder is not sent
+            path = member(folder, "calibration.png", "the calibration's figure")
+        except LogError as exc:
+            raise HTTPException(422, f"run {run_id}: {exc}") from None
+        if not path.is_file():
+            raise HTTPException(404, f"run {run_id}: no calibration figure")
+        return FileResponse(path, media_type="image/png")
+
     @app.get("/runs/{run_id}/samples.parquet")
     def download_parquet(run_id: str) -> Response:
         buf = io.BytesIO()
@@ -252,7 +266,8 @@ def create_app(store: Store, *, token: str | None = None, title: str = "rotorben
             "limits": meta.get("limits") or {}, "trip": meta.get("trip"),
             "drops": {k: meta.get(k) for k in ("dropped_samples", "longest_gap_s", "drops",
                                                "link_errors") if meta.get(k) is not None},
-            "exports": EXPORTS, "columns": PLOT_COLUMNS, "log_text": log_text})
+            "exports": EXPORTS, "columns": PLOT_COLUMNS, "log_text": log_text,
+            "calibration": calibration_view(meta)})
 
     @app.get("/compare", response_class=HTMLResponse, include_in_schema=False)
     def page_compare(request: Request, runs: Annotated[str, Query(max_length=1200)] = ""

@@ -261,3 +261,30 @@ def export_of(record: RunRecord, target: str) -> dict[str, Any]:
     from analysis.exports import export_params
 
     return json_safe(export_params(target, record))
+
+
+def calibration_view(meta: dict[str, Any]) -> dict[str, Any] | None:
+    """A calibration run's record for its page (gain +- U, characteristics, acceptance,
+    budget), None for other runs or a record not in the shape ``calibrate-sensors``
+    writes (a run.json is other people's input: nothing in it is trusted to be numbers)."""
+    rec = meta.get("calibration") if meta.get("kind") == "calibration" else None
+    if not isinstance(rec, dict):
+        return None
+    try:
+        res, acc = rec["result"], rec["acceptance"]
+        gain, u = float(res["scale"]), float(res["u_scale"])
+        chars = {str(k).replace("_", " "): f"{float(v) * 100:.3g} %"
+                 for k, v in res["characteristics_fraction_of_full_scale"].items()}
+        budget = [(str(t["name"]), str(t["type"]), f"{float(t['u']) * 100:.4f} %")
+                  for t in res["scale_budget"]["budget"]]
+        return {"gain": f"{gain:.6g} +- {2 * u:.2g} (k = 2)",
+                "offset": f"{float(res['offset']):.5g}",
+                "channel": str(rec["applies"]["channel"]),
+                "characteristics": chars, "budget": budget,
+                "combined": f"{float(res['scale_budget']['u']) * 100:.4f} %",
+                "passed": bool(acc["passed"]), "failed": [str(f) for f in acc["failed"]],
+                "valid_until": str(rec["valid_until_utc"]),
+                "operator": str(rec.get("operator") or ""),
+                "gravity": str(rec["gravity"]["source"])}
+    except (KeyError, TypeError, ValueError, AttributeError):
+        return None

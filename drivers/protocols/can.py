@@ -4,7 +4,8 @@
 One bus per URL, shared by every role on it: the ESC role commands the controller, the
 sensor roles read its status broadcasts. The host ``sim`` (``can://sim/<channel>``) puts
 the simulated VESC / DroneCAN ESC (``drivers.wire_sim``) on a fresh python-can virtual
-channel, driven by the rig's wire plant.
+channel, driven by the rig's wire plant: the nodes run with the plant in its process, the
+channel's far end joined to them by a loopback socket (``drivers.wire_sim.can_socket``).
 """
 
 from __future__ import annotations
@@ -18,7 +19,6 @@ from typing import Any
 from drivers.contracts import Esc, Sensor
 from drivers.device_options import DeviceUrl
 from drivers.errors import DeviceError
-from drivers.protocols.serial import plant_peer
 from drivers.registry import backend, register
 
 EXAMPLE = "can://<interface>/<channel>"
@@ -43,8 +43,9 @@ def _bus(ctx: Any, spec: DeviceUrl) -> tuple[Any, str, Any]:
             dev_link = can_link.CanLink(bus, f"sim peers on {name}")
             wire = ctx.world()
             ctx.wire = wire
-            wire.add(f"can-link:{name}", dev_link,
+            wire.add(f"can-end:{name}", dev_link,
                      lambda lk=dev_link, b=bus: (lk.close(), b.shutdown()))
+            wire.bridge_can(name, dev_link)  # to the nodes in the world's process
             return dev_link, name
 
         peer_link, channel = ctx.shared(("can-sim", channel), sim_bus)
@@ -77,19 +78,14 @@ def _vesc_ids(spec: DeviceUrl) -> tuple[int, int, float]:
 def _vesc_peer(ctx: Any, link: Any, channel: str, cid: int, pole_pairs: int,
                rate: float) -> None:
     if link is not None:
-        from drivers.wire_sim.plant_peers import start_vesc
-
-        plant_peer(ctx, f"can:{channel}:vesc:{cid}",
-                   lambda plant: start_vesc(plant, link, cid, pole_pairs, rate))
+        ctx.wire.start_can_peer(f"can:{channel}:vesc:{cid}", "vesc", channel,
+                                (cid, pole_pairs, rate))
 
 
 def _dronecan_peer(ctx: Any, link: Any, channel: str, index: int, rate: float) -> None:
     if link is not None:
-        from drivers.wire_sim.plant_peers import start_dronecan_esc
-
-        plant_peer(ctx, f"can:{channel}:dronecan:{index}",
-                   lambda plant: start_dronecan_esc(plant, link, 42 + index, index,
-                                                    1.0 / rate))
+        ctx.wire.start_can_peer(f"can:{channel}:dronecan:{index}", "dronecan", channel,
+                                (42 + index, index, 1.0 / rate))
 
 
 @register("can", "vesc", ("esc",), summary=SUMMARY, example=EXAMPLE)

@@ -12,12 +12,13 @@ may share a board or a VESC: same options, one port):
 
 The host ``sim`` (``serial://sim/msp``, ``serial://sim/loadcell``, ``serial://sim/gx3``...)
 starts the wire-level simulated device on a pty (``drivers.wire_sim``), driven by the
-rig's simulated world; the path names the protocol when the options do not.
+rig's simulated world; the path names the protocol when the options do not. The
+propulsion stand's peers run with their plant in a child process (``serial_peer``); the
+IMU bench's share the host's paced clock and run in this one.
 """
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 from typing import Any
 
@@ -36,15 +37,12 @@ def _label(spec: DeviceUrl, protocol: str) -> str:
     return spec.path.strip("/") or protocol
 
 
-def plant_peer(ctx: Any, key: str, start: Callable[[Any], Any]) -> Any:
-    """A propulsion peer ``start(plant)`` on the rig's wire plant (one per ``key``);
-    the plant's owner stops it after the host side has closed."""
+def serial_peer(ctx: Any, spec: DeviceUrl, kind: str, *args: Any) -> Any:
+    """The propulsion peer ``plant_peers.SERIAL_PEERS[kind]`` of ``serial://sim/<label>``,
+    started in the world's process (one per label); its ``path`` is the pty to open."""
     wire = ctx.world()
     ctx.wire = wire
-    if key not in wire.peers:
-        peer = start(wire.plant)
-        wire.add(key, peer, peer.stop)
-    return wire.peers[key]
+    return wire.start_peer(f"serial:{_label(spec, kind)}", kind, args)
 
 
 def port(ctx: Any, spec: DeviceUrl, protocol: str, default_baud: int,
@@ -144,13 +142,7 @@ def open_msp_imu(ctx: Any, spec: DeviceUrl, open_link: Callable[[], Any]) -> Sen
           default_for=("esc",))
 def msp_esc(ctx: Any, spec: DeviceUrl) -> Esc:
     def link(motor: int) -> Any:
-        def start() -> Any:
-            from drivers.wire_sim.plant_peers import start_msp_fc
-
-            return plant_peer(ctx, f"serial:{_label(spec, 'msp')}",
-                              lambda plant: start_msp_fc(plant, motor))
-
-        return port(ctx, spec, "msp", 115_200, start)[0]
+        return port(ctx, spec, "msp", 115_200, lambda: serial_peer(ctx, spec, "msp", motor))[0]
 
     return open_msp_esc(ctx, spec, link)
 
@@ -189,13 +181,8 @@ def _vesc_uart_link(ctx: Any, spec: DeviceUrl) -> tuple[Any, int]:
     pole_pairs = spec.integer("pole_pairs", 7, lo=1, hi=100)
     timeout_s = spec.number("timeout_s", 0.1, lo=0.005, hi=5.0)
 
-    def start() -> Any:
-        from drivers.wire_sim.plant_peers import start_vesc_uart
-
-        return plant_peer(ctx, f"serial:{_label(spec, 'vesc')}",
-                          lambda plant: start_vesc_uart(plant, pole_pairs))
-
-    link, key = port(ctx, spec, "vesc", 115_200, start)
+    link, key = port(ctx, spec, "vesc", 115_200,
+                     lambda: serial_peer(ctx, spec, "vesc", pole_pairs))
     return ctx.shared(("vesc-uart", key),
                       lambda: vu.VescUartLink(link, spec.url, timeout_s)), pole_pairs
 
@@ -262,14 +249,9 @@ def loadcell_board(ctx: Any, spec: DeviceUrl) -> Sensor:
         period_s = spec.number("period_s", 0.004, lo=0.0005, hi=1.0) \
             if spec.is_wire_sim else 0.0
 
-        def start() -> Any:
-            from drivers.wire_sim.plant_peers import start_loadcell_board
-
-            return plant_peer(ctx, f"serial:{_label(spec, 'loadcell')}",
-                              lambda plant: start_loadcell_board(plant, layout, period_s))
-
         baud = TESTSTAND_V2_BAUD if name == "teststand_v2" else 115_200
-        link, _ = port(ctx, spec, "loadcell", baud, start)
+        link, _ = port(ctx, spec, "loadcell", baud,
+                       lambda: serial_peer(ctx, spec, "loadcell", layout, period_s))
         lc = backend("loadcell_serial", spec)
         dev = lc.LineLoadCell(link, layout, clock=ctx.clock, stale_s=stale_s, url=spec.url)
         if start_text:
@@ -294,27 +276,9 @@ def kiss_telemetry(ctx: Any, spec: DeviceUrl) -> Sensor:
     kt = backend("kiss_telemetry", spec)
     kiss = kt.kiss
 
-    def start() -> Any:
-        def esc(plant: Any) -> Any:
-            from drivers.wire_sim.plant_peers import ESC_TEMPERATURE_C
-            from drivers.wire_sim.pty_sim import PtyStream
-
-            used = {"mah": 0.0, "t": time.monotonic()}  # the firmware's consumption count
-
-            def next_frame() -> bytes:
-                tr, now = plant.truth(), time.monotonic()
-                used["mah"] += max(tr.current_bus_a, 0.0) * (now - used["t"]) / 3.6
-                used["t"] = now
-                return kiss.encode(kiss.Telemetry(ESC_TEMPERATURE_C, tr.voltage_bus_v,
-                                                  tr.current_bus_a, used["mah"],
-                                                  tr.rpm * pole_pairs))
-
-            return PtyStream(next_frame, period_s).start()
-
-        return plant_peer(ctx, f"serial:{_label(spec, 'kiss')}", esc)
-
     def make() -> Sensor:
-        link, _ = port(ctx, spec, "kiss", kiss.BAUD, start)
+        link, _ = port(ctx, spec, "kiss", kiss.BAUD,
+                       lambda: serial_peer(ctx, spec, "kiss", pole_pairs, period_s))
         return kt.KissTelemetry(link, pole_pairs, clock=ctx.clock, stale_s=stale_s,
                                 url=spec.url)
 

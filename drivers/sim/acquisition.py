@@ -20,6 +20,7 @@ from typing import Any, Protocol, TypeAlias
 
 import numpy as np
 
+from drivers.sim.cell_errors import CellErrorState, apply_cell_errors
 from drivers.sim.clock import SimClock
 from drivers.sim.load_cell_filter import PartSnapshot, SecondOrderLowPass, bilinear_low_pass
 from drivers.sim.plant import Plant
@@ -116,14 +117,18 @@ class ColumnBuffer:
             self.first += cut
 
 
-# rows of the shared acquisition (ACC_X_M_S2 only when the rig has the vibration channel)
+# rows of the shared acquisition (ACC_X_M_S2 only when the rig has the vibration channel;
+# the torque cell's bridge after it, when the rig has one: ``Acquisition.torque_row``)
 T_S, BRIDGE_V, CURRENT_OUT_V, VOLTAGE_OUT_V, HALL_PERIOD_S, ACC_X_M_S2 = range(6)
 
 
 #: ``Acquisition.snapshot``: buffer, generator state, noise rows drawn ahead, load-cell
 #: filter, then magnet edges seen, the last edge's time and the period (RPM pickup).
 AcquisitionSnapshot: TypeAlias = tuple[BufferSnapshot, Mapping[str, Any], np.ndarray,
-                                       tuple[PartSnapshot, ...], int, float, float]
+                                       tuple[PartSnapshot, ...], int, float, float,
+                                       CellErrorState, tuple[tuple[float, float, float], ...],
+                                       tuple[PartSnapshot, ...], CellErrorState,
+                                       tuple[tuple[float, float, float], ...]]
 
 
 class Acquisition:
@@ -140,6 +145,8 @@ class Acquisition:
         self._drawing = Worker("sim-noise")
         self._rng_before: Mapping[str, Any] = {}  # the state before the rows being drawn
         self.rows = 6 if p.vibration else 5
+        self.torque_row = self.rows if p.torque_cell else -1
+        self.rows += 1 if p.torque_cell else 0
         self.buffer = ColumnBuffer(self.rows)
         # the accelerometer's noise by sample index (a table drawn once, like the clock's
         # jitter): the same whatever the read slicing, and the other channels' noise stream
@@ -156,6 +163,18 @@ class Acquisition:
         ])
         self._noise_sigma_row = self._noise_sigma.T.copy()
         self._lsb = 2.0 * p.adc_range_v / 2**p.adc_bits
+        self._cell_errors = p.load_cell_errors
+        self._cell_state = CellErrorState()
+        # the torque cell: its own mechanics, errors and noise table (drawn once, like the
+        # accelerometer's, so the other channels' noise stream is not touched)
+        self._torque_cell = SecondOrderLowPass(b, a)
+        self._torque_errors = p.torque_cell_errors
+        self._torque_state = CellErrorState()
+        self._torque_noise = np.random.default_rng(seed.spawn(1)[0]).standard_normal(
+            SampleClock.TABLE) if p.torque_cell else np.empty(0)
+        # forces put on the cell besides the rotor's (calibration weights): (from t_s, N, ramp_s)
+        self.applied: tuple[tuple[float, float, float], ...] = ()
+        self.applied_torque: tuple[tuple[float, float, float], ...] = ()  # N m
         self._count: int = 0  # magnet edges seen so far
         self._last_edge: float = -math.inf
         self._period: float = math.inf
@@ -165,12 +184,18 @@ class Acquisition:
         # goes into the snapshot, and a restore draws them again if they are needed
         rng = self._rng_before if self._drawing.pending else self.rng.bit_generator.state
         return (self.buffer.snapshot(), rng, self._ahead, self._cell.snapshot(),
-                self._count, self._last_edge, self._period)
+                self._count, self._last_edge, self._period, self._cell_state.copy(),
+                self.applied, self._torque_cell.snapshot(), self._torque_state.copy(),
+                self.applied_torque)
 
     def restore(self, snap: AcquisitionSnapshot) -> None:
         if self._drawing.pending:
             self._drawing.result()  # the thread must be done with the generator
-        buffer, rng, self._ahead, cell, self._count, self._last_edge, self._period = snap
+        (buffer, rng, self._ahead, cell, self._count, self._last_edge, self._period,
+         cell_state, self.applied, torque_cell, torque_state, self.applied_torque) = snap
+        self._cell_state = cell_state.copy()
+        self._torque_state = torque_state.copy()
+        self._torque_cell.restore(torque_cell)
         self.buffer.restore(buffer)
         self.rng.bit_generator.state = rng
         self._cell.restore(cell)
@@ -215,13 +240,36 @@ class Acquisition:
         t = clock.nominal(n0, n1)
         rows = np.empty((self.rows, n1 - n0))
         rows[T_S] = clock.stamps(n0, n1, t)
-        self._analog(t, rows)
+        self._analog(t, rows, n0)
         rows[HALL_PERIOD_S] = self._counter(t)
-        if self.rows > ACC_X_M_S2:
+        if self.params.vibration:
             rows[ACC_X_M_S2] = self._vibration(n0, n1, t)
+        if self.torque_row >= 0:
+            rows[self.torque_row] = self._torque(n0, n1, t)
         buf.append(rows)
 
-    def _analog(self, t: np.ndarray, rows: np.ndarray) -> None:
+    def apply_force(self, t_s: float, force_n: float, ramp_s: float = 0.5) -> None:
+        """From sim time ``t_s`` on, ``force_n`` (a calibration weight's) acts on the cell
+        besides the rotor's thrust (0 takes it off), reached linearly over ``ramp_s``: a
+        weight lowered by hand or by a fixture, not dropped (a drop rings the cell past
+        its load, onto the other branch of its hysteresis)."""
+        self.applied = (*self.applied, (t_s, force_n, max(ramp_s, 1e-9)))
+
+    def apply_torque(self, t_s: float, torque_nm: float, ramp_s: float = 0.5) -> None:
+        """As ``apply_force``, for weights hung on the torque cell's calibration arm."""
+        self.applied_torque = (*self.applied_torque, (t_s, torque_nm, max(ramp_s, 1e-9)))
+
+    @staticmethod
+    def _ramps(t: np.ndarray, applied: tuple[tuple[float, float, float], ...]) -> np.ndarray:
+        """The applied load at each sample time: ramps between the values set."""
+        total = np.zeros_like(t)
+        before = 0.0
+        for start, value, ramp in applied:  # a few weights: one pass each
+            total += (value - before) * np.clip((t - start) / ramp, 0.0, 1.0)
+            before = value
+        return total
+
+    def _analog(self, t: np.ndarray, rows: np.ndarray, n0: int) -> None:
         p = self.params
         plant = self.plant
         traj = plant.traj
@@ -230,7 +278,13 @@ class Acquisition:
         omega = np.interp(t, t_tr, traj.column("omega"))
         i_bus = np.interp(t, t_tr, traj.column("i_bus"))
         force = plant.params.thrust_k * omega * omega  # (E.1)
+        if self.applied:
+            force = force + self._ramps(t, self.applied)
         felt = self._cell(force)
+        if self._cell_errors.any:
+            r = p.load_cell_range_n
+            felt = r * apply_cell_errors(self._cell_errors, self._cell_state, felt / r, n0,
+                                         1.0 / p.sample_rate_hz)
         out = rows[BRIDGE_V : VOLTAGE_OUT_V + 1]
         np.multiply(felt, p.load_cell_v_per_n, out=out[0])
         out[0] += p.load_cell_offset_v
@@ -249,6 +303,30 @@ class Acquisition:
         np.minimum(np.maximum(pos, 0.0, out=pos), top, out=pos)
         np.minimum(np.maximum(bridge, -p.adc_range_v, out=bridge), p.adc_range_v - lsb, out=bridge)
         np.multiply(np.rint(out * (1.0 / lsb), out=out), lsb, out=out)
+
+    def _torque(self, n0: int, n1: int, t: np.ndarray) -> np.ndarray:
+        """The torque cell's bridge: the rotor's reaction torque k_q w^2 (E.2) and any
+        weights on its arm, through the cell's mechanics and hidden errors, its noise and
+        the ADC."""
+        p = self.params
+        traj = self.plant.traj
+        omega = np.interp(t, traj.column("t"), traj.column("omega"))
+        torque = self.plant.params.torque_k * omega * omega  # (E.2)
+        if self.applied_torque:
+            torque = torque + self._ramps(t, self.applied_torque)
+        felt = self._torque_cell(torque)
+        if self._torque_errors.any:
+            r = p.torque_cell_range_nm
+            felt = r * apply_cell_errors(self._torque_errors, self._torque_state, felt / r,
+                                         n0, 1.0 / p.sample_rate_hz)
+        bridge = felt * p.torque_cell_v_per_nm + p.torque_cell_offset_v
+        if p.noise and p.torque_cell_noise_nm > 0:
+            bridge += (p.torque_cell_noise_nm * p.torque_cell_v_per_nm) * np.take(
+                self._torque_noise, np.arange(n0, n1), mode="wrap")
+        lsb = self._lsb
+        np.minimum(np.maximum(bridge, -p.adc_range_v, out=bridge), p.adc_range_v - lsb,
+                   out=bridge)
+        return np.rint(bridge * (1.0 / lsb)) * lsb
 
     def _vibration(self, n0: int, n1: int, t: np.ndarray) -> np.ndarray:
         """Radial acceleration of the mount: imbalance at the rotor angle, the blades' pass

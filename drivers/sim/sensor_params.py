@@ -10,6 +10,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, fields, replace
 
+from drivers.sim.cell_errors import CellErrors
+
 VIBRATION_REF_RPM = 10_000.0  # speed at which the vibration amplitudes are given
 
 
@@ -45,6 +47,21 @@ class SensorParams:
     vibration_blade_pass_m_s2: float = 0.0  # (assumption)
     vibration_noise_m_s2: float = 0.05  # accelerometer noise per sample (assumption)
     vibration_blades: int = 2  # propeller blades: blade-pass = blades x rotor frequency
+    # An optional torque cell beside the load cell (a two-axis thrust/torque stand, channel
+    # torque_nm of the load-cell device): 0 (the default) has none. It feels the rotor's
+    # reaction torque k_q w^2 (E.2) and weights hung on a calibration arm.
+    torque_cell_range_nm: float = 0.0
+    torque_cell_v_per_nm: float = 2.0  # bridge + amplifier sensitivity (assumption)
+    torque_cell_offset_v: float = -0.004  # zero offset of its bridge
+    torque_cell_noise_nm: float = 0.004  # white noise at 25 kHz (assumption)
+    torque_cell_error_seed: int = -1  # its hidden errors, drawn as the load cell's
+    # The load cell's hidden errors (drivers.sim.cell_errors), what a calibration finds:
+    # drawn from load_cell_error_seed (>= 0), else the four values below (0: a perfect cell).
+    load_cell_error_seed: int = -1
+    load_cell_scale_error: float = 0.0  # sensitivity's relative error
+    load_cell_nonlinearity: float = 0.0  # fractions of full scale (load_cell_range_n)
+    load_cell_hysteresis: float = 0.0
+    load_cell_creep: float = 0.0
 
     @classmethod
     def with_overrides(cls, overrides: dict[str, float]) -> SensorParams:
@@ -53,6 +70,25 @@ class SensorParams:
             if name not in known:
                 raise KeyError(name)
         return replace(cls(), **overrides)
+
+    @property
+    def load_cell_errors(self) -> CellErrors:
+        """The load cell's hidden errors (see the fields above)."""
+        if self.load_cell_error_seed >= 0:
+            return CellErrors.drawn(int(self.load_cell_error_seed))
+        return CellErrors(self.load_cell_scale_error, self.load_cell_nonlinearity,
+                          self.load_cell_hysteresis, self.load_cell_creep)
+
+    @property
+    def torque_cell_errors(self) -> CellErrors:
+        """The torque cell's hidden errors (none unless ``torque_cell_error_seed`` >= 0)."""
+        if self.torque_cell_error_seed >= 0:
+            return CellErrors.drawn(int(self.torque_cell_error_seed))
+        return CellErrors()
+
+    @property
+    def torque_cell(self) -> bool:
+        return self.torque_cell_range_nm > 0.0
 
     @property
     def vibration(self) -> bool:

@@ -50,7 +50,9 @@ def _whole_at_least_one(v: float) -> bool:
 CALIBRATION_KEYS: dict[str, dict[str, tuple[Callable[[float], bool], str]]] = {
     "esc": {},
     "load_cell": {"scale_n_per_v": (_positive, "a number of N/V > 0"),
-                  "offset_v": (_finite, "a number of V")},
+                  "offset_v": (_finite, "a number of V"),
+                  "torque_scale_nm_per_v": (_positive, "a number of N m/V > 0"),
+                  "torque_offset_v": (_finite, "a number of V")},
     "power": {"current_mv_per_a": (_positive, "a number of mV/A > 0"),
               "voltage_mv_per_v": (_positive, "a number of mV/V > 0"),
               "current_offset_mv": (_finite, "a number of mV")},
@@ -171,24 +173,36 @@ class SimLoadCell(SimSensor):
     model = "simulated Phidget micro load cell 5 kg"
 
     def __init__(self, daq: SimDaq, url: str, seed: np.random.SeedSequence,
-                 scale_n_per_v: float, offset_v: float) -> None:
+                 scale_n_per_v: float, offset_v: float,
+                 torque_scale_nm_per_v: float | None = None,
+                 torque_offset_v: float = 0.0) -> None:
         super().__init__(daq, url, seed)
         self.scale_n_per_v = scale_n_per_v
         self.offset_v = offset_v
+        # the torque cell's datasheet scale unless the rig file gives its own
+        self.torque_scale_nm_per_v = (torque_scale_nm_per_v if torque_scale_nm_per_v
+                                      else 1.0 / self.params.torque_cell_v_per_nm)
+        self.torque_offset_v = torque_offset_v
 
     def channels(self) -> tuple[ChannelInfo, ...]:
         r = self.params.load_cell_range_n
         fs = self.params.sample_rate_hz
-        thrust = ChannelInfo("thrust_n", "N", fs, -r, r)
-        if not self.params.vibration:
-            return (thrust,)
-        # the optional accelerometer on the mount, +-16 g (drivers.sim.sensor_params)
-        return thrust, ChannelInfo("acc_x_m_s2", "m/s²", fs, -16 * 9.80665, 16 * 9.80665)
+        out = [ChannelInfo("thrust_n", "N", fs, -r, r)]
+        if self.params.vibration:
+            # the optional accelerometer on the mount, +-16 g (drivers.sim.sensor_params)
+            out.append(ChannelInfo("acc_x_m_s2", "m/s²", fs, -16 * 9.80665, 16 * 9.80665))
+        if self.params.torque_cell:  # the optional torque cell of a two-axis stand
+            rt = self.params.torque_cell_range_nm
+            out.append(ChannelInfo("torque_nm", "N m", fs, -rt, rt))
+        return tuple(out)
 
     def convert(self, raw: np.ndarray) -> dict[str, np.ndarray]:
         out = {"thrust_n": (raw[BRIDGE_V] - self.offset_v) * self.scale_n_per_v}
-        if raw.shape[0] > ACC_X_M_S2:
+        if self.params.vibration:
             out["acc_x_m_s2"] = raw[ACC_X_M_S2].copy()
+        row = self.daq.acquisition.torque_row
+        if row >= 0:
+            out["torque_nm"] = (raw[row] - self.torque_offset_v) * self.torque_scale_nm_per_v
         return out
 
 

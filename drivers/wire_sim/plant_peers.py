@@ -32,20 +32,21 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from drivers.codecs import gx3, msp
 from drivers.errors import DeviceError
 from drivers.sim.clock import SimClock
 from drivers.sim.imu import ImuModel, SimImu
-from drivers.sim.imu_rig import SimImuRig
 from drivers.sim.rig import PlantTruth, SimRig
 
-__all__ = ["BTFL_ACC_1G", "ESC_TEMPERATURE_C", "WirePlant", "WireSims", "start_gx3_peer",
-           "start_msp_peer"]
+if TYPE_CHECKING:  # the IMU bench's world (scipy) loads only for its peers
+    from drivers.sim.imu_rig import SimImuRig
+
+__all__ = ["BTFL_ACC_1G", "CAN_PEERS", "ESC_TEMPERATURE_C", "SERIAL_PEERS", "ProcessWireSims",
+           "RemotePlant", "WirePlant", "WireSims", "start_gx3_peer", "start_msp_peer"]
 
 BTFL_ACC_1G = 2048  # protocols.md §1.4: Betaflight MPU6000/6050-class acc_1G (512 * 4), ±16 g
 _MAX_BURST = 16  # GX3 packets written per wakeup of the simulated device at most
@@ -161,13 +162,42 @@ class WirePlant:
 class WireSims:
     """The peers started for one opened rig, and how to stop them (last, after the host)."""
 
-    plant: WirePlant
-    peers: dict[str, object] = field(default_factory=dict)
+    plant: Any  # a WirePlant here, a RemotePlant in the host's process
+    peers: dict[str, Any] = field(default_factory=dict)
     _stops: list[Callable[[], None]] = field(default_factory=list)
 
     def add(self, key: str, peer: object, stop: Callable[[], None]) -> None:
         self.peers[key] = peer
         self._stops.append(stop)
+
+    def start_peer(self, key: str, kind: str, args: tuple = ()) -> Any:
+        """The serial peer ``SERIAL_PEERS[kind](plant, *args)`` (one per ``key``); its
+        ``path`` is the pty to open."""
+        if key not in self.peers:
+            peer = SERIAL_PEERS[kind](self.plant, *args)
+            self.add(key, peer, peer.stop)
+        return self.peers[key]
+
+    def peer_path(self, key: str, kind: str, args: tuple = ()) -> str:
+        """:meth:`start_peer` for another process: what it opens."""
+        return self.start_peer(key, kind, args).path
+
+    def connect_can(self, channel: str, port: int) -> None:
+        """The nodes' end of the host's CAN ``channel``: a socket to loopback ``port``."""
+        import socket
+
+        from drivers.wire_sim.can_socket import SocketCanLink
+
+        link = SocketCanLink(socket.create_connection(("127.0.0.1", port)),
+                             f"sim nodes on {channel}")
+        self.add(f"can-link:{channel}", link, link.close)
+
+    def start_can_peer(self, key: str, kind: str, channel: str, args: tuple = ()) -> None:
+        """The CAN node ``CAN_PEERS[kind](plant, link, *args)`` on ``channel`` (one per
+        ``key``)."""
+        if key not in self.peers:
+            peer = CAN_PEERS[kind](self.plant, self.peers[f"can-link:{channel}"], *args)
+            self.add(key, peer, peer.stop)
 
     def close(self) -> None:
         errors = []
@@ -181,6 +211,99 @@ class WireSims:
         self.plant.close()
         if errors:
             raise DeviceError(f"stopping the simulated wire devices: {errors[0]}")
+
+
+class RemotePlant:
+    """The host's handle on the :class:`WirePlant` in the world's process (the entry
+    points the peers and the tests use; each a request over the pipe). Once closed, it
+    answers ``pulse_us`` and ``idle_since()`` with the plant's last state (what the ESC
+    was left at when the rig closed)."""
+
+    def __init__(self, world: Any) -> None:
+        self.world = world  # a drivers.wire_sim.world_process.WorldProcess
+        self._final: dict[str, Any] | None = None
+        self.settings = self._get("settings")
+
+    def _get(self, name: str) -> Any:
+        if self._final is not None:
+            return self._final[name]
+        return self.world.request("get", None, ("plant", name))
+
+    def _call(self, name: str, *args: Any) -> Any:
+        if self._final is not None and not args:
+            return self._final[name]
+        return self.world.request("call", None, ("plant", name), args)
+
+    @property
+    def pulse_us(self) -> float:
+        return self._get("pulse_us")
+
+    def command_pulse(self, pulse_us: float) -> None:
+        self._call("command_pulse", pulse_us)
+
+    def command_fraction(self, fraction: float) -> None:
+        self._call("command_fraction", fraction)
+
+    def idle_since(self) -> float | None:
+        return self._call("idle_since")
+
+    def truth(self) -> PlantTruth:
+        return self._call("truth")
+
+    def sensor_means(self) -> dict[str, float]:
+        return self._call("sensor_means")
+
+    def close(self) -> None:
+        """Stops the world's process (its peers and plant first)."""
+        if self._final is None and self.world.alive:
+            self._final = {"pulse_us": self.pulse_us, "idle_since": self.idle_since()}
+        self.world.close()
+
+
+class ProcessWireSims(WireSims):
+    """The host's side of a :class:`WireSims` served by a child process: its serial peers
+    run there (handles: ``drivers.wire_sim.world_process.Remote`` with their ``path``);
+    peers the host adds itself (CAN nodes on an in-process bus) drive the plant through
+    :class:`RemotePlant`."""
+
+    def start_peer(self, key: str, kind: str, args: tuple = ()) -> Any:
+        if key not in self.peers:
+            world = self.plant.world
+            path = world.request("call", None, ("peer_path",), (key, kind, args))
+            peer = world.remote(key)
+            peer.path = path
+            self.add(key, peer, peer.stop)
+        return self.peers[key]
+
+    def bridge_can(self, channel: str, link: Any) -> None:
+        """Joins ``link`` (the nodes' end of the host's virtual ``channel``) to the world's
+        nodes by a loopback socket (``drivers.wire_sim.can_socket``)."""
+        import socket
+
+        from drivers.wire_sim.can_socket import SocketCanLink, relay
+
+        with socket.create_server(("127.0.0.1", 0)) as server:
+            server.settimeout(10.0)
+            self.plant.world.request("call", None, ("connect_can",),
+                                     (channel, server.getsockname()[1]))
+            conn, _ = server.accept()
+        conn.settimeout(None)
+        far = SocketCanLink(conn, f"world's nodes on {channel}")
+        undo = relay(link, far)
+
+        def stop() -> None:
+            undo()
+            far.close()
+
+        self.add(f"can-bridge:{channel}", far, stop)
+
+    def start_can_peer(self, key: str, kind: str, channel: str, args: tuple = ()) -> None:
+        if key not in self.peers:
+            world = self.plant.world
+            world.request("call", None, ("start_can_peer",), (key, kind, channel, args))
+            peer = world.remote(key)
+            self.add(key, peer, peer.stop)
+
 
 
 # -- propulsion peers ------------------------------------------------------------------
@@ -310,6 +433,30 @@ def start_vesc_uart(plant: WirePlant, pole_pairs: int):
     return PlantVescUart(model).start()
 
 
+def start_kiss_esc(plant: WirePlant, pole_pairs: int, period_s: float):
+    """An ESC streaming KISS telemetry on a pty: the plant's bus voltage, current, speed
+    and the firmware's own consumption count."""
+    from drivers.codecs import kiss
+    from drivers.wire_sim.pty_sim import PtyStream
+
+    used = {"mah": 0.0, "t": time.monotonic()}
+
+    def next_frame() -> bytes:
+        tr, now = plant.truth(), time.monotonic()
+        used["mah"] += max(tr.current_bus_a, 0.0) * (now - used["t"]) / 3.6
+        used["t"] = now
+        return kiss.encode(kiss.Telemetry(ESC_TEMPERATURE_C, tr.voltage_bus_v,
+                                          tr.current_bus_a, used["mah"], tr.rpm * pole_pairs))
+
+    return PtyStream(next_frame, period_s).start()
+
+
+SERIAL_PEERS: dict[str, Callable[..., Any]] = {
+    "msp": start_msp_fc, "loadcell": start_loadcell_board, "vesc": start_vesc_uart,
+    "kiss": start_kiss_esc}
+CAN_PEERS: dict[str, Callable[..., Any]] = {"vesc": start_vesc, "dronecan": start_dronecan_esc}
+
+
 # -- IMU-bench peers ------------------------------------------------------------------------------
 class _FixedModel(ImuModel):
     """An :class:`ImuModel` whose forward matrices are computed once (one sample a call)."""
@@ -370,6 +517,8 @@ def start_msp_peer(sim: SimImuRig, clock: SimClock, *, variant: str = "BTFL",
 
 def start_gx3_peer(sim: SimImuRig, clock: SimClock) -> Any:
     """A 3DM-GX3-25 on a pty; its timer and its stream run on the plant's clock."""
+    from scipy.spatial.transform import Rotation
+
     from drivers.wire_sim.gx3 import SimGx3
 
     ref = sim.reference_imu

@@ -136,6 +136,24 @@ def test_check_step_and_fit_run_through_the_firmware(tmp_path, capsys):
     assert any("command to firmware output" in n for n in report["notes"])
 
 
+def test_the_console_runs_a_manual_session_through_the_firmware(tmp_path):
+    """``rotorbench console --selftest`` on this rig, as typed: the window (offscreen) ramps
+    the throttle through the firmware's motor test and stops; the run ends idle, records
+    the command-to-output delay, and leaves no firmware behind."""
+    out = tmp_path / "runs"
+    res = _in_namespace(tmp_path, _cli("console", "--selftest", "--rig", str(RIG),
+                                       "--out", str(out), "--min-fps", "0"), timeout_s=120)
+    assert res.returncode == 0, res.stdout + res.stderr[-2000:]
+    assert "recorded throttle: up to 1300 us, last 1000 us" in res.stdout
+    _no_firmware_left(tmp_path)
+    (run_dir,) = [p for p in out.iterdir() if p.name.endswith("manual")]
+    meta = json.loads((run_dir / "run.json").read_text())
+    assert meta["status"] == "success"
+    delay = meta[DELAY]
+    # the ramp sends a command every tick: most reach the output before the next one
+    assert delay["seen"] >= 10 and 0.0 < delay["median"] < 0.5, delay
+
+
 def test_missing_package_port_in_use_and_early_exit_are_one_line_exit_2(tmp_path):
     out = tmp_path / "runs"
     hide = "import drivers.backends.betaflight_sitl as m; m.PACKAGE = 'betaflight_absent'; "

@@ -17,6 +17,7 @@ import re
 import signal
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -376,3 +377,44 @@ def test_history_fits_the_last_step_run_and_exports_through_the_cli(qtbot, conso
     qtbot.wait(200)
     lines = hist.output.toPlainText().splitlines()
     assert lines[0].startswith("$ ") and "export px4" in lines[0] and len(lines) >= 2
+
+
+def test_the_devices_tab_calibrates_the_load_cell_step_by_step(qtbot, console, tmp_path):
+    """Each weight is asked for in the tab and confirmed with Weight placed; the
+    calibration is recorded like the CLI's, the ESC never armed; a second one with the
+    fixture needs no answer."""
+    import json
+
+    win, _bench, opener = console
+    win.tabs.setCurrentWidget(win.devices)
+    win.devices.masses.setText("0,500,1000")
+    qtbot.mouseClick(win.devices.calibrate_button, LEFT)
+    for step in range(1, 6):  # 0, 500, 1000 up; 500, 0 down
+        qtbot.waitUntil(lambda s=step: win.devices.placed_button.isEnabled()
+                        and f"[{s}/5]" in win.devices.prompt.text(), timeout=20_000)
+        qtbot.mouseClick(win.devices.placed_button, LEFT)
+    qtbot.waitUntil(lambda: bool(win.finished), timeout=30_000)
+    info = win.finished[-1]
+    assert info["kind"] == "cell calibration" and info["status"] == "success", info
+    assert "gain" in win.devices.info.text() and "accepted" in win.devices.info.text()
+    meta = json.loads((Path(info["run_dir"]) / "run.json").read_text())
+    assert meta["kind"] == "calibration" and meta["calibration"]["plan"]["masses_kg"] == [
+        0.0, 0.5, 1.0]
+    events = [e[1] for e in opener.rigs[-1].esc.model.events]
+    assert "disarm" in events and "arm" not in events  # made safe at close, never armed
+    win.devices.automatic.setChecked(True)
+    qtbot.mouseClick(win.devices.calibrate_button, LEFT)
+    qtbot.waitUntil(lambda: len(win.finished) == 2, timeout=30_000)
+    assert win.finished[-1]["status"] == "success"
+    assert not win.devices.placed_button.isEnabled()
+
+
+def test_stop_at_a_weight_prompt_ends_the_calibration_recorded_as_failed(qtbot, console):
+    win, _bench, _opener = console
+    qtbot.mouseClick(win.devices.calibrate_button, LEFT)
+    qtbot.waitUntil(win.devices.placed_button.isEnabled, timeout=20_000)
+    win.stop()
+    qtbot.waitUntil(lambda: bool(win.finished), timeout=20_000)
+    info = win.finished[-1]
+    assert info["status"] == "fail" and "stopped by the operator" in info["reason"]
+    assert "calibration failed" in win.devices.info.text()

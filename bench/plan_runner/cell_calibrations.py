@@ -1,0 +1,147 @@
+"""A stand's runs apply its newest calibration: raw readings to newtons, with the record's
+id in ``run.json``.
+
+The newest calibration run of the rig (by name) for each calibrated channel in the runs
+root is looked up when a run opens its devices. Accepted and in date: applied. Expired:
+applied, with a warning. Outside its acceptance limits: the run is refused unless the
+operator accepts an uncalibrated run (``--accept-uncalibrated``), and then nothing is
+applied. None at all: a real stand warns (its cells read through their datasheet
+scale); a simulated one says nothing (its cells are what the rig file says).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from dataclasses import dataclass, replace
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bench.errors import RigError
+from bench.store.run_index import RunIndex
+
+__all__ = ["AppliedCalibration", "CalibratedSensor", "apply_calibrations", "newest_records"]
+
+log = logging.getLogger(__name__)
+
+SEQUENCE = "calibrate-sensors"
+
+
+def newest_records(out_root: Path, rig_name: str) -> dict[str, dict[str, Any]]:
+    """The newest calibration record of ``rig_name`` per channel, from the run index."""
+    path = Path(out_root) / "runs.sqlite"
+    if not path.exists():
+        return {}
+    index = RunIndex(out_root, read_only=True)
+    found: dict[str, dict[str, Any]] = {}
+    for row in reversed(index.list()):  # newest first
+        if row.sequence != SEQUENCE or row.status != "success" or row.rig != rig_name:
+            continue
+        folder = index.path_of(row.id)
+        try:
+            record = json.loads((Path(folder) / "run.json").read_text())["calibration"] \
+                if folder is not None else None
+        except (OSError, ValueError, KeyError, TypeError):
+            continue  # a calibration run without its record: not one to apply
+        if isinstance(record, dict):
+            found.setdefault(str(record["applies"]["channel"]), record)
+    return found
+
+
+@dataclass(frozen=True)
+class AppliedCalibration:
+    """What a run applied to one channel, as ``run.json`` keeps it."""
+
+    channel: str
+    id: str
+    gain: float
+    offset: float
+    u_gain_rel: float
+    valid_until_utc: str
+    state: str  # "valid", "expired" or "not accepted (run accepted uncalibrated)"
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"id": self.id, "gain": self.gain, "offset": self.offset,
+                "u_gain_rel": self.u_gain_rel, "valid_until_utc": self.valid_until_utc,
+                "state": self.state}
+
+
+class CalibratedSensor:
+    """A sensor whose channel reads through a calibration: ``gain x (reading - offset)``."""
+
+    def __init__(self, sensor: Any, applied: AppliedCalibration) -> None:
+        self.sensor = sensor
+        self.applied = applied
+
+    def describe(self) -> Any:
+        return self.sensor.describe()
+
+    def read_block(self) -> Any:
+        block = self.sensor.read_block()
+        ch = self.applied.channel
+        if ch not in block.values:
+            return block
+        values = dict(block.values)
+        values[ch] = self.applied.gain * (np.asarray(values[ch]) - self.applied.offset)
+        return replace(block, values=values)
+
+    def close(self) -> None:
+        self.sensor.close()
+
+    def __getattr__(self, name: str) -> Any:  # the wrapped device's own surface
+        return getattr(self.sensor, name)
+
+
+def apply_calibrations(rig_cfg: Any, devices: Any, out_root: Path, *,
+                       accept_uncalibrated: bool = False) -> dict[str, dict[str, Any]]:
+    """Wrap each calibrated sensor of the opened ``devices``; what was applied, by channel
+    (for ``run.json``). Refuses (``RigError``) a record outside its acceptance limits
+    unless ``accept_uncalibrated``."""
+    records = newest_records(out_root, rig_cfg.name)
+    applied: dict[str, dict[str, Any]] = {}
+    real = not getattr(rig_cfg, "is_simulated", True)
+    for role, sensor in list(devices.sensors.items()):
+        channels = {c.name for c in sensor.describe().channels}
+        for channel in sorted(channels & {"thrust_n", "torque_nm"}):
+            record = records.get(channel)
+            if record is None:
+                if real:
+                    log.warning("%s: no calibration of %s in %s: it reads through the rig "
+                                "file's scale (rotorbench calibrate-sensors)", rig_cfg.name,
+                                channel, out_root)
+                continue
+            state = _state(record)
+            if state == "not accepted":
+                if not accept_uncalibrated:
+                    raise RigError(
+                        f"{rig_cfg.name}: the newest calibration of {channel} "
+                        f"({record['id']}) failed its acceptance limits ("
+                        + "; ".join(record["acceptance"]["failed"])
+                        + "): calibrate again, or run with --accept-uncalibrated")
+                log.warning("%s: %s runs uncalibrated (--accept-uncalibrated): its "
+                            "calibration %s failed its acceptance limits", rig_cfg.name,
+                            channel, record["id"])
+                applied[channel] = {"id": record["id"], "state": "not accepted: not applied"}
+                continue
+            if state == "expired":
+                log.warning("%s: the calibration of %s (%s) expired on %s; applied all the "
+                            "same: calibrate again", rig_cfg.name, channel, record["id"],
+                            record["valid_until_utc"])
+            a = record["applies"]
+            cal = AppliedCalibration(channel, str(record["id"]), float(a["gain"]),
+                                     float(a["offset"]), float(a["u_gain_rel"]),
+                                     str(record["valid_until_utc"]), state)
+            devices.sensors[role] = sensor = CalibratedSensor(sensor, cal)
+            applied[channel] = cal.as_dict()
+    return applied
+
+
+def _state(record: dict[str, Any], now: datetime | None = None) -> str:
+    if not record.get("acceptance", {}).get("passed", False):
+        return "not accepted"
+    until = datetime.strptime(record["valid_until_utc"], "%Y-%m-%dT%H:%M:%SZ").replace(
+        tzinfo=UTC)
+    return "expired" if (now or datetime.now(UTC)) > until else "valid"

@@ -1,0 +1,93 @@
+"""A CAN link over a loopback stream socket: the simulated CAN nodes' cable to the host.
+
+Why: python-can's ``virtual`` bus lives inside one process, and the simulated nodes run in
+a process of their own (``drivers.wire_sim.world_process``). The world's nodes talk to a
+:class:`SocketCanLink`; on the host's side another one is relayed to the peers' end of the
+rig's ``virtual`` channel (:func:`relay`), so the host's backends open a python-can bus as
+on a bench. Frames queue in the socket while a reader is late, as in an adapter's buffer.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import socket
+import struct
+import threading
+from collections.abc import Callable
+from typing import Any
+
+from drivers.codecs.can_log import CanFrame
+from drivers.errors import DeviceError
+
+__all__ = ["SocketCanLink", "relay"]
+
+_HEADER = struct.Struct("<I?B")  # arbitration id, extended id, data length
+
+
+class SocketCanLink:
+    """``CanLink``'s face (subscribe, send, close) on a connected stream socket."""
+
+    def __init__(self, sock: socket.socket, name: str) -> None:
+        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        self.sock = sock
+        self.name = name
+        self._subs: list[Callable[[CanFrame], None]] = []
+        self._lock = threading.Lock()
+        self._send_lock = threading.Lock()
+        self._closed = False
+        self._thread = threading.Thread(target=self._run, name=f"can-socket {name}",
+                                        daemon=True)
+        self._thread.start()
+
+    def subscribe(self, callback: Callable[[CanFrame], None]) -> None:
+        with self._lock:
+            self._subs.append(callback)
+
+    def unsubscribe(self, callback: Callable[[CanFrame], None]) -> None:
+        with self._lock:
+            if callback in self._subs:
+                self._subs.remove(callback)
+
+    def send(self, frame: CanFrame) -> None:
+        if self._closed:
+            raise DeviceError(f"{self.name}: link is closed")
+        data = bytes(frame.data)
+        try:
+            with self._send_lock:
+                self.sock.sendall(_HEADER.pack(frame.arbitration_id, frame.is_extended_id,
+                                               len(data)) + data)
+        except OSError as exc:
+            raise DeviceError(f"{self.name}: CAN send failed ({exc})") from None
+
+    def _run(self) -> None:
+        with contextlib.suppress(OSError), self.sock.makefile("rb") as stream:
+            while (head := stream.read(_HEADER.size)) and len(head) == _HEADER.size:
+                ident, extended, size = _HEADER.unpack(head)
+                frame = CanFrame(ident, stream.read(size), extended)
+                with self._lock:
+                    subs = list(self._subs)
+                for cb in subs:
+                    with contextlib.suppress(DeviceError):  # a closed far end: the cable is out
+                        cb(frame)
+
+    def close(self) -> None:
+        if not self._closed:
+            self._closed = True
+            with contextlib.suppress(OSError):
+                self.sock.shutdown(socket.SHUT_RDWR)
+            self.sock.close()
+            if self._thread is not threading.current_thread():
+                self._thread.join(timeout=1.0)
+
+
+def relay(a: Any, b: Any) -> Callable[[], None]:
+    """Every frame heard on link ``a`` is sent on ``b`` and back (both CanLink-like);
+    returns the undo, to call before either link closes."""
+    a.subscribe(b.send)
+    b.subscribe(a.send)
+
+    def undo() -> None:
+        a.unsubscribe(b.send)
+        b.unsubscribe(a.send)
+
+    return undo

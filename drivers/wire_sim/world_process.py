@@ -1,0 +1,172 @@
+"""A simulated device world in a child process of its own, as a real device's firmware is.
+
+Why: as threads of the host's process the simulated devices share its interpreter lock,
+so a loaded machine (or a busy host) starves them and they answer late; in a process of
+their own they are scheduled like the firmware they stand for.
+
+:class:`WorldProcess` starts the child (``python -m`` this module: a fresh interpreter,
+no copy of the host's threads or locks, and unlike multiprocessing's ``spawn`` it does not
+import the host's ``__main__``), which calls ``build(*args)`` (an importable function, so
+it pickles by name) for the world object and then serves requests over a socket pair
+until told to stop or until its parent dies (end of file; the parent's pid is checked too). A
+request names an object of the world (``None``: the world itself; else a key of its
+``peers``) and an attribute path on it, to call or to read. :class:`Remote` is the host's
+handle on such an object. The devices' transports (pty paths, loopback ports) work across
+processes as they do across a cable; the world reports what to open in the replies.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import socket
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable
+from multiprocessing.connection import Connection
+from pathlib import Path
+from typing import Any
+
+from drivers.errors import DeviceError
+
+__all__ = ["Remote", "WorldProcess"]
+
+_START_TIMEOUT_S = 30.0  # a fresh interpreter imports numpy and scipy: seconds when loaded
+_STOP_TIMEOUT_S = 5.0
+_PARENT_CHECK_S = 0.5
+# A device's firmware has a processor of its own: the world's process is scheduled ahead of
+# the host's and the machine's other work where allowed (it sleeps between frames, so it
+# takes little time; it needs it on time).
+DEVICE_NICE = -10
+
+
+class WorldProcess:
+    """The host's side of a world served by a child process (see module doc)."""
+
+    def __init__(self, build: Callable[..., Any], *args: Any, name: str = "sim-world") -> None:
+        ours, theirs = socket.socketpair()
+        self._lock = threading.Lock()
+        self.name = name
+        root = str(Path(__file__).resolve().parents[2])  # where ``drivers`` is importable
+        env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+            p for p in (root, os.environ.get("PYTHONPATH", "")) if p)}
+        self.process = subprocess.Popen(
+            [sys.executable, "-m", __name__, str(theirs.fileno()), str(os.getpid())],
+            pass_fds=(theirs.fileno(),), env=env, stdin=subprocess.DEVNULL)
+        theirs.close()
+        self._conn = Connection(ours.detach())
+        self._conn.send((build, args))
+        if not self._conn.poll(_START_TIMEOUT_S):
+            self.close()
+            raise DeviceError(f"{name}: the simulated devices' process did not start in "
+                              f"{_START_TIMEOUT_S:g} s")
+        try:
+            self._reply()
+        except BaseException:
+            self.close()
+            raise
+
+    def request(self, op: str, key: str | None, attrs: tuple[str, ...], args: tuple = ()) -> Any:
+        """``op`` "call" or "get" on ``attrs`` of the world's object ``key``."""
+        with self._lock:
+            try:
+                self._conn.send((op, key, attrs, args))
+                return self._reply()
+            except (EOFError, OSError, BrokenPipeError):
+                raise DeviceError(f"{self.name}: the simulated devices' process is gone "
+                                  f"(exit code {self.process.poll()})") from None
+
+    def _reply(self) -> Any:
+        status, value = self._conn.recv()
+        if status == "err":
+            raise DeviceError(f"{self.name}: {value}")
+        return value
+
+    @property
+    def alive(self) -> bool:
+        return self.process.poll() is None
+
+    def remote(self, key: str | None) -> Remote:
+        return Remote(self, key)
+
+    def close(self) -> None:
+        """Stop the world (its devices first), then the process; safe to call twice."""
+        if self.alive:
+            try:
+                with self._lock:
+                    self._conn.send(("stop", None, (), ()))
+            except OSError:
+                pass
+            try:
+                self.process.wait(_STOP_TIMEOUT_S)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+                self.process.wait(_STOP_TIMEOUT_S)
+        self._conn.close()
+
+
+class Remote:
+    """An object of a child's world: ``r.port.disconnect()`` calls it there; ``r.get("x")``
+    reads an attribute. Values cross the pipe pickled."""
+
+    def __init__(self, world: WorldProcess, key: str | None,
+                 attrs: tuple[str, ...] = ()) -> None:
+        self._world, self._key, self._attrs = world, key, attrs
+
+    def __getattr__(self, name: str) -> Remote:
+        if name.startswith("__"):
+            raise AttributeError(name)
+        return Remote(self._world, self._key, (*self._attrs, name))
+
+    def __call__(self, *args: Any) -> Any:
+        return self._world.request("call", self._key, self._attrs, args)
+
+    def get(self, name: str) -> Any:
+        return self._world.request("get", self._key, (*self._attrs, name))
+
+
+# -- the child ---------------------------------------------------------------------------
+def _serve(conn: Connection, parent_pid: int) -> None:
+    """The child's main: build the world, report ready, serve until stop or orphaned."""
+    threading.Thread(target=_watch_parent, args=(parent_pid,), name="parent-watch",
+                     daemon=True).start()
+    with contextlib.suppress(OSError):  # needs the privilege; else the default share
+        os.setpriority(os.PRIO_PROCESS, 0, DEVICE_NICE)
+    try:
+        build, args = conn.recv()
+        world = build(*args)
+    except BaseException as exc:
+        conn.send(("err", f"building the simulated world: {exc!r}"))
+        return
+    conn.send(("ok", None))
+    try:
+        while True:
+            try:
+                op, key, attrs, call_args = conn.recv()
+            except (EOFError, OSError):  # the parent died: no one to serve
+                break
+            if op == "stop":
+                break
+            try:
+                obj = world if key is None else world.peers[key]
+                for name in attrs[:-1] if op == "call" else attrs:
+                    obj = getattr(obj, name)
+                value = getattr(obj, attrs[-1])(*call_args) if op == "call" else obj
+                conn.send(("ok", value))
+            except Exception as exc:
+                conn.send(("err", f"{'.'.join(attrs)}: {exc!r}"))
+    finally:
+        world.close()
+
+
+def _watch_parent(parent_pid: int) -> None:
+    """End the child when its parent is gone (reparented), whatever the main loop does."""
+    while os.getppid() == parent_pid:
+        time.sleep(_PARENT_CHECK_S)
+    os._exit(0)
+
+
+if __name__ == "__main__":
+    _serve(Connection(int(sys.argv[1])), int(sys.argv[2]))

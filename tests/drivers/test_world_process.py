@@ -1,0 +1,78 @@
+"""The simulated devices' own process: serves its world, reports errors, dies with its parent."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from bench.rig.rig import default_rig_path, load_rig
+from drivers.errors import DeviceError
+from drivers.sim_worlds import wire_plant
+
+serial = pytest.importorskip("serial")
+
+REPO = Path(__file__).resolve().parents[2]
+RIG = default_rig_path().parent / "sim-serial.toml"
+
+
+def _gone(pid: int, within_s: float) -> bool:
+    deadline = time.monotonic() + within_s
+    while time.monotonic() < deadline:
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return True
+        time.sleep(0.02)
+    return False
+
+
+def test_a_board_in_the_world_process_prints_on_its_pty() -> None:
+    wire = wire_plant(load_rig(RIG))
+    try:
+        from drivers.codecs.loadcell_lines import TESTSTAND_V2
+
+        board = wire.start_peer("serial:loadcell", "loadcell", (TESTSTAND_V2, 0.004))
+        assert wire.plant.world.process.pid != os.getpid()
+        with serial.Serial(board.path, 115_200, timeout=1.0) as port:
+            port.write(b"\n")
+            assert port.readline().startswith(b"Load cell ready")
+            assert len(port.read(200)) == 200  # lines keep coming
+        assert board.get("started") is True  # an attribute read there
+        with pytest.raises(DeviceError, match="no_such_method"):
+            board.no_such_method()  # the world's error, named
+    finally:
+        wire.close()
+    assert _gone(wire.plant.world.process.pid, 5.0)
+    assert not wire.peers
+
+
+CHILD = r"""
+import sys
+from bench.rig.rig import load_rig
+from drivers.sim_worlds import wire_plant
+wire = wire_plant(load_rig(sys.argv[1]))
+print(wire.plant.world.process.pid, flush=True)
+sys.stdin.read()
+"""
+
+
+def test_the_world_process_does_not_outlive_a_killed_parent() -> None:
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    host = subprocess.Popen([sys.executable, "-c", CHILD, str(RIG)], env=env, cwd=REPO,
+                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    try:
+        assert host.stdout is not None
+        world_pid = int(host.stdout.readline())
+        host.send_signal(signal.SIGKILL)
+        host.wait(timeout=10)
+    finally:
+        if host.poll() is None:
+            host.kill()
+        host.communicate()
+    assert _gone(world_pid, 5.0), "the world's process outlived its parent"
