@@ -36,9 +36,15 @@ import numpy as np
 from drivers.backends.serial_link import Deadline, read_some, write_all
 from drivers.codecs import msp
 from drivers.codecs.stream import link_losses
-from drivers.contracts import IMU_ATTITUDE_CHANNELS
+from drivers.contracts import (
+    IMU_ATTITUDE_CHANNELS,
+    Block,
+    ChannelInfo,
+    Clock,
+    DeviceInfo,
+    MonotonicClock,
+)
 from drivers.contracts import IMU_CHANNELS as BENCH_IMU_CHANNELS
-from drivers.contracts import Block, ChannelInfo, Clock, DeviceInfo, MonotonicClock
 from drivers.errors import DeviceError
 
 DEFAULT_TIMEOUT_S = 0.1  # §1.9 timing note: ~100 ms at 115200 baud [U]

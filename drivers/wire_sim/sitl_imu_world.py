@@ -45,5 +45,6 @@ class HexapodFdm:
         self.last_t = t
         truth, gyro, acc = self.world.imu.sample_at(np.array([t]))
         q = Rotation.from_euler("xyz", truth.euler_rad[0]).as_quat(scalar_first=True)
-        return encode_fdm_imu(t, tuple(map(float, gyro[0])), tuple(map(float, acc[0])),
-                              tuple(map(float, q)))
+        (gx, gy, gz), (ax, ay, az) = gyro[0].tolist(), acc[0].tolist()
+        qw, qx, qy, qz = q.tolist()
+        return encode_fdm_imu(t, (gx, gy, gz), (ax, ay, az), (qw, qx, qy, qz))
