@@ -69,7 +69,7 @@ def test_msp_attitude_of_the_echoed_quaternion_is_the_body_attitude() -> None:
         back = msp.attitude_quat_enu(msp.Attitude(roll, -pitch, yaw % (2 * math.pi)))
         err = (body.inv() * Rotation.from_quat(back, scalar_first=True)).magnitude()
         assert err < 1e-9
-        # and the angles a pilot reads: level is (0, 0), nose down is positive pitch
+    # and the angle a pilot reads: nose down is Betaflight's positive pitch
     nose_down = Rotation.from_euler("y", 0.2).as_quat(scalar_first=True)  # about +y (left)
     _, _, q = _firmware_counts(encode_fdm_imu(0.0, (0, 0, 0), (0, 0, 9.8),
                                               tuple(nose_down.tolist())))
