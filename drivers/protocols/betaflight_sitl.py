@@ -90,7 +90,7 @@ def open_sitl_imu(ctx: Any, spec: DeviceUrl, share_link: Callable[[Any], Any]) -
         raise spec.fail("launch", "the launched firmware runs on the wall clock: the IMU "
                                   "bench's world must too (time_scale 1)")
     firmware, port, peer = _launch(ctx, spec, launcher, binary, lambda: SitlPlantPeer(
-        None, 0, rate_hz=fdm_hz, fdm=HexapodFdm(world), clock=ctx.clock.now))
+        None, 0, rate_hz=fdm_hz, fdm=HexapodFdm(world, 1.0 / fdm_hz), clock=ctx.clock.now))
     ctx.on_close(firmware.stop)
     ctx.on_close(peer.stop)  # closers run last-in first-out: the feeder stops first
     ctx.peers[spec.role] = peer
