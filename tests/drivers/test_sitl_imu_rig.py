@@ -154,7 +154,7 @@ def test_calibrate_on_the_recorded_run_recovers_the_imu_model(recorded, capsys) 
           f"{np.abs(z).max():.2f} standard errors, acc bias {acc_bias:.3f} m/s^2, time "
           f"offset {cal.time_offset_s * 1e3:.1f} ms")
     # What such a run resolves (module doc; measured 0.1-0.6 % for K_w, 0.4-2.5 % for K_a,
-    # 1-11 cm for R, most of it K_a's error through the tilting gravity): the firmware's
+    # 0.5-11 cm for R, most of it K_a's error through the tilting gravity): the firmware's
     # own scales (16.4 counts per deg/s, 1 g = 256) and its frames are right, since a wrong
     # accelerometer unit (2048 per g) is 700 % away, a gyro in whole deg/s 1500 %, a
     # flipped axis or mounting sign 60 % or more. It cannot tell 16.4 from 16.384 (0.1 %):
