@@ -18,9 +18,11 @@ from analysis.attitude_scoring import AttitudeScore, error_angles, error_quatern
 from analysis.figures import _save
 from analysis.imu_recording import ImuRecording
 
-__all__ = ["COMPARE_PROJECT", "ComparisonRow", "compare", "error_figure", "score_run"]
+__all__ = ["COMPARE_PROJECT", "DEVICE_LABEL", "ComparisonRow", "compare", "error_figure",
+           "score_run"]
 
 # the project's rows of a comparison: the default in 9D (if there is a magnetometer) and 6D
+DEVICE_LABEL = "device (own attitude)"
 COMPARE_PROJECT = (("default", False), ("default", True), ("default-causal", True),
                    ("paper-b", True), ("paper-b-printed", True))
 
@@ -55,7 +57,9 @@ def _label(name: str, run: FilterRun) -> str:
 
 
 def compare(rec: ImuRecording, peers: bool | Sequence[str] = True) -> list[ComparisonRow]:
-    """The project's filters (6D and 9D where possible) and the available peers.
+    """The project's filters (6D and 9D where possible), the available peers and, where
+    the recording has it, the attitude the device reported itself (kind ``device``: a
+    flight controller's MSP_ATTITUDE, scored like a 6D peer).
 
     ``peers``: all (``True``), none (``False``) or these names of :data:`PEERS`, in the
     table's order.
@@ -77,6 +81,9 @@ def compare(rec: ImuRecording, peers: bool | Sequence[str] = True) -> list[Compa
             if name in wanted and available(name, rec):
                 run = run_filter(name, rec)
                 rows.append(ComparisonRow(name, "peer", run, score_run(rec, run)))
+    if rec.device_quat is not None:
+        run = FilterRun(DEVICE_LABEL, quat.normalize(rec.device_quat), False, 0.0, 0.0)
+        rows.append(ComparisonRow(DEVICE_LABEL, "device", run, score_run(rec, run)))
     return rows
 
 

@@ -17,6 +17,7 @@ from analysis.errors import LogError
 __all__ = [
     "ACC_COLUMNS",
     "CALIBRATION_COLUMNS",
+    "DEVICE_QUAT_COLUMNS",
     "GYRO_COLUMNS",
     "MAG_COLUMNS",
     "MOVEMENT_COLUMN",
@@ -41,6 +42,9 @@ IMU_ACC = tuple(f"imu_acc_{a}_m_s2" for a in XYZ)
 GYRO_COLUMNS = tuple(f"gyro_{a}_rad_s" for a in XYZ)
 ACC_COLUMNS = tuple(f"acc_{a}_m_s2" for a in XYZ)
 REF_QUAT_COLUMNS = ("ref_qw", "ref_qx", "ref_qy", "ref_qz")
+#: the IMU under test's own attitude where it estimates one (a flight controller's
+#: MSP_ATTITUDE), body to earth, ENU, scalar first
+DEVICE_QUAT_COLUMNS = ("imu_qw", "imu_qx", "imu_qy", "imu_qz")
 MAG_COLUMNS = tuple(f"mag_{a}_ut" for a in XYZ)
 MOVEMENT_COLUMN = "movement"
 CALIBRATION_COLUMNS = ("t_s", "phase", *REF_OMEGA, *REF_ALPHA, *REF_ACC, *IMU_GYRO, *IMU_ACC)
@@ -172,7 +176,8 @@ def load_attitude_log(path: str | Path) -> pd.DataFrame:
     gyro, acc = imu_columns(df)
     _require(df, p, ("t_s", *gyro, *acc))
     _numeric(df, p, ("t_s", *gyro, *acc))
-    for group, label in ((REF_QUAT_COLUMNS, "reference quaternion"), (MAG_COLUMNS, "magnetometer")):
+    for group, label in ((REF_QUAT_COLUMNS, "reference quaternion"), (MAG_COLUMNS, "magnetometer"),
+                         (DEVICE_QUAT_COLUMNS, "device quaternion")):
         present = [c for c in group if c in df.columns]
         if present and len(present) != len(group):
             missing = [c for c in group if c not in df.columns]
@@ -182,6 +187,8 @@ def load_attitude_log(path: str | Path) -> pd.DataFrame:
         _numeric(df, p, REF_QUAT_COLUMNS, allow_nan=True)
     if MAG_COLUMNS[0] in df.columns:
         _numeric(df, p, MAG_COLUMNS)
+    if DEVICE_QUAT_COLUMNS[0] in df.columns:
+        _numeric(df, p, DEVICE_QUAT_COLUMNS)
     if MOVEMENT_COLUMN in df.columns:
         _numeric(df, p, (MOVEMENT_COLUMN,))
         bad = ~np.isin(df[MOVEMENT_COLUMN].to_numpy(), (0.0, 1.0))

@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 from analysis.errors import LogError
 from analysis.extras import import_extra
 from analysis.imu_log import (
+    DEVICE_QUAT_COLUMNS,
     MAG_COLUMNS,
     MOVEMENT_COLUMN,
     REF_QUAT_COLUMNS,
@@ -43,6 +44,8 @@ class ImuRecording:
 
     ``ref_quat`` maps sensor to earth frame (ENU, z up), scalar-first, NaN rows where the
     reference lost track. ``movement`` marks the samples to score (all, if ``None``).
+    ``device_quat``: the attitude the IMU under test reported itself (a flight
+    controller's), same convention, scored as one more peer.
     """
 
     source: str
@@ -52,6 +55,7 @@ class ImuRecording:
     mag_ut: Array | None = None
     ref_quat: Array | None = None
     movement: NDArray[np.bool_] | None = None
+    device_quat: Array | None = None
 
     @property
     def rate_hz(self) -> float:
@@ -69,7 +73,8 @@ class ImuRecording:
             return None if a is None else a[keep]
         return replace(self, t_s=t_s, gyro_rad_s=gyro, acc_m_s2=acc,
                        mag_ut=sub(self.mag_ut) if mag_ut is None else mag_ut,
-                       ref_quat=sub(self.ref_quat), movement=sub(self.movement))
+                       ref_quat=sub(self.ref_quat), movement=sub(self.movement),
+                       device_quat=sub(self.device_quat))
 
 
 @dataclass(frozen=True)
@@ -211,6 +216,7 @@ def load_recording(path: str | Path) -> ImuRecording:
 
     mov = df[MOVEMENT_COLUMN].to_numpy() > 0.5 if MOVEMENT_COLUMN in df.columns else None
     rec = ImuRecording(str(path), df["t_s"].to_numpy(dtype=float), columns(gyro), columns(acc),
-                       cols(MAG_COLUMNS), cols(REF_QUAT_COLUMNS), mov)
+                       cols(MAG_COLUMNS), cols(REF_QUAT_COLUMNS), mov,
+                       cols(DEVICE_QUAT_COLUMNS))
     return _check_scorable(rec, f"columns {','.join(REF_QUAT_COLUMNS)}",
                            f"column {MOVEMENT_COLUMN}")

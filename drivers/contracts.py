@@ -165,6 +165,9 @@ HEXAPOD_LOG_CHANNELS = (*POSE_CHANNELS, *VELOCITY_CHANNELS, *ACCELERATION_CHANNE
 IMU_CHANNELS = (*(f"imu_gyro_{a}_rad_s" for a in XYZ), *(f"imu_acc_{a}_m_s2" for a in XYZ))
 REFERENCE_IMU_CHANNELS = ("ref_qw", "ref_qx", "ref_qy", "ref_qz",
                           *(f"ref_imu_gyro_{a}_rad_s" for a in XYZ))
+#: optional columns of an IMU under test that estimates its own attitude (a flight
+#: controller): quaternion forward-left-up body -> east-north-up earth, scalar first
+IMU_ATTITUDE_CHANNELS = ("imu_qw", "imu_qx", "imu_qy", "imu_qz")
 
 
 class HexapodLimitError(DeviceError):

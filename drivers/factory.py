@@ -220,7 +220,12 @@ def is_imu_bench(rig: RigView) -> bool:
 
 
 def _simulated(spec: DeviceUrl) -> bool:
-    return spec.scheme == "sim" or spec.host == SIM_HOST
+    """Simulated, or real firmware the bench launches and feeds the simulated world."""
+    return spec.scheme == "sim" or spec.host == SIM_HOST or _launched(spec)
+
+
+def _launched(spec: DeviceUrl) -> bool:
+    return spec.scheme == "msp+tcp" and "launch" in spec.options
 
 
 def _propulsion(rig: RigView, specs: dict[str, DeviceUrl], seed: int | None) -> DeviceContext:
@@ -250,9 +255,11 @@ def _propulsion(rig: RigView, specs: dict[str, DeviceUrl], seed: int | None) -> 
 
 
 def _time_scale(rig: RigView, specs: dict[str, DeviceUrl]) -> float | None:
-    """``time_scale`` of the serial peers (they must agree); None without serial peers."""
+    """``time_scale`` of the serial peers (they must agree); None without serial peers. A
+    launched firmware (``launch``) runs on the wall clock: time scale 1."""
     scales = {role: s.number("time_scale", 1.0, lo=1e-3, hi=1e3)
               for role, s in specs.items() if s.scheme == "serial" and s.host == SIM_HOST}
+    scales.update({role: 1.0 for role, s in specs.items() if _launched(s)})
     if len(set(scales.values())) > 1:
         raise DeviceError(f"{rig.path}: [devices.*] options.time_scale: the simulated serial "
                           f"devices must agree, got {scales}")

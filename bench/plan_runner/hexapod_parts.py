@@ -27,6 +27,7 @@ from bench.plans.sequences import Plan
 from drivers.contracts import (
     ACCELERATION_CHANNELS,
     BODY_CHANNELS,
+    IMU_ATTITUDE_CHANNELS,
     IMU_CHANNELS,
     POSE_CHANNELS,
     REFERENCE_IMU_CHANNELS,
@@ -39,7 +40,8 @@ from drivers.contracts import (
     Trajectory,
 )
 
-__all__ = ["RECORD_BASE", "GuardedHexapod", "HexapodSupervisor", "ImuBenchLike", "RowMerger"]
+__all__ = ["RECORD_BASE", "GuardedHexapod", "HexapodSupervisor", "ImuBenchLike", "RowMerger",
+           "imu_channels"]
 
 RECORD_BASE = ("t_s", "phase", "step")
 
@@ -51,6 +53,14 @@ class ImuBenchLike(Protocol):
     hexapod: Hexapod
     imu: Sensor
     reference_imu: Sensor | None
+
+
+def imu_channels(imu: Sensor) -> tuple[str, ...]:
+    """The IMU's recorded columns: ``IMU_CHANNELS``, and its own attitude if it gives it."""
+    described = getattr(imu, "describe", None)
+    names = {c.name for c in described().channels} if described is not None else set()
+    extra = IMU_ATTITUDE_CHANNELS if set(IMU_ATTITUDE_CHANNELS) <= names else ()
+    return (*IMU_CHANNELS, *extra)
 
 
 class GuardedHexapod:
@@ -143,14 +153,16 @@ class HexapodSupervisor:
 class RowMerger:
     """IMU rows with the hexapod's log and the reference IMU interpolated onto them."""
 
-    def __init__(self, plan: Plan, with_reference: bool) -> None:
+    def __init__(self, plan: Plan, with_reference: bool,
+                 imu_channels: tuple[str, ...] = IMU_CHANNELS) -> None:
         self.plan = plan
         self.with_reference = with_reference
+        self.imu_channels = imu_channels  # IMU_CHANNELS and any the IMU adds (its attitude)
         # the realised start (s since the run start) of every timed segment begun so far
         self.starts: list[float] = []
         self.segments: list[HexapodSegment] = []
         self.imu_t = np.empty(0)
-        self.imu = {c: np.empty(0) for c in IMU_CHANNELS}
+        self.imu = {c: np.empty(0) for c in imu_channels}
         self.hex_cols = (*BODY_CHANNELS, *POSE_CHANNELS)
         self.hex_t = np.empty(0)
         self.hex = {c: np.empty(0) for c in self.hex_cols}
@@ -203,7 +215,7 @@ class RowMerger:
         rows: dict[str, np.ndarray] = {"t_s": t, "phase": phase, "step": step}
         for c in self.hex_cols:
             rows[c] = np.interp(t, self.hex_t, self.hex[c])
-        for c in IMU_CHANNELS:
+        for c in self.imu_channels:
             rows[c] = self.imu[c][ready]
         if self.with_reference:
             for c in REFERENCE_IMU_CHANNELS:

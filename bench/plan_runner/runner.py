@@ -49,6 +49,7 @@ from bench.plan_runner.hexapod_parts import (
     HexapodSupervisor,
     ImuBenchLike,
     RowMerger,
+    imu_channels,
 )
 from bench.plans.calibration_sequences import HexapodSegment, Move, SetPivot
 from bench.plans.sequences import Arm, Disarm, EscRange, Plan, Segment, Tare
@@ -364,7 +365,7 @@ class HexapodRunner(PlanRunner):
         self.watchdog = HostWatchdog(self.hexapod, self.options.watchdog_timeout_s,  # type: ignore[arg-type]
                                      stops="hexapod stopped")
         self.supervisor = HexapodSupervisor(plan.limits, self.options.limit_margin)
-        self.merger = RowMerger(plan, rig.reference_imu is not None)
+        self.merger = RowMerger(plan, rig.reference_imu is not None, imu_channels(rig.imu))
         self._lag = 0.0  # how far the realised schedule runs behind the plan (s)
 
     # -- the hexapod's steps -----------------------------------------------------------

@@ -36,8 +36,15 @@ import numpy as np
 from drivers.backends.serial_link import Deadline, read_some, write_all
 from drivers.codecs import msp
 from drivers.codecs.stream import link_losses
+from drivers.contracts import (
+    IMU_ATTITUDE_CHANNELS,
+    Block,
+    ChannelInfo,
+    Clock,
+    DeviceInfo,
+    MonotonicClock,
+)
 from drivers.contracts import IMU_CHANNELS as BENCH_IMU_CHANNELS
-from drivers.contracts import Block, ChannelInfo, Clock, DeviceInfo, MonotonicClock
 from drivers.errors import DeviceError
 
 DEFAULT_TIMEOUT_S = 0.1  # §1.9 timing note: ~100 ms at 115200 baud [U]
@@ -271,24 +278,35 @@ class MspMotorEsc:
 
 
 _MSP_GYRO = ("gyro_x_rad_s", "gyro_y_rad_s", "gyro_z_rad_s")
+#: a row polled further than this from any FDM packet the firmware accepted is stale
+STALE_GAP_S = 0.05
 _MSP_ACC = ("acc_x_m_s2", "acc_y_m_s2", "acc_z_m_s2")
 
 
 class MspImuSensor:
-    """An :class:`MspImu` as the IMU under test (the contract's ``IMU_CHANNELS``)."""
+    """An :class:`MspImu` as the IMU under test (the contract's ``IMU_CHANNELS``); with
+    ``attitude`` the FC's own attitude too (``IMU_ATTITUDE_CHANNELS``, Betaflight's
+    MSP_ATTITUDE convention: :func:`drivers.codecs.msp.attitude_quat_enu`)."""
 
     def __init__(self, imu: Any, rate_hz: float | None = None, *, port: Any = None,
-                 peer: Any = None) -> None:
+                 peer: Any = None, attitude: bool = False) -> None:
+        if attitude and (not imu.attitude or imu.variant != "BTFL"):
+            raise DeviceError(f"{imu.url}: the attitude columns need a Betaflight FC polled "
+                              f"for MSP_ATTITUDE (got {imu.variant})")
         self.imu = imu
+        self.attitude = attitude
+        self.channels = (*BENCH_IMU_CHANNELS, *(IMU_ATTITUDE_CHANNELS if attitude else ()))
         self.rate_hz = imu.rate_hz if rate_hz is None else rate_hz  # of the rig clock
         self.port, self.peer = port, peer  # closed with the sensor; the simulated FC
         self._last_t = -math.inf
+        self.stale_rows = 0  # dropped: the peer says the FC's sensors were not refreshed
 
     def describe(self) -> DeviceInfo:
         info = self.imu.describe()
         rate = self.rate_hz
         chans = tuple(ChannelInfo(c, "rad/s" if "gyro" in c else "m/s^2", rate)
                       for c in BENCH_IMU_CHANNELS)
+        chans += tuple(ChannelInfo(c, "", rate) for c in self.channels[len(chans):])
         return DeviceInfo("imu", info.model, info.url, chans,
                           {"time_stamps": "host clock at reply arrival (RAW_IMU has none)"})
 
@@ -302,11 +320,23 @@ class MspImuSensor:
         src = (*_MSP_GYRO, *_MSP_ACC)
         t = np.asarray(b.t_s, float)
         keep = t > np.maximum.accumulate(np.concatenate(([self._last_t], t[:-1])))
+        fresh = getattr(self.peer, "fresh", None)
+        if fresh is not None and t.size:  # a launched firmware: its heartbeat
+            ok = fresh(t, STALE_GAP_S)
+            self.stale_rows += int(np.count_nonzero(keep & ~ok))
+            keep &= ok
         if not keep.any():
-            return Block.empty(BENCH_IMU_CHANNELS)
+            return Block.empty(self.channels)
         self._last_t = float(t[keep][-1])
-        return Block(t[keep], {c: np.asarray(b.values[s], float)[keep]
-                               for c, s in zip(BENCH_IMU_CHANNELS, src, strict=True)})
+        values = {c: np.asarray(b.values[s], float)[keep]
+                  for c, s in zip(BENCH_IMU_CHANNELS, src, strict=True)}
+        if self.attitude:
+            rpy = np.column_stack([np.asarray(b.values[c], float)[keep]
+                                   for c in ("roll_rad", "pitch_rad", "yaw_rad")])
+            q = np.array([msp.attitude_quat_enu(msp.Attitude(*map(float, r))) for r in rpy])
+            q *= np.where(q[:, :1] < 0, -1.0, 1.0)  # one hemisphere: w >= 0
+            values.update({c: q[:, i] for i, c in enumerate(IMU_ATTITUDE_CHANNELS)})
+        return Block(t[keep], values)
 
     def close(self) -> None:
         try:

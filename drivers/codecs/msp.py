@@ -527,6 +527,41 @@ class Attitude:
         return cls(math.radians(r / 10), math.radians(pi / 10), math.radians(y))
 
 
+Quat = tuple[float, float, float, float]  # scalar first (w, x, y, z)
+#: the frame changes between Betaflight's axes and the bench's, as quaternions: forward-
+#: right-down body from forward-left-up (half a turn about x); north-east-down earth from
+#: east-north-up (half a turn about the bisector of x and y)
+FRD_FROM_FLU: Quat = (0.0, 1.0, 0.0, 0.0)
+NED_FROM_ENU: Quat = (0.0, math.sqrt(0.5), math.sqrt(0.5), 0.0)
+
+
+def quat_mul(a: Quat, b: Quat) -> Quat:
+    """Hamilton product ``a ⊗ b`` (rotation ``b`` first, then ``a``)."""
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return (aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw)
+
+
+def quat_conj(q: Quat) -> Quat:
+    return (q[0], -q[1], -q[2], -q[3])
+
+
+def attitude_quat_enu(att: Attitude) -> Quat:
+    """Betaflight's MSP_ATTITUDE (roll right wing down +, pitch **nose down** +, yaw the
+    compass heading, clockwise from north) as the quaternion forward-left-up body →
+    east-north-up earth, the bench's attitude convention.
+
+    Betaflight's angles are the Z-Y-X Euler angles of its FRD body in NED with the pitch
+    negated (imu.c); the frame changes then turn that rotation into FLU → ENU."""
+    half = (0.5 * att.yaw_rad, -0.5 * att.pitch_rad, 0.5 * att.roll_rad)
+    (cy, cp, cr), (sy, sp, sr) = (tuple(math.cos(h) for h in half),
+                                  tuple(math.sin(h) for h in half))
+    ned_frd = (cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy,
+               cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy)
+    return quat_mul(quat_mul(quat_conj(NED_FROM_ENU), ned_frd), quat_conj(FRD_FROM_FLU))
+
+
 @dataclass(frozen=True)
 class AttitudeQuaternion:
     """MSP_ATTITUDE_QUATERNION reply (Betaflight, §1.8): int16 w, x, y, z scaled by 0x7FFF."""

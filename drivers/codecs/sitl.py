@@ -29,9 +29,13 @@ import struct
 from collections.abc import Iterator
 from dataclasses import dataclass
 
-__all__ = ["FDM_PORT", "FDM_SIZE", "MOTOR_RAW_PORT", "MOTOR_RAW_SIZE", "MSP_PORT",
-           "RC_PORT", "STANDARD_GRAVITY", "STANDARD_PRESSURE_PA", "MotorOutputs",
-           "decode_motor_raw", "encode_fdm", "encode_fdm_at_rest", "fdm_stamps"]
+from drivers.codecs.msp import FRD_FROM_FLU, NED_FROM_ENU, Quat, quat_mul
+
+__all__ = ["ACC_COUNTS_PER_M_S2", "FDM_PORT", "FDM_SIZE", "GYRO_COUNTS_PER_RAD_S",
+           "MOTOR_RAW_PORT", "MOTOR_RAW_SIZE", "MSP_PORT", "RC_PORT", "SITL_ACC_1G",
+           "SITL_GYRO_LSB_PER_DPS", "STANDARD_GRAVITY", "STANDARD_PRESSURE_PA",
+           "MotorOutputs", "decode_motor_raw", "encode_fdm", "encode_fdm_at_rest",
+           "encode_fdm_imu", "fdm_stamps", "whole_counts"]
 
 MSP_PORT = 5761  # UART1 (MSP) on TCP 5760 + 1
 FDM_PORT = 9003
@@ -40,6 +44,11 @@ MOTOR_RAW_PORT = 9001
 STANDARD_GRAVITY = 9.80665
 STANDARD_PRESSURE_PA = 101325.0
 FDM_STAMP_STEP_S = 0.025  # >= 20 ms: the firmware keeps its clock rate at 1 (module doc)
+#: the virtual sensors' scales (sitl.c): counts per deg/s and per g (acc_1G)
+SITL_GYRO_LSB_PER_DPS = 16.4
+SITL_ACC_1G = 256
+GYRO_COUNTS_PER_RAD_S = SITL_GYRO_LSB_PER_DPS * 180.0 / math.pi
+ACC_COUNTS_PER_M_S2 = SITL_ACC_1G / STANDARD_GRAVITY
 
 _FDM = struct.Struct("<18d")
 _RAW = struct.Struct("<H2x16f")
@@ -90,3 +99,28 @@ def decode_motor_raw(data: bytes) -> MotorOutputs:
     if count > len(values):
         raise ValueError(f"servo_packet_raw: motor count {count} > {len(values)}")
     return MotorOutputs(tuple(float(v) for v in values[:count]))
+
+
+def whole_counts(value: float, counts_per_unit: float) -> float:
+    """The packet value the firmware turns into ``round(value * counts_per_unit)`` counts.
+
+    The SITL converts a packet's double to its int16 sensor counts by truncation toward
+    zero (sitl.c), a dead band of one count around zero: a sine of amplitude A counts
+    reads 2/(pi A) small in scale (0.24 % for the 4 deg gyro sines of Paper A). A
+    sensor's converter rounds; so the bench hands over whole counts with half a count
+    away from zero, which truncation brings back to exactly those counts."""
+    n = round(value * counts_per_unit)
+    return (n + math.copysign(0.5, n)) / counts_per_unit if n else 0.0
+
+
+def encode_fdm_imu(t_s: float, gyro_flu_rad_s: Vec3, specific_force_flu_m_s2: Vec3,
+                   body_to_enu: Quat) -> bytes:
+    """An ``fdm_packet`` from what an IMU in Betaflight's forward-left-up body axes
+    measures (rate, specific force: level at rest (0, 0, +g)) and the body's attitude
+    (forward-left-up body -> east-north-up earth), in the packet's frames: body rates in
+    FRD, minus the specific force in FLU (sitl.c negates it), FRD -> NED attitude, each
+    reading as the whole counts of the firmware's own scales (:func:`whole_counts`)."""
+    gx, gy, gz = (whole_counts(w, GYRO_COUNTS_PER_RAD_S) for w in gyro_flu_rad_s)
+    fx, fy, fz = (whole_counts(f, ACC_COUNTS_PER_M_S2) for f in specific_force_flu_m_s2)
+    quat = quat_mul(quat_mul(NED_FROM_ENU, body_to_enu), FRD_FROM_FLU)
+    return encode_fdm(t_s, (gx, -gy, -gz), (-fx, -fy, -fz), quat)

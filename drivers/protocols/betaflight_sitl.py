@@ -8,6 +8,13 @@ The sensors are the wire-level simulated ones (``serial://sim/loadcell``...) on 
 plant. The ESC comes wrapped in :class:`drivers.command_delay.OutputTimedEsc`, which
 times each command to the firmware's output for ``run.json``.
 
+On the IMU bench the firmware is the IMU under test instead (:func:`open_sitl_imu`): the
+same launch, its FDM made from the simulated hexapod and the rig's IMU model
+(``drivers.wire_sim.sitl_imu_world``), its RAW_IMU (and ATTITUDE) polled over MSP as any
+flight controller's. The world runs on the wall clock (a paced clock at time scale 1):
+the firmware's clock follows the packets' stamps, and its filters and its 100 Hz MSP
+task are real-time things.
+
 Closing order (the rig's ``close()``): the ESC sends every motor to 1000, the MSP
 connection closes, then the plant's owner stops the peer (after the idle output reached
 the plant) and the firmware (SIGTERM, then SIGKILL), whatever happened before.
@@ -20,12 +27,12 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from drivers.contracts import Esc
+from drivers.contracts import Esc, Sensor
 from drivers.device_options import DeviceUrl
 from drivers.errors import DeviceError
 from drivers.registry import backend
 
-__all__ = ["LAUNCHERS", "open_sitl_esc"]
+__all__ = ["LAUNCHERS", "open_sitl_esc", "open_sitl_imu"]
 
 LAUNCHERS = ("betaflight-sitl",)
 LOOPBACK = ("127.0.0.1", "localhost")
@@ -43,21 +50,14 @@ def open_sitl_esc(ctx: Any, spec: DeviceUrl, share_link: Callable[[Any], Any]) -
     from drivers.backends.msp_rc_esc import MspRcEsc
     from drivers.command_delay import OutputTimedEsc
     from drivers.protocols.serial import open_msp_esc
+    from drivers.wire_sim.sitl_plant import SitlPlantPeer
 
-    spec.text("launch", choices=LAUNCHERS)
-    if spec.host not in LOOPBACK:
-        raise spec.fail("launch", f"the launched firmware listens on this machine: use "
-                                  f"msp+tcp://127.0.0.1:5761, not host {spec.host!r}")
-    binary_opt = spec.raw("sitl_binary", "")
-    if not isinstance(binary_opt, str):
-        raise spec.fail("sitl_binary", f"expected a path, got {binary_opt!r}")
-    rate_hz = spec.number("fdm_rate_hz", 250.0, lo=100.0, hi=1000.0)
+    launcher, binary, rate_hz = _launch_options(spec)
     motor = spec.integer("motor", 0, lo=0, hi=3)  # the SITL drives 4 motors
-    launcher = backend("betaflight_sitl", spec)
-    binary = launcher.find_binary(binary_opt or None)  # before anything starts
     wire = ctx.world()  # the rig's plant; its owner stops what is added below, last
     ctx.wire = wire
-    firmware, port, peer = _launch(ctx, spec, launcher, binary, wire.plant, motor, rate_hz)
+    firmware, port, peer = _launch(ctx, spec, launcher, binary, lambda: SitlPlantPeer(
+        wire.plant, motor, rate_hz=rate_hz))
     wire.add("sitl:firmware", firmware, firmware.stop)
     wire.add("sitl:plant", peer, peer.stop)  # stopped before the firmware
     ctx.peers[spec.role] = peer
@@ -70,8 +70,59 @@ def open_sitl_esc(ctx: Any, spec: DeviceUrl, share_link: Callable[[Any], Any]) -
     return OutputTimedEsc(esc, peer, "Betaflight SITL")
 
 
-def _launch(ctx: Any, spec: DeviceUrl, launcher: Any, binary: Any, plant: Any, motor: int,
-            rate_hz: float) -> tuple[Any, Any, Any]:
+def open_sitl_imu(ctx: Any, spec: DeviceUrl, share_link: Callable[[Any], Any]) -> Sensor:
+    """Launch the firmware fed by the IMU bench's simulated world, then poll its RAW_IMU
+    (and ATTITUDE, option ``attitude``) over MSP as the IMU under test."""
+    from drivers.backends.msp_fc import MspClient, MspImu, MspImuSensor
+    from drivers.codecs.sitl import SITL_ACC_1G, SITL_GYRO_LSB_PER_DPS
+    from drivers.wire_sim.sitl_imu_world import HexapodFdm
+    from drivers.wire_sim.sitl_plant import SitlPlantPeer
+
+    launcher, binary, fdm_hz = _launch_options(spec)
+    # the firmware's own scales unless the rig file says otherwise (what a run proves)
+    acc_1g = spec.number("acc_1g", SITL_ACC_1G, lo=1.0, hi=32768.0)
+    gyro_lsb = spec.number("gyro_lsb_per_dps", SITL_GYRO_LSB_PER_DPS, lo=1e-3, hi=1e3)
+    rate_hz = spec.number("rate_hz", ctx.rig.imu.value("rate_hz"), lo=0.1, hi=100.0)
+    timeout_s = spec.number("timeout_s", 1.0, lo=0.005, hi=5.0)
+    attitude = spec.raw("attitude", False)
+    if not isinstance(attitude, bool):
+        raise spec.fail("attitude", f"expected true or false, got {attitude!r}")
+    world = ctx.world()
+    scale = getattr(world.clock, "time_scale", None)
+    if scale != 1.0:
+        raise spec.fail("launch", "the launched firmware runs on the wall clock: the IMU "
+                                  "bench's world must too (time_scale 1)")
+    firmware, port, peer = _launch(ctx, spec, launcher, binary, lambda: SitlPlantPeer(
+        None, 0, rate_hz=fdm_hz, fdm=HexapodFdm(world, 1.0 / fdm_hz), clock=ctx.clock.now))
+    ctx.on_close(firmware.stop)
+    ctx.on_close(peer.stop)  # closers run last-in first-out: the feeder stops first
+    ctx.peers[spec.role] = peer
+    link = share_link(port)
+    client = MspClient(link, spec.url, timeout_s=timeout_s)
+    imu = MspImu(client, rate_hz=rate_hz, acc_1g=acc_1g, clock=ctx.clock, url=spec.url,
+                 attitude=attitude, gyro_lsb_per_dps=gyro_lsb)
+    ctx.answers[spec.role] = (f"flight controller {imu.variant}, MSP API {imu.api.api_major}."
+                              f"{imu.api.api_minor}; Betaflight SITL launched by the bench (pid "
+                              f"{firmware.proc.pid}), fed the hexapod world at {fdm_hz:g} Hz")
+    return MspImuSensor(imu, rate_hz, port=link, peer=peer, attitude=attitude)
+
+
+def _launch_options(spec: DeviceUrl) -> tuple[Any, Any, float]:
+    """The launcher module, the binary (found before anything starts) and the FDM rate."""
+    spec.text("launch", choices=LAUNCHERS)
+    if spec.host not in LOOPBACK:
+        raise spec.fail("launch", f"the launched firmware listens on this machine: use "
+                                  f"msp+tcp://127.0.0.1:5761, not host {spec.host!r}")
+    binary_opt = spec.raw("sitl_binary", "")
+    if not isinstance(binary_opt, str):
+        raise spec.fail("sitl_binary", f"expected a path, got {binary_opt!r}")
+    rate_hz = spec.number("fdm_rate_hz", 250.0, lo=100.0, hi=1000.0)
+    launcher = backend("betaflight_sitl", spec)
+    return launcher, launcher.find_binary(binary_opt or None), rate_hz
+
+
+def _launch(ctx: Any, spec: DeviceUrl, launcher: Any, binary: Any,
+            make_peer: Callable[[], Any]) -> tuple[Any, Any, Any]:
     """A firmware that answers MSP and sends motor output, with its connected MSP port
     and its running plant peer; relaunched up to ``LAUNCHES`` times.
 
@@ -81,7 +132,6 @@ def _launch(ctx: Any, spec: DeviceUrl, launcher: Any, binary: Any, plant: Any, m
     first MSP reply. So: MSP first, then FDM, then the first motor update, or relaunch
     (Betaflight's own SITL harness also relaunches, up to 3 times)."""
     from drivers.backends.msp_fc import MspClient
-    from drivers.wire_sim.sitl_plant import SitlPlantPeer
 
     mt = backend("msp_tcp", spec)
     for attempt in range(1, LAUNCHES + 1):
@@ -93,7 +143,7 @@ def _launch(ctx: Any, spec: DeviceUrl, launcher: Any, binary: Any, plant: Any, m
             client = MspClient(port, spec.url, timeout_s=READY_S)
             client.identify()
             launcher.await_control_loop(client, spec.url, READY_S)
-            peer = SitlPlantPeer(plant, motor, rate_hz=rate_hz).start()
+            peer = make_peer().start()
             peer.wait_output(FIRST_OUTPUT_S)
             return firmware, port, peer
         except BaseException as exc:

@@ -53,4 +53,8 @@ def msp_tcp_esc(ctx: Any, spec: DeviceUrl) -> Esc:
 @register(SCHEME, None, ("imu",), summary="a flight controller's MSP over TCP",
           example=EXAMPLE)
 def msp_tcp_imu(ctx: Any, spec: DeviceUrl) -> Sensor:
+    if spec.has("launch"):  # the firmware as the IMU under test, fed the hexapod's world
+        from drivers.protocols.betaflight_sitl import open_sitl_imu
+
+        return open_sitl_imu(ctx, spec, lambda port: _link(ctx, spec, port))
     return open_msp_imu(ctx, spec, lambda: _link(ctx, spec))

@@ -32,6 +32,7 @@ from drivers.contracts import (
     Fault,
 )
 from drivers.errors import DeviceError
+from drivers.hexapod_kinematics import HexapodState
 from drivers.sim.clock import SimClock
 from drivers.sim.faults import FaultOptions, FaultSwitches
 from drivers.sim.hexapod_device import SimHexapodDevice
@@ -110,6 +111,14 @@ class SimImuDevice:
     def lever_arm_from_pivot(self) -> Array:
         return np.asarray(self.model.lever_arm_m) + self.cg_m - np.asarray(self.hexapod.pivot_m)
 
+    def sample_at(self, stamps: Array) -> tuple[HexapodState, Array, Array]:
+        """The truth and the model's gyro and accelerometer readings of samples stamped
+        ``stamps`` (taken ``clock_offset_s`` earlier): one home for the sensor model, read
+        here and by whatever else the model feeds (the Betaflight SITL's FDM input)."""
+        truth = self.hexapod.state_at(np.asarray(stamps, float) - self.model.clock_offset_s)
+        gyro, acc = self._imu().measure(truth)
+        return truth, gyro, acc
+
     def read_block(self) -> Block:
         if self.closed:
             raise DeviceError("sim imu: read after close")
@@ -118,8 +127,7 @@ class SimImuDevice:
         stamps = self._sampler.due()
         if stamps.size == 0:
             return Block.empty(IMU_CHANNELS)
-        truth = self.hexapod.state_at(stamps - self.model.clock_offset_s)
-        gyro, acc = self._imu().measure(truth)
+        _, gyro, acc = self.sample_at(stamps)
         data = np.hstack([gyro, acc])
         block = Block(stamps, {c: data[:, i] for i, c in enumerate(IMU_CHANNELS)})
         full = {c: (self.model.gyro_range_rad_s if "gyro" in c else self.model.acc_range_m_s2)

@@ -10,6 +10,10 @@ rescaling, and none for the firmware's stale re-sync reply). Each update sets th
 motor, propeller, load cell and power sensor see what the firmware outputs, when it
 outputs it, and never what the bench asked for.
 
+The packets need not be at rest: ``fdm(wall_t)`` gives each one (the IMU bench's hexapod
+world: ``drivers.wire_sim.sitl_imu_world``), and without a plant (``plant=None``) the
+motor updates only prove the firmware alive (``wait_output``, ``check``).
+
 ``changes()`` keeps each change of the watched motor's output with its arrival time
 (host monotonic clock): the other half of the command-to-output delay
 (``drivers.command_delay``).
@@ -17,13 +21,17 @@ outputs it, and never what the bench asked for.
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import math
 import select
 import socket
 import threading
 import time
+from collections.abc import Callable
 from typing import Any, Self
+
+import numpy as np
 
 from drivers.codecs.sitl import (
     FDM_PORT,
@@ -42,12 +50,18 @@ MAX_SILENCE_S = 0.5  # fed but no motor update for this long: the firmware stall
 
 
 class SitlPlantPeer:
-    """FDM feeder and motor listener on loopback, driving ``plant`` from motor
-    ``motor_index`` (0 = Betaflight motor 1)."""
+    """FDM feeder and motor listener on loopback, driving ``plant`` (if any) from motor
+    ``motor_index`` (0 = Betaflight motor 1); ``fdm(wall_t)`` makes each packet."""
 
     def __init__(self, plant: Any, motor_index: int, *, rate_hz: float = 250.0,
-                 host: str = "127.0.0.1") -> None:
+                 host: str = "127.0.0.1",
+                 fdm: Callable[[float], bytes] | None = None,
+                 clock: Callable[[], float] | None = None) -> None:
         self.plant = plant
+        stamps = fdm_stamps()  # at rest: the firmware's clock at real time, even under load
+        self.fdm = fdm or (lambda _wall_t: encode_fdm_at_rest(next(stamps)))
+        self.clock = clock  # stamps the motor updates for fresh() (the rig's clock)
+        self._beats: collections.deque[float] = collections.deque(maxlen=8192)
         self.motor_index = motor_index
         self.period_s = 1.0 / rate_hz
         self.host = host
@@ -71,7 +85,6 @@ class SitlPlantPeer:
                               f"{host}:{MOTOR_RAW_PORT}: {exc.strerror or exc}") from None
         self._rx.setblocking(False)
         self._tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self._stamps = fdm_stamps()  # the firmware's clock at real time, even under load
         self._thread = threading.Thread(target=self._run, name="sitl-plant", daemon=True)
 
     def start(self) -> Self:
@@ -113,16 +126,15 @@ class SitlPlantPeer:
                                      f"{type(exc).__name__}: {exc}")
 
     def _loop(self) -> None:
-        """Late, it skips ahead instead of sending a burst (the stamps keep the firmware's
-        clock at real time: ``drivers.codecs.sitl.fdm_stamps``)."""
+        """Late, it skips ahead instead of sending a burst (the resting packets' stamps keep
+        the firmware's clock at real time: ``drivers.codecs.sitl.fdm_stamps``)."""
         due = time.monotonic()
         while not self._stop.is_set():
             now = time.monotonic()
             if now >= due:
                 if self._feeding.is_set():
                     with contextlib.suppress(OSError):  # no route yet: try next period
-                        self._tx.sendto(encode_fdm_at_rest(next(self._stamps)),
-                                        (self.host, FDM_PORT))
+                        self._tx.sendto(self.fdm(now), (self.host, FDM_PORT))
                         self.fdm_sent += 1
                 due = max(due + self.period_s, now)
             with contextlib.suppress(OSError, ValueError):
@@ -147,7 +159,10 @@ class SitlPlantPeer:
     def _apply(self, t: float, pulse_us: float) -> None:
         self.last_update_t = t
         self.updates += 1
-        self.plant.command_pulse(pulse_us)
+        if self.clock is not None:
+            self._beats.append(self.clock())
+        if self.plant is not None:
+            self.plant.command_pulse(pulse_us)
         if pulse_us != self.last_us:
             with self._lock:
                 self._changes.append((t, pulse_us))
@@ -158,6 +173,20 @@ class SitlPlantPeer:
         """(arrival time, us) of each change of the motor's output since ``since``."""
         with self._lock:
             return [c for c in self._changes if c[0] >= since]
+
+    def fresh(self, stamps: Any, max_gap_s: float) -> Any:
+        """Whether the firmware accepted an FDM packet within ``max_gap_s`` of each of
+        ``stamps`` (the rig's clock): each accepted packet brings one motor update, so a
+        reading polled where none came is one the firmware's sensors did not refresh (a
+        starved machine stalled the feeder or the firmware for a while)."""
+        t = np.asarray(stamps, float)
+        beats = np.fromiter(self._beats, float)
+        if beats.size == 0:
+            return np.zeros(t.shape, bool)
+        i = np.clip(np.searchsorted(beats, t), 1, beats.size - 1) if beats.size > 1 \
+            else np.zeros(t.shape, int)
+        near = np.minimum(np.abs(beats[i] - t), np.abs(beats[np.maximum(i - 1, 0)] - t))
+        return near <= max_gap_s
 
     def pause(self) -> None:
         """Stop feeding FDM: the firmware then sends no motor output (tests)."""
@@ -171,7 +200,7 @@ class SitlPlantPeer:
         """Let the firmware's idle output (the bench sent 1000 before closing) reach the
         plant, stop the loop, then idle the plant: its ESC has lost the signal."""
         deadline = time.monotonic() + IDLE_WAIT_S
-        idle = self.plant.settings.idle_us
+        idle = self.plant.settings.idle_us if self.plant is not None else math.inf
         while (self._thread.is_alive() and self._feeding.is_set() and not self.last_us <= idle
                and time.monotonic() < deadline):
             time.sleep(0.01)
@@ -180,4 +209,5 @@ class SitlPlantPeer:
             self._thread.join(1.0)
         self._rx.close()
         self._tx.close()
-        self.plant.command_pulse(idle)
+        if self.plant is not None:
+            self.plant.command_pulse(idle)

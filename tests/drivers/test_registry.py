@@ -55,8 +55,10 @@ def test_lookup_finds_the_entry(role, url, options, opener):
     ("load_cell", "serial:///dev/x", {"protocol": "kiss"},
      r"'kiss' cannot be the load_cell device; use loadcell"),
     ("rpm", "serial:///dev/x", {"protocol": "smoke"}, r"'smoke': expected one of msp, vesc"),
-    ("esc", "tcp://host", {}, r"expected sim://esc or serial://<port> \(protocol msp or vesc\) "
-                              r"or can://.* \(tcp:// serves the PI GCS hexapod"),
+    # every alternative named, in whatever order the protocols registered
+    ("esc", "tcp://host", {}, r"^(?=.*expected sim://esc or )(?=.*serial://<port> "
+                              r"\(protocol msp or vesc\))(?=.*can://)(?=.*msp\+tcp://)"
+                              r"(?=.*\(tcp:// serves the PI GCS hexapod)"),
     ("hexapod", "can://sim/bus", {}, r"expected sim://hexapod or tcp://<host>\[:port\]"),
 ])
 def test_lookup_errors_name_the_field_and_the_alternatives(role, url, options, match):
