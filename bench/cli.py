@@ -80,6 +80,19 @@ def _add_log_options(parser: argparse.ArgumentParser, top: bool = False) -> None
                 _add_log_options(child)
 
 
+class _StderrHandler(logging.StreamHandler):
+    """Writes to whatever ``sys.stderr`` is when a line is logged, not to the stream it
+    was at set-up: a caller that swaps stderr (a test's capture, a console redirect) and
+    closes the old one must not turn every later warning into a logging error."""
+
+    def __init__(self) -> None:
+        super().__init__(sys.stderr)
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.stream = sys.stderr  # (setStream would flush the old one, which may be closed)
+        super().emit(record)
+
+
 def configure_logging(verbose: int = 0, level: str | None = None) -> logging.Handler:
     """stderr's share of the log: ``level``, else warnings and up, ``-v`` info, ``-vv``
     debug, of the project's loggers (other libraries': warnings, whatever the level).
@@ -91,7 +104,7 @@ def configure_logging(verbose: int = 0, level: str | None = None) -> logging.Han
     root = logging.getLogger()
     for old in [h for h in root.handlers if getattr(h, "_rotorbench", False)]:
         root.removeHandler(old)
-    handler = logging.StreamHandler(sys.stderr)
+    handler = _StderrHandler()
     handler.setLevel(getattr(logging, level.upper()))
     handler.setFormatter(logging.Formatter("rotorbench: %(levelname)s: %(name)s: %(message)s"))
     handler._rotorbench = True  # type: ignore[attr-defined]
