@@ -102,8 +102,8 @@ def apply_calibrations(rig_cfg: Any, devices: Any, out_root: Path, *,
     unless ``accept_uncalibrated``."""
     records = newest_records(out_root, rig_cfg.name)
     applied: dict[str, dict[str, Any]] = {}
-    real = not getattr(rig_cfg, "is_simulated", True)
     for role, sensor in list(devices.sensors.items()):
+        real = not _simulated(rig_cfg, role)
         channels = {c.name for c in sensor.describe().channels}
         for channel in sorted(channels & {"thrust_n", "torque_nm"}):
             record = records.get(channel)
@@ -137,6 +137,16 @@ def apply_calibrations(rig_cfg: Any, devices: Any, out_root: Path, *,
             devices.sensors[role] = sensor = CalibratedSensor(sensor, cal)
             applied[channel] = cal.as_dict()
     return applied
+
+
+def _simulated(rig_cfg: Any, role: str) -> bool:
+    """Whether the device of ``role`` is a simulator (``sim://``, or a wire-level one on
+    host ``sim``, as beside a real firmware): its cell is what the rig file says."""
+    from urllib.parse import urlsplit
+
+    dev = getattr(rig_cfg, "devices", {}).get(role)
+    url = str(getattr(dev, "url", ""))
+    return url.startswith("sim://") or urlsplit(url).netloc == "sim"
 
 
 def _state(record: dict[str, Any], now: datetime | None = None) -> str:

@@ -205,3 +205,23 @@ def test_the_web_view_shows_the_record_and_its_figure_and_survives_a_hostile_one
         assert page.status_code == 200 and 'id="calibration"' not in page.text
         assert "<script>alert(1)</script>" not in page.text  # escaped in run.json's text
         assert client.get(f"/runs/{run_dir.name}/calibration.png").status_code == 422
+
+
+def test_a_real_cell_without_a_calibration_warns_and_a_simulated_one_does_not(tmp_path,
+                                                                           caplog):
+    import logging
+    from types import SimpleNamespace
+
+    from bench.plan_runner.cell_calibrations import apply_calibrations
+    from drivers.contracts import ChannelInfo, DeviceInfo
+
+    cell = SimpleNamespace(describe=lambda: DeviceInfo(
+        "load_cell", "m", "u", (ChannelInfo("thrust_n", "N", 1.0, 0.0, 1.0),)))
+    devices = SimpleNamespace(sensors={"load_cell": cell})
+    for url, warns in (("serial:///dev/ttyUSB0", True), ("serial://sim/loadcell", False),
+                       ("sim://load_cell", False)):
+        rig = SimpleNamespace(name="stand", devices={"load_cell": SimpleNamespace(url=url)})
+        caplog.clear()
+        with caplog.at_level(logging.WARNING):
+            assert apply_calibrations(rig, devices, tmp_path) == {}
+        assert any("no calibration of thrust_n" in r.message for r in caplog.records) == warns
