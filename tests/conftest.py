@@ -9,15 +9,22 @@ from pathlib import Path
 
 import pytest
 
-# the real services (PostgreSQL, S3) of the lab-store and web-view tests: one module,
-# importable by the tests as ``rotorbench_tests_services``
-_SERVICES = "rotorbench_tests_services"
-if _SERVICES not in sys.modules:
-    _spec = importlib.util.spec_from_file_location(_SERVICES, Path(__file__).with_name(
-        "services.py"))
-    assert _spec and _spec.loader
-    sys.modules[_SERVICES] = importlib.util.module_from_spec(_spec)
-    _spec.loader.exec_module(sys.modules[_SERVICES])
+
+def _load_helper(name: str, path: Path) -> None:
+    """Register a test helper module by path as ``name`` (tests use importlib mode)."""
+    if name not in sys.modules:
+        spec = importlib.util.spec_from_file_location(name, path)
+        assert spec is not None and spec.loader is not None
+        sys.modules[name] = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(sys.modules[name])
+
+
+_HERE = Path(__file__).parent
+# the real services (PostgreSQL, S3) of the lab-store and web-view tests
+_load_helper("rotorbench_tests_services", _HERE / "services.py")
+# the flight-log encoders the reader tests round-trip through (blackbox, DataFlash)
+_load_helper("rotorbench_tests_blackbox_writer", _HERE / "analysis" / "blackbox_writer.py")
+_load_helper("rotorbench_tests_dataflash_writer", _HERE / "analysis" / "dataflash_writer.py")
 from rotorbench_tests_services import pg_cluster, pg_url, s3, s3_env  # noqa: E402, F401
 
 REPO = Path(__file__).resolve().parents[1]

@@ -16,8 +16,6 @@ from analysis.flightlogs.flight_log import FlightLog
 __all__ = ["FLIGHT_FORMATS", "FlightLog", "detect_flight_format", "read_flight_log"]
 
 FLIGHT_FORMATS = ("blackbox", "ulog", "dataflash")
-BLACKBOX_MARKER = b"H Product:Blackbox flight data recorder by Nicholas Sherlock\n"
-DATAFLASH_FMT_HEAD = b"\xa3\x95\x80"  # a DataFlash log opens with the FMT of FMT
 _SNIFF_BYTES = 1 << 16
 
 
@@ -28,13 +26,16 @@ def detect_flight_format(path: str | Path) -> str | None:
             head = fh.read(_SNIFF_BYTES)
     except OSError as exc:
         raise LogError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    # the readers' own constants, imported here so the CLI's start does not load readers
+    from analysis.flightlogs.blackbox import MARKER
+    from analysis.flightlogs.dataflash import FMT_TYPE, HEAD
     from analysis.flightlogs.ulog import MAGIC
 
     if head.startswith(MAGIC):
         return "ulog"
-    if head.startswith(DATAFLASH_FMT_HEAD):
+    if head.startswith(HEAD + bytes([FMT_TYPE])):  # a DataFlash log opens with the FMT of FMT
         return "dataflash"
-    if BLACKBOX_MARKER in head:
+    if MARKER in head:
         return "blackbox"
     return None
 

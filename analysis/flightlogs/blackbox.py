@@ -35,13 +35,12 @@ from analysis.flightlogs.blackbox_frames import (
 )
 from analysis.flightlogs.blackbox_header import HEADER_MAX, Header, parse_header
 from analysis.flightlogs.blackbox_predict import Predictor
-from analysis.flightlogs.flight_log import AXES, FlightLog
+from analysis.flightlogs.flight_log import AXES, MAX_ROWS, FlightLog
 
 __all__ = ["MARKER", "MAX_ROWS", "WINDOW", "find_logs", "read_blackbox"]
 
 MARKER = b"H Product:Blackbox flight data recorder by Nicholas Sherlock\n"
 WINDOW = 8 << 20  # bytes read and decoded at a time
-MAX_ROWS = 20_000_000  # rows kept per log unless told otherwise (~2.8 h at 2 kHz)
 _TAIL = 1024  # frames are < 256 bytes: a frame starting this far from a window's end is whole
 _GARBAGE, _I, _P, _E, _OTHER = 0, 1, 2, 3, 4
 _FLAGS = ("_is_i", "_resumes")

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
@@ -25,7 +26,7 @@ from typing import BinaryIO
 import numpy as np
 
 from analysis.errors import LogError
-from analysis.flightlogs.flight_log import AXES, FlightLog, hold
+from analysis.flightlogs.flight_log import AXES, MAX_ROWS, FlightLog, holder
 
 __all__ = ["FORMAT_CHARS", "WINDOW", "read_dataflash"]
 
@@ -33,7 +34,6 @@ HEAD = b"\xa3\x95"
 FMT_TYPE = 128
 FMT_LEN = 89
 WINDOW = 8 << 20
-MAX_ROWS = 20_000_000
 # format char -> (numpy dtype, scale applied to the stored value)
 FORMAT_CHARS: dict[str, tuple[str | tuple[str, tuple[int]], float]] = {
     "a": ("<i2", 1.0), "b": ("i1", 1.0), "B": ("u1", 1.0), "h": ("<i2", 1.0),
@@ -123,6 +123,7 @@ def _collect(fh: BinaryIO, size: int, formats: dict[int, MessageFormat], max_row
     rx = _message_regex(formats)
     wanted = {mf.type: mf for mf in formats.values() if mf.name in _WANTED}
     parts: dict[int, list[np.ndarray]] = {t: [] for t in wanted}
+    imu = [t for t, mf in wanted.items() if mf.name == "IMU"]
     garbage = messages = 0
     offset, carry, cut = 0, b"", False
     while offset < size:
@@ -150,7 +151,6 @@ def _collect(fh: BinaryIO, size: int, formats: dict[int, MessageFormat], max_row
                 raw = buf[sel[:, None] + np.arange(3, mf.length)]
                 parts[t].append(raw.copy().view(mf.dtype()).ravel())
         carry = chunk[int(starts[keep]):] if keep < len(items) else b""
-        imu = [t for t, mf in wanted.items() if mf.name == "IMU"]
         if imu and sum(len(p) for p in parts[imu[0]]) > max_rows:
             cut = True
             break
@@ -222,35 +222,38 @@ def read_dataflash(path: str | Path, *, max_rows: int | None = None) -> FlightLo
     for axis, c in zip(AXES, ("GyrX", "GyrY", "GyrZ"), strict=True):
         log.add(f"gyro_{axis}_rad_s", _col(imu, f.format, f.columns, c), "rad/s", f"IMU.{c}")
 
-    def t_of(arr: np.ndarray) -> np.ndarray:
-        return (arr["TimeUS"].astype(np.int64) - t0) * 1e-6
+    def held(arr: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
+        """Hold any column of these messages onto the IMU times."""
+        return holder(base, (arr["TimeUS"].astype(np.int64) - t0) * 1e-6)
 
     if "RATE" in arrays:
         r, f = arrays["RATE"], by_name["RATE"]
+        h = held(r)
         for axis, c in zip(AXES, ("RDes", "PDes", "YDes"), strict=True):
             if c in f.columns:
                 v = _col(r, f.format, f.columns, c) * math.pi / 180
-                log.add(f"rate_sp_{axis}_rad_s", hold(base, t_of(r), v), "rad/s",
-                        f"RATE.{c} (deg/s)")
+                log.add(f"rate_sp_{axis}_rad_s", h(v), "rad/s", f"RATE.{c} (deg/s)")
     if "RCOU" in arrays:
         r, f = arrays["RCOU"], by_name["RCOU"]
+        h = held(r)
         for c in f.columns:
             if re.fullmatch(r"C\d+", c) and np.any(r[c] != 0):
-                log.add(f"output{c[1:]}_us", hold(base, t_of(r), _col(r, f.format, f.columns, c)),
+                log.add(f"output{c[1:]}_us", h(_col(r, f.format, f.columns, c)),
                         "µs", f"RCOU.{c}")
     if "ESC" in arrays:
         r, f = arrays["ESC"], by_name["ESC"]
         inst = r["Instance"] if "Instance" in f.columns else np.zeros(len(r), int)
         for k in sorted(set(inst.tolist()))[:12]:
             e = r[inst == k]
-            log.add(f"motor{k + 1}_rpm", hold(base, t_of(e), _col(e, f.format, f.columns, "RPM")),
+            log.add(f"motor{k + 1}_rpm", held(e)(_col(e, f.format, f.columns, "RPM")),
                     "rpm", f"ESC[{k}].RPM")
     if "BAT" in arrays:
         r, f = arrays["BAT"], by_name["BAT"]
         if "Instance" in f.columns:
             r = r[r["Instance"] == 0]
+        h = held(r)
         for c, name in (("Volt", "voltage_v"), ("Curr", "current_a")):
             if c in f.columns and len(r):
-                log.add(name, hold(base, t_of(r), _col(r, f.format, f.columns, c)),
+                log.add(name, h(_col(r, f.format, f.columns, c)),
                         "V" if c == "Volt" else "A", f"BAT.{c}")
     return log

@@ -3,19 +3,21 @@
 Flight logs mix streams at different rates (PX4 logs each topic on its own clock,
 ArduPilot each message); a run folder is one table. The gyro stream is the fastest the
 step-response and vibration fits need, so it is the time base, and every slower stream
-is held at its last logged value (``hold``), NaN before its first sample.
+is held at its last logged value (``holder``), NaN before its first sample.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-__all__ = ["AXES", "FlightLog", "hold"]
+__all__ = ["AXES", "MAX_ROWS", "FlightLog", "holder"]
 
 AXES = ("x", "y", "z")  # body roll, pitch, yaw axes
+MAX_ROWS = 20_000_000  # rows kept per log unless told otherwise (~2.8 h at 2 kHz)
 
 
 @dataclass
@@ -52,13 +54,16 @@ class FlightLog:
         return {**self.meta, "units": dict(self.units), "sources": dict(self.sources)}
 
 
-def hold(t_base: np.ndarray, t: np.ndarray, values: np.ndarray) -> np.ndarray:
-    """``values`` logged at times ``t`` (sorted), held onto ``t_base``: the last value at
-    or before each base time; NaN before the first."""
-    values = np.asarray(values, dtype=float)
+def holder(t_base: np.ndarray, t: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
+    """Hold values logged at times ``t`` (sorted) onto ``t_base``: the last value at or
+    before each base time; NaN before the first. The search runs once per stream, however
+    many of its fields are held."""
     idx = np.searchsorted(t, t_base, side="right") - 1
-    out = values[np.clip(idx, 0, max(len(values) - 1, 0))] if len(values) else \
-        np.full(len(t_base), np.nan)
-    if len(values):
-        out = np.where(idx >= 0, out, np.nan)
-    return out
+
+    def held(values: np.ndarray) -> np.ndarray:
+        values = np.asarray(values, dtype=float)
+        if not len(values):
+            return np.full(len(t_base), np.nan)
+        return np.where(idx >= 0, values[np.clip(idx, 0, len(values) - 1)], np.nan)
+
+    return held

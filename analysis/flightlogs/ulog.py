@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -20,7 +21,7 @@ import numpy as np
 
 from analysis.errors import LogError
 from analysis.extras import import_extra
-from analysis.flightlogs.flight_log import AXES, FlightLog, hold
+from analysis.flightlogs.flight_log import AXES, FlightLog, holder
 
 __all__ = ["MAGIC", "MAX_BYTES", "TOPICS", "read_ulog"]
 
@@ -101,46 +102,53 @@ def read_ulog(path: str | Path) -> FlightLog:
         log.meta.setdefault("notes", []).append(
             f"dropped {int((~rows).sum())} gyro samples whose time did not go forward")
 
-    def held(topic: Any, fieldname: str, values: np.ndarray | None = None) -> np.ndarray:
+    def held(topic: Any) -> Callable[[np.ndarray], np.ndarray]:
+        """Hold any field of this topic onto the gyro times (sorted once per topic)."""
         t = (topic.data["timestamp"].astype(np.int64) - t0) * 1e-6
         order = np.argsort(t, kind="stable")
-        v = topic.data[fieldname] if values is None else values
-        return hold(base, t[order], np.asarray(v)[order])
+        h = holder(base, t[order])
+        return lambda values: h(np.asarray(values)[order])
 
     sp = _topic(ulog, "vehicle_rates_setpoint")
     if sp is not None:
+        h = held(sp)
         for axis, f in zip(AXES, ("roll", "pitch", "yaw"), strict=True):
             if f in sp.data:
-                log.add(f"rate_sp_{axis}_rad_s", held(sp, f), "rad/s",
+                log.add(f"rate_sp_{axis}_rad_s", h(sp.data[f]), "rad/s",
                         f"vehicle_rates_setpoint.{f}")
     motors = _topic(ulog, "actuator_motors")
     if motors is not None:
+        h = held(motors)
         for i in range(12):
             f = f"control[{i}]"
             if f in motors.data and np.isfinite(motors.data[f]).any():
-                log.add(f"motor{i + 1}_norm", held(motors, f), "normalised -1..1 (NaN = stopped)",
+                log.add(f"motor{i + 1}_norm", h(motors.data[f]), "normalised -1..1 (NaN = stopped)",
                         f"actuator_motors.{f}")
     outputs = _topic(ulog, "actuator_outputs")
     if outputs is not None:  # noutputs from the log; fields another version lacks are skipped
         n = int(np.max(outputs.data.get("noutputs", [16])))
+        h = held(outputs)
         for i in range(min(n, 16)):
             if f"output[{i}]" not in outputs.data:
                 continue
             v = outputs.data[f"output[{i}]"]
             pwm = bool(np.all((v >= _PWM_RANGE[0]) & (v <= _PWM_RANGE[1])))
-            log.add(f"output{i + 1}_us" if pwm else f"output{i + 1}", held(outputs, f"output[{i}]"),
+            log.add(f"output{i + 1}_us" if pwm else f"output{i + 1}", h(v),
                     "µs" if pwm else "output driver's units", f"actuator_outputs.output[{i}]")
     esc = _topic(ulog, "esc_status")
     if esc is not None:
+        h = held(esc)
         for i in range(min(int(np.max(esc.data.get("esc_count", [0]))), 8)):
             if f"esc[{i}].esc_rpm" in esc.data:
-                log.add(f"motor{i + 1}_rpm", held(esc, f"esc[{i}].esc_rpm"), "rpm",
+                log.add(f"motor{i + 1}_rpm", h(esc.data[f"esc[{i}].esc_rpm"]), "rpm",
                         f"esc_status.esc[{i}].esc_rpm")
     bat = _topic(ulog, "battery_status")
-    if bat is not None and "voltage_v" in bat.data:
-        log.add("voltage_v", held(bat, "voltage_v"), "V", "battery_status.voltage_v")
-    if bat is not None and "current_a" in bat.data:
-        cur = bat.data["current_a"].astype(float)
-        cur = np.where(cur == -1.0, np.nan, cur)  # -1: unknown
-        log.add("current_a", held(bat, "current_a", cur), "A", "battery_status.current_a")
+    if bat is not None:
+        h = held(bat)
+        if "voltage_v" in bat.data:
+            log.add("voltage_v", h(bat.data["voltage_v"]), "V", "battery_status.voltage_v")
+        if "current_a" in bat.data:
+            cur = bat.data["current_a"].astype(float)
+            cur = np.where(cur == -1.0, np.nan, cur)  # -1: unknown
+            log.add("current_a", h(cur), "A", "battery_status.current_a")
     return log

@@ -4,10 +4,8 @@ encoding alone on random values; several logs in one file; damaged logs."""
 
 from __future__ import annotations
 
-import importlib.util
 import math
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,20 +17,7 @@ from analysis.flightlogs.blackbox_frames import frame_body, frame_regex
 from analysis.run_record import read_run
 from bench.cli import main
 
-
-def _load_writer():
-    """The test encoder, loaded by path (the tests run in importlib mode)."""
-    name = "rotorbench_tests_blackbox_writer"
-    if name not in sys.modules:
-        spec = importlib.util.spec_from_file_location(
-            name, Path(__file__).with_name("blackbox_writer.py"))
-        assert spec is not None and spec.loader is not None
-        sys.modules[name] = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(sys.modules[name])
-    return sys.modules[name]
-
-
-w = _load_writer()
+w = sys.modules["rotorbench_tests_blackbox_writer"]  # blackbox_writer.py, loaded by conftest.py
 
 DEG = math.pi / 180
 

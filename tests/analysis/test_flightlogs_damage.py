@@ -6,7 +6,6 @@ columns, and signalling-NaN floats."""
 
 from __future__ import annotations
 
-import importlib.util
 import sys
 from pathlib import Path
 
@@ -16,23 +15,15 @@ import pytest
 from analysis.errors import LogError
 from analysis.flightlogs import read_flight_log
 
-
-def _load(name: str):
-    key = f"rotorbench_tests_{name}"
-    if key not in sys.modules:  # the tests run in importlib mode: load the helper by path
-        spec = importlib.util.spec_from_file_location(key, Path(__file__).with_name(f"{name}.py"))
-        assert spec is not None and spec.loader is not None
-        sys.modules[key] = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(sys.modules[key])
-    return sys.modules[key]
+bbw = sys.modules["rotorbench_tests_blackbox_writer"]  # blackbox_writer.py, loaded by conftest.py
+dfw = sys.modules["rotorbench_tests_dataflash_writer"]  # dataflash_writer.py, loaded by conftest.py
 
 
 def _valid(fmt: str) -> bytes:
     if fmt == "blackbox":
-        w = _load("blackbox_writer")
-        lay, s = w.quad_layout(), w.Settings()
-        return w.blackbox_log(w.flight_rows(600, lay, s), lay, s)
-    return _load("dataflash_writer").flight(300)[0]
+        lay, s = bbw.quad_layout(), bbw.Settings()
+        return bbw.blackbox_log(bbw.flight_rows(600, lay, s), lay, s)
+    return dfw.flight(300)[0]
 
 
 def _damage(data: bytes, rng: np.random.Generator) -> bytes:

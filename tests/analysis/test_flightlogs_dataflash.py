@@ -4,10 +4,8 @@ random bytes or with no IMU is refused in one line."""
 
 from __future__ import annotations
 
-import importlib.util
 import math
 import sys
-from pathlib import Path
 
 import numpy as np
 
@@ -15,18 +13,7 @@ from analysis.flightlogs import detect_flight_format, read_flight_log
 from analysis.run_record import read_run
 from bench.cli import main
 
-
-def _load(name: str):
-    key = f"rotorbench_tests_{name}"
-    if key not in sys.modules:  # the tests run in importlib mode: load the helper by path
-        spec = importlib.util.spec_from_file_location(key, Path(__file__).with_name(f"{name}.py"))
-        assert spec is not None and spec.loader is not None
-        sys.modules[key] = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(sys.modules[key])
-    return sys.modules[key]
-
-
-w = _load("dataflash_writer")
+w = sys.modules["rotorbench_tests_dataflash_writer"]  # dataflash_writer.py, loaded by conftest.py
 
 
 def _log(tmp_path, n=4000):

@@ -5,7 +5,6 @@ memory."""
 
 from __future__ import annotations
 
-import importlib.util
 import subprocess
 import sys
 from pathlib import Path
@@ -33,25 +32,18 @@ def _sparse(path: Path, head: bytes, size: int = HUGE) -> None:
         fh.truncate(size)
 
 
-def _load(name: str):
-    key = f"rotorbench_tests_{name}"
-    if key not in sys.modules:  # the tests run in importlib mode: load the helper by path
-        spec = importlib.util.spec_from_file_location(key, Path(__file__).with_name(f"{name}.py"))
-        assert spec is not None and spec.loader is not None
-        sys.modules[key] = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(sys.modules[key])
-    return sys.modules[key]
+bbw = sys.modules["rotorbench_tests_blackbox_writer"]  # blackbox_writer.py, loaded by conftest.py
+dfw = sys.modules["rotorbench_tests_dataflash_writer"]  # dataflash_writer.py, loaded by conftest.py
 
 
 def _blackbox() -> tuple[bytes, int]:
-    bbw = _load("blackbox_writer")
     lay, s = bbw.quad_layout(), bbw.Settings()
     # no LOG_END: the reader must scan the whole zero tail for more frames
     return bbw.blackbox_log(bbw.flight_rows(2000, lay, s), lay, s, end=False), 1999
 
 
 def _dataflash() -> tuple[bytes, int]:
-    data, truth = _load("dataflash_writer").flight(500)
+    data, truth = dfw.flight(500)
     return data, len(truth["t_us"])
 
 
