@@ -21,8 +21,9 @@ from analysis.imu_recording import ImuRecording
 __all__ = ["COMPARE_PROJECT", "DEVICE_LABEL", "ComparisonRow", "compare", "error_figure",
            "score_run"]
 
-# the project's rows of a comparison: the default in 9D (if there is a magnetometer) and 6D
+#: the row of the attitude the device under test reported itself (kind ``device``)
 DEVICE_LABEL = "device (own attitude)"
+# the project's rows of a comparison: the default in 9D (if there is a magnetometer) and 6D
 COMPARE_PROJECT = (("default", False), ("default", True), ("default-causal", True),
                    ("paper-b", True), ("paper-b-printed", True))
 

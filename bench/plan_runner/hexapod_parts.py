@@ -57,8 +57,7 @@ class ImuBenchLike(Protocol):
 
 def imu_channels(imu: Sensor) -> tuple[str, ...]:
     """The IMU's recorded columns: ``IMU_CHANNELS``, and its own attitude if it gives it."""
-    described = getattr(imu, "describe", None)
-    names = {c.name for c in described().channels} if described is not None else set()
+    names = {c.name for c in imu.describe().channels}
     extra = IMU_ATTITUDE_CHANNELS if set(IMU_ATTITUDE_CHANNELS) <= names else ()
     return (*IMU_CHANNELS, *extra)
 

@@ -191,8 +191,7 @@ class Sequence:
                 if f.name in raw and "float" in str(f.type):
                     number = value if isinstance(value, int | float) \
                         and not isinstance(value, bool) else None
-                    ok = number is not None
-                    if not ok and not (value is None and "None" in str(f.type)):
+                    if number is None and not (value is None and "None" in str(f.type)):
                         raise RigError(f"{source}: steps[{i}].{f.name}: expected a number, "
                                        f"got {value!r}")
                     if number is not None and not math.isfinite(number):

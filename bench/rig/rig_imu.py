@@ -146,9 +146,9 @@ def parse(path: Path, top: RigTable) -> dict[str, Any]:
     hexapod = HexapodSettings(
         limits=limits,  # type: ignore[arg-type]
         pivot_m=_vector(hx, "pivot_m", (0.0, 0.0, 0.0)),  # type: ignore[arg-type]
-        log_rate_hz=hx.number("log_rate_hz", 1000.0, lo=1.0, hi=1e5, unit="Hz"),  # type: ignore[arg-type]
+        log_rate_hz=hx.number("log_rate_hz", 1000.0, lo=1.0, hi=1e5, unit="Hz"),
         trajectory_rate_hz=hx.number("trajectory_rate_hz", 200.0, lo=1.0, hi=1e5,
-                                     unit="Hz"),  # type: ignore[arg-type]
+                                     unit="Hz"),
     )
 
     it = top.table("imu", required=False) or RigTable(path, "imu", {})
@@ -166,7 +166,7 @@ def parse(path: Path, top: RigTable) -> dict[str, Any]:
     st = top.table("sim", required=False) or RigTable(path, "sim", {})
     st.only("seed", "noise", "cg_m", "imu")
     seed = st.number("seed", 0.0, lo=0.0, hi=2**63)
-    if seed != int(seed):  # type: ignore[arg-type]
+    if seed != int(seed):
         st.fail("seed", f"expected a whole number, got {seed}")
     sim_imu = st.table("imu", required=False) or RigTable(path, "sim.imu", {})
     sim_imu.only(*IMU_SIM_ERRORS)

@@ -201,19 +201,16 @@ def _calibration(t: RigTable | None) -> CalibrationSite:
         return CalibrationSite()
     t.only(*(f.name for f in fields(CalibrationSite)))
     d = CalibrationSite()
-
-    def given(key: str, default: float, lo: float, hi: float, unit: str) -> float:
-        value = t.number(key, default, lo=lo, hi=hi, unit=unit)
-        return default if value is None else value
-
     return CalibrationSite(
         latitude_deg=t.number("latitude_deg", None, lo=-90.0, hi=90.0, unit="deg"),
-        height_m=given("height_m", d.height_m, -500.0, 9000.0, "m"),
+        height_m=t.number("height_m", d.height_m, lo=-500.0, hi=9000.0, unit="m"),
         g_m_s2=t.number("g_m_s2", None, lo=9.7, hi=9.9, unit="m/s^2"),
-        nonlinearity_max_pct=given("nonlinearity_max_pct", d.nonlinearity_max_pct, 0.0,
-                                   100.0, "%"),
-        hysteresis_max_pct=given("hysteresis_max_pct", d.hysteresis_max_pct, 0.0, 100.0, "%"),
-        validity_days=given("validity_days", d.validity_days, 1.0, 3650.0, "days"))
+        nonlinearity_max_pct=t.number("nonlinearity_max_pct", d.nonlinearity_max_pct,
+                                      lo=0.0, hi=100.0, unit="%"),
+        hysteresis_max_pct=t.number("hysteresis_max_pct", d.hysteresis_max_pct, lo=0.0,
+                                    hi=100.0, unit="%"),
+        validity_days=t.number("validity_days", d.validity_days, lo=1.0, hi=3650.0,
+                               unit="days"))
 
 
 def _esc(t: RigTable | None) -> EscConfig:
@@ -224,12 +221,12 @@ def _esc(t: RigTable | None) -> EscConfig:
     d = EscConfig()
     cfg = EscConfig(
         frame_rate_hz=t.number("frame_rate_hz", d.frame_rate_hz, lo=FRAME_RATE_RANGE_HZ[0],
-                               hi=FRAME_RATE_RANGE_HZ[1], unit="Hz"),  # type: ignore[arg-type]
-        idle_us=t.number("idle_us", d.idle_us, lo=lo_us, hi=hi_us, unit="us"),  # type: ignore[arg-type]
-        min_us=t.number("min_us", d.min_us, lo=lo_us, hi=hi_us, unit="us"),  # type: ignore[arg-type]
-        max_us=t.number("max_us", d.max_us, lo=lo_us, hi=hi_us, unit="us"),  # type: ignore[arg-type]
-        arm_us=t.number("arm_us", d.arm_us, lo=lo_us, hi=hi_us, unit="us"),  # type: ignore[arg-type]
-        timeout_s=t.number("timeout_s", d.timeout_s, lo=0.01, hi=60.0, unit="s"),  # type: ignore[arg-type]
+                               hi=FRAME_RATE_RANGE_HZ[1], unit="Hz"),
+        idle_us=t.number("idle_us", d.idle_us, lo=lo_us, hi=hi_us, unit="us"),
+        min_us=t.number("min_us", d.min_us, lo=lo_us, hi=hi_us, unit="us"),
+        max_us=t.number("max_us", d.max_us, lo=lo_us, hi=hi_us, unit="us"),
+        arm_us=t.number("arm_us", d.arm_us, lo=lo_us, hi=hi_us, unit="us"),
+        timeout_s=t.number("timeout_s", d.timeout_s, lo=0.01, hi=60.0, unit="s"),
     )
     if cfg.min_us >= cfg.max_us:
         t.fail("min_us", f"{cfg.min_us} us must be below max_us {cfg.max_us} us")
@@ -248,7 +245,7 @@ def _sim(t: RigTable | None, esc_mode: str) -> SimConfig:
         return SimConfig(esc_mode=esc_mode)
     t.only("seed", "esc_mode", "noise", "plant", "sensors")
     seed = t.number("seed", 0.0, lo=0.0, hi=2**63)
-    if seed != int(seed):  # type: ignore[arg-type]
+    if seed != int(seed):
         t.fail("seed", f"expected a whole number, got {seed}")
     mode = t.text("esc_mode", esc_mode)
     if mode not in ESC_MODES:

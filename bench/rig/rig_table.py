@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 import tomllib
 from pathlib import Path
-from typing import Any
+from typing import Any, overload
 
 from bench.errors import RigError
 
@@ -53,8 +53,16 @@ class RigTable:
             self.fail(key, f"expected a non-empty string, got {value!r}")
         return value
 
+    @overload
+    def number(self, key: str, default: float, *, required: bool = False,
+               lo: float = -math.inf, hi: float = math.inf, unit: str = "") -> float: ...
+    @overload
+    def number(self, key: str, default: None = None, *, required: bool = False,
+               lo: float = -math.inf, hi: float = math.inf, unit: str = "") -> float | None: ...
     def number(self, key: str, default: float | None = None, *, required: bool = False,
                lo: float = -math.inf, hi: float = math.inf, unit: str = "") -> float | None:
+        """The number at ``key`` within [lo, hi], or ``default`` when it is absent (so a
+        number default gives a number)."""
         if key not in self.data:
             if required:
                 self.fail(key, f"missing; expected a number{' in ' + unit if unit else ''}")

@@ -3,9 +3,9 @@
 ``bench/data/rigs/sim-serial.toml`` (MSP motor test + line-printing load-cell board on ptys)
 and ``sim-can.toml`` (VESC on python-can's virtual bus + the board) run the real backends
 against simulated devices driven by the plant of ``sim.toml``, in real time, in a process
-of their own. These tests
-run ``rotorbench step`` / ``fit`` / ``check`` through the CLI and the runner through
-``bench.plan_runner.session``; each wire run takes a few seconds of wall time.
+of their own. These tests run ``rotorbench step`` / ``fit`` / ``check`` through the CLI and
+the runner through ``bench.plan_runner.session``; each wire run takes a few seconds of wall
+time.
 """
 
 from __future__ import annotations
