@@ -69,17 +69,17 @@ def throttle_of(rec: RunRecord) -> np.ndarray | None:
         return np.nanmean(np.vstack(motors), axis=0)
 
 
-def hover_summary(rec: RunRecord) -> dict[str, float]:
+def hover_summary(rec: RunRecord, thr: np.ndarray | None, gyro: dict[str, np.ndarray]
+                  ) -> dict[str, float]:
     """Median throttle, current, voltage and power over the samples where the vehicle
     flies (throttle above a third of its top, at least 0.1: idle on the ground is out),
     every body rate is small and the throttle is inside the flight's middle 80 % (climbs
-    and descents out)."""
+    and descents out). ``thr`` is ``throttle_of(rec)``, ``gyro`` the body rates by axis:
+    the report has read them already."""
     t = rec.column("t_s")
-    thr = throttle_of(rec)
-    rates = [g for a in AXES if (g := _col(rec, f"gyro_{a}_rad_s")) is not None]
-    if thr is None or not rates:
+    if thr is None or not gyro:
         return {}
-    calm = np.all(np.abs(np.vstack(rates)) < HOVER_RATE_RAD_S, axis=0)
+    calm = np.all(np.abs(np.vstack(list(gyro.values()))) < HOVER_RATE_RAD_S, axis=0)
     if not np.isfinite(thr).any():
         return {"hover_s": 0.0}
     flying = np.isfinite(thr) & (thr > max(0.1, np.nanpercentile(thr, 95) / 3))
@@ -115,20 +115,20 @@ def flight_report(rec: RunRecord) -> FlightReport:
         notes.append("no rate setpoint and gyro of one axis: no step response")
     responses = flight_step_responses(t, {a: setpoint[a] for a in pairs},
                                       {a: gyro[a] for a in pairs}) if pairs else {}
+    rpms = {m: w for m in _motor_names(rec) if (w := _col(rec, f"{m}_rpm")) is not None}
     motors: dict[str, MotorResponse] = {}
-    for m in _motor_names(rec):
-        u, w = _col(rec, f"{m}_norm"), _col(rec, f"{m}_rpm")
-        if u is not None and w is not None and np.isfinite(w).any():
+    for m, w in rpms.items():
+        u = _col(rec, f"{m}_norm")
+        if u is not None and np.isfinite(w).any():
             motors[m] = fit_motor_response(t, u, w, m)
     if not motors:
         notes.append("no motor speed in the log (bidirectional DShot eRPM, ESC telemetry): "
                      "no in-flight motor response")
     thr = throttle_of(rec)
-    rpm_cols = [c for m in _motor_names(rec) if (c := _col(rec, f"{m}_rpm")) is not None]
     with np.errstate(invalid="ignore"):
-        rpm = np.nanmean(np.vstack(rpm_cols), axis=0) if rpm_cols else None
+        rpm = np.nanmean(np.vstack(list(rpms.values())), axis=0) if rpms else None
     noise = gyro_noise_vs_throttle(t, gyro, thr, rpm) if thr is not None and gyro else None
-    hover = hover_summary(rec)
+    hover = hover_summary(rec, thr, gyro)
     if "throttle" not in hover:
         notes.append(f"no hover of {HOVER_MIN_S:g} s (body rates below "
                      f"{HOVER_RATE_RAD_S:g} rad/s at a mid throttle)")

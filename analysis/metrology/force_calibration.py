@@ -52,10 +52,6 @@ class CalibrationPoint:
     t_s: np.ndarray
     readings: np.ndarray
 
-    @property
-    def mean(self) -> float:
-        return hold_mean(self.readings)[0]
-
 
 def hold_mean(readings: np.ndarray) -> tuple[float, float]:
     """The mean of a hold and its standard uncertainty from the scatter of block means."""

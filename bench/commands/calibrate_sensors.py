@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 from bench.cli_args.option_values import seed_arg
@@ -68,18 +69,13 @@ def _plan(args: argparse.Namespace):
         kw["masses_kg"] = parse_masses_g(args.masses_g)
     if args.mass_u_g is not None:
         kw["mass_u_kg"] = args.mass_u_g * 1e-3
-    if not kw:
-        return base
-    from dataclasses import asdict
-
-    return CalibrationPlan(**{**asdict(base), **kw})
+    return replace(base, **kw)
 
 
 def handler(args: argparse.Namespace) -> int:
-    from analysis.metrology.reference_force import local_gravity
     from bench.cli_args.run_args import load_rig_from_args
     from bench.engine.recorder import operator
-    from bench.jobs.sensor_calibration import Acceptance, run_sensor_calibration
+    from bench.jobs.sensor_calibration import run_sensor_calibration, site_references
     from bench.jobs.weight_loaders import OperatorLoader, sim_fixture
     from bench.paths.outputs import check_writable
     from drivers.factory import open_rig
@@ -93,9 +89,7 @@ def handler(args: argparse.Namespace) -> int:
     if site is None:
         raise RigError(f"{rig_cfg.path}: an IMU-bench rig; calibrate-sensors calibrates a "
                        "propulsion stand's load or torque cell")
-    gravity = local_gravity(site.latitude_deg, site.height_m, site.g_m_s2)
-    acceptance = Acceptance(site.nonlinearity_max_pct / 100, site.hysteresis_max_pct / 100,
-                            site.validity_days)
+    gravity, acceptance = site_references(site)
     meta = {"operator": args.operator or operator(), "command_line": sys.argv[1:]}
     with open_rig(rig_cfg, seed=args.seed) as rig:
         if args.yes:

@@ -32,7 +32,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--design", type=Path, default=None, metavar="JSON",
                    help="the design flown: rotorbench evaluate --json output (or one design "
                         "of optimize --json)")
-    p.add_argument("--out", type=Path, default=None,
+    # dest report_dir: --out names the report's folder, not a run root the store checks
+    p.add_argument("--out", dest="report_dir", metavar="OUT", type=Path, default=None,
                    help="folder for report.json and the figures (default: ./flight-report-"
                         "<run id>)")
     p.add_argument("--blades", type=int, default=2, help="propeller blades (default 2)")
@@ -95,10 +96,13 @@ def design_vs_flight(summary: dict[str, Any], design: dict[str, Any] | None,
 
 def _bench_constants(args: argparse.Namespace, design: dict[str, Any] | None
                      ) -> dict[str, float] | None:
-    """The bench's step constants of the design's motor and propeller, newest first."""
+    """The bench's step constants of the design's motor and propeller, newest first (only
+    from a store that is named: the folder default is no bench's)."""
     import os
 
-    if design is None or not (args.store or os.environ.get("ROTORBENCH_STORE")):
+    from bench.store.store_url import STORE_ENV
+
+    if design is None or not (args.store or os.environ.get(STORE_ENV)):
         return None
     store = store_from_args(args)
     for row in reversed(store.constants()):
@@ -114,12 +118,13 @@ def handler(args: argparse.Namespace) -> int:
     from analysis.flight_report import flight_report
     from analysis.run_record import read_run
     from bench.engine.recorder import atomic_write_json
+    from bench.store.json_values import json_safe
 
     if not 1 <= args.blades <= 8:
         raise RigError(f"--blades: expected 1 to 8, got {args.blades}")
     design = _design(args.design)
     record = read_run(run_folder_arg(args, args.run))
-    out = args.out or Path(f"flight-report-{record.id}")
+    out = args.report_dir or Path(f"flight-report-{record.id}")
     check_writable(out, "--out", folder=True)
     rep = flight_report(record)
     summary = rep.summary()
@@ -131,18 +136,13 @@ def handler(args: argparse.Namespace) -> int:
     figures = [p for p in (plot_step_responses(rep, out / "step_response.png"),
                            plot_noise(rep, out / "noise.png", args.blades)) if p is not None]
     summary["figures"] = [p.name for p in figures]
-    atomic_write_json(out / "report.json", _json_safe(summary))
+    report = json_safe(summary)
+    atomic_write_json(out / "report.json", report)
     if args.json:
-        print(json.dumps(_json_safe(summary), indent=2))
+        print(json.dumps(report, indent=2))
         return 0
     _print(summary, out)
     return 0
-
-
-def _json_safe(x: Any) -> Any:
-    from bench.store.json_values import json_safe
-
-    return json_safe(x)
 
 
 def _print(s: dict[str, Any], out: Path) -> None:

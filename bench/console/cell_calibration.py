@@ -13,17 +13,18 @@ from pathlib import Path
 from typing import Any
 
 from bench.errors import RigError
+from bench.jobs.weight_loaders import sim_fixture, weight_prompt
 from bench.plans.weight_series import CalibrationPlan, parse_masses_g
 
 __all__ = ["CellCalibration", "plan_of"]
 
-DEFAULT_MASSES_G = "0,100,200,500,1000"
-
 
 def plan_of(spec: dict[str, Any]) -> CalibrationPlan:
-    """The window's request as a plan: masses (grams, text), class, hold."""
-    kw: dict[str, Any] = {"masses_kg": parse_masses_g(str(spec.get("masses_g")
-                                                          or DEFAULT_MASSES_G))}
+    """The window's request as a plan: masses (grams, text), class, hold; the plan's own
+    defaults for what it leaves out."""
+    kw: dict[str, Any] = {}
+    if spec.get("masses_g"):
+        kw["masses_kg"] = parse_masses_g(str(spec["masses_g"]))
     if spec.get("weight_class"):
         kw["weight_class"] = str(spec["weight_class"])
     if spec.get("hold_s") is not None:
@@ -49,9 +50,8 @@ class CellCalibration:
 
     def load(self, force: float, mass_kg: float, step: int, total: int) -> None:
         """The operator's loader: ask the window, wait for its answer or a stop."""
-        what = ("take every weight off the load cell" if mass_kg == 0 else
-                f"make the weight on the load cell {mass_kg * 1e3:g} g in total")
-        self.prompt = f"[{step}/{total}] {what}, then press Weight placed"
+        self.prompt = weight_prompt(mass_kg, step, total, cell="load",
+                                    where="on the load cell", confirm="press Weight placed")
         self._placed.clear()
         self.send("cell_prompt", {"step": step, "total": total, "text": self.prompt})
         while not self._placed.wait(0.05):
@@ -61,17 +61,10 @@ class CellCalibration:
 
     def run(self) -> dict[str, Any]:
         """The whole calibration; the ``finished`` message's info."""
-        from analysis.metrology.reference_force import local_gravity
         from bench.engine.recorder import operator
-        from bench.jobs.sensor_calibration import Acceptance, run_sensor_calibration
-        from bench.jobs.weight_loaders import sim_fixture
+        from bench.jobs.sensor_calibration import run_sensor_calibration, site_references
 
-        site = self.rig.calibration
-        gravity = local_gravity(site.latitude_deg, site.height_m, site.g_m_s2)
-        acceptance = Acceptance(site.nonlinearity_max_pct / 100,
-                                site.hysteresis_max_pct / 100, site.validity_days)
-        info: dict[str, Any] = {"kind": "cell calibration", "status": "fail", "reason": "",
-                                "run_dir": "", "trip": None, "rows": 0, "t_end_s": 0.0}
+        gravity, acceptance = site_references(self.rig.calibration)
         with self.open_rig(self.rig, seed=self.seed) as rig:
             loader = sim_fixture(rig, self.plan.cell) if self.automatic else self
             if loader is None:
@@ -80,13 +73,12 @@ class CellCalibration:
             outcome = run_sensor_calibration(
                 self.rig, rig, self.plan, loader, gravity, self.out, acceptance=acceptance,
                 meta={"operator": operator(), "command_line": ["rotorbench", "console"]})
-        rec = outcome.record
-        fit = outcome.fit
-        info.update(status="success", run_dir=str(outcome.run_dir), rows=sum(
-            p["samples"] for p in rec["result"]["points"]),
-            gain=fit.scale, u_gain=fit.u_scale(), passed=rec["acceptance"]["passed"],
-            failed=rec["acceptance"]["failed"],
-            reason=("calibration accepted" if rec["acceptance"]["passed"] else
-                    "calibration outside its acceptance limits: "
-                    + "; ".join(rec["acceptance"]["failed"])))
-        return info
+        acc, fit = outcome.record["acceptance"], outcome.fit
+        return {"kind": "cell calibration", "status": "success",
+                "reason": ("calibration accepted" if acc["passed"] else
+                           "calibration outside its acceptance limits: "
+                           + "; ".join(acc["failed"])),
+                "run_dir": str(outcome.run_dir), "trip": None,
+                "rows": sum(p["samples"] for p in outcome.record["result"]["points"]),
+                "t_end_s": 0.0, "gain": fit.scale, "u_gain": fit.u_scale(),
+                "passed": acc["passed"], "failed": acc["failed"]}

@@ -117,14 +117,10 @@ class ConsoleBench:
         self._refuse_if_busy("calibrate the load cell")
         spec = dict(payload or {})
         plan = plan_of(spec)
-        if self._open_rig is None:
-            from drivers.factory import open_rig
-        else:
-            open_rig = self._open_rig
         run = ActiveRun("cell calibration", None, threading.Event())
         run.cell = CellCalibration(self.rig, self.out, plan, bool(spec.get("automatic")),
-                                   run.stop, self.link.send, self.link.lost, open_rig,
-                                   self.seed)
+                                   run.stop, self.link.send, self.link.lost,
+                                   self._opener(), self.seed)
         run.thread = threading.Thread(target=self._work, args=(run, run.cell.run),
                                       name="rotorbench-console-cell-calibration", daemon=True)
         self.run = run
@@ -230,6 +226,14 @@ class ConsoleBench:
         if run is not None and run.ended_at is None:  # busy
             raise RigError(f"{what}: a {run.kind} run is going on; stop it first")
 
+    def _opener(self) -> Callable[..., Any]:
+        """How a run opens the rig's devices: the given ``open_rig``, else the factory's."""
+        if self._open_rig is not None:
+            return self._open_rig
+        from drivers.factory import open_rig
+
+        return open_rig
+
     def _tighter(self) -> dict[str, float]:
         return {k: v for k, v in self.limits.items() if self.rig_limits.get(k) != v}
 
@@ -251,12 +255,8 @@ class ConsoleBench:
         def on_progress(t: float, total: float, seg: Segment) -> None:
             run.progress = (t, total, seg.label, seg.index)
 
-        if self._open_rig is None:
-            from drivers.factory import open_rig
-        else:
-            open_rig = self._open_rig
         work = functools.partial(
-            run_sequence, self.rig, seq, self.out, open_rig, seed=self.seed,
+            run_sequence, self.rig, seq, self.out, self._opener(), seed=self.seed,
             options=self.options, on_rows=self.link.ring.push, on_progress=on_progress,
             stop_event=run.stop, extra_meta={"command_line": ["rotorbench", "console"],
                                              **(meta or {})},

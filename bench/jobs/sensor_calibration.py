@@ -26,14 +26,15 @@ from analysis.metrology.force_calibration import (
     fit_force_calibration,
 )
 from analysis.metrology.gum import rectangular
-from analysis.metrology.reference_force import Gravity, conventional_weight_force
+from analysis.metrology.reference_force import Gravity, conventional_weight_force, local_gravity
 from bench.engine.recorder import RunRecorder, utc_now
 from bench.errors import RigError
 from bench.jobs.weight_loaders import Loader
-from bench.plans.weight_series import CELLS, CalibrationPlan
+from bench.plans.weight_series import CELLS, SEQUENCE, CalibrationPlan
+from bench.rig.rig_propulsion import CalibrationSite
 from bench.store.indexed_run import indexed_run
 
-__all__ = ["Acceptance", "CalibrationOutcome", "run_sensor_calibration"]
+__all__ = ["Acceptance", "CalibrationOutcome", "run_sensor_calibration", "site_references"]
 
 #: The figure of the calibration, in its run folder.
 FIGURE = "calibration.png"
@@ -54,6 +55,13 @@ class Acceptance:
 
     def limits(self) -> dict[str, float]:
         return {"nonlinearity": self.nonlinearity, "hysteresis": self.hysteresis}
+
+
+def site_references(site: CalibrationSite) -> tuple[Gravity, Acceptance]:
+    """The rig file's ``[calibration]`` as the job takes it: local g, acceptance limits."""
+    return (local_gravity(site.latitude_deg, site.height_m, site.g_m_s2),
+            Acceptance(site.nonlinearity_max_pct / 100, site.hysteresis_max_pct / 100,
+                       site.validity_days))
 
 
 @dataclass
@@ -81,7 +89,7 @@ def run_sensor_calibration(rig_cfg: Any, rig: Any, plan: CalibrationPlan, loader
     channel = CELLS[plan.cell][1]
     role, sensor = _sensor_for(rig, channel)
     clock = rig.clock
-    run_meta = {"kind": "calibration", "rig": rig_cfg.name, "sequence": "calibrate-sensors",
+    run_meta = {"kind": "calibration", "rig": rig_cfg.name, "sequence": SEQUENCE,
                 "plan": plan.as_dict(), **(meta or {})}
     with indexed_run(out, f"calibration-{plan.cell}", run_meta,
                      base_columns=("t_s", channel, "reference", "step")) as recorder:

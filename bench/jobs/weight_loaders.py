@@ -9,13 +9,21 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any, Protocol
 
-__all__ = ["FixtureLoader", "Loader", "OperatorLoader", "sim_fixture"]
+__all__ = ["FixtureLoader", "Loader", "OperatorLoader", "sim_fixture", "weight_prompt"]
 
 
 class Loader(Protocol):
     def load(self, force: float, mass_kg: float, step: int, total: int) -> None:
         """Return once ``mass_kg`` (its ``force``, or torque on an arm) is on the cell."""
         ...
+
+
+def weight_prompt(mass_kg: float, step: int, total: int, *, cell: str, where: str,
+                  confirm: str) -> str:
+    """What the operator is asked at one step (the terminal's and the console's words)."""
+    what = (f"take every weight off the {cell} cell" if mass_kg == 0 else
+            f"make the weight {where} {mass_kg * 1e3:g} g in total")
+    return f"[{step}/{total}] {what}, then {confirm}"
 
 
 class OperatorLoader:
@@ -27,9 +35,8 @@ class OperatorLoader:
         self.cell = cell
 
     def load(self, force: float, mass_kg: float, step: int, total: int) -> None:
-        what = (f"take every weight off the {self.cell} cell" if mass_kg == 0 else
-                f"make the weight {self.where} {mass_kg * 1e3:g} g in total")
-        self.ask(f"[{step}/{total}] {what}, then press Enter ")
+        self.ask(weight_prompt(mass_kg, step, total, cell=self.cell, where=self.where,
+                               confirm="press Enter "))
 
 
 class FixtureLoader:

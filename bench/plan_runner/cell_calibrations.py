@@ -21,33 +21,37 @@ from typing import Any
 import numpy as np
 
 from bench.errors import RigError
-from bench.store.run_index import RunIndex
+from bench.plans.weight_series import CELLS, SEQUENCE
+from bench.store.run_index import INDEX_NAME, RunIndex
+from bench.store.run_summary import RunFilter
 
 __all__ = ["AppliedCalibration", "CalibratedSensor", "apply_calibrations", "newest_records"]
 
 log = logging.getLogger(__name__)
 
-SEQUENCE = "calibrate-sensors"
+#: the channels a calibration corrects
+CHANNELS = frozenset(channel for _role, channel in CELLS.values())
 
 
 def newest_records(out_root: Path, rig_name: str) -> dict[str, dict[str, Any]]:
-    """The newest calibration record of ``rig_name`` per channel, from the run index."""
-    path = Path(out_root) / "runs.sqlite"
-    if not path.exists():
+    """The newest calibration record of ``rig_name`` per channel, from the run index (the
+    successful calibration runs only, newest first, until every channel has one)."""
+    if not (Path(out_root) / INDEX_NAME).exists():
         return {}
     index = RunIndex(out_root, read_only=True)
     found: dict[str, dict[str, Any]] = {}
-    for row in reversed(index.list()):  # newest first
-        if row.sequence != SEQUENCE or row.status != "success" or row.rig != rig_name:
+    for row in index.select(RunFilter(status="success", sequence=SEQUENCE), newest_first=True):
+        if row.rig != rig_name:
             continue
-        folder = index.path_of(row.id)
+        folder = index.folder(row.path)
         try:
-            record = json.loads((Path(folder) / "run.json").read_text())["calibration"] \
-                if folder is not None else None
+            record = json.loads((folder / "run.json").read_text())["calibration"]
         except (OSError, ValueError, KeyError, TypeError):
             continue  # a calibration run without its record: not one to apply
         if isinstance(record, dict):
             found.setdefault(str(record["applies"]["channel"]), record)
+            if found.keys() >= CHANNELS:
+                break
     return found
 
 
@@ -105,7 +109,7 @@ def apply_calibrations(rig_cfg: Any, devices: Any, out_root: Path, *,
     for role, sensor in list(devices.sensors.items()):
         real = not _simulated(rig_cfg, role)
         channels = {c.name for c in sensor.describe().channels}
-        for channel in sorted(channels & {"thrust_n", "torque_nm"}):
+        for channel in sorted(channels & CHANNELS):
             record = records.get(channel)
             if record is None:
                 if real:

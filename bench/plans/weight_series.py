@@ -18,10 +18,12 @@ from typing import Any
 from analysis.metrology.reference_force import OIML_MPE_MG, mass_uncertainty_kg
 from bench.errors import RigError
 
-__all__ = ["CELLS", "CalibrationPlan", "parse_masses_g", "plan_from_file"]
+__all__ = ["CELLS", "SEQUENCE", "CalibrationPlan", "parse_masses_g", "plan_from_file"]
 
 #: the cells a calibration knows: the role of the device and the channel it corrects
 CELLS = {"thrust": ("load_cell", "thrust_n"), "torque": ("load_cell", "torque_nm")}
+#: the sequence a calibration run is indexed under: how a later run finds it
+SEQUENCE = "calibrate-sensors"
 
 
 @dataclass(frozen=True)

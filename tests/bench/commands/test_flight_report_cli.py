@@ -67,3 +67,17 @@ def test_the_design_model_stands_beside_the_flight(tmp_path, capsys):
     assert thr["predicted"] == pytest.approx(design["hover_throttle_pct"])
     assert thr["flight"] == pytest.approx(100 * rep["hover"]["throttle"])
     assert rep["design"]["motor"] == "M2"
+
+
+def test_a_store_for_the_bench_constants_and_a_report_folder_go_together(tmp_path, capsys):
+    """--out is the report's folder, not a run root: beside --store it names no second
+    store."""
+    run = tmp_path / "px4"
+    assert main(["import", str(EVENTS), "--out", str(run)]) == 0
+    design = tmp_path / "design.json"
+    design.write_text('{"hover_throttle_pct": 45, "motor": "M2"}')
+    (tmp_path / "store").mkdir()
+    out = tmp_path / "report"
+    assert main(["flight-report", str(run), "--design", str(design), "--store",
+                 str(tmp_path / "store"), "--out", str(out)]) == 0
+    assert (out / "report.json").is_file()
