@@ -14,7 +14,7 @@ from bench.cli_args.option_values import given_options
 from optimizer.errors import RequestError
 
 __all__ = ["DEFAULT_OUT", "DEFAULT_RUNS_ROOT", "add_store_args", "data_location_text",
-           "publish_runs", "recording_store", "run_folder_arg", "store_from_args"]
+           "named_store", "publish_runs", "recording_store", "run_folder_arg", "store_from_args"]
 
 #: The output root of every command's runs and runs.sqlite (``--out``).
 DEFAULT_OUT = Path("runs")
@@ -47,6 +47,14 @@ def data_location_text(value: str | os.PathLike[str]) -> str:
     return text
 
 
+def named_store(args: argparse.Namespace) -> str | None:
+    """The store the user named, ``--store`` or ``$ROTORBENCH_STORE``; None when the
+    command falls back to the folder ``--out``."""
+    from bench.store.store_url import STORE_ENV
+
+    return getattr(args, "store", None) or os.environ.get(STORE_ENV) or None
+
+
 def store_from_args(args: argparse.Namespace, *, records: bool = False,
                     out_attr: str = "out") -> Any:
     """The store of a command: ``--store`` or ``$ROTORBENCH_STORE``, else the folder
@@ -55,10 +63,10 @@ def store_from_args(args: argparse.Namespace, *, records: bool = False,
     the spool, so everything the command writes beside its runs stays on this machine.
     ``out_attr`` names the run-root option where it is not ``--out`` (calibrate's
     ``--runs``)."""
-    from bench.store.store_url import STORE_ENV, parse_store
+    from bench.store.store_url import parse_store
     from bench.store.stores import FolderStore, open_store
 
-    text = getattr(args, "store", None) or os.environ.get(STORE_ENV)
+    text = named_store(args)
     flag = "--" + out_attr.replace("_", "-")
     out = getattr(args, out_attr, None)
     if not text:
@@ -113,7 +121,6 @@ def run_folder_arg(args: argparse.Namespace, value: str | os.PathLike[str]) -> P
     """A RUN argument: a run folder, or a run id of ``--store``/``$ROTORBENCH_STORE``
     (a lab run is fetched into the local cache)."""
     path = Path(value)
-    if path.exists() or not (getattr(args, "store", None) or
-                             os.environ.get("ROTORBENCH_STORE")):
+    if path.exists() or not named_store(args):
         return path
     return Path(store_from_args(args).run_folder(str(value)))

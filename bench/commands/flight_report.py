@@ -18,7 +18,12 @@ import math
 from pathlib import Path
 from typing import Any
 
-from bench.cli_args.store_args import add_store_args, run_folder_arg, store_from_args
+from bench.cli_args.store_args import (
+    add_store_args,
+    named_store,
+    run_folder_arg,
+    store_from_args,
+)
 from bench.errors import RigError
 from bench.paths.outputs import check_writable
 
@@ -98,11 +103,7 @@ def _bench_constants(args: argparse.Namespace, design: dict[str, Any] | None
                      ) -> dict[str, float] | None:
     """The bench's step constants of the design's motor and propeller, newest first (only
     from a store that is named: the folder default is no bench's)."""
-    import os
-
-    from bench.store.store_url import STORE_ENV
-
-    if design is None or not (args.store or os.environ.get(STORE_ENV)):
+    if design is None or not named_store(args):
         return None
     store = store_from_args(args)
     for row in reversed(store.constants()):
