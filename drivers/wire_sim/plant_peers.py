@@ -182,6 +182,11 @@ class WireSims:
         """:meth:`start_peer` for another process: what it opens."""
         return self.start_peer(key, kind, args).path
 
+    def bridge_can(self, channel: str, link: Any) -> None:
+        """In this process the nodes' end of the host's CAN ``channel`` is ``link`` itself
+        (its opener stops it)."""
+        self.peers[f"can-link:{channel}"] = link
+
     def connect_can(self, channel: str, port: int) -> None:
         """The nodes' end of the host's CAN ``channel``: a socket to loopback ``port``."""
         import socket
@@ -303,7 +308,6 @@ class ProcessWireSims(WireSims):
             world.request("call", None, ("start_can_peer",), (key, kind, channel, args))
             peer = world.remote(key)
             self.add(key, peer, peer.stop)
-
 
 
 # -- propulsion peers ------------------------------------------------------------------

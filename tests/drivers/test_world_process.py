@@ -76,3 +76,23 @@ def test_the_world_process_does_not_outlive_a_killed_parent() -> None:
             host.kill()
         host.communicate()
     assert _gone(world_pid, 5.0), "the world's process outlived its parent"
+
+
+def test_a_world_kept_in_the_hosts_process_serves_its_can_nodes(monkeypatch) -> None:
+    """A launched firmware keeps the world in the host's process (``own_process=False``):
+    the CAN nodes join the host's virtual channel there, with no bridge."""
+    pytest.importorskip("can")
+    import drivers.factory as factory
+
+    monkeypatch.setattr(factory, "wire_plant", lambda rig, seed, own_process=True:
+                        wire_plant(rig, seed, own_process=False))
+    rig = factory.open_rig(load_rig(RIG.parent / "sim-can.toml"))
+    try:
+        deadline = time.monotonic() + 5.0
+        rows = 0
+        while rows == 0 and time.monotonic() < deadline:
+            time.sleep(0.05)
+            rows = rig.sensors["rpm"].read_block().t_s.size
+        assert rows > 0  # the VESC's status broadcasts arrive
+    finally:
+        rig.close()
