@@ -23,6 +23,7 @@ import numpy as np
 import pytest
 from rotorbench_tests_sitl import Sitl, _preconditions, sitl_binary
 
+from analysis.report import OUTPUT_DELAY
 from analysis.step_response import fit_step_response
 from bench.plan_runner.runner import RunOptions
 from bench.plan_runner.session import run_sequence
@@ -40,7 +41,7 @@ TAU_LOADED_REL = 0.10  # the fitted tau against the plant's, on a loaded host
 ROOT = Path(__file__).resolve().parents[2]
 RIG = ROOT / "bench" / "data" / "rigs" / "betaflight-sitl.toml"
 G = 9.80665
-DELAY = "command_to_output_delay_s"
+DELAY = OUTPUT_DELAY  # the run.json key the bench writes and fit/report read
 
 
 @pytest.fixture(autouse=True)
