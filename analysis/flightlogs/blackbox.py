@@ -46,6 +46,7 @@ _GARBAGE, _I, _P, _E, _OTHER = 0, 1, 2, 3, 4
 _FLAGS = ("_is_i", "_resumes")
 _MAX_JUMP_US = 10_000_000  # a main frame this far ahead of the last is corrupt
 _MAX_JUMP_ITERATIONS = 5000
+_MARKER_BYTES = [bytes([c]) for c in b"IPSGHE"]  # every frame and event starts with one
 
 
 def find_logs(fh: BinaryIO, size: int) -> list[tuple[int, int]]:
@@ -152,6 +153,13 @@ def _read_log(fh: BinaryIO, start: int, end: int, where: str, max_rows: int
         last = offset >= end
         if not chunk:
             break
+        if not any(m in chunk for m in _MARKER_BYTES):
+            # no frame starts in this window (erased flash, a zero-filled tail): all of it
+            # is one garbage run, found by memchr at memory speed, not by the regex engine
+            garbage_runs, garbage_bytes, carry = garbage_runs + 1, garbage_bytes + len(chunk), b""
+            if last:
+                break
+            continue
         items = rx.findall(chunk)
         lengths = np.fromiter(map(len, items), np.int64, len(items))
         starts = np.cumsum(lengths) - lengths

@@ -45,7 +45,8 @@ FORMAT_CHARS: dict[str, tuple[str | tuple[str, tuple[int]], float]] = {
 _WANTED = ("IMU", "RATE", "RCOU", "ESC", "BAT")
 _NEEDS = {"IMU": ("TimeUS", "GyrX", "GyrY", "GyrZ"), "RATE": ("TimeUS",), "RCOU": ("TimeUS",),
           "ESC": ("TimeUS", "RPM"), "BAT": ("TimeUS",)}  # columns a kept message must have
-_FMT_RX = re.compile(re.escape(HEAD + bytes([FMT_TYPE])) + b".{%d}" % (FMT_LEN - 3), re.DOTALL)
+_FMT_HEAD = HEAD + bytes([FMT_TYPE])
+_FMT_RX = re.compile(re.escape(_FMT_HEAD) + b".{%d}" % (FMT_LEN - 3), re.DOTALL)
 
 
 @dataclass(frozen=True)
@@ -99,6 +100,8 @@ def _windows(fh: BinaryIO, size: int, overlap: int):
 def _formats(fh: BinaryIO, size: int, where: str) -> dict[int, MessageFormat]:
     found: dict[int, MessageFormat] = {}
     for _, chunk in _windows(fh, size, FMT_LEN):
+        if _FMT_HEAD not in chunk:  # memchr-fast: the regex engine walks no empty window
+            continue
         for m in _FMT_RX.finditer(chunk):
             mf = _parse_fmt(m.group()[3:])
             if mf is not None and mf.type not in found:
@@ -132,6 +135,9 @@ def _collect(fh: BinaryIO, size: int, formats: dict[int, MessageFormat], max_row
         offset += len(fresh)
         chunk = carry + fresh
         last = offset >= size
+        if HEAD[:1] not in chunk:  # no message starts here (a zero-filled tail): skip it
+            garbage, carry = garbage + len(chunk), b""
+            continue
         items = rx.findall(chunk)
         lengths = np.fromiter(map(len, items), np.int64, len(items))
         starts = np.cumsum(lengths) - lengths
