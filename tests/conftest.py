@@ -20,11 +20,24 @@ def _load_helper(name: str, path: Path) -> None:
 
 
 _HERE = Path(__file__).parent
-# the real services (PostgreSQL, S3) of the lab-store and web-view tests
-_load_helper("rotorbench_tests_services", _HERE / "services.py")
-# the flight-log encoders the reader tests round-trip through (blackbox, DataFlash)
-_load_helper("rotorbench_tests_blackbox_writer", _HERE / "analysis" / "blackbox_writer.py")
-_load_helper("rotorbench_tests_dataflash_writer", _HERE / "analysis" / "dataflash_writer.py")
+#: Every test helper module, loaded here once by path (the one place that does it), in an
+#: order where each comes after the helpers it imports. A test reads one as
+#: ``sys.modules["rotorbench_tests_..."]`` or imports it by that name.
+_HELPERS = {
+    "rotorbench_tests_services": "services.py",  # real PostgreSQL, S3; free ports
+    "rotorbench_tests_blackbox_writer": "analysis/blackbox_writer.py",  # flight-log encoders
+    "rotorbench_tests_dataflash_writer": "analysis/dataflash_writer.py",
+    "rotorbench_tests_logfamily": "analysis/logfamily.py",  # esc_test-family log writer
+    "rotorbench_tests_bench_fakes": "bench/fakes.py",  # fake devices and rigs
+    "rotorbench_tests_browser": "bench/serve/browser.py",  # Chromium through Playwright
+    "rotorbench_tests_drivers_stepfit": "drivers/stepfit.py",  # the step-fit checks
+    "rotorbench_tests_codec_props": "drivers/codec_props.py",  # the codec fuzz checks
+    "rotorbench_tests_expected_protocol": "drivers/expected_protocol.py",  # transcripts
+    "rotorbench_tests_factory_rigs": "drivers/factory_rigs.py",  # rig files for the factory
+    "rotorbench_tests_sitl": "sitl.py",  # Betaflight SITL as a real peer
+}
+for _name, _file in _HELPERS.items():
+    _load_helper(_name, _HERE / _file)
 from rotorbench_tests_services import pg_cluster, pg_url, s3, s3_env  # noqa: E402, F401
 
 REPO = Path(__file__).resolve().parents[1]

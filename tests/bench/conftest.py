@@ -2,20 +2,12 @@
 
 from __future__ import annotations
 
-import importlib.util
 import sys
 from pathlib import Path
 
 import pytest
 
-_NAME = "rotorbench_tests_bench_fakes"
-if _NAME not in sys.modules:
-    _spec = importlib.util.spec_from_file_location(_NAME, Path(__file__).with_name("fakes.py"))
-    assert _spec is not None and _spec.loader is not None
-    _mod = importlib.util.module_from_spec(_spec)
-    sys.modules[_NAME] = _mod
-    _spec.loader.exec_module(_mod)
-fakes_module = sys.modules[_NAME]
+fakes_module = sys.modules["rotorbench_tests_bench_fakes"]  # fakes.py, loaded by tests/conftest.py
 
 
 def imported_run(tmp_path: Path) -> Path:

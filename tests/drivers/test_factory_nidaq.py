@@ -7,9 +7,8 @@ AI sample clock, and the ESC on a counter output at the rig's frame rate.
 
 from __future__ import annotations
 
-import importlib.util
+import sys
 from importlib.metadata import version
-from pathlib import Path
 from unittest import mock
 
 import pytest
@@ -24,10 +23,7 @@ if not version("nidaqmx").startswith("1."):
 
 from nidaqmx._base_interpreter import BaseInterpreter  # noqa: E402
 
-_spec = importlib.util.spec_from_file_location("rotorbench_tests_factory_rigs",
-                                               Path(__file__).with_name("factory_rigs.py"))
-rigs = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(rigs)
+rigs = sys.modules["rotorbench_tests_factory_rigs"]  # factory_rigs.py, by conftest
 
 DEVICES = {
     "esc": 'url = "nidaq://Dev1/ctr1"',

@@ -15,10 +15,7 @@ from drivers.device_options import parse_device
 from drivers.errors import DeviceError
 from drivers.factory import open_rig
 
-_spec = importlib.util.spec_from_file_location("rotorbench_tests_factory_rigs",
-                                               Path(__file__).with_name("factory_rigs.py"))
-rigs = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(rigs)
+rigs = sys.modules["rotorbench_tests_factory_rigs"]  # factory_rigs.py, by conftest
 
 SIM_SERIAL = Path(__file__).resolve().parents[2] / "bench" / "data" / "rigs" / "sim-serial.toml"
 

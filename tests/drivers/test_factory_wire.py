@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import importlib.util
+import sys
 import time
 from pathlib import Path
 
@@ -16,10 +16,7 @@ from drivers.factory import open_rig
 pytest.importorskip("serial")
 pytest.importorskip("can")
 
-_spec = importlib.util.spec_from_file_location("rotorbench_tests_factory_rigs",
-                                               Path(__file__).with_name("factory_rigs.py"))
-rigs = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(rigs)
+rigs = sys.modules["rotorbench_tests_factory_rigs"]  # factory_rigs.py, by conftest
 
 RIGS = Path(__file__).resolve().parents[2] / "bench" / "data" / "rigs"
 

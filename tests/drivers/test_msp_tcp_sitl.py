@@ -8,10 +8,10 @@ byte outside an MSP frame reach a firmware that exits on a stray ``'R'``.
 
 from __future__ import annotations
 
-import importlib.util
 import math
 import socket
 import statistics
+import sys
 import time
 from pathlib import Path
 from types import SimpleNamespace
@@ -30,11 +30,7 @@ from drivers.factory import open_rig
 
 pytestmark = pytest.mark.slow(wall_s=15)
 
-_spec = importlib.util.spec_from_file_location("rotorbench_tests_factory_rigs",
-                                               Path(__file__).with_name("factory_rigs.py"))
-assert _spec is not None and _spec.loader is not None
-factory_rigs = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(factory_rigs)
+factory_rigs = sys.modules["rotorbench_tests_factory_rigs"]  # factory_rigs.py, by conftest
 
 RIGS = Path(__file__).resolve().parents[2] / "bench" / "data" / "rigs"
 URL = f"msp+tcp://127.0.0.1:{MSP_PORT}"

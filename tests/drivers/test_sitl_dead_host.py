@@ -19,7 +19,6 @@ the motor".
 
 from __future__ import annotations
 
-import importlib.util
 import math
 import os
 import signal
@@ -42,11 +41,7 @@ from drivers.factory import open_rig
 
 pytestmark = pytest.mark.slow(wall_s=40)
 
-_spec = importlib.util.spec_from_file_location("rotorbench_tests_factory_rigs",
-                                               Path(__file__).with_name("factory_rigs.py"))
-assert _spec is not None and _spec.loader is not None
-factory_rigs = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(factory_rigs)
+factory_rigs = sys.modules["rotorbench_tests_factory_rigs"]  # factory_rigs.py, by conftest
 
 ROOT = Path(__file__).resolve().parents[2]
 RIGS = ROOT / "bench" / "data" / "rigs"

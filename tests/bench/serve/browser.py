@@ -8,14 +8,12 @@ the flags this closed network needs.
 from __future__ import annotations
 
 import contextlib
-import importlib.util
 import os
 import shutil
 import sys
 import threading
 import time
 from collections.abc import Iterator
-from pathlib import Path
 from typing import Any
 
 CHROMIUM = os.environ.get("ROTORBENCH_CHROMIUM", "/usr/bin/chromium")
@@ -23,20 +21,8 @@ FLAGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking",
          "--disable-component-update", "--no-first-run", "--disable-sync"]
 
 
-def _services() -> Any:
-    """tests/services.py (the free port and the port wait live there), loaded once."""
-    name = "rotorbench_tests_services"
-    if name not in sys.modules:
-        spec = importlib.util.spec_from_file_location(name, Path(__file__).parents[2] /
-                                                      "services.py")
-        assert spec and spec.loader
-        sys.modules[name] = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(sys.modules[name])
-    return sys.modules[name]
-
-
 def free_port() -> int:
-    return int(_services().free_port())
+    return int(sys.modules["rotorbench_tests_services"].free_port())
 
 
 @contextlib.contextmanager

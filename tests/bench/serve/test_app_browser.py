@@ -3,21 +3,14 @@ a filter narrows them, a run page paints its plots, the compare page overlays tw
 
 from __future__ import annotations
 
-import importlib.util
 import sys
 from collections.abc import Iterator
-from pathlib import Path
 
 import pytest
 
 from bench.serve.app import create_app
 
-_spec = importlib.util.spec_from_file_location("rotorbench_tests_browser",
-                                               Path(__file__).with_name("browser.py"))
-assert _spec and _spec.loader
-browser_mod = importlib.util.module_from_spec(_spec)
-sys.modules["rotorbench_tests_browser"] = browser_mod
-_spec.loader.exec_module(browser_mod)
+browser_mod = sys.modules["rotorbench_tests_browser"]  # browser.py, by conftest
 
 
 @pytest.fixture(scope="module")
