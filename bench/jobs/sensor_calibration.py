@@ -40,6 +40,8 @@ __all__ = ["Acceptance", "CalibrationOutcome", "run_sensor_calibration", "site_r
 FIGURE = "calibration.png"
 #: A read of the cell while a step settles or holds: often enough for any driver's buffer.
 POLL_S = 0.05
+#: A hold ends this close to its end: below any clock's resolution that matters here.
+END_TOLERANCE_S = 1e-9
 #: Buoyancy: the air's density is not measured; 1.2 kg/m^3 +-10 % (sea level to 1000 m,
 #: 0-30 degC) on weights of 8000 kg/m^3 puts +-1.5e-5 on the force (OIML D 28).
 BUOYANCY_U_REL = rectangular(0.1 * 1.2 / 8000.0)
@@ -158,7 +160,9 @@ def _u_arm_rel(plan: CalibrationPlan) -> float:
 
 def _read_for(clock: Any, sensor: Any, channel: str, seconds: float
               ) -> tuple[np.ndarray, np.ndarray]:
-    """Every reading of ``channel`` for ``seconds`` of the rig's clock."""
+    """Every reading of ``channel`` for ``seconds`` of the rig's clock. Ends within
+    ``END_TOLERANCE_S`` of the end: a simulated clock counts whole nanoseconds, so a float
+    end can stay a fraction of one ahead, and sleeping that rounds to nothing."""
     ts, ys = [], []
     end = clock.now() + seconds
     while True:
@@ -167,7 +171,7 @@ def _read_for(clock: Any, sensor: Any, channel: str, seconds: float
         if block.t_s.size:
             ts.append(np.asarray(block.t_s, dtype=float))
             ys.append(np.asarray(block.values[channel], dtype=float))
-        if clock.now() >= end:
+        if clock.now() >= end - END_TOLERANCE_S:
             break
     if not ts:
         return np.empty(0), np.empty(0)

@@ -225,3 +225,24 @@ def test_a_real_cell_without_a_calibration_warns_and_a_simulated_one_does_not(tm
         with caplog.at_level(logging.WARNING):
             assert apply_calibrations(rig, devices, tmp_path) == {}
         assert any("no calibration of thrust_n" in r.message for r in caplog.records) == warns
+
+
+def test_a_hold_ends_where_the_simulated_clock_cannot_reach_its_float_end():
+    """105 ms + 0.2 s is a float the clock's whole nanoseconds never reach: the hold ended
+    only within a nanosecond of it (it used to sleep 0 ns for ever)."""
+    from types import SimpleNamespace
+
+    from bench.jobs.sensor_calibration import _read_for
+    from drivers.sim.clock import SimClock
+
+    clock = SimClock()
+    clock.sleep(0.105)
+    reads = []
+
+    def read_block():
+        reads.append(clock.now())
+        assert len(reads) < 100, "the hold never ended"
+        return SimpleNamespace(t_s=np.array([clock.now()]), values={"thrust_n": np.zeros(1)})
+
+    t, _ = _read_for(clock, SimpleNamespace(read_block=read_block), "thrust_n", 0.2)
+    assert t.size == len(reads) <= 5 and clock.now() == pytest.approx(0.305, abs=1e-9)
