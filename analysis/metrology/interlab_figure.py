@@ -1,0 +1,50 @@
+"""Benches compared as one figure: each constant a panel, each bench's value with its
+expanded uncertainty (k = 2) as an error bar, the benches of a flagged pair (|E_n| > 1)
+in red, so a reader sees at once which bench stands apart and by how much."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from pathlib import Path
+
+from analysis.figures import save_figure
+from analysis.metrology.interlab import ConstantComparison, flagged_benches
+
+__all__ = ["plot_comparison"]
+
+FLAGGED = "C3"
+AGREES = "C0"
+
+
+def plot_comparison(comparisons: Sequence[ConstantComparison], path: Path,
+                    title: str = "") -> Path:
+    """PNG at ``path``: one panel per constant, benches along x; a bench without an
+    uncertainty is drawn as a hollow marker without a bar."""
+    import matplotlib.pyplot as plt
+
+    n = max(1, len(comparisons))
+    cols = min(3, n)
+    rows = math.ceil(n / cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(3.6 * cols, 2.9 * rows), squeeze=False)
+    marked = flagged_benches(comparisons)
+    for ax, c in zip(axes.flat, comparisons, strict=False):
+        bad = set(marked.get(c.name, ()))
+        for i, p in enumerate(c.participants):
+            color = FLAGGED if p.bench in bad else AGREES
+            if p.expanded is None:
+                ax.plot([i], [p.value], "o", mfc="none", color=color)
+            else:
+                ax.errorbar([i], [p.value], yerr=[p.expanded], fmt="o", color=color,
+                            capsize=4)
+        ax.set_xticks(range(len(c.participants)),
+                      [p.bench for p in c.participants], rotation=20, fontsize=8)
+        ax.set_xlim(-0.6, len(c.participants) - 0.4)
+        ax.set_title(f"{c.name} ({c.unit})", fontsize=9)
+        ax.ticklabel_format(axis="y", style="sci", scilimits=(-3, 4), useMathText=True)
+        ax.tick_params(axis="y", labelsize=8)
+    for ax in list(axes.flat)[len(comparisons):]:
+        ax.set_visible(False)
+    fig.suptitle(title or "benches compared: value +- U (k = 2); red: |E_n| > 1", fontsize=10)
+    fig.tight_layout()
+    return save_figure(fig, path)
