@@ -189,8 +189,9 @@ class LabStore:
     def add_constants(self, rows: Sequence[StoredConstants]) -> int:
         return self.catalog.add_constants(rows)
 
-    def constants(self) -> list[StoredConstants]:
-        return self.catalog.constants()
+    def constants(self, *, history: bool = False) -> list[StoredConstants]:
+        """The newest constants per actuator and kind, or every row ever added."""
+        return self.catalog.constants(history=history)
 
     def sync(self, *, explicit: bool = False) -> SyncReport:
         """Deliver the ended runs waiting in the spool whose destination is this catalog;

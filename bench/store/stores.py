@@ -35,7 +35,7 @@ class Store(Protocol):
     def count_runs(self, where: RunFilter | None = None) -> int: ...
     def run_folder(self, run_id: str) -> Path: ...
     def add_constants(self, rows: Sequence[Any]) -> int: ...
-    def constants(self) -> list[Any]: ...
+    def constants(self, *, history: bool = False) -> list[Any]: ...
 
 
 @dataclass(frozen=True)
@@ -127,7 +127,9 @@ class FolderStore:
                                   r.catalog), r.kind, r.run_id, r.run_path, r.data)
         return len(rows)
 
-    def constants(self) -> list[Any]:
+    def constants(self, *, history: bool = False) -> list[Any]:
+        """The stored constants; ``history`` changes nothing here: a folder keeps one row
+        per actuator and kind (a newer fit replaces the older), its history is its rows."""
         from bench.store.constants_store import ConstantsStore
         from bench.store.lab_catalog import StoredConstants
 
