@@ -2,7 +2,9 @@
 
 Pages: ``/`` (runs, filtered and paged; running runs refresh themselves), ``/runs/{id}``
 (time plots decimated on the server, fits, limits, trips, drops, run.json, downloads),
-``/compare?runs=a,b`` (static curves and step responses overlaid), ``/constants``. The
+``/compare?runs=a,b`` (static curves and step responses overlaid), ``/constants``,
+``/benches?motor=M&propeller=P`` (every bench's constants of one actuator, E_n of every
+pair: ``bench.store.bench_comparison``). The
 same data as JSON under ``/api/``; the OpenAPI description is ``/openapi.json``.
 
 A run id is only ever looked up in the store (``Store.run_folder``) and must be one
@@ -48,6 +50,7 @@ from bench.serve.run_views import (
     step_traces,
 )
 from bench.serve.security import COOKIE, Guard, token_matches
+from bench.store.bench_comparison import NothingToCompare, compare_benches
 from bench.store.json_values import finite_number, json_safe
 from bench.store.run_summary import BadFilter, RunFilter, RunSummary
 from bench.store.stores import FolderStore, Store
@@ -143,6 +146,18 @@ def create_app(store: Store, *, token: str | None = None, title: str = "rotorben
     @app.get("/api/constants", summary="measured constants with their provenance")
     def api_constants() -> list[dict[str, Any]]:
         return [json_safe(c.__dict__) for c in store.constants()]
+
+    @app.get("/api/benches", summary="every bench's constants of one actuator, E_n of "
+                                     "every pair (ISO/IEC 17043)")
+    def api_benches(motor: Annotated[str, Query(max_length=128)],
+                    propeller: Annotated[str, Query(max_length=128)], esc: Text = None,
+                    esc_mode: Text = None, battery: Text = None) -> dict[str, Any]:
+        try:
+            result = compare_benches(store, motor, propeller, esc=esc or None,
+                                     esc_mode=esc_mode or None, battery=battery or None)
+        except NothingToCompare as exc:
+            raise HTTPException(422, str(exc)) from None
+        return json_safe(result.as_dict())
 
     @app.get("/api/live", summary="running runs: status, elapsed time, latest values")
     def api_live() -> list[dict[str, Any]]:
@@ -284,6 +299,24 @@ def create_app(store: Store, *, token: str | None = None, title: str = "rotorben
         return templates.TemplateResponse(request, "constants.html", {
             "rows": rows, "store": store.describe(), "title": title})
 
+    @app.get("/benches", response_class=HTMLResponse, include_in_schema=False)
+    def page_benches(request: Request, motor: Text = None, propeller: Text = None,
+                     esc: Text = None, esc_mode: Text = None, battery: Text = None) -> Any:
+        asked = {k: v for k, v in (("motor", motor), ("propeller", propeller), ("esc", esc),
+                                   ("esc_mode", esc_mode), ("battery", battery)) if v}
+        result, why = None, ""
+        if motor and propeller:
+            try:
+                result = compare_benches(store, motor, propeller, esc=esc or None,
+                                         esc_mode=esc_mode or None, battery=battery or None)
+            except NothingToCompare as exc:
+                why = str(exc)
+        pairs = {(r.motor, r.propeller) for r in store.constants()}
+        return templates.TemplateResponse(request, "benches.html", {
+            "asked": asked, "result": result, "why": why, "title": title,
+            "store": store.describe(), "stored": sorted(pairs)},
+            status_code=422 if why else 200)
+
     @app.get("/login", include_in_schema=False)
     def login(given: Annotated[str, Query(alias="token", max_length=512)] = "") -> Response:
         """The cookie is set only for the server's token: a wrong one is 401, no cookie."""
@@ -323,7 +356,7 @@ def _warm(templates: Any) -> None:
 
     import analysis.run_record  # noqa: F401
 
-    for name in ("runs.html", "run.html", "compare.html", "constants.html"):
+    for name in ("runs.html", "run.html", "compare.html", "constants.html", "benches.html"):
         templates.env.get_template(name)
 
 

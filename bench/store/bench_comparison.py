@@ -28,7 +28,13 @@ from bench.store.json_values import finite_number
 from bench.store.run_summary import RunFilter
 from bench.store.stored_uncertainty import stored_budget
 
-__all__ = ["COMPARED", "BenchComparison", "BenchSource", "compare_benches"]
+__all__ = ["COMPARED", "BenchComparison", "BenchSource", "NothingToCompare",
+           "compare_benches"]
+
+
+class NothingToCompare(RigError):
+    """The request names no actuator two benches measured alike: the asker's to change
+    (a command exits 2, the web view answers 422), not a fault of the store."""
 
 
 def _poly(i: int) -> Callable[[Mapping[str, Any]], Any]:
@@ -96,13 +102,13 @@ class BenchComparison:
 def compare_benches(store: Any, motor: str, propeller: str, *, esc: str | None = None,
                     esc_mode: str | None = None, battery: str | None = None
                     ) -> BenchComparison:
-    """The comparison of every bench in ``store`` that measured this actuator; a
-    ``RigError`` (one line, exit 2) when there is nothing to compare."""
+    """The comparison of every bench in ``store`` that measured this actuator;
+    ``NothingToCompare`` (one line) when there is nothing to compare."""
     where = store.describe()
     rows = store.constants(history=True)
     if not rows:
-        raise RigError(f"{where}: no constants stored (store some with `rotorbench "
-                       "constants --add RUN`)")
+        raise NothingToCompare(f"{where}: no constants stored (store some with "
+                               "`rotorbench constants --add RUN`)")
     wanted = {"motor": motor, "propeller": propeller, "esc": esc, "esc_mode": esc_mode,
               "battery": battery}
     for name, value in wanted.items():
@@ -111,19 +117,20 @@ def compare_benches(store: Any, motor: str, propeller: str, *, esc: str | None =
         have = sorted({getattr(r, name) for r in rows})
         rows = [r for r in rows if getattr(r, name) == value]
         if not rows:
-            raise RigError(f"--{name.replace('_', '-')} {value}: no constants of it in "
-                           f"{where} (stored: {', '.join(have[:12]) or 'none'})")
+            raise NothingToCompare(f"--{name.replace('_', '-')} {value}: no constants of it "
+                                   f"in {where} (stored: {', '.join(have[:12]) or 'none'})")
     combos = sorted({(r.esc, r.esc_mode, r.battery) for r in rows})
     if len(combos) > 1:
-        raise RigError(f"{motor} / {propeller}: measured with several ESCs, modes or "
-                       f"batteries ({'; '.join(' '.join(c) for c in combos)}); benches are "
-                       "compared like with like: name one with --esc, --esc-mode, --battery")
+        raise NothingToCompare(f"{motor} / {propeller}: measured with several ESCs, modes "
+                               f"or batteries ({'; '.join(' '.join(c) for c in combos)}); "
+                               "benches are compared like with like: name one with --esc, "
+                               "--esc-mode, --battery")
     notes: list[str] = []
     newest = _newest_per_bench(rows, _bench_of_runs(store, motor, propeller), notes)
     if len(newest) < 2:
         only = f"only bench {next(iter(newest))}" if newest else "no bench"
-        raise RigError(f"nothing to compare: {only} measured {motor} / {propeller} in "
-                       f"{where} (a comparison needs two benches or more)")
+        raise NothingToCompare(f"nothing to compare: {only} measured {motor} / {propeller} "
+                               f"in {where} (a comparison needs two benches or more)")
     benches = sorted(newest)
     constants = []
     for name, kind, unit, value_of in COMPARED:
@@ -137,8 +144,8 @@ def compare_benches(store: Any, motor: str, propeller: str, *, esc: str | None =
         if len(parts) >= 2:
             constants.append(compare_constant(name, unit, parts))
     if not constants:
-        raise RigError(f"nothing to compare: benches {', '.join(benches)} share no constant "
-                       f"of {motor} / {propeller} in {where}")
+        raise NothingToCompare(f"nothing to compare: benches {', '.join(benches)} share no "
+                               f"constant of {motor} / {propeller} in {where}")
     esc_, mode, batt = combos[0]
     return BenchComparison(
         where, {"motor": motor, "propeller": propeller, "esc": esc_, "esc_mode": mode,

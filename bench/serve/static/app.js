@@ -113,6 +113,29 @@ async function comparePage() {
   } catch (err) { fail(box, err); }
 }
 
+async function benchesPage() {
+  // one panel per constant: each bench's value with its U (k = 2); red: in a flagged pair
+  const box = document.getElementById("benches");
+  if (!box) return;
+  try {
+    const d = await getJSON(box.dataset.benches);
+    for (const c of d.constants) {
+      const flagged = new Set(c.pairs.filter(p => p.flagged).flatMap(p => [p.a, p.b]));
+      const div = el("div", {class: "plot", id: "bench-" + c.constant});
+      box.appendChild(div);
+      await Plotly.newPlot(div, [{
+        x: c.benches.map(b => b.bench), y: c.benches.map(b => b.value), type: "scatter",
+        mode: "markers", marker: {size: 9, color: c.benches.map(
+          b => flagged.has(b.bench) ? "#b00020" : "#1f3a5f")},
+        error_y: {type: "data", array: c.benches.map(b => b.U === null ? 0 : b.U),
+                  visible: true}}],
+        {...LAYOUT, height: 260, title: {text: `${c.constant} (${c.unit})`},
+         yaxis: {exponentformat: "e"}}, CONFIG);
+    }
+    box.dataset.painted = String(d.constants.length);
+  } catch (err) { fail(box, err); }
+}
+
 function runsPage() {
   const table = document.getElementById("runs");
   if (!table) return;
@@ -140,4 +163,6 @@ function runsPage() {
   setInterval(poll, 2000);
 }
 
-document.addEventListener("DOMContentLoaded", () => { runsPage(); runPage(); comparePage(); });
+document.addEventListener("DOMContentLoaded", () => {
+  runsPage(); runPage(); comparePage(); benchesPage();
+});
