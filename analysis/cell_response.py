@@ -81,14 +81,19 @@ def lag_through_cell(s: np.ndarray, tau: float, cell: CellDynamics | None) -> np
             if abs(poles[i] - poles[j]) < 1e-6 * abs(poles[j]):
                 poles[i] *= 1.0 + 1e-6 * (i + 1)
     gain = wn * wn / tau
-    out = np.ones_like(s, dtype=complex)
-    for k, pk in enumerate(poles):
+    out = np.ones_like(s)
+    pair = poles[1].imag != 0.0  # conjugate poles: their terms are conjugate, 2 Re(one)
+    for k, pk in enumerate(poles[:2] if pair else poles):
         den = pk
         for j, pj in enumerate(poles):
             if j != k:
                 den *= pk - pj
-        out += (gain / den) * np.exp(pk * s)
-    return out.real
+        r = gain / den
+        if pk.imag == 0.0:
+            out += r.real * np.exp(pk.real * s)
+        else:
+            out += 2.0 * (r * np.exp(pk * s)).real
+    return out
 
 
 def thrust_step(t: np.ndarray, latency: float, tau: float, y0: float, y1: float,

@@ -12,9 +12,11 @@ constant:
   enter: a time constant and a delay do not depend on the units of the response.
 * sweeps (k_f, k_q, the thrust polynomial; ``static_budgets``): the least-squares fit of
   the binned speed levels (Type A, nu = N - p; the levels' scatter holds the cell's noise
-  and the repeatability across points), the cell's calibration from the run's calibration
-  record (Type B; relative, shared by every point, so it scales the constant as a whole),
-  and the speed counter's timebase (Type B; k ~ 1/w^2, sensitivity -2).
+  and the repeatability across points), the zero every reading shares (the tare's mean
+  of a noisy cell: a bias of the whole sweep the points' scatter does not show), the
+  cell's calibration from the run's calibration record (Type B; relative, shared by every
+  point, so it scales the constant as a whole), and the speed counter's timebase (Type B;
+  k ~ 1/w^2, sensitivity -2).
 """
 
 from __future__ import annotations
@@ -104,32 +106,42 @@ def _timebase_term(value: float) -> Term:
 
 
 def _slope_budget(value: float, per_point: float, n: int, unit: str,
-                  applied: Mapping[str, Any] | None) -> Budget:
+                  applied: Mapping[str, Any] | None, zero: tuple[float, float] | None
+                  ) -> Budget:
     terms = []
     if n > 1 and math.isfinite(per_point):
         terms.append(Term("fit through the origin (speed levels' scatter)",
                           per_point / math.sqrt(n), "A", dof=n - 1,
                           note=f"{n} binned speed levels"))
+    if zero is not None and all(map(math.isfinite, zero)):
+        sens, u_zero = zero
+        terms.append(Term("zero (tare) of the cell", abs(sens) * u_zero, "A",
+                          note=f"u {u_zero:.3g} of the zero, shared by every reading; "
+                               "dk/dc = sum(w^2) / sum(w^4)"))
     terms += calibration_terms(applied, value)
     terms.append(_timebase_term(value))
     return Budget.of(value, unit, terms)
 
 
-def static_budgets(curves: StaticCurves, calibrations: Mapping[str, Any] | None = None
-                   ) -> dict[str, Budget]:
+def static_budgets(curves: StaticCurves, calibrations: Mapping[str, Any] | None = None,
+                   zero_u: Mapping[str, float] | None = None) -> dict[str, Budget]:
     """Budgets of ``k_f_n_s2``, ``k_q_nm_s2`` and the thrust polynomial's coefficients
     (``thrust_poly_w_0`` .. ``_2``, ascending powers of w) of a sweep; ``calibrations``:
-    the run's applied calibrations by channel (``run.json``)."""
+    the run's applied calibrations by channel (``run.json``); ``zero_u``: the standard
+    uncertainty of each channel's zero (its tare), by channel."""
     cal = calibrations or {}
+    zu = zero_u or {}
     out: dict[str, Budget] = {}
     n_f = int(np.isfinite(curves.thrust).sum())
     n_q = int(np.isfinite(curves.torque).sum())
     if math.isfinite(curves.k_f):
-        out["k_f_n_s2"] = _slope_budget(curves.k_f, curves.k_f_std, n_f, "N s^2",
-                                        cal.get("thrust_n"))
+        out["k_f_n_s2"] = _slope_budget(
+            curves.k_f, curves.k_f_std, n_f, "N s^2", cal.get("thrust_n"),
+            (curves.k_f_zero_sensitivity, zu["thrust_n"]) if "thrust_n" in zu else None)
     if math.isfinite(curves.k_q):
-        out["k_q_nm_s2"] = _slope_budget(curves.k_q, curves.k_q_std, n_q, "N m s^2",
-                                         cal.get("torque_nm"))
+        out["k_q_nm_s2"] = _slope_budget(
+            curves.k_q, curves.k_q_std, n_q, "N m s^2", cal.get("torque_nm"),
+            (curves.k_q_zero_sensitivity, zu["torque_nm"]) if "torque_nm" in zu else None)
     ok = np.isfinite(curves.thrust)
     if curves.thrust_poly is not None and ok.sum() > 4:
         coef, cov = np.polyfit(curves.omega[ok], curves.thrust[ok], 2, cov=True)
