@@ -146,6 +146,9 @@ class StaticCurves:
     # spread of the k_f (k_q) one speed level gives (``lsq_through_origin``), NaN if unknown
     k_f_std: float = math.nan
     k_q_std: float = math.nan
+    # how much k_f (k_q) moves per unit of zero error in every reading (the tare's)
+    k_f_zero_sensitivity: float = math.nan
+    k_q_zero_sensitivity: float = math.nan
 
     def thrust_at(self, omega: np.ndarray | float) -> np.ndarray:
         if self.thrust_poly is None:
@@ -299,7 +302,17 @@ def fit_static(
         thrust_rms=trms, current_rms=crms, thrust_rms_binned=trms_b,
         current_rms_binned=crms_b, omega_max=float(np.max(w)), voltage_v=vmed, notes=notes,
         k_f_std=k_f_std, k_q_std=k_q_std,
+        k_f_zero_sensitivity=_zero_sensitivity(w**2, pts["thrust"]),
+        k_q_zero_sensitivity=_zero_sensitivity(w**2, pts["torque"]),
     )
+
+
+def _zero_sensitivity(x: np.ndarray, y: np.ndarray) -> float:
+    """dk/dc of the slope through the origin for a zero error c of every reading:
+    sum(x) / sum(x^2) over the points fitted."""
+    ok = np.isfinite(x) & np.isfinite(y)
+    den = float(np.sum(x[ok] ** 2))
+    return float(np.sum(x[ok]) / den) if den > 0 else math.nan
 
 
 def fit_static_run(record: RunRecord, bins: int = 60) -> StaticCurves:

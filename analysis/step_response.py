@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import least_squares
 
+from analysis.cell_response import CellDynamics, thrust_step
 from analysis.errors import LogError
 from analysis.run_record import RunRecord, esc_frame_s, event_times
 
@@ -196,6 +197,10 @@ class FirstOrderFit:
     t63_s: float  # 63.2 % rise time read from the data, from the command edge
     ok: bool = True
     why: str = ""  # why there is no estimate (ok False)
+    # standard uncertainties from the fit's covariance (the residuals' scatter through the
+    # Jacobian): what the noise of this one response puts into latency and tau
+    u_latency_s: float = math.nan
+    u_tau_s: float = math.nan
 
     @property
     def fitted(self) -> bool:
@@ -295,6 +300,8 @@ class StepResponse:
     bin_s: float
     notes: tuple[str, ...] = ()  # e.g. why another signal was not fitted
     excluded: tuple[tuple[int, str], ...] = ()  # (edge index, why) left out of the fits
+    cell: CellDynamics | None = None  # the sensor mechanics the fit modelled
+    square_law: bool = False  # thrust fitted as the square of a first-order speed
 
     def summary(self) -> dict[str, Any]:
         """The JSON of ``rotorbench fit`` (times in ms, signal units otherwise)."""
@@ -330,6 +337,8 @@ class StepResponse:
             "repeats_down": dn.tau.n if dn else 0,
             "window_ms": ms(self.window_s),
             "bin_ms": ms(self.bin_s),
+            "model": {"cell": None if self.cell is None else self.cell.as_dict(),
+                      "thrust_square_law": self.square_law},
         }
         for name, d in (("up", up), ("down", dn)):
             out[f"summary_{name}"] = None if d is None else {
@@ -405,7 +414,8 @@ def _crossing(tb: np.ndarray, z: np.ndarray, level: float) -> float:
 
 
 def _fit_first_order(tb: np.ndarray, yb: np.ndarray, cnt: np.ndarray, step: float,
-                     post_s: float) -> FirstOrderFit:
+                     post_s: float, cell: CellDynamics | None = None,
+                     square: bool = False) -> FirstOrderFit:
     y0d, y1d = _direct_levels(tb, yb)
     use = np.isfinite(yb) & (cnt > 0)
     why = ""
@@ -428,14 +438,17 @@ def _fit_first_order(tb: np.ndarray, yb: np.ndarray, cnt: np.ndarray, step: floa
     scale = abs(y1d - y0d)
 
     def resid(p: np.ndarray) -> np.ndarray:
-        return w * (p[2] + (p[3] - p[2]) * first_order_step(tt, p[0], p[1]) - yy) / scale
+        return w * (thrust_step(tt, p[0], p[1], p[2], p[3], cell, square) - yy) / scale
 
+    if cell is not None:  # the cell's group delay is the cell's, not the plant's latency
+        lat0 = max(lat0 - cell.group_delay_s, 0.0)
     lo = [0.0, 1e-4, -np.inf, -np.inf]
     hi = [0.5 * post_s, 2.0 * post_s, np.inf, np.inf]
     sol = least_squares(resid, [lat0, tau0, y0d, y1d], bounds=(lo, hi), x_scale="jac")
     lat, tau, y0, y1 = (float(v) for v in sol.x)
-    model = y0 + (y1 - y0) * first_order_step(tt, lat, tau)
+    model = thrust_step(tt, lat, tau, y0, y1, cell, square)
     rms = float(np.sqrt(np.average((model - yy) ** 2, weights=cnt[use])))
+    u_lat, u_tau = _fit_uncertainty(sol.jac, sol.fun, 4)
     ok, why = bool(sol.success), "" if sol.success else f"the solver failed ({sol.message})"
     if ok and tau >= 0.99 * hi[1]:
         ok, why = False, f"tau runs into its bound ({tau * 1e3:.0f} ms): no settling in the window"
@@ -445,7 +458,22 @@ def _fit_first_order(tb: np.ndarray, yb: np.ndarray, cnt: np.ndarray, step: floa
         # came before latency + tau (Table C.1's t63 = L + tau; read against the window's end
         # it gave t63 161 ms against L + tau 180 ms with a 0.5 s hold and tau 166 ms)
         t63 = _crossing(tb, (yb - y0) / (y1 - y0), T63)
-    return FirstOrderFit(lat, tau, (y1 - y0) / step, y0, y1, rms, t63, ok, why)
+    return FirstOrderFit(lat, tau, (y1 - y0) / step, y0, y1, rms, t63, ok, why, u_lat, u_tau)
+
+
+def _fit_uncertainty(jac: np.ndarray, resid: np.ndarray, params: int) -> tuple[float, float]:
+    """Standard uncertainties of the first two parameters: V = s^2 (J'J)^-1 with s^2 the
+    residual variance (the bins' weights are relative, not absolute: GUM-style Type A of a
+    least-squares fit, nu = N - p); NaN when the fit has no degrees of freedom left."""
+    dof = resid.size - params
+    if dof <= 0:
+        return math.nan, math.nan
+    try:
+        cov = np.linalg.pinv(jac.T @ jac) * float(resid @ resid) / dof
+    except np.linalg.LinAlgError:
+        return math.nan, math.nan
+    d = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    return float(d[0]), float(d[1])
 
 
 def _fit_second_order(tb: np.ndarray, yb: np.ndarray, cnt: np.ndarray, step: float,
@@ -491,6 +519,8 @@ def fit_step_response(
     command: str = "u",
     gain_unit: str = "",
     speed: np.ndarray | None = None,
+    cell: CellDynamics | None = None,
+    square_law: bool = False,
 ) -> StepResponse:
     """Find the edges of ``u`` and fit the response ``y`` around each; see module doc.
 
@@ -547,9 +577,9 @@ def fit_step_response(
         cnt = cnt_all.sum(axis=0)
         steps = np.array([edges[i].step for i in idx])
         step = float(np.mean(steps))
-        singles = tuple(_fit_first_order(r[0], r[1], r[2], float(s), post_s)
+        singles = tuple(_fit_first_order(r[0], r[1], r[2], float(s), post_s, cell, square_law)
                         for r, s in zip(rows, steps, strict=True))
-        mean = _fit_first_order(tb, y_mean, cnt, step, post_s)
+        mean = _fit_first_order(tb, y_mean, cnt, step, post_s, cell, square_law)
         so = _fit_second_order(tb, y_mean, cnt, step, post_s, mean) if second_order and \
             mean.ok else None
         good = [s for s in singles if s.fitted]
@@ -574,7 +604,8 @@ def fit_step_response(
     hold = min(edges[i].hold_after_s for i in usable)
     return StepResponse(signal, command, gain_unit, tuple(edges), tuple(groups), up, down,
                         rise_fall_rms(up, down), post_s, bin_s,
-                        notes=short_hold_notes(hold, up, down), excluded=excluded)
+                        notes=short_hold_notes(hold, up, down), excluded=excluded,
+                        cell=cell, square_law=square_law)
 
 
 #: A level held this many time constants has settled to within 2 % (e^-4) before it
@@ -764,10 +795,15 @@ def fit_run(record: RunRecord, signal: str = "auto", command: str | None = None,
         col = SIGNALS[name]
         y = record.column(col)
         periods[name] = period = signal_period(t, y)
+        # a bench run's thrust is tared (zero-referenced): the square law of (E.1) holds;
+        # its cell's mechanics are modelled where the run declares them
+        thrust = col == "thrust_n"
+        model = {"cell": CellDynamics.from_meta(record.meta, col) if thrust else None,
+                 "square_law": thrust and "tare_offset_n" in record.meta}
         try:
             res = fit_step_response(t, y, u, sp, event_times(record), signal=col, command=cmd,
                                     gain_unit=f"{'N' if col == 'thrust_n' else 'rpm'}/{unit}",
-                                    speed=speed, **kwargs)
+                                    speed=speed, **{**model, **kwargs})
         except LogError as exc:
             msg = str(exc)
             if "no step edges" in msg or "none held" in msg:

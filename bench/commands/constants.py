@@ -10,12 +10,15 @@ battery. ``bench.store.measured_constants.load_measured`` turns the store into t
 from __future__ import annotations
 
 import argparse
+import json
 import shutil
 from pathlib import Path
+from typing import Any
 
 from rich.console import Console
 from rich.table import Table
 
+from bench.cli_args.budget_text import budget_lines, with_expanded
 from bench.cli_args.store_args import (
     DEFAULT_RUNS_ROOT,
     add_store_args,
@@ -23,7 +26,7 @@ from bench.cli_args.store_args import (
     store_from_args,
 )
 from bench.paths.outputs import check_folder_to_read, check_writable
-from bench.store.constants_fit import STD_KEYS, fit_for_store
+from bench.store.constants_fit import STD_KEYS, UNCERTAINTY, fit_for_store
 from bench.store.lab_catalog import StoredConstants
 
 
@@ -38,6 +41,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--add", type=Path, nargs="+", default=[], metavar="RUN",
                    help="fit these run folders (or run ids of --store) and store their "
                         "constants")
+    p.add_argument("--json", action="store_true",
+                   help="list every stored constant with its value, standard uncertainty, "
+                        "U (k = 2), the run and the calibration records it came from")
+    p.add_argument("--budget", action="store_true",
+                   help="print each stored constant's uncertainty budget term by term")
     add_store_args(p)
     p.set_defaults(func=handler)
 
@@ -57,12 +65,15 @@ def handler(args: argparse.Namespace) -> int:
                                       data))
     if fitted:  # all or none: the lab catalog adds them in one transaction
         store.add_constants(fitted)
+    rows = store.constants()
+    if args.json:  # for scripts: nothing but the JSON on stdout
+        print(json.dumps(constants_json(rows), indent=2, allow_nan=False))
+        return 0
     for c in fitted:
         print(f"stored {c.kind} constants of {c.run_id} for {c.motor} / {c.propeller} / "
               f"{c.esc} ({c.esc_mode}) / {c.battery}")
         for note in c.data.get("notes", []):
             print(f"note: {note}")
-    rows = store.constants()
     if not rows:
         print(f"no constants stored under {store.describe()}")
         return 0
@@ -73,21 +84,56 @@ def handler(args: argparse.Namespace) -> int:
     for r in rows:
         d = r.data
         if r.kind == "step":
-            vals = (f"latency {_value(d, 'latency_s', 1e3, '.1f')} ms, tau up "
-                    f"{_value(d, 'tau_up_s', 1e3, '.1f')} / down "
-                    f"{_value(d, 'tau_down_s', 1e3, '.1f')} ms")
+            vals = (f"latency {_value(d, 'latency_s', 1e3, '.2f')} ms, tau up "
+                    f"{_value(d, 'tau_up_s', 1e3, '.2f')} / down "
+                    f"{_value(d, 'tau_down_s', 1e3, '.2f')} ms")
         else:
             vals = (f"k_f {_value(d, 'k_f_n_s2', 1.0, '.3g')}, {len(d['hover_thrust_n'])} "
                     f"current points up to {max(d['hover_thrust_n'], default=0):.2f} N")
         table.add_row(r.motor, r.propeller, f"{r.esc} ({r.esc_mode})", r.battery, r.kind, vals,
                       r.run_id)
-    Console(width=shutil.get_terminal_size((160, 24)).columns).print(table)
+    console = Console(width=shutil.get_terminal_size((160, 24)).columns)
+    console.print(table)
+    for r in rows:
+        unc = r.data.get(UNCERTAINTY) or {}
+        if unc:
+            console.print(f"{r.kind} of {r.run_id}: "
+                          + "; ".join(with_expanded(k, b) for k, b in unc.items()),
+                          highlight=False, markup=False)
+        if args.budget:
+            for k, b in unc.items():
+                for line in budget_lines(k, b):
+                    console.print(line, highlight=False, markup=False)
     return 0
 
 
+def constants_json(rows: list[StoredConstants]) -> list[dict[str, Any]]:
+    """One entry per stored constant: the actuator, the constant, value, u, U and k, and
+    where it came from (run, calibration records); a constant stored before uncertainties
+    were kept has u null."""
+    out = []
+    for r in rows:
+        unc = r.data.get(UNCERTAINTY) or {}
+        names = [k for k in (*STD_KEYS, *unc) if k in r.data or k in unc]
+        for name in dict.fromkeys(names):
+            b = unc.get(name, {})
+            value = b.get("value", r.data.get(name))
+            if not isinstance(value, int | float):
+                continue
+            out.append({"motor": r.motor, "propeller": r.propeller, "esc": r.esc,
+                        "esc_mode": r.esc_mode, "battery": r.battery, "kind": r.kind,
+                        "constant": name, "value": value, "unit": b.get("unit"),
+                        "u": b.get("u"), "U": b.get("U"), "k": b.get("k"),
+                        "dof_eff": b.get("dof_eff"), "run": r.run_id,
+                        "calibrations": b.get("calibrations", [])})
+    return out
+
+
 def _value(data: dict, key: str, scale: float, fmt: str) -> str:
-    """A stored constant with the spread of one measurement where the store has one
-    (``STD_KEYS``): "40.1 ± 1.2"; "?" for a constant the fit could not give."""
-    x, std = data.get(key), data.get(STD_KEYS[key])
+    """A stored constant with its expanded uncertainty U (k = 2) where the store has one,
+    else the spread of one measurement (``STD_KEYS``, older rows): "40.1 ± 1.2"; "?" for a
+    constant the fit could not give."""
+    x = data.get(key)
+    std = (data.get(UNCERTAINTY) or {}).get(key, {}).get("U", data.get(STD_KEYS[key]))
     text = format(x * scale, fmt) if isinstance(x, int | float) else "?"
     return text + (f" ± {format(std * scale, fmt)}" if isinstance(std, int | float) else "")

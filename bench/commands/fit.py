@@ -11,6 +11,7 @@ from typing import Any
 
 from rich.console import Console
 
+from bench.cli_args.budget_text import budget_lines, with_expanded
 from bench.cli_args.store_args import add_store_args, run_folder_arg
 from bench.errors import RigError
 
@@ -33,11 +34,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="seconds after each edge to fit (default 0.5, shortened to the hold)")
     p.add_argument("--second-order", action="store_true",
                    help="also fit delay + two real poles (the form of C.1)")
+    p.add_argument("--budget", action="store_true",
+                   help="print each constant's uncertainty budget term by term (GUM)")
     add_store_args(p)
     p.set_defaults(func=handler)
 
 
 def handler(args: argparse.Namespace) -> int:
+    from analysis.metrology.constant_budgets import step_budgets
     from analysis.report import OUTPUT_DELAY, output_delay_line, table_c1
     from analysis.run_record import read_run
     from analysis.step_response import fit_run
@@ -48,6 +52,8 @@ def handler(args: argparse.Namespace) -> int:
     fit = fit_run(record, signal=args.signal, command=args.command, window_s=args.window,
                   second_order=args.second_order)
     summary = fit.summary()
+    # each constant's standard uncertainty and budget (GUM), U at k = 2
+    summary["uncertainty"] = {k: b.as_dict() for k, b in step_budgets(fit).items()}
     summary["run"] = str(record.path)
     summary["esc_mode"] = record.components.get("esc_mode")
     if record.meta.get(OUTPUT_DELAY) is not None:  # an ESC that is a firmware: it was timed
@@ -59,7 +65,12 @@ def handler(args: argparse.Namespace) -> int:
     console = Console(width=shutil.get_terminal_size((160, 24)).columns)
     console.print(table_c1([(label, fit)]).to_rich())
     delay = output_delay_line(record.meta)
-    for line in [*text_summary(summary), *([delay] if delay else [])]:
+    unc = summary["uncertainty"]
+    lines = [*text_summary(summary), *([delay] if delay else []),
+             "; ".join(with_expanded(k, b) for k, b in unc.items())]
+    if args.budget:
+        lines += [line for k, b in unc.items() for line in budget_lines(k, b)]
+    for line in lines:
         console.print(line, highlight=False, markup=False)
     return 0
 

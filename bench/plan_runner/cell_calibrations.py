@@ -25,7 +25,8 @@ from bench.plans.weight_series import CELLS, SEQUENCE
 from bench.store.run_index import INDEX_NAME, RunIndex
 from bench.store.run_summary import RunFilter
 
-__all__ = ["AppliedCalibration", "CalibratedSensor", "apply_calibrations", "newest_records"]
+__all__ = ["AppliedCalibration", "CalibratedSensor", "apply_calibrations",
+           "declared_cell_dynamics", "newest_records"]
 
 log = logging.getLogger(__name__)
 
@@ -66,11 +67,12 @@ class AppliedCalibration:
     u_gain_rel: float
     valid_until_utc: str
     state: str  # "valid", "expired" or "not accepted (run accepted uncalibrated)"
+    budget: dict[str, Any] | None = None  # the record's scale budget (relative), by term
 
     def as_dict(self) -> dict[str, Any]:
         return {"id": self.id, "gain": self.gain, "offset": self.offset,
                 "u_gain_rel": self.u_gain_rel, "valid_until_utc": self.valid_until_utc,
-                "state": self.state}
+                "state": self.state, "budget": self.budget}
 
 
 class CalibratedSensor:
@@ -137,7 +139,8 @@ def apply_calibrations(rig_cfg: Any, devices: Any, out_root: Path, *,
             a = record["applies"]
             cal = AppliedCalibration(channel, str(record["id"]), float(a["gain"]),
                                      float(a["offset"]), float(a["u_gain_rel"]),
-                                     str(record["valid_until_utc"]), state)
+                                     str(record["valid_until_utc"]), state,
+                                     record.get("result", {}).get("scale_budget"))
             devices.sensors[role] = sensor = CalibratedSensor(sensor, cal)
             applied[channel] = cal.as_dict()
     return applied
@@ -159,3 +162,14 @@ def _state(record: dict[str, Any], now: datetime | None = None) -> str:
     until = datetime.strptime(record["valid_until_utc"], "%Y-%m-%dT%H:%M:%SZ").replace(
         tzinfo=UTC)
     return "expired" if (now or datetime.now(UTC)) > until else "valid"
+
+
+def declared_cell_dynamics(devices: Any) -> dict[str, dict[str, Any]]:
+    """The cells' mechanics the opened sensors declare (``describe().extra``
+    ``cell_dynamics``: natural frequency, damping ratio), by channel, for ``run.json``."""
+    out: dict[str, dict[str, Any]] = {}
+    for sensor in devices.sensors.values():
+        declared = sensor.describe().extra.get("cell_dynamics")
+        if isinstance(declared, dict):
+            out.update({str(k): dict(v) for k, v in declared.items() if isinstance(v, dict)})
+    return out

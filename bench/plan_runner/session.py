@@ -190,12 +190,18 @@ def _run_opened(rig: Any, seq: Sequence, out_root: Path,
     devices = open_rig(rig, seed=seed)
     try:
         if getattr(rig, "calibration", None) is not None:  # a propulsion stand's cells
-            from bench.plan_runner.cell_calibrations import apply_calibrations
+            from bench.plan_runner.cell_calibrations import (
+                apply_calibrations,
+                declared_cell_dynamics,
+            )
 
             calibrations = apply_calibrations(
                 rig, devices, out_root, accept_uncalibrated=options.accept_uncalibrated)
             if calibrations:
                 meta = {**meta, "calibrations": calibrations}
+            dynamics = declared_cell_dynamics(devices)
+            if dynamics:  # what a step fit models instead of reading it as latency
+                meta = {**meta, "cell_dynamics": dynamics}
 
         def run(recorder: RunRecorder) -> RunResult:
             try:

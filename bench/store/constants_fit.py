@@ -21,7 +21,7 @@ import numpy as np
 from bench.errors import RigError
 from bench.store.constants_store import ActuatorKey
 
-__all__ = ["HOVER_POINTS", "STD_KEYS", "fit_for_store"]
+__all__ = ["HOVER_POINTS", "STD_KEYS", "UNCERTAINTY", "fit_for_store", "uncertainties"]
 
 HOVER_POINTS = 24  # thrusts at which the supply current is stored
 #: the stored constants that carry a spread, and the key of that spread (a store written
@@ -29,6 +29,27 @@ HOVER_POINTS = 24  # thrusts at which the supply current is stored
 STD_KEYS = {"tau_up_s": "tau_up_std_s", "tau_down_s": "tau_down_std_s",
             "latency_s": "latency_std_s", "k_f_n_s2": "k_f_std_n_s2",
             "k_q_nm_s2": "k_q_std_nm_s2"}
+
+
+#: the key of a stored row's uncertainties: constant -> its budget, run and calibrations
+#: (``analysis.metrology.constant_budgets.entry``); older rows lack it
+UNCERTAINTY = "uncertainty"
+#: the channel whose calibration a constant of a sweep reads through
+CHANNEL_OF = {"k_f_n_s2": "thrust_n", "k_q_nm_s2": "torque_nm", "thrust_poly_w_0": "thrust_n",
+              "thrust_poly_w_1": "thrust_n", "thrust_poly_w_2": "thrust_n"}
+
+
+def uncertainties(budgets: dict[str, Any], run_id: str, applied: dict[str, Any]
+                  ) -> dict[str, Any]:
+    """Each budget as stored: value, u, U, terms, the run and the calibration records."""
+    from analysis.metrology.constant_budgets import entry
+
+    out = {}
+    for name, budget in budgets.items():
+        cal = applied.get(CHANNEL_OF.get(name, ""), {})
+        ids = [str(cal["id"])] if cal.get("id") and "gain" in cal else []
+        out[name] = entry(budget, run_id, ids)
+    return out
 
 
 def fit_for_store(run: Path) -> tuple[ActuatorKey, str, str, dict[str, Any]]:
@@ -48,9 +69,11 @@ def fit_for_store(run: Path) -> tuple[ActuatorKey, str, str, dict[str, Any]]:
 def _static_values(rec: Any) -> dict[str, Any]:
     """A sweep's static curves and its supply current at thrusts inside the measured range."""
     from analysis.flight_time import hover_current_a
+    from analysis.metrology.constant_budgets import static_budgets
     from analysis.static_curves import fit_static_run
 
     s = fit_static_run(rec)
+    applied = rec.meta.get("calibrations") or {}
     if s.thrust_poly is None or s.current_poly is None:
         raise RigError(f"{rec.path}: the sweep has no thrust or current to store")
     thr = s.thrust[np.isfinite(s.thrust)]
@@ -63,11 +86,13 @@ def _static_values(rec: Any) -> dict[str, Any]:
               if s.omega[0] <= float(s.omega_for_thrust(t)) <= s.omega[-1]]
     return {**s.summary(), "hover_thrust_n": [t for t, _ in inside],
             "hover_current_a": [c for _, c in inside],
-            "thrust_max_n": inside[-1][0] if inside else None}
+            "thrust_max_n": inside[-1][0] if inside else None,
+            UNCERTAINTY: uncertainties(static_budgets(s, applied), rec.id, applied)}
 
 
 def _step_values(rec: Any) -> dict[str, Any]:
     """A step run's latency, time constants and gain (both edges, all repeats)."""
+    from analysis.metrology.constant_budgets import step_budgets
     from analysis.step_response import fit_run, pooled_std
 
     f = fit_run(rec, window_s=2.0)  # the whole hold (slow coasting modes settle late)
@@ -83,4 +108,5 @@ def _step_values(rec: Any) -> dict[str, Any]:
             "gain": 0.5 * (f.up.gain.value + f.down.gain.value),
             "rise_fall_rms": f.rise_fall_rms, "repeats": f.up.tau.n,
             "thrust_low_n": f.up.mean.y0, "thrust_high_n": f.up.mean.y1,
-            "notes": list(f.notes)}  # provenance: e.g. levels held too briefly to settle
+            "notes": list(f.notes),  # provenance: e.g. levels held too briefly to settle
+            UNCERTAINTY: uncertainties(step_budgets(f), rec.id, {})}

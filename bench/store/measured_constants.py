@@ -78,9 +78,10 @@ _FLIGHT_FIELDS = (("tau_up_s", "step", "tau_up_s"), ("tau_down_s", "step", "tau_
 def _flight_extras(step: ConstantsRow | None, static: ConstantsRow | None) -> dict[str, float]:
     """The flight model's optional constants (``MeasuredActuator`` tau_up_s ... k_m_nm_s2)
     where the store has them as positive finite numbers (latency >= 0), each with its
-    spread (``optimizer.model.measured.STD_OF``) where the store has that as a finite number
-    >= 0: a store written before the spreads were kept gives constants without any."""
-    from bench.store.constants_fit import STD_KEYS
+    uncertainty (``optimizer.model.measured.STD_OF``) where the store has that as a finite
+    number >= 0: the standard uncertainty of its budget, else (an older row) the spread of
+    one measurement; a store written before either was kept gives constants without any."""
+    from bench.store.constants_fit import STD_KEYS, UNCERTAINTY
     from optimizer.model.measured import STD_OF
 
     rows = {"step": step, "static": static}
@@ -93,7 +94,12 @@ def _flight_extras(step: ConstantsRow | None, static: ConstantsRow | None) -> di
         if x is None or not (x > 0 or (name == "latency_s" and x >= 0)):
             continue
         out[name] = x
-        std = finite_number(row.data.get(STD_KEYS[key]))
+        # the constant's standard uncertainty where the store has its budget, else the
+        # spread of one measurement (a row stored before budgets were kept)
+        budget = (row.data.get(UNCERTAINTY) or {}).get(key) or {}
+        std = finite_number(budget.get("u"))
+        if std is None:
+            std = finite_number(row.data.get(STD_KEYS[key]))
         if std is not None and std >= 0:
             out[STD_OF[name]] = std
     return out

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
+from dataclasses import replace
 from typing import Unpack
 
 import numpy as np
@@ -195,6 +196,16 @@ class SimLoadCell(SimSensor):
             rt = self.params.torque_cell_range_nm
             out.append(ChannelInfo("torque_nm", "N m", fs, -rt, rt))
         return tuple(out)
+
+    def describe(self) -> DeviceInfo:
+        """The base description and the cells' mechanics (one filter for both cells), so a
+        run can declare them and a step fit model them (``analysis.cell_response``)."""
+        info = super().describe()
+        dyn = {"natural_frequency_hz": self.params.load_cell_fn_hz,
+               "damping_ratio": self.params.load_cell_zeta, "u_rel": 0.0,
+               "source": "the simulator's cell model"}
+        cells = {c.name: dyn for c in self._channels if c.name in ("thrust_n", "torque_nm")}
+        return replace(info, extra={**info.extra, "cell_dynamics": cells})
 
     def convert(self, raw: np.ndarray) -> dict[str, np.ndarray]:
         out = {"thrust_n": (raw[BRIDGE_V] - self.offset_v) * self.scale_n_per_v}

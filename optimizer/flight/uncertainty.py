@@ -1,10 +1,12 @@
 """Robust designs: flown samples of a design's measured constants, and their percentiles.
 
-A measured actuator carries the spread of one measurement of its constants
-(``optimizer.model.measured.MeasuredActuator`` ``*_std_*``: one edge of the step run, one speed
-level of the sweep). Flying a design M times with its constants drawn from that spread
-shows what a built copy may do; the figures are then summarised as 5th, 50th and 95th
-percentiles.
+A measured actuator carries the uncertainty of its constants
+(``optimizer.model.measured.MeasuredActuator`` ``*_std_*``): the standard uncertainty of
+each constant's GUM budget where the store has one (the bench's calibration, noise, fit
+and repeatability: ``analysis.metrology.constant_budgets``), else the spread of one
+measurement (one edge of the step run, one speed level of the sweep). Flying a design M
+times with its constants drawn from it shows what the measured constants leave open; the
+figures are then summarised as 5th, 50th and 95th percentiles.
 
 Distributions (one draw per sample and quantity, all independent):
 

@@ -1,0 +1,59 @@
+"""A constant's uncertainty as text: ``value ± U (k = 2)`` and its budget term by term.
+
+One home for how ``fit`` and ``constants`` print what ``analysis.metrology.gum.Budget``
+holds (as its ``as_dict``), so both read alike.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+__all__ = ["DISPLAY", "budget_lines", "with_expanded"]
+
+#: how a constant is shown: label, factor from SI, unit, format
+DISPLAY: dict[str, tuple[str, float, str, str]] = {
+    "latency_s": ("latency", 1e3, "ms", ".3f"),
+    "tau_up_s": ("tau up", 1e3, "ms", ".3f"),
+    "tau_down_s": ("tau down", 1e3, "ms", ".3f"),
+    "k_f_n_s2": ("k_f", 1.0, "N s^2", ".5g"),
+    "k_q_nm_s2": ("k_q", 1.0, "N m s^2", ".5g"),
+    "thrust_poly_w_0": ("thrust poly c0", 1.0, "N", ".5g"),
+    "thrust_poly_w_1": ("thrust poly c1", 1.0, "N s", ".5g"),
+    "thrust_poly_w_2": ("thrust poly c2", 1.0, "N s^2", ".5g"),
+}
+
+
+def _show(name: str) -> tuple[str, float, str, str]:
+    return DISPLAY.get(name, (name, 1.0, "", ".5g"))
+
+
+def with_expanded(name: str, b: Mapping[str, Any]) -> str:
+    """``tau up 29.71 ± 0.27 ms (k = 2)``; the U to two significant digits."""
+    label, f, unit, fmt = _show(name)
+    value, big_u = b.get("value"), b.get("U")
+    if not isinstance(value, int | float) or not math.isfinite(value):
+        return f"{label} n/a"
+    text = f"{label} {format(value * f, fmt)}"
+    if isinstance(big_u, int | float) and math.isfinite(big_u):
+        text += f" ± {big_u * f:.2g} {unit} (k = {b.get('k', 2):g})"
+    else:
+        text += f" {unit}"
+    return text
+
+
+def budget_lines(name: str, b: Mapping[str, Any]) -> list[str]:
+    """The budget: one line per term (u, type, degrees of freedom, what it is), then u_c,
+    the effective degrees of freedom and U."""
+    label, f, unit, _ = _show(name)
+    lines = [f"budget of {label} ({unit}):"]
+    for t in b.get("budget", []):
+        dof = "inf" if t.get("dof") is None else f"{t['dof']:.0f}"
+        lines.append(f"  {t['name']:<52} u {t['u'] * f:10.3g}  {t['type']}  nu {dof:>4}"
+                     + (f"  {t['note']}" if t.get("note") else ""))
+    dof_eff = b.get("dof_eff")
+    lines.append(f"  {'combined standard uncertainty u_c':<52} u {b['u'] * f:10.3g}     nu "
+                 f"{'inf' if dof_eff is None else f'{dof_eff:.0f}':>4}")
+    lines.append(f"  {'expanded U = k u_c':<52} U {b['U'] * f:10.3g}  k = {b['k']:g}")
+    return lines
