@@ -5,13 +5,13 @@ way before it pools their constants. Each bench's value of a constant comes with
 expanded uncertainty U (k = 2, JCGM 100 6.2.1); every pair of benches gets the normalised
 error E_n = (x1 - x2) / sqrt(U1^2 + U2^2) (``analysis.metrology.gum.normalised_error``),
 and |E_n| > 1 flags the pair: their difference is larger than their uncertainties
-explain (ISO/IEC 17043 B.3.1.3). A value without an uncertainty gives no E_n: it is
-listed, never judged.
+explain (ISO/IEC 17043, as ISO/IEC Guide 43-1 before it). A value without an uncertainty
+gives no E_n: it is listed, never judged. E_n assumes the two results independent.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable
 from dataclasses import dataclass
 from itertools import combinations
 from typing import Any
@@ -21,7 +21,7 @@ from analysis.metrology.gum import COVERAGE_K, Budget, normalised_error
 __all__ = ["EN_LIMIT", "ConstantComparison", "Pair", "Participant", "compare_constant",
            "flagged_benches"]
 
-#: |E_n| above this: the pair disagrees (ISO/IEC 17043 B.3.1.3).
+#: |E_n| above this: the pair disagrees (ISO/IEC 17043).
 EN_LIMIT = 1.0
 
 
@@ -81,8 +81,10 @@ class ConstantComparison:
         return tuple(p for p in self.pairs if p.flagged)
 
     def as_dict(self) -> dict[str, Any]:
+        counts = flagged_benches(self)
         return {"constant": self.name, "unit": self.unit,
-                "benches": [p.as_dict() for p in self.participants],
+                "benches": [{**p.as_dict(), "flagged_pairs": counts[p.bench]}
+                            for p in self.participants],
                 "pairs": [p.as_dict() for p in self.pairs]}
 
 
@@ -100,12 +102,12 @@ def compare_constant(name: str, unit: str, participants: Iterable[Participant]
     return ConstantComparison(name, unit, parts, pairs)
 
 
-def flagged_benches(comparisons: Sequence[ConstantComparison]) -> dict[str, list[str]]:
-    """Per constant, the benches in at least one flagged pair (constants with none left
-    out): what a figure marks and a summary names."""
-    out: dict[str, list[str]] = {}
-    for c in comparisons:
-        names = sorted({b for p in c.flagged for b in (p.bench_a, p.bench_b)})
-        if names:
-            out[c.name] = names
-    return out
+def flagged_benches(comparison: ConstantComparison) -> dict[str, int]:
+    """How many flagged pairs each bench of one constant is in (0 for none). A bench
+    flagged against every other stands apart from them; with two benches both are, and the
+    comparison cannot say which one is off."""
+    counts = {p.bench: 0 for p in comparison.participants}
+    for pair in comparison.flagged:
+        counts[pair.bench_a] += 1
+        counts[pair.bench_b] += 1
+    return counts

@@ -1,6 +1,7 @@
 """Benches compared as one figure: each constant a panel, each bench's value with its
-expanded uncertainty (k = 2) as an error bar, the benches of a flagged pair (|E_n| > 1)
-in red, so a reader sees at once which bench stands apart and by how much."""
+expanded uncertainty (k = 2) as an error bar; a bench whose E_n against every other bench
+is beyond 1 in red, one flagged against some of them in orange, so a reader sees at once
+which bench stands apart and by how much."""
 
 from __future__ import annotations
 
@@ -13,7 +14,8 @@ from analysis.metrology.interlab import ConstantComparison, flagged_benches
 
 __all__ = ["plot_comparison"]
 
-FLAGGED = "C3"
+APART = "C3"  # flagged against every other bench
+SOME = "C1"  # flagged against some
 AGREES = "C0"
 
 
@@ -27,11 +29,12 @@ def plot_comparison(comparisons: Sequence[ConstantComparison], path: Path,
     cols = min(3, n)
     rows = math.ceil(n / cols)
     fig, axes = plt.subplots(rows, cols, figsize=(3.6 * cols, 2.9 * rows), squeeze=False)
-    marked = flagged_benches(comparisons)
     for ax, c in zip(axes.flat, comparisons, strict=False):
-        bad = set(marked.get(c.name, ()))
+        counts = flagged_benches(c)
+        others = len(c.participants) - 1
         for i, p in enumerate(c.participants):
-            color = FLAGGED if p.bench in bad else AGREES
+            n = counts[p.bench]
+            color = APART if n and n == others else SOME if n else AGREES
             if p.expanded is None:
                 ax.plot([i], [p.value], "o", mfc="none", color=color)
             else:
@@ -45,6 +48,7 @@ def plot_comparison(comparisons: Sequence[ConstantComparison], path: Path,
         ax.tick_params(axis="y", labelsize=8)
     for ax in list(axes.flat)[len(comparisons):]:
         ax.set_visible(False)
-    fig.suptitle(title or "benches compared: value +- U (k = 2); red: |E_n| > 1", fontsize=10)
+    fig.suptitle(title or "benches compared: value +- U (k = 2); red: |E_n| > 1 against every "
+                          "other bench, orange: against some", fontsize=10)
     fig.tight_layout()
     return save_figure(fig, path)

@@ -15,6 +15,7 @@ from pathlib import Path
 from rich.console import Console
 from rich.table import Table
 
+from bench.cli_args.budget_text import DISPLAY
 from bench.cli_args.store_args import add_store_args, store_from_args
 from bench.paths.outputs import check_figure_path
 from bench.store.bench_comparison import BenchComparison, compare_benches
@@ -52,8 +53,8 @@ def handler(args: argparse.Namespace) -> int:
         from analysis.metrology.interlab_figure import plot_comparison
 
         plot_comparison(result.constants, args.plot,
-                        title=f"{args.motor} / {args.propeller}: value +- U (k = 2) by "
-                              "bench; red: |E_n| > 1")
+                        title=f"{args.motor} / {args.propeller}: value +- U (k = 2) by bench; "
+                              "red: |E_n| > 1 against every other bench, orange: some")
     if args.json:
         print(json.dumps(result.as_dict(), indent=2, allow_nan=False))
     else:
@@ -63,8 +64,14 @@ def handler(args: argparse.Namespace) -> int:
     return 1 if result.flagged else 0
 
 
-def _num(x: float | None) -> str:
-    return "?" if x is None else f"{x:.5g}"
+def _label(name: str) -> str:
+    return DISPLAY.get(name, (name,))[0]
+
+
+def _cell(name: str, value: float, big_u: float | None) -> str:
+    """``29.71 ± 0.27`` in the constant's display unit (``DISPLAY``), U to two digits."""
+    _, f, _, fmt = DISPLAY.get(name, (name, 1.0, "", ".5g"))
+    return f"{format(value * f, fmt)} ± " + ("?" if big_u is None else f"{big_u * f:.2g}")
 
 
 def _print(result: BenchComparison) -> None:
@@ -78,8 +85,9 @@ def _print(result: BenchComparison) -> None:
         values.add_column(b, overflow="fold")
     for c in result.constants:
         by = {p.bench: p for p in c.participants}
-        values.add_row(f"{c.name} ({c.unit})", *(
-            "" if b not in by else f"{_num(by[b].value)} ± {_num(by[b].expanded)}"
+        unit = DISPLAY.get(c.name, (c.name, 1.0, c.unit))[2]
+        values.add_row(f"{_label(c.name)} ({unit})", *(
+            "" if b not in by else _cell(c.name, by[b].value, by[b].expanded)
             for b in benches))
     console.print(values)
     pairs = Table(title="normalised error E_n = (x1 - x2) / sqrt(U1² + U2²); |E_n| > 1 "
@@ -89,7 +97,7 @@ def _print(result: BenchComparison) -> None:
     for c in result.constants:
         for p in c.pairs:
             en = "no U" if p.e_n is None else f"{p.e_n:+.2f}"
-            pairs.add_row(c.name, f"{p.bench_a} vs {p.bench_b}", en,
+            pairs.add_row(_label(c.name), f"{p.bench_a} vs {p.bench_b}", en,
                           "FLAGGED" if p.flagged else "")
     console.print(pairs)
     for b in result.benches:
@@ -99,6 +107,6 @@ def _print(result: BenchComparison) -> None:
         console.print(f"note: {note}", highlight=False, soft_wrap=True)
     flagged = result.flagged
     console.print(f"{len(flagged)} of {sum(len(c.pairs) for c in result.constants)} pairs "
-                  "flagged" + (": " + "; ".join(f"{c} {x} vs {y} E_n {e:+.2f}"
+                  "flagged" + (": " + "; ".join(f"{_label(c)} {x} vs {y} E_n {e:+.2f}"
                                                 for c, x, y, e in flagged) if flagged else ""),
                   highlight=False, soft_wrap=True)

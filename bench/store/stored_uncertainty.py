@@ -4,14 +4,16 @@ weighs constants by their uncertainty) reads it one way.
 
 Two forms are read, newest first:
 
-* a budget stored with the constant: ``data["uncertainty"][name]``, the object of
-  ``analysis.metrology.gum.Budget.as_dict`` (value, unit, u, U, k, terms; plus the run and
+* the budget stored with the constant since budgets are kept:
+  ``data[bench.store.constants_fit.UNCERTAINTY][name]``, the object of
+  ``analysis.metrology.constant_budgets.entry`` (value, unit, u, U, k, terms; the run and
   the calibration records it came from);
 * otherwise the spread the fits have always stored (``bench.store.constants_fit.STD_KEYS``:
   the spread of one speed level of a sweep, of one edge of a step run) over the square root
   of how many there were (``points``; ``repeats``, twice that for the latency, the mean of
-  both edges): the standard error of the fitted mean, Type A only. It leaves out the
-  cell's calibration and the timebase: an underestimate where those matter.
+  both edges): the standard error of the fitted mean, Type A only, for a row stored before
+  budgets were. It leaves out the cell's calibration and the timebase: an underestimate
+  where those matter.
 
 A constant with neither has no uncertainty (None): it is listed, never judged.
 """
@@ -23,19 +25,17 @@ from collections.abc import Mapping
 from typing import Any
 
 from analysis.metrology.gum import Budget, Term
+from bench.store.constants_fit import STD_KEYS, UNCERTAINTY
 from bench.store.json_values import finite_number
 
-__all__ = ["BUDGETS_KEY", "stored_budget"]
-
-#: where a row's data keeps the per-constant budgets, by the constant's data key
-BUDGETS_KEY = "uncertainty"
+__all__ = ["stored_budget"]
 
 
 def stored_budget(name: str, value: float, unit: str, data: Mapping[str, Any]
                   ) -> Budget | None:
     """The uncertainty budget of constant ``name`` (a data key, e.g. ``k_f_n_s2``) of
     value ``value`` in one stored row's ``data``; None when the row carries none."""
-    budgets = data.get(BUDGETS_KEY)
+    budgets = data.get(UNCERTAINTY)
     entry = budgets.get(name) if isinstance(budgets, Mapping) else None
     if isinstance(entry, Mapping) and entry.get("budget"):
         try:
@@ -47,8 +47,6 @@ def stored_budget(name: str, value: float, unit: str, data: Mapping[str, Any]
 
 def _spread_budget(name: str, value: float, unit: str, data: Mapping[str, Any]
                    ) -> Budget | None:
-    from bench.store.constants_fit import STD_KEYS
-
     if name not in STD_KEYS:
         return None
     std = finite_number(data.get(STD_KEYS[name]))

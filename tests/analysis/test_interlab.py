@@ -27,7 +27,7 @@ def test_every_pair_gets_its_normalised_error_and_only_the_outlier_is_flagged():
     assert en["a", "b"] == pytest.approx((6.43e-6 - 6.4305e-6) / (2 ** 0.5 * big_u))
     assert abs(en["a", "b"]) < 1 < abs(en["a", "c"])
     assert [(p.bench_a, p.bench_b) for p in c.flagged] == [("a", "c"), ("b", "c")]
-    assert flagged_benches([c]) == {"k_f": ["a", "b", "c"]}  # every bench of a flagged pair
+    assert flagged_benches(c) == {"a": 1, "b": 1, "c": 2}  # c: against every other bench
     row = json.loads(json.dumps(c.as_dict()))  # plain JSON
     assert row["benches"][0]["U"] == pytest.approx(big_u) and row["benches"][0]["k"] == 2
 

@@ -114,19 +114,21 @@ async function comparePage() {
 }
 
 async function benchesPage() {
-  // one panel per constant: each bench's value with its U (k = 2); red: in a flagged pair
+  // one panel per constant: each bench's value with its U (k = 2); red: |E_n| > 1
+  // against every other bench, orange: against some
   const box = document.getElementById("benches");
   if (!box) return;
   try {
     const d = await getJSON(box.dataset.benches);
     for (const c of d.constants) {
-      const flagged = new Set(c.pairs.filter(p => p.flagged).flatMap(p => [p.a, p.b]));
+      const others = c.benches.length - 1;
+      const color = b => b.flagged_pairs === 0 ? "#1f3a5f"
+        : (b.flagged_pairs === others ? "#b00020" : "#e07b00");
       const div = el("div", {class: "plot", id: "bench-" + c.constant});
       box.appendChild(div);
       await Plotly.newPlot(div, [{
         x: c.benches.map(b => b.bench), y: c.benches.map(b => b.value), type: "scatter",
-        mode: "markers", marker: {size: 9, color: c.benches.map(
-          b => flagged.has(b.bench) ? "#b00020" : "#1f3a5f")},
+        mode: "markers", marker: {size: 9, color: c.benches.map(color)},
         error_y: {type: "data", array: c.benches.map(b => b.U === null ? 0 : b.U),
                   visible: true}}],
         {...LAYOUT, height: 260, title: {text: `${c.constant} (${c.unit})`},

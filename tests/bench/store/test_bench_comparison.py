@@ -124,4 +124,4 @@ def test_benches_measured_in_several_esc_modes_are_compared_like_with_like(
     assert main(["compare-benches", "--store", lab, "--motor", M, "--propeller", P,
                  "--esc-mode", "complementary"]) == 1  # A and B disagree on k_f
     out = capsys.readouterr().out
-    assert "FLAGGED" in out and "k_f_n_s2 A vs B" in out
+    assert "FLAGGED" in out and "k_f A vs B" in out
