@@ -101,8 +101,9 @@ def _print(result: BenchComparison) -> None:
                           "FLAGGED" if p.flagged else "")
     console.print(pairs)
     for b in result.benches:
-        console.print(f"{b.bench}: " + ", ".join(f"{k} {r}" for k, r in sorted(b.runs.items())),
-                      highlight=False, soft_wrap=True)
+        cal = f"; calibration {', '.join(b.calibrations)}" if b.calibrations else ""
+        console.print(f"{b.bench}: " + ", ".join(f"{k} {r}" for k, r in sorted(b.runs.items()))
+                      + cal, highlight=False, soft_wrap=True)
     for note in result.notes:
         console.print(f"note: {note}", highlight=False, soft_wrap=True)
     flagged = result.flagged

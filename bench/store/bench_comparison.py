@@ -17,13 +17,14 @@ compares only what differs in ESC, mode or battery, which is refused (like with 
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from analysis.metrology.interlab import ConstantComparison, Participant, compare_constant
 from bench.errors import RigError
+from bench.store.constants_fit import UNCERTAINTY
 from bench.store.json_values import finite_number
 from bench.store.run_summary import RunFilter
 from bench.store.stored_uncertainty import stored_budget
@@ -69,9 +70,11 @@ class BenchSource:
     bench: str
     runs: dict[str, str]  # kind -> run id
     fitted_utc: dict[str, str]  # kind -> when it was fitted
+    calibrations: tuple[str, ...] = ()  # the calibration records its constants read through
 
     def as_dict(self) -> dict[str, Any]:
-        return {"bench": self.bench, "runs": self.runs, "fitted_utc": self.fitted_utc}
+        return {"bench": self.bench, "runs": self.runs, "fitted_utc": self.fitted_utc,
+                "calibrations": list(self.calibrations)}
 
 
 @dataclass(frozen=True)
@@ -151,8 +154,20 @@ def compare_benches(store: Any, motor: str, propeller: str, *, esc: str | None =
         where, {"motor": motor, "propeller": propeller, "esc": esc_, "esc_mode": mode,
                 "battery": batt},
         tuple(BenchSource(b, {k: r.run_id for k, r in newest[b].items()},
-                          {k: r.fitted_utc for k, r in newest[b].items()}) for b in benches),
+                          {k: r.fitted_utc for k, r in newest[b].items()},
+                          _calibrations(newest[b].values())) for b in benches),
         tuple(constants), tuple(notes))
+
+
+def _calibrations(rows: Iterable[Any]) -> tuple[str, ...]:
+    """The calibration records the rows' stored budgets name (none for older rows)."""
+    ids: set[str] = set()
+    for row in rows:
+        entries = row.data.get(UNCERTAINTY)
+        for entry in entries.values() if isinstance(entries, Mapping) else ():
+            cals = entry.get("calibrations") if isinstance(entry, Mapping) else None
+            ids.update(str(c) for c in cals or () if c)
+    return tuple(sorted(ids))
 
 
 def _bench_of_runs(store: Any, motor: str, propeller: str) -> dict[str, str]:

@@ -31,11 +31,18 @@ def _rig(folder: Path, name: str, extra: str = "") -> Path:
 
 def _sweep_and_fit(rig: Path, pg_url: str, spool: Path, seed: int) -> None:
     """A short sweep into the lab (recorded in the bench's spool, then published), and its
-    constants fitted into the catalog."""
-    before = set(spool.glob("*-sweep"))
-    assert main(["sweep", "--rig", str(rig), "--store", pg_url, "--spool", str(spool),
-                 "--duration", "5", "--no-save-map", "--yes", "--seed", str(seed)]) == 0
-    (run,) = set(spool.glob("*-sweep")) - before
+    constants fitted into the catalog. The host watchdog watches the wall clock: on a host
+    loaded far beyond its cores a simulated sweep may stall past it and be aborted, which
+    is the watchdog's test, not this one's; that sweep is recorded again, once."""
+    for attempt in range(2):
+        before = set(spool.glob("*-sweep"))
+        code = main(["sweep", "--rig", str(rig), "--store", pg_url, "--spool", str(spool),
+                     "--duration", "5", "--no-save-map", "--yes", "--seed", str(seed)])
+        (run,) = set(spool.glob("*-sweep")) - before
+        if code == 0:
+            break
+        meta = json.loads((run / "run.json").read_text())
+        assert attempt == 0 and str(meta.get("reason")).startswith("watchdog:"), meta
     assert main(["constants", "--store", pg_url, "--add", str(run)]) == 0
 
 
@@ -101,6 +108,8 @@ def test_the_miscalibrated_bench_is_flagged_until_it_is_calibrated(
         return next(b["runs"]["static"] for b in result["benches"] if b["bench"] == "stand-c")
 
     assert c_sweep(after) != c_sweep(before)  # the bench's newest fit is the one compared
+    calibrated = {b["bench"]: b["calibrations"] for b in after["benches"]}
+    assert calibrated["stand-a"] == [] and len(calibrated["stand-c"]) == 1
     assert time.monotonic() - start < 60  # the fastest settings of the simulated rig
 
     # the table a person reads

@@ -67,6 +67,7 @@ def test_each_bench_newest_fit_with_the_uncertainty_its_row_carries(lab: str, tm
                                                                    ) -> None:
     result = compare_benches(open_store(lab, spool=tmp_path / "spool"), M, P)
     assert [b.bench for b in result.benches] == ["A", "B"]
+    assert [b.calibrations for b in result.benches] == [(), ("cal-1",)]  # B's stored budget
     by = {c.name: {p.bench: p for p in c.participants} for c in result.constants}
     assert by["tau_up_s"]["A"].value == 0.030  # the newer of A's two step fits
     # the spread of one edge over sqrt(repeats); the latency is the mean of both edges
