@@ -11,8 +11,8 @@ is judged as it measures now). Each constant's uncertainty is read by
 ``analysis.metrology.interlab``.
 
 The lab catalog keeps every fit, so it holds every bench's. A folder store keeps one row
-per actuator and kind: the benches that shared it overwrote each other's rows, and it
-compares only what differs in ESC, mode or battery, which is refused (like with like).
+per actuator and kind, whichever bench fitted it last: it holds a second bench's only
+for another ESC, mode or battery, which is not compared (like with like).
 """
 
 from __future__ import annotations
