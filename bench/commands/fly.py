@@ -463,6 +463,7 @@ def _betaflight(args: argparse.Namespace) -> int:
                               drag_n_s_m=args.drag)
     cascade, _ = fly_report(vehicle, actuator, [maneuver(m) for m in names], record)
     plant = ExternalPlant(vehicle, actuator, DT_S)
+    Path(root).mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix=".betaflight-", dir=root) as tmp:
         log = Path(tmp) / "LOG00001.BF"
         flight = fly_betaflight(plant, names, cli_lines, rate_steps_s=args.rate_steps,
