@@ -418,7 +418,6 @@ def _betaflight(args: argparse.Namespace) -> int:
     from bench.cli_args.store_args import DEFAULT_OUT, named_store
     from bench.jobs.betaflight_flight import DT_S, fly_betaflight, read_cli_file
     from bench.jobs.betaflight_program import BETAFLIGHT_MANEUVERS
-    from bench.store.imported_run import store_flight_log
     from bench.store.store_url import parse_store
     from drivers.backends.betaflight_sitl import find_binary
     from optimizer.flight.design import design_index, fly_report, setup
@@ -466,15 +465,17 @@ def _betaflight(args: argparse.Namespace) -> int:
     Path(root).mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix=".betaflight-", dir=root) as tmp:
         log = Path(tmp) / "LOG00001.BF"
-        flight = fly_betaflight(plant, names, cli_lines, rate_steps_s=args.rate_steps,
-                                log_to=log, on_phase=lambda text: print(
-                                    f"betaflight: {text}", file=sys.stderr))
-        run_dir = None
-        if flight.log_path is not None:
-            run_dir = store_flight_log(flight.log_path, root, "betaflight-flight", {
-                "flown_by": {"controller": "betaflight", "design": cascade["design"],
-                             "cli": [line for _, line in cli_lines],
-                             "firmware": flight.firmware}})
+        flown_by: dict[str, Any] = {"controller": "betaflight", "design": cascade["design"],
+                                    "cli": [line for _, line in cli_lines]}
+        flight = None
+        try:
+            flight = fly_betaflight(plant, names, cli_lines, rate_steps_s=args.rate_steps,
+                                    log_to=log, on_phase=lambda text: print(
+                                        f"betaflight: {text}", file=sys.stderr))
+            flown_by["firmware"] = flight.firmware
+        finally:  # an interrupted or failed flight keeps its log too
+            run_dir = _keep_log(log, root, flown_by, cut_short=flight is None)
+    assert flight is not None  # it raised otherwise
     report = {
         "controller": "betaflight",
         "design": cascade["design"],
@@ -498,6 +499,26 @@ def _betaflight(args: argparse.Namespace) -> int:
         return 0
     _print_betaflight(report)
     return 0
+
+
+def _keep_log(log: Path, root: Path, flown_by: dict[str, Any], *, cut_short: bool
+              ) -> Path | None:
+    """The firmware's log stored as a flight run; a cut-short flight's is kept where it
+    can be and said on stderr, never hiding why the flight ended."""
+    from bench.store.imported_run import store_flight_log
+
+    if not log.is_file():
+        return None
+    try:
+        run_dir = store_flight_log(log, root, "betaflight-flight", {"flown_by": flown_by})
+    except Exception:
+        if not cut_short:
+            raise
+        return None
+    if cut_short:
+        print(f"betaflight: the cut-short flight's firmware log is stored as flight run "
+              f"{run_dir}", file=sys.stderr)
+    return run_dir
 
 
 def _log_response(run_dir: Path) -> dict[str, Any]:
