@@ -7,7 +7,10 @@ stick program, a tuning flight's snap rolls) the gyro's own rise after each one 
 direct measurement to hold it against. A step here: the setpoint changes by at least
 ``min_step`` within ``EDGE_S`` and then stays within 5 % of the change for ``hold_s``;
 the rise is between the gyro's first crossings of 10 % and 90 % of the way from the level
-before the edge to the level held after it.
+before the edge to the level held after it. A step whose stretch of log has a gap (the
+logged time jumps by more than ``GAP_S``: the firmware did not run, as a
+software-in-the-loop firmware on a loaded host may not, and its bench held the plant) is
+no clean reading and is left out.
 """
 
 from __future__ import annotations
@@ -16,10 +19,11 @@ import math
 
 import numpy as np
 
-__all__ = ["EDGE_S", "step_rise_times"]
+__all__ = ["EDGE_S", "GAP_S", "step_rise_times"]
 
 EDGE_S = 0.01  # the setpoint's change must happen within this (a stick step, not a sweep)
 BEFORE_S = 0.02  # the level before the edge: the setpoint's and gyro's mean over this
+GAP_S = 0.03  # a fraction of any rise worth reading; shorter holes are interpolated
 
 
 def step_rise_times(t_s: np.ndarray, setpoint: np.ndarray, gyro: np.ndarray, *,
@@ -46,6 +50,9 @@ def step_rise_times(t_s: np.ndarray, setpoint: np.ndarray, gyro: np.ndarray, *,
         plateau = sp[j:j + hold]
         if np.max(np.abs(plateau - sp[j])) > 0.05 * abs(size):
             i = j
+            continue
+        if np.max(np.diff(t[i - before:j + hold])) > GAP_S:
+            i = j + hold
             continue
         start = float(np.mean(gy[i - before:i + 1]))
         z = (gy[i:j + hold] - start) / (float(np.mean(plateau)) - start)

@@ -59,8 +59,9 @@ __all__ = ["DT_S", "PREAMBLE", "BetaflightFlight", "fly_betaflight"]
 
 DT_S = 1e-3  # the plant's tick, as the thesis cascade's (1 kHz)
 CATCH_UP_S = 0.02  # later than this, the plant skips the time instead of catching up
-#: no answer from the firmware for this long: the plant waits for it (module doc)
-SILENT_S = 0.01
+#: no answer from the firmware for this long: the plant waits for it (module doc); a
+#: shorter silence the plant lives through on the last outputs, as the firmware's clock does
+SILENT_S = 0.03
 LAUNCHES = 3
 CONTROL_LOOP_TIMEOUT_S = 2.0
 ARM_READY_TIMEOUT_S = 15.0  # boot grace (5 s) + valid RC (0.5 s) on a loaded host
