@@ -35,7 +35,7 @@ STICK_HALF_US = 500.0
 #: the thesis maneuvers a Betaflight flight flies as stick inputs (module doc)
 BETAFLIGHT_MANEUVERS = ("roll_step", "pitch_step", "gust")
 SPIN_UP_S = 0.6  # armed and held while the rotors reach the hover command
-HOVER_S = 2.0  # released: the pilot settles the height before the first maneuver
+HOVER_S = 1.5  # released: the pilot settles the height before the first maneuver
 SETTLE_S = 1.5  # between maneuvers: sticks centred, not measured
 RATE_STEP_DPS = 100.0  # 25 deg of tilt per step: the pilot keeps the height
 RATE_HOLD_S = 0.25  # a rate step's length; then as long at zero rate

@@ -72,7 +72,7 @@ def test_betaflight_flies_a_design_and_its_log_gives_the_step_response(tmp_path,
     cli.write_text("# the test's tune\nset rc_smoothing = OFF\n\nsave\n")
     t0 = time.monotonic()
     res = _in_namespace(tmp_path, ["fly", "--controller", "betaflight", *DESIGN,
-                                   "--maneuver", "roll_step", "--rate-steps", "6",
+                                   "--maneuver", "roll_step", "--rate-steps", "4.8",
                                    "--betaflight-cli", str(cli), "--store", str(store),
                                    "--json"])
     wall = time.monotonic() - t0
