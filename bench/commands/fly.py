@@ -431,7 +431,7 @@ def _betaflight(args: argparse.Namespace) -> int:
     if args.plot is not None:
         raise RequestError("--plot draws the cascade's flights; --controller betaflight "
                            "keeps the firmware's log as a run (rotorbench flight-report)")
-    names = args.maneuver or list(BETAFLIGHT_MANEUVERS)
+    names: list[str] = args.maneuver or list(BETAFLIGHT_MANEUVERS)
     other = [m for m in names if m not in BETAFLIGHT_MANEUVERS]
     if other:
         raise RequestError(f"--maneuver {' '.join(other)}: Betaflight flies "

@@ -86,9 +86,9 @@ def program(maneuvers: list[str], rate_steps_s: float, release_s: float) -> list
         if man.axis in ("roll", "pitch"):
             stick, real = angle_stick(man.amplitude)
             real_man = Maneuver(man.name, man.axis, real, man.duration_s)
-            sticks = {"roll_us": stick} if man.axis == "roll" else {"pitch_us": stick}
-            out.append(Segment(t + STEP_TIME_S, man.duration_s - STEP_TIME_S,
-                               maneuver=real_man, label=name, **sticks))
+            roll, pitch = (stick, 1500) if man.axis == "roll" else (1500, stick)
+            out.append(Segment(t + STEP_TIME_S, man.duration_s - STEP_TIME_S, roll, pitch,
+                               maneuver=real_man, label=name))
         else:
             out.append(Segment(t + STEP_TIME_S, man.duration_s - STEP_TIME_S,
                                maneuver=man, gust=man.axis == "gust", label=name))
@@ -99,8 +99,8 @@ def program(maneuvers: list[str], rate_steps_s: float, release_s: float) -> list
     for k in range(int(rate_steps_s / period + 1e-9)):
         # +roll, +pitch, -roll, -pitch, ...: each tilt is taken back by the step after next
         rate = rate_stick((1 if (k // 2) % 2 == 0 else -1) * RATE_STEP_DPS)
-        sticks = {"roll_us": rate} if k % 2 == 0 else {"pitch_us": rate}
-        out.append(Segment(t, RATE_HOLD_S, angle=False, label="rate step", **sticks))
+        roll, pitch = (rate, 1500) if k % 2 == 0 else (1500, rate)
+        out.append(Segment(t, RATE_HOLD_S, roll, pitch, angle=False, label="rate step"))
         out.append(Segment(t + RATE_HOLD_S, RATE_PAUSE_S, angle=False, label="rate pause"))
         t += period
     out.append(Segment(t, END_S, label="end"))
