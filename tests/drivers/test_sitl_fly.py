@@ -98,8 +98,16 @@ def test_betaflight_flies_a_design_and_its_log_gives_the_step_response(tmp_path,
     assert meta["kind"] == "flight" and meta["flown_by"]["controller"] == "betaflight"
     assert not any("LOG_END" in n for n in meta["flight"].get("notes", [])), meta["flight"]
     assert (run_dir / "LOG00001.BF").is_file()
-    assert main(["runs", "--out", str(store), "--json"]) == 0  # indexed: serve lists it
+    assert main(["runs", "--out", str(store), "--json"]) == 0  # indexed
     assert run_dir.name in capsys.readouterr().out
+    from starlette.testclient import TestClient
+
+    from bench.serve.app import create_app
+    from bench.store.stores import FolderStore
+
+    web = TestClient(create_app(FolderStore(store)))  # rotorbench serve shows it
+    page = web.get(f"/runs/{run_dir.name}")  # as every imported flight run: no bench plots
+    assert page.status_code == 200 and "flight" in page.text
 
     assert main(["flight-report", str(run_dir), "--out", str(tmp_path / "rep"), "--json"]) == 0
     report = json.loads(capsys.readouterr().out)
