@@ -39,8 +39,9 @@ def test_t63_is_the_fitted_models(step_runs, capsys, which: str) -> None:
     later here, where thrust is the square of the first-order speed)."""
     s = _fit(capsys, step_runs[which])
     for d in ("up", "down"):
+        # 3 %: read against the window's unsettled end it was 11 % early
         assert s[f"rise_time_63_{d}_ms"] == pytest.approx(
-            s[f"model_rise_time_63_{d}_ms"], abs=3.0)
+            s[f"model_rise_time_63_{d}_ms"], rel=0.03)
     assert s["model_rise_time_63_up_ms"] > s["latency_up_ms"] + s["tau_up_ms"] + 3.0
 
 
