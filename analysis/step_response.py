@@ -201,6 +201,9 @@ class FirstOrderFit:
     # Jacobian): what the noise of this one response puts into latency and tau
     u_latency_s: float = math.nan
     u_tau_s: float = math.nan
+    # the fitted model's own 63.2 % crossing: latency + tau for a first-order response,
+    # later for a square-law thrust and a cell's lag; what t63_s read from the data checks
+    model_t63_s: float = math.nan
 
     @property
     def fitted(self) -> bool:
@@ -333,6 +336,8 @@ class StepResponse:
             "rise_fall_rms": num(self.rise_fall_rms),
             "rise_time_63_up_ms": ms(up.t63.value) if up else None,
             "rise_time_63_down_ms": ms(dn.t63.value) if dn else None,
+            "model_rise_time_63_up_ms": ms(up.mean.model_t63_s) if up else None,
+            "model_rise_time_63_down_ms": ms(dn.mean.model_t63_s) if dn else None,
             "repeats_up": up.tau.n if up else 0,
             "repeats_down": dn.tau.n if dn else 0,
             "window_ms": ms(self.window_s),
@@ -458,7 +463,10 @@ def _fit_first_order(tb: np.ndarray, yb: np.ndarray, cnt: np.ndarray, step: floa
         # came before latency + tau (Table C.1's t63 = L + tau; read against the window's end
         # it gave t63 161 ms against L + tau 180 ms with a 0.5 s hold and tau 166 ms)
         t63 = _crossing(tb, (yb - y0) / (y1 - y0), T63)
-    return FirstOrderFit(lat, tau, (y1 - y0) / step, y0, y1, rms, t63, ok, why, u_lat, u_tau)
+    grid = np.linspace(0.0, lat + 8.0 * tau, 4001)
+    z_model = (thrust_step(grid, lat, tau, y0, y1, cell, square) - y0) / (y1 - y0)
+    return FirstOrderFit(lat, tau, (y1 - y0) / step, y0, y1, rms, t63, ok, why, u_lat, u_tau,
+                         _crossing(grid, z_model, T63))
 
 
 def _fit_uncertainty(jac: np.ndarray, resid: np.ndarray, params: int) -> tuple[float, float]:

@@ -10,7 +10,7 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
-__all__ = ["DISPLAY", "budget_lines", "with_expanded"]
+__all__ = ["DISPLAY", "budget_lines", "value_and_u", "with_expanded"]
 
 #: how a constant is shown: label, factor from SI, unit, format
 DISPLAY: dict[str, tuple[str, float, str, str]] = {
@@ -29,18 +29,30 @@ def _show(name: str) -> tuple[str, float, str, str]:
     return DISPLAY.get(name, (name, 1.0, "", ".5g"))
 
 
+def value_and_u(value: float, big_u: float) -> tuple[str, str]:
+    """U to two significant digits and the value to the same decimal place (GUM 7.2.6):
+    ``29.71 ± 0.27``, ``4.431e-06 ± 2.1e-08``."""
+    if not (math.isfinite(big_u) and big_u > 0):
+        return f"{value:.5g}", f"{big_u:.2g}"
+    last = math.floor(math.log10(big_u)) - 1  # the decimal place of U's second digit
+    if 1e-3 <= abs(value) < 1e6 or value == 0:
+        places = max(0, -last)
+        return f"{value:.{places}f}", f"{big_u:.{places}f}" if places else f"{big_u:.0f}"
+    digits = max(0, math.floor(math.log10(abs(value))) - last)
+    return f"{value:.{digits}e}", f"{big_u:.1e}"
+
+
 def with_expanded(name: str, b: Mapping[str, Any]) -> str:
-    """``tau up 29.71 ± 0.27 ms (k = 2)``; the U to two significant digits."""
+    """``tau up 29.71 ± 0.27 ms (k = 2)``: U to two significant digits, the value to U's
+    last digit."""
     label, f, unit, fmt = _show(name)
     value, big_u = b.get("value"), b.get("U")
     if not isinstance(value, int | float) or not math.isfinite(value):
         return f"{label} n/a"
-    text = f"{label} {format(value * f, fmt)}"
-    if isinstance(big_u, int | float) and math.isfinite(big_u):
-        text += f" ± {big_u * f:.2g} {unit} (k = {b.get('k', 2):g})"
-    else:
-        text += f" {unit}"
-    return text
+    if isinstance(big_u, int | float) and math.isfinite(big_u) and big_u > 0:
+        v, u = value_and_u(value * f, big_u * f)
+        return f"{label} {v} ± {u} {unit} (k = {b.get('k', 2):g})"
+    return f"{label} {format(value * f, fmt)} {unit}"
 
 
 def budget_lines(name: str, b: Mapping[str, Any]) -> list[str]:

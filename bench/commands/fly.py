@@ -81,6 +81,17 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    "constants, latency and ESC frame")
     p.add_argument("--plot", type=Path, default=None, metavar="DIR",
                    help="write PNG figures (one per maneuver; --sweep: the ranking scatter)")
+    b = p.add_argument_group("Betaflight in the loop (docs/flight.md)")
+    b.add_argument("--controller", choices=("cascade", "betaflight"), default="cascade",
+                   help="cascade: the thesis' controller (default); betaflight: Betaflight "
+                   "4.6.0's firmware (its SITL, extra sitl) flies the design in real time, "
+                   "the cascade's figures beside it")
+    b.add_argument("--betaflight-cli", type=Path, default=None, metavar="FILE",
+                   help="Betaflight CLI lines (PIDs, rates, filters, motor_idle; diff "
+                   "output works) applied and saved before the flight")
+    b.add_argument("--rate-steps", type=float, default=6.0, metavar="S",
+                   help="betaflight: seconds of roll/pitch rate steps (acro) after the "
+                   "maneuvers, for the log's step response (default 6, 0: none)")
     p.add_argument("--sweep", action="store_true",
                    help="fly every design optimize would consider: with --out into a Parquet "
                    "file, else through roll_step, ranking time constant vs roll rise time")
@@ -199,7 +210,14 @@ def _check_args(args: argparse.Namespace) -> list[int]:
     return counts
 
 
+#: options of --controller betaflight only
+BETAFLIGHT_FLAGS = ("--betaflight-cli", "--rate-steps")
+
+
 def handler(args: argparse.Namespace) -> int:
+    if args.controller == "betaflight":
+        return _betaflight(args)
+    refuse_unused(args, BETAFLIGHT_FLAGS, "without --controller betaflight")
     counts = _check_args(args)
     if args.plot is not None:  # refuse before flying, not after (nothing half-written)
         check_writable(args.plot, "--plot", folder=True)
@@ -390,3 +408,179 @@ def print_ranking(ranking: Any, console: Any) -> None:
     rho = "-" if math.isnan(ranking.rho) else f"{ranking.rho:.3f}"
     console.print(f"Spearman rho (time constant vs roll rise time, {ranking.n_ranked} designs "
                   f"that hover): {rho}; flown in {ranking.seconds:.1f} s")
+
+
+def _betaflight(args: argparse.Namespace) -> int:
+    """One design flown by Betaflight's firmware, the thesis cascade's figures beside it;
+    the firmware's log stored as a run of kind flight (docs/flight.md)."""
+    import tempfile
+
+    from bench.cli_args.store_args import DEFAULT_OUT, named_store
+    from bench.jobs.betaflight_flight import DT_S, fly_betaflight, read_cli_file
+    from bench.jobs.betaflight_program import BETAFLIGHT_MANEUVERS
+    from bench.store.store_url import parse_store
+    from drivers.backends.betaflight_sitl import find_binary
+    from optimizer.flight.design import design_index, fly_report, setup
+    from optimizer.flight.maneuvers import maneuver
+    from optimizer.flight.plant import ExternalPlant
+    from optimizer.model.design_model import design_record
+
+    if args.sweep:
+        raise RequestError("--controller betaflight flies one design (not --sweep)")
+    refuse_unused(args, SWEEP_FLAGS, "with --controller betaflight")
+    if args.plot is not None:
+        raise RequestError("--plot draws the cascade's flights; --controller betaflight "
+                           "keeps the firmware's log as a run (rotorbench flight-report)")
+    names: list[str] = args.maneuver or list(BETAFLIGHT_MANEUVERS)
+    other = [m for m in names if m not in BETAFLIGHT_MANEUVERS]
+    if other:
+        raise RequestError(f"--maneuver {' '.join(other)}: Betaflight flies "
+                           f"{', '.join(BETAFLIGHT_MANEUVERS)} as stick inputs (yaw is a rate "
+                           "in ANGLE mode; it holds no height)")
+    if not (math.isfinite(args.rate_steps) and 0 <= args.rate_steps <= 120):
+        raise RequestError(f"--rate-steps: expected 0 to 120 s, got {args.rate_steps}")
+    counts = _check_args(args)
+    if counts != [4] or args.layout != "x":
+        raise RequestError("--controller betaflight: Betaflight's QUADX flies --actuators 4 "
+                           "--layout x")
+    cli_lines = read_cli_file(args.betaflight_cli) if args.betaflight_cli else []
+    store = named_store(args)
+    url = parse_store(store) if store else None
+    if url is not None and url.folder is None:
+        raise RequestError(f"--store {store}: the firmware's log is stored in a folder store")
+    root = url.folder if url is not None and url.folder is not None else DEFAULT_OUT
+    check_writable(root, "--store", folder=True)
+    find_binary()  # not installed: one line naming the extra, before anything is flown
+    margin = hover_margin_from_args(args)
+    catalog = margin.apply(load(args.catalog, args.current_model))
+    step = (step_constants(run_folder_arg(args, args.step_run))
+            if args.step_run is not None else None)
+    grid, measured = _grid(args, catalog, 4)
+    index = design_index(grid, args.propeller, args.motor, args.battery)
+    record = design_record(grid, *index)
+    vehicle, actuator = setup(catalog, grid, index, layout=args.layout, step=step,
+                              drag_n_s_m=args.drag)
+    cascade, _ = fly_report(vehicle, actuator, [maneuver(m) for m in names], record)
+    plant = ExternalPlant(vehicle, actuator, DT_S)
+    Path(root).mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix=".betaflight-", dir=root) as tmp:
+        log = Path(tmp) / "LOG00001.BF"
+        flown_by: dict[str, Any] = {"controller": "betaflight", "design": cascade["design"],
+                                    "cli": [line for _, line in cli_lines]}
+        flight = None
+        try:
+            flight = fly_betaflight(plant, names, cli_lines, rate_steps_s=args.rate_steps,
+                                    log_to=log, on_phase=lambda text: print(
+                                        f"betaflight: {text}", file=sys.stderr))
+            flown_by["firmware"] = flight.firmware
+        finally:  # an interrupted or failed flight keeps its log too
+            run_dir = _keep_log(log, root, flown_by, cut_short=flight is None)
+    assert flight is not None  # it raised otherwise
+    report = {
+        "controller": "betaflight",
+        "design": cascade["design"],
+        "hover": flight.hover,
+        "maneuvers": flight.maneuvers,
+        "vehicle": cascade["vehicle"],
+        "actuator": cascade["actuator"],
+        "betaflight": {**flight.firmware, "realtime": flight.realtime,
+                       "cli": [line for _, line in cli_lines]},
+        "flight_run": None if run_dir is None else str(run_dir),
+        "log_step_response": None if run_dir is None else _log_response(run_dir),
+        "cascade": {"maneuvers": cascade["maneuvers"], "hover": cascade["hover"],
+                    "gains": cascade["gains"]},
+        "catalog": catalog.source,
+        "warnings": [w for w in [step_run_mismatch(step, args.propeller, args.motor)] if w],
+    }
+    if measured is not None:
+        report["measured_store"] = measured.describe()
+    if args.json:
+        print(json.dumps(report, indent=2, default=json_default))
+        return 0
+    _print_betaflight(report)
+    return 0
+
+
+def _keep_log(log: Path, root: Path, flown_by: dict[str, Any], *, cut_short: bool
+              ) -> Path | None:
+    """The firmware's log stored as a flight run; a cut-short flight's is kept where it
+    can be and said on stderr, never hiding why the flight ended."""
+    from bench.store.imported_run import store_flight_log
+
+    if not log.is_file():
+        return None
+    try:
+        run_dir = store_flight_log(log, root, "betaflight-flight", {"flown_by": flown_by})
+    except Exception:
+        if not cut_short:
+            raise
+        return None
+    if cut_short:
+        print(f"betaflight: the cut-short flight's firmware log is stored as flight run "
+              f"{run_dir}", file=sys.stderr)
+    return run_dir
+
+
+def _log_response(run_dir: Path) -> dict[str, Any]:
+    """The firmware log's rate step response per axis: deconvolved (flight-report's H1
+    and PID-Analyzer's) and measured directly on its stick steps."""
+    import numpy as np
+
+    from analysis.flight_report import flight_report
+    from analysis.run_record import read_run
+    from analysis.stick_steps import step_rise_times
+    from bench.jobs.betaflight_program import RATE_STEP_DPS
+
+    rec = read_run(run_dir)
+    rep = flight_report(rec)
+    t = rec.column("t_s")
+    out: dict[str, Any] = {}
+    for axis in ("x", "y"):
+        r = rep.responses.get(axis)
+        rises = step_rise_times(t, rec.column(f"rate_sp_{axis}_rad_s"),
+                                rec.column(f"gyro_{axis}_rad_s"),
+                                min_step=math.radians(0.5 * RATE_STEP_DPS))
+        out[axis] = {
+            "h1": r.metrics if r is not None else {},
+            "pid_analyzer": (r.metrics_pa or {}) if r is not None else {},
+            "direct_rise_ms": float(np.median(rises)) * 1e3 if rises else None,
+            "direct_steps": len(rises),
+            **({"why": r.why} if r is not None and r.why else {})}
+    return out
+
+
+def _print_betaflight(report: dict[str, Any]) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    d, bf = report["design"], report["betaflight"]
+    console = Console(soft_wrap=False)
+    table = Table(title=f"{d['actuators']} x {d['propeller']} + {d['motor']} + {d['battery']}: "
+                  f"Betaflight {bf.get('version', '?')} (SITL) vs the thesis cascade",
+                  title_justify="left")
+    for col in ("maneuver", "rise BF (ms)", "rise cascade (ms)", "overshoot BF (%)",
+                "overshoot cascade (%)", "settling BF (ms)", "settling cascade (ms)"):
+        table.add_column(col, justify="left" if col == "maneuver" else "right")
+    for name, m in report["maneuvers"].items():
+        c = report["cascade"]["maneuvers"].get(name, {})
+        table.add_row(name, _fmt(m["rise_time_ms"]), _fmt(c.get("rise_time_ms")),
+                      _fmt(m["overshoot_pct"], ".1f"), _fmt(c.get("overshoot_pct"), ".1f"),
+                      _fmt(m["settling_time_ms"]), _fmt(c.get("settling_time_ms")))
+    console.print(table)
+    h, ch = report["hover"], report["cascade"]["hover"]
+    console.print(f"hover throttle: Betaflight {_fmt(h.get('throttle'), '.3f')} (motor "
+                  f"{_fmt(h.get('motor_us'))} us), cascade {ch['throttle']:.3f}")
+    rt = bf["realtime"]
+    console.print(f"real-time factor {_fmt(rt['real_time_factor'], '.3f')} ({rt['sim_s']:.1f} s "
+                  f"flown in {rt['wall_s']:.1f} s; plant waited {rt['waited_for_firmware_s']:.2f}"
+                  f" s for the firmware; {_fmt(rt['answered_pct'], '.0f')} % of FDM packets "
+                  "answered within the tick)")
+    for axis, r in (report["log_step_response"] or {}).items():
+        console.print(f"log step response {axis}: rise {_fmt(r['h1'].get('rise_ms'), '.1f')} ms "
+                      f"deconvolved (H1), {_fmt(r['direct_rise_ms'], '.1f')} ms direct "
+                      f"({r['direct_steps']} stick steps)")
+    if report["flight_run"]:
+        console.print(f"firmware log stored as flight run {report['flight_run']} "
+                      "(rotorbench flight-report RUN)")
+    for line in report["warnings"]:
+        console.print(f"warning: {line}")

@@ -14,14 +14,11 @@ place, so an interrupted import leaves nothing half-written under the final name
 from __future__ import annotations
 
 import argparse
-import itertools
-import shutil
 from pathlib import Path
-
-import numpy as np
 
 from analysis.flightlogs import FLIGHT_FORMATS
 from bench.errors import RigError
+from bench.store.imported_run import write_run
 
 COMMAND = "import"
 
@@ -62,45 +59,6 @@ def parse_mapping(items: list[str]) -> dict[str, str]:
             raise RigError(f"--map {item!r}: {run_col.strip()} is mapped twice "
                            f"(first to {out[run_col.strip()]!r})")
         out[run_col.strip()] = file_col.strip()
-    return out
-
-
-def write_run(out: Path, samples, meta: dict) -> Path:
-    """Write ``samples`` (a DataFrame with run columns) and ``meta`` as a run folder; the
-    run's reason names the log (``meta["import"]["source_file"]``)."""
-    from bench.engine.recorder import BASE_COLUMNS, RunRecorder
-
-    out = Path(out)
-    if out.exists():
-        raise RigError(f"--out {out}: already exists (choose a new run folder)")
-    tmp = out.with_name(f".{out.name}.importing")
-    if tmp.exists():
-        shutil.rmtree(tmp)
-    try:
-        out.parent.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise RigError(f"--out {out}: cannot create its folder {out.parent} "
-                       f"({exc.strerror or exc})") from None
-    n = len(samples)
-    cols = {c: samples[c].to_numpy(dtype=float) for c in samples.columns}
-    for c in BASE_COLUMNS:  # the recorder's schema: absent channels are NaN
-        cols.setdefault(c, np.full(n, np.nan))
-    try:
-        rec = RunRecorder(tmp, {"id": out.name, **meta})
-        # append in slices so the recorder writes its usual <= 1 s parts
-        t = cols["t_s"]
-        # a cut where the whole second since the start changes: O(rows), whatever the gaps
-        cuts = np.flatnonzero(np.diff(np.floor(t - t[0]))) + 1
-        bounds = [0, *cuts.tolist(), n]
-        for a, b in itertools.pairwise(bounds):
-            if b > a:
-                rec.append({c: v[a:b] for c, v in cols.items()})
-        rec.finish("success", f"imported from {meta['import']['source_file']}",
-                   duration_s=float(t[-1] - t[0]))
-        tmp.rename(out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return out
 
 

@@ -127,14 +127,17 @@ class SitlProcess:
         return self.workdir / "sitl.log"
 
     @classmethod
-    def launch(cls, binary: Path, *, timeout_s: float = START_TIMEOUT_S) -> SitlProcess:
-        """Start ``binary`` in a fresh directory; return once its MSP port listens."""
+    def launch(cls, binary: Path, *, timeout_s: float = START_TIMEOUT_S,
+               workdir: Path | None = None) -> SitlProcess:
+        """Start ``binary`` in a fresh directory (or in ``workdir``: a relaunch that keeps
+        the eeprom.bin an earlier launch saved); return once its MSP port listens."""
         busy = ports_in_use()
         if busy:
             raise DeviceError(f"the Betaflight SITL's fixed ports are in use ({', '.join(busy)})"
                               ": another SITL or program holds them; stop it (one instance per "
                               "network namespace)")
-        workdir = Path(tempfile.mkdtemp(prefix="rotorbench-sitl-"))
+        if workdir is None:
+            workdir = Path(tempfile.mkdtemp(prefix="rotorbench-sitl-"))
         t0 = time.monotonic()
         with open(workdir / "sitl.log", "wb") as log:
             proc = subprocess.Popen([str(binary)], cwd=workdir, stdout=log,

@@ -108,6 +108,19 @@ def step_quaternion(man: Maneuver) -> tuple[float, float, float, float]:
     return _euler_quaternion(*command) if command else (1.0, 0.0, 0.0, 0.0)
 
 
+def gust_load(vehicle: Vehicle, since_s: float) -> tuple[float, float]:
+    """The gust at ``since_s`` after it starts, in continuous time (an outside controller's
+    plant, ``optimizer.flight.plant``): the sideways force (N, navigation y) and the
+    torque on roll and on pitch (N m) that ``fly`` applies tick by tick."""
+    if not 0.0 <= since_s < GUST_S:
+        return 0.0, 0.0
+    g = vehicle.gravity_m_s2
+    shape = 0.5 * (1.0 - math.cos(2.0 * math.pi * since_s / GUST_S))
+    return (GUST_FORCE_G * vehicle.mass_kg * g * shape,
+            GUST_TORQUE_FRACTION * vehicle.mass_kg * g / vehicle.n_rotors * vehicle.arm_m
+            * shape)
+
+
 def fly(vehicle: Vehicle, actuator: ActuatorModel, man: Maneuver, *,
         gains: Gains | None = None, dt: float = DT_S, record: bool = True) -> Flight:
     """Fly one maneuver; ``record=False`` keeps only the maneuver axis (faster sweeps)."""

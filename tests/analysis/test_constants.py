@@ -4,6 +4,7 @@ as the optimizer's measured overrides."""
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -45,7 +46,11 @@ def test_store_fits_and_overrides(tmp_path, capsys, monkeypatch):
     assert all(0 < v < 0.2 * step.data["tau_up_s"] for v in spreads.values()), spreads
     assert 0 < static.data["k_f_std_n_s2"] < 0.05 * static.data["k_f_n_s2"]
     assert static.data["k_q_std_nm_s2"] is None  # the sim stand logs no torque
-    assert f"latency {step.data['latency_s'] * 1e3:.1f} ± " in out  # the table shows them
+    # the table shows each with its expanded uncertainty, the value to U's last digit
+    shown = re.search(r"latency (\d+\.\d+) ± (\d+\.\d+) ms \(k = 2\)", out)
+    assert shown, out
+    assert abs(float(shown[1]) - step.data["latency_s"] * 1e3) < 0.01
+    assert len(shown[1].split(".")[1]) == len(shown[2].split(".")[1])
     # storing a newer fit of the same kind replaces the row
     assert main(["constants", "--out", str(tmp_path), "--add", str(runs["diode"])]) == 0
     assert len(ConstantsStore(tmp_path).rows()) == 3

@@ -1,5 +1,5 @@
 """The documented workflow `step --rig sim-thesis-e.toml --repeats 5`
-then `fit` gave tau_up 164.7 ms but t63_up 160.8 ms (docs: t63 = latency + tau), with no
+then `fit` gave tau_up 164.7 ms but t63_up 160.8 ms (t63 is the model's 63 % point), with no
 word that the 0.5 s hold is about 3 tau, too short for the response to settle."""
 
 from __future__ import annotations
@@ -33,12 +33,16 @@ def _fit(capsys, run: Path) -> dict:
 
 
 @pytest.mark.parametrize("which", ["sim-thesis-e 0.5", "sim-thesis-e 1.0", "sim 0.5"])
-def test_t63_is_latency_plus_tau(step_runs, capsys, which: str) -> None:
-    """t63 is read against the fitted final level, not the unsettled end of the window."""
+def test_t63_is_the_fitted_models(step_runs, capsys, which: str) -> None:
+    """t63 is read against the fitted final level, not the unsettled end of the window, so
+    it is where the fitted model crosses 63.2 % (latency + tau for a first-order response;
+    later here, where thrust is the square of the first-order speed)."""
     s = _fit(capsys, step_runs[which])
     for d in ("up", "down"):
+        # 3 %: read against the window's unsettled end it was 11 % early
         assert s[f"rise_time_63_{d}_ms"] == pytest.approx(
-            s[f"latency_{d}_ms"] + s[f"tau_{d}_ms"], abs=3.0)
+            s[f"model_rise_time_63_{d}_ms"], rel=0.03)
+    assert s["model_rise_time_63_up_ms"] > s["latency_up_ms"] + s["tau_up_ms"] + 3.0
 
 
 def test_a_hold_shorter_than_4_tau_gets_a_note(step_runs, capsys, tmp_path) -> None:
