@@ -34,14 +34,15 @@ class PacedClock(SimClock):
     """
 
     def __init__(self, time_scale: float = 1.0, *, max_gap_s: float = 0.02,
-                 max_pause_s: float = 0.3) -> None:
+                 max_pause_s: float = 0.3, epoch: float | None = None) -> None:
         super().__init__()
         if not (math.isfinite(time_scale) and time_scale > 0):
             raise DeviceError(f"time_scale {time_scale!r}: expected a positive number")
         self.time_scale = float(time_scale)
         self.max_gap_s = float(max_gap_s)
         self._lock = threading.Lock()
-        self._wall0 = self._last_wall = time.monotonic()
+        self._last_wall = time.monotonic()
+        self._wall0 = self._last_wall if epoch is None else float(epoch)
         self._held: int | None = None
         self.max_pause_s = float(max_pause_s)
         self.paused_s = 0.0  # wall time not counted (starved process), for the record
@@ -89,20 +90,34 @@ class PacedClock(SimClock):
     def on_advance(self, listener: Any) -> None:
         raise DeviceError("paced clock: the plant runs on the wall clock; no listeners")
 
+    @property
+    def epoch(self) -> float:
+        """The monotonic wall time at which bench time was 0 (pauses and holds move it)."""
+        with self._lock:
+            return self._wall0
+
     @contextlib.contextmanager
     def hold(self) -> Iterator[None]:
         """Simulated time stands still inside the block, then goes on from where it was."""
         held = self.now_ns()
-        with self._lock:
-            self._held = held
+        self.freeze(held)
         try:
             yield
         finally:
-            with self._lock:
-                wall = time.monotonic()
-                self._wall0 = wall - held * 1e-9 / self.time_scale
-                self._last_wall = wall
-                self._held = None
+            self.resume(time.monotonic() - held * 1e-9 / self.time_scale)
+
+    def freeze(self, held_ns: int) -> None:
+        """Bench time stands at ``held_ns`` until :meth:`resume` (the halves of ``hold``,
+        for a clock that another process's clock follows)."""
+        with self._lock:
+            self._held = int(held_ns)
+
+    def resume(self, epoch: float) -> None:
+        """Bench time runs again from the monotonic wall time ``epoch`` (bench time 0)."""
+        with self._lock:
+            self._wall0 = float(epoch)
+            self._last_wall = time.monotonic()
+            self._held = None
 
 
 class HeldUploads:

@@ -31,7 +31,7 @@ from typing import Any
 
 from drivers.errors import DeviceError
 
-__all__ = ["Remote", "WorldProcess"]
+__all__ = ["Remote", "RemoteDevice", "WorldProcess"]
 
 _START_TIMEOUT_S = 30.0  # a fresh interpreter imports numpy and scipy: seconds when loaded
 _STOP_TIMEOUT_S = 5.0
@@ -125,6 +125,22 @@ class Remote:
 
     def get(self, name: str) -> Any:
         return self._world.request("get", self._key, (*self._attrs, name))
+
+
+class RemoteDevice:
+    """A device of a child's world as the host holds it: where to open it (``path``, a pty,
+    or ``address``, a loopback host and port), its ``port`` (a :class:`Remote`: tests break
+    the wire with it) and ``stop()``. Nothing else answers, so ``getattr(device, name,
+    None)`` tells the truth (a bare :class:`Remote` answers every name)."""
+
+    def __init__(self, world: WorldProcess, key: str, where: str | tuple[str, int]) -> None:
+        self.remote = Remote(world, key)
+        self.port = Remote(world, key, ("port",))
+        self.path = where if isinstance(where, str) else None
+        self.address = tuple(where) if not isinstance(where, str) else None
+
+    def stop(self) -> None:
+        self.remote.stop()
 
 
 # -- the child ---------------------------------------------------------------------------
