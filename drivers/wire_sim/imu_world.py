@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any
 
 from drivers.errors import DeviceError
 from drivers.wire_sim.paced_clock import PacedClock
-from drivers.wire_sim.world_process import Remote, RemoteDevice, WorldProcess
+from drivers.wire_sim.world_process import FastSwitching, Remote, RemoteDevice, WorldProcess
 
 if TYPE_CHECKING:  # the IMU world (scipy) loads only where it runs
     from drivers.sim.imu_rig import SimImuRig
@@ -128,6 +128,7 @@ class RemoteImuWorld:
         clock.world = Remote(self.process, None, ("clock",))
         self.hexapod = Remote(self.process, None, ("sim", "hexapod"))  # the plant
         self.peers: dict[str, RemoteDevice] = {}
+        self._switching: FastSwitching | None = FastSwitching().__enter__()  # the host polls it at time scale
 
     def start(self, key: str, kind: str, args: tuple = ()) -> RemoteDevice:
         if key not in self.peers:
@@ -147,6 +148,9 @@ class RemoteImuWorld:
         """Stops the devices, then the process; the clock runs on alone."""
         self.clock.world = None
         self.peers.clear()
+        if self._switching is not None:
+            self._switching.__exit__(None, None, None)
+            self._switching = None
         self.process.close()
 
 
