@@ -128,7 +128,8 @@ class RemoteImuWorld:
         clock.world = Remote(self.process, None, ("clock",))
         self.hexapod = Remote(self.process, None, ("sim", "hexapod"))  # the plant
         self.peers: dict[str, RemoteDevice] = {}
-        self._switching: FastSwitching | None = FastSwitching().__enter__()  # the host polls it at time scale
+        # the host polls the world hundreds of times a second: see FastSwitching
+        self._switching: FastSwitching | None = FastSwitching().__enter__()
 
     def start(self, key: str, kind: str, args: tuple = ()) -> RemoteDevice:
         if key not in self.peers:
