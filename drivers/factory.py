@@ -242,12 +242,9 @@ def _propulsion(rig: RigView, specs: dict[str, DeviceUrl], seed: int | None) -> 
                                 "mixed with hardware; use the wire-level simulated devices "
                                 "(serial://sim/..., can://sim/...) instead")
     ctx = DeviceContext(rig, MonotonicClock(), specs, seed=seed)
-    # A launched firmware's plant peer (drivers.wire_sim.sitl_plant) drives the plant from
-    # this process at its FDM rate: that world stays here, the others get a process.
-    own_process = not any(s.has("launch") for s in specs.values())
 
     def world() -> Any:
-        wire = wire_plant(rig, seed, own_process=own_process)
+        wire = wire_plant(rig, seed)
         ctx.on_close(wire.close)  # after every port and bus opened later
         return wire
 

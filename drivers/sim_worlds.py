@@ -96,11 +96,10 @@ def build_sim_rig(rig: RigView, *, seed: int | None = None, urls: dict[str, str]
     )
 
 
-def wire_plant(rig: RigView, seed: int | None = None, *, own_process: bool = True) -> Any:
-    """The propulsion plant on the wall clock, owner of the rig's wire-level peers: served
-    with them by a child process (``drivers.wire_sim.world_process``), or in this one."""
-    if not own_process:
-        return wire_sims(rig, seed)
+def wire_plant(rig: RigView, seed: int | None = None) -> Any:
+    """The propulsion plant on the wall clock, owner of the rig's wire-level peers (a
+    launched firmware's plant peer too): served with them by a child process
+    (``drivers.wire_sim.world_process``)."""
     from drivers.wire_sim.plant_peers import ProcessWireSims, RemotePlant
     from drivers.wire_sim.world_process import WorldProcess
 

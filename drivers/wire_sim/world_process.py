@@ -10,7 +10,8 @@ import the host's ``__main__``), which calls ``build(*args)`` (an importable fun
 it pickles by name) for the world object and then serves requests over a socket pair
 until told to stop or until its parent dies (end of file; the parent's pid is checked too). A
 request names an object of the world (``None``: the world itself; else a key of its
-``peers``) and an attribute path on it, to call or to read. :class:`Remote` is the host's
+``peers``) and an attribute path on it, to call or to read (a ``DeviceError`` raised there
+is raised here with its message). :class:`Remote` is the host's
 handle on such an object. The devices' transports (pty paths, loopback ports) work across
 processes as they do across a cable; the world reports what to open in the replies.
 """
@@ -85,6 +86,8 @@ class WorldProcess:
 
     def _reply(self) -> Any:
         status, value = self._conn.recv()
+        if status == "device":
+            raise DeviceError(value)
         if status == "err":
             raise DeviceError(f"{self.name}: {value}")
         return value
@@ -176,10 +179,10 @@ class RemoteDevice:
 # -- the child ---------------------------------------------------------------------------
 def _serve(conn: Connection, parent_pid: int) -> None:
     """The child's main: build the world, report ready, serve until stop or orphaned."""
+    with contextlib.suppress(OSError):  # needs the privilege; else the default share
+        os.setpriority(os.PRIO_PROCESS, 0, DEVICE_NICE)  # before any thread: each has its own
     threading.Thread(target=_watch_parent, args=(parent_pid,), name="parent-watch",
                      daemon=True).start()
-    with contextlib.suppress(OSError):  # needs the privilege; else the default share
-        os.setpriority(os.PRIO_PROCESS, 0, DEVICE_NICE)
     sys.setswitchinterval(SWITCH_INTERVAL_S)
     try:
         build, args = conn.recv()
@@ -202,6 +205,8 @@ def _serve(conn: Connection, parent_pid: int) -> None:
                     obj = getattr(obj, name)
                 value = getattr(obj, attrs[-1])(*call_args) if op == "call" else obj
                 conn.send(("ok", value))
+            except DeviceError as exc:  # a device's own words, as in the host's process
+                conn.send(("device", str(exc)))
             except Exception as exc:
                 conn.send(("err", f"{'.'.join(attrs)}: {exc!r}"))
     finally:
