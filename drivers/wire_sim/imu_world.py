@@ -98,23 +98,26 @@ class ImuWireWorld:
 
 class HostPacedClock(PacedClock):
     """The bench's reading of the world process's paced clock (same epoch, same scale, no
-    pauses): ``hold()`` holds both, the world's first so no device runs ahead of it."""
+    pauses). The world's clock decides a hold's instant and its end, so the devices' time
+    runs on without a step; this one follows (it stands still meanwhile)."""
 
     def __init__(self, time_scale: float) -> None:
         super().__init__(time_scale, max_gap_s=math.inf)
         self.world: Remote | None = None  # the world's clock, once its process runs
 
-    def freeze(self, held_ns: int) -> None:
+    def freeze(self, held_ns: int | None = None) -> int:
         if self.world is not None:
-            self.world.freeze(held_ns)
-        super().freeze(held_ns)
+            held_ns = self.world.freeze()
+        return super().freeze(held_ns)
 
-    def resume(self, epoch: float) -> None:
-        try:
-            if self.world is not None:
-                self.world.resume(epoch)
-        finally:
-            super().resume(epoch)
+    def resume(self, epoch: float | None = None) -> float:
+        if self.world is not None:
+            try:
+                epoch = self.world.resume()
+            except DeviceError:  # the world is gone: this clock runs on alone
+                super().resume()
+                raise
+        return super().resume(epoch)
 
 
 class RemoteImuWorld:

@@ -3,7 +3,9 @@
 :class:`PacedClock` runs the simulated IMU bench (:class:`drivers.sim.imu_rig.SimImuRig`:
 hexapod plant, IMU model, reference) on the wall clock, ``time_scale`` simulated seconds
 per wall second, so the backends' threads, timeouts and the pty's latency act on it as on
-a bench; :class:`HeldUploads` keeps a trajectory upload from costing simulated time.
+a bench; :class:`HeldUploads` keeps a trajectory upload from costing simulated time. Two
+processes read one bench time from two clocks given the same ``epoch`` and no pauses
+(``drivers.wire_sim.imu_world``).
 """
 
 from __future__ import annotations
@@ -99,25 +101,32 @@ class PacedClock(SimClock):
     @contextlib.contextmanager
     def hold(self) -> Iterator[None]:
         """Simulated time stands still inside the block, then goes on from where it was."""
-        held = self.now_ns()
-        self.freeze(held)
+        self.freeze()
         try:
             yield
         finally:
-            self.resume(time.monotonic() - held * 1e-9 / self.time_scale)
+            self.resume()
 
-    def freeze(self, held_ns: int) -> None:
-        """Bench time stands at ``held_ns`` until :meth:`resume` (the halves of ``hold``,
-        for a clock that another process's clock follows)."""
+    def freeze(self, held_ns: int | None = None) -> int:
+        """Bench time stands at ``held_ns`` (default: now) until :meth:`resume`; returns it.
+        The halves of ``hold``, for a clock that another process's clock follows."""
+        held = self.now_ns() if held_ns is None else int(held_ns)
         with self._lock:
-            self._held = int(held_ns)
+            self._held = held
+        return held
 
-    def resume(self, epoch: float) -> None:
-        """Bench time runs again from the monotonic wall time ``epoch`` (bench time 0)."""
+    def resume(self, epoch: float | None = None) -> float:
+        """Bench time runs again: from the held time on (default), or from the monotonic
+        wall time ``epoch`` of bench time 0; returns the epoch."""
         with self._lock:
+            wall = time.monotonic()
+            if epoch is None:
+                held = self._held if self._held is not None else 0
+                epoch = wall - held * 1e-9 / self.time_scale
             self._wall0 = float(epoch)
-            self._last_wall = time.monotonic()
+            self._last_wall = wall
             self._held = None
+            return self._wall0
 
 
 class HeldUploads:
