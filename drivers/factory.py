@@ -45,6 +45,7 @@ from drivers.sim_worlds import (
     PROPULSION_SENSORS,
     build_sim_imu_rig,
     build_sim_rig,
+    imu_world_process,
     sim_faults,
     wire_plant,
 )
@@ -241,12 +242,9 @@ def _propulsion(rig: RigView, specs: dict[str, DeviceUrl], seed: int | None) -> 
                                 "mixed with hardware; use the wire-level simulated devices "
                                 "(serial://sim/..., can://sim/...) instead")
     ctx = DeviceContext(rig, MonotonicClock(), specs, seed=seed)
-    # A launched firmware's plant peer (drivers.wire_sim.sitl_plant) drives the plant from
-    # this process at its FDM rate: that world stays here, the others get a process.
-    own_process = not any(s.has("launch") for s in specs.values())
 
     def world() -> Any:
-        wire = wire_plant(rig, seed, own_process=own_process)
+        wire = wire_plant(rig, seed)
         ctx.on_close(wire.close)  # after every port and bus opened later
         return wire
 
@@ -277,8 +275,30 @@ def _imu_bench(rig: RigView, specs: dict[str, DeviceUrl], seed: int | None) -> D
                           f"tcp://{SIM_HOST}, serial://{SIM_HOST}/...)")
     if real:
         return DeviceContext(rig, MonotonicClock(), specs, seed=seed)
-    sim = build_sim_imu_rig(rig, seed, _time_scale(rig, specs))
+    time_scale = _time_scale(rig, specs)
+    if time_scale is not None and all(s.is_wire_sim for s in specs.values()):
+        return _imu_world_process(rig, specs, seed, time_scale)
+    sim = build_sim_imu_rig(rig, seed, time_scale)
     ctx = DeviceContext(rig, sim.clock, specs, world=lambda: sim, seed=seed)
+    ctx.one_world = True
+    return ctx
+
+
+def _imu_world_process(rig: RigView, specs: dict[str, DeviceUrl], seed: int | None,
+                       time_scale: float) -> DeviceContext:
+    """Every device wire-level: the world and its devices run in a process of their own
+    (``drivers.wire_sim.imu_world``), started when the first device opens."""
+    from drivers.wire_sim.imu_world import HostPacedClock
+
+    clock = HostPacedClock(time_scale)
+    ctx = DeviceContext(rig, clock, specs, seed=seed)
+
+    def world() -> Any:
+        remote = imu_world_process(rig, seed, clock)
+        ctx.on_close(remote.close)  # after every port opened later
+        return remote
+
+    ctx.set_world(world)
     ctx.one_world = True
     return ctx
 

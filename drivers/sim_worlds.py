@@ -9,13 +9,16 @@ peers that the same world drives on the wall clock. Each bench brings its world:
   :class:`drivers.wire_sim.plant_peers.WirePlant` (:func:`wire_plant`), in a child
   process of its own with its serial peers;
 * the IMU bench: :func:`build_sim_imu_rig` (``drivers.sim.imu_rig.SimImuRig``), on a
-  :class:`drivers.wire_sim.paced_clock.PacedClock` when serial peers need the wall clock.
+  :class:`drivers.wire_sim.paced_clock.PacedClock` when serial peers need the wall clock;
+  when every device is wire-level, in a child process with them
+  (``drivers.wire_sim.imu_world``).
 
 :func:`sim_faults` applies the faults a rig file schedules on a simulated device.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
@@ -30,8 +33,8 @@ from drivers.sim.sensor_params import SensorParams
 if TYPE_CHECKING:  # the IMU world (scipy splines) loads only for an IMU bench
     from drivers.sim.imu_rig import SimImuRig
 
-__all__ = ["PROPULSION_SENSORS", "build_sim_imu_rig", "build_sim_rig", "sim_faults",
-           "wire_plant", "wire_sims"]
+__all__ = ["PROPULSION_SENSORS", "build_sim_imu_rig", "build_sim_rig", "imu_wire_world",
+           "imu_world_process", "sim_faults", "wire_plant", "wire_sims"]
 
 PROPULSION_SENSORS = ("load_cell", "power", "rpm")
 
@@ -93,11 +96,10 @@ def build_sim_rig(rig: RigView, *, seed: int | None = None, urls: dict[str, str]
     )
 
 
-def wire_plant(rig: RigView, seed: int | None = None, *, own_process: bool = True) -> Any:
-    """The propulsion plant on the wall clock, owner of the rig's wire-level peers: served
-    with them by a child process (``drivers.wire_sim.world_process``), or in this one."""
-    if not own_process:
-        return wire_sims(rig, seed)
+def wire_plant(rig: RigView, seed: int | None = None) -> Any:
+    """The propulsion plant on the wall clock, owner of the rig's wire-level peers (a
+    launched firmware's plant peer too): served with them by a child process
+    (``drivers.wire_sim.world_process``)."""
     from drivers.wire_sim.plant_peers import ProcessWireSims, RemotePlant
     from drivers.wire_sim.world_process import WorldProcess
 
@@ -111,8 +113,11 @@ def wire_sims(rig: RigView, seed: int | None = None) -> Any:
     return WireSims(WirePlant(build_sim_rig(rig, seed=seed)))
 
 
-def build_sim_imu_rig(rig: RigView, seed: int | None, time_scale: float | None) -> SimImuRig:
-    """The seeded simulated IMU bench; on the wall clock (``time_scale``) if not None."""
+def build_sim_imu_rig(rig: RigView, seed: int | None, time_scale: float | None, *,
+                      epoch: float | None = None) -> SimImuRig:
+    """The seeded simulated IMU bench; on the wall clock (``time_scale``) if not None. With
+    ``epoch`` (monotonic wall time of bench time 0) the clock is one another process reads
+    too (``drivers.wire_sim.imu_world``): it never pauses for a starved process."""
     from drivers.sim.imu_rig import SimImuRig, imu_model
 
     sim = imu_sim(rig)
@@ -125,10 +130,28 @@ def build_sim_imu_rig(rig: RigView, seed: int | None, time_scale: float | None) 
     if time_scale is not None:
         from drivers.wire_sim.paced_clock import PacedClock
 
-        clock = PacedClock(time_scale)
+        clock = PacedClock(time_scale) if epoch is None else PacedClock(
+            time_scale, max_gap_s=math.inf, epoch=epoch)
     hx = section(rig, rig.hexapod, "hexapod")
     reference = section(rig, rig.reference_imu, "reference_imu")
     return SimImuRig(model, hx.hexapod_limits(), seed=int(
         sim.seed if seed is None else seed), log_rate_hz=hx.log_rate_hz,
         cg_m=sim.cg_m if sim.cg_m is not None else hx.pivot_m,
         reference=dict(reference), clock=clock)
+
+
+def imu_world_process(rig: RigView, seed: int | None, clock: Any) -> Any:
+    """The IMU bench's world and its wire devices served by a child process, its paced clock
+    on the epoch and scale of ``clock`` (a ``drivers.wire_sim.imu_world.HostPacedClock``)."""
+    from drivers.wire_sim.imu_world import RemoteImuWorld
+    from drivers.wire_sim.world_process import WorldProcess
+
+    return RemoteImuWorld(WorldProcess(imu_wire_world, rig, seed, clock.time_scale,
+                                       clock.epoch, name="imu-world"), clock)
+
+
+def imu_wire_world(rig: RigView, seed: int | None, time_scale: float, epoch: float) -> Any:
+    """The IMU bench's world in its process (the world process's world)."""
+    from drivers.wire_sim.imu_world import ImuWireWorld
+
+    return ImuWireWorld(build_sim_imu_rig(rig, seed, time_scale, epoch=epoch))

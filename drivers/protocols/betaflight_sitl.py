@@ -3,7 +3,8 @@
 The ESC role is then the real Betaflight 4.6.0 SITL's motor test, started by the bench for
 the run: the firmware as a child process (``drivers.backends.betaflight_sitl``), the rig's
 simulated plant as its vehicle (``drivers.wire_sim.sitl_plant``: FDM in, motor output
-to the plant's ESC) and the MSP client on its TCP port, as with any ``msp+tcp://`` FC.
+to the plant's ESC; run by the plant's world process, with the simulated sensors) and
+the MSP client on its TCP port, as with any ``msp+tcp://`` FC.
 The sensors are the wire-level simulated ones (``serial://sim/loadcell``...) on the same
 plant. The ESC comes wrapped in :class:`drivers.command_delay.OutputTimedEsc`, which
 times each command to the firmware's output for ``run.json``.
@@ -50,14 +51,13 @@ def open_sitl_esc(ctx: Any, spec: DeviceUrl, share_link: Callable[[Any], Any]) -
     from drivers.backends.msp_rc_esc import MspRcEsc
     from drivers.command_delay import OutputTimedEsc
     from drivers.protocols.serial import open_msp_esc
-    from drivers.wire_sim.sitl_plant import SitlPlantPeer
 
     launcher, binary, rate_hz = _launch_options(spec)
     motor = spec.integer("motor", 0, lo=0, hi=3)  # the SITL drives 4 motors
     wire = ctx.world()  # the rig's plant; its owner stops what is added below, last
     ctx.wire = wire
-    firmware, port, peer = _launch(ctx, spec, launcher, binary, lambda: SitlPlantPeer(
-        wire.plant, motor, rate_hz=rate_hz))
+    firmware, port, peer = _launch(ctx, spec, launcher, binary,
+                                   lambda: wire.sitl_peer(motor, rate_hz))  # in its process
     wire.add("sitl:firmware", firmware, firmware.stop)
     wire.add("sitl:plant", peer, peer.stop)  # stopped before the firmware
     ctx.peers[spec.role] = peer

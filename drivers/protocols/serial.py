@@ -14,7 +14,8 @@ The host ``sim`` (``serial://sim/msp``, ``serial://sim/loadcell``, ``serial://si
 starts the wire-level simulated device on a pty (``drivers.wire_sim``), driven by the
 rig's simulated world; the path names the protocol when the options do not. The
 propulsion stand's peers run with their plant in a child process (``serial_peer``); the
-IMU bench's share the host's paced clock and run in this one.
+IMU bench's with its world (``drivers.wire_sim.imu_world.start_imu_device``), in a child
+process too when every device of the rig is wire-level.
 """
 
 from __future__ import annotations
@@ -162,11 +163,11 @@ def msp_imu(ctx: Any, spec: DeviceUrl) -> Sensor:
             "sim_acc_1g", BTFL_ACC_1G, lo=1, hi=32767)  # the simulated FC's driver
 
         def start_peer() -> Any:
-            from drivers.wire_sim.plant_peers import start_msp_peer
+            from drivers.wire_sim.imu_world import start_imu_device
 
-            peer = start_msp_peer(ctx.world(), ctx.clock, variant=variant, acc_1g=round(sim_1g))
+            peer = start_imu_device(ctx, f"serial:{_label(spec, 'msp')}", "msp", variant,
+                                    round(sim_1g))
             ctx.peers[spec.role] = peer
-            ctx.on_close(peer.stop)  # after the port (closers run last-in first-out)
             return peer
 
         start = start_peer
@@ -301,11 +302,10 @@ def gx3_reference(ctx: Any, spec: DeviceUrl) -> Sensor:
         spec.number("time_scale", 1.0, lo=1e-3, hi=1e3)  # the world's clock reads it
 
         def start_peer() -> Any:
-            from drivers.wire_sim.plant_peers import start_gx3_peer
+            from drivers.wire_sim.imu_world import start_imu_device
 
-            peer = start_gx3_peer(ctx.world(), ctx.clock)
+            peer = start_imu_device(ctx, f"serial:{_label(spec, 'gx3')}", "gx3")
             ctx.peers[spec.role] = peer
-            ctx.on_close(peer.stop)  # after the port (closers run last-in first-out)
             return peer
 
         start = start_peer

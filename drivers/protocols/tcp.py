@@ -4,12 +4,12 @@ Limits and log rate come from the rig file; ``timeout_s``, ``start_tolerance``,
 ``derivative_window`` and the GCS dialect options from the device's options. The host
 ``sim`` (``tcp://sim[:port]``) starts the simulated PI controller
 (``drivers.wire_sim.pi_hexapod``) on loopback, driven by the simulated IMU bench's hexapod
-plant, and connects the real backend to it.
+plant (in the world's process when it has one: ``drivers.wire_sim.imu_world``), and
+connects the real backend to it.
 """
 
 from __future__ import annotations
 
-import math
 from typing import Any
 from urllib.parse import urlsplit
 
@@ -68,19 +68,13 @@ def pi_hexapod(ctx: Any, spec: DeviceUrl) -> Hexapod:
     timeout_s = ctx.open_timeout_s
     if not spec.is_wire_sim:
         return open_pi_hexapod(ctx.rig, spec.url, options, ctx.clock, timeout_s)
-    from drivers.wire_sim.pi_hexapod import SimPiController
+    from drivers.wire_sim.imu_world import start_imu_device
 
-    sim = ctx.world()
     try:
-        lim = sim.hexapod.limits()  # the controller's soft limits: the plant's own
-        mm, deg = lim.position_m * 1e3, math.degrees(lim.angle_rad)
-        travel = {a: (-mm, mm) for a in "XYZ"} | {a: (-deg, deg) for a in "UVW"}
-        wire = SimPiController(plant=sim.hexapod, port=spec.port or 0, travel=travel).start()
-    except OSError as exc:
-        raise DeviceError(f"hexapod: {spec.url!r}: cannot start the simulated "
-                          f"controller on port {spec.port} ({exc})") from None
+        wire = start_imu_device(ctx, "tcp:sim", "hexapod", spec.port or 0)
+    except DeviceError as exc:
+        raise DeviceError(f"hexapod: {spec.url!r}: {exc}") from None
     ctx.wire = wire
-    ctx.on_close(wire.stop)
     host, port = wire.address
     hexapod = open_pi_hexapod(ctx.rig, f"tcp://{host}:{port}", options, ctx.clock, timeout_s)
     hold = getattr(ctx.clock, "hold", None)

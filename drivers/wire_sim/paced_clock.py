@@ -3,7 +3,9 @@
 :class:`PacedClock` runs the simulated IMU bench (:class:`drivers.sim.imu_rig.SimImuRig`:
 hexapod plant, IMU model, reference) on the wall clock, ``time_scale`` simulated seconds
 per wall second, so the backends' threads, timeouts and the pty's latency act on it as on
-a bench; :class:`HeldUploads` keeps a trajectory upload from costing simulated time.
+a bench; :class:`HeldUploads` keeps a trajectory upload from costing simulated time. Two
+processes read one bench time from two clocks given the same ``epoch`` and no pauses
+(``drivers.wire_sim.imu_world``).
 """
 
 from __future__ import annotations
@@ -34,14 +36,15 @@ class PacedClock(SimClock):
     """
 
     def __init__(self, time_scale: float = 1.0, *, max_gap_s: float = 0.02,
-                 max_pause_s: float = 0.3) -> None:
+                 max_pause_s: float = 0.3, epoch: float | None = None) -> None:
         super().__init__()
         if not (math.isfinite(time_scale) and time_scale > 0):
             raise DeviceError(f"time_scale {time_scale!r}: expected a positive number")
         self.time_scale = float(time_scale)
         self.max_gap_s = float(max_gap_s)
         self._lock = threading.Lock()
-        self._wall0 = self._last_wall = time.monotonic()
+        self._last_wall = time.monotonic()
+        self._wall0 = self._last_wall if epoch is None else float(epoch)
         self._held: int | None = None
         self.max_pause_s = float(max_pause_s)
         self.paused_s = 0.0  # wall time not counted (starved process), for the record
@@ -89,20 +92,41 @@ class PacedClock(SimClock):
     def on_advance(self, listener: Any) -> None:
         raise DeviceError("paced clock: the plant runs on the wall clock; no listeners")
 
+    @property
+    def epoch(self) -> float:
+        """The monotonic wall time at which bench time was 0 (pauses and holds move it)."""
+        with self._lock:
+            return self._wall0
+
     @contextlib.contextmanager
     def hold(self) -> Iterator[None]:
         """Simulated time stands still inside the block, then goes on from where it was."""
-        held = self.now_ns()
-        with self._lock:
-            self._held = held
+        self.freeze()
         try:
             yield
         finally:
-            with self._lock:
-                wall = time.monotonic()
-                self._wall0 = wall - held * 1e-9 / self.time_scale
-                self._last_wall = wall
-                self._held = None
+            self.resume()
+
+    def freeze(self, held_ns: int | None = None) -> int:
+        """Bench time stands at ``held_ns`` (default: now) until :meth:`resume`; returns it.
+        The halves of ``hold``, for a clock that another process's clock follows."""
+        held = self.now_ns() if held_ns is None else int(held_ns)
+        with self._lock:
+            self._held = held
+        return held
+
+    def resume(self, epoch: float | None = None) -> float:
+        """Bench time runs again: from the held time on (default), or from the monotonic
+        wall time ``epoch`` of bench time 0; returns the epoch."""
+        with self._lock:
+            wall = time.monotonic()
+            if epoch is None:
+                held = self._held if self._held is not None else 0
+                epoch = wall - held * 1e-9 / self.time_scale
+            self._wall0 = float(epoch)
+            self._last_wall = wall
+            self._held = None
+            return self._wall0
 
 
 class HeldUploads:

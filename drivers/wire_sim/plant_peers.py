@@ -182,11 +182,6 @@ class WireSims:
         """:meth:`start_peer` for another process: what it opens."""
         return self.start_peer(key, kind, args).path
 
-    def bridge_can(self, channel: str, link: Any) -> None:
-        """In this process the nodes' end of the host's CAN ``channel`` is ``link`` itself
-        (its opener stops it)."""
-        self.peers[f"can-link:{channel}"] = link
-
     def connect_can(self, channel: str, port: int) -> None:
         """The nodes' end of the host's CAN ``channel``: a socket to loopback ``port``."""
         import socket
@@ -196,6 +191,14 @@ class WireSims:
         link = SocketCanLink(socket.create_connection(("127.0.0.1", port)),
                              f"sim nodes on {channel}")
         self.add(f"can-link:{channel}", link, link.close)
+
+    def start_sitl(self, key: str, motor_index: int, rate_hz: float) -> None:
+        """The Betaflight SITL's plant peer (``drivers.wire_sim.sitl_plant``) on this
+        plant, started: its UDP sockets and its FDM loop live with the plant."""
+        from drivers.wire_sim.sitl_plant import SitlPlantPeer
+
+        peer = SitlPlantPeer(self.plant, motor_index, rate_hz=rate_hz).start()
+        self.add(key, peer, peer.stop)
 
     def start_can_peer(self, key: str, kind: str, channel: str, args: tuple = ()) -> None:
         """The CAN node ``CAN_PEERS[kind](plant, link, *args)`` on ``channel`` (one per
@@ -221,8 +224,8 @@ class WireSims:
 class RemotePlant:
     """The host's handle on the :class:`WirePlant` in the world's process (the entry
     points the peers and the tests use; each a request over the pipe). Once closed, it
-    answers ``pulse_us`` and ``idle_since()`` with the plant's last state (what the ESC
-    was left at when the rig closed)."""
+    answers ``pulse_us``, ``idle_since()`` and ``truth()`` with the plant's last state
+    (what the ESC was left at when the rig closed)."""
 
     def __init__(self, world: Any) -> None:
         self.world = world  # a drivers.wire_sim.world_process.WorldProcess
@@ -261,7 +264,8 @@ class RemotePlant:
     def close(self) -> None:
         """Stops the world's process (its peers and plant first)."""
         if self._final is None and self.world.alive:
-            self._final = {"pulse_us": self.pulse_us, "idle_since": self.idle_since()}
+            self._final = {"pulse_us": self.pulse_us, "idle_since": self.idle_since(),
+                           "truth": self.truth()}
         self.world.close()
 
 
@@ -301,6 +305,13 @@ class ProcessWireSims(WireSims):
             far.close()
 
         self.add(f"can-bridge:{channel}", far, stop)
+
+    def sitl_peer(self, motor_index: int, rate_hz: float) -> Any:
+        """A Betaflight SITL plant peer to start in the world's process (its handle:
+        ``drivers.wire_sim.sitl_plant.RemoteSitlPeer``; ``start()`` starts it)."""
+        from drivers.wire_sim.sitl_plant import RemoteSitlPeer
+
+        return RemoteSitlPeer(self.plant.world, motor_index, rate_hz)
 
     def start_can_peer(self, key: str, kind: str, channel: str, args: tuple = ()) -> None:
         if key not in self.peers:

@@ -15,14 +15,20 @@ world: ``drivers.wire_sim.sitl_imu_world``), and without a plant (``plant=None``
 motor updates only prove the firmware alive (``wait_output``, ``check``).
 
 ``changes()`` keeps each change of the watched motor's output with its arrival time
-(host monotonic clock): the other half of the command-to-output delay
+(the machine's monotonic clock): the other half of the command-to-output delay
 (``drivers.command_delay``).
+
+On the propulsion stand the peer runs with the plant in the world's process
+(``drivers.wire_sim.world_process``), as the simulated serial devices do: a loaded host no
+longer delays the FDM stream, the firmware's output or the load-cell board it drives.
+:class:`RemoteSitlPeer` is the bench's handle on it there.
 """
 
 from __future__ import annotations
 
 import collections
 import contextlib
+import itertools
 import math
 import select
 import socket
@@ -43,7 +49,7 @@ from drivers.codecs.sitl import (
 )
 from drivers.errors import DeviceError
 
-__all__ = ["SitlPlantPeer"]
+__all__ = ["RemoteSitlPeer", "SitlPlantPeer"]
 
 IDLE_WAIT_S = 0.3  # at stop: how long the firmware's output may take to reach idle
 MAX_SILENCE_S = 0.5  # fed but no motor update for this long: the firmware stalled
@@ -211,3 +217,64 @@ class SitlPlantPeer:
         self._tx.close()
         if self.plant is not None:
             self.plant.command_pulse(idle)
+
+
+_KEYS = itertools.count()
+_COUNTERS = ("updates", "fdm_sent", "last_us")
+
+
+class RemoteSitlPeer:
+    """The host's handle on a :class:`SitlPlantPeer` in the plant's world process (the
+    same calls, each a request there); ``updates``, ``fdm_sent`` and ``last_us`` are read
+    there, and answered as they were at ``stop()`` once stopped."""
+
+    def __init__(self, world: Any, motor_index: int, rate_hz: float) -> None:
+        self._world = world  # a drivers.wire_sim.world_process.WorldProcess
+        self._key = f"sitl-plant:{next(_KEYS)}"  # a relaunch starts a new peer
+        self._args = (motor_index, rate_hz)
+        self._final: dict[str, Any] | None = None
+
+    def start(self) -> Self:
+        self._world.request("call", None, ("start_sitl",), (self._key, *self._args))
+        return self
+
+    def _call(self, name: str, *args: Any) -> Any:
+        return self._world.request("call", self._key, (name,), args)
+
+    def _get(self, name: str) -> Any:
+        if self._final is not None:
+            return self._final[name]
+        return self._world.request("get", self._key, (name,))
+
+    @property
+    def updates(self) -> int:
+        return self._get("updates")
+
+    @property
+    def fdm_sent(self) -> int:
+        return self._get("fdm_sent")
+
+    @property
+    def last_us(self) -> float:
+        return self._get("last_us")
+
+    def wait_output(self, timeout_s: float) -> None:
+        self._call("wait_output", timeout_s)
+
+    def check(self) -> None:
+        self._call("check")
+
+    def changes(self, since: float = -math.inf) -> list[tuple[float, float]]:
+        return self._call("changes", since)
+
+    def pause(self) -> None:
+        self._call("pause")
+
+    def resume(self) -> None:
+        self._call("resume")
+
+    def stop(self) -> None:
+        """Stops the peer there (see :meth:`SitlPlantPeer.stop`) and keeps its counters."""
+        if self._final is None:
+            self._call("stop")
+            self._final = {name: self._get(name) for name in _COUNTERS}

@@ -10,7 +10,8 @@ import the host's ``__main__``), which calls ``build(*args)`` (an importable fun
 it pickles by name) for the world object and then serves requests over a socket pair
 until told to stop or until its parent dies (end of file; the parent's pid is checked too). A
 request names an object of the world (``None``: the world itself; else a key of its
-``peers``) and an attribute path on it, to call or to read. :class:`Remote` is the host's
+``peers``) and an attribute path on it, to call or to read (a ``DeviceError`` raised there
+is raised here with its message). :class:`Remote` is the host's
 handle on such an object. The devices' transports (pty paths, loopback ports) work across
 processes as they do across a cable; the world reports what to open in the replies.
 """
@@ -31,7 +32,7 @@ from typing import Any
 
 from drivers.errors import DeviceError
 
-__all__ = ["Remote", "WorldProcess"]
+__all__ = ["FastSwitching", "Remote", "RemoteDevice", "WorldProcess"]
 
 _START_TIMEOUT_S = 30.0  # a fresh interpreter imports numpy and scipy: seconds when loaded
 _STOP_TIMEOUT_S = 5.0
@@ -40,6 +41,11 @@ _PARENT_CHECK_S = 0.5
 # the host's and the machine's other work where allowed (it sleeps between frames, so it
 # takes little time; it needs it on time).
 DEVICE_NICE = -10
+# Each device is a thread that wakes for a request or a frame, answers in well under a
+# millisecond and sleeps again. A thread woken from a short system call while another
+# thread runs Python waits up to the interpreter's switch interval (5 ms by default) for
+# it, each time: at 600 MSP polls a second (1.7 ms apart) that halved the polls served.
+SWITCH_INTERVAL_S = 0.0002
 
 
 class WorldProcess:
@@ -80,6 +86,8 @@ class WorldProcess:
 
     def _reply(self) -> Any:
         status, value = self._conn.recv()
+        if status == "device":
+            raise DeviceError(value)
         if status == "err":
             raise DeviceError(f"{self.name}: {value}")
         return value
@@ -107,6 +115,31 @@ class WorldProcess:
         self._conn.close()
 
 
+class FastSwitching:
+    """The host's interpreter switches threads every ``SWITCH_INTERVAL_S`` while entered
+    (nested: the first entry sets it, the last exit restores it): a host polling a
+    time-scaled world hundreds of times a second on one thread while another reads a
+    stream has the same waits as the world's devices (see ``SWITCH_INTERVAL_S``)."""
+
+    _lock = threading.Lock()
+    _depth = 0
+    _saved = 0.0
+
+    def __enter__(self) -> FastSwitching:
+        with FastSwitching._lock:
+            if FastSwitching._depth == 0:
+                FastSwitching._saved = sys.getswitchinterval()
+                sys.setswitchinterval(min(FastSwitching._saved, SWITCH_INTERVAL_S))
+            FastSwitching._depth += 1
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        with FastSwitching._lock:
+            FastSwitching._depth -= 1
+            if FastSwitching._depth == 0:
+                sys.setswitchinterval(FastSwitching._saved)
+
+
 class Remote:
     """An object of a child's world: ``r.port.disconnect()`` calls it there; ``r.get("x")``
     reads an attribute. Values cross the pipe pickled."""
@@ -127,13 +160,30 @@ class Remote:
         return self._world.request("get", self._key, (*self._attrs, name))
 
 
+class RemoteDevice:
+    """A device of a child's world as the host holds it: where to open it (``path``, a pty,
+    or ``address``, a loopback host and port), its ``port`` (a :class:`Remote`: tests break
+    the wire with it) and ``stop()``. Nothing else answers, so ``getattr(device, name,
+    None)`` tells the truth (a bare :class:`Remote` answers every name)."""
+
+    def __init__(self, world: WorldProcess, key: str, where: str | tuple[str, int]) -> None:
+        self.remote = Remote(world, key)
+        self.port = Remote(world, key, ("port",))
+        self.path = where if isinstance(where, str) else None
+        self.address = tuple(where) if not isinstance(where, str) else None
+
+    def stop(self) -> None:
+        self.remote.stop()
+
+
 # -- the child ---------------------------------------------------------------------------
 def _serve(conn: Connection, parent_pid: int) -> None:
     """The child's main: build the world, report ready, serve until stop or orphaned."""
+    with contextlib.suppress(OSError):  # needs the privilege; else the default share
+        os.setpriority(os.PRIO_PROCESS, 0, DEVICE_NICE)  # before any thread: each has its own
     threading.Thread(target=_watch_parent, args=(parent_pid,), name="parent-watch",
                      daemon=True).start()
-    with contextlib.suppress(OSError):  # needs the privilege; else the default share
-        os.setpriority(os.PRIO_PROCESS, 0, DEVICE_NICE)
+    sys.setswitchinterval(SWITCH_INTERVAL_S)
     try:
         build, args = conn.recv()
         world = build(*args)
@@ -155,6 +205,8 @@ def _serve(conn: Connection, parent_pid: int) -> None:
                     obj = getattr(obj, name)
                 value = getattr(obj, attrs[-1])(*call_args) if op == "call" else obj
                 conn.send(("ok", value))
+            except DeviceError as exc:  # a device's own words, as in the host's process
+                conn.send(("device", str(exc)))
             except Exception as exc:
                 conn.send(("err", f"{'.'.join(attrs)}: {exc!r}"))
     finally:

@@ -78,21 +78,29 @@ def test_the_world_process_does_not_outlive_a_killed_parent() -> None:
     assert _gone(world_pid, 5.0), "the world's process outlived its parent"
 
 
-def test_a_world_kept_in_the_hosts_process_serves_its_can_nodes(monkeypatch) -> None:
-    """A launched firmware keeps the world in the host's process (``own_process=False``):
-    the CAN nodes join the host's virtual channel there, with no bridge."""
-    pytest.importorskip("can")
-    import drivers.factory as factory
+def test_the_imu_worlds_device_errors_keep_their_words() -> None:
+    """The IMU bench's world in its process: a device that cannot start says why, as it
+    would in the host's (a DeviceError's message crosses the pipe as it is)."""
+    import socket
 
-    monkeypatch.setattr(factory, "wire_plant", lambda rig, seed, own_process=True:
-                        wire_plant(rig, seed, own_process=False))
-    rig = factory.open_rig(load_rig(RIG.parent / "sim-can.toml"))
+    from bench.rig.rig import load_imu_rig
+    from drivers.sim_worlds import imu_world_process
+    from drivers.wire_sim.imu_world import HostPacedClock
+
+    clock = HostPacedClock(6.0)
+    world = imu_world_process(load_imu_rig(RIG.parent / "sim-imu-wire.toml"), None, clock)
     try:
-        deadline = time.monotonic() + 5.0
-        rows = 0
-        while rows == 0 and time.monotonic() < deadline:
+        with socket.create_server(("127.0.0.1", 0)) as taken:
+            port = taken.getsockname()[1]
+            with pytest.raises(DeviceError, match=r"^cannot start the simulated controller "
+                                                  rf"on port {port} "):
+                world.start("tcp:sim", "hexapod", (port,))
+        assert world.start("tcp:sim", "hexapod", (0,)).address[1] > 0
+        with clock.hold():  # held in the world too: its clock reads what the host's does
+            held = clock.now()
             time.sleep(0.05)
-            rows = rig.sensors["rpm"].read_block().t_s.size
-        assert rows > 0  # the VESC's status broadcasts arrive
+            assert world.process.request("call", None, ("clock", "now")) == held
+        assert abs(world.process.request("call", None, ("clock", "now")) - clock.now()) < 0.05
     finally:
-        rig.close()
+        world.close()
+    assert _gone(world.process.process.pid, 5.0)

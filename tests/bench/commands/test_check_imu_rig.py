@@ -18,15 +18,9 @@ RIGS = Path(__file__).resolve().parents[3] / "bench" / "data" / "rigs"
 
 
 @pytest.mark.parametrize("name", ["sim-imu", "sim-imu-tcp", "sim-imu-wire"])
-def test_check_reports_every_device_of_the_imu_rigs(name: str, tmp_path: Path,
-                                                   capsys) -> None:
-    # The wire rig's simulated flight controller is polled over a pty at time_scale x real
-    # time; on a busy host it honestly falls behind 100 Hz of rig time (CI saw 27, then 50
-    # samples/s), so the rate is checked at real time, as a bench's devices run.
-    text = (RIGS / f"{name}.toml").read_text().replace("time_scale = 6.0", "time_scale = 1.0")
-    rig = tmp_path / f"{name}.toml"
-    rig.write_text(text)
-    code = main(["check", "--rig", str(rig), "--json", "--timeout", "5"])
+def test_check_reports_every_device_of_the_imu_rigs(name: str, capsys) -> None:
+    # the rigs as shipped: the wire rig's devices (time scale 6) run in a process of their own
+    code = main(["check", "--rig", str(RIGS / f"{name}.toml"), "--json", "--timeout", "5"])
     out = capsys.readouterr().out
     assert code == 0, out
     lines = [json.loads(x) for x in out.splitlines()]
