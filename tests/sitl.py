@@ -47,6 +47,7 @@ from drivers.backends.betaflight_sitl import (
 from drivers.backends.msp_fc import MspClient
 from drivers.backends.msp_tcp import open_port
 from drivers.codecs.sitl import MSP_PORT, STANDARD_GRAVITY, encode_fdm, fdm_stamps
+from drivers.device_priority import raise_device_priority
 from drivers.errors import DeviceError
 
 START_TIMEOUT_S = 5.0
@@ -223,6 +224,7 @@ def _launch(workdir: Path) -> Sitl:
         while netns_fd >= 0 and time.monotonic() < deadline and proc.poll() is None:
             # from /proc: a probe connection would take the firmware's one client slot
             if port_sockets("tcp", MSP_PORT, listening=True, pid=proc.pid):
+                raise_device_priority(proc.pid)  # as the bench's launcher does
                 return Sitl(proc, workdir, netns_fd, time.monotonic() - t0)
             time.sleep(0.02)
     except BaseException:

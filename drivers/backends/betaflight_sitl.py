@@ -34,6 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from drivers.codecs.sitl import FDM_PORT, MOTOR_RAW_PORT, MSP_PORT, RC_PORT
+from drivers.device_priority import raise_device_priority
 from drivers.errors import DeviceError
 
 __all__ = ["BINARY", "INSTALL_HINT", "PACKAGE", "START_TIMEOUT_S", "SitlProcess",
@@ -152,6 +153,7 @@ class SitlProcess:
                                       f"MSP port opened (log: {sitl.log_path})")
                 if _owns(proc.pid, port_sockets("tcp", MSP_PORT, listening=True)):
                     sitl.started_s = time.monotonic() - t0
+                    raise_device_priority(proc.pid)  # its threads all run by now
                     return sitl
                 if sitl.bind_failed():
                     raise PortBusy(f"the Betaflight SITL could not bind its MSP port "

@@ -18,7 +18,6 @@ processes as they do across a cable; the world reports what to open in the repli
 
 from __future__ import annotations
 
-import contextlib
 import os
 import socket
 import subprocess
@@ -30,6 +29,7 @@ from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any
 
+from drivers.device_priority import raise_device_priority
 from drivers.errors import DeviceError
 
 __all__ = ["FastSwitching", "Remote", "RemoteDevice", "WorldProcess"]
@@ -37,10 +37,6 @@ __all__ = ["FastSwitching", "Remote", "RemoteDevice", "WorldProcess"]
 _START_TIMEOUT_S = 30.0  # a fresh interpreter imports numpy and scipy: seconds when loaded
 _STOP_TIMEOUT_S = 5.0
 _PARENT_CHECK_S = 0.5
-# A device's firmware has a processor of its own: the world's process is scheduled ahead of
-# the host's and the machine's other work where allowed (it sleeps between frames, so it
-# takes little time; it needs it on time).
-DEVICE_NICE = -10
 # Each device is a thread that wakes for a request or a frame, answers in well under a
 # millisecond and sleeps again. A thread woken from a short system call while another
 # thread runs Python waits up to the interpreter's switch interval (5 ms by default) for
@@ -179,8 +175,7 @@ class RemoteDevice:
 # -- the child ---------------------------------------------------------------------------
 def _serve(conn: Connection, parent_pid: int) -> None:
     """The child's main: build the world, report ready, serve until stop or orphaned."""
-    with contextlib.suppress(OSError):  # needs the privilege; else the default share
-        os.setpriority(os.PRIO_PROCESS, 0, DEVICE_NICE)  # before any thread: each has its own
+    raise_device_priority()  # before any thread: each inherits it
     threading.Thread(target=_watch_parent, args=(parent_pid,), name="parent-watch",
                      daemon=True).start()
     sys.setswitchinterval(SWITCH_INTERVAL_S)

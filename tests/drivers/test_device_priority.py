@@ -1,0 +1,61 @@
+"""A device's stand-in process (a simulated world, the Betaflight SITL) runs ahead of the
+host's work: every thread of it, those it has and those it starts later."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+
+import pytest
+
+from drivers.device_priority import DEVICE_NICE, raise_device_priority
+
+ROOT = os.geteuid() == 0
+
+_TWO_THREADS = """
+import threading, time, sys
+go = threading.Event()
+threading.Thread(target=go.wait, daemon=True).start()
+print("ready", flush=True)
+sys.stdin.readline()  # the test raises the priority meanwhile
+late = threading.Thread(target=go.wait, daemon=True); late.start()
+print("late", flush=True)
+time.sleep(30)
+"""
+
+
+def _nices(pid: int) -> list[int]:
+    return [os.getpriority(os.PRIO_PROCESS, int(t)) for t in os.listdir(f"/proc/{pid}/task")]
+
+
+def test_every_thread_and_a_later_one_run_at_the_device_niceness() -> None:
+    with subprocess.Popen([sys.executable, "-c", _TWO_THREADS], stdin=subprocess.PIPE,
+                          stdout=subprocess.PIPE, text=True) as proc:
+        try:
+            assert proc.stdout and proc.stdin and proc.stdout.readline() == "ready\n"
+            raised = raise_device_priority(proc.pid)
+            proc.stdin.write("\n")
+            proc.stdin.flush()
+            assert proc.stdout.readline() == "late\n"
+            nices = _nices(proc.pid)
+        finally:
+            proc.kill()
+    assert len(nices) == 3
+    if ROOT:
+        assert raised and nices == [DEVICE_NICE] * 3
+    else:  # without the privilege: said so, and nothing changed
+        assert not raised and set(nices) == {os.getpriority(os.PRIO_PROCESS, 0)}
+
+
+def test_a_gone_process_is_no_error() -> None:
+    proc = subprocess.Popen([sys.executable, "-c", "pass"])
+    proc.wait()
+    time.sleep(0.05)
+    assert raise_device_priority(proc.pid) is False
+
+
+@pytest.mark.skipif(not ROOT, reason="the firmware tests run as root (network namespaces)")
+def test_the_firmware_runs_at_the_device_niceness(sitl) -> None:
+    assert set(_nices(sitl.proc.pid)) == {DEVICE_NICE}
