@@ -123,6 +123,7 @@ class MspClient:
         return bool(reply.flight_mode_flags & msp.ARMED_FLAG)
 
 
+_BOTH = (msp.MSP_RAW_IMU, msp.MSP_ATTITUDE)
 IMU_CHANNELS = ("acc_x_m_s2", "acc_y_m_s2", "acc_z_m_s2", "gyro_x_rad_s", "gyro_y_rad_s",
                 "gyro_z_rad_s", "roll_rad", "pitch_rad", "yaw_rad")
 
@@ -132,8 +133,10 @@ class MspImu:
 
     def __init__(self, client: MspClient, *, rate_hz: float = 100.0, acc_1g: float | None = None,
                  clock: Clock | None = None, url: str = "serial://msp",
-                 attitude: bool = True, gyro_lsb_per_dps: float | None = None) -> None:
+                 attitude: bool = True, gyro_lsb_per_dps: float | None = None,
+                 multiple: bool = False) -> None:
         self.client = client
+        self.multiple = multiple  # Betaflight: both in one MSP_MULTIPLE_MSP round trip
         self.rate_hz = rate_hz
         self.attitude = attitude  # False: RAW_IMU only (roll/pitch/yaw NaN), twice the rate
         self.clock = clock or MonotonicClock()
@@ -170,9 +173,7 @@ class MspImu:
             # the send time is the host time least disturbed by the reply's read latency
             stamp = self.clock.now()
             try:
-                raw = self.client.request(msp.Request(msp.MSP_RAW_IMU))
-                att = self.client.request(msp.Request(msp.MSP_ATTITUDE)) if self.attitude \
-                    else nan
+                raw, att = self._request(nan)
             except DeviceError as exc:
                 with self._lock:
                     self._error = exc
@@ -184,6 +185,19 @@ class MspImu:
             with self._lock:
                 self._rows.append((stamp, *acc, *gyro, att.roll_rad, att.pitch_rad,
                                    att.yaw_rad))
+
+    def _request(self, nan: msp.Attitude) -> tuple[Any, Any]:
+        """RAW_IMU and ATTITUDE: one MSP_MULTIPLE_MSP round trip with ``multiple``."""
+        if self.attitude and self.multiple:
+            reply = self.client.request(msp.multiple_request(_BOTH))
+            try:
+                raw, att = msp.split_multiple(_BOTH, reply)
+            except msp.PayloadError as exc:
+                raise DeviceError(f"{self.url}: {exc}") from None
+            return raw, att
+        raw = self.client.request(msp.Request(msp.MSP_RAW_IMU))
+        att = self.client.request(msp.Request(msp.MSP_ATTITUDE)) if self.attitude else nan
+        return raw, att
 
     def link_errors(self) -> dict[str, int]:
         """Replies lost on the serial link (bad checksums, truncated, malformed frames)."""

@@ -100,7 +100,7 @@ def open_sitl_imu(ctx: Any, spec: DeviceUrl, share_link: Callable[[Any], Any]) -
     link = share_link(port)
     client = MspClient(link, spec.url, timeout_s=timeout_s)
     imu = MspImu(client, rate_hz=rate_hz, acc_1g=acc_1g, clock=ctx.clock, url=spec.url,
-                 attitude=attitude, gyro_lsb_per_dps=gyro_lsb)
+                 attitude=attitude, gyro_lsb_per_dps=gyro_lsb, multiple=True)
     ctx.answers[spec.role] = (f"flight controller {imu.variant}, MSP API {imu.api.api_major}."
                               f"{imu.api.api_minor}; Betaflight SITL launched by the bench (pid "
                               f"{firmware.proc.pid}), fed the hexapod world at {fdm_hz:g} Hz")
@@ -121,6 +121,18 @@ def _launch_options(spec: DeviceUrl) -> tuple[Any, Any, float]:
     return launcher, launcher.find_binary(binary_opt or None), rate_hz
 
 
+def _settings(spec: DeviceUrl) -> dict[str, str | int]:
+    """Option ``cli_settings``: the firmware's own settings for the run (CLI names and
+    values, e.g. ``{ acc_lpf_hz = 0 }``), given at launch before any MSP traffic
+    (``drivers.backends.betaflight_sitl``)."""
+    settings = spec.raw("cli_settings", {})
+    if not isinstance(settings, dict) or not all(
+            isinstance(k, str) and isinstance(v, str | int) for k, v in settings.items()):
+        raise spec.fail("cli_settings", f"expected a table of setting names and values, "
+                                        f"got {settings!r}")
+    return settings
+
+
 def _launch(ctx: Any, spec: DeviceUrl, launcher: Any, binary: Any,
             make_peer: Callable[[], Any]) -> tuple[Any, Any, Any]:
     """A firmware that answers MSP and sends motor output, with its connected MSP port
@@ -137,7 +149,7 @@ def _launch(ctx: Any, spec: DeviceUrl, launcher: Any, binary: Any,
     for attempt in range(1, LAUNCHES + 1):
         firmware = port = peer = None
         try:
-            firmware = launcher.SitlProcess.launch(binary)
+            firmware = launcher.SitlProcess.launch(binary, settings=_settings(spec))
             port = mt.open_port("127.0.0.1", spec.port or mt.DEFAULT_PORT, spec.url,
                                 connect_timeout_s=ctx.open_timeout_s)
             client = MspClient(port, spec.url, timeout_s=READY_S)
