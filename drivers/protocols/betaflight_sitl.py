@@ -73,7 +73,7 @@ def open_sitl_esc(ctx: Any, spec: DeviceUrl, share_link: Callable[[Any], Any]) -
 def open_sitl_imu(ctx: Any, spec: DeviceUrl, share_link: Callable[[Any], Any]) -> Sensor:
     """Launch the firmware fed by the IMU bench's simulated world, then poll its RAW_IMU
     (and ATTITUDE, option ``attitude``) over MSP as the IMU under test."""
-    from drivers.backends.msp_fc import MspClient, MspImu, MspImuSensor
+    from drivers.backends.msp_fc import STALE_GAP_S, MspClient, MspImu, MspImuSensor
     from drivers.codecs.sitl import SITL_ACC_1G, SITL_GYRO_LSB_PER_DPS
     from drivers.wire_sim.sitl_imu_world import HexapodFdm
     from drivers.wire_sim.sitl_plant import SitlPlantPeer
@@ -84,6 +84,11 @@ def open_sitl_imu(ctx: Any, spec: DeviceUrl, share_link: Callable[[Any], Any]) -
     gyro_lsb = spec.number("gyro_lsb_per_dps", SITL_GYRO_LSB_PER_DPS, lo=1e-3, hi=1e3)
     rate_hz = spec.number("rate_hz", ctx.rig.imu.value("rate_hz"), lo=0.1, hi=100.0)
     timeout_s = spec.number("timeout_s", 1.0, lo=0.005, hi=5.0)
+    # rows whose MSP round trip was longer, or polled further from an FDM packet the
+    # firmware accepted, are dropped: when the firmware read its sensors is known to no
+    # better (docs/sim-rig.md, "Real firmware as the IMU")
+    max_rt = spec.number("max_round_trip_s", timeout_s, lo=0.001, hi=timeout_s)
+    stale_gap = spec.number("stale_gap_s", STALE_GAP_S, lo=0.001, hi=1.0)
     attitude = spec.raw("attitude", False)
     if not isinstance(attitude, bool):
         raise spec.fail("attitude", f"expected true or false, got {attitude!r}")
@@ -100,11 +105,13 @@ def open_sitl_imu(ctx: Any, spec: DeviceUrl, share_link: Callable[[Any], Any]) -
     link = share_link(port)
     client = MspClient(link, spec.url, timeout_s=timeout_s)
     imu = MspImu(client, rate_hz=rate_hz, acc_1g=acc_1g, clock=ctx.clock, url=spec.url,
-                 attitude=attitude, gyro_lsb_per_dps=gyro_lsb, multiple=True)
+                 attitude=attitude, gyro_lsb_per_dps=gyro_lsb, multiple=True,
+                 max_round_trip_s=max_rt)
     ctx.answers[spec.role] = (f"flight controller {imu.variant}, MSP API {imu.api.api_major}."
                               f"{imu.api.api_minor}; Betaflight SITL launched by the bench (pid "
                               f"{firmware.proc.pid}), fed the hexapod world at {fdm_hz:g} Hz")
-    return MspImuSensor(imu, rate_hz, port=link, peer=peer, attitude=attitude)
+    return MspImuSensor(imu, rate_hz, port=link, peer=peer, attitude=attitude,
+                        stale_gap_s=stale_gap)
 
 
 def _launch_options(spec: DeviceUrl) -> tuple[Any, Any, float]:
