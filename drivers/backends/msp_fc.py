@@ -123,7 +123,8 @@ class MspClient:
         return bool(reply.flight_mode_flags & msp.ARMED_FLAG)
 
 
-_BOTH = (msp.MSP_RAW_IMU, msp.MSP_ATTITUDE)
+#: what the IMU role asks a Betaflight FC for in one MSP_MULTIPLE_MSP request
+RAW_AND_ATTITUDE = (msp.MSP_RAW_IMU, msp.MSP_ATTITUDE)
 IMU_CHANNELS = ("acc_x_m_s2", "acc_y_m_s2", "acc_z_m_s2", "gyro_x_rad_s", "gyro_y_rad_s",
                 "gyro_z_rad_s", "roll_rad", "pitch_rad", "yaw_rad")
 
@@ -183,24 +184,27 @@ class MspImu:
                 with self._lock:
                     self._error = exc
                 return
-            if not isinstance(raw, msp.RawImu) or not isinstance(att, msp.Attitude):
-                continue
-            if self.clock.now() - stamp > self.max_round_trip_s or \
-                    getattr(self.clock, "paused_s", 0.0) != paused:
-                self.slow_rows += 1  # (a paced clock does not count what it paused)
-                continue
-            acc, gyro = msp.imu_si(raw, self.variant, self.acc_1g,
-                                   gyro_lsb_per_dps=self.gyro_lsb_per_dps)
-            with self._lock:
-                self._rows.append((stamp, *acc, *gyro, att.roll_rad, att.pitch_rad,
-                                   att.yaw_rad))
+            self._add_row(stamp, paused, raw, att)
+
+    def _add_row(self, stamp: float, paused: float, raw: Any, att: Any) -> None:
+        """One row stamped ``stamp``, unless its round trip was too long (see __init__)."""
+        if not isinstance(raw, msp.RawImu) or not isinstance(att, msp.Attitude):
+            return
+        if self.clock.now() - stamp > self.max_round_trip_s or \
+                getattr(self.clock, "paused_s", 0.0) != paused:
+            self.slow_rows += 1  # (a paced clock does not count what it paused)
+            return
+        acc, gyro = msp.imu_si(raw, self.variant, self.acc_1g,
+                               gyro_lsb_per_dps=self.gyro_lsb_per_dps)
+        with self._lock:
+            self._rows.append((stamp, *acc, *gyro, att.roll_rad, att.pitch_rad, att.yaw_rad))
 
     def _request(self, nan: msp.Attitude) -> tuple[Any, Any]:
         """RAW_IMU and ATTITUDE: one MSP_MULTIPLE_MSP round trip with ``multiple``."""
         if self.attitude and self.multiple:
-            reply = self.client.request(msp.multiple_request(_BOTH))
+            reply = self.client.request(msp.multiple_request(RAW_AND_ATTITUDE))
             try:
-                raw, att = msp.split_multiple(_BOTH, reply)
+                raw, att = msp.split_multiple(RAW_AND_ATTITUDE, reply)
             except msp.PayloadError as exc:
                 raise DeviceError(f"{self.url}: {exc}") from None
             return raw, att

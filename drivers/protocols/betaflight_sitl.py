@@ -73,7 +73,8 @@ def open_sitl_esc(ctx: Any, spec: DeviceUrl, share_link: Callable[[Any], Any]) -
 def open_sitl_imu(ctx: Any, spec: DeviceUrl, share_link: Callable[[Any], Any]) -> Sensor:
     """Launch the firmware fed by the IMU bench's simulated world, then poll its RAW_IMU
     (and ATTITUDE, option ``attitude``) over MSP as the IMU under test."""
-    from drivers.backends.msp_fc import STALE_GAP_S, MspClient, MspImu, MspImuSensor
+    from drivers.backends.msp_fc import STALE_GAP_S, MspClient, MspImuSensor
+    from drivers.backends.msp_pipeline import PipelinedMspImu
     from drivers.codecs.sitl import SITL_ACC_1G, SITL_GYRO_LSB_PER_DPS
     from drivers.wire_sim.sitl_imu_world import HexapodFdm
     from drivers.wire_sim.sitl_plant import SitlPlantPeer
@@ -82,7 +83,7 @@ def open_sitl_imu(ctx: Any, spec: DeviceUrl, share_link: Callable[[Any], Any]) -
     # the firmware's own scales unless the rig file says otherwise (what a run proves)
     acc_1g = spec.number("acc_1g", SITL_ACC_1G, lo=1.0, hi=32768.0)
     gyro_lsb = spec.number("gyro_lsb_per_dps", SITL_GYRO_LSB_PER_DPS, lo=1e-3, hi=1e3)
-    rate_hz = spec.number("rate_hz", ctx.rig.imu.value("rate_hz"), lo=0.1, hi=100.0)
+    rate_hz = spec.number("rate_hz", ctx.rig.imu.value("rate_hz"), lo=0.1, hi=500.0)
     timeout_s = spec.number("timeout_s", 1.0, lo=0.005, hi=5.0)
     # rows whose MSP round trip was longer, or polled further from an FDM packet the
     # firmware accepted, are dropped: when the firmware read its sensors is known to no
@@ -104,7 +105,7 @@ def open_sitl_imu(ctx: Any, spec: DeviceUrl, share_link: Callable[[Any], Any]) -
     ctx.peers[spec.role] = peer
     link = share_link(port)
     client = MspClient(link, spec.url, timeout_s=timeout_s)
-    imu = MspImu(client, rate_hz=rate_hz, acc_1g=acc_1g, clock=ctx.clock, url=spec.url,
+    imu = PipelinedMspImu(client, rate_hz=rate_hz, acc_1g=acc_1g, clock=ctx.clock, url=spec.url,
                  attitude=attitude, gyro_lsb_per_dps=gyro_lsb, multiple=True,
                  max_round_trip_s=max_rt)
     ctx.answers[spec.role] = (f"flight controller {imu.variant}, MSP API {imu.api.api_major}."

@@ -5,16 +5,19 @@ One recorded calibration (the rig opened in a fresh network namespace, as in
 ``test_sitl_rig.py``), then the commands as a user types them on the recorded log:
 ``rotorbench calibrate --from-log`` and ``rotorbench attitude --compare``.
 
-The stages are shorter and slower than Paper A's, for the firmware, not for speed alone:
-the firmware answers one MSP command per run of its 100 Hz serial task, so RAW_IMU and
-ATTITUDE give 13-25 rows a second (100 with a hexapod's own logger); and its accelerometer
-low-pass (PT2, 25 Hz at 1 kHz) advances once per FDM packet, so at the packet rate a
-loaded host sustains (500-650 a second) it lags the gyro by ~30 ms, which the one
-hexapod-IMU time offset of Paper A cannot absorb. So the accelerometer sees slow tilts
-(0.1-0.25 Hz, where 30 ms is 1-2 degrees of phase) instead of the 1.1-1.5 Hz translations,
-and the bounds are what such a run measures, not Paper A's 0.2 % and 2 mm: a few hundred
-rows per stage where Paper A has thousands, and the accelerometer's lag, which changes
-with the load, left over (docs/sim-rig.md, "Real firmware as the IMU").
+The stages are Paper A's kinds of motion, shortened for the suite (a 47 s recording):
+the firmware is set up at launch (rig option ``cli_settings``) with its serial task at
+1 kHz and no accelerometer low-pass, and RAW_IMU and ATTITUDE come in one
+MSP_MULTIPLE_MSP round trip, so the firmware gives 60-90 rows a second on an idle host
+(its TCP thread flushes a reply only every 10 ms) and its accelerometer no longer lags
+the gyro. Rows whose round trip outlasted 15 ms, or spanned a stall of the paced clock,
+or that were polled more than 10 ms from an FDM packet the firmware accepted, are dropped:
+when the firmware read its sensors is known no better, and at the translations' 1.5 Hz
+such timing errors are errors of K (docs/sim-rig.md, "Real firmware as the IMU").
+Measured: idle, K_w 0.12-0.25 %, K_a 0.15-0.57 %, R 1.5-6 mm; with two CPU hogs on the
+shared 2-core VM (load average 9-16 with the other engineers' jobs), 20-45 rows a second
+survive and K_w 0.3-0.6 %, K_a 0.5-1.4 %, R 3-31 mm. The bounds are what the loaded runs
+give, not Paper A's 0.2 % and 2 mm.
 """
 
 # Hexapod steps ride in plans.sequences.Sequence, typed as the propulsion bench's (as in
@@ -46,7 +49,7 @@ from drivers.contracts import IMU_ATTITUDE_CHANNELS, POSE_CHANNELS
 from drivers.factory import open_rig
 from drivers.hexapod_motions import Motion, gyro_sines, lever_arm_motion
 
-pytestmark = pytest.mark.slow(wall_s=110)  # a 78 s recording through the firmware
+pytestmark = pytest.mark.slow(wall_s=75)  # a 47 s recording through the firmware
 
 ROOT = Path(__file__).resolve().parents[2]
 RIG = ROOT / "bench" / "data" / "rigs" / "betaflight-sitl-imu.toml"
@@ -156,17 +159,16 @@ def test_calibrate_on_the_recorded_run_recovers_the_imu_model(recorded, capsys) 
     print(f"K_w {k_gyro:.3%}, K_a {k_acc:.3%}, lever arm {lever * 1e3:.1f} mm, gyro bias "
           f"{np.abs(z).max():.2f} standard errors, acc bias {acc_bias:.3f} m/s^2, time "
           f"offset {cal.time_offset_s * 1e3:.1f} ms")
-    # What such a run resolves (module doc; measured 0.1-0.6 % for K_w, 0.4-2.5 % for K_a,
-    # 0.5-11 cm for R, most of it K_a's error through the tilting gravity): the firmware's
-    # own scales (16.4 counts per deg/s, 1 g = 256) and its frames are right, since a wrong
-    # accelerometer unit (2048 per g) is 700 % away, a gyro in whole deg/s 1500 %, a
-    # flipped axis or mounting sign 60 % or more. It cannot tell 16.4 from 16.384 (0.1 %):
-    # the RAW_IMU test of test_msp_tcp_sitl.py does.
+    # What a loaded run resolves (module doc; idle runs reach 0.12-0.25 % for K_w, 0.15-
+    # 0.57 % for K_a, 1.5-6 mm for R): the firmware's own scales (16.4 counts per deg/s,
+    # 1 g = 256) and its frames are right, since a wrong accelerometer unit (2048 per g) is
+    # 700 % away, a gyro in whole deg/s 1500 %, a flipped axis or mounting sign 60 % or
+    # more. 16.4 against 16.384 (0.1 %) the RAW_IMU test of test_msp_tcp_sitl.py tells.
     assert k_gyro < 0.01
-    assert k_acc < 0.05
+    assert k_acc < 0.04
     assert np.all(np.abs(z) < 4.0)
     assert acc_bias < 0.5  # 13 counts of 1/256 g
-    assert lever < 0.1  # R is (0.365, -0.235, 0.230) m: a flipped sign is 0.46 m or more
+    assert lever < 0.05  # R is (0.365, -0.235, 0.230) m: a flipped sign is 0.46 m or more
     # the model's sensor latency, give or take the firmware's filters and where in the
     # MSP round trip (stamped at the request) the firmware read its sensors
     assert abs(cal.time_offset_s - truth["clock_offset_s"]) < 0.015
@@ -192,4 +194,4 @@ def test_the_firmware_attitude_is_the_echoed_platform_attitude(recorded, capsys)
     assert device["kind"] == "device"
     print(f"attitude vs the reference IMU: device {device['total_rmse_deg']:.2f} deg, "
           f"vqf-6d {scores['vqf-6d']['total_rmse_deg']:.2f} deg")
-    assert device["total_rmse_deg"] < 1.0
+    assert device["total_rmse_deg"] < 1.5  # measured 0.58-1.10 deg, loaded runs the most
