@@ -246,8 +246,9 @@ def estimate_time_offset(t: Array, ref_omega: Array, gyro: Array, bias: Array,
     # two rows when the rows are close)
     lo, hi = coarse - 2 * dt, coarse + 2 * dt
     while True:
-        d = float(minimize_scalar(cost, bounds=(lo, hi), method="bounded",
-                                  options={"xatol": 1e-6}).x)
+        res = minimize_scalar(cost, bounds=(lo, hi), method="bounded",
+                              options={"xatol": 1e-6})
+        d = float(res.x)
         step = 2 * dt * (int(hi - d < 1e-4) - int(d - lo < 1e-4))
         if not step or abs(d + step - coarse) > WALK_ROWS * dt:
             return d

@@ -7,17 +7,18 @@ One recorded calibration (the rig opened in a fresh network namespace, as in
 
 The stages are Paper A's kinds of motion, shortened for the suite (a 47 s recording):
 the firmware is set up at launch (rig option ``cli_settings``) with its serial task at
-1 kHz and no accelerometer low-pass, and RAW_IMU and ATTITUDE come in one
-MSP_MULTIPLE_MSP round trip, so the firmware gives 60-90 rows a second on an idle host
-(its TCP thread flushes a reply only every 10 ms) and its accelerometer no longer lags
-the gyro. Rows whose round trip outlasted 15 ms, or spanned a stall of the paced clock,
-or that were polled more than 10 ms from an FDM packet the firmware accepted, are dropped:
-when the firmware read its sensors is known no better, and at the translations' 1.5 Hz
-such timing errors are errors of K (docs/sim-rig.md, "Real firmware as the IMU").
-Measured: idle, K_w 0.12-0.25 %, K_a 0.15-0.57 %, R 1.5-6 mm; with two CPU hogs on the
-shared 2-core VM (load average 9-16 with the other engineers' jobs), 20-45 rows a second
-survive and K_w 0.3-0.6 %, K_a 0.5-1.4 %, R 3-31 mm. The bounds are what the loaded runs
-give, not Paper A's 0.2 % and 2 mm.
+1 kHz and no accelerometer low-pass, RAW_IMU and ATTITUDE come in one MSP_MULTIPLE_MSP
+request, sent every 5 ms with the next out before the last reply came (the SITL's TCP
+thread flushes a reply on new input or every 10 ms), so the firmware gives 60-90 rows a
+second on a lightly loaded host and its accelerometer no longer lags the gyro. Rows whose
+round trip outlasted 12 ms, or spanned a stall of the paced clock, or that were polled
+more than 10 ms from an FDM packet the firmware accepted, are dropped: when the firmware
+read its sensors is known no better, and a spread of stamps low-passes the signal, which
+is an error of K (docs/sim-rig.md, "Real firmware as the IMU").
+Measured (the shared 2-core VM): at load average 5-7, K_w 0.14-0.25 %, K_a 0.22-0.57 %,
+R 1.6-4.7 mm; at 8-16 (two CPU hogs beside it, or other engineers' jobs), 8-47 rows a
+second survive and K_w 0.31-1.13 %, K_a 0.34-2.6 %, R 3-31 mm. The bounds are what the
+loaded runs give, not Paper A's 0.2 % and 2 mm.
 """
 
 # Hexapod steps ride in plans.sequences.Sequence, typed as the propulsion bench's (as in
@@ -159,12 +160,12 @@ def test_calibrate_on_the_recorded_run_recovers_the_imu_model(recorded, capsys) 
     print(f"K_w {k_gyro:.3%}, K_a {k_acc:.3%}, lever arm {lever * 1e3:.1f} mm, gyro bias "
           f"{np.abs(z).max():.2f} standard errors, acc bias {acc_bias:.3f} m/s^2, time "
           f"offset {cal.time_offset_s * 1e3:.1f} ms")
-    # What a loaded run resolves (module doc; idle runs reach 0.12-0.25 % for K_w, 0.15-
-    # 0.57 % for K_a, 1.5-6 mm for R): the firmware's own scales (16.4 counts per deg/s,
+    # What a loaded run resolves (module doc; lightly loaded runs reach 0.14-0.25 % for
+    # K_w, 0.22-0.57 % for K_a, 1.6-4.7 mm for R): the firmware's own scales (16.4 counts per deg/s,
     # 1 g = 256) and its frames are right, since a wrong accelerometer unit (2048 per g) is
     # 700 % away, a gyro in whole deg/s 1500 %, a flipped axis or mounting sign 60 % or
     # more. 16.4 against 16.384 (0.1 %) the RAW_IMU test of test_msp_tcp_sitl.py tells.
-    assert k_gyro < 0.01
+    assert k_gyro < 0.02
     assert k_acc < 0.04
     assert np.all(np.abs(z) < 4.0)
     assert acc_bias < 0.5  # 13 counts of 1/256 g
