@@ -5,20 +5,20 @@ One recorded calibration (the rig opened in a fresh network namespace, as in
 ``test_sitl_rig.py``), then the commands as a user types them on the recorded log:
 ``rotorbench calibrate --from-log`` and ``rotorbench attitude --compare``.
 
-The stages are Paper A's kinds of motion, shortened for the suite (a 47 s recording):
-the firmware is set up at launch (rig option ``cli_settings``) with its serial task at
-1 kHz and no accelerometer low-pass, RAW_IMU and ATTITUDE come in one MSP_MULTIPLE_MSP
-request, sent every 5 ms with the next out before the last reply came (the SITL's TCP
-thread flushes a reply on new input or every 10 ms), so the firmware gives 60-90 rows a
-second on a lightly loaded host and its accelerometer no longer lags the gyro. Rows whose
-round trip outlasted 12 ms, or spanned a stall of the paced clock, or that were polled
-more than 10 ms from an FDM packet the firmware accepted, are dropped: when the firmware
-read its sensors is known no better, and a spread of stamps low-passes the signal, which
-is an error of K (docs/sim-rig.md, "Real firmware as the IMU").
-Measured (the shared 2-core VM): at load average 5-7, K_w 0.14-0.25 %, K_a 0.22-0.57 %,
-R 1.6-4.7 mm; at 8-16 (two CPU hogs beside it, or other engineers' jobs), 8-47 rows a
-second survive and K_w 0.31-1.13 %, K_a 0.34-2.6 %, R 3-31 mm. The bounds are what the
-loaded runs give, not Paper A's 0.2 % and 2 mm.
+The stages are Paper A's kinds of motion, shortened for the suite (a 47 s recording).
+The firmware is set up at launch (rig option ``cli_settings``) with its serial task at
+1 kHz and neither accelerometer nor gyro low-pass (they advance once per run of their task,
+which a shared host slows, so each lagged the other), and RAW_IMU and ATTITUDE come in one
+MSP_MULTIPLE_MSP request, sent every 5 ms with the next out before the last reply came (the
+SITL's TCP thread flushes a reply on new input or every 10 ms). Rows whose round trip
+outlasted 12 ms or spanned a stall of the paced clock, or with no FDM packet accepted in
+the 10 ms before, are dropped: when the firmware read its sensors is known no better, and
+a spread of stamps low-passes the signal, which is an error of K (docs/sim-rig.md, "Real
+firmware as the IMU"). Measured on the shared 2-core VM (never idle): at load average 7,
+K_w 0.30 %, K_a 0.15 %, R 1.2 mm; with two CPU hogs beside it (load average 8.6-14), 6-47
+rows a second per stage survive and K_w 0.26-0.31 %, K_a 0.56-1.15 %, R 2.6-6.0 mm. The
+bounds are what loaded runs of the intermediate steps gave (K_w to 1.2 %, K_a to 3 %, R to
+79 mm), not Paper A's 0.2 % and 2 mm.
 """
 
 # Hexapod steps ride in plans.sequences.Sequence, typed as the propulsion bench's (as in
@@ -160,8 +160,8 @@ def test_calibrate_on_the_recorded_run_recovers_the_imu_model(recorded, capsys) 
     print(f"K_w {k_gyro:.3%}, K_a {k_acc:.3%}, lever arm {lever * 1e3:.1f} mm, gyro bias "
           f"{np.abs(z).max():.2f} standard errors, acc bias {acc_bias:.3f} m/s^2, time "
           f"offset {cal.time_offset_s * 1e3:.1f} ms")
-    # What a loaded run resolves (module doc; lightly loaded runs reach 0.14-0.25 % for
-    # K_w, 0.22-0.57 % for K_a, 1.6-4.7 mm for R): the firmware's own scales (16.4 counts per deg/s,
+    # What a loaded run resolves (module doc; a lightly loaded one reached 0.30 % for K_w,
+    # 0.15 % for K_a, 1.2 mm for R): the firmware's own scales (16.4 counts per deg/s,
     # 1 g = 256) and its frames are right, since a wrong accelerometer unit (2048 per g) is
     # 700 % away, a gyro in whole deg/s 1500 %, a flipped axis or mounting sign 60 % or
     # more. 16.4 against 16.384 (0.1 %) the RAW_IMU test of test_msp_tcp_sitl.py tells.
@@ -169,7 +169,7 @@ def test_calibrate_on_the_recorded_run_recovers_the_imu_model(recorded, capsys) 
     assert k_acc < 0.04
     assert np.all(np.abs(z) < 4.0)
     assert acc_bias < 0.5  # 13 counts of 1/256 g
-    assert lever < 0.05  # R is (0.365, -0.235, 0.230) m: a flipped sign is 0.46 m or more
+    assert lever < 0.1  # R is (0.365, -0.235, 0.230) m: a flipped sign is 0.46 m or more
     # the model's sensor latency, give or take the firmware's filters and where in the
     # MSP round trip (stamped at the request) the firmware read its sensors
     assert abs(cal.time_offset_s - truth["clock_offset_s"]) < 0.015
