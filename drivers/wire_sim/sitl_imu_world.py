@@ -14,7 +14,7 @@ flight controller whose board alignment is the IMU's mounting would report it.
 The model is sampled at the world's (paced) clock; the packets are stamped by
 :func:`drivers.codecs.sitl.fdm_stamps`, as the propulsion world's: stamped with the clock
 (1 ms apart) the firmware re-estimated its clock rate from each packet's wall-clock gap,
-and a host stall's burst made its clock, and so its 100 Hz serial task, leap; by fixed
+and a host stall's burst made its clock, and so its serial task, leap; by fixed
 steps its clock is the host's monotonic one. Every call tells the clock the feeder is
 alive (a starved process pauses the world instead of jumping it ahead).
 """
