@@ -200,17 +200,23 @@ def fit_forward(truth: Array, reading: Array, intercept: bool) -> tuple[Array, A
 
 
 # ----------------------------------------------------------------------- time offset
+WALK_ROWS = 10  # how far the offset's refinement may move from the correlation's peak
+
+
 def estimate_time_offset(t: Array, ref_omega: Array, gyro: Array, bias: Array,
                          max_lag_s: float = 0.5) -> float:
     """Lag of the IMU behind the reference (s): |ω| cross-correlation, then LS refinement.
 
     The norm makes the correlation independent of the mounting rotation and scale
     (Kalibr's recipe); the parabola through the peak and a bounded 1-D search on the
-    residual of the K fit refine it below a sample period.
+    residual of the K fit refine it below a sample period. The correlation counts lags in
+    rows: rows missing here and there (a device that drops some) are put on an even grid
+    of the median step first, or the lag in rows is not the lag in time.
     """
     dt = float(np.median(np.diff(t)))
-    a = np.linalg.norm(ref_omega, axis=1)
-    b = np.linalg.norm(gyro - bias, axis=1)
+    grid = t[0] + dt * np.arange(int((t[-1] - t[0]) / dt) + 1)
+    a = np.interp(grid, t, np.linalg.norm(ref_omega, axis=1))
+    b = np.interp(grid, t, np.linalg.norm(gyro - bias, axis=1))
     a, b = a - a.mean(), b - b.mean()
     c = correlate(b, a, mode="full", method="fft")
     lags = correlation_lags(len(b), len(a), mode="full")
@@ -226,7 +232,7 @@ def estimate_time_offset(t: Array, ref_omega: Array, gyro: Array, bias: Array,
             shift += 0.5 * (y0 - y2) / den
     coarse = shift * dt
     spline = CubicSpline(t, ref_omega, axis=0)
-    trim = math.ceil(abs(coarse) / dt) + 3
+    trim = math.ceil(abs(coarse) / dt) + WALK_ROWS + 3
     inner = slice(trim, len(t) - trim)
     y = gyro[inner] - bias
 
@@ -235,9 +241,19 @@ def estimate_time_offset(t: Array, ref_omega: Array, gyro: Array, bias: Array,
         coef, *_ = np.linalg.lstsq(x, y, rcond=None)
         return float(np.sum((y - x @ coef) ** 2))
 
-    res = minimize_scalar(cost, bounds=(coarse - 2 * dt, coarse + 2 * dt), method="bounded",
-                          options={"xatol": 1e-6})
-    return float(res.x)
+    # a minimum on the window's edge is none: the window moves on, by up to WALK_ROWS (a
+    # correlation peak of slow motion is broad, and gaps and jitter move it by more than
+    # two rows when the rows are close)
+    lo, hi = coarse - 2 * dt, coarse + 2 * dt
+    while True:
+        res = minimize_scalar(cost, bounds=(lo, hi), method="bounded",
+                              options={"xatol": 1e-6})
+        d = float(res.x)
+        step = 2 * dt * (int(hi - d < 1e-4) - int(d - lo < 1e-4))
+        if not step or abs(d + step - coarse) > WALK_ROWS * dt:
+            return d
+        lo, hi = lo + step, hi + step
+    return d
 
 
 def aligned_phase(df: pd.DataFrame, label: str, offset: float) -> dict[str, Array]:

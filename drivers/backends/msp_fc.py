@@ -123,6 +123,8 @@ class MspClient:
         return bool(reply.flight_mode_flags & msp.ARMED_FLAG)
 
 
+#: what the IMU role asks a Betaflight FC for in one MSP_MULTIPLE_MSP request
+RAW_AND_ATTITUDE = (msp.MSP_RAW_IMU, msp.MSP_ATTITUDE)
 IMU_CHANNELS = ("acc_x_m_s2", "acc_y_m_s2", "acc_z_m_s2", "gyro_x_rad_s", "gyro_y_rad_s",
                 "gyro_z_rad_s", "roll_rad", "pitch_rad", "yaw_rad")
 
@@ -132,8 +134,14 @@ class MspImu:
 
     def __init__(self, client: MspClient, *, rate_hz: float = 100.0, acc_1g: float | None = None,
                  clock: Clock | None = None, url: str = "serial://msp",
-                 attitude: bool = True, gyro_lsb_per_dps: float | None = None) -> None:
+                 attitude: bool = True, gyro_lsb_per_dps: float | None = None,
+                 multiple: bool = False, max_round_trip_s: float = math.inf) -> None:
         self.client = client
+        self.multiple = multiple  # Betaflight: both in one MSP_MULTIPLE_MSP round trip
+        # the FC read its sensors somewhere between request and reply: a row whose round
+        # trip took longer has a time stamp worse than that, and is dropped
+        self.max_round_trip_s = max_round_trip_s
+        self.slow_rows = 0
         self.rate_hz = rate_hz
         self.attitude = attitude  # False: RAW_IMU only (roll/pitch/yaw NaN), twice the rate
         self.clock = clock or MonotonicClock()
@@ -169,21 +177,40 @@ class MspImu:
             # the FC answers with its latest sample, taken about when the request arrives:
             # the send time is the host time least disturbed by the reply's read latency
             stamp = self.clock.now()
+            paused = getattr(self.clock, "paused_s", 0.0)  # a paced clock's stalls
             try:
-                raw = self.client.request(msp.Request(msp.MSP_RAW_IMU))
-                att = self.client.request(msp.Request(msp.MSP_ATTITUDE)) if self.attitude \
-                    else nan
+                raw, att = self._request(nan)
             except DeviceError as exc:
                 with self._lock:
                     self._error = exc
                 return
-            if not isinstance(raw, msp.RawImu) or not isinstance(att, msp.Attitude):
-                continue
-            acc, gyro = msp.imu_si(raw, self.variant, self.acc_1g,
-                                   gyro_lsb_per_dps=self.gyro_lsb_per_dps)
-            with self._lock:
-                self._rows.append((stamp, *acc, *gyro, att.roll_rad, att.pitch_rad,
-                                   att.yaw_rad))
+            self._add_row(stamp, paused, raw, att)
+
+    def _add_row(self, stamp: float, paused: float, raw: Any, att: Any) -> None:
+        """One row stamped ``stamp``, unless its round trip was too long (see __init__)."""
+        if not isinstance(raw, msp.RawImu) or not isinstance(att, msp.Attitude):
+            return
+        if self.clock.now() - stamp > self.max_round_trip_s or \
+                getattr(self.clock, "paused_s", 0.0) != paused:
+            self.slow_rows += 1  # (a paced clock does not count what it paused)
+            return
+        acc, gyro = msp.imu_si(raw, self.variant, self.acc_1g,
+                               gyro_lsb_per_dps=self.gyro_lsb_per_dps)
+        with self._lock:
+            self._rows.append((stamp, *acc, *gyro, att.roll_rad, att.pitch_rad, att.yaw_rad))
+
+    def _request(self, nan: msp.Attitude) -> tuple[Any, Any]:
+        """RAW_IMU and ATTITUDE: one MSP_MULTIPLE_MSP round trip with ``multiple``."""
+        if self.attitude and self.multiple:
+            reply = self.client.request(msp.multiple_request(RAW_AND_ATTITUDE))
+            try:
+                raw, att = msp.split_multiple(RAW_AND_ATTITUDE, reply)
+            except msp.PayloadError as exc:
+                raise DeviceError(f"{self.url}: {exc}") from None
+            return raw, att
+        raw = self.client.request(msp.Request(msp.MSP_RAW_IMU))
+        att = self.client.request(msp.Request(msp.MSP_ATTITUDE)) if self.attitude else nan
+        return raw, att
 
     def link_errors(self) -> dict[str, int]:
         """Replies lost on the serial link (bad checksums, truncated, malformed frames)."""
@@ -289,7 +316,8 @@ class MspImuSensor:
     MSP_ATTITUDE convention: :func:`drivers.codecs.msp.attitude_quat_enu`)."""
 
     def __init__(self, imu: Any, rate_hz: float | None = None, *, port: Any = None,
-                 peer: Any = None, attitude: bool = False) -> None:
+                 peer: Any = None, attitude: bool = False,
+                 stale_gap_s: float = STALE_GAP_S) -> None:
         if attitude and (not imu.attitude or imu.variant != "BTFL"):
             raise DeviceError(f"{imu.url}: the attitude columns need a Betaflight FC polled "
                               f"for MSP_ATTITUDE (got {imu.variant})")
@@ -299,6 +327,7 @@ class MspImuSensor:
         self.rate_hz = imu.rate_hz if rate_hz is None else rate_hz  # of the rig clock
         self.port, self.peer = port, peer  # closed with the sensor; the simulated FC
         self._last_t = -math.inf
+        self.stale_gap_s = stale_gap_s
         self.stale_rows = 0  # dropped: the peer says the FC's sensors were not refreshed
 
     def describe(self) -> DeviceInfo:
@@ -322,7 +351,7 @@ class MspImuSensor:
         keep = t > np.maximum.accumulate(np.concatenate(([self._last_t], t[:-1])))
         fresh = getattr(self.peer, "fresh", None)
         if fresh is not None and t.size:  # a launched firmware: its heartbeat
-            ok = fresh(t, STALE_GAP_S)
+            ok = fresh(t, self.stale_gap_s)
             self.stale_rows += int(np.count_nonzero(keep & ~ok))
             keep &= ok
         if not keep.any():

@@ -43,6 +43,7 @@ MSP_STATUS_EX = 150
 MSP_UID = 160
 MSP_ATTITUDE_QUATERNION = 167
 MSP_SET_MOTOR = 214
+MSP_MULTIPLE_MSP = 230  # Betaflight: several "out" replies for one request (msp.c)
 MSP_ACC_TRIM = 240
 MSP_V2_FRAME_ID = 255  # §1.1 "MSPv2-over-v1": cmd 255 carries a v2 frame (msp.h)
 
@@ -732,6 +733,32 @@ def parse(frame: MspFrame) -> MspMessage:
     if frame.cmd in _REPLIES:
         return _REPLIES[frame.cmd].from_payload(frame.payload)
     return Unknown(frame.direction, frame.cmd, frame.payload.hex())
+
+
+def multiple_request(cmds: tuple[int, ...]) -> Unknown:
+    """Betaflight's MSP_MULTIPLE_MSP: one request whose payload lists "out" commands (one
+    byte each), answered in one reply, so in one run of the firmware's serial task, which
+    serves one command per run (4.6.0 msp_serial.c:486-510, msp.c:2406-2437)."""
+    if not cmds or not all(0 <= c <= 255 for c in cmds):
+        raise ValueError(f"MSP_MULTIPLE_MSP takes 1-byte command ids, got {cmds}")
+    return Unknown(REQUEST, MSP_MULTIPLE_MSP, bytes(cmds).hex())
+
+
+def split_multiple(cmds: tuple[int, ...], reply: MspMessage) -> list[MspMessage]:
+    """The typed replies in a MSP_MULTIPLE_MSP reply: per command a u8 size, then its
+    payload; the firmware leaves out the commands that did not fit its buffer, which is
+    a ``PayloadError`` here, as is any other mismatch."""
+    if not isinstance(reply, Unknown) or reply.cmd != MSP_MULTIPLE_MSP:
+        raise PayloadError(f"not a MSP_MULTIPLE_MSP reply: {reply!r}")
+    p, at, out = bytes.fromhex(reply.payload_hex), 0, []
+    for cmd in cmds:
+        if at >= len(p) or at + 1 + p[at] > len(p):
+            raise PayloadError(f"MSP_MULTIPLE_MSP reply of {len(p)} bytes ends before {cmd}")
+        out.append(parse(MspFrame(1, REPLY, cmd, p[at + 1:at + 1 + p[at]])))
+        at += 1 + p[at]
+    if at != len(p):
+        raise PayloadError(f"MSP_MULTIPLE_MSP reply has {len(p) - at} bytes left over")
+    return out
 
 
 def encode_message(msg: MspMessage, version: int = 1) -> bytes:

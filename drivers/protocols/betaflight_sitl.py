@@ -73,7 +73,8 @@ def open_sitl_esc(ctx: Any, spec: DeviceUrl, share_link: Callable[[Any], Any]) -
 def open_sitl_imu(ctx: Any, spec: DeviceUrl, share_link: Callable[[Any], Any]) -> Sensor:
     """Launch the firmware fed by the IMU bench's simulated world, then poll its RAW_IMU
     (and ATTITUDE, option ``attitude``) over MSP as the IMU under test."""
-    from drivers.backends.msp_fc import MspClient, MspImu, MspImuSensor
+    from drivers.backends.msp_fc import STALE_GAP_S, MspClient, MspImuSensor
+    from drivers.backends.msp_pipeline import PipelinedMspImu
     from drivers.codecs.sitl import SITL_ACC_1G, SITL_GYRO_LSB_PER_DPS
     from drivers.wire_sim.sitl_imu_world import HexapodFdm
     from drivers.wire_sim.sitl_plant import SitlPlantPeer
@@ -82,8 +83,13 @@ def open_sitl_imu(ctx: Any, spec: DeviceUrl, share_link: Callable[[Any], Any]) -
     # the firmware's own scales unless the rig file says otherwise (what a run proves)
     acc_1g = spec.number("acc_1g", SITL_ACC_1G, lo=1.0, hi=32768.0)
     gyro_lsb = spec.number("gyro_lsb_per_dps", SITL_GYRO_LSB_PER_DPS, lo=1e-3, hi=1e3)
-    rate_hz = spec.number("rate_hz", ctx.rig.imu.value("rate_hz"), lo=0.1, hi=100.0)
+    rate_hz = spec.number("rate_hz", ctx.rig.imu.value("rate_hz"), lo=0.1, hi=500.0)
     timeout_s = spec.number("timeout_s", 1.0, lo=0.005, hi=5.0)
+    # rows whose MSP round trip was longer, or polled further from an FDM packet the
+    # firmware accepted, are dropped: when the firmware read its sensors is known to no
+    # better (docs/sim-rig.md, "Real firmware as the IMU")
+    max_rt = spec.number("max_round_trip_s", timeout_s, lo=0.001, hi=timeout_s)
+    stale_gap = spec.number("stale_gap_s", STALE_GAP_S, lo=0.001, hi=1.0)
     attitude = spec.raw("attitude", False)
     if not isinstance(attitude, bool):
         raise spec.fail("attitude", f"expected true or false, got {attitude!r}")
@@ -99,12 +105,14 @@ def open_sitl_imu(ctx: Any, spec: DeviceUrl, share_link: Callable[[Any], Any]) -
     ctx.peers[spec.role] = peer
     link = share_link(port)
     client = MspClient(link, spec.url, timeout_s=timeout_s)
-    imu = MspImu(client, rate_hz=rate_hz, acc_1g=acc_1g, clock=ctx.clock, url=spec.url,
-                 attitude=attitude, gyro_lsb_per_dps=gyro_lsb)
+    imu = PipelinedMspImu(client, rate_hz=rate_hz, acc_1g=acc_1g, clock=ctx.clock, url=spec.url,
+                 attitude=attitude, gyro_lsb_per_dps=gyro_lsb, multiple=True,
+                 max_round_trip_s=max_rt)
     ctx.answers[spec.role] = (f"flight controller {imu.variant}, MSP API {imu.api.api_major}."
                               f"{imu.api.api_minor}; Betaflight SITL launched by the bench (pid "
                               f"{firmware.proc.pid}), fed the hexapod world at {fdm_hz:g} Hz")
-    return MspImuSensor(imu, rate_hz, port=link, peer=peer, attitude=attitude)
+    return MspImuSensor(imu, rate_hz, port=link, peer=peer, attitude=attitude,
+                        stale_gap_s=stale_gap)
 
 
 def _launch_options(spec: DeviceUrl) -> tuple[Any, Any, float]:
@@ -119,6 +127,18 @@ def _launch_options(spec: DeviceUrl) -> tuple[Any, Any, float]:
     rate_hz = spec.number("fdm_rate_hz", 250.0, lo=100.0, hi=1000.0)
     launcher = backend("betaflight_sitl", spec)
     return launcher, launcher.find_binary(binary_opt or None), rate_hz
+
+
+def _settings(spec: DeviceUrl) -> dict[str, str | int]:
+    """Option ``cli_settings``: the firmware's own settings for the run (CLI names and
+    values, e.g. ``{ acc_lpf_hz = 0 }``), given at launch before any MSP traffic
+    (``drivers.backends.betaflight_sitl``)."""
+    settings = spec.raw("cli_settings", {})
+    if not isinstance(settings, dict) or not all(
+            isinstance(k, str) and isinstance(v, str | int) for k, v in settings.items()):
+        raise spec.fail("cli_settings", f"expected a table of setting names and values, "
+                                        f"got {settings!r}")
+    return settings
 
 
 def _launch(ctx: Any, spec: DeviceUrl, launcher: Any, binary: Any,
@@ -137,7 +157,7 @@ def _launch(ctx: Any, spec: DeviceUrl, launcher: Any, binary: Any,
     for attempt in range(1, LAUNCHES + 1):
         firmware = port = peer = None
         try:
-            firmware = launcher.SitlProcess.launch(binary)
+            firmware = launcher.SitlProcess.launch(binary, settings=_settings(spec))
             port = mt.open_port("127.0.0.1", spec.port or mt.DEFAULT_PORT, spec.url,
                                 connect_timeout_s=ctx.open_timeout_s)
             client = MspClient(port, spec.url, timeout_s=READY_S)

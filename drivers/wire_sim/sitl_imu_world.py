@@ -11,9 +11,12 @@ hexapod's z-up navigation frame is the east-north-up earth the bench's attitude 
 and the attitude sent is the platform's (the UAV body's): the SITL echoes it, as a
 flight controller whose board alignment is the IMU's mounting would report it.
 
-Each packet is stamped with the world's (paced) clock, so the firmware's clock, which
-follows the stamps (§1.5), runs with the bench's; every call tells the clock the feeder
-is alive (a starved process pauses the world instead of jumping it ahead).
+The model is sampled at the world's (paced) clock; the packets are stamped by
+:func:`drivers.codecs.sitl.fdm_stamps`, as the propulsion world's: stamped with the clock
+(1 ms apart) the firmware re-estimated its clock rate from each packet's wall-clock gap,
+and a host stall's burst made its clock, and so its serial task, leap; by fixed
+steps its clock is the host's monotonic one. Every call tells the clock the feeder is
+alive (a starved process pauses the world instead of jumping it ahead).
 """
 
 from __future__ import annotations
@@ -23,7 +26,7 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from drivers.codecs.sitl import encode_fdm_imu
+from drivers.codecs.sitl import encode_fdm_imu, fdm_stamps
 
 __all__ = ["HexapodFdm"]
 
@@ -45,6 +48,7 @@ class HexapodFdm:
         self.batch = int(batch)
         self._alive = getattr(self.clock, "alive", None)
         self.last_t = -np.inf
+        self._stamps = fdm_stamps()
         self._grid = np.empty(0)
         self._rows = np.empty((0, 10))  # gyro, specific force, quaternion per grid time
 
@@ -57,11 +61,10 @@ class HexapodFdm:
     def __call__(self, _wall_t: float) -> bytes:
         if self._alive is not None:
             self._alive("sitl")
-        t = self.clock.now()
-        t = max(t, self.last_t + 1e-6)  # the firmware drops a packet whose time goes back
-        self.last_t = t
+        t = self.last_t = max(self.clock.now(), self.last_t)
         if not (self._grid.size and self._grid[0] <= t < self._grid[-1] + self.step_s):
             self._sample(t)
         k = int(np.searchsorted(self._grid, t, side="right")) - 1
         gx, gy, gz, ax, ay, az, qw, qx, qy, qz = self._rows[k].tolist()
-        return encode_fdm_imu(t, (gx, gy, gz), (ax, ay, az), (qw, qx, qy, qz))
+        return encode_fdm_imu(next(self._stamps), (gx, gy, gz), (ax, ay, az),
+                              (qw, qx, qy, qz))

@@ -181,18 +181,17 @@ class SitlPlantPeer:
             return [c for c in self._changes if c[0] >= since]
 
     def fresh(self, stamps: Any, max_gap_s: float) -> Any:
-        """Whether the firmware accepted an FDM packet within ``max_gap_s`` of each of
+        """Whether the firmware accepted an FDM packet within ``max_gap_s`` before each of
         ``stamps`` (the rig's clock): each accepted packet brings one motor update, so a
-        reading polled where none came is one the firmware's sensors did not refresh (a
-        starved machine stalled the feeder or the firmware for a while)."""
+        reading polled where none came just before is one the firmware's sensors did not
+        refresh (a starved machine stalled the feeder or the firmware's packet thread,
+        while its main thread went on answering with the last packet's data; the packets
+        queued meanwhile are taken in a burst after, too late for such a reading)."""
         t = np.asarray(stamps, float)
         beats = np.fromiter(self._beats, float)
-        if beats.size == 0:
-            return np.zeros(t.shape, bool)
-        i = np.clip(np.searchsorted(beats, t), 1, beats.size - 1) if beats.size > 1 \
-            else np.zeros(t.shape, int)
-        near = np.minimum(np.abs(beats[i] - t), np.abs(beats[np.maximum(i - 1, 0)] - t))
-        return near <= max_gap_s
+        i = np.searchsorted(beats, t, side="right") - 1  # the last beat at or before each
+        last = beats[np.maximum(i, 0)] if beats.size else np.full(t.shape, -np.inf)
+        return (i >= 0) & (t - last <= max_gap_s)
 
     def pause(self) -> None:
         """Stop feeding FDM: the firmware then sends no motor output (tests)."""

@@ -223,3 +223,21 @@ def test_declared_size_beyond_limit_is_garbage_and_does_not_stall():
     dec = msp.MspDecoder(typed=True, max_payload=1024)
     assert dec.feed(huge + good) == [msp.Ack(214)]
     assert dec.buffered == 0
+
+
+def test_multiple_msp_splits_into_the_typed_replies_and_refuses_a_short_one():
+    """Betaflight's MSP_MULTIPLE_MSP (msp.c): per command a u8 size, then its payload."""
+    cmds = (msp.MSP_RAW_IMU, msp.MSP_ATTITUDE)
+    req = msp.multiple_request(cmds)
+    assert msp.encode_message(req) == msp.encode_v1(msp.REQUEST, 230, bytes([102, 108]))
+    raw = msp.RawImu((1, -2, 256), (16, -33, 0), (0, 0, 0))
+    att = msp.Attitude(math.radians(1.5), math.radians(-2.0), math.radians(90.0))
+    body = b"".join(bytes([len(p)]) + p for p in (raw.to_payload(), att.to_payload()))
+    reply = msp.Unknown(msp.REPLY, msp.MSP_MULTIPLE_MSP, body.hex())
+    assert msp.split_multiple(cmds, reply) == [raw, att]
+    with pytest.raises(msp.PayloadError, match="ends before 108"):
+        msp.split_multiple(cmds, msp.Unknown(msp.REPLY, 230, body[:19].hex()))
+    with pytest.raises(msp.PayloadError, match="left over"):
+        msp.split_multiple(cmds[:1], reply)
+    with pytest.raises(ValueError):
+        msp.multiple_request((0x1001,))

