@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import least_squares
 
-from analysis.cell_response import CellDynamics, thrust_step
+from analysis.cell_response import CellDynamics, thrust_step, thrust_step_jacobian
 from analysis.errors import LogError
 from analysis.run_record import RunRecord, esc_frame_s, event_times
 
@@ -420,7 +420,11 @@ def _crossing(tb: np.ndarray, z: np.ndarray, level: float) -> float:
 
 def _fit_first_order(tb: np.ndarray, yb: np.ndarray, cnt: np.ndarray, step: float,
                      post_s: float, cell: CellDynamics | None = None,
-                     square: bool = False) -> FirstOrderFit:
+                     square: bool = False, start: FirstOrderFit | None = None
+                     ) -> FirstOrderFit:
+    """Least squares of ``thrust_step`` to one window; ``start``: a fit of the same
+    response (the mean of the repeats) whose latency and tau one edge's fit starts from,
+    nearer than its own noisy crossings (fewer iterations, the same minimum)."""
     y0d, y1d = _direct_levels(tb, yb)
     use = np.isfinite(yb) & (cnt > 0)
     why = ""
@@ -445,11 +449,20 @@ def _fit_first_order(tb: np.ndarray, yb: np.ndarray, cnt: np.ndarray, step: floa
     def resid(p: np.ndarray) -> np.ndarray:
         return w * (thrust_step(tt, p[0], p[1], p[2], p[3], cell, square) - yy) / scale
 
+    def jac(p: np.ndarray) -> np.ndarray:  # analytic: finite differences cost 4 models
+        return thrust_step_jacobian(tt, p[0], p[1], p[2], p[3], cell, square)[1] * (
+            w / scale)[:, None]
+
     if cell is not None:  # the cell's group delay is the cell's, not the plant's latency
         lat0 = max(lat0 - cell.group_delay_s, 0.0)
+    if start is not None and start.fitted:
+        lat0 = min(max(start.latency_s, 0.0), 0.4 * post_s)
+        tau0 = min(max(start.tau_s, 1e-4), 1.9 * post_s)
     lo = [0.0, 1e-4, -np.inf, -np.inf]
     hi = [0.5 * post_s, 2.0 * post_s, np.inf, np.inf]
-    sol = least_squares(resid, [lat0, tau0, y0d, y1d], bounds=(lo, hi), x_scale="jac")
+    sol = least_squares(resid, [lat0, tau0, y0d, y1d],
+                        jac=jac,  # pyright: ignore[reportArgumentType] (stub: str only)
+                        bounds=(lo, hi), x_scale="jac")
     lat, tau, y0, y1 = (float(v) for v in sol.x)
     model = thrust_step(tt, lat, tau, y0, y1, cell, square)
     rms = float(np.sqrt(np.average((model - yy) ** 2, weights=cnt[use])))
@@ -585,9 +598,10 @@ def fit_step_response(
         cnt = cnt_all.sum(axis=0)
         steps = np.array([edges[i].step for i in idx])
         step = float(np.mean(steps))
-        singles = tuple(_fit_first_order(r[0], r[1], r[2], float(s), post_s, cell, square_law)
-                        for r, s in zip(rows, steps, strict=True))
         mean = _fit_first_order(tb, y_mean, cnt, step, post_s, cell, square_law)
+        singles = tuple(_fit_first_order(r[0], r[1], r[2], float(s), post_s, cell, square_law,
+                                         start=mean)
+                        for r, s in zip(rows, steps, strict=True))
         so = _fit_second_order(tb, y_mean, cnt, step, post_s, mean) if second_order and \
             mean.ok else None
         good = [s for s in singles if s.fitted]

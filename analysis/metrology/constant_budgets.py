@@ -99,25 +99,45 @@ def calibration_terms(applied: Mapping[str, Any] | None, value: float) -> list[T
                  note="combined relative uncertainty of the record's scale")]
 
 
-def _timebase_term(value: float) -> Term:
-    return Term("speed counter timebase", 2.0 * abs(value) * rectangular(TIMEBASE_PPM * 1e-6),
-                "B", note=f"+-{TIMEBASE_PPM:g} ppm crystal, rectangular; k ~ 1/w^2: "
-                          "sensitivity -2")
+def _timebase_term(value: float, power: int = -2) -> Term:
+    """The counter's timebase scales every speed by (1 + e): a constant proportional to
+    w^power moves by power * e of itself."""
+    return Term("speed counter timebase", abs(power * value) * rectangular(TIMEBASE_PPM * 1e-6),
+                "B", note=f"+-{TIMEBASE_PPM:g} ppm crystal, rectangular; ~ w^{power}: "
+                          f"sensitivity {power}")
 
 
-def _slope_budget(value: float, per_point: float, n: int, unit: str,
-                  applied: Mapping[str, Any] | None, zero: tuple[float, float] | None
-                  ) -> Budget:
-    terms = []
-    if n > 1 and math.isfinite(per_point):
-        terms.append(Term("fit through the origin (speed levels' scatter)",
-                          per_point / math.sqrt(n), "A", dof=n - 1,
-                          note=f"{n} binned speed levels"))
-    if zero is not None and all(map(math.isfinite, zero)):
-        sens, u_zero = zero
-        terms.append(Term("zero (tare) of the cell", abs(sens) * u_zero, "A",
-                          note=f"u {u_zero:.3g} of the zero, shared by every reading; "
-                               "dk/dc = sum(w^2) / sum(w^4)"))
+def _noise_term(u_rep: float, replicates: int, spread: float, n: int, what: str
+                ) -> list[Term]:
+    """The fit's noise: from the interleaved sub-sweeps when the sweep had samples for
+    them (``analysis.static_curves.replicate_u``), else the levels' scatter (an upper
+    bound: it holds the bins' speed-thrust mismatch too)."""
+    if math.isfinite(u_rep) and replicates > 1:
+        return [Term(f"sensor noise ({what}, {replicates} interleaved sub-sweeps)", u_rep,
+                     "A", dof=replicates - 1,
+                     note="standard deviation of the sub-sweeps' mean (GUM 4.2.3)")]
+    if n > 1 and math.isfinite(spread):
+        return [Term(f"{what} (speed levels' scatter)", spread, "A", dof=n - 1,
+                     note=f"{n} binned speed levels")]
+    return []
+
+
+def _zero_term(sens: float, u_zero: float) -> list[Term]:
+    if not (math.isfinite(sens) and math.isfinite(u_zero)):
+        return []
+    return [Term("zero (tare) of the cell", abs(sens) * u_zero, "A",
+                 note=f"u {u_zero:.3g} of the zero, shared by every reading; sensitivity "
+                      f"{sens:.3g} per unit of zero")]
+
+
+def _slope_budget(curves: StaticCurves, k: str, spread: float, n: int, unit: str,
+                  applied: Mapping[str, Any] | None, u_zero: float | None) -> Budget:
+    value = float(getattr(curves, k))
+    terms = _noise_term(getattr(curves, f"{k}_u"), curves.replicates,
+                        spread / math.sqrt(n) if n > 0 else math.nan, n,
+                        "fit through the origin")
+    if u_zero is not None:
+        terms += _zero_term(getattr(curves, f"{k}_zero_sensitivity"), u_zero)
     terms += calibration_terms(applied, value)
     terms.append(_timebase_term(value))
     return Budget.of(value, unit, terms)
@@ -135,21 +155,24 @@ def static_budgets(curves: StaticCurves, calibrations: Mapping[str, Any] | None 
     n_f = int(np.isfinite(curves.thrust).sum())
     n_q = int(np.isfinite(curves.torque).sum())
     if math.isfinite(curves.k_f):
-        out["k_f_n_s2"] = _slope_budget(
-            curves.k_f, curves.k_f_std, n_f, "N s^2", cal.get("thrust_n"),
-            (curves.k_f_zero_sensitivity, zu["thrust_n"]) if "thrust_n" in zu else None)
+        out["k_f_n_s2"] = _slope_budget(curves, "k_f", curves.k_f_std, n_f, "N s^2",
+                                        cal.get("thrust_n"), zu.get("thrust_n"))
     if math.isfinite(curves.k_q):
-        out["k_q_nm_s2"] = _slope_budget(
-            curves.k_q, curves.k_q_std, n_q, "N m s^2", cal.get("torque_nm"),
-            (curves.k_q_zero_sensitivity, zu["torque_nm"]) if "torque_nm" in zu else None)
+        out["k_q_nm_s2"] = _slope_budget(curves, "k_q", curves.k_q_std, n_q, "N m s^2",
+                                         cal.get("torque_nm"), zu.get("torque_nm"))
     ok = np.isfinite(curves.thrust)
     if curves.thrust_poly is not None and ok.sum() > 4:
         coef, cov = np.polyfit(curves.omega[ok], curves.thrust[ok], 2, cov=True)
         units = ("N", "N s", "N s^2")
         for power, (c, var) in enumerate(zip(coef[::-1], np.diag(cov)[::-1], strict=True)):
-            terms = [Term("polynomial fit (speed levels' scatter)", math.sqrt(max(var, 0.0)),
-                          "A", dof=int(ok.sum()) - 3, note="np.polyfit covariance")]
+            terms = _noise_term(curves.thrust_poly_u[power], curves.replicates,
+                                math.sqrt(max(var, 0.0)), int(ok.sum()) - 2,
+                                "polynomial fit")
+            if power == 0 and "thrust_n" in zu:  # a zero error shifts the constant term
+                terms += _zero_term(1.0, zu["thrust_n"])
             terms += calibration_terms(cal.get("thrust_n"), float(c))
+            if power:
+                terms.append(_timebase_term(float(c), -power))
             out[f"thrust_poly_w_{power}"] = Budget.of(float(c), units[power], terms)
     return out
 

@@ -28,6 +28,7 @@ from bench.cli_args.store_args import (
 from bench.paths.outputs import check_folder_to_read, check_writable
 from bench.store.constants_fit import STD_KEYS, UNCERTAINTY, fit_for_store
 from bench.store.lab_catalog import StoredConstants
+from optimizer.errors import RequestError
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -54,6 +55,9 @@ def handler(args: argparse.Namespace) -> int:
     store = store_from_args(args)
     if hasattr(store, "root"):  # a folder store: the folder must be readable/writable
         check_folder_to_read(store.root)
+        if args.json and not args.add and not Path(store.root).is_dir():
+            # a script reading [] could not tell a mistyped folder from an empty store
+            raise RequestError(f"{store.root}: no such folder; no constants to list")
         if args.add:
             check_writable(store.root, "--out", folder=True)
     fitted = []

@@ -37,6 +37,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--auw-kg", type=float, default=None, help="ardupilot: all-up weight (kg)")
     p.add_argument("--motors", type=int, default=None, help="ardupilot: number of motors")
     p.add_argument("--json", action="store_true", help="print JSON instead of parameter lines")
+    p.add_argument("--out", type=Path, default=None,
+                   help="write the parameters to this file instead of printing them, and "
+                        "beside it <name>.uncertainty.json: each exported constant's value, "
+                        "u, U, k, dof_eff, budget, run and calibration records")
     p.set_defaults(func=handler)
 
 
@@ -94,26 +98,51 @@ def handler(args: argparse.Namespace) -> int:
     for name in ("run", "thrust_run", "step_run"):
         if getattr(args, name) is not None:
             setattr(args, name, run_folder_arg(args, getattr(args, name)))
+    if args.out is not None:
+        from bench.paths.outputs import check_writable
+
+        check_writable(args.out, "--out", folder=False)
     out = build(args)
-    if args.json:
-        print(json.dumps(out, indent=2, allow_nan=False))
+    text = json.dumps(out, indent=2, allow_nan=False) if args.json else _lines(args, out)
+    if args.out is None:
+        print(text)
         return 0
-    notes = out.get("notes", [])
+    from analysis.export_uncertainty import export_uncertainties
+    from analysis.run_record import read_run
+
+    side = export_uncertainties(
+        args.target, out, read_run(args.run),
+        read_run(args.thrust_run) if args.thrust_run else None,
+        read_run(args.step_run) if args.step_run is not None else None)
+    args.out.write_text(text + "\n", encoding="utf-8")
+    sidecar = sidecar_path(args.out)
+    sidecar.write_text(json.dumps(side, indent=2, allow_nan=False) + "\n", encoding="utf-8")
+    print(f"wrote {args.out} and {sidecar}")
+    return 0
+
+
+def sidecar_path(out: Path) -> Path:
+    """``<name>.uncertainty.json`` beside the exported file ``<name>.<ext>``."""
+    return out.with_name(f"{out.stem}.uncertainty.json")
+
+
+def _lines(args: argparse.Namespace, out: dict[str, Any]) -> str:
+    """The parameters as the target's own lines, the fit's remarks as comments."""
+    lines = []
     if args.target == "ardupilot":
         for name in ("MOT_THST_EXPO", "MOT_SPIN_MIN", "MOT_SPIN_MAX", "MOT_THST_HOVER"):
             if out.get(name) is not None:
-                print(f"{name},{out[name]}")
-        print(f"# fit rms {out['fit_rms']:.4f} (normalised thrust); WebTools criterion gives "
-              f"{out['expo_webtool']:.3f}; command axis {out['command_axis']}")
+                lines.append(f"{name},{out[name]}")
+        lines.append(f"# fit rms {out['fit_rms']:.4f} (normalised thrust); WebTools criterion "
+                     f"gives {out['expo_webtool']:.3f}; command axis {out['command_axis']}")
     elif args.target == "px4":
-        print(f"param set THR_MDL_FAC {out['THR_MDL_FAC']}")
-        print(f"# fit rms {out['fit_rms']:.4f} (normalised thrust); command axis "
-              f"{out['command_axis']}")
+        lines.append(f"param set THR_MDL_FAC {out['THR_MDL_FAC']}")
+        lines.append(f"# fit rms {out['fit_rms']:.4f} (normalised thrust); command axis "
+                     f"{out['command_axis']}")
     else:
         for name in ("motorConstant", "momentConstant", "timeConstantUp", "timeConstantDown",
                      "maxRotVelocity"):
             if out.get(name) is not None:
-                print(f"<{name}>{out[name]}</{name}>")
-    for n in notes:
-        print(f"# {n}")
-    return 0
+                lines.append(f"<{name}>{out[name]}</{name}>")
+    lines += [f"# {n}" for n in out.get("notes", [])]
+    return "\n".join(lines)

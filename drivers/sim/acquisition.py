@@ -422,7 +422,8 @@ class Acquisition:
                 period[stale] = math.inf
                 if stale[-1]:
                     self._period = math.inf
-        return period
+        err = p.counter_timebase_error
+        return period * (1.0 + err) if err else period
 
 
 class _Reader(Protocol):

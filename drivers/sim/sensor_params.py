@@ -37,6 +37,9 @@ class SensorParams:
     adc_range_v: float = 10.0  # +-10 V input range
     magnets: int = 14  # hall sensor sees the 14 rotor magnets (Paper C 2.2)
     counter_hz: float = 40e6  # FPGA counter timebase of the cRIO (NI-9401 on a 40 MHz FPGA)
+    # its crystal's error (relative): running fast by this much, it counts every period
+    # long and the speed reads low by it (0: exact; a crystal is good to +-50 ppm)
+    counter_timebase_error: float = 0.0
     rpm_timeout_s: float = 0.1  # no hall edge for this long -> the counter reports 0 rpm
     buffer_s: float = 30.0  # DAQ buffer: a sensor not read for this long overruns
     # Optional accelerometer on the load-cell mount (channel acc_x_m_s2, radial, at the

@@ -8,11 +8,16 @@ boundaries, the load cell and speed counter are read in blocks, the thrust and t
 tared at rest like the runner's tare, and the samples go through the same fits
 (``fit_step_response`` with the cell mechanics the sensor declares and the square law of a
 tared thrust; ``fit_static``) and budgets (``analysis.metrology.constant_budgets``) as
-``rotorbench constants``. Per seed: a step run of 12 repeats (0.25 s, 8 tau, per level)
-of +-5 % around hover (the small-signal time constant of the truth, C.3 / E.8, is what a
+``rotorbench constants``. Per seed: a step run of 8 repeats (0.25 s, 8 tau, per level) of
++-5 % around hover (the small-signal time constant of the truth, C.3 / E.8, is what a
 small step measures) and a sweep of 1100 -> 1900 us over 9 s with a torque cell (the
 shipped sweep takes 20 s; over 3 s the speed counter's lag behind the load cell biased k_f
-by -0.06 %, 2.4 u: a sweep must be slow for its k_f, and this one is slow enough).
+by -0.06 %, 2.4 u: a sweep must be slow for its k_f, and this one is slow enough). The DAQ
+samples at 5 kHz rather than 25 kHz (a fifth of the samples, each as noisy: larger
+uncertainties, the same question), and each seed's counter crystal is off by what the
+budget's timebase term assumes (a Type B term is only tested where the error it covers
+exists). The torque cell's noise is a table of 2^18 samples that wraps: 52 s at 5 kHz,
+but only 10.5 s at 25 kHz, where a longer case repeats the tare's noise in its sweep.
 """
 
 from __future__ import annotations
@@ -23,7 +28,7 @@ import numpy as np
 import pytest
 
 from analysis.cell_response import CellDynamics
-from analysis.metrology.constant_budgets import static_budgets, step_budgets
+from analysis.metrology.constant_budgets import TIMEBASE_PPM, static_budgets, step_budgets
 from analysis.static_curves import fit_static
 from analysis.step_response import fit_step_response
 from drivers.sim.rig import SimRig
@@ -31,6 +36,8 @@ from drivers.sim.sensor_params import SensorParams
 
 SEEDS = range(50)
 HOVER_N = 0.25 * 9.80665  # Paper C: 250 g per rotor
+SAMPLE_RATE_HZ = 5000.0  # the DAQ's 25 kHz / 5: a fifth of the samples, each as noisy
+REPEATS = 8  # up and down steps per seed
 CHUNK_FRAMES = 40  # frames between reads (100 ms at 400 Hz; the runner's tick is 20 ms)
 
 
@@ -38,7 +45,11 @@ class Drive:
     """The rig driven on its own clock: pulses on frame boundaries, blocks read."""
 
     def __init__(self, seed: int) -> None:
-        self.rig = SimRig(seed=seed, sensor_params=SensorParams(torque_cell_range_nm=0.5))
+        # the counter's crystal off by what the budget's timebase term assumes (rectangular)
+        crystal = np.random.default_rng(seed).uniform(-1.0, 1.0) * TIMEBASE_PPM * 1e-6
+        self.rig = SimRig(seed=seed, sensor_params=SensorParams(
+            sample_rate_hz=SAMPLE_RATE_HZ, torque_cell_range_nm=0.5,
+            counter_timebase_error=crystal))
         self.truth = self.rig.truth()
         self.frame = self.truth.frame_period_s
         self.cols: dict[str, list[np.ndarray]] = {k: [] for k in ("t", "u", "f", "q", "rpm")}
@@ -85,7 +96,7 @@ def _step_case(seed: int) -> dict[str, tuple[float, float, float]]:
     lo, hi = (tr.pulse_for_thrust_us(HOVER_N * r) for r in (0.95, 1.05))
     d.start()
     d.hold(lo, 1.0)
-    for _ in range(12):
+    for _ in range(REPEATS):
         d.step(hi, 0.25)
         d.step(lo, 0.25)
     a = d.arrays()
@@ -102,16 +113,17 @@ def _step_case(seed: int) -> dict[str, tuple[float, float, float]]:
 
 def _sweep_case(seed: int) -> dict[str, tuple[float, float, float]]:
     d = Drive(seed + 1000)
-    d.start()  # as the sweep sequence: up to the start in 1 s, held 1 s, then the ramp
-    d.hold(1000.0, 1.0, ramp_to=1100.0)
-    d.hold(1100.0, 1.0)
+    d.start()  # as the sweep sequence: up to the start, held, then the ramp
+    d.hold(1000.0, 0.5, ramp_to=1100.0)
+    d.hold(1100.0, 0.5)
     d.hold(1100.0, 9.0, ramp_to=1900.0)
     a = d.arrays()
     curves = fit_static(a["rpm"], a["f"], None, a["q"])
     b = static_budgets(curves, zero_u=d.tare_u)
     p = d.truth.params
-    return {"k_f_n_s2": (b["k_f_n_s2"].value, b["k_f_n_s2"].u, p.thrust_k),
-            "k_q_nm_s2": (b["k_q_nm_s2"].value, b["k_q_nm_s2"].u, p.torque_k)}
+    truth = {"k_f_n_s2": p.thrust_k, "k_q_nm_s2": p.torque_k, "thrust_poly_w_0": 0.0,
+             "thrust_poly_w_1": 0.0, "thrust_poly_w_2": p.thrust_k}  # (E.1), (E.2)
+    return {k: (b[k].value, b[k].u, v) for k, v in truth.items()}
 
 
 @pytest.fixture(scope="module")
@@ -124,20 +136,18 @@ def cases() -> dict[str, list[tuple[float, float, float]]]:
     return out
 
 
-#: measured over-coverage: 50/50 with the slow sweep (k_f's errors scatter by 0.3 u); the
-#: per-level scatter of the binned medians overstates the slope's noise. Strict: it fails
-#: once the budget is right.
-_OVER = pytest.mark.xfail(strict=True, reason="k_f, k_q budgets too wide: 50/50 within U")
-
-
-@pytest.mark.parametrize("name", ["latency_s", "tau_up_s", "tau_down_s",
-                                  pytest.param("k_f_n_s2", marks=_OVER),
-                                  pytest.param("k_q_nm_s2", marks=_OVER)])
+@pytest.mark.parametrize("name", ["latency_s", "tau_up_s", "tau_down_s", "k_f_n_s2",
+                                  "k_q_nm_s2", "thrust_poly_w_0", "thrust_poly_w_1",
+                                  "thrust_poly_w_2"])
 def test_true_value_within_expanded_uncertainty(cases, name):
     rows = np.array(cases[name])
     value, u, truth = rows.T
     assert np.all(np.isfinite(u) & (u > 0))
-    inside = int(np.sum(np.abs(value - truth) <= 2.0 * u))
-    bias = float(np.mean(value - truth) / np.mean(u))
-    assert 45 <= inside <= 49, f"{name}: {inside}/50 within U; mean error {bias:+.2f} u"
-    assert math.isfinite(bias)
+    z = (value - truth) / u
+    inside = int(np.sum(np.abs(z) <= 2.0))
+    rms = float(np.sqrt(np.mean(z * z)))
+    what = f"{name}: {inside}/50 within U; rms error {rms:.2f} u, mean {np.mean(z):+.2f} u"
+    assert inside >= 45, what  # at least 90 %
+    # 99 % at most cannot be told from 50 seeds (a right budget puts all 50 within U one
+    # time in ten): a budget too wide shows as errors well inside u, the rms of z below 1
+    assert 0.7 <= rms <= 1.4, what

@@ -18,6 +18,7 @@ from bench.rig.rig import default_rig_path, load_rig
 from bench.store.constants_store import ConstantsStore
 from bench.store.measured_constants import load_measured
 from drivers.factory import open_rig
+from tests.conftest import run_bad
 
 
 def test_store_fits_and_overrides(tmp_path, capsys, monkeypatch):
@@ -83,3 +84,10 @@ def test_runs_without_components_are_refused(tmp_path, capsys):
     with pytest.raises(ValueError):
         ConstantsStore(tmp_path).put(None, "other", "x", "y", {})  # type: ignore[arg-type]
     assert RigError.exit_code == 2
+
+
+def test_json_of_a_folder_that_does_not_exist_is_refused(tmp_path, capsys):
+    line = run_bad(capsys, "constants", "--json", "--out", str(tmp_path / "nope"))
+    assert "no such folder" in line and capsys.readouterr().out == ""
+    assert main(["constants", "--json", "--out", str(tmp_path)]) == 0  # empty: []
+    assert json.loads(capsys.readouterr().out) == []

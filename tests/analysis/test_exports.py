@@ -115,6 +115,20 @@ def test_sim_gazebo_export_matches_the_plant(tmp_path, capsys):
     assert gz["timeConstantUp"] == pytest.approx(truth.tau_up_s(hover), rel=0.05)
     assert gz["timeConstantDown"] == pytest.approx(truth.tau_dn_s(hover), rel=0.05)
     assert gz["momentConstant"] is None
+    # --out: the parameters to a file, and beside it their uncertainties
+    sdf = tmp_path / "motor.sdf"
+    assert main(["export", "gazebo", str(sw), "--step-run", str(st), "--out", str(sdf)]) == 0
+    assert capsys.readouterr().out.startswith(f"wrote {sdf} and ")
+    assert f"<motorConstant>{gz['motorConstant']}</motorConstant>" in sdf.read_text()
+    side = json.loads((tmp_path / "motor.uncertainty.json").read_text())
+    assert side["target"] == "gazebo" and side["without_budget"] == ["maxRotVelocity"]
+    kf, up = side["constants"]["motorConstant"], side["constants"]["timeConstantUp"]
+    assert kf["run"] == sw.name and up["run"] == st.name and kf["calibrations"] == []
+    assert kf["value"] == pytest.approx(gz["motorConstant"], rel=1e-5)
+    assert up["value"] == pytest.approx(gz["timeConstantUp"], rel=1e-3)
+    for c in (kf, up):
+        assert c["k"] == 2 and c["U"] == pytest.approx(2 * c["u"]) and c["budget"]
+        assert 0 < c["u"] < 0.05 * c["value"] and "dof_eff" in c
     ap = _json(capsys, ["export", "ardupilot", str(sw), "--hover-thrust", str(hover),
                         "--json"])
     assert ap["command_axis"] == "throttle_us over 1000-2000"

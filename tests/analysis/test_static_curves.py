@@ -156,3 +156,20 @@ def test_thrust_rms_is_the_raw_residual_and_the_binned_one_is_labelled():
     assert s.thrust_rms_binned < 0.05
     sm = s.summary()
     assert sm["thrust_rms_n"] == s.thrust_rms and sm["thrust_rms_binned_n"] == s.thrust_rms_binned
+
+
+def test_slope_noise_from_interleaved_sub_sweeps_is_the_slopes_scatter():
+    # a slow sweep read by a counter that holds each period's mean speed for the period
+    # (a staircase, no lag) with white thrust noise: over 40 noise draws, k_f's own
+    # scatter is what its replicate u says, and the bins' medians, paired, leave no bias
+    w_true = np.linspace(300.0, 1200.0, 29_997)
+    held = np.repeat(w_true.reshape(-1, 11).mean(axis=1), 11)
+    k_true, ks, us = 2e-6, [], []
+    for seed in range(40):
+        noise = np.random.default_rng(seed).normal(0.0, 0.03, w_true.size)
+        s = fit_static(held / RPM_TO_RAD_S, k_true * w_true**2 + noise)
+        ks.append(s.k_f)
+        us.append(s.k_f_u)
+    sd, u = float(np.std(ks, ddof=1)), float(np.mean(us))
+    assert 0.7 < u / sd < 1.4, (u, sd)
+    assert abs(np.mean(ks) - k_true) < 3 * sd / math.sqrt(40) + 1e-4 * k_true
