@@ -147,6 +147,9 @@ def test_the_flight_run_is_indexed_and_served(flown, capsys):
     web = TestClient(create_app(FolderStore(store)))
     page = web.get(f"/runs/{flown['run'].name}")
     assert page.status_code == 200 and "flight" in page.text
+    series = web.get(f"/api/runs/{flown['run'].name}/series", params={"columns": 100}).json()
+    plots = {p["key"]: len(p["traces"]) for p in series["plots"]}
+    assert plots == {"rate_x": 2, "rate_y": 2, "rate_z": 2, "motor_norm": 4, "motor_rpm": 4}
 
 
 def test_missing_firmware_and_bad_cli_files_are_one_line_exit_2_before_any_launch(
