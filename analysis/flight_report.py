@@ -9,6 +9,7 @@ it is compared with, and the bench's constants, come from the command.
 from __future__ import annotations
 
 import re
+import warnings
 from dataclasses import dataclass
 from typing import Any
 
@@ -125,7 +126,8 @@ def flight_report(rec: RunRecord) -> FlightReport:
         notes.append("no motor speed in the log (bidirectional DShot eRPM, ESC telemetry): "
                      "no in-flight motor response")
     thr = throttle_of(rec)
-    with np.errstate(invalid="ignore"):
+    with warnings.catch_warnings():  # a row with no motor's speed (a hole) is NaN
+        warnings.simplefilter("ignore", RuntimeWarning)
         rpm = np.nanmean(np.vstack(list(rpms.values())), axis=0) if rpms else None
     noise = gyro_noise_vs_throttle(t, gyro, thr, rpm) if thr is not None and gyro else None
     hover = hover_summary(rec, thr, gyro)

@@ -12,7 +12,11 @@ so one least-squares solve per dead time d gives the map and both time constants
 time is the one of a grid (0-30 ms) that fits best. The speed is low-passed before it is
 differentiated (a zero-phase Butterworth at ``SMOOTH_HZ``), and only samples where the
 motor turns (above 10 % of its top speed) take part: below, the ESC's start-up and the
-propeller's stall are not a first-order lag.
+propeller's stall are not a first-order lag. Nor do samples near a hole in the log (no
+command or speed for ``HOLE_SAMPLES`` sample periods: the logger dropped frames, a
+software-in-the-loop firmware or its plant did not run): the grid bridges a hole with a
+straight line, which is no response of the motor, and the low-pass and the dead time carry
+it ``HOLE_MARGIN_S`` further.
 """
 
 from __future__ import annotations
@@ -29,6 +33,8 @@ __all__ = ["MotorResponse", "fit_motor_response"]
 SMOOTH_HZ = 40.0  # speed low-pass before the derivative
 DEAD_TIMES_S = np.arange(0.0, 0.0305, 0.0005)
 MIN_SAMPLES = 200
+HOLE_SAMPLES = 10  # a gap this many median sample periods long is a hole
+HOLE_MARGIN_S = 1.0 / SMOOTH_HZ  # the low-pass's reach on either side of a hole
 
 
 @dataclass(frozen=True)
@@ -77,6 +83,10 @@ def fit_motor_response(t_s: np.ndarray, command: np.ndarray, rpm: np.ndarray,
     grid = np.arange(t[0], t[-1], dt)
     u = np.interp(grid, t, u)
     w = np.interp(grid, t, w)
+    holes = np.flatnonzero(np.diff(t) > HOLE_SAMPLES * dt)
+    near_hole = np.zeros(grid.size, bool)
+    for h in holes:
+        near_hole |= (grid > t[h] - HOLE_MARGIN_S) & (grid < t[h + 1] + HOLE_MARGIN_S)
     fs = 1.0 / dt
     if fs <= 2.5 * SMOOTH_HZ:
         return _why(nan, f"speed logged at {fs:.0f} Hz: too slow to see a time constant of "
@@ -93,7 +103,9 @@ def fit_motor_response(t_s: np.ndarray, command: np.ndarray, rpm: np.ndarray,
         k = round(d / dt)
         ud1 = np.concatenate((np.full(k, u1[0]), u1[:u1.size - k])) if k else u1
         ud2 = np.concatenate((np.full(k, u2[0]), u2[:u2.size - k])) if k else u2
-        use = turning.copy()
+        use = turning & ~near_hole
+        if k:  # the command d earlier must be clear of holes too
+            use[k:] &= ~near_hole[:-k]
         use[:k] = False
         if use.sum() < MIN_SAMPLES:
             continue

@@ -70,8 +70,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--motor", metavar="ID")
     p.add_argument("--battery", metavar="ID")
     p.add_argument("--layout", choices=LAYOUTS, default="x", help="frame layout (default x)")
-    p.add_argument("--maneuver", nargs="+", choices=tuple(MANEUVERS), default=None,
-                   metavar="NAME", help=f"maneuvers to fly (default all: {', '.join(MANEUVERS)})")
+    p.add_argument("--maneuver", nargs="*", choices=tuple(MANEUVERS), default=None,
+                   metavar="NAME", help=f"maneuvers to fly (default all: {', '.join(MANEUVERS)}; "
+                   "--controller betaflight: none named, only the rate steps)")
     p.add_argument("--drag", type=float, default=0.0, metavar="N_S_M",
                    help="linear air drag coefficient, N per m/s (default 0)")
     add_measured_args(p)
@@ -218,6 +219,9 @@ def handler(args: argparse.Namespace) -> int:
     if args.controller == "betaflight":
         return _betaflight(args)
     refuse_unused(args, BETAFLIGHT_FLAGS, "without --controller betaflight")
+    if args.maneuver == []:
+        raise RequestError("--maneuver: name one or more maneuvers (none named flies only "
+                           "Betaflight's rate steps, with --controller betaflight)")
     counts = _check_args(args)
     if args.plot is not None:  # refuse before flying, not after (nothing half-written)
         check_writable(args.plot, "--plot", folder=True)
@@ -417,8 +421,9 @@ def _betaflight(args: argparse.Namespace) -> int:
 
     from bench.cli_args.store_args import DEFAULT_OUT, named_store
     from bench.jobs.betaflight_flight import DT_S, fly_betaflight, read_cli_file
-    from bench.jobs.betaflight_program import BETAFLIGHT_MANEUVERS
+    from bench.jobs.betaflight_program import BETAFLIGHT_MANEUVERS, RATE_PERIOD_S
     from bench.store.store_url import parse_store
+    from drivers.backends.betaflight_cli import unknown_settings
     from drivers.backends.betaflight_sitl import find_binary
     from optimizer.flight.design import design_index, fly_report, setup
     from optimizer.flight.maneuvers import maneuver
@@ -431,7 +436,8 @@ def _betaflight(args: argparse.Namespace) -> int:
     if args.plot is not None:
         raise RequestError("--plot draws the cascade's flights; --controller betaflight "
                            "keeps the firmware's log as a run (rotorbench flight-report)")
-    names: list[str] = args.maneuver or list(BETAFLIGHT_MANEUVERS)
+    names: list[str] = (list(BETAFLIGHT_MANEUVERS) if args.maneuver is None
+                        else args.maneuver)
     other = [m for m in names if m not in BETAFLIGHT_MANEUVERS]
     if other:
         raise RequestError(f"--maneuver {' '.join(other)}: Betaflight flies "
@@ -439,6 +445,9 @@ def _betaflight(args: argparse.Namespace) -> int:
                            "in ANGLE mode; it holds no height)")
     if not (math.isfinite(args.rate_steps) and 0 <= args.rate_steps <= 120):
         raise RequestError(f"--rate-steps: expected 0 to 120 s, got {args.rate_steps}")
+    if not names and args.rate_steps < RATE_PERIOD_S:
+        raise RequestError("--maneuver names none and --rate-steps flies no step: nothing "
+                           "to fly")
     counts = _check_args(args)
     if counts != [4] or args.layout != "x":
         raise RequestError("--controller betaflight: Betaflight's QUADX flies --actuators 4 "
@@ -450,7 +459,12 @@ def _betaflight(args: argparse.Namespace) -> int:
         raise RequestError(f"--store {store}: the firmware's log is stored in a folder store")
     root = url.folder if url is not None and url.folder is not None else DEFAULT_OUT
     check_writable(root, "--store", folder=True)
-    find_binary()  # not installed: one line naming the extra, before anything is flown
+    # not installed, or a setting this build does not have: one line, before any launch
+    unknown = unknown_settings(find_binary(), cli_lines)
+    if unknown:
+        where, name = unknown[0]
+        raise RequestError(f"--betaflight-cli {where}: no setting {name!r} in Betaflight "
+                           "4.6.0's SITL (a typo, or a setting of another build)")
     margin = hover_margin_from_args(args)
     catalog = margin.apply(load(args.catalog, args.current_model))
     step = (step_constants(run_folder_arg(args, args.step_run))
@@ -466,6 +480,7 @@ def _betaflight(args: argparse.Namespace) -> int:
     with tempfile.TemporaryDirectory(prefix=".betaflight-", dir=root) as tmp:
         log = Path(tmp) / "LOG00001.BF"
         flown_by: dict[str, Any] = {"controller": "betaflight", "design": cascade["design"],
+                                    "actuator": cascade["actuator"],
                                     "cli": [line for _, line in cli_lines]}
         flight = None
         try:
@@ -474,7 +489,7 @@ def _betaflight(args: argparse.Namespace) -> int:
                                         f"betaflight: {text}", file=sys.stderr))
             flown_by["firmware"] = flight.firmware
         finally:  # an interrupted or failed flight keeps its log too
-            run_dir = _keep_log(log, root, flown_by, cut_short=flight is None)
+            run_dir = _keep_log(log, root, flown_by, flight)
     assert flight is not None  # it raised otherwise
     report = {
         "controller": "betaflight",
@@ -486,7 +501,7 @@ def _betaflight(args: argparse.Namespace) -> int:
         "betaflight": {**flight.firmware, "realtime": flight.realtime,
                        "cli": [line for _, line in cli_lines]},
         "flight_run": None if run_dir is None else str(run_dir),
-        "log_step_response": None if run_dir is None else _log_response(run_dir),
+        **_log_report(run_dir),
         "cascade": {"maneuvers": cascade["maneuvers"], "hover": cascade["hover"],
                     "gains": cascade["gains"]},
         "catalog": catalog.source,
@@ -501,16 +516,20 @@ def _betaflight(args: argparse.Namespace) -> int:
     return 0
 
 
-def _keep_log(log: Path, root: Path, flown_by: dict[str, Any], *, cut_short: bool
-              ) -> Path | None:
-    """The firmware's log stored as a flight run; a cut-short flight's is kept where it
-    can be and said on stderr, never hiding why the flight ended."""
+def _keep_log(log: Path, root: Path, flown_by: dict[str, Any], flight: Any) -> Path | None:
+    """The firmware's log stored as a flight run, with the plant's rotor speeds as its
+    eRPM (``bench.jobs.betaflight_erpm``); a cut-short flight's (``flight`` None) is kept
+    where it can be and said on stderr, never hiding why the flight ended."""
+    from bench.jobs.betaflight_erpm import add_plant_erpm
     from bench.store.imported_run import store_flight_log
 
     if not log.is_file():
         return None
+    cut_short = flight is None
+    augment = None if cut_short else (lambda f: add_plant_erpm(f, flight.trace))
     try:
-        run_dir = store_flight_log(log, root, "betaflight-flight", {"flown_by": flown_by})
+        run_dir = store_flight_log(log, root, "betaflight-flight", {"flown_by": flown_by},
+                                   augment)
     except Exception:
         if not cut_short:
             raise
@@ -521,9 +540,10 @@ def _keep_log(log: Path, root: Path, flown_by: dict[str, Any], *, cut_short: boo
     return run_dir
 
 
-def _log_response(run_dir: Path) -> dict[str, Any]:
-    """The firmware log's rate step response per axis: deconvolved (flight-report's H1
-    and PID-Analyzer's) and measured directly on its stick steps."""
+def _log_report(run_dir: Path | None) -> dict[str, Any]:
+    """What ``rotorbench flight-report`` reads in the stored log: the rate step response
+    per axis (deconvolved: its H1 and PID-Analyzer's; and measured directly on the stick
+    steps) and each motor's in-flight response from the (synthesized) eRPM."""
     import numpy as np
 
     from analysis.flight_report import flight_report
@@ -531,6 +551,8 @@ def _log_response(run_dir: Path) -> dict[str, Any]:
     from analysis.stick_steps import step_rise_times
     from bench.jobs.betaflight_program import RATE_STEP_DPS
 
+    if run_dir is None:
+        return {"log_step_response": None, "log_motor_response": None}
     rec = read_run(run_dir)
     rep = flight_report(rec)
     t = rec.column("t_s")
@@ -544,14 +566,19 @@ def _log_response(run_dir: Path) -> dict[str, Any]:
             "h1": r.metrics if r is not None else {},
             "pid_analyzer": (r.metrics_pa or {}) if r is not None else {},
             "direct_rise_ms": float(np.median(rises)) * 1e3 if rises else None,
+            "direct_rises_ms": [1e3 * r for r in rises],
             "direct_steps": len(rises),
             **({"why": r.why} if r is not None and r.why else {})}
-    return out
+    return {"log_step_response": out,
+            "log_motor_response": {m: r.summary() for m, r in rep.motors.items()},
+            "log_synthesized": rec.meta.get("flight", {}).get("synthesized")}
 
 
 def _print_betaflight(report: dict[str, Any]) -> None:
     from rich.console import Console
     from rich.table import Table
+
+    from bench.jobs.betaflight_flight import SILENT_S
 
     d, bf = report["design"], report["betaflight"]
     console = Console(soft_wrap=False)
@@ -566,19 +593,31 @@ def _print_betaflight(report: dict[str, Any]) -> None:
         table.add_row(name, _fmt(m["rise_time_ms"]), _fmt(c.get("rise_time_ms")),
                       _fmt(m["overshoot_pct"], ".1f"), _fmt(c.get("overshoot_pct"), ".1f"),
                       _fmt(m["settling_time_ms"]), _fmt(c.get("settling_time_ms")))
-    console.print(table)
+    if report["maneuvers"]:
+        console.print(table)
     h, ch = report["hover"], report["cascade"]["hover"]
     console.print(f"hover throttle: Betaflight {_fmt(h.get('throttle'), '.3f')} (motor "
                   f"{_fmt(h.get('motor_us'))} us), cascade {ch['throttle']:.3f}")
     rt = bf["realtime"]
     console.print(f"real-time factor {_fmt(rt['real_time_factor'], '.3f')} ({rt['sim_s']:.1f} s "
                   f"flown in {rt['wall_s']:.1f} s; plant waited {rt['waited_for_firmware_s']:.2f}"
-                  f" s for the firmware; {_fmt(rt['answered_pct'], '.0f')} % of FDM packets "
-                  "answered within the tick)")
+                  f" s for the firmware in {rt['waits']} silences over "
+                  f"{1e3 * SILENT_S:.0f} ms, the longest {1e3 * rt['longest_wait_s']:.0f} ms;"
+                  f" {_fmt(rt['answered_pct'], '.0f')} % of FDM packets answered within the "
+                  "tick)")
     for axis, r in (report["log_step_response"] or {}).items():
         console.print(f"log step response {axis}: rise {_fmt(r['h1'].get('rise_ms'), '.1f')} ms "
                       f"deconvolved (H1), {_fmt(r['direct_rise_ms'], '.1f')} ms direct "
                       f"({r['direct_steps']} stick steps)")
+    motors = report["log_motor_response"] or {}
+    if motors:
+        a = report["actuator"]
+        up = [m["tau_up_ms"] for m in motors.values()]
+        down = [m["tau_down_ms"] for m in motors.values()]
+        console.print(f"in-flight motor response (eRPM synthesized from the plant): tau up "
+                      f"{min(up):.1f}-{max(up):.1f} ms, down {min(down):.1f}-{max(down):.1f} "
+                      f"ms (the actuator flown: up {a['tau_up_ms']:.1f}, down "
+                      f"{a['tau_down_ms']:.1f} ms)")
     if report["flight_run"]:
         console.print(f"firmware log stored as flight run {report['flight_run']} "
                       "(rotorbench flight-report RUN)")

@@ -64,17 +64,19 @@ CATCH_UP_S = 0.02  # later than this, the plant skips the time instead of catchi
 SILENT_S = 0.03
 LAUNCHES = 3
 CONTROL_LOOP_TIMEOUT_S = 2.0
-ARM_READY_TIMEOUT_S = 15.0  # boot grace (5 s) + valid RC (0.5 s) on a loaded host
+ARM_READY_TIMEOUT_S = 15.0  # gyro calibration + valid RC (0.5 s) on a loaded host
 PILOT_PERIOD_S = 0.01
 LOG_END_WAIT_S = 0.4  # disarm to the blackbox's LOG_END and fclose (reference: >= 0.3 s)
 LOG_NAME = "LOG00001.BF"  # 4.6.0's truncated name, the same at every launch
 HOST = "127.0.0.1"
 #: the bench's settings, before the user's (docs/flight.md): the log, linear roll and
-#: pitch rates (a stick's setpoint is known), no runaway-takeoff trip on a crude spin-up
+#: pitch rates (a stick's setpoint is known), no runaway-takeoff trip on a crude spin-up,
+#: no 5 s power-on grace before arming (the plant holds the vehicle; 4 s less per flight)
 PREAMBLE = (
     "set blackbox_device = VIRTUAL",
     "set runaway_takeoff_prevention = OFF",
     "set pid_process_denom = 2",
+    "set pwr_on_arm_grace = 0",
     "set roll_rc_rate = 67",
     "set roll_srate = 67",
     "set roll_expo = 0",
@@ -112,6 +114,7 @@ class PlantLoop(threading.Thread):
         self.stalls = 0
         self.lost_s = 0.0
         self.waited_s = 0.0  # the plant waited for a silent firmware
+        self.waits: list[float] = []  # each wait's length (s)
         self.wall_s = 0.0
         self.rows: list[tuple[float, ...]] = []
         self._halt = threading.Event()
@@ -136,6 +139,7 @@ class PlantLoop(threading.Thread):
         motor_us = (1000.0,) * 4
         t0 = start = heard = time.monotonic()
         k = 0
+        was_waiting = False
         while not self._halt.is_set():
             waiting = time.monotonic() - heard > SILENT_S
             if not waiting:
@@ -157,11 +161,17 @@ class PlantLoop(threading.Thread):
                 motor_us = out.motor_us[:4]
                 motors = [(u - 1000.0) / 1000.0 for u in motor_us]
             if waiting:
+                if not was_waiting:
+                    self.waits.append(0.0)
+                self.waits[-1] += dt
                 self.waited_s += dt
+                was_waiting = True
                 continue
+            was_waiting = False
             state = plant.state
             self.latest = (plant.t_s, state)
-            self.rows.append((plant.t_s, *state, *plant.omega, *motor_us))
+            # the wall clock beside the plant's: the log's eRPM is put on it (betaflight_erpm)
+            self.rows.append((plant.t_s, *state, *plant.omega, *motor_us, time.monotonic()))
         self.wall_s = time.monotonic() - start
 
     def stop(self) -> None:
@@ -236,7 +246,7 @@ def fly_betaflight(plant: ExternalPlant, maneuvers: list[str], cli_lines: list[t
         link = FdmLink(HOST)
         loop = PlantLoop(plant, link)
         loop.start()
-        tell("waiting for the firmware to allow arming (boot grace 5 s)")
+        tell("waiting for the firmware to allow arming")
         rc = MspRcSticks(client, rate_hz=50.0, host_timeout_s=1.0, failsafe_delay_s=1.0,
                          arm_timeout_s=ARM_READY_TIMEOUT_S)
         loop.check()
@@ -341,7 +351,7 @@ def _tilt(s: list[float]) -> float:
 def _result(plant: ExternalPlant, loop: PlantLoop, link: FdmLink | None,
             marks: list[tuple[Segment, float]], release_s: float, firmware: dict[str, Any],
             log_path: Path | None) -> BetaflightFlight:
-    rows = np.array(loop.rows) if loop.rows else np.empty((0, 22))
+    rows = np.array(loop.rows) if loop.rows else np.empty((0, 23))
     t = rows[:, 0]
     euler = euler_angles(rows[:, 7:11]) if rows.size else np.empty((0, 3))
     omega = rows[:, 14:18]
@@ -365,12 +375,14 @@ def _result(plant: ExternalPlant, loop: PlantLoop, link: FdmLink | None,
                 "real_time_factor": sim_s / loop.wall_s if loop.wall_s > 0 else None,
                 "stalls": loop.stalls, "skipped_s": loop.lost_s,
                 "waited_for_firmware_s": loop.waited_s,
+                "waits": len(loop.waits),
+                "longest_wait_s": max(loop.waits, default=0.0),
                 "fdm_sent": link.sent if link else 0,
                 "answered_pct": 100.0 * link.answered / link.sent if link and link.sent else None,
                 "flown_s": float(t[-1] - release_s) if t.size and math.isfinite(release_s)
                 else 0.0}
     trace = {"t_s": t, "euler_rad": euler, "position_m": rows[:, 1:4], "omega_rad_s": omega,
-             "motor_us": motor_us}
+             "motor_us": motor_us, "wall_s": rows[:, 22]}
     return BetaflightFlight(figures, hover, realtime, firmware, log_path, trace)
 
 

@@ -26,8 +26,8 @@ from dataclasses import dataclass
 
 from optimizer.flight.maneuvers import MANEUVERS, STEP_TIME_S, Maneuver
 
-__all__ = ["ANGLE_LIMIT_DEG", "BETAFLIGHT_MANEUVERS", "RATE_TOP_DPS", "HeightPilot",
-           "Segment", "angle_stick", "program", "rate_stick"]
+__all__ = ["ANGLE_LIMIT_DEG", "BETAFLIGHT_MANEUVERS", "RATE_PERIOD_S", "RATE_TOP_DPS",
+           "HeightPilot", "Segment", "angle_stick", "program", "rate_stick"]
 
 ANGLE_LIMIT_DEG = 60.0  # angle_limit, Betaflight's default
 RATE_TOP_DPS = 670.0  # the preamble's linear rate: 67 x 10 deg/s
@@ -40,6 +40,7 @@ SETTLE_S = 1.5  # between maneuvers: sticks centred, not measured
 RATE_STEP_DPS = 100.0  # 25 deg of tilt per step: the pilot keeps the height
 RATE_HOLD_S = 0.25  # a rate step's length; then as long at zero rate
 RATE_PAUSE_S = 0.35
+RATE_PERIOD_S = RATE_HOLD_S + RATE_PAUSE_S  # one rate step and its pause
 END_S = 0.5  # level before disarming
 
 
@@ -95,7 +96,7 @@ def program(maneuvers: list[str], rate_steps_s: float, release_s: float) -> list
         t += man.duration_s
         out.append(Segment(t, SETTLE_S, label="settle"))
         t += SETTLE_S
-    period = RATE_HOLD_S + RATE_PAUSE_S
+    period = RATE_PERIOD_S
     for k in range(int(rate_steps_s / period + 1e-9)):
         # +roll, +pitch, -roll, -pitch, ...: each tilt is taken back by the step after next
         rate = rate_stick((1 if (k // 2) % 2 == 0 else -1) * RATE_STEP_DPS)

@@ -23,6 +23,7 @@ from bench.serve.decimate import Bins, MinMaxEnvelope
 from bench.store.json_values import json_safe
 
 __all__ = [
+    "FLIGHT_PLOTS",
     "PLOTS",
     "RecordCache",
     "SeriesCache",
@@ -40,6 +41,18 @@ PLOTS = (("throttle_us", "command", "us"), ("thrust_n", "thrust", "N"),
          ("torque_nm", "torque", "N m"), ("current_a", "current", "A"),
          ("voltage_v", "voltage", "V"), ("rpm", "speed", "rpm"),
          ("efficiency_g_w", "efficiency", "g/W"))
+#: the time plots of a flight run (docs/flight-logs.md's columns), several traces each:
+#: (key, title, unit, ((column, trace name), ...)); a plot shows the traces the run has
+MOTORS = range(1, 9)
+FLIGHT_PLOTS = (
+    *((f"rate_{a}", f"{name} rate: gyro vs setpoint", "rad/s",
+       ((f"gyro_{a}_rad_s", "gyro"), (f"rate_sp_{a}_rad_s", "setpoint")))
+      for a, name in (("x", "roll"), ("y", "pitch"), ("z", "yaw"))),
+    ("motor_norm", "motor outputs", "0..1", tuple((f"motor{k}_norm", f"motor {k}")
+                                                  for k in MOTORS)),
+    ("motor_rpm", "motor speed (eRPM)", "rpm", tuple((f"motor{k}_rpm", f"motor {k}")
+                                                     for k in MOTORS)),
+)
 
 
 class RecordCache:
@@ -119,7 +132,9 @@ def series_of(folder: Path, columns: int = 1500) -> dict[str, Any]:
     read (``analysis.run_record.ColumnChunks``): a 5 M-row run holds one chunk in memory."""
     from analysis.run_record import ColumnChunks
 
-    chunks = ColumnChunks(folder, [k for k, _, _ in PLOTS if k != "efficiency_g_w"])
+    flight_cols = [c for *_, traces in FLIGHT_PLOTS for c, _ in traces]
+    chunks = ColumnChunks(folder, [k for k, _, _ in PLOTS if k != "efficiency_g_w"]
+                          + flight_cols)
     keys = list(chunks.names)
     need_eff = ("thrust_n", "current_a", "voltage_v")
     if set(need_eff) <= set(keys):
@@ -131,9 +146,16 @@ def series_of(folder: Path, columns: int = 1500) -> dict[str, Any]:
             chunk["efficiency_g_w"] = _efficiency_of(*(chunk[k] for k in need_eff))
         for k, envelope in envelopes.items():
             envelope.add(chunk[k])
-    plots = {k: _plot(k, *envelope.points()) for k, envelope in envelopes.items()}
-    return {"rows": int(chunks.t.size), "columns": columns,
-            "plots": [plots[k] for k, _, _ in PLOTS if plots.get(k) is not None]}
+    points = {k: envelope.points() for k, envelope in envelopes.items()}
+    plots = {k: _plot(k, *points[k]) for k, _, _ in PLOTS if k in points}
+    out = [plots[k] for k, _, _ in PLOTS if plots.get(k) is not None]
+    for key, title, unit, traces in FLIGHT_PLOTS:
+        lines = [{"name": name, "t": _json_list(points[c][0]), "y": _json_list(points[c][1])}
+                 for c, name in traces if c in points and np.isfinite(points[c][1]).any()]
+        if lines:  # the first trace as the plot's own, as a one-trace plot has it
+            out.append({"key": key, "title": title, "unit": unit, "t": lines[0]["t"],
+                        "y": lines[0]["y"], "traces": lines})
+    return {"rows": int(chunks.t.size), "columns": columns, "plots": out}
 
 
 def _plot(key: str, t: np.ndarray, y: np.ndarray) -> dict[str, Any] | None:

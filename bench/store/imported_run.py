@@ -11,7 +11,9 @@ from __future__ import annotations
 
 import itertools
 import shutil
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -59,10 +61,12 @@ def write_run(out: Path, samples, meta: dict) -> Path:
     return out
 
 
-def store_flight_log(log: Path, root: Path, name: str, extra: dict) -> Path:
+def store_flight_log(log: Path, root: Path, name: str, extra: dict,
+                     augment: Callable[[Any], None] | None = None) -> Path:
     """A blackbox log as an indexed run of kind ``flight`` under ``root`` (the one log of
     one arming; a file of several keeps the last), the log file itself kept beside its
-    samples. ``extra`` goes into run.json (what flew it)."""
+    samples. ``extra`` goes into run.json (what flew it); ``augment`` may add columns to
+    the decoded ``FlightLog`` first (what the bench knows and the log lacks)."""
     import pandas as pd
 
     from analysis.flightlogs import read_flight_log
@@ -74,6 +78,8 @@ def store_flight_log(log: Path, root: Path, name: str, extra: dict) -> Path:
     if not logs:
         raise RigError(f"{log}: the firmware's log holds no flight")
     flight = logs[-1]
+    if augment is not None:
+        augment(flight)
     source = {"source_file": log.name, "format": "blackbox", "format_taken": "written by "
               "the firmware", "log_in_file": len(logs), "logs_in_file": len(logs)}
     meta = {"kind": "flight", "components": {}, "import": source, "flight": flight.run_meta(),

@@ -11,18 +11,27 @@ restart, which the relaunch clears too.
 Each line is sent alone and its answer read up to the next prompt; an answer holding
 ``###ERROR`` (unknown name, value out of range, bad argument count) or ``Invalid name``
 stops before ``save``, so nothing half-applied is ever saved.
+
+Before any launch, :func:`unknown_settings` refuses a ``set`` of a name the binary does not
+have: every setting the firmware was built with is a NUL-terminated string in it (its CLI
+prints the names from that table), so a name absent from the file is a typo or a setting of
+another build (``dshot_bidir`` in the SITL), known in milliseconds rather than after a
+launch. A name found may still be refused by the firmware (a string that is no setting, a
+value out of range): the CLI stays the authority.
 """
 
 from __future__ import annotations
 
 import contextlib
+import re
 import socket
 import time
+from pathlib import Path
 
 from drivers.backends.tcp_link import connect
 from drivers.errors import DeviceError
 
-__all__ = ["CLI_TIMEOUT_S", "CliError", "apply_and_save"]
+__all__ = ["CLI_TIMEOUT_S", "CliError", "apply_and_save", "unknown_settings"]
 
 PROMPT = b"\r\n# "
 CLI_TIMEOUT_S = 2.0  # one line's answer (the serial task runs at 100 Hz)
@@ -32,6 +41,20 @@ ERROR_MARKS = ("###ERROR", "Invalid name", "Invalid value", "Parse error")
 
 class CliError(DeviceError):
     """The firmware refused a CLI line: its text and the firmware's answer."""
+
+
+_SET = re.compile(r"set\s+([A-Za-z0-9_]+)\s*=", re.IGNORECASE)
+
+
+def unknown_settings(binary: Path, lines: list[tuple[str, str]]) -> list[tuple[str, str]]:
+    """The ``(where, name)`` of each ``set NAME = ...`` line whose name ``binary`` does not
+    hold (module doc): refused before the firmware is launched."""
+    names = [(where, m.group(1).lower()) for where, line in lines
+             if (m := _SET.match(line.strip()))]
+    if not names:
+        return []
+    data = binary.read_bytes()
+    return [(where, name) for where, name in names if name.encode() + b"\0" not in data]
 
 
 def _read_to_prompt(sock: socket.socket, name: str, timeout_s: float) -> str:

@@ -50,3 +50,16 @@ def test_a_slow_or_empty_log_says_why():
     assert np.isnan(slow.tau_up_s) and "too slow" in slow.why
     empty = fit_motor_response(t[:50], u[:50], w[:50])
     assert "samples with command and speed" in empty.why
+
+
+def test_holes_in_the_log_leave_the_time_constants():
+    """A log with holes where a software-in-the-loop plant did not run (its clock jumped on
+    while the motor stood still): the samples near them are left out, the rest still fit."""
+    t, u, w = _motor(5, 0.030, 0.045, 0.004, seconds=20.0)
+    jumps = np.searchsorted(t, np.arange(0.5, 19.5, 0.25))  # 76 holes of 40 ms
+    shifted = t.copy()
+    for j in jumps:
+        shifted[j:] += 0.04
+    r = fit_motor_response(shifted, u, w)
+    assert r.tau_up_s == pytest.approx(0.030, rel=0.1), r.summary()
+    assert r.tau_down_s == pytest.approx(0.045, rel=0.1), r.summary()

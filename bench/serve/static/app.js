@@ -31,9 +31,13 @@ async function runPage() {
     for (const p of data.plots) {
       const div = el("div", {class: "plot", id: "plot-" + p.key});
       box.appendChild(div);
-      await Plotly.newPlot(div, [{x: p.t, y: p.y, type: "scatter", mode: "lines",
-                                  line: {width: 1}, name: p.title}],
-                           {...LAYOUT, title: {text: `${p.title} (${p.unit})`},
+      // a flight plot has several traces (gyro and setpoint, one per motor): a legend
+      const traces = (p.traces || [{name: p.title, t: p.t, y: p.y}]).map(
+        (tr) => ({x: tr.t, y: tr.y, type: "scatter", mode: "lines", line: {width: 1},
+                  name: tr.name}));
+      await Plotly.newPlot(div, traces,
+                           {...LAYOUT, showlegend: traces.length > 1,
+                            title: {text: `${p.title} (${p.unit})`},
                             xaxis: {title: {text: "t (s)"}}}, CONFIG);
     }
     box.dataset.painted = String(data.plots.length);

@@ -52,3 +52,34 @@ def client(store: object) -> Iterator[object]:
 
     with TestClient(create_app(store)) as c:
         yield c
+
+
+@pytest.fixture(scope="session")
+def flight_runs(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A folder store holding one flight run, as ``rotorbench fly --controller betaflight``
+    stores the firmware's log: rates and setpoints, motor outputs, eRPM (2 s at 1 kHz)."""
+    import numpy as np
+    import pandas as pd
+
+    from analysis.run_paths import read_run_json
+    from bench.store.imported_run import write_run
+    from bench.store.run_index import RunIndex
+
+    root = tmp_path_factory.mktemp("flight") / "runs"
+    t = np.arange(0.0, 2.0, 1e-3)
+    sp = np.where((t % 0.6) < 0.25, 1.745, 0.0)
+    cols: dict[str, np.ndarray] = {"t_s": t}
+    for a in ("x", "y", "z"):
+        cols[f"rate_sp_{a}_rad_s"] = sp if a != "z" else 0 * t
+        cols[f"gyro_{a}_rad_s"] = np.convolve(cols[f"rate_sp_{a}_rad_s"],
+                                              np.full(40, 1 / 40))[:t.size]
+    for k in range(1, 5):
+        cols[f"motor{k}_norm"] = 0.6 + 0.05 * np.sin(2 * np.pi * (k + t))
+        cols[f"motor{k}_rpm"] = 3400 + 300 * np.sin(2 * np.pi * (k + t))
+    meta = {"kind": "flight", "components": {}, "import": {"source_file": "LOG00001.BF"},
+            "flight": {"synthesized": {"columns": [f"motor{k}_rpm" for k in range(1, 5)]}},
+            "flown_by": {"controller": "betaflight"}}
+    run = write_run(root / "20260101T000000_000000Z-00000000-betaflight-flight",
+                    pd.DataFrame(cols), meta)
+    RunIndex(root).upsert(read_run_json(run), run)
+    return root

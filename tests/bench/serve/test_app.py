@@ -283,3 +283,26 @@ def test_a_run_log_that_links_out_is_not_served(tmp_path: Path) -> None:
         (run_dir / "run.log").unlink()
         assert c.get(f"/runs/{run_dir.name}/run.log").status_code == 404
         assert "no run.log" in c.get(f"/runs/{run_dir.name}").text
+
+
+def test_a_flight_run_is_listed_and_its_page_plots_the_flight_columns(flight_runs: Path
+                                                                     ) -> None:
+    """A Betaflight flight run (``fly --controller betaflight``): gyro vs setpoint per axis,
+    the motor outputs and their eRPM, several traces a plot."""
+    from fastapi.testclient import TestClient
+
+    from bench.serve.app import create_app
+    from bench.store.stores import open_store
+
+    client = TestClient(create_app(open_store(str(flight_runs))))
+    (run_id,) = _ids(client)
+    assert client.get(f"/runs/{run_id}").status_code == 200
+    series = client.get(f"/api/runs/{run_id}/series", params={"columns": 200}).json()
+    plots = {p["key"]: p for p in series["plots"]}
+    assert list(plots) == ["rate_x", "rate_y", "rate_z", "motor_norm", "motor_rpm"]
+    assert [tr["name"] for tr in plots["rate_x"]["traces"]] == ["gyro", "setpoint"]
+    assert [tr["name"] for tr in plots["motor_rpm"]["traces"]] == [
+        f"motor {k}" for k in range(1, 5)]
+    assert plots["motor_rpm"]["unit"] == "rpm" and plots["rate_x"]["t"] == \
+        plots["rate_x"]["traces"][0]["t"]
+    assert all(len(tr["t"]) <= 400 for p in plots.values() for tr in p["traces"])

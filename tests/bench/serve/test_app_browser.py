@@ -66,3 +66,24 @@ def test_list_filter_run_page_and_compare(page: tuple[object, str]) -> None:
     assert pg.locator("#thrust_vs_rpm .main-svg g.trace").count() == 2
     # the step run's rising and falling means; the sweep has no steps
     assert pg.locator("#steps .main-svg g.trace").count() == 2
+
+
+def test_a_flight_run_page_paints_gyro_setpoint_motors_and_erpm(browser: object,
+                                                                flight_runs: object) -> None:
+    from bench.store.stores import open_store
+
+    with browser_mod.serving(create_app(open_store(str(flight_runs)))) as base:
+        ctx = browser.new_context(viewport={"width": 1280, "height": 900})
+        pg = ctx.new_page()
+        errors: list[str] = []
+        pg.on("pageerror", lambda e: errors.append(str(e)))
+        pg.goto(base + "/")
+        pg.click("#runs tbody tr[data-run] a")
+        pg.wait_for_selector("#plots[data-painted]", timeout=30_000)
+        assert int(pg.get_attribute("#plots", "data-painted")) == 5
+        # one drawn line per trace, and a legend naming them
+        assert pg.locator("#plot-rate_x .scatterlayer .trace path.js-line").count() == 2
+        assert pg.locator("#plot-motor_rpm .scatterlayer .trace path.js-line").count() == 4
+        assert pg.locator("#plot-motor_rpm .legend .traces").count() == 4
+        ctx.close()
+        assert errors == [], errors
