@@ -165,11 +165,13 @@ def test_calibrate_on_the_recorded_run_recovers_the_imu_model(recorded, capsys) 
     # 1 g = 256) and its frames are right, since a wrong accelerometer unit (2048 per g) is
     # 700 % away, a gyro in whole deg/s 1500 %, a flipped axis or mounting sign 60 % or
     # more. 16.4 against 16.384 (0.1 %) the RAW_IMU test of test_msp_tcp_sitl.py tells.
-    assert k_gyro < 0.02
-    assert k_acc < 0.04
+    # (loaded: K_w 0.26-0.31 %, K_a 0.56-1.15 %, R 2.6-6.0 mm, with two CPU hogs beside the
+    # suite's load; the bounds keep a factor of 3 over that, and stay 20x under a unit error)
+    assert k_gyro < 0.01
+    assert k_acc < 0.03
     assert np.all(np.abs(z) < 4.0)
     assert acc_bias < 0.5  # 13 counts of 1/256 g
-    assert lever < 0.1  # R is (0.365, -0.235, 0.230) m: a flipped sign is 0.46 m or more
+    assert lever < 0.03  # R is (0.365, -0.235, 0.230) m: a flipped sign is 0.46 m or more
     # the model's sensor latency, give or take the firmware's filters and where in the
     # MSP round trip (stamped at the request) the firmware read its sensors
     assert abs(cal.time_offset_s - truth["clock_offset_s"]) < 0.015
