@@ -48,10 +48,13 @@ def test_store_fits_and_overrides(tmp_path, capsys, monkeypatch):
     assert 0 < static.data["k_f_std_n_s2"] < 0.05 * static.data["k_f_n_s2"]
     assert static.data["k_q_std_nm_s2"] is None  # the sim stand logs no torque
     # the table shows each with its expanded uncertainty, the value to U's last digit
-    shown = re.search(r"latency (\d+\.\d+) ± (\d+\.\d+) ms \(k = 2\)", out)
+    found = [re.search(r"latency (\d+\.\d+) ± (\d+\.\d+) ms \(k = 2\)", line)
+             for line in out.splitlines() if runs["diode"].name in line]
+    shown = [m for m in found if m]
     assert shown, out
-    assert abs(float(shown[1]) - step.data["latency_s"] * 1e3) < 0.01
-    assert len(shown[1].split(".")[1]) == len(shown[2].split(".")[1])
+    for m in shown:
+        assert abs(float(m[1]) - step.data["latency_s"] * 1e3) < 0.01
+        assert len(m[1].split(".")[1]) == len(m[2].split(".")[1])
     # storing a newer fit of the same kind replaces the row
     assert main(["constants", "--out", str(tmp_path), "--add", str(runs["diode"])]) == 0
     assert len(ConstantsStore(tmp_path).rows()) == 3
@@ -66,8 +69,10 @@ def test_store_fits_and_overrides(tmp_path, capsys, monkeypatch):
     i, inside = comp.current_at(np.array([2.45]), np.array([comp.supply_voltage_v]))
     assert inside[0] and 1.0 < i[0] < 4.0
     assert "static: " in diode.source and "step: " in diode.source
-    assert diode.latency_std_s == step.data["latency_std_s"]
-    assert diode.k_f_std_n_s2 == static.data["k_f_std_n_s2"] and diode.k_m_std_nm_s2 is None
+    # what the optimizer samples: each constant's standard uncertainty from its budget
+    budgets = step.data["uncertainty"] | static.data["uncertainty"]
+    assert diode.latency_std_s == budgets["latency_s"]["u"] > 0
+    assert diode.k_f_std_n_s2 == budgets["k_f_n_s2"]["u"] > 0 and diode.k_m_std_nm_s2 is None
     assert load_measured(tmp_path, catalog="thesis-e") == []
 
 
