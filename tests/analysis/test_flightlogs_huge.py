@@ -17,8 +17,11 @@ PEAK_MAX_MB = 600  # a child that read the file whole would hold > 2000 MB
 
 
 def _import(path: Path, out: Path) -> tuple[subprocess.CompletedProcess[str], float]:
-    code = ("import sys, resource; from bench.cli import main; rc = main(sys.argv[1:]); "
-            "print('PEAK', resource.getrusage(resource.RUSAGE_SELF).ru_maxrss); sys.exit(rc)")
+    # VmHWM: this process's own peak resident size. Not getrusage's ru_maxrss, which Linux
+    # keeps across exec: it would report the forking test process's size
+    code = ("import sys; from bench.cli import main; rc = main(sys.argv[1:]); "
+            "print('PEAK', next(line.split()[1] for line in open('/proc/self/status') "
+            "if line.startswith('VmHWM:'))); sys.exit(rc)")
     proc = subprocess.run([sys.executable, "-c", code, "import", str(path), "--out", str(out)],
                           capture_output=True, text=True, cwd=REPO, timeout=300)
     peak_kb = next(int(line.split()[1]) for line in proc.stdout.splitlines()
