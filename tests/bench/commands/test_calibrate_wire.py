@@ -57,9 +57,10 @@ def calibrated(tmp_path_factory: pytest.TempPathFactory):
     # The rig as shipped (6x real time), its devices in a process of their own, except the
     # MSP reply timeout (0.3 s of wall time): on a machine loaded like the suite, the
     # simulated FC's thread in the world's process has been seen to take up the request
-    # 0.3-0.8 s after the bench wrote it (that thread asleep, not queued for a processor;
-    # the bench's process and the world's other threads running meanwhile), and a late
-    # reply is the device-lost tests' subject, not this one's. The GX3's silence limit
+    # 0.3-0.8 s after the bench wrote it (asleep in one 10 ms wait for the port, neither
+    # running nor queued for a processor, while the bench and the world's other threads
+    # ran: a late wake-up below Python), and a late reply is the device-lost tests'
+    # subject, not this one's. The GX3's silence limit
     # (0.2 s) holds as shipped: it counts only silence a read found, not the bench's own
     # lateness (drivers/backends/row_stream.py).
     rig = root / "sim-imu-wire.toml"
