@@ -35,6 +35,7 @@ from typing import Any, Protocol, cast
 import numpy as np
 
 from bench.engine.drops import DropCounter
+from bench.engine.frozen_heap import FrozenHeap
 from bench.engine.recorder import RunRecorder
 from bench.engine.safety import LimitTrip, Trip
 from bench.engine.watchdog import HostWatchdog, WatchdogTrip
@@ -184,6 +185,10 @@ class SafeRunLoop:
     def run(self) -> RunResult:
         """Carry out the plan. Trips and operator stops return a result with status abort;
         device errors, Ctrl-C and bugs are re-raised after the safe stop and the record."""
+        with FrozenHeap():  # no full collection walks the imported modules mid-run
+            return self._carry_out()
+
+    def _carry_out(self) -> RunResult:
         status, reason, trip = "fail", "run did not start", None
         pending: BaseException | None = None
         try:

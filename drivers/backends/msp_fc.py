@@ -72,6 +72,10 @@ class MspClient:
             write_all(self.port, msp.encode_message(message, self.version), self.name)
             deadline = Deadline(self.timeout_s)
             while True:
+                # the timeout stands only if a read begun after the deadline finds no
+                # reply: a host that was itself off the processor past it reads the reply
+                # that waits in the port's buffer (the FC did answer in time)
+                last_look = deadline.expired
                 for reply in self.decoder.feed(read_some(self.port, self.name)):
                     if getattr(reply, "cmd", getattr(reply, "CMD", None)) != cmd:
                         continue  # a late reply to an earlier request
@@ -80,7 +84,7 @@ class MspClient:
                     if isinstance(reply, (msp.Request, msp.SetMotor)):
                         continue  # our own request echoed (loopback)
                     return reply
-                if deadline.expired:
+                if last_look:
                     raise DeviceError(f"{self.name}: no reply to MSP command {cmd} within "
                                       f"{self.timeout_s * 1e3:.0f} ms")
 

@@ -4,7 +4,13 @@
 ``SerialStreamSensor`` is the shared part of the sensors that decode a continuous serial
 stream (GX3 IMU, line-printing load-cell board): a reader thread stamps each decoded row
 with the rig clock at reception; ``read_block`` hands over the rows, re-raises a read
-error from the thread and raises when nothing came for ``stale_s``.
+error from the thread and raises while the device has been silent for over ``stale_s``.
+
+Silence is the reader's finding, not the time since it last decoded a row: the reader may
+itself be late (a busy host leaves a runnable thread off the processor for tenths of a
+second), and the device's packets then wait in the port's buffer. A read begun at ``t``
+that decodes nothing shows that no whole packet came between the last one and ``t``: only
+such a read judges the device silent, for ``t`` minus the last packet's arrival.
 """
 
 from __future__ import annotations
@@ -44,6 +50,7 @@ class SerialStreamSensor:
         self.url = url
         self._rows: list[tuple[float, ...]] = []
         self._error: DeviceError | None = None
+        self._silent_s: float | None = None  # the reader's finding; None while streaming
         self._last = self.clock.now()
         self._lock = threading.Lock()
         self._stop = threading.Event()
@@ -63,20 +70,21 @@ class SerialStreamSensor:
 
     def _read(self) -> None:
         while not self._stop.is_set():
+            looked = self.clock.now()  # what came before this is in the read below
             try:
                 data = read_some(self.port, self.url)
             except DeviceError as exc:
                 with self._lock:
                     self._error = exc
                 return
-            if not data:
-                continue
             now = self.clock.now()
-            rows = self._decode(data, now)
-            if rows:
-                with self._lock:
+            rows = self._decode(data, now) if data else []
+            with self._lock:
+                if rows:
                     self._rows += rows
-                    self._last = now
+                    self._last, self._silent_s = now, None
+                elif looked - self._last > self.stale_s:
+                    self._silent_s = looked - self._last
 
     def link_errors(self) -> dict[str, int]:
         """Frames lost on the link so far (bad checksums, truncated, malformed ...)."""
@@ -84,14 +92,15 @@ class SerialStreamSensor:
         return link_losses(decoder.stats) if decoder is not None else {}
 
     def read_block(self) -> Block:
-        now = self.clock.now()
         with self._lock:
             rows, self._rows = self._rows, []
-            err, last = self._error, self._last
+            err, silent = self._error, self._silent_s
         if err is not None:
             raise err
-        if now - last > self.stale_s:
-            raise DeviceError(self._silence(now - last))
+        if silent is not None:
+            raise DeviceError(self._silence(silent))
+        if self._thread is not None and not self._thread.is_alive():
+            raise DeviceError(f"{self.url}: the reader thread stopped")
         return block_from_rows(rows, self.names)
 
     def close(self) -> None:

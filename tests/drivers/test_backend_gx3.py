@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 import time
 
 import numpy as np
@@ -15,6 +16,8 @@ from drivers.codecs import gx3
 from drivers.contracts import Sensor
 from drivers.errors import DeviceError
 from drivers.wire_sim.gx3 import SimGx3
+
+ep = sys.modules["rotorbench_tests_expected_protocol"]
 
 
 def imu(t):
@@ -65,7 +68,7 @@ def test_silence_is_detected(sim):
     sim.port.disconnect()
     time.sleep(0.2)
     with pytest.raises(DeviceError, match="no packet"):
-        dev.read_block()
+        ep.wait_for(lambda: dev.read_block() is None)  # until the reader finds it silent
     dev.close()
     port.close()
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 import time
 
 import pytest
@@ -14,6 +15,8 @@ from drivers.codecs.loadcell_lines import TESTSTAND_V2, LineLayout
 from drivers.contracts import Sensor
 from drivers.errors import DeviceError
 from drivers.wire_sim.loadcell_board import SimLoadcellBoard
+
+ep = sys.modules["rotorbench_tests_expected_protocol"]
 
 HEADER = "Thrust(g),mSteps,Throttle(uS),Time(uS),mPRMs,Volts,Amps"  # protocols.md §8.2
 
@@ -39,7 +42,7 @@ def test_teststand_lines_to_si_blocks():
     board.port.disconnect()
     time.sleep(0.4)
     with pytest.raises(DeviceError, match="no data line"):
-        dev.read_block()
+        ep.wait_for(lambda: dev.read_block() is None)  # until the reader finds it silent
     dev.close()
     port.close()
     board.stop()

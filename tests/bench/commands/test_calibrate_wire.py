@@ -54,18 +54,19 @@ def _rel(a, b) -> float:
 def calibrated(tmp_path_factory: pytest.TempPathFactory):
     root = tmp_path_factory.mktemp("cal_wire")
     out = root / "cal.json"
-    # The rig as shipped (6x real time), its devices in a process of their own, except two
-    # wall-clock limits: the MSP reply timeout (0.3 s) and the GX3's silence limit (0.2 s).
-    # The bench's own process (run loop, recorder and the three devices' readers: 600 MSP
-    # polls a wall second) stalls 0.2-0.4 s when the suite's other processes load the two
-    # cores, and either limit then stops the calibration; lost replies and a silent GX3
-    # are the device-lost tests' subject, not this one's.
+    # The rig as shipped (6x real time), its devices in a process of their own, except the
+    # MSP reply timeout (0.3 s of wall time): on a machine loaded like the suite, the
+    # simulated FC's thread in the world's process has been seen to take up the request
+    # 0.3-0.8 s after the bench wrote it (asleep in one 10 ms wait for the port, neither
+    # running nor queued for a processor, while the bench and the world's other threads
+    # ran: a late wake-up below Python), and a late reply is the device-lost tests'
+    # subject, not this one's. The GX3's silence limit
+    # (0.2 s) holds as shipped: it counts only silence a read found, not the bench's own
+    # lateness (drivers/backends/row_stream.py).
     rig = root / "sim-imu-wire.toml"
     text = WIRE_RIG_PATH.read_text(encoding="utf-8")
-    assert text.count("timeout_s = 0.3") == 1 and text.count('protocol = "gx3",') == 1
-    text = text.replace("timeout_s = 0.3", "timeout_s = 3.0")
-    rig.write_text(text.replace('protocol = "gx3",', 'protocol = "gx3", stale_s = 3.0,'),
-                   encoding="utf-8")
+    assert text.count("timeout_s = 0.3") == 1
+    rig.write_text(text.replace("timeout_s = 0.3", "timeout_s = 3.0"), encoding="utf-8")
     code = main(["calibrate", "--quick", "--tick", "0.1", "--rig", str(rig),
                  "--runs", str(root / "runs"), "--out", str(out)])
     runs = sorted((root / "runs").glob("*/run.json"))
