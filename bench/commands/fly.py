@@ -496,6 +496,7 @@ def _betaflight(args: argparse.Namespace) -> int:
         "design": cascade["design"],
         "hover": flight.hover,
         "maneuvers": flight.maneuvers,
+        "rate_steps": flight.rate_steps,
         "vehicle": cascade["vehicle"],
         "actuator": cascade["actuator"],
         "betaflight": {**flight.firmware, "realtime": flight.realtime,
@@ -548,7 +549,7 @@ def _log_report(run_dir: Path | None) -> dict[str, Any]:
 
     from analysis.flight_report import flight_report
     from analysis.run_record import read_run
-    from analysis.stick_steps import step_rise_times
+    from analysis.stick_steps import step_readings
     from bench.jobs.betaflight_program import RATE_STEP_DPS
 
     if run_dir is None:
@@ -559,15 +560,17 @@ def _log_report(run_dir: Path | None) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for axis in ("x", "y"):
         r = rep.responses.get(axis)
-        rises = step_rise_times(t, rec.column(f"rate_sp_{axis}_rad_s"),
-                                rec.column(f"gyro_{axis}_rad_s"),
-                                min_step=math.radians(0.5 * RATE_STEP_DPS))
+        steps = step_readings(t, rec.column(f"rate_sp_{axis}_rad_s"),
+                              rec.column(f"gyro_{axis}_rad_s"),
+                              min_step=math.radians(0.5 * RATE_STEP_DPS))
+        rises = [r for r, _ in steps]
         out[axis] = {
             "h1": r.metrics if r is not None else {},
             "pid_analyzer": (r.metrics_pa or {}) if r is not None else {},
             "direct_rise_ms": float(np.median(rises)) * 1e3 if rises else None,
             "direct_rises_ms": [1e3 * r for r in rises],
             "direct_steps": len(rises),
+            "direct_overshoot_pct": float(np.median([o for _, o in steps])) if steps else None,
             **({"why": r.why} if r is not None and r.why else {})}
     return {"log_step_response": out,
             "log_motor_response": {m: r.summary() for m, r in rep.motors.items()},
