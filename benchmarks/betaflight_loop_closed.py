@@ -4,18 +4,22 @@ For one thesis-e design and the SizingLab catalogs' flight-time pick (4 actuator
 the actuator measured on the simulated bench (``rotorbench step``, fitted by ``fly
 --step-run``):
 
-1. the thesis cascade's prediction (``fly --controller betaflight``'s ``cascade`` figures:
-   the thesis' controller on the same plant and actuator);
-2. Betaflight 4.6.0 in the loop on that plant (its ANGLE-mode roll and pitch steps, read on
-   the plant's attitude);
-3. Betaflight's own blackbox log of that flight (``rotorbench flight-report``: the rate
-   loop's step response, H1, and the direct reading on the stick steps), and the motor
-   time constants from the log's eRPM, synthesized from the plant, against the actuator.
+1. angle steps (ANGLE mode, 10 deg): the thesis cascade's prediction (``fly --controller
+   betaflight``'s ``cascade`` figures: the thesis' controller on the same plant and
+   actuator) beside Betaflight 4.6.0 in the loop, both read on the plant's attitude;
+2. rate steps (acro, +-100 deg/s): Betaflight in the loop read on the plant's body rate,
+   and its own blackbox log of that flight (``rotorbench flight-report``: the gyro read
+   directly on the steps, and the rate loop's deconvolved step response, H1): one loop
+   three ways, like with like;
+3. how far H1's rise is from the direct median, flight by flight, and the motor time
+   constants from the log's eRPM, synthesized from the plant, against the actuator.
 
-Prints the Markdown table of docs/flight.md ("The loop closed"). Needs the ``sitl`` extra,
+Prints the Markdown tables of docs/flight.md ("The loop closed"). Needs the ``sitl`` extra,
 root and ``unshare`` (each flight runs in a network namespace of its own), about 40 s a
-flight. Usage: ``python benchmarks/betaflight_loop_closed.py [--flights K]`` (K flights a
-design: the spread under host load).
+flight; a flight that fails (the host's load) is flown again, up to 3 times. Usage:
+``python benchmarks/betaflight_loop_closed.py [--flights K]`` (K flights a design: the
+spread under host load); ``--reread DIR`` prints the tables again from the flights' JSON
+in DIR, their stored logs read again by the current code.
 """
 
 from __future__ import annotations
@@ -143,7 +147,7 @@ def _tables(flights: dict[str, list[dict]]) -> None:
     print("\nRate steps (acro, +-100 deg/s stick steps; medians over a flight's steps):\n")
     print("| design | axis | rise BF in the loop, plant rate (ms) | rise log, gyro direct (ms) | "
           "rise log, deconvolved H1 (ms) | overshoot in the loop (%) | overshoot log direct "
-          "(%) | overshoot log H1 (%) | steps loop / log |")
+          "(%) | overshoot log H1 (%) | steps a flight: loop; log |")
     print("| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
     for label, outs in flights.items():
         for name, axis in (("roll", "x"), ("pitch", "y")):
@@ -155,8 +159,8 @@ def _tables(flights: dict[str, list[dict]]) -> None:
                   f"{_span([x['overshoot_pct'] for x in loop], '.1f')} | "
                   f"{_span([x.get('direct_overshoot_pct') for x in log], '.1f')} | "
                   f"{_span([x['h1'].get('overshoot_pct') for x in log], '.1f')} | "
-                  f"{'/'.join(str(x['steps']) for x in loop)} "
-                  f"{'/'.join(str(x['direct_steps']) for x in log)} |")
+                  f"{', '.join(str(x['steps']) for x in loop)}; "
+                  f"{', '.join(str(x['direct_steps']) for x in log)} |")
     print("\nDeconvolved (H1) rise against the direct median of the same flight's steps:\n")
     for label, outs in flights.items():
         for axis in ("x", "y"):
