@@ -233,9 +233,10 @@ def flight_step_responses(t_s: np.ndarray, setpoint: dict[str, np.ndarray],
         low = (peak > MIN_INPUT_DPS) & (peak <= HIGH_INPUT_DPS)
         high = peak > HIGH_INPUT_DPS
         h1, segments, trusted = _h1_step(inp, resp, 1.0 / rate_hz, keep)
-        if h1 is None and (low.any() or high.sum() >= MIN_HIGH_WINDOWS):
-            out[axis] = _why(empty, f"no {H1_MIN_S:g} s segment free of gaps (rows more "
-                                    f"than {1e3 * GAP_S:.0f} ms apart) with stick input")
+        if h1 is None and bool(np.isnan(inp).any()):
+            out[axis] = _why(empty, f"no {H1_MIN_S:g} s segment free of gaps (missing "
+                                    f"values, rows more than {1e3 * GAP_S:.0f} ms apart) "
+                                    "with stick input")
             continue
         if (not low.any() and high.sum() < MIN_HIGH_WINDOWS) or h1 is None:
             out[axis] = _why(empty, f"no window's setpoint exceeds {MIN_INPUT_DPS:g} deg/s: "
