@@ -608,6 +608,12 @@ def _print_betaflight(report: dict[str, Any]) -> None:
                   f"{1e3 * SILENT_S:.0f} ms, the longest {1e3 * rt['longest_wait_s']:.0f} ms;"
                   f" {_fmt(rt['answered_pct'], '.0f')} % of FDM packets answered within the "
                   "tick)")
+    console.print(f"PIDs scaled to the design: simplified_master_multiplier "
+                  f"{report['betaflight'].get('simplified_master_multiplier')} %")
+    for name, r in (report.get("rate_steps") or {}).items():
+        console.print(f"rate steps {name} in the loop (plant's rate, median): rise "
+                      f"{_fmt(r['rise_ms'], '.1f')} ms, overshoot "
+                      f"{_fmt(r['overshoot_pct'], '.1f')} % ({r['steps']} steps)")
     for axis, r in (report["log_step_response"] or {}).items():
         console.print(f"log step response {axis}: rise {_fmt(r['h1'].get('rise_ms'), '.1f')} ms "
                       f"deconvolved (H1), {_fmt(r['direct_rise_ms'], '.1f')} ms direct "
