@@ -37,6 +37,8 @@ from typing import Any
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
+from analysis.stick_steps import GAP_S
+
 __all__ = ["AxisResponse", "flight_step_responses", "response_metrics"]
 
 FRAME_S = 1.0  # window length (PA framelen)
@@ -82,8 +84,17 @@ class AxisResponse:
 
 
 def _resample(t: np.ndarray, y: np.ndarray, grid: np.ndarray) -> np.ndarray:
+    """``y`` on ``grid``, NaN inside a gap of the log (rows more than ``GAP_S`` apart: the
+    firmware did not run, as a software-in-the-loop one on a loaded host may not): a
+    straight line across it is no answer of the loop, and a window holding it is dropped."""
     ok = np.isfinite(t) & np.isfinite(y)
-    return np.interp(grid, t[ok], y[ok]) if ok.sum() >= 2 else np.full(grid.size, np.nan)
+    if ok.sum() < 2:
+        return np.full(grid.size, np.nan)
+    tk = t[ok]
+    out = np.interp(grid, tk, y[ok])
+    k = np.clip(np.searchsorted(tk, grid), 1, tk.size - 1)
+    out[tk[k] - tk[k - 1] > GAP_S] = np.nan
+    return out
 
 
 def _sn_profile(n_fft: int, dt: float) -> np.ndarray:
@@ -222,6 +233,11 @@ def flight_step_responses(t_s: np.ndarray, setpoint: dict[str, np.ndarray],
         low = (peak > MIN_INPUT_DPS) & (peak <= HIGH_INPUT_DPS)
         high = peak > HIGH_INPUT_DPS
         h1, segments, trusted = _h1_step(inp, resp, 1.0 / rate_hz, keep)
+        if h1 is None and bool(np.isnan(inp).any()):
+            out[axis] = _why(empty, f"no {H1_MIN_S:g} s segment free of gaps (missing "
+                                    f"values, rows more than {1e3 * GAP_S:.0f} ms apart) "
+                                    "with stick input")
+            continue
         if (not low.any() and high.sum() < MIN_HIGH_WINDOWS) or h1 is None:
             out[axis] = _why(empty, f"no window's setpoint exceeds {MIN_INPUT_DPS:g} deg/s: "
                                     "no stick input to respond to")

@@ -5,7 +5,8 @@ The deconvolved step response (``analysis.flight_response``) estimates the loop'
 to a unit step from whatever the pilot did; when the pilot did give clean steps (a bench's
 stick program, a tuning flight's snap rolls) the gyro's own rise after each one is the
 direct measurement to hold it against. A step here: the setpoint changes by at least
-``min_step`` within ``EDGE_S`` and then stays within 5 % of the change for ``hold_s``;
+``min_step`` within ``EDGE_S`` and, ``SETTLE_S`` later (a firmware's RC smoothing rounds a
+stick step off over some 30 ms), stays within 5 % of the change for ``hold_s``;
 the rise is between the gyro's first crossings of 10 % and 90 % of the way from the level
 before the edge to the level held after it. A step whose stretch of log has a gap (the
 logged time jumps by more than ``GAP_S``: the firmware did not run, as a
@@ -19,48 +20,65 @@ import math
 
 import numpy as np
 
-__all__ = ["EDGE_S", "GAP_S", "step_rise_times"]
+__all__ = ["EDGE_S", "GAP_S", "step_readings", "step_rise_times", "unit_step_figures"]
 
-EDGE_S = 0.01  # the setpoint's change must happen within this (a stick step, not a sweep)
+EDGE_S = 0.02  # the setpoint must change by min_step within this (a stick step, not a sweep)
 BEFORE_S = 0.02  # the level before the edge: the setpoint's and gyro's mean over this
+SETTLE_S = 0.04  # from the edge to where the setpoint must hold (RC smoothing's tail)
 GAP_S = 0.03  # a fraction of any rise worth reading; shorter holes are interpolated
 
 
 def step_rise_times(t_s: np.ndarray, setpoint: np.ndarray, gyro: np.ndarray, *,
                     min_step: float, hold_s: float = 0.15) -> list[float]:
     """The gyro's 10-90 % rise time (s) after each clean setpoint step of the log."""
+    return [r for r, _ in step_readings(t_s, setpoint, gyro, min_step=min_step,
+                                        hold_s=hold_s)]
+
+
+def unit_step_figures(t_s: np.ndarray, z: np.ndarray) -> tuple[float, float]:
+    """A response normalised to its step (0 before, 1 asked): the 10-90 % rise (s, first
+    crossings; NaN if never reached) and the overshoot over the asked level (%)."""
+    rise = _crossing(t_s, z, 0.9) - _crossing(t_s, z, 0.1)
+    return rise, max(0.0, float(np.max(z)) - 1.0) * 100.0
+
+
+def step_readings(t_s: np.ndarray, setpoint: np.ndarray, gyro: np.ndarray, *,
+                  min_step: float, hold_s: float = 0.15) -> list[tuple[float, float]]:
+    """Each clean setpoint step's gyro rise (s) and overshoot over the held setpoint (%)."""
     t = np.asarray(t_s, float)
     sp = np.asarray(setpoint, float)
     gy = np.asarray(gyro, float)
     if t.size < 3:
         return []
-    rate = 1.0 / float(np.median(np.diff(t)))
-    edge = max(1, round(EDGE_S * rate))
-    hold = round(hold_s * rate)
-    before = max(1, round(BEFORE_S * rate))
-    out: list[float] = []
-    i = before
-    while i + edge + hold < t.size:
-        jump = sp[i + edge] - sp[i]
-        if abs(jump) < min_step:
+    # spans in time, not samples: a log's rows need not be evenly spaced (a blackbox
+    # drops frames; the rate a median spacing gives would stretch a span past the step)
+    edge = np.searchsorted(t, t + EDGE_S)
+    out: list[tuple[float, float]] = []
+    i = int(np.searchsorted(t, t[0] + BEFORE_S))
+    while i < t.size:
+        e = int(edge[i])
+        j = int(np.searchsorted(t, t[i] + EDGE_S + SETTLE_S))
+        end = int(np.searchsorted(t, t[i] + EDGE_S + SETTLE_S + hold_s))
+        if end >= t.size:
+            break
+        if e >= t.size or abs(sp[e] - sp[i]) < min_step or end - j < 3:
             i += 1
             continue
-        j = i + edge
-        size = sp[j] - float(np.mean(sp[i - before:i + 1]))
-        plateau = sp[j:j + hold]
-        if np.max(np.abs(plateau - sp[j])) > 0.05 * abs(size):
-            i = j
+        b = int(np.searchsorted(t, t[i] - BEFORE_S))
+        plateau = sp[j:end]
+        level = float(np.mean(plateau))
+        size = level - float(np.mean(sp[b:i + 1]))
+        if np.max(np.abs(plateau - level)) > 0.05 * abs(size):
+            i = e
             continue
-        if np.max(np.diff(t[i - before:j + hold])) > GAP_S:
-            i = j + hold
+        if np.max(np.diff(t[b:end])) > GAP_S:
+            i = end
             continue
-        start = float(np.mean(gy[i - before:i + 1]))
-        z = (gy[i:j + hold] - start) / (float(np.mean(plateau)) - start)
-        tt = t[i:j + hold]
-        r = _crossing(tt, z, 0.9) - _crossing(tt, z, 0.1)
+        start = float(np.mean(gy[b:i + 1]))
+        r, over = unit_step_figures(t[i:end], (gy[i:end] - start) / (level - start))
         if math.isfinite(r):
-            out.append(r)
-        i = j + hold
+            out.append((r, over))
+        i = end
     return out
 
 

@@ -496,6 +496,7 @@ def _betaflight(args: argparse.Namespace) -> int:
         "design": cascade["design"],
         "hover": flight.hover,
         "maneuvers": flight.maneuvers,
+        "rate_steps": flight.rate_steps,
         "vehicle": cascade["vehicle"],
         "actuator": cascade["actuator"],
         "betaflight": {**flight.firmware, "realtime": flight.realtime,
@@ -548,7 +549,7 @@ def _log_report(run_dir: Path | None) -> dict[str, Any]:
 
     from analysis.flight_report import flight_report
     from analysis.run_record import read_run
-    from analysis.stick_steps import step_rise_times
+    from analysis.stick_steps import step_readings
     from bench.jobs.betaflight_program import RATE_STEP_DPS
 
     if run_dir is None:
@@ -559,15 +560,17 @@ def _log_report(run_dir: Path | None) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for axis in ("x", "y"):
         r = rep.responses.get(axis)
-        rises = step_rise_times(t, rec.column(f"rate_sp_{axis}_rad_s"),
-                                rec.column(f"gyro_{axis}_rad_s"),
-                                min_step=math.radians(0.5 * RATE_STEP_DPS))
+        steps = step_readings(t, rec.column(f"rate_sp_{axis}_rad_s"),
+                              rec.column(f"gyro_{axis}_rad_s"),
+                              min_step=math.radians(0.5 * RATE_STEP_DPS))
+        rises = [r for r, _ in steps]
         out[axis] = {
             "h1": r.metrics if r is not None else {},
             "pid_analyzer": (r.metrics_pa or {}) if r is not None else {},
             "direct_rise_ms": float(np.median(rises)) * 1e3 if rises else None,
             "direct_rises_ms": [1e3 * r for r in rises],
             "direct_steps": len(rises),
+            "direct_overshoot_pct": float(np.median([o for _, o in steps])) if steps else None,
             **({"why": r.why} if r is not None and r.why else {})}
     return {"log_step_response": out,
             "log_motor_response": {m: r.summary() for m, r in rep.motors.items()},
@@ -605,6 +608,12 @@ def _print_betaflight(report: dict[str, Any]) -> None:
                   f"{1e3 * SILENT_S:.0f} ms, the longest {1e3 * rt['longest_wait_s']:.0f} ms;"
                   f" {_fmt(rt['answered_pct'], '.0f')} % of FDM packets answered within the "
                   "tick)")
+    console.print(f"PIDs scaled to the design: simplified_master_multiplier "
+                  f"{report['betaflight'].get('simplified_master_multiplier')} %")
+    for name, r in (report.get("rate_steps") or {}).items():
+        console.print(f"rate steps {name} in the loop (plant's rate, median): rise "
+                      f"{_fmt(r['rise_ms'], '.1f')} ms, overshoot "
+                      f"{_fmt(r['overshoot_pct'], '.1f')} % ({r['steps']} steps)")
     for axis, r in (report["log_step_response"] or {}).items():
         console.print(f"log step response {axis}: rise {_fmt(r['h1'].get('rise_ms'), '.1f')} ms "
                       f"deconvolved (H1), {_fmt(r['direct_rise_ms'], '.1f')} ms direct "

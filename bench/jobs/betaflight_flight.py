@@ -39,7 +39,17 @@ from typing import Any
 
 import numpy as np
 
-from bench.jobs.betaflight_program import HeightPilot, Segment, program
+from analysis.stick_steps import unit_step_figures
+from bench.jobs.betaflight_program import (
+    RATE_HOLD_S,
+    RATE_STEP_DPS,
+    RATE_TOP_DPS,
+    STICK_HALF_US,
+    HeightPilot,
+    Segment,
+    program,
+)
+from bench.jobs.betaflight_tune import pid_scale, tune_lines
 from drivers.backends.betaflight_cli import apply_and_save
 from drivers.backends.betaflight_sitl import SitlProcess, await_control_loop, find_binary
 from drivers.backends.msp_fc import MspClient
@@ -100,6 +110,7 @@ class BetaflightFlight:
     firmware: dict[str, Any]
     log_path: Path | None
     trace: dict[str, np.ndarray] = field(repr=False, default_factory=dict)
+    rate_steps: dict[str, dict[str, Any]] = field(default_factory=dict)
 
 
 class PlantLoop(threading.Thread):
@@ -233,7 +244,8 @@ def fly_betaflight(plant: ExternalPlant, maneuvers: list[str], cli_lines: list[t
                            "the pilot needs a margin to hold the height (at most 90 %)")
     tell = on_phase or (lambda _text: None)
     workdir = Path(tempfile.mkdtemp(prefix="rotorbench-betaflight-"))
-    lines = [("preamble", line) for line in PREAMBLE] + cli_lines
+    # the design's scaled PIDs before the user's lines, which may override them
+    lines = [("preamble", line) for line in PREAMBLE] + tune_lines(vehicle) + cli_lines
     sitl = port = link = loop = rc = client = None
     firmware: dict[str, Any] = {}
     marks: list[tuple[Segment, float]] = []
@@ -268,6 +280,7 @@ def fly_betaflight(plant: ExternalPlant, maneuvers: list[str], cli_lines: list[t
             copied = _copy_log(workdir / LOG_NAME, log_to)
             shutil.rmtree(workdir, ignore_errors=True)
     firmware["disarmed_at_end"] = disarmed
+    firmware["simplified_master_multiplier"] = pid_scale(vehicle)
     assert loop is not None
     return _result(plant, loop, link, marks, release[0], firmware, copied)
 
@@ -383,7 +396,52 @@ def _result(plant: ExternalPlant, loop: PlantLoop, link: FdmLink | None,
                 else 0.0}
     trace = {"t_s": t, "euler_rad": euler, "position_m": rows[:, 1:4], "omega_rad_s": omega,
              "motor_us": motor_us, "wall_s": rows[:, 22]}
-    return BetaflightFlight(figures, hover, realtime, firmware, log_path, trace)
+    return BetaflightFlight(figures, hover, realtime, firmware, log_path, trace,
+                            _rate_steps(rows, marks))
+
+
+def _rate_steps(rows: np.ndarray, marks: list[tuple[Segment, float]]) -> dict[str, Any]:
+    """The acro rate steps read on the plant's body rate, per axis: each step's (and each
+    return to zero's, as a log's steps count both) 10-90 % rise and overshoot over the rate
+    its stick asks, from the level before it, and their medians. The clock starts at the
+    stick, so the rise takes in what the firmware's RC smoothing does to the stick; a step
+    over which the host stalled (wall clock jumped past ``CATCH_UP_S``) is left out, as
+    ``analysis.stick_steps`` leaves out a log's gaps."""
+    if not rows.size:
+        return {}
+    t, wall = rows[:, 0], rows[:, 22]
+    # Betaflight's roll (right side down) and pitch (nose down) rates of the model's
+    # forward-left-up body rates: p and q
+    rate = {"roll": rows[:, 11], "pitch": rows[:, 12]}
+    steps: dict[str, list[tuple[float, float]]] = {"roll": [], "pitch": []}
+    axis = ""
+    for seg, t_mark in marks:
+        if seg.label == "rate step":
+            axis, stick = ("roll", seg.roll_us) if seg.roll_us != 1500 else \
+                ("pitch", seg.pitch_us)
+            asked = math.radians((stick - 1500) / STICK_HALF_US * RATE_TOP_DPS)
+        elif seg.label == "rate pause" and axis:
+            asked = 0.0
+        else:
+            continue
+        keep = (t >= t_mark) & (t < min(seg.end_s, t_mark + RATE_HOLD_S))
+        before = (t >= t_mark - 0.02) & (t < t_mark)
+        if keep.sum() < 10 or not before.any() or \
+                np.max(np.diff(wall[before | keep])) > CATCH_UP_S:
+            continue
+        start = float(np.mean(rate[axis][before]))
+        if abs(asked - start) < math.radians(RATE_STEP_DPS) / 2:
+            continue
+        steps[axis].append(unit_step_figures(t[keep] - t_mark,
+                                             (rate[axis][keep] - start) / (asked - start)))
+    out: dict[str, Any] = {}
+    for axis, got in steps.items():
+        ok = [(r, o) for r, o in got if math.isfinite(r)]
+        out[axis] = {"steps": len(ok),
+                     "rise_ms": float(np.median([r for r, _ in ok])) * 1e3 if ok else None,
+                     "overshoot_pct": float(np.median([o for _, o in ok])) if ok else None,
+                     "rises_ms": [1e3 * r for r, _ in ok]}
+    return out
 
 
 def _hover(plant: ExternalPlant, t: np.ndarray, omega: np.ndarray, motor_us: np.ndarray,

@@ -32,7 +32,7 @@ from optimizer.errors import RequestError
 from optimizer.flight.actuators import ActuatorModel, RotorBank
 from optimizer.flight.vehicle import Vehicle, hover_state, step
 
-__all__ = ["QUADX_ANGLES_DEG", "QUADX_SPIN", "ExternalPlant", "Sensors"]
+__all__ = ["QUADX_ANGLES_DEG", "QUADX_SPIN", "ExternalPlant", "Sensors", "tilt_authority"]
 
 #: Betaflight QUADX motors 1..4: angle of each arm from forward (counter-clockwise, deg)
 QUADX_ANGLES_DEG = (-135.0, -45.0, 135.0, 45.0)
@@ -120,6 +120,20 @@ class ExternalPlant:
         by = r[0][1] * ax + r[1][1] * ay + r[2][1] * az
         bz = r[0][2] * ax + r[1][2] * ay + r[2][2] * az + self._thrust / v.mass_kg
         return Sensors((s[10], s[11], s[12]), (bx, by, bz), (qw, qx, qy, qz))
+
+
+def tilt_authority(vehicle: Vehicle) -> float:
+    """The roll or pitch acceleration (rad/s^2, the larger) per unit of a QUADX mixer's
+    differential command at hover: what an outside controller's rate-loop gain multiplies.
+
+    A command u asks for u x full speed, so a rotor's thrust is k_f (u w_max)^2 and its slope
+    at hover, with k_f w_hover^2 = m g / 4, is m g / (2 u_hover). Four rotors at arm r,
+    +-45 deg, each moved by +-d: torque = sqrt(2) r m g d / u_hover (2.43), and
+    1 / u_hover = sqrt(thrust-to-weight): an over-powered design is a hotter plant.
+    """
+    u_hover = vehicle.hover_speed_rad_s / vehicle.omega_max_rad_s
+    torque = math.sqrt(2.0) * vehicle.arm_m * vehicle.mass_kg * vehicle.gravity_m_s2 / u_hover
+    return torque / min(vehicle.inertia_kgm2[0], vehicle.inertia_kgm2[1])
 
 
 def _rotation(qw: float, qx: float, qy: float, qz: float) -> list[list[float]]:

@@ -71,3 +71,23 @@ def test_no_stick_input_or_a_short_log_says_why():
     assert r.step is None and "no stick input" in r.why
     short = flight_step_responses(t[:1000], calm, calm)["x"]
     assert short.step is None and "a window needs 1 s" in short.why
+
+
+def test_a_gap_in_the_log_is_left_out_not_bridged():
+    """A firmware that stopped for 0.2 s now and then (its rows missing): the windows
+    holding a gap are dropped, not bridged by a straight line, so the response is the
+    gap-free one's; a log that is all gaps gives none, and says why."""
+    loops = {"x": _loop(12.0, 0.6, 0.004)}
+    t, sp, gy = _fly(3, 40.0, loops)
+    clean = flight_step_responses(t, sp, gy)["x"]
+    keep = np.ones(t.size, bool)
+    for start in np.arange(1.0, 40.0, 8.0):  # 5 gaps: most 2 s segments stay whole
+        keep &= ~((t >= start) & (t < start + 0.2))
+    gapped = flight_step_responses(t[keep], {"x": sp["x"][keep]}, {"x": gy["x"][keep]})
+    assert gapped["x"].segments < clean.segments
+    assert gapped["x"].metrics["rise_ms"] == pytest.approx(clean.metrics["rise_ms"], rel=0.05)
+    every = np.ones(t.size, bool)
+    for start in np.arange(0.5, 40.0, 1.0):
+        every &= ~((t >= start) & (t < start + 0.05))
+    none = flight_step_responses(t[every], {"x": sp["x"][every]}, {"x": gy["x"][every]})["x"]
+    assert none.step is None and "gaps" in (none.why or "")
