@@ -80,7 +80,8 @@ def _no_firmware_left(tmp_path: Path) -> None:
 
 def _true_taus() -> tuple[float, float]:
     """The plant's own tau_up and tau_down for Step 1 (175 g <-> 325 g): the noise-free
-    true thrust of the rig's [sim] plant fitted by the same first-order fit as `fit`."""
+    true thrust of the rig's [sim] plant fitted by the same model as `fit` (thrust the
+    square of a first-order speed; the plant's thrust has no cell's lag to model)."""
     truth = build_sim_rig(load_rig(RIG)).truth()
     lo, hi = 0.175 * G, 0.325 * G
     tu, yu = truth.step_response(lo, hi)
@@ -89,7 +90,7 @@ def _true_taus() -> tuple[float, float]:
     t = np.concatenate([pre, 0.5 + tu, 1.0 + td])
     y = np.concatenate([np.full(pre.size, yu[0]), yu, yd])
     u = np.concatenate([np.ones(pre.size), np.full(tu.size, 2.0), np.ones(td.size)])
-    s = fit_step_response(t, y, u, window_s=0.5, bin_s=0.0025).summary()
+    s = fit_step_response(t, y, u, window_s=0.5, bin_s=0.0025, square_law=True).summary()
     return s["tau_up_ms"], s["tau_down_ms"]
 
 
