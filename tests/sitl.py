@@ -317,3 +317,16 @@ def attach_logs(item: pytest.Item, report: pytest.TestReport) -> None:
     if report.failed:
         for s in getattr(item, "_sitl_instances", []):
             report.sections.append((f"Betaflight SITL log ({s.log_path})", s.log_tail()))
+
+
+def no_firmware_left(tmp_path: Path) -> None:
+    """No process runs in, and no firmware directory is left under, ``tmp_path/tmp`` (the
+    commands' TMPDIR in the firmware tests)."""
+    tmp = str(tmp_path / "tmp")
+    for pid in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            cwd = os.readlink(f"/proc/{pid}/cwd")
+        except OSError:
+            continue
+        assert not cwd.startswith(tmp), f"process {pid} still runs in {cwd}"
+    assert list((tmp_path / "tmp").iterdir()) == []

@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from rotorbench_tests_sitl import _preconditions, sitl_binary
+from rotorbench_tests_sitl import _preconditions, no_firmware_left, sitl_binary
 
 from bench.cli import main
 
@@ -55,17 +55,6 @@ def _in_namespace(tmp: Path, args: list[str], timeout_s: float = 90.0, **popen):
                           timeout=timeout_s)
 
 
-def _no_firmware_left(tmp: Path) -> None:
-    left = str(tmp / "tmp")
-    for pid in filter(str.isdigit, os.listdir("/proc")):
-        try:
-            cwd = os.readlink(f"/proc/{pid}/cwd")
-        except OSError:
-            continue
-        assert not cwd.startswith(left), f"process {pid} still runs in {cwd}"
-    assert list((tmp / "tmp").iterdir()) == []
-
-
 @pytest.fixture(scope="module")
 def flown(tmp_path_factory) -> dict[str, Any]:
     """One flight: hover and 4.8 s of rate steps, no RC smoothing (clean setpoint steps)."""
@@ -86,7 +75,7 @@ def flown(tmp_path_factory) -> dict[str, Any]:
 
 
 def test_the_firmware_flies_the_design_and_ends_disarmed_and_stopped(flown):
-    _no_firmware_left(flown["tmp"])
+    no_firmware_left(flown["tmp"])
     out = flown["out"]
     bf, cascade = out["betaflight"], out["cascade"]
     assert bf["version"] == "4.6.0" and bf["disarmed_at_end"] is True
@@ -214,7 +203,7 @@ def test_a_flight_stopped_mid_air_ends_disarmed_with_the_firmware_stopped(tmp_pa
             proc.kill()
     assert proc.returncode == 143, err
     assert "Traceback" not in err
-    _no_firmware_left(tmp_path)
+    no_firmware_left(tmp_path)
     (run_dir,) = [p for p in store.iterdir() if p.is_dir() and not p.name.startswith(".")]
     meta = json.loads((run_dir / "run.json").read_text())
     assert meta["kind"] == "flight"

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from rotorbench_tests_sitl import Sitl, _preconditions, sitl_binary
+from rotorbench_tests_sitl import Sitl, _preconditions, no_firmware_left, sitl_binary
 
 from analysis.report import OUTPUT_DELAY
 from analysis.step_response import fit_step_response
@@ -66,18 +66,6 @@ def _cli(*args: str) -> str:
     return f"import sys; from bench.cli import main; sys.exit(main({list(args)!r}))"
 
 
-def _no_firmware_left(tmp_path: Path) -> None:
-    """No process runs in, and no firmware directory is left under, ``tmp_path/tmp``."""
-    tmp = str(tmp_path / "tmp")
-    for pid in filter(str.isdigit, os.listdir("/proc")):
-        try:
-            cwd = os.readlink(f"/proc/{pid}/cwd")
-        except OSError:
-            continue
-        assert not cwd.startswith(tmp), f"process {pid} still runs in {cwd}"
-    assert list((tmp_path / "tmp").iterdir()) == []
-
-
 def _true_taus() -> tuple[float, float]:
     """The plant's own tau_up and tau_down for Step 1 (175 g <-> 325 g): the noise-free
     true thrust of the rig's [sim] plant fitted by the same model as `fit` (thrust the
@@ -100,13 +88,13 @@ def test_check_step_and_fit_run_through_the_firmware(tmp_path, capsys):
     assert check.returncode == 0, check.stdout + check.stderr[-2000:]
     assert "Betaflight SITL launched by the bench" in check.stdout
     assert "flight controller BTFL, MSP API 1.47" in check.stdout
-    _no_firmware_left(tmp_path)
+    no_firmware_left(tmp_path)
 
     step = _in_namespace(tmp_path, _cli("step", "--rig", str(RIG), "--repeats", "5",
                                         "--out", str(out)))
     assert step.returncode == 0, step.stderr[-2000:]
     assert "success" in step.stdout
-    _no_firmware_left(tmp_path)
+    no_firmware_left(tmp_path)
     (run_dir,) = [p for p in out.iterdir() if p.name.endswith("step1")]
     meta = json.loads((run_dir / "run.json").read_text())
     assert meta["status"] == "success"
@@ -148,7 +136,7 @@ def test_the_console_runs_a_manual_session_through_the_firmware(tmp_path):
                                        "--out", str(out), "--min-fps", "0"), timeout_s=120)
     assert res.returncode == 0, res.stdout + res.stderr[-2000:]
     assert "recorded throttle: up to 1300 us, last 1000 us" in res.stdout
-    _no_firmware_left(tmp_path)
+    no_firmware_left(tmp_path)
     (run_dir,) = [p for p in out.iterdir() if p.name.endswith("manual")]
     meta = json.loads((run_dir / "run.json").read_text())
     assert meta["status"] == "success"
