@@ -68,8 +68,4 @@ class PipelinedMspImu(MspImu):
                 and sent):
             return
         stamp, paused, _ = sent.popleft()
-        try:
-            raw, att = msp.split_multiple(RAW_AND_ATTITUDE, reply)
-        except msp.PayloadError as exc:
-            raise DeviceError(f"{self.url}: {exc}") from None
-        self._add_row(stamp, paused, raw, att)
+        self._add_row(stamp, paused, *self._split(reply))

@@ -31,9 +31,22 @@ from drivers.codecs.sitl import (
 )
 from drivers.errors import DeviceError
 
-__all__ = ["FdmLink"]
+__all__ = ["FdmLink", "motor_listener"]
 
 Vec3 = tuple[float, float, float]
+
+
+def motor_listener(host: str) -> socket.socket:
+    """A non-blocking UDP socket bound to the SITL's motor-output port on ``host``."""
+    rx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        rx.bind((host, MOTOR_RAW_PORT))
+    except OSError as exc:
+        rx.close()
+        raise DeviceError(f"cannot listen for the SITL's motor outputs on UDP "
+                          f"{host}:{MOTOR_RAW_PORT} ({exc.strerror or exc})") from None
+    rx.setblocking(False)
+    return rx
 
 
 class FdmLink:
@@ -42,15 +55,8 @@ class FdmLink:
     def __init__(self, host: str = "127.0.0.1") -> None:
         self.host = host
         self.stamps = fdm_stamps()
+        self.rx = motor_listener(host)
         self.tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.rx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        try:
-            self.rx.bind((host, MOTOR_RAW_PORT))
-        except OSError as exc:
-            self.close()
-            raise DeviceError(f"cannot listen for the SITL's motor outputs on UDP "
-                              f"{MOTOR_RAW_PORT} ({exc.strerror or exc})") from None
-        self.rx.setblocking(False)
         self.sent = 0
         self.answered = 0  # FDM packets answered before the caller's deadline
 

@@ -39,6 +39,7 @@ from typing import Any, Self
 
 import numpy as np
 
+from drivers.backends.sitl_fdm_link import motor_listener
 from drivers.codecs.sitl import (
     FDM_PORT,
     MOTOR_RAW_PORT,
@@ -82,14 +83,7 @@ class SitlPlantPeer:
         self._feeding = threading.Event()
         self._feeding.set()
         self._stop = threading.Event()
-        self._rx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        try:
-            self._rx.bind((host, MOTOR_RAW_PORT))
-        except OSError as exc:
-            self._rx.close()
-            raise DeviceError(f"cannot listen for the SITL's motor output on UDP "
-                              f"{host}:{MOTOR_RAW_PORT}: {exc.strerror or exc}") from None
-        self._rx.setblocking(False)
+        self._rx = motor_listener(host)
         self._tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self._thread = threading.Thread(target=self._run, name="sitl-plant", daemon=True)
 
