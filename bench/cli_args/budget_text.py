@@ -10,7 +10,7 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
-__all__ = ["DISPLAY", "budget_lines", "value_and_u", "with_expanded"]
+__all__ = ["DISPLAY", "budget_lines", "display", "value_and_u", "with_expanded"]
 
 #: how a constant is shown: label, factor from SI, unit, format
 DISPLAY: dict[str, tuple[str, float, str, str]] = {
@@ -25,7 +25,8 @@ DISPLAY: dict[str, tuple[str, float, str, str]] = {
 }
 
 
-def _show(name: str) -> tuple[str, float, str, str]:
+def display(name: str) -> tuple[str, float, str, str]:
+    """How constant ``name`` is shown (``DISPLAY``): its own name, SI, for one not listed."""
     return DISPLAY.get(name, (name, 1.0, "", ".5g"))
 
 
@@ -45,7 +46,7 @@ def value_and_u(value: float, big_u: float) -> tuple[str, str]:
 def with_expanded(name: str, b: Mapping[str, Any]) -> str:
     """``tau up 29.71 ± 0.27 ms (k = 2)``: U to two significant digits, the value to U's
     last digit."""
-    label, f, unit, fmt = _show(name)
+    label, f, unit, fmt = display(name)
     value, big_u = b.get("value"), b.get("U")
     if not isinstance(value, int | float) or not math.isfinite(value):
         return f"{label} n/a"
@@ -58,7 +59,7 @@ def with_expanded(name: str, b: Mapping[str, Any]) -> str:
 def budget_lines(name: str, b: Mapping[str, Any]) -> list[str]:
     """The budget: one line per term (u, type, degrees of freedom, what it is), then u_c,
     the effective degrees of freedom and U."""
-    label, f, unit, _ = _show(name)
+    label, f, unit, _ = display(name)
     lines = [f"budget of {label} ({unit}):"]
     for t in b.get("budget", []):
         dof = "inf" if t.get("dof") is None else f"{t['dof']:.0f}"

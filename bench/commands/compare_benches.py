@@ -15,7 +15,7 @@ from pathlib import Path
 from rich.console import Console
 from rich.table import Table
 
-from bench.cli_args.budget_text import DISPLAY, value_and_u
+from bench.cli_args.budget_text import DISPLAY, display, value_and_u
 from bench.cli_args.store_args import add_store_args, store_from_args
 from bench.paths.outputs import check_figure_path
 from bench.store.bench_comparison import BenchComparison, compare_benches
@@ -65,13 +65,13 @@ def handler(args: argparse.Namespace) -> int:
 
 
 def _label(name: str) -> str:
-    return DISPLAY.get(name, (name,))[0]
+    return display(name)[0]
 
 
 def _cell(name: str, value: float, big_u: float | None) -> str:
     """``29.71 ± 0.27`` in the constant's display unit (``DISPLAY``), as ``fit`` and
     ``constants`` print it (``value_and_u``); ``?`` for a U not known."""
-    _, f, _, fmt = DISPLAY.get(name, (name, 1.0, "", ".5g"))
+    _, f, _, fmt = display(name)
     if big_u is None:
         return f"{format(value * f, fmt)} ± ?"
     return " ± ".join(value_and_u(value * f, big_u * f))

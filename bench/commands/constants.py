@@ -26,7 +26,7 @@ from bench.cli_args.store_args import (
     store_from_args,
 )
 from bench.paths.outputs import check_folder_to_read, check_writable
-from bench.store.constants_fit import STD_KEYS, UNCERTAINTY, fit_for_store
+from bench.store.constants_fit import STD_KEYS, UNCERTAINTY, fit_for_store, stored_entry
 from bench.store.lab_catalog import StoredConstants
 from optimizer.errors import RequestError
 
@@ -138,6 +138,6 @@ def _value(data: dict, key: str, scale: float, fmt: str) -> str:
     else the spread of one measurement (``STD_KEYS``, older rows): "40.1 ± 1.2"; "?" for a
     constant the fit could not give."""
     x = data.get(key)
-    std = (data.get(UNCERTAINTY) or {}).get(key, {}).get("U", data.get(STD_KEYS[key]))
+    std = stored_entry(data, key).get("U", data.get(STD_KEYS[key]))
     text = format(x * scale, fmt) if isinstance(x, int | float) else "?"
     return text + (f" ± {format(std * scale, fmt)}" if isinstance(std, int | float) else "")

@@ -71,9 +71,10 @@ def _check_finite(out: dict[str, Any], source: Path) -> None:
                            "the run does not support this export")
 
 
-def build(args: argparse.Namespace) -> dict[str, Any]:
+def build(args: argparse.Namespace) -> tuple[dict[str, Any], tuple[Any, Any, Any]]:
     """The parameters of ``args.target`` (one home: ``analysis.exports.export_params``,
-    which the web view's downloads use too), after the options are checked."""
+    which the web view's downloads use too), after the options are checked; and the run
+    records they came from (run, thrust run, step run: None where not given), read once."""
     from analysis.exports import export_params
     from analysis.run_record import read_run
     from bench.cli_args.option_values import refuse_unused
@@ -85,13 +86,11 @@ def build(args: argparse.Namespace) -> dict[str, Any]:
         refuse_unused(args, ("--step-run",),
                       f"for export {args.target} (only gazebo uses time constants)")
     hover = _hover(args)  # options first: a bad one is named before any fit
-    record = read_run(args.run)
-    out = export_params(args.target, record,
-                        read_run(args.thrust_run) if args.thrust_run else None,
-                        read_run(args.step_run) if args.step_run is not None else None,
-                        hover)
-    _check_finite(out, record.path)
-    return out
+    records = (read_run(args.run), read_run(args.thrust_run) if args.thrust_run else None,
+               read_run(args.step_run) if args.step_run is not None else None)
+    out = export_params(args.target, *records, hover)
+    _check_finite(out, records[0].path)
+    return out, records
 
 
 def handler(args: argparse.Namespace) -> int:
@@ -102,18 +101,14 @@ def handler(args: argparse.Namespace) -> int:
         from bench.paths.outputs import check_writable
 
         check_writable(args.out, "--out", folder=False)
-    out = build(args)
+    out, records = build(args)
     text = json.dumps(out, indent=2, allow_nan=False) if args.json else _lines(args, out)
     if args.out is None:
         print(text)
         return 0
     from analysis.export_uncertainty import export_uncertainties
-    from analysis.run_record import read_run
 
-    side = export_uncertainties(
-        args.target, out, read_run(args.run),
-        read_run(args.thrust_run) if args.thrust_run else None,
-        read_run(args.step_run) if args.step_run is not None else None)
+    side = export_uncertainties(args.target, out, *records)
     args.out.write_text(text + "\n", encoding="utf-8")
     sidecar = sidecar_path(args.out)
     sidecar.write_text(json.dumps(side, indent=2, allow_nan=False) + "\n", encoding="utf-8")

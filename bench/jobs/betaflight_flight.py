@@ -44,6 +44,7 @@ from bench.jobs.betaflight_program import (
     RATE_HOLD_S,
     RATE_STEP_DPS,
     RATE_TOP_DPS,
+    SPIN_UP_S,
     STICK_HALF_US,
     HeightPilot,
     Segment,
@@ -326,7 +327,7 @@ def _fly(plant: ExternalPlant, loop: PlantLoop, rc: MspRcSticks, u_hover: float,
         return throttle.rc_for(1000.0 + 1000.0 * min(1.0, max(0.0, u)))
 
     t_arm = loop.latest[0]
-    while loop.latest[0] < t_arm + 0.6:  # SPIN_UP_S: the rotors reach the hover command
+    while loop.latest[0] < t_arm + SPIN_UP_S:  # the rotors reach the hover command
         loop.check()
         rc.set_sticks(1500, 1500, 1500, stick(u_hover), angle=True)
         time.sleep(PILOT_PERIOD_S)
@@ -340,11 +341,12 @@ def _fly(plant: ExternalPlant, loop: PlantLoop, rc: MspRcSticks, u_hover: float,
             t, s = loop.latest
             if t >= seg.end_s:
                 break
-            if abs(s[2]) > DIVERGED_M or _tilt(s) > DIVERGED_TILT_RAD:
+            tilt = _tilt(s)
+            if abs(s[2]) > DIVERGED_M or tilt > DIVERGED_TILT_RAD:
                 raise DeviceError(f"the flight diverged at t = {t - release[0]:.2f} s after "
                                   f"release ({seg.label}): height {s[2]:.1f} m, tilt "
-                                  f"{math.degrees(_tilt(s)):.0f} deg")
-            u = pilot.command(s[2], s[5], math.cos(_tilt(s)), max(0.0, t - last_t))
+                                  f"{math.degrees(tilt):.0f} deg")
+            u = pilot.command(s[2], s[5], math.cos(tilt), max(0.0, t - last_t))
             last_t = t
             rc.set_sticks(seg.roll_us, seg.pitch_us, 1500, stick(u), angle=seg.angle)
             if first:

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 from optimizer.flight.maneuvers import MANEUVERS, STEP_TIME_S, Maneuver
 
-__all__ = ["ANGLE_LIMIT_DEG", "BETAFLIGHT_MANEUVERS", "RATE_PERIOD_S", "RATE_TOP_DPS",
+__all__ = ["ANGLE_LIMIT_DEG", "BETAFLIGHT_MANEUVERS", "RATE_PERIOD_S", "RATE_TOP_DPS", "SPIN_UP_S",
            "HeightPilot", "Segment", "angle_stick", "program", "rate_stick"]
 
 ANGLE_LIMIT_DEG = 60.0  # angle_limit, Betaflight's default

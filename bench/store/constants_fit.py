@@ -13,6 +13,7 @@ overrides, is ``bench.store.measured_constants``.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -21,7 +22,8 @@ import numpy as np
 from bench.errors import RigError
 from bench.store.constants_store import ActuatorKey
 
-__all__ = ["HOVER_POINTS", "STD_KEYS", "UNCERTAINTY", "fit_for_store", "uncertainties"]
+__all__ = ["HOVER_POINTS", "STD_KEYS", "UNCERTAINTY", "fit_for_store", "stored_entry",
+           "uncertainties"]
 
 HOVER_POINTS = 24  # thrusts at which the supply current is stored
 #: the stored constants that carry a spread, and the key of that spread (a store written
@@ -37,6 +39,14 @@ UNCERTAINTY = "uncertainty"
 #: the channel whose calibration a constant of a sweep reads through
 CHANNEL_OF = {"k_f_n_s2": "thrust_n", "k_q_nm_s2": "torque_nm", "thrust_poly_w_0": "thrust_n",
               "thrust_poly_w_1": "thrust_n", "thrust_poly_w_2": "thrust_n"}
+
+
+def stored_entry(data: Mapping[str, Any], name: str) -> Mapping[str, Any]:
+    """The stored uncertainty of constant ``name`` in a row's ``data`` (``UNCERTAINTY``:
+    value, u, U, k, budget, run, calibrations); empty for a row stored without one."""
+    budgets = data.get(UNCERTAINTY)
+    entry = budgets.get(name) if isinstance(budgets, Mapping) else None
+    return entry if isinstance(entry, Mapping) else {}
 
 
 def uncertainties(budgets: dict[str, Any], run_id: str, applied: dict[str, Any]

@@ -81,7 +81,7 @@ def _flight_extras(step: ConstantsRow | None, static: ConstantsRow | None) -> di
     uncertainty (``optimizer.model.measured.STD_OF``) where the store has that as a finite
     number >= 0: the standard uncertainty of its budget, else (an older row) the spread of
     one measurement; a store written before either was kept gives constants without any."""
-    from bench.store.constants_fit import STD_KEYS, UNCERTAINTY
+    from bench.store.constants_fit import STD_KEYS, stored_entry
     from optimizer.model.measured import STD_OF
 
     rows = {"step": step, "static": static}
@@ -96,8 +96,7 @@ def _flight_extras(step: ConstantsRow | None, static: ConstantsRow | None) -> di
         out[name] = x
         # the constant's standard uncertainty where the store has its budget, else the
         # spread of one measurement (a row stored before budgets were kept)
-        budget = (row.data.get(UNCERTAINTY) or {}).get(key) or {}
-        std = finite_number(budget.get("u"))
+        std = finite_number(stored_entry(row.data, key).get("u"))
         if std is None:
             std = finite_number(row.data.get(STD_KEYS[key]))
         if std is not None and std >= 0:

@@ -25,7 +25,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from analysis.metrology.gum import Budget, Term
-from bench.store.constants_fit import STD_KEYS, UNCERTAINTY
+from bench.store.constants_fit import STD_KEYS, stored_entry
 from bench.store.json_values import finite_number
 
 __all__ = ["stored_budget"]
@@ -35,9 +35,8 @@ def stored_budget(name: str, value: float, unit: str, data: Mapping[str, Any]
                   ) -> Budget | None:
     """The uncertainty budget of constant ``name`` (a data key, e.g. ``k_f_n_s2``) of
     value ``value`` in one stored row's ``data``; None when the row carries none."""
-    budgets = data.get(UNCERTAINTY)
-    entry = budgets.get(name) if isinstance(budgets, Mapping) else None
-    if isinstance(entry, Mapping) and entry.get("budget"):
+    entry = stored_entry(data, name)
+    if entry.get("budget"):
         try:
             return Budget.from_dict({**entry, "value": value, "unit": entry.get("unit", unit)})
         except (KeyError, TypeError, ValueError):
