@@ -828,7 +828,7 @@ def fit_run(record: RunRecord, signal: str = "auto", command: str | None = None,
                  "square_law": thrust and "tare_offset_n" in record.meta}
         try:
             res = fit_step_response(t, y, u, sp, event_times(record), signal=col, command=cmd,
-                                    gain_unit=f"{'N' if col == 'thrust_n' else 'rpm'}/{unit}",
+                                    gain_unit=f"{'N' if thrust else 'rpm'}/{unit}",
                                     speed=speed, **{**model, **kwargs})
         except LogError as exc:
             msg = str(exc)
