@@ -5,13 +5,16 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from analysis.errors import LogError
 from bench.cli_args.store_args import add_store_args, run_folder_arg
 from bench.errors import RigError
+
+if TYPE_CHECKING:
+    from analysis.run_record import RunRecord
 
 G0 = 9.80665
 
@@ -71,9 +74,11 @@ def _check_finite(out: dict[str, Any], source: Path) -> None:
                            "the run does not support this export")
 
 
-def build(args: argparse.Namespace) -> dict[str, Any]:
+def build(args: argparse.Namespace
+          ) -> tuple[dict[str, Any], tuple[RunRecord, RunRecord | None, RunRecord | None]]:
     """The parameters of ``args.target`` (one home: ``analysis.exports.export_params``,
-    which the web view's downloads use too), after the options are checked."""
+    which the web view's downloads use too), after the options are checked; and the runs
+    read for them (run, thrust run, step run), for the uncertainty sidecar."""
     from analysis.exports import export_params
     from analysis.run_record import read_run
     from bench.cli_args.option_values import refuse_unused
@@ -85,13 +90,11 @@ def build(args: argparse.Namespace) -> dict[str, Any]:
         refuse_unused(args, ("--step-run",),
                       f"for export {args.target} (only gazebo uses time constants)")
     hover = _hover(args)  # options first: a bad one is named before any fit
-    record = read_run(args.run)
-    out = export_params(args.target, record,
-                        read_run(args.thrust_run) if args.thrust_run else None,
-                        read_run(args.step_run) if args.step_run is not None else None,
-                        hover)
-    _check_finite(out, record.path)
-    return out
+    runs = (read_run(args.run), read_run(args.thrust_run) if args.thrust_run else None,
+            read_run(args.step_run) if args.step_run is not None else None)
+    out = export_params(args.target, *runs, hover)
+    _check_finite(out, runs[0].path)
+    return out, runs
 
 
 def handler(args: argparse.Namespace) -> int:
@@ -102,18 +105,14 @@ def handler(args: argparse.Namespace) -> int:
         from bench.paths.outputs import check_writable
 
         check_writable(args.out, "--out", folder=False)
-    out = build(args)
+    out, runs = build(args)
     text = json.dumps(out, indent=2, allow_nan=False) if args.json else _lines(args, out)
     if args.out is None:
         print(text)
         return 0
     from analysis.export_uncertainty import export_uncertainties
-    from analysis.run_record import read_run
 
-    side = export_uncertainties(
-        args.target, out, read_run(args.run),
-        read_run(args.thrust_run) if args.thrust_run else None,
-        read_run(args.step_run) if args.step_run is not None else None)
+    side = export_uncertainties(args.target, out, *runs)  # the runs build read: not again
     args.out.write_text(text + "\n", encoding="utf-8")
     sidecar = sidecar_path(args.out)
     sidecar.write_text(json.dumps(side, indent=2, allow_nan=False) + "\n", encoding="utf-8")
