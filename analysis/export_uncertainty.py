@@ -14,6 +14,7 @@ from typing import Any
 from analysis.metrology.constant_budgets import entry, static_budgets, step_budgets
 from analysis.run_record import RunRecord
 from analysis.static_curves import fit_static_run
+from analysis.step_response import fit_run
 
 __all__ = ["export_uncertainties"]
 
@@ -47,8 +48,6 @@ def export_uncertainties(target: str, params: dict[str, Any], record: RunRecord,
             constants["motorConstant"] = entry(b["k_f_n_s2"], static_rec.id,
                                                _calibration_ids(static_rec, "thrust_n"))
         if step_record is not None:
-            from analysis.step_response import fit_run
-
             sb = step_budgets(fit_run(step_record, signal="rpm"))
             for name in ("timeConstantUp", "timeConstantDown"):
                 if GAZEBO[name] in sb:

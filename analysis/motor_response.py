@@ -83,14 +83,11 @@ def fit_motor_response(t_s: np.ndarray, command: np.ndarray, rpm: np.ndarray,
     grid = np.arange(t[0], t[-1], dt)
     u = np.interp(grid, t, u)
     w = np.interp(grid, t, w)
-    holes = np.flatnonzero(np.diff(t) > HOLE_SAMPLES * dt)
-    near_hole = np.zeros(grid.size, bool)
-    for h in holes:
-        near_hole |= (grid > t[h] - HOLE_MARGIN_S) & (grid < t[h + 1] + HOLE_MARGIN_S)
     fs = 1.0 / dt
     if fs <= 2.5 * SMOOTH_HZ:
         return _why(nan, f"speed logged at {fs:.0f} Hz: too slow to see a time constant of "
                          "tens of ms (needs > 100 Hz)")
+    near_hole = _near_holes(grid, t, HOLE_SAMPLES * dt, HOLE_MARGIN_S)
     # the same zero-phase low-pass on speed and on the map's regressors: a linear filter
     # commutes with the model, so the smoothed signals obey it too
     sos = butter(2, SMOOTH_HZ, fs=fs, output="sos")
@@ -126,3 +123,16 @@ def fit_motor_response(t_s: np.ndarray, command: np.ndarray, rpm: np.ndarray,
 def _why(r: MotorResponse, why: str) -> MotorResponse:
     return MotorResponse(r.motor, r.tau_up_s, r.tau_down_s, r.dead_time_s,
                          r.map_coefficients, r.rms_rpm, r.samples, why)
+
+
+def _near_holes(grid: np.ndarray, t: np.ndarray, gap: float, margin: float) -> np.ndarray:
+    """Grid points strictly within ``margin`` of a hole (consecutive ``t`` more than
+    ``gap`` apart), in one pass: each hole's span of the grid by a search, the spans
+    merged by a running count (no pass over the grid per hole)."""
+    holes = np.flatnonzero(np.diff(t) > gap)
+    first = np.searchsorted(grid, t[holes] - margin, side="right")  # grid > t[h] - margin
+    stop = np.searchsorted(grid, t[holes + 1] + margin, side="left")  # grid < t[h+1] + m
+    count = np.zeros(grid.size + 1, np.int64)
+    np.add.at(count, first, 1)
+    np.add.at(count, np.maximum(stop, first), -1)
+    return np.cumsum(count[:-1]) > 0

@@ -424,7 +424,8 @@ def _fit_first_order(tb: np.ndarray, yb: np.ndarray, cnt: np.ndarray, step: floa
                      ) -> FirstOrderFit:
     """Least squares of ``thrust_step`` to one window; ``start``: a fit of the same
     response (the mean of the repeats) whose latency and tau one edge's fit starts from,
-    nearer than its own noisy crossings (fewer iterations, the same minimum)."""
+    nearer than its own noisy crossings (fewer iterations, the same minimum). An edge's
+    fit (``start`` given) leaves ``model_t63_s`` NaN: only the mean's is reported."""
     y0d, y1d = _direct_levels(tb, yb)
     use = np.isfinite(yb) & (cnt > 0)
     why = ""
@@ -476,10 +477,13 @@ def _fit_first_order(tb: np.ndarray, yb: np.ndarray, cnt: np.ndarray, step: floa
         # came before latency + tau (Table C.1's t63 = L + tau; read against the window's end
         # it gave t63 161 ms against L + tau 180 ms with a 0.5 s hold and tau 166 ms)
         t63 = _crossing(tb, (yb - y0) / (y1 - y0), T63)
-    grid = np.linspace(0.0, lat + 8.0 * tau, 4001)
-    z_model = (thrust_step(grid, lat, tau, y0, y1, cell, square) - y0) / (y1 - y0)
+    model_t63 = math.nan
+    if start is None:  # the model's 63 % crossing on a fine grid: the mean's, for summary()
+        grid = np.linspace(0.0, lat + 8.0 * tau, 4001)
+        z_model = (thrust_step(grid, lat, tau, y0, y1, cell, square) - y0) / (y1 - y0)
+        model_t63 = _crossing(grid, z_model, T63)
     return FirstOrderFit(lat, tau, (y1 - y0) / step, y0, y1, rms, t63, ok, why, u_lat, u_tau,
-                         _crossing(grid, z_model, T63))
+                         model_t63)
 
 
 def _fit_uncertainty(jac: np.ndarray, resid: np.ndarray, params: int) -> tuple[float, float]:
@@ -824,7 +828,7 @@ def fit_run(record: RunRecord, signal: str = "auto", command: str | None = None,
                  "square_law": thrust and "tare_offset_n" in record.meta}
         try:
             res = fit_step_response(t, y, u, sp, event_times(record), signal=col, command=cmd,
-                                    gain_unit=f"{'N' if col == 'thrust_n' else 'rpm'}/{unit}",
+                                    gain_unit=f"{'N' if thrust else 'rpm'}/{unit}",
                                     speed=speed, **{**model, **kwargs})
         except LogError as exc:
             msg = str(exc)
