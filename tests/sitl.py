@@ -171,17 +171,20 @@ def start_sitl(workdir: Path) -> Sitl:
     """A running SITL whose control loop runs: launched in ``workdir`` (a fresh folder per
     try) in a new network namespace, its MSP port listening and its ``MSP_STATUS_EX``
     cycle time above zero. Some launches of 4.6.0 never run their gyro task (MSP answers,
-    MSP_MOTOR reads 0, no motor output): such a one is stopped and launched again, up to
-    ``LAUNCHES`` times; then the test fails with the end of the last log."""
-    why = ""
+    MSP_MOTOR reads 0, no motor output), and on a loaded machine one may not open its port
+    in time: such a one is stopped and launched again, up to ``LAUNCHES`` times; then the
+    test fails with the end of the last log. One that exits fails the test at once."""
+    why, log = "", ""
     for attempt in range(1, LAUNCHES + 1):
-        sitl = _launch(workdir / f"launch-{attempt}")
-        why = _control_loop_runs(sitl)
+        sitl, why = _launch(workdir / f"launch-{attempt}")
         if not why:
-            return sitl
+            why = _control_loop_runs(sitl)
+            if not why:
+                return sitl
         sitl.stop()
-    pytest.fail(f"Betaflight SITL: {LAUNCHES} launches, none usable ({why}); log "
-                f"{sitl.log_path}:\n{sitl.log_tail()}", pytrace=False)
+        log = f"{sitl.log_path}:\n{sitl.log_tail()}"
+    pytest.fail(f"Betaflight SITL: {LAUNCHES} launches, none usable ({why}); log {log}",
+                pytrace=False)
 
 
 def _control_loop_runs(sitl: Sitl) -> str:
@@ -201,9 +204,10 @@ def _control_loop_runs(sitl: Sitl) -> str:
     return ""
 
 
-def _launch(workdir: Path) -> Sitl:
-    """Launch the SITL in ``workdir`` in a new network namespace; return once its MSP port
-    listens (at most ``START_TIMEOUT_S``), or fail with the end of its log."""
+def _launch(workdir: Path) -> tuple[Sitl, str]:
+    """Launch the SITL in ``workdir`` in a new network namespace; return it once its MSP
+    port listens, or with why not when it did not within ``START_TIMEOUT_S`` (the caller
+    stops it); fail with the end of its log when it exited."""
     _preconditions()
     binary = sitl_binary()
     workdir.mkdir(parents=True, exist_ok=True)
@@ -212,6 +216,10 @@ def _launch(workdir: Path) -> Sitl:
         proc = subprocess.Popen(["unshare", "-n", "sh", "-c", 'ip link set lo up && exec "$0"',
                                  str(binary)], cwd=workdir, stdout=log,
                                 stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
+    # unshare, sh and the firmware are one process (each execs the next): raised from its
+    # first instruction, as the bench's launcher does, so its start-up never waits behind
+    # the suite's other workers; the threads it starts inherit the niceness
+    raise_device_priority(proc.pid)
     deadline = t0 + START_TIMEOUT_S
     netns_fd = -1
     try:
@@ -224,8 +232,8 @@ def _launch(workdir: Path) -> Sitl:
         while netns_fd >= 0 and time.monotonic() < deadline and proc.poll() is None:
             # from /proc: a probe connection would take the firmware's one client slot
             if port_sockets("tcp", MSP_PORT, listening=True, pid=proc.pid):
-                raise_device_priority(proc.pid)  # as the bench's launcher does
-                return Sitl(proc, workdir, netns_fd, time.monotonic() - t0)
+                raise_device_priority(proc.pid)  # threads started before the first raise
+                return Sitl(proc, workdir, netns_fd, time.monotonic() - t0), ""
             time.sleep(0.02)
     except BaseException:
         proc.kill()
@@ -233,11 +241,11 @@ def _launch(workdir: Path) -> Sitl:
         raise
     sitl = Sitl(proc, workdir, netns_fd)
     code = proc.poll()
-    state = f"exited with {code}" if code is not None \
-        else f"MSP port {MSP_PORT} not listening within {START_TIMEOUT_S:g} s"
+    if code is None:
+        return sitl, f"MSP port {MSP_PORT} not listening within {START_TIMEOUT_S:g} s"
     sitl.stop()
-    pytest.fail(f"Betaflight SITL {state}; log {sitl.log_path}:\n{sitl.log_tail()}",
-                pytrace=False)
+    pytest.fail(f"Betaflight SITL exited with {code}; log {sitl.log_path}:\n"
+                f"{sitl.log_tail()}", pytrace=False)
 
 
 class UdpFeed:

@@ -166,6 +166,9 @@ class SitlProcess:
             proc = subprocess.Popen([str(binary)], cwd=workdir, stdout=log,
                                     stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                                     start_new_session=True)
+        # ahead of the host from its first instruction: its start-up (eeprom, TCP server)
+        # must not wait behind a loaded machine; threads it starts inherit the niceness
+        raise_device_priority(proc.pid)
         sitl = cls(proc, workdir, 0.0)
         try:
             while time.monotonic() - t0 < timeout_s:
@@ -175,7 +178,7 @@ class SitlProcess:
                                       f"MSP port opened (log: {sitl.log_path})")
                 if _owns(proc.pid, port_sockets("tcp", MSP_PORT, listening=True)):
                     sitl.started_s = time.monotonic() - t0
-                    raise_device_priority(proc.pid)  # its threads all run by now
+                    raise_device_priority(proc.pid)  # threads started before the first raise
                     return sitl
                 if sitl.bind_failed():
                     raise PortBusy(f"the Betaflight SITL could not bind its MSP port "
