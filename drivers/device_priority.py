@@ -14,21 +14,23 @@ from __future__ import annotations
 
 import os
 
-__all__ = ["DEVICE_NICE", "raise_device_priority"]
+__all__ = ["DEVICE_NICE", "process_threads", "raise_device_priority"]
 
 DEVICE_NICE = -10
+
+
+def process_threads(pid: int) -> list[int]:
+    """The thread ids of process ``pid`` (just ``pid`` where /proc cannot tell)."""
+    try:
+        return [int(t) for t in os.listdir(f"/proc/{pid}/task")]
+    except OSError:  # no /proc (not Linux), or the process is gone
+        return [pid]
 
 
 def raise_device_priority(pid: int = 0) -> bool:
     """Run process ``pid`` (0: this one, from its calling thread on) at ``DEVICE_NICE``;
     whether it could."""
-    if pid == 0:
-        tasks = [0]
-    else:
-        try:
-            tasks = [int(t) for t in os.listdir(f"/proc/{pid}/task")]
-        except OSError:  # no /proc (not Linux), or the process is gone
-            tasks = [pid]
+    tasks = [0] if pid == 0 else process_threads(pid)
     ok = True
     for tid in tasks:
         try:

@@ -36,11 +36,12 @@ import numpy as np
 
 from bench.engine.drops import DropCounter
 from bench.engine.frozen_heap import FrozenHeap
+from bench.engine.host_priority import HostPriority
 from bench.engine.recorder import RunRecorder
 from bench.engine.safety import LimitTrip, Trip
 from bench.engine.watchdog import HostWatchdog, WatchdogTrip
 from bench.errors import RecordingError
-from drivers.contracts import Block, Clock
+from drivers.contracts import Block, Clock, MonotonicClock
 from drivers.errors import DeviceError
 
 __all__ = ["EPS", "OperatorStop", "RunResult", "SafeRunLoop", "signals_deferred"]
@@ -185,8 +186,18 @@ class SafeRunLoop:
     def run(self) -> RunResult:
         """Carry out the plan. Trips and operator stops return a result with status abort;
         device errors, Ctrl-C and bugs are re-raised after the safe stop and the record."""
-        with FrozenHeap():  # no full collection walks the imported modules mid-run
+        # no full collection walks the imported modules mid-run, and a run on the wall
+        # clock runs ahead of the machine's other work
+        with FrozenHeap(), HostPriority(self.on_wall_clock):
             return self._carry_out()
+
+    @property
+    def on_wall_clock(self) -> bool:
+        """Whether the run keeps time with the wall: a real rig (``MonotonicClock``), a
+        paced simulated bench (``time_scale``) or a real-time run."""
+        clock = self.rig.clock
+        return (self.options.realtime or isinstance(clock, MonotonicClock)
+                or getattr(clock, "time_scale", None) is not None)
 
     def _carry_out(self) -> RunResult:
         status, reason, trip = "fail", "run did not start", None
