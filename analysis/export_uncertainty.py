@@ -11,7 +11,12 @@ from __future__ import annotations
 
 from typing import Any
 
-from analysis.metrology.constant_budgets import entry, static_budgets, step_budgets
+from analysis.metrology.constant_budgets import (
+    entry,
+    static_budgets,
+    step_budgets,
+    tare_uncertainty,
+)
 from analysis.run_record import RunRecord
 from analysis.static_curves import fit_static_run
 from analysis.step_response import fit_run
@@ -28,13 +33,6 @@ def _calibration_ids(record: RunRecord, channel: str) -> list[str]:
     return [str(cal["id"])] if cal.get("id") and "gain" in cal else []
 
 
-def _zero_u(record: RunRecord) -> dict[str, float]:
-    """The tare's standard uncertainty per channel, as the runner recorded it."""
-    tare = record.meta.get("tare") or {}
-    return {ch: float(t["u"]) for ch, t in tare.items()
-            if isinstance(t, dict) and t.get("u") is not None}
-
-
 def export_uncertainties(target: str, params: dict[str, Any], record: RunRecord,
                          thrust_record: RunRecord | None = None,
                          step_record: RunRecord | None = None) -> dict[str, Any]:
@@ -43,7 +41,8 @@ def export_uncertainties(target: str, params: dict[str, Any], record: RunRecord,
     if target == "gazebo":
         static_rec = thrust_record or record
         s = fit_static_run(static_rec)
-        b = static_budgets(s, static_rec.meta.get("calibrations") or {}, _zero_u(static_rec))
+        b = static_budgets(s, static_rec.meta.get("calibrations") or {},
+                           tare_uncertainty(static_rec.meta))
         if "k_f_n_s2" in b:
             constants["motorConstant"] = entry(b["k_f_n_s2"], static_rec.id,
                                                _calibration_ids(static_rec, "thrust_n"))

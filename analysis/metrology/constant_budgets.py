@@ -31,7 +31,8 @@ from analysis.metrology.gum import Budget, Term, rectangular
 from analysis.static_curves import StaticCurves
 from analysis.step_response import DirectionFit, StepResponse
 
-__all__ = ["TIMEBASE_PPM", "calibration_terms", "entry", "static_budgets", "step_budgets"]
+__all__ = ["TIMEBASE_PPM", "calibration_terms", "entry", "static_budgets", "step_budgets",
+           "tare_uncertainty"]
 
 #: The speed counter's timebase: a quartz crystal within +-50 ppm (a typical
 #: microcontroller/FPGA clock specification), rectangular.
@@ -141,6 +142,14 @@ def _slope_budget(curves: StaticCurves, k: str, spread: float, n: int, unit: str
     terms += calibration_terms(applied, value)
     terms.append(_timebase_term(value))
     return Budget.of(value, unit, terms)
+
+
+def tare_uncertainty(meta: Mapping[str, Any]) -> dict[str, float]:
+    """The standard uncertainty of each channel's zero, as a run's ``run.json`` keeps its
+    tare (``tare``: channel -> offset, u, samples); none for a run without one."""
+    tare = meta.get("tare") or {}
+    return {ch: float(t["u"]) for ch, t in tare.items()
+            if isinstance(t, Mapping) and t.get("u") is not None}
 
 
 def static_budgets(curves: StaticCurves, calibrations: Mapping[str, Any] | None = None,

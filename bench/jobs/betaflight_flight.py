@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 
 from analysis.stick_steps import unit_step_figures
+from bench.engine.host_priority import HostPriority
 from bench.jobs.betaflight_program import (
     RATE_HOLD_S,
     RATE_STEP_DPS,
@@ -247,6 +248,19 @@ def fly_betaflight(plant: ExternalPlant, maneuvers: list[str], cli_lines: list[t
     workdir = Path(tempfile.mkdtemp(prefix="rotorbench-betaflight-"))
     # the design's scaled PIDs before the user's lines, which may override them
     lines = [("preamble", line) for line in PREAMBLE] + tune_lines(vehicle) + cli_lines
+    # the plant and the sticks keep time with the firmware's wall clock: ahead of the
+    # machine's other work, as a run on the wall clock is (bench.engine.host_priority)
+    with HostPriority(True):
+        return _fly_firmware(path, workdir, lines, plant, maneuvers, rate_steps_s, log_to,
+                             tell, u_hover)
+
+
+def _fly_firmware(path: Path, workdir: Path, lines: list[tuple[str, str]],
+                  plant: ExternalPlant, maneuvers: list[str], rate_steps_s: float,
+                  log_to: Path, tell: Callable[[str], None], u_hover: float
+                  ) -> BetaflightFlight:
+    """The flight itself: launch, arm, fly, and the firmware stopped whatever happens."""
+    vehicle = plant.vehicle
     sitl = port = link = loop = rc = client = None
     firmware: dict[str, Any] = {}
     marks: list[tuple[Segment, float]] = []

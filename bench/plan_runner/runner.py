@@ -51,6 +51,7 @@ from bench.plan_runner.hexapod_parts import (
     RowMerger,
     imu_channels,
 )
+from bench.plan_runner.zero_tare import TARED_CHANNELS, ZeroTare
 from bench.plans.calibration_sequences import HexapodSegment, Move, SetPivot
 from bench.plans.sequences import Arm, Disarm, EscRange, Plan, Segment, Tare
 from drivers.contracts import Block, Clock, Esc, Sensor, Trajectory
@@ -205,13 +206,11 @@ class Runner(PlanRunner):
         channels = {role: tuple(c.name for c in s.describe().channels)
                     for role, s in rig.sensors.items()}
         self.aligner = BlockAligner(channels, self.options.base_sensor)
-        self.tare_offset_n = 0.0
+        self.tare = ZeroTare()
         self._cmd_t: np.ndarray = np.zeros(1)
         self._cmd_us: np.ndarray = np.array([esc_range.idle_us])
         self._cmd_sp: np.ndarray = np.array([math.nan])
         self._cmd_seg: np.ndarray = np.array([-1], dtype=np.int32)
-        self._tare_sum = 0.0
-        self._tare_n = 0
 
     # -- the ESC's steps ---------------------------------------------------------------
 
@@ -228,8 +227,13 @@ class Runner(PlanRunner):
         self.esc.arm()
         self._begin_other(seg)
 
+    @property
+    def tare_offset_n(self) -> float:
+        """The thrust channel's zero, subtracted from every thrust sample after the tare."""
+        return self.tare.offset("thrust_n")
+
     def _begin_tare(self, seg: Segment) -> None:
-        self._tare_sum, self._tare_n = 0.0, 0
+        self.tare.begin()
         self._begin_other(seg)
 
     def _begin_disarm(self, seg: Segment) -> None:
@@ -237,11 +241,12 @@ class Runner(PlanRunner):
         self._log_command(seg.us_end, seg)
 
     def _end_tare(self, seg: Segment) -> None:
-        if self._tare_n == 0:
+        zeros = self.tare.end()
+        if "thrust_n" not in zeros:
             raise DeviceError("tare: the load cell gave no samples during the tare window")
-        self.tare_offset_n = self._tare_sum / self._tare_n
         self._event("tare", seg.index, "tare",
-                    {"offset_n": self.tare_offset_n, "samples": self._tare_n})
+                    {"offset_n": self.tare_offset_n, "samples": zeros["thrust_n"]["samples"],
+                     "channels": zeros})
 
     STEP_BEGIN: ClassVar[Mapping[type, StepHandler]] = {
         Arm: _begin_arm, Tare: _begin_tare, Disarm: _begin_disarm}
@@ -296,9 +301,7 @@ class Runner(PlanRunner):
         self._deliver(rows, trip)
 
     def _tared(self, blocks: Mapping[str, Block]) -> dict[str, Block]:
-        return {r: Block(b.t_s, {**b.values, "thrust_n": b.values["thrust_n"]
-                                 - self.tare_offset_n}) if "thrust_n" in b.values else b
-                for r, b in blocks.items()}
+        return {r: Block(b.t_s, self.tare.apply(b.values)) for r, b in blocks.items()}
 
     def _would_stop(self, raw: Mapping[str, Block]) -> bool:
         if any(len(b) == 0 for b in raw.values()):
@@ -317,8 +320,8 @@ class Runner(PlanRunner):
     def _safe_stop(self) -> list[str]:
         return self.esc.safe_stop()
 
-    def _finish_fields(self) -> dict[str, float]:
-        return {"tare_offset_n": self.tare_offset_n}
+    def _finish_fields(self) -> dict[str, Any]:
+        return {"tare_offset_n": self.tare_offset_n, "tare": self.tare.record()}
 
     def _complete_rows(self, rows: dict[str, np.ndarray], read_at: np.ndarray | float) -> None:
         t = rows["t_s"]
@@ -331,13 +334,10 @@ class Runner(PlanRunner):
         rows["throttle_us"] = self._cmd_us[idx]
         rows["thrust_setpoint_n"] = self._cmd_sp[idx]
         rows["step"] = self._cmd_seg[idx]  # int32 history
-        if "thrust_n" in rows:
-            raw = rows["thrust_n"]  # the tare offset is in run.json and the events
-            rows["thrust_n"] = raw - self.tare_offset_n
-            seg = self._segment
-            if seg is not None and isinstance(seg.step, Tare):
-                self._tare_sum += float(np.nansum(raw))
-                self._tare_n += int(np.count_nonzero(~np.isnan(raw)))
+        seg = self._segment
+        if seg is not None and isinstance(seg.step, Tare):
+            self.tare.add(rows)  # raw: the offsets are in run.json and the events
+        rows.update(self.tare.apply({ch: rows[ch] for ch in TARED_CHANNELS if ch in rows}))
         # keep only the command history still needed for later rows
         keep = max(int(idx[-1]), 0) if len(idx) else 0
         if keep > 0:

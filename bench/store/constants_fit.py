@@ -79,7 +79,7 @@ def fit_for_store(run: Path) -> tuple[ActuatorKey, str, str, dict[str, Any]]:
 def _static_values(rec: Any) -> dict[str, Any]:
     """A sweep's static curves and its supply current at thrusts inside the measured range."""
     from analysis.flight_time import hover_current_a
-    from analysis.metrology.constant_budgets import static_budgets
+    from analysis.metrology.constant_budgets import static_budgets, tare_uncertainty
     from analysis.static_curves import fit_static_run
 
     s = fit_static_run(rec)
@@ -97,7 +97,8 @@ def _static_values(rec: Any) -> dict[str, Any]:
     return {**s.summary(), "hover_thrust_n": [t for t, _ in inside],
             "hover_current_a": [c for _, c in inside],
             "thrust_max_n": inside[-1][0] if inside else None,
-            UNCERTAINTY: uncertainties(static_budgets(s, applied), rec.id, applied)}
+            UNCERTAINTY: uncertainties(
+                static_budgets(s, applied, tare_uncertainty(rec.meta)), rec.id, applied)}
 
 
 def _step_values(rec: Any) -> dict[str, Any]:

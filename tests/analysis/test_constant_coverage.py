@@ -22,13 +22,12 @@ but only 10.5 s at 25 kHz, where a longer case repeats the tare's noise in its s
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 
 from analysis.cell_response import CellDynamics
 from analysis.metrology.constant_budgets import TIMEBASE_PPM, static_budgets, step_budgets
+from analysis.metrology.force_calibration import hold_mean
 from analysis.static_curves import fit_static
 from analysis.step_response import fit_step_response
 from drivers.sim.rig import SimRig
@@ -75,9 +74,9 @@ class Drive:
         """Tare at rest (as the runner's Tare step), then arm."""
         self.hold(1000.0, 0.2)
         f, q = np.concatenate(self.cols["f"]), np.concatenate(self.cols["q"])
-        self.tare = (float(np.mean(f)), float(np.mean(q)))
-        self.tare_u = {"thrust_n": float(np.std(f, ddof=1) / math.sqrt(f.size)),
-                       "torque_nm": float(np.std(q, ddof=1) / math.sqrt(q.size))}
+        (f0, uf), (q0, uq) = hold_mean(f), hold_mean(q)  # the runner's zero (ZeroTare)
+        self.tare = (f0, q0)
+        self.tare_u = {"thrust_n": uf, "torque_nm": uq}
         for v in self.cols.values():
             v.clear()
         self.rig.esc.arm()

@@ -78,16 +78,24 @@ def test_python_can_drives_the_simulated_vesc_with_the_reference_frames():
     vesc = SimVescDevice(link, 1, model, status_rate_hz=100.0).start()
     bus = can.Bus(channel, interface="virtual")
     try:
-        # §3.2: SET_DUTY 0.25 to controller 1 = id 0x00000001, data 00 00 61 A8
-        bus.send(can.Message(arbitration_id=0x00000001, data=bytes.fromhex("000061A8"),
-                             is_extended_id=True))
-        status = {}
+        # §3.2: SET_DUTY 0.25 to controller 1 = id 0x00000001, data 00 00 61 A8, sent
+        # again while the statuses are read, as a host does (the VESC releases the motor
+        # 1 s after the last command, and a loaded host may read for longer)
+        duty = can.Message(arbitration_id=0x00000001, data=bytes.fromhex("000061A8"),
+                           is_extended_id=True)
+        bus.send(duty)
         end = time.monotonic() + 2.0
+        while time.monotonic() < end and vesc.command != VescCommand("duty", 0.25):
+            time.sleep(0.005)
+        assert vesc.command == VescCommand("duty", 0.25)
+        while bus.recv(0.0) is not None:  # statuses from before the command took effect
+            pass
+        status = {}
         while time.monotonic() < end and len(status) < 3:
+            bus.send(duty)
             msg = bus.recv(0.1)
             if msg is not None and msg.arbitration_id >> 8 in (9, 16, 27):
                 status[msg.arbitration_id >> 8] = bytes(msg.data)
-        assert vesc.command == VescCommand("duty", 0.25)
         # STATUS (12000 ERPM, 10.5 A, duty 0.25), STATUS_4 and STATUS_5 as in §3.2
         assert status[9] == bytes.fromhex("00002EE0006900FA")
         assert status[16] == bytes.fromhex("01600190001F0000")

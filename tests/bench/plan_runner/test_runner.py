@@ -224,3 +224,36 @@ def test_link_errors_are_recorded_and_mark_the_run(mapped, tmp_path):
     assert meta["drops"]["load_cell"]["link_errors"] == {"bad_checksums": 3, "truncated": 1}
     assert meta["link_errors"] == 4 and "drops" in meta["marks"]
     assert drops_text(tmp_path / "run") == "0, ! 4 link errors"
+
+
+def test_the_tare_zeroes_thrust_and_torque_and_records_each_zero_with_its_uncertainty(
+        mapped, tmp_path):
+    """Both force channels are referred to their zero at rest; run.json keeps each zero,
+    its standard uncertainty (the scatter of block means) and its sample count, which the
+    budgets of k_f, k_q and the thrust curve read."""
+    from analysis.metrology.constant_budgets import tare_uncertainty
+
+    rig = mapped[0]
+    rig = dataclasses.replace(rig, sim=dataclasses.replace(
+        rig.sim, sensors={"torque_cell_range_nm": 0.5}))
+    outcome = run_sequence(rig, step1(repeats=1), tmp_path / "runs", open_rig)
+    meta = json.loads((outcome.run_dir / "run.json").read_text())
+    tare = meta["tare"]
+    assert set(tare) == {"thrust_n", "torque_nm"}
+    assert tare["thrust_n"]["offset"] == pytest.approx(meta["tare_offset_n"])
+    for ch, z in tare.items():
+        assert z["samples"] > 1000 and 0.0 < z["u"] < 1e-3, (ch, z)
+    assert tare_uncertainty(meta) == {ch: z["u"] for ch, z in tare.items()}
+    # the tare window is recorded raw (its zero is known at its end): its mean is the zero
+    samples = pd.read_parquet(outcome.run_dir / "samples.parquet")
+    seg = next(s for s in outcome.plan.segments if s.kind == "tare")
+    window = samples[samples["step"] == seg.index]
+    for ch, z in tare.items():
+        assert abs(len(window) - z["samples"]) <= 1  # the rows delivered during the tare
+        assert window[ch].mean() == pytest.approx(z["offset"], abs=z["u"]), ch
+    # later samples are referred to the zero: the spinning rotor's torque and thrust
+    # over the last repeat's high step have the signs of (E.1) and (E.2)
+    last = outcome.plan.segments[5]
+    high = samples[(samples["t_s"] > last.t_end_s - 0.1) & (samples["t_s"] < last.t_end_s)]
+    assert high["thrust_n"].mean() == pytest.approx(last.setpoint_n, rel=0.05)
+    assert abs(high["torque_nm"].mean()) > 20 * tare["torque_nm"]["u"]
