@@ -3,9 +3,10 @@ id in ``run.json``.
 
 The newest calibration run of the rig (by name) for each calibrated channel in the runs
 root is looked up when a run opens its devices. Accepted and in date: applied. Expired:
-applied, with a warning. Outside its acceptance limits: the run is refused unless the
-operator accepts an uncalibrated run (``--accept-uncalibrated``), and then nothing is
-applied. None at all: a real stand warns (its cells read through their datasheet
+applied, with a warning. Outside its acceptance limits, or made on another sensor (its
+model or address differ from the opened one's: the cell was swapped or moved): the run is
+refused unless the operator accepts an uncalibrated run (``--accept-uncalibrated``), and
+then nothing is applied. None at all: a real stand warns (its cells read through their datasheet
 scale); a simulated one says nothing (its cells are what the rig file says).
 """
 
@@ -119,6 +120,19 @@ def apply_calibrations(rig_cfg: Any, devices: Any, out_root: Path, *,
                                 "file's scale (rotorbench calibrate-sensors)", rig_cfg.name,
                                 channel, out_root)
                 continue
+            other = _other_sensor(record, sensor)
+            if other:
+                if not accept_uncalibrated:
+                    raise RigError(
+                        f"{rig_cfg.name}: the newest calibration of {channel} ({record['id']}) "
+                        f"is of another sensor ({other}): calibrate this one (rotorbench "
+                        "calibrate-sensors), or run with --accept-uncalibrated")
+                log.warning("%s: %s runs uncalibrated (--accept-uncalibrated): its newest "
+                            "calibration %s is of another sensor (%s)", rig_cfg.name, channel,
+                            record["id"], other)
+                applied[channel] = {"id": record["id"],
+                                    "state": "another sensor's: not applied"}
+                continue
             state = _state(record)
             if state == "not accepted":
                 if not accept_uncalibrated:
@@ -144,6 +158,19 @@ def apply_calibrations(rig_cfg: Any, devices: Any, out_root: Path, *,
             devices.sensors[role] = sensor = CalibratedSensor(sensor, cal)
             applied[channel] = cal.as_dict()
     return applied
+
+
+def _other_sensor(record: dict[str, Any], sensor: Any) -> str:
+    """Why ``record`` was made on another sensor than ``sensor`` (its model or address
+    differ), or '' when it was made on this one. A record without them is taken as this
+    sensor's: there is nothing to tell it by."""
+    made = record.get("sensor") or {}
+    info = sensor.describe()
+    for what in ("model", "url"):
+        theirs, ours = made.get(what), getattr(info, what, None)
+        if theirs is not None and ours is not None and str(theirs) != str(ours):
+            return f"{what} {theirs!r}, this rig's is {ours!r}"
+    return ""
 
 
 def _simulated(rig_cfg: Any, role: str) -> bool:

@@ -176,6 +176,31 @@ def test_runs_apply_the_newest_calibration_and_refuse_a_failed_one(tmp_path, cap
     assert last.meta["calibrations"]["thrust_n"]["state"] == "not accepted: not applied"
 
 
+def test_a_record_of_another_sensor_is_refused_in_one_line_with_nothing_recorded(
+        tmp_path, capsys):
+    """The rig's newest thrust calibration was made on another cell (the stored record
+    names another model): the run stops before it starts, unless --accept-uncalibrated,
+    which then applies nothing."""
+    out = tmp_path / "runs"
+    rig = _rig(tmp_path, 11)
+    assert main(["calibrate-sensors", "--rig", str(rig), "--yes", "--hold-s", "1",
+                 "--out", str(out)]) == 0
+    (cal_dir,) = out.glob("*calibration-thrust")
+    meta = json.loads((cal_dir / "run.json").read_text())
+    meta["calibration"]["sensor"]["model"] = "HX711 board #2"  # made on the other stand
+    (cal_dir / "run.json").write_text(json.dumps(meta))
+    capsys.readouterr()
+    step = ["step", "--rig", str(rig), "--repeats", "1", "--out", str(out)]
+    assert main(step) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1, err
+    assert "is of another sensor (model 'HX711 board #2'" in err and "--accept-uncalibrated" in err
+    assert not [p for p in out.iterdir() if p.name.endswith("step1")]  # nothing recorded
+    assert main([*step, "--accept-uncalibrated"]) == 0
+    (run,) = [read_run(p) for p in out.iterdir() if p.name.endswith("step1")]
+    assert run.meta["calibrations"]["thrust_n"]["state"] == "another sensor's: not applied"
+
+
 def test_the_web_view_shows_the_record_and_its_figure_and_survives_a_hostile_one(
         tmp_path, capsys):
     from fastapi.testclient import TestClient
