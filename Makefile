@@ -36,7 +36,7 @@ test: $(STAMP)
 	$(BIN)/lint-imports
 	$(BIN)/basedpyright --project pyproject.toml --pythonpath $(BIN)/python
 	PYTHONDONTWRITEBYTECODE= QT_QPA_PLATFORM=offscreen $(BIN)/python -m pytest -q \
-	  -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
+	  -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder --durations=30
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/run_all.py
