@@ -312,10 +312,13 @@ class Runner(PlanRunner):
         return trip is not None
 
     def _loop_state(self) -> tuple[object, ...]:
-        return (self._cmd_t, self._cmd_us, self._cmd_sp, self._cmd_seg, self.esc.last_us)
+        return (self._cmd_t, self._cmd_us, self._cmd_sp, self._cmd_seg, self.esc.last_us,
+                self.tare.state())
 
     def _set_loop_state(self, state: tuple[object, ...]) -> None:
-        self._cmd_t, self._cmd_us, self._cmd_sp, self._cmd_seg, self.esc.last_us = state  # type: ignore[assignment]
+        *cmd, tare = state
+        self._cmd_t, self._cmd_us, self._cmd_sp, self._cmd_seg, self.esc.last_us = cmd  # type: ignore[assignment]
+        self.tare.set_state(tare)
 
     def _safe_stop(self) -> list[str]:
         return self.esc.safe_stop()

@@ -63,6 +63,16 @@ class ZeroTare:
                 out[ch] = out[ch] - float(z["offset"])
         return out
 
+    def state(self) -> object:
+        """A checkpoint (a speculative batch of ticks may be taken back)."""
+        held = None if self._held is None else {ch: list(v) for ch, v in self._held.items()}
+        return held, dict(self._zeros)
+
+    def set_state(self, state: object) -> None:
+        held, zeros = state  # type: ignore[misc]
+        self._held = None if held is None else {ch: list(v) for ch, v in held.items()}
+        self._zeros = dict(zeros)
+
     def record(self) -> dict[str, Any]:
         """What run.json keeps: per channel its offset, standard uncertainty and samples."""
         return {ch: dict(z) for ch, z in self._zeros.items()}
