@@ -6,8 +6,10 @@ import importlib.util
 import signal
 import sys
 from pathlib import Path
+from typing import Any
 
 import pytest
+from xdist.scheduler import LoadFileScheduling
 
 
 def _load_helper(name: str, path: Path) -> None:
@@ -102,17 +104,49 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 SLOW_WALL_S = 10.0
 
 
+#: the unit of work the files that run the Betaflight SITL make together (see below)
+FIRMWARE_LANE = "tests/drivers::the Betaflight SITL, one at a time"
+
+
+def _in_firmware_lane(path: str | Path) -> bool:
+    """A test file that runs the Betaflight SITL: ``sitl`` in its name."""
+    return "sitl" in Path(path).name
+
+
 def _longest_files_first(items: list[pytest.Item]) -> None:
     """Order the test files by the wall time their ``slow`` marks announce, longest first,
-    each file's tests kept together and in order. ``make test`` hands files to its
-    processes in this order (``--dist loadfile --no-loadscope-reorder``): a two-minute file
-    started last would run alone after the others had finished."""
+    each file's tests kept together and in order; the firmware lane's files as one unit of
+    their summed wall time. ``make test`` hands files to its processes in this order
+    (``--dist loadfile --no-loadscope-reorder``): a two-minute file started last would run
+    alone after the others had finished."""
     wall: dict[Path, float] = {}
     for item in items:
         mark = item.get_closest_marker("slow")
         here = float(mark.kwargs.get("wall_s", SLOW_WALL_S)) if mark is not None else 0.0
         wall[item.path] = max(wall.get(item.path, 0.0), here)
-    items.sort(key=lambda item: -wall[item.path])  # stable: files stay whole
+    lane = sum(w for p, w in wall.items() if _in_firmware_lane(p))
+    items.sort(key=lambda item: -(lane if _in_firmware_lane(item.path)
+                                  else wall[item.path]))  # stable: files stay whole
+
+
+def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
+    """``--dist loadfile``, with every file that runs the Betaflight SITL in one unit of
+    work, run by one process one file after another. The SITL and its feeders run on the
+    wall clock at a raised priority, as devices do (``drivers.device_priority``): two or
+    three of them at once on the machine's two cores each had only part of a core, and
+    starved by each other they answered late (an IMU silent for 5 s, a port not open
+    within 5 s), which no real flight controller beside a bench does."""
+    if config.getoption("dist") != "loadfile":
+        return None
+    return FirmwareLane(config, log)
+
+
+class FirmwareLane(LoadFileScheduling):
+    """Files as units of work, the firmware lane's files one unit."""
+
+    def _split_scope(self, nodeid: str) -> str:
+        path = super()._split_scope(nodeid)
+        return FIRMWARE_LANE if _in_firmware_lane(path) else path
 
 
 @pytest.fixture(autouse=True, scope="module")

@@ -31,3 +31,18 @@ def test_files_announcing_more_wall_time_start_first_and_stay_whole() -> None:
     # the 120 s file first, then the bare slow mark (10 s), then the unmarked file
     assert [i.name for i in items] == ["l1", "l2", "s1", "s2", "q1", "q2"]
 
+
+
+def test_the_files_that_run_the_firmware_go_as_one_unit_of_their_summed_wall_time() -> None:
+    from tests.conftest import FIRMWARE_LANE, FirmwareLane
+
+    long_, sitl_a, sitl_b = Path("c_long.py"), Path("test_sitl_a.py"), Path("test_x_sitl.py")
+    items = [_Item(long_, "l1", {"slow": pytest.mark.slow(wall_s=60)}),
+             _Item(sitl_a, "a1", {"slow": pytest.mark.slow(wall_s=40)}),
+             _Item(sitl_b, "b1", {"slow": pytest.mark.slow(wall_s=30)})]
+    _longest_files_first(items)  # type: ignore[arg-type]
+    assert [i.name for i in items] == ["a1", "b1", "l1"]  # 70 s of firmware before 60 s
+    lane = object.__new__(FirmwareLane)  # the scope rule alone (no xdist session here)
+    assert {lane._split_scope(f"tests/drivers/{n}::t") for n in (sitl_a, sitl_b)} \
+        == {FIRMWARE_LANE}
+    assert lane._split_scope("tests/drivers/test_other.py::t") == "tests/drivers/test_other.py"
