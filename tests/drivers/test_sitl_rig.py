@@ -111,7 +111,7 @@ def test_check_step_and_fit_run_through_the_firmware(tmp_path, capsys):
     # an edge with a gap in its rows (a stall of the shared host) is left out by the fit
     assert min(fit["repeats_up"], fit["repeats_down"]) >= 2, fit["edges"]
     tau_up, tau_down = _true_taus()
-    # 1.3-3 % on a quiet host (docs/sim-rig.md); the plant and its FDM feeder run in a
+    # 0.6-3.9 % on a quiet host (docs/sim-rig.md); the plant and its FDM feeder run in a
     # process of their own beside a whole test suite on two cores, and a late motor packet
     # there reads as a slower motor (+6 % seen when they ran in the bench's process): the
     # bound here is TAU_LOADED_REL, the docs' numbers are quiet ones
