@@ -54,22 +54,10 @@ def _rel(a, b) -> float:
 def calibrated(tmp_path_factory: pytest.TempPathFactory):
     root = tmp_path_factory.mktemp("cal_wire")
     out = root / "cal.json"
-    # The rig with its devices in a process of their own, except two things. The MSP reply
-    # timeout (0.3 s of wall time): on a machine loaded like the suite, the simulated FC's
-    # thread in the world's process has been seen to take up the request 0.3-0.8 s after
-    # the bench wrote it (asleep in one 10 ms wait for the port, neither running nor queued
-    # for a processor: a late wake-up below Python), and a late reply is the device-lost
-    # tests' subject, not this one's. And the time scale, 3 rather than 6: the host
-    # watchdog's 1 s limit is bench time, 0.17 s of wall time at 6x, and the bench's own
-    # process waited that long for a processor once in a fresh-clone suite run ("command
-    # loop stalled 1.040 s"); at 3x the limit is 0.33 s of wall time. The GX3's silence
-    # limit (0.2 s) holds as shipped: it counts only silence a read found, not the bench's
-    # own lateness (drivers/backends/row_stream.py).
-    rig = root / "sim-imu-wire.toml"
-    text = WIRE_RIG_PATH.read_text(encoding="utf-8")
-    assert text.count("timeout_s = 0.3") == 1 and text.count("time_scale = 6.0") == 2
-    text = text.replace("time_scale = 6.0", "time_scale = 3.0")
-    rig.write_text(text.replace("timeout_s = 0.3", "timeout_s = 3.0"), encoding="utf-8")
+    # The shipped rig, its devices in a process of their own at a device's priority and the
+    # bench's run at a host's (bench.engine.host_priority): at 6x the host watchdog's 1 s
+    # is 0.17 s of wall time, and the MSP reply timeout 0.3 s of wall time, as shipped.
+    rig = WIRE_RIG_PATH
     code = main(["calibrate", "--quick", "--tick", "0.1", "--rig", str(rig),
                  "--runs", str(root / "runs"), "--out", str(out)])
     runs = sorted((root / "runs").glob("*/run.json"))
