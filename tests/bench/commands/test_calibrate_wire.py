@@ -34,7 +34,7 @@ from drivers.errors import DeviceError
 from drivers.factory import open_rig
 from drivers.hexapod_motions import gyro_sines
 
-pytestmark = pytest.mark.slow(wall_s=120)  # the calibration through the wire: 110-120 s
+pytestmark = pytest.mark.slow(wall_s=65)  # the calibration through the wire: 60-65 s
 
 REPO = Path(__file__).resolve().parents[3]
 WIRE_RIG_PATH = REPO / "bench" / "data" / "rigs" / "sim-imu-wire.toml"
