@@ -44,6 +44,10 @@ class CalibrationPlan:
         if self.cell not in CELLS:
             raise RigError(f"cell {self.cell!r}: expected one of {', '.join(CELLS)}")
         m = self.masses_kg
+        negative = [x for x in m if x < 0.0]
+        if negative:
+            raise RigError(f"masses: {negative[0] * 1e3:g} g is negative; a weight's mass "
+                           "is 0 or more")
         if len(m) < 3 or m[0] != 0.0 or any(b <= a for a, b in pairwise(m)):
             raise RigError("masses: expected 0 and at least two more, ascending, e.g. "
                            "--masses-g 0,100,200,500,1000")
