@@ -104,18 +104,15 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 SLOW_WALL_S = 10.0
 
 
-#: the unit of work the files that run device stand-ins for long make together (see below)
+#: the unit of work the files that run device stand-ins make together (see below)
 FIRMWARE_LANE = "tests::device stand-ins on the wall clock, one file at a time"
-#: besides the Betaflight SITL's files: the wire-level IMU bench's whole calibration, a
-#: minute of the hexapod, FC and GX3 worlds at 6x real time
-WORLD_FILES = frozenset({"test_calibrate_wire.py"})
 
 
 def _in_firmware_lane(path: str | Path) -> bool:
-    """A test file that runs the Betaflight SITL (``sitl`` in its name) or a long
-    wire-level world (``WORLD_FILES``)."""
+    """A test file that runs the Betaflight SITL or wire-level simulated devices on the
+    wall clock: ``sitl`` or ``wire`` in its name."""
     name = Path(path).name
-    return "sitl" in name or name in WORLD_FILES
+    return "sitl" in name or "wire" in name
 
 
 def _longest_files_first(items: list[pytest.Item]) -> None:
@@ -135,13 +132,14 @@ def _longest_files_first(items: list[pytest.Item]) -> None:
 
 
 def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
-    """``--dist loadfile``, with every file that runs the Betaflight SITL or a long
-    wire-level world in one unit of work, run by one process one file after another. The
+    """``--dist loadfile``, with every file that runs the Betaflight SITL or wire-level
+    simulated devices in one unit of work, run by one process one file after another. The
     firmware, the worlds and their feeders run on the wall clock at a raised priority, as
     devices do (``drivers.device_priority``): two of them at once on the machine's two
     cores each had only part of a core, and starved by each other they answered late (the
     firmware IMU's rows all late for 5 s beside the 6x wire calibration, a port not open
-    within 5 s), which no real device beside a bench does."""
+    within 5 s, a load-cell board's lines 0.26 s apart against the runner's 0.25 s), which
+    no real device beside a bench does."""
     if config.getoption("dist") != "loadfile":
         return None
     return FirmwareLane(config, log)

@@ -46,4 +46,5 @@ def test_the_files_that_run_the_firmware_go_as_one_unit_of_their_summed_wall_tim
     assert {lane._split_scope(f"tests/drivers/{n}::t") for n in (sitl_a, sitl_b)} \
         == {FIRMWARE_LANE}
     assert lane._split_scope("tests/bench/commands/test_calibrate_wire.py::t") == FIRMWARE_LANE
+    assert lane._split_scope("tests/drivers/test_imu_wire_rig.py::t") == FIRMWARE_LANE
     assert lane._split_scope("tests/drivers/test_other.py::t") == "tests/drivers/test_other.py"

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -31,8 +32,34 @@ from analysis.metrology.gum import Budget, Term, rectangular
 from analysis.static_curves import StaticCurves
 from analysis.step_response import DirectionFit, StepResponse
 
-__all__ = ["TIMEBASE_PPM", "calibration_terms", "entry", "static_budgets", "step_budgets",
-           "tare_uncertainty"]
+__all__ = ["BUDGETED", "TIMEBASE_PPM", "BudgetedConstant", "calibration_terms", "entry",
+           "static_budgets", "step_budgets", "tare_uncertainty"]
+
+
+@dataclass(frozen=True)
+class BudgetedConstant:
+    """A constant with a budget: its key (as ``run.json``, the store and ``--json`` name
+    it), its name for people, SI unit, the run that fits it (``step`` or ``static``, a
+    sweep) and the force channel whose calibration scales it (None: a time)."""
+
+    key: str
+    label: str
+    unit: str
+    run: str
+    channel: str | None = None
+
+
+#: every constant the budgets below give, in the order they are shown
+BUDGETED: tuple[BudgetedConstant, ...] = (
+    BudgetedConstant("latency_s", "latency", "s", "step"),
+    BudgetedConstant("tau_up_s", "tau up", "s", "step"),
+    BudgetedConstant("tau_down_s", "tau down", "s", "step"),
+    BudgetedConstant("k_f_n_s2", "k_f", "N s^2", "static", "thrust_n"),
+    BudgetedConstant("k_q_nm_s2", "k_q", "N m s^2", "static", "torque_nm"),
+    BudgetedConstant("thrust_poly_w_0", "thrust poly c0", "N", "static", "thrust_n"),
+    BudgetedConstant("thrust_poly_w_1", "thrust poly c1", "N s", "static", "thrust_n"),
+    BudgetedConstant("thrust_poly_w_2", "thrust poly c2", "N s^2", "static", "thrust_n"),
+)
 
 #: The speed counter's timebase: a quartz crystal within +-50 ppm (a typical
 #: microcontroller/FPGA clock specification), rectangular.

@@ -10,19 +10,14 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
+from analysis.metrology.constant_budgets import BUDGETED
+
 __all__ = ["DISPLAY", "budget_lines", "display", "value_and_u", "with_expanded"]
 
-#: how a constant is shown: label, factor from SI, unit, format
+#: how each budgeted constant is shown: name, factor from SI, unit, format (times in ms)
 DISPLAY: dict[str, tuple[str, float, str, str]] = {
-    "latency_s": ("latency", 1e3, "ms", ".3f"),
-    "tau_up_s": ("tau up", 1e3, "ms", ".3f"),
-    "tau_down_s": ("tau down", 1e3, "ms", ".3f"),
-    "k_f_n_s2": ("k_f", 1.0, "N s^2", ".5g"),
-    "k_q_nm_s2": ("k_q", 1.0, "N m s^2", ".5g"),
-    "thrust_poly_w_0": ("thrust poly c0", 1.0, "N", ".5g"),
-    "thrust_poly_w_1": ("thrust poly c1", 1.0, "N s", ".5g"),
-    "thrust_poly_w_2": ("thrust poly c2", 1.0, "N s^2", ".5g"),
-}
+    c.key: (c.label, 1e3, "ms", ".3f") if c.unit == "s" else (c.label, 1.0, c.unit, ".5g")
+    for c in BUDGETED}
 
 
 def display(name: str) -> tuple[str, float, str, str]:

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from analysis.metrology.constant_budgets import BUDGETED
 from analysis.metrology.interlab import ConstantComparison, Participant, compare_constant
 from bench.errors import RigError
 from bench.store.constants_fit import UNCERTAINTY
@@ -50,16 +51,10 @@ def _key(name: str) -> Callable[[Mapping[str, Any]], Any]:
 
 
 #: the constants compared: (data key, kind of fit, unit, how the row gives its value)
-COMPARED: tuple[tuple[str, str, str, Callable[[Mapping[str, Any]], Any]], ...] = (
-    ("k_f_n_s2", "static", "N s^2", _key("k_f_n_s2")),
-    ("k_q_nm_s2", "static", "N m s^2", _key("k_q_nm_s2")),
-    ("tau_up_s", "step", "s", _key("tau_up_s")),
-    ("tau_down_s", "step", "s", _key("tau_down_s")),
-    ("latency_s", "step", "s", _key("latency_s")),
-    ("thrust_poly_w_0", "static", "N", _poly(0)),
-    ("thrust_poly_w_1", "static", "N s", _poly(1)),
-    ("thrust_poly_w_2", "static", "N s^2", _poly(2)),
-)
+COMPARED: tuple[tuple[str, str, str, Callable[[Mapping[str, Any]], Any]], ...] = tuple(
+    (c.key, c.run, c.unit,
+     _poly(int(c.key.rsplit("_", 1)[1])) if c.key.startswith("thrust_poly_w_") else _key(c.key))
+    for c in BUDGETED)
 ACTUATOR = ("motor", "propeller", "esc", "esc_mode", "battery")
 
 

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from analysis.metrology.constant_budgets import BUDGETED
 from bench.errors import RigError
 from bench.store.constants_store import ActuatorKey
 
@@ -37,8 +38,7 @@ STD_KEYS = {"tau_up_s": "tau_up_std_s", "tau_down_s": "tau_down_std_s",
 #: (``analysis.metrology.constant_budgets.entry``); older rows lack it
 UNCERTAINTY = "uncertainty"
 #: the channel whose calibration a constant of a sweep reads through
-CHANNEL_OF = {"k_f_n_s2": "thrust_n", "k_q_nm_s2": "torque_nm", "thrust_poly_w_0": "thrust_n",
-              "thrust_poly_w_1": "thrust_n", "thrust_poly_w_2": "thrust_n"}
+CHANNEL_OF = {c.key: c.channel for c in BUDGETED if c.channel is not None}
 
 
 def stored_entry(data: Mapping[str, Any], name: str) -> Mapping[str, Any]:

@@ -26,7 +26,12 @@ import numpy as np
 import pytest
 
 from analysis.cell_response import CellDynamics
-from analysis.metrology.constant_budgets import TIMEBASE_PPM, static_budgets, step_budgets
+from analysis.metrology.constant_budgets import (
+    BUDGETED,
+    TIMEBASE_PPM,
+    static_budgets,
+    step_budgets,
+)
 from analysis.metrology.force_calibration import hold_mean
 from analysis.static_curves import fit_static
 from analysis.step_response import fit_step_response
@@ -135,9 +140,7 @@ def cases() -> dict[str, list[tuple[float, float, float]]]:
     return out
 
 
-@pytest.mark.parametrize("name", ["latency_s", "tau_up_s", "tau_down_s", "k_f_n_s2",
-                                  "k_q_nm_s2", "thrust_poly_w_0", "thrust_poly_w_1",
-                                  "thrust_poly_w_2"])
+@pytest.mark.parametrize("name", [c.key for c in BUDGETED])  # every budgeted constant
 def test_true_value_within_expanded_uncertainty(cases, name):
     rows = np.array(cases[name])
     value, u, truth = rows.T
