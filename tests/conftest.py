@@ -127,8 +127,15 @@ def _longest_files_first(items: list[pytest.Item]) -> None:
         here = float(mark.kwargs.get("wall_s", SLOW_WALL_S)) if mark is not None else 0.0
         wall[item.path] = max(wall.get(item.path, 0.0), here)
     lane = sum(w for p, w in wall.items() if _in_firmware_lane(p))
-    items.sort(key=lambda item: -(lane if _in_firmware_lane(item.path)
-                                  else wall[item.path]))  # stable: files stay whole
+
+    def order(item: pytest.Item) -> tuple[float, int]:
+        if not _in_firmware_lane(item.path):
+            return -wall[item.path], 0
+        # in the lane the firmware's files first: the suite's start, with the long files
+        # beside them, took them better than its middle's bursts of short processes
+        return -lane, 0 if "sitl" in item.path.name else 1
+
+    items.sort(key=order)  # stable: files stay whole
 
 
 def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:

@@ -37,11 +37,14 @@ def test_the_files_that_run_the_firmware_go_as_one_unit_of_their_summed_wall_tim
     from tests.conftest import FIRMWARE_LANE, FirmwareLane
 
     long_, sitl_a, sitl_b = Path("c_long.py"), Path("test_sitl_a.py"), Path("test_x_sitl.py")
-    items = [_Item(long_, "l1", {"slow": pytest.mark.slow(wall_s=60)}),
+    wire = Path("test_a_wire.py")
+    items = [_Item(wire, "w1", {"slow": pytest.mark.slow(wall_s=20)}),
+             _Item(long_, "l1", {"slow": pytest.mark.slow(wall_s=80)}),
              _Item(sitl_a, "a1", {"slow": pytest.mark.slow(wall_s=40)}),
              _Item(sitl_b, "b1", {"slow": pytest.mark.slow(wall_s=30)})]
     _longest_files_first(items)  # type: ignore[arg-type]
-    assert [i.name for i in items] == ["a1", "b1", "l1"]  # 70 s of firmware before 60 s
+    # 90 s of device files before the 80 s file, the firmware's first
+    assert [i.name for i in items] == ["a1", "b1", "w1", "l1"]
     lane = object.__new__(FirmwareLane)  # the scope rule alone (no xdist session here)
     assert {lane._split_scope(f"tests/drivers/{n}::t") for n in (sitl_a, sitl_b)} \
         == {FIRMWARE_LANE}
