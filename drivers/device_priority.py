@@ -31,30 +31,10 @@ def raise_device_priority(pid: int = 0) -> bool:
     """Run process ``pid`` (0: this one, from its calling thread on) at ``DEVICE_NICE``;
     whether it could."""
     tasks = [0] if pid == 0 else process_threads(pid)
-    ok = _raise_own_autogroup(pid)
+    ok = True
     for tid in tasks:
         try:
             os.setpriority(os.PRIO_PROCESS, tid, DEVICE_NICE)
         except OSError:  # no privilege, or the thread ended meanwhile
             ok = False
     return ok
-
-
-def _raise_own_autogroup(pid: int) -> bool:
-    """A process that leads a session of its own (started with ``setsid``, as the bench
-    starts the firmware) is, where the kernel groups sessions (``autogroup``), scheduled as
-    a group of its own against every other session: a thread's niceness only orders it
-    inside its group, so the group's niceness is raised too. Nothing to do (True) for a
-    process inside its parent's session, or where there are no autogroups."""
-    target = os.getpid() if pid == 0 else pid
-    try:
-        if os.getsid(target) != target:
-            return True
-        with open(f"/proc/{target}/autogroup", "w") as fh:
-            fh.write(str(DEVICE_NICE))
-    except FileNotFoundError:  # no autogroups (kernel without them, not Linux)
-        return True
-    except OSError:  # no privilege, or the process is gone
-        return False
-    return True
-

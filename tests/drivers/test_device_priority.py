@@ -59,35 +59,3 @@ def test_a_gone_process_is_no_error() -> None:
 @pytest.mark.skipif(not ROOT, reason="the firmware tests run as root (network namespaces)")
 def test_the_firmware_runs_at_the_device_niceness(sitl) -> None:
     assert set(_nices(sitl.proc.pid)) == {DEVICE_NICE}
-
-
-def _autogroup(pid: int) -> tuple[str, int] | None:
-    try:
-        with open(f"/proc/{pid}/autogroup") as fh:
-            group, _, nice = fh.read().split()
-    except OSError:
-        return None
-    return group, int(nice)
-
-
-def test_a_process_of_its_own_session_gets_its_session_group_raised_too() -> None:
-    """The bench starts the firmware in a session of its own: where the kernel schedules
-    sessions as groups, its group's niceness is raised as its threads' are; a process in
-    its parent's session leaves the parent's group alone."""
-    if _autogroup(os.getpid()) is None:
-        pytest.skip("this kernel groups no sessions (no /proc/PID/autogroup)")
-    ours = _autogroup(os.getpid())
-    with subprocess.Popen(["sleep", "30"], start_new_session=True) as own, \
-            subprocess.Popen(["sleep", "30"]) as inside:
-        try:
-            raised = raise_device_priority(own.pid), raise_device_priority(inside.pid)
-            groups = _autogroup(own.pid), _autogroup(inside.pid)
-        finally:
-            own.kill()
-            inside.kill()
-    assert groups[1] == ours  # the parent's session: its group untouched
-    if ROOT:
-        assert raised == (True, True) and groups[0] is not None
-        assert groups[0][0] != ours[0] and groups[0][1] == DEVICE_NICE
-    else:
-        assert raised[0] is False and groups[0] is not None and groups[0][1] == 0

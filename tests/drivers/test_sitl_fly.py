@@ -190,9 +190,11 @@ def test_a_flight_stopped_mid_air_ends_disarmed_with_the_firmware_stopped(tmp_pa
     proc = _in_namespace(tmp_path, ["fly", "--controller", "betaflight", *DESIGN,
                                     "--maneuver", "--rate-steps", "3", "--store", str(store)],
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    before = ""  # what it said up to arming (kept: a flight that never armed says why)
     try:
         assert proc.stderr is not None
         for line in proc.stderr:
+            before += line
             if "armed: flying" in line:
                 break
         time.sleep(0.8)  # spin-up held (0.6 s), then released: in the air
@@ -201,7 +203,7 @@ def test_a_flight_stopped_mid_air_ends_disarmed_with_the_firmware_stopped(tmp_pa
     finally:
         if proc.poll() is None:
             proc.kill()
-    assert proc.returncode == 143, err
+    assert proc.returncode == 143, before + err
     assert "Traceback" not in err
     no_firmware_left(tmp_path)
     (run_dir,) = [p for p in store.iterdir() if p.is_dir() and not p.name.startswith(".")]
