@@ -166,7 +166,8 @@ def test_silent_board_is_detected_by_staleness_and_the_esc_idles(tmp_path):
     assert 0.2 <= detected_after < 0.25 + 0.5
     _data_kept_until_fault(rec, 1.2)
     log.setdefault("detected", log["fault"] + detected_after)
-    assert 0.0 <= _idle_after_detection(log) < 0.1
+    # the runner's finding is read from its reason, to 0.01 s: idle may seem up to 5 ms early
+    assert -0.005 <= _idle_after_detection(log) < 0.1
 
 
 def test_vesc_gone_from_the_bus_ends_the_run_and_its_timeout_stops_the_motor(tmp_path):
