@@ -105,10 +105,10 @@ SLOW_WALL_S = 10.0
 
 
 #: the unit of work the files that run device stand-ins make together (see below)
-FIRMWARE_LANE = "tests::device stand-ins on the wall clock, one file at a time"
+DEVICE_LANE = "tests::device stand-ins on the wall clock, one file at a time"
 
 
-def _in_firmware_lane(path: str | Path) -> bool:
+def _in_device_lane(path: str | Path) -> bool:
     """A test file that runs the Betaflight SITL or wire-level simulated devices on the
     wall clock: ``sitl`` or ``wire`` in its name."""
     name = Path(path).name
@@ -126,10 +126,10 @@ def _longest_files_first(items: list[pytest.Item]) -> None:
         mark = item.get_closest_marker("slow")
         here = float(mark.kwargs.get("wall_s", SLOW_WALL_S)) if mark is not None else 0.0
         wall[item.path] = max(wall.get(item.path, 0.0), here)
-    lane = sum(w for p, w in wall.items() if _in_firmware_lane(p))
+    lane = sum(w for p, w in wall.items() if _in_device_lane(p))
 
     def order(item: pytest.Item) -> tuple[float, int]:
-        if not _in_firmware_lane(item.path):
+        if not _in_device_lane(item.path):
             return -wall[item.path], 0
         # in the lane the firmware's files first: the suite's start, with the long files
         # beside them, took them better than its middle's bursts of short processes
@@ -149,15 +149,15 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
     no real device beside a bench does."""
     if config.getoption("dist") != "loadfile":
         return None
-    return FirmwareLane(config, log)
+    return DeviceLane(config, log)
 
 
-class FirmwareLane(LoadFileScheduling):
+class DeviceLane(LoadFileScheduling):
     """Files as units of work, the firmware lane's files one unit."""
 
     def _split_scope(self, nodeid: str) -> str:
         path = super()._split_scope(nodeid)
-        return FIRMWARE_LANE if _in_firmware_lane(path) else path
+        return DEVICE_LANE if _in_device_lane(path) else path
 
 
 @pytest.fixture(autouse=True, scope="module")

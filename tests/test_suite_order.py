@@ -34,7 +34,7 @@ def test_files_announcing_more_wall_time_start_first_and_stay_whole() -> None:
 
 
 def test_the_files_that_run_the_firmware_go_as_one_unit_of_their_summed_wall_time() -> None:
-    from tests.conftest import FIRMWARE_LANE, FirmwareLane
+    from tests.conftest import DEVICE_LANE, DeviceLane
 
     long_, sitl_a, sitl_b = Path("c_long.py"), Path("test_sitl_a.py"), Path("test_x_sitl.py")
     wire = Path("test_a_wire.py")
@@ -45,9 +45,9 @@ def test_the_files_that_run_the_firmware_go_as_one_unit_of_their_summed_wall_tim
     _longest_files_first(items)  # type: ignore[arg-type]
     # 90 s of device files before the 80 s file, the firmware's first
     assert [i.name for i in items] == ["a1", "b1", "w1", "l1"]
-    lane = object.__new__(FirmwareLane)  # the scope rule alone (no xdist session here)
+    lane = object.__new__(DeviceLane)  # the scope rule alone (no xdist session here)
     assert {lane._split_scope(f"tests/drivers/{n}::t") for n in (sitl_a, sitl_b)} \
-        == {FIRMWARE_LANE}
-    assert lane._split_scope("tests/bench/commands/test_calibrate_wire.py::t") == FIRMWARE_LANE
-    assert lane._split_scope("tests/drivers/test_imu_wire_rig.py::t") == FIRMWARE_LANE
+        == {DEVICE_LANE}
+    assert lane._split_scope("tests/bench/commands/test_calibrate_wire.py::t") == DEVICE_LANE
+    assert lane._split_scope("tests/drivers/test_imu_wire_rig.py::t") == DEVICE_LANE
     assert lane._split_scope("tests/drivers/test_other.py::t") == "tests/drivers/test_other.py"

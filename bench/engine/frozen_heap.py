@@ -12,27 +12,18 @@ last run in the process ends.
 from __future__ import annotations
 
 import gc
-import threading
+
+from bench.engine.process_wide import ProcessWide
 
 __all__ = ["FrozenHeap"]
 
 
-class FrozenHeap:
+class FrozenHeap(ProcessWide):
     """``with FrozenHeap():`` freezes the heap on the first entry and unfreezes it at the
     last exit (runs in threads of one process may overlap)."""
 
-    _lock = threading.Lock()
-    _depth = 0
+    def _begin(self) -> None:
+        gc.freeze()
 
-    def __enter__(self) -> FrozenHeap:
-        with FrozenHeap._lock:
-            if FrozenHeap._depth == 0:
-                gc.freeze()
-            FrozenHeap._depth += 1
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        with FrozenHeap._lock:
-            FrozenHeap._depth -= 1
-            if FrozenHeap._depth == 0:
-                gc.unfreeze()
+    def _end(self) -> None:
+        gc.unfreeze()

@@ -16,9 +16,9 @@ the last run's end every thread goes back to the niceness the process had.
 from __future__ import annotations
 
 import os
-import threading
 from typing import ClassVar
 
+from bench.engine.process_wide import ProcessWide
 from drivers.device_priority import DEVICE_NICE, process_threads
 
 __all__ = ["HOST_LOOP_NICE", "HostPriority"]
@@ -26,33 +26,20 @@ __all__ = ["HOST_LOOP_NICE", "HostPriority"]
 HOST_LOOP_NICE = DEVICE_NICE // 2  # ahead of the default (0), behind the devices
 
 
-class HostPriority:
+class HostPriority(ProcessWide):
     """``with HostPriority(on_wall):`` raises this process's threads for the block when
     ``on_wall``; runs in threads of one process may overlap (the last one restores)."""
 
-    _lock = threading.Lock()
-    _depth = 0
-    _before: ClassVar[dict[int, int]] = {}
+    _before: ClassVar[dict[int, int]]
 
     def __init__(self, on_wall: bool) -> None:
-        self.on_wall = on_wall
+        self.active = on_wall
 
-    def __enter__(self) -> HostPriority:
-        if not self.on_wall:
-            return self
-        with HostPriority._lock:
-            if HostPriority._depth == 0:
-                HostPriority._before = _raise_threads(HOST_LOOP_NICE)
-            HostPriority._depth += 1
-        return self
+    def _begin(self) -> None:
+        HostPriority._before = _raise_threads(HOST_LOOP_NICE)
 
-    def __exit__(self, *exc: object) -> None:
-        if not self.on_wall:
-            return
-        with HostPriority._lock:
-            HostPriority._depth -= 1
-            if HostPriority._depth == 0:
-                _restore_threads(HostPriority._before)
+    def _end(self) -> None:
+        _restore_threads(HostPriority._before)
 
 
 def _raise_threads(nice: int) -> dict[int, int]:

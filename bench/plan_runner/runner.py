@@ -318,7 +318,7 @@ class Runner(PlanRunner):
     def _set_loop_state(self, state: tuple[object, ...]) -> None:
         *cmd, tare = state
         self._cmd_t, self._cmd_us, self._cmd_sp, self._cmd_seg, self.esc.last_us = cmd  # type: ignore[assignment]
-        self.tare.set_state(tare)
+        self.tare.set_state(tare)  # type: ignore[arg-type]
 
     def _safe_stop(self) -> list[str]:
         return self.esc.safe_stop()

@@ -22,13 +22,17 @@ __all__ = ["TARED_CHANNELS", "ZeroTare"]
 
 TARED_CHANNELS = ("thrust_n", "torque_nm")
 
+Zero = dict[str, float | int]  # offset, u, samples
+#: a checkpoint: the samples held so far (None outside a tare) and the zeros found
+TareState = tuple[dict[str, list[np.ndarray]] | None, dict[str, Zero]]
+
 
 class ZeroTare:
     """Collects raw samples during the tare (``begin``, ``add``, ``end``), then subtracts
     each channel's zero from every later sample (``apply``)."""
 
     def __init__(self) -> None:
-        self._zeros: dict[str, dict[str, float | int]] = {}
+        self._zeros: dict[str, Zero] = {}
         self._held: dict[str, list[np.ndarray]] | None = None
 
     def offset(self, channel: str) -> float:
@@ -44,7 +48,7 @@ class ZeroTare:
             if ch in rows:
                 parts.append(np.asarray(rows[ch], dtype=float))
 
-    def end(self) -> dict[str, dict[str, float | int]]:
+    def end(self) -> dict[str, Zero]:
         """The zeros found (channels with at least two finite samples), which now apply."""
         held, self._held = self._held or {}, None
         for ch, parts in held.items():
@@ -63,13 +67,13 @@ class ZeroTare:
                 out[ch] = out[ch] - float(z["offset"])
         return out
 
-    def state(self) -> object:
+    def state(self) -> TareState:
         """A checkpoint (a speculative batch of ticks may be taken back)."""
         held = None if self._held is None else {ch: list(v) for ch, v in self._held.items()}
         return held, dict(self._zeros)
 
-    def set_state(self, state: object) -> None:
-        held, zeros = state  # type: ignore[misc]
+    def set_state(self, state: TareState) -> None:
+        held, zeros = state
         self._held = None if held is None else {ch: list(v) for ch, v in held.items()}
         self._zeros = dict(zeros)
 
