@@ -74,6 +74,7 @@ class MspRcEsc:
         self._error: DeviceError | None = None
         self.frames = 0
         self.max_frame_gap_s = 0.0  # between acknowledged frames while armed
+        self.arming_gap_s = 0.0  # the same while arm() waits: an arm refused for RX_FAILSAFE
         self._stop = threading.Event()
         self._frame_done = threading.Event()
         self._thread = threading.Thread(target=self._send_loop, name=f"msp-rc-{url}",
@@ -177,6 +178,7 @@ class MspRcEsc:
             now = time.monotonic()
             if guarded:  # armed and commanded: the gap the FC's failsafe must tolerate
                 self.max_frame_gap_s = max(self.max_frame_gap_s, now - last_ok)
+            self.arming_gap_s = max(self.arming_gap_s, now - last_ok)
             last_ok = now
             self.frames += 1
             self._frame_done.set()
@@ -230,6 +232,7 @@ class MspRcEsc:
             self._stalled = self._guarded = False
             self._throttle = rc.THROTTLE_LOW_US
             self._arm_on = True
+            self.arming_gap_s = 0.0
         deadline = time.monotonic() + ARM_WAIT_S
         cycle_at = time.monotonic() + SWITCH_CYCLE_S
         while not self._status().armed:
@@ -242,7 +245,8 @@ class MspRcEsc:
                 flags = _flags(self._status().arming_disable_flags)
                 self.disarm()
                 raise DeviceError(f"{self.url}: the flight controller did not arm within "
-                                  f"{ARM_WAIT_S:g} s ({flags})")
+                                  f"{ARM_WAIT_S:g} s ({flags}; RC frames at most "
+                                  f"{1e3 * self.arming_gap_s:.0f} ms apart)")
             time.sleep(0.02)
         with self._lock:
             self._last_host_t = time.monotonic()

@@ -1,5 +1,6 @@
 """A device's stand-in process (a simulated world, the Betaflight SITL) runs ahead of the
-host's work: every thread of it, those it has and those it starts later."""
+host's work, with exact timers: every thread of it, those it has and those it starts
+later."""
 
 from __future__ import annotations
 
@@ -7,10 +8,11 @@ import os
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 
-from drivers.device_priority import DEVICE_NICE, raise_device_priority
+from drivers.device_priority import DEVICE_NICE, DEVICE_TIMER_SLACK_NS, raise_device_priority
 
 ROOT = os.geteuid() == 0
 
@@ -30,6 +32,12 @@ def _nices(pid: int) -> list[int]:
     return [os.getpriority(os.PRIO_PROCESS, int(t)) for t in os.listdir(f"/proc/{pid}/task")]
 
 
+def _slacks(pid: int) -> list[int]:
+    """Each thread's timer slack (ns); readable for a process of the same user."""
+    return [int(Path(f"/proc/{t}/timerslack_ns").read_text()) for t in
+            os.listdir(f"/proc/{pid}/task")]
+
+
 def test_every_thread_and_a_later_one_run_at_the_device_niceness() -> None:
     with subprocess.Popen([sys.executable, "-c", _TWO_THREADS], stdin=subprocess.PIPE,
                           stdout=subprocess.PIPE, text=True) as proc:
@@ -39,12 +47,13 @@ def test_every_thread_and_a_later_one_run_at_the_device_niceness() -> None:
             proc.stdin.write("\n")
             proc.stdin.flush()
             assert proc.stdout.readline() == "late\n"
-            nices = _nices(proc.pid)
+            nices, slacks = _nices(proc.pid), _slacks(proc.pid)
         finally:
             proc.kill()
     assert len(nices) == 3
     if ROOT:
         assert raised and nices == [DEVICE_NICE] * 3
+        assert slacks == [DEVICE_TIMER_SLACK_NS] * 3
     else:  # without the privilege: said so, and nothing changed
         assert not raised and set(nices) == {os.getpriority(os.PRIO_PROCESS, 0)}
 
@@ -59,3 +68,4 @@ def test_a_gone_process_is_no_error() -> None:
 @pytest.mark.skipif(not ROOT, reason="the firmware tests run as root (network namespaces)")
 def test_the_firmware_runs_at_the_device_niceness(sitl) -> None:
     assert set(_nices(sitl.proc.pid)) == {DEVICE_NICE}
+    assert set(_slacks(sitl.proc.pid)) == {DEVICE_TIMER_SLACK_NS}
