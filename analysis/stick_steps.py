@@ -5,7 +5,11 @@ The deconvolved step response (``analysis.flight_response``) estimates the loop'
 to a unit step from whatever the pilot did; when the pilot did give clean steps (a bench's
 stick program, a tuning flight's snap rolls) the gyro's own rise after each one is the
 direct measurement to hold it against. A step here: the setpoint changes by at least
-``min_step`` within ``EDGE_S`` and, ``SETTLE_S`` later (a firmware's RC smoothing rounds a
+``min_step`` within ``EDGE_S`` (its edge: the last sample before the setpoint leaves its
+level; a gyro still swinging from the step before must not be read as this one's rise,
+which the look-ahead's start, up to ``EDGE_S`` early, did: a return to zero after a 0.25 s
+hold with 50 % overshoot read 68-75 ms against the 47-53 ms its edge gives) and,
+``SETTLE_S`` later (a firmware's RC smoothing rounds a
 stick step off over some 30 ms), stays within 5 % of the change for ``hold_s``;
 the rise is between the gyro's first crossings of 10 % and 90 % of the way from the level
 before the edge to the level held after it. A step whose stretch of log has a gap (the
@@ -26,6 +30,7 @@ EDGE_S = 0.02  # the setpoint must change by min_step within this (a stick step,
 BEFORE_S = 0.02  # the level before the edge: the setpoint's and gyro's mean over this
 SETTLE_S = 0.04  # from the edge to where the setpoint must hold (RC smoothing's tail)
 GAP_S = 0.03  # a fraction of any rise worth reading; shorter holes are interpolated
+EDGE_LEAVE = 0.02  # the setpoint has left its level once it moved this share of the step
 
 
 def step_rise_times(t_s: np.ndarray, setpoint: np.ndarray, gyro: np.ndarray, *,
@@ -64,9 +69,13 @@ def step_readings(t_s: np.ndarray, setpoint: np.ndarray, gyro: np.ndarray, *,
         if e >= t.size or abs(sp[e] - sp[i]) < min_step or end - j < 3:
             i += 1
             continue
-        b = int(np.searchsorted(t, t[i] - BEFORE_S))
         plateau = sp[j:end]
         level = float(np.mean(plateau))
+        # the edge: the last sample before the setpoint leaves its level (up to EDGE_S
+        # after i), so the gyro's level before is read before the step, not in its rise
+        away = np.abs(sp[i:e + 1] - sp[i]) > EDGE_LEAVE * abs(level - sp[i])
+        i += max(int(np.argmax(away)) - 1, 0)
+        b = int(np.searchsorted(t, t[i] - BEFORE_S))
         size = level - float(np.mean(sp[b:i + 1]))
         if np.max(np.abs(plateau - level)) > 0.05 * abs(size):
             i = e

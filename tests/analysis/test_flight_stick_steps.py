@@ -58,3 +58,28 @@ def test_unit_step_figures():
     rise, over = unit_step_figures(t, z)
     assert 0.0 < rise < 0.2
     assert over == pytest.approx(100 * float(np.max(z) - 1.0))
+
+
+def _second_order(x: np.ndarray, dt: float, wn: float, zeta: float) -> np.ndarray:
+    """A lightly damped loop's answer to ``x`` (semi-implicit Euler, fine at dt = 0.1 ms)."""
+    y = np.zeros_like(x)
+    v = 0.0
+    for k in range(1, x.size):
+        v += dt * wn * wn * (x[k - 1] - y[k - 1]) - dt * 2 * zeta * wn * v
+        y[k] = y[k - 1] + dt * v
+    return y
+
+
+def test_a_return_step_read_while_the_gyro_still_swings_rises_as_the_step_out():
+    """A rate loop with 45 % overshoot, its 0.25 s steps too short to settle: the return to
+    zero starts from a gyro still swinging, and is read from its edge, not before it."""
+    dt = 1e-4
+    t = np.arange(0.0, 2.0, dt)
+    sp = np.zeros_like(t)
+    for k, s in enumerate((1.0, -1.0)):
+        sp[(t >= 0.3 + 0.6 * k) & (t < 0.55 + 0.6 * k)] = s * math.radians(100.0)
+    gyro = _second_order(sp, dt, wn=45.0, zeta=0.25)
+    rises = step_rise_times(t, sp, gyro, min_step=math.radians(50.0))
+    assert len(rises) == 4
+    out, back = rises[0::2], rises[1::2]  # each step, then its return
+    assert np.median(back) == pytest.approx(np.median(out), rel=0.05), rises
