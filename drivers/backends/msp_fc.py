@@ -190,11 +190,13 @@ class MspImu:
                 return
             self._add_row(stamp, paused, raw, att)
 
-    def _add_row(self, stamp: float, paused: float, raw: Any, att: Any) -> None:
-        """One row stamped ``stamp``, unless its round trip was too long (see __init__)."""
+    def _add_row(self, stamp: float, paused: float, raw: Any, att: Any, *,
+                 timed: bool = False) -> None:
+        """One row stamped ``stamp``, unless its round trip was too long (see __init__)
+        and the FC did not say itself when it read its sensors (``timed``)."""
         if not isinstance(raw, msp.RawImu) or not isinstance(att, msp.Attitude):
             return
-        if self.clock.now() - stamp > self.max_round_trip_s or \
+        if (not timed and self.clock.now() - stamp > self.max_round_trip_s) or \
                 getattr(self.clock, "paused_s", 0.0) != paused:
             self.slow_rows += 1  # (a paced clock does not count what it paused)
             return

@@ -13,11 +13,25 @@ the firmware read its sensors within one run of its serial task (1 ms at
 ``serial_update_rate_hz = 1000``) of the request's arrival. So the send time is the
 row's stamp, and a reply later than ``max_round_trip_s`` (a stalled host or firmware)
 drops its row. The port must be a socket's (``MspTcpPort``).
+
+Better still, the firmware says when it served: the poll sets the FC's clock
+(``MSP_SET_RTC``) and asks ``MSP_RTC`` in the same ``MSP_MULTIPLE_MSP``, which reads it
+within microseconds of RAW_IMU. A row is then stamped with that time on the rig's clock,
+and kept however late its reply came. Why: the send time is only as good as the bench's
+own schedule; with the bench's process scheduled every 15 ms on a loaded host, each
+request went out late, the reply before it waited for it in the TCP thread, every round
+trip outlasted 12 ms and every row was dropped (the run stopped on "no samples"). The
+FC's clock and the rig's run at one rate (the SITL's is the host's monotonic clock, at
+rate 1 with the feeder's 25 ms stamps); their offset is the largest ``send - served`` of
+the last rows (a request is served after it was sent; the fastest one was served at
+once), found again after each stall of a paced clock. An FC that refuses the clock keeps
+the send-time stamps.
 """
 
 from __future__ import annotations
 
 import collections
+import math
 import select
 import time
 
@@ -26,7 +40,11 @@ from drivers.backends.serial_link import read_some, write_all
 from drivers.codecs import msp
 from drivers.errors import DeviceError
 
-__all__ = ["MAX_IN_FLIGHT", "PipelinedMspImu"]
+__all__ = ["MAX_IN_FLIGHT", "RTC_EPOCH_S", "PipelinedMspImu"]
+
+RAW_ATTITUDE_RTC = (*RAW_AND_ATTITUDE, msp.MSP_RTC)
+RTC_EPOCH_S = 1_000_000_000  # the FC's clock is set to this (2001): its time counts from it
+OFFSET_ROWS = 400  # the rows (2 s at 200 a second) whose best bound gives the clocks' offset
 
 #: one answered by the next one's arrival, and one to spare: with two, a reply the serial
 #: task had not written when the next request arrived left both in flight, no request went
@@ -40,7 +58,15 @@ class PipelinedMspImu(MspImu):
 
     def _poll(self) -> None:
         client, period = self.client, 1.0 / self.rate_hz
-        frame = msp.encode_message(msp.multiple_request(RAW_AND_ATTITUDE), client.version)
+        try:
+            cmds = RAW_ATTITUDE_RTC if self._set_rtc() else RAW_AND_ATTITUDE
+        except DeviceError as exc:
+            with self._lock:
+                self._error = exc
+            return
+        self._bounds: collections.deque[float] = collections.deque(maxlen=OFFSET_ROWS)
+        self._bounds_paused = math.nan
+        frame = msp.encode_message(msp.multiple_request(cmds), client.version)
         sock = client.port.sock
         sent: collections.deque[tuple[float, float, float]] = collections.deque()
         due = time.monotonic()
@@ -59,12 +85,23 @@ class PipelinedMspImu(MspImu):
                         sent.append((stamp, paused, now))
                 if select.select([sock], [], [], max(0.0, due - time.monotonic()))[0]:
                     for reply in client.decoder.feed(read_some(client.port, client.name)):
-                        self._take(reply, sent)
+                        self._take(reply, sent, cmds)
         except DeviceError as exc:
             with self._lock:
                 self._error = exc
 
-    def _take(self, reply: msp.MspMessage, sent: collections.deque) -> None:
+    def _set_rtc(self) -> bool:
+        """Set the FC's clock (module doc); False when the FC refuses it."""
+        try:
+            self.client.request(msp.set_rtc_request(RTC_EPOCH_S))
+        except DeviceError as exc:
+            if "refused" in str(exc):
+                return False
+            raise
+        return True
+
+    def _take(self, reply: msp.MspMessage, sent: collections.deque,
+              cmds: tuple[int, ...]) -> None:
         """The reply to the oldest request in flight (the firmware answers in order)."""
         if isinstance(reply, msp.ErrorReply) and reply.cmd == msp.MSP_MULTIPLE_MSP:
             raise DeviceError(f"{self.url}: FC refused MSP_MULTIPLE_MSP")
@@ -72,4 +109,24 @@ class PipelinedMspImu(MspImu):
                 and sent):
             return
         stamp, paused, _ = sent.popleft()
-        self._add_row(stamp, paused, *self._split(reply))
+        try:
+            raw, att, *clock = msp.split_multiple(cmds, reply)
+        except msp.PayloadError as exc:
+            raise DeviceError(f"{self.url}: {exc}") from None
+        served_ms = msp.rtc_ms(clock[0]) if clock else None
+        if served_ms is None:
+            self._add_row(stamp, paused, raw, att)
+            return
+        self._add_row(self._served_at(served_ms, stamp, paused), paused, raw, att,
+                      timed=True)
+
+    def _served_at(self, served_ms: int, sent: float, paused: float) -> float:
+        """The FC's serving time on the rig's clock (module doc): the FC's time plus the
+        largest ``send - served`` of the last ``OFFSET_ROWS`` rows since the clock's last
+        stall (half a millisecond added: the FC's clock counts whole ones)."""
+        served = (served_ms - RTC_EPOCH_S * 1000) / 1000.0
+        if paused != self._bounds_paused:
+            self._bounds.clear()
+            self._bounds_paused = paused
+        self._bounds.append(sent - served)
+        return served + max(self._bounds) + 5e-4

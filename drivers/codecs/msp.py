@@ -12,6 +12,7 @@ check the arming state before sending ``SetMotor`` and send idle (1000) when don
 
 from __future__ import annotations
 
+import datetime
 import math
 import re
 import struct
@@ -45,6 +46,8 @@ MSP_ATTITUDE_QUATERNION = 167
 MSP_SET_MOTOR = 214
 MSP_MULTIPLE_MSP = 230  # Betaflight: several "out" replies for one request (msp.c)
 MSP_ACC_TRIM = 240
+MSP_SET_RTC = 246  # Betaflight: set the FC's clock (i32 seconds, u16 ms; msp.c)
+MSP_RTC = 247  # Betaflight: the FC's clock as a date and time to the millisecond
 MSP_V2_FRAME_ID = 255  # §1.1 "MSPv2-over-v1": cmd 255 carries a v2 frame (msp.h)
 
 ARMED_FLAG = 1  # bit 0 of the flight-mode flags: box BOXARM = 0, set while armed (BF msp_box.h)
@@ -733,6 +736,29 @@ def parse(frame: MspFrame) -> MspMessage:
     if frame.cmd in _REPLIES:
         return _REPLIES[frame.cmd].from_payload(frame.payload)
     return Unknown(frame.direction, frame.cmd, frame.payload.hex())
+
+
+def set_rtc_request(seconds: int, millis: int = 0) -> Unknown:
+    """Betaflight's MSP_SET_RTC: the FC's clock set to ``seconds`` since 1970 (UTC) and
+    ``millis``; it then counts on from its own millisecond timer (common/time.c rtcGet)."""
+    return Unknown(REQUEST, MSP_SET_RTC, struct.pack("<iH", seconds, millis).hex())
+
+
+def rtc_ms(reply: MspMessage) -> int | None:
+    """Milliseconds since 1970 (UTC) of an MSP_RTC reply; None when the FC's clock was
+    never set (an empty reply) or the reply is not one."""
+    if not isinstance(reply, Unknown) or reply.cmd != MSP_RTC:
+        return None
+    payload = bytes.fromhex(reply.payload_hex)
+    if len(payload) != 9:
+        return None
+    year, month, day, hours, minutes, seconds, millis = struct.unpack("<HBBBBBH", payload)
+    try:
+        at = datetime.datetime(year, month, day, hours, minutes, seconds,
+                               tzinfo=datetime.UTC)
+    except ValueError:
+        return None
+    return int(at.timestamp()) * 1000 + millis
 
 
 def multiple_request(cmds: tuple[int, ...]) -> Unknown:

@@ -27,6 +27,9 @@ def test_a_second_sweep_at_the_same_out_is_refused_and_a_killed_one_resumes(
     first = start_sweep([*argv, "--chunk-size", "3"])  # 15 chunks: seconds of flying
     try:
         wait_for_parts(out, first)
+        # held still mid-sweep (a stopped process keeps its lock), so the second cannot
+        # come too late on a loaded host: the first once finished while it started
+        os.killpg(first.pid, signal.SIGSTOP)
         second = run_cli(argv)
         assert first.poll() is None, "the first sweep ended before the second was refused"
         os.killpg(first.pid, signal.SIGKILL)
