@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import os
+import struct
 import sys
 
 import pytest
@@ -241,3 +242,18 @@ def test_multiple_msp_splits_into_the_typed_replies_and_refuses_a_short_one():
         msp.split_multiple(cmds[:1], reply)
     with pytest.raises(ValueError):
         msp.multiple_request((0x1001,))
+
+
+def test_the_fcs_clock_is_set_and_read_to_the_millisecond():
+    """MSP_SET_RTC carries i32 seconds and u16 ms; MSP_RTC answers a UTC date and time
+    (Betaflight msp.c), read back here as ms since 1970; an unset clock answers nothing."""
+    req = msp.set_rtc_request(1_000_000_000, 5)
+    assert req.cmd == msp.MSP_SET_RTC
+    assert bytes.fromhex(req.payload_hex) == struct.pack("<iH", 1_000_000_000, 5)
+    # 2001-09-09 01:46:40.005 UTC
+    body = struct.pack("<HBBBBBH", 2001, 9, 9, 1, 46, 40, 5)
+    reply = msp.parse(msp.MspFrame(1, msp.REPLY, msp.MSP_RTC, body))
+    assert msp.rtc_ms(reply) == 1_000_000_000_005
+    assert msp.rtc_ms(msp.parse(msp.MspFrame(1, msp.REPLY, msp.MSP_RTC, b""))) is None
+    bad = struct.pack("<HBBBBBH", 2001, 13, 9, 1, 46, 40, 5)  # month 13: no date
+    assert msp.rtc_ms(msp.parse(msp.MspFrame(1, msp.REPLY, msp.MSP_RTC, bad))) is None
