@@ -16,22 +16,21 @@ drops its row. The port must be a socket's (``MspTcpPort``).
 
 Better still, the firmware says when it served: the poll sets the FC's clock
 (``MSP_SET_RTC``) and asks ``MSP_RTC`` in the same ``MSP_MULTIPLE_MSP``, which reads it
-within microseconds of RAW_IMU. A row is then stamped with that time on the rig's clock,
-and kept however late its reply came. Why: the send time is only as good as the bench's
-own schedule; with the bench's process scheduled every 15 ms on a loaded host, each
-request went out late, the reply before it waited for it in the TCP thread, every round
-trip outlasted 12 ms and every row was dropped (the run stopped on "no samples"). The
-FC's clock and the rig's run at one rate (the SITL's is the host's monotonic clock, at
+within microseconds of RAW_IMU. A row is then stamped with that time on the rig's clock
+(its send stamp plus the delay from send to serve), and kept however late its reply
+came. Why: the send time is only as good as the bench's own schedule; with the bench's
+process scheduled every 15 ms on a loaded host, each request went out late, the reply
+before it waited for it in the TCP thread, every round trip outlasted 12 ms and every row
+was dropped (the run stopped on "no samples"). The
+FC's clock and the host's monotonic clock run at one rate (the SITL's is that clock, at
 rate 1 with the feeder's 25 ms stamps); their offset is the largest ``send - served`` of
 the last rows (a request is served after it was sent; the fastest one was served at
-once), found again after each stall of a paced clock. An FC that refuses the clock keeps
-the send-time stamps.
+once). An FC that refuses the clock keeps the send-time stamps.
 """
 
 from __future__ import annotations
 
 import collections
-import math
 import select
 import time
 
@@ -65,7 +64,6 @@ class PipelinedMspImu(MspImu):
                 self._error = exc
             return
         self._bounds: collections.deque[float] = collections.deque(maxlen=OFFSET_ROWS)
-        self._bounds_paused = math.nan
         frame = msp.encode_message(msp.multiple_request(cmds), client.version)
         sock = client.port.sock
         sent: collections.deque[tuple[float, float, float]] = collections.deque()
@@ -108,7 +106,7 @@ class PipelinedMspImu(MspImu):
         if not (isinstance(reply, msp.Unknown) and reply.cmd == msp.MSP_MULTIPLE_MSP
                 and sent):
             return
-        stamp, paused, _ = sent.popleft()
+        stamp, paused, sent_wall = sent.popleft()
         try:
             raw, att, *clock = msp.split_multiple(cmds, reply)
         except msp.PayloadError as exc:
@@ -117,16 +115,15 @@ class PipelinedMspImu(MspImu):
         if served_ms is None:
             self._add_row(stamp, paused, raw, att)
             return
-        self._add_row(self._served_at(served_ms, stamp, paused), paused, raw, att,
+        self._add_row(stamp + self._serve_delay(served_ms, sent_wall), paused, raw, att,
                       timed=True)
 
-    def _served_at(self, served_ms: int, sent: float, paused: float) -> float:
-        """The FC's serving time on the rig's clock (module doc): the FC's time plus the
-        largest ``send - served`` of the last ``OFFSET_ROWS`` rows since the clock's last
-        stall (half a millisecond added: the FC's clock counts whole ones)."""
+    def _serve_delay(self, served_ms: int, sent_wall: float) -> float:
+        """From the request's send to the FC's serving it, in seconds (module doc). The
+        FC's clock against the host's monotonic one is offset by the largest ``send -
+        served`` of the last ``OFFSET_ROWS`` rows; both clocks run on, through any pause
+        of the rig's (a row spanning one is dropped), so the offset holds. Half a
+        millisecond is added: the FC's clock counts whole ones."""
         served = (served_ms - RTC_EPOCH_S * 1000) / 1000.0
-        if paused != self._bounds_paused:
-            self._bounds.clear()
-            self._bounds_paused = paused
-        self._bounds.append(sent - served)
-        return served + max(self._bounds) + 5e-4
+        self._bounds.append(sent_wall - served)
+        return served + max(self._bounds) - sent_wall + 5e-4

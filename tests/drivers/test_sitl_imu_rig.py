@@ -9,16 +9,13 @@ The stages are Paper A's kinds of motion, shortened for the suite (a 47 s record
 The firmware is set up at launch (rig option ``cli_settings``) with its serial task at
 1 kHz and neither accelerometer nor gyro low-pass (they advance once per run of their task,
 which a shared host slows, so each lagged the other), and RAW_IMU and ATTITUDE come in one
-MSP_MULTIPLE_MSP request, sent every 5 ms with the next out before the last reply came (the
-SITL's TCP thread flushes a reply on new input or every 10 ms). Rows whose round trip
-outlasted 12 ms or spanned a stall of the paced clock, or with no FDM packet accepted in
-the 10 ms before, are dropped: when the firmware read its sensors is known no better, and
-a spread of stamps low-passes the signal, which is an error of K (docs/sim-rig.md, "Real
-firmware as the IMU"). Measured on the shared 2-core VM (never idle): at load average 7,
-K_w 0.30 %, K_a 0.15 %, R 1.2 mm; with two CPU hogs beside it (load average 8.6-14), 6-47
-rows a second per stage survive and K_w 0.26-0.31 %, K_a 0.56-1.15 %, R 2.6-6.0 mm. The
-bounds are what loaded runs of the intermediate steps gave (K_w to 1.2 %, K_a to 3 %, R to
-79 mm), not Paper A's 0.2 % and 2 mm.
+MSP_MULTIPLE_MSP request with the firmware's clock (MSP_RTC), sent every 5 ms with up to
+three in flight; each row is stamped when the firmware served it. Rows that spanned a stall
+of the paced clock, or with no FDM packet accepted in the 10 ms before, are dropped
+(docs/sim-rig.md, "Real firmware as the IMU"). Measured: idle, K_w 0.065-0.081 %, K_a
+0.043-0.069 %, R 0.3-2.5 mm; with four CPU hogs and a fresh-clone suite beside it, K_w
+0.167 %, K_a 0.155 %, R 0.3 mm. The bounds stay what loaded runs of the earlier stamping
+gave (K_w to 1.3 %, K_a to 3 %, R to 79 mm) until more loaded runs back a tighter one.
 """
 
 # Hexapod steps ride in plans.sequences.Sequence, typed as the propulsion bench's (as in
@@ -160,13 +157,12 @@ def test_calibrate_on_the_recorded_run_recovers_the_imu_model(recorded, capsys) 
     print(f"K_w {k_gyro:.3%}, K_a {k_acc:.3%}, lever arm {lever * 1e3:.1f} mm, gyro bias "
           f"{np.abs(z).max():.2f} standard errors, acc bias {acc_bias:.3f} m/s^2, time "
           f"offset {cal.time_offset_s * 1e3:.1f} ms")
-    # What a loaded run resolves (module doc; a lightly loaded one reached 0.30 % for K_w,
-    # 0.15 % for K_a, 1.2 mm for R): the firmware's own scales (16.4 counts per deg/s,
-    # 1 g = 256) and its frames are right, since a wrong accelerometer unit (2048 per g) is
-    # 700 % away, a gyro in whole deg/s 1500 %, a flipped axis or mounting sign 60 % or
-    # more. 16.4 against 16.384 (0.1 %) the RAW_IMU test of test_msp_tcp_sitl.py tells.
-    # (loaded: K_w 0.26-0.31 %, K_a 0.56-1.15 %, R 2.6-6.0 mm, with two CPU hogs beside the
-    # suite's load; the bounds keep a factor of 3 over that, and stay 20x under a unit error)
+    # What loaded runs of the earlier stamping resolved (module doc; the firmware's clock
+    # now gives about 0.1-0.2 % and a few mm): the firmware's own scales (16.4 counts per
+    # deg/s, 1 g = 256) and its frames are right, since a wrong accelerometer unit (2048
+    # per g) is 700 % away, a gyro in whole deg/s 1500 %, a flipped axis or mounting sign
+    # 60 % or more. 16.4 against 16.384 (0.1 %) the RAW_IMU test of test_msp_tcp_sitl.py
+    # tells. The bounds stay 20x under a unit error.
     assert k_gyro < 0.01
     assert k_acc < 0.03
     assert np.all(np.abs(z) < 4.0)
