@@ -21,11 +21,11 @@ within microseconds of RAW_IMU. A row is then stamped with that time on the rig'
 came. Why: the send time is only as good as the bench's own schedule; with the bench's
 process scheduled every 15 ms on a loaded host, each request went out late, the reply
 before it waited for it in the TCP thread, every round trip outlasted 12 ms and every row
-was dropped (the run stopped on "no samples"). The
-FC's clock and the host's monotonic clock run at one rate (the SITL's is that clock, at
-rate 1 with the feeder's 25 ms stamps); their offset is the largest ``send - served`` of
-the last rows (a request is served after it was sent; the fastest one was served at
-once). An FC that refuses the clock keeps the send-time stamps.
+was dropped (the run stopped on "no samples"). The FC's clock and the host's monotonic
+clock run at one rate (the SITL's is that clock, at rate 1 with the feeder's 25 ms
+stamps); their offset is the largest ``send - served`` of the last rows (a request is
+served after it was sent; the fastest one was served at once). An FC that refuses the
+clock keeps the send-time stamps.
 """
 
 from __future__ import annotations
