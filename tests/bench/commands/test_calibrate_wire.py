@@ -77,8 +77,10 @@ def test_every_stage_runs_through_the_wire_backends(calibrated) -> None:
                     "reference_imu": "serial://sim/gx3"}
     bias = pd.read_parquet(metas[0][1] / "samples.parquet")
     # the 3000-sample hold, polled over MSP at 100 Hz of rig time (600 polls a wall
-    # second); a loaded host gets fewer of its own polls out: the hold is there, not its pace
-    assert len(bias) > 2250
+    # second); a loaded host gets fewer of its own polls out (1959 beside a fresh-clone
+    # suite): the hold is there, whole, not its pace
+    t = bias["t_s"].to_numpy()
+    assert t.max() - t.min() > 29.5 and len(bias) > 1500
 
 
 def test_calibration_through_the_wire_is_within_what_msp_allows(calibrated) -> None:
