@@ -53,8 +53,6 @@ EPS = 1e-9
 
 #: wall seconds a paced simulated bench's host may stall before a device counts as silent
 PACED_STALL_S = 2.0
-#: a tick this many ticks after the one before: the loop itself was held up (_host_away)
-HOST_AWAY_TICKS = 3
 
 class OperatorStop(Exception):
     """The operator asked to stop (stop button, closed live window)."""
@@ -127,11 +125,7 @@ class SafeRunLoop:
         self._t0 = 0.0
         self._wall0 = 0.0
         self._segment: Any = None
-        # per role: when its last samples came, and how long the loop had been held up
-        # by then (_host_away); a device is silent for the time since, less the loop's own
-        self._heard: dict[str, tuple[float, float]] = {}
-        self._away_s = 0.0
-        self._last_stamp: float | None = None
+        self._heard: dict[str, float] = {}
         self.drops = DropCounter()  # missed or late samples per role, for run.json
         # in a batch: the end of each tick and the samples taken by then (see _read_times)
         self._batch_ticks: tuple[list[float], list[int]] | None = None
@@ -375,30 +369,12 @@ class SafeRunLoop:
         """The bookkeeping of one block read at ``now``: drops, the stale check and the
         time base relative to the run start."""
         self.drops.update(role, b.t_s, b.values)
-        self._host_away(now)
         if len(b):
-            self._heard[role] = (now, self._away_s)
-        else:
-            heard, away = self._heard.get(role, (0.0, 0.0))
-            silent = now - heard - (self._away_s - away)
-            if silent > self.stale_limit_s:
-                raise DeviceError(f"{role}: no samples for {silent:.2f} s (limit "
-                                  f"{self.stale_limit_s:g} s){self.stale_hint}")
+            self._heard[role] = now
+        elif now - self._heard.get(role, 0.0) > self.stale_limit_s:
+            raise DeviceError(f"{role}: no samples for {now - self._heard.get(role, 0.0):.2f} s "
+                              f"(limit {self.stale_limit_s:g} s){self.stale_hint}")
         return Block(b.t_s - self._t0, b.values)
-
-    def _host_away(self, now: float) -> None:
-        """Count the time the loop itself was held up (a tick more than ``HOST_AWAY_TICKS``
-        ticks after the one before, on the wall clock): a device whose samples waited in
-        its port meanwhile was not silent. Measured in a fresh-clone suite: a load-cell
-        board's 0.25 s limit tripped at 0.26-0.28 s while the board, a process at device
-        priority, kept printing. A device silent while the loop runs is still caught after
-        the limit of the loop's own time; a loop held up for long the watchdog stops."""
-        last, self._last_stamp = self._last_stamp, now
-        if last is None or not self.on_wall_clock:
-            return
-        tick = self.options.tick_s
-        if now - last > HOST_AWAY_TICKS * tick:
-            self._away_s += now - last - tick
 
     def _deliver(self, rows: Mapping[str, np.ndarray], trip: Trip | None) -> None:
         """The rest of a tick once the limits were checked: record and show the rows, end
