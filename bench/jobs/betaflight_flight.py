@@ -52,7 +52,7 @@ from bench.jobs.betaflight_program import (
     program,
 )
 from bench.jobs.betaflight_tune import pid_scale, tune_lines
-from drivers.backends.betaflight_cli import CliError, apply_and_save
+from drivers.backends.betaflight_cli import apply_and_save
 from drivers.backends.betaflight_sitl import SitlProcess, await_control_loop, find_binary
 from drivers.backends.msp_fc import MspClient
 from drivers.backends.msp_rc_sticks import MspRcSticks
@@ -198,23 +198,15 @@ class PlantLoop(threading.Thread):
 
 
 def _configure(binary: Path, workdir: Path, lines: list[tuple[str, str]]) -> None:
-    """Launch, apply the CLI lines, ``save``: the firmware exits with them saved. A launch
-    whose CLI never answered (no prompt: seen once in 4 flights on a loaded host) is
-    launched again, up to ``LAUNCHES`` times; a refused line is final."""
-    for attempt in range(1, LAUNCHES + 1):
-        sitl = SitlProcess.launch(binary, workdir=workdir)
-        try:
-            apply_and_save(HOST, MSP_PORT, lines, "betaflight cli")
-            with contextlib.suppress(Exception):
-                sitl.proc.wait(3.0)
-            return
-        except CliError:
-            raise
-        except DeviceError:
-            if attempt == LAUNCHES:
-                raise
-        finally:
-            sitl.stop(keep=True)
+    """Launch, apply the CLI lines, ``save``: the firmware exits with them saved (a launch
+    whose CLI never answered is launched again: ``SitlProcess.configure_in``)."""
+
+    def apply(sitl: SitlProcess) -> None:
+        apply_and_save(HOST, MSP_PORT, lines, "betaflight cli")
+        with contextlib.suppress(Exception):
+            sitl.proc.wait(3.0)
+
+    SitlProcess.configure_in(binary, workdir, apply)
 
 
 def _launch_running(binary: Path, workdir: Path) -> tuple[SitlProcess, Any, MspClient]:

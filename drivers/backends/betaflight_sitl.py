@@ -41,10 +41,11 @@ import socket
 import subprocess
 import tempfile
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
+from drivers.backends.betaflight_cli import CliError
 from drivers.codecs.sitl import FDM_PORT, MOTOR_RAW_PORT, MSP_PORT, RC_PORT
 from drivers.device_priority import raise_device_priority
 from drivers.errors import DeviceError
@@ -128,10 +129,6 @@ def _owns(pid: int, inodes: set[str]) -> bool:
     return False
 
 
-class SettingsRefused(DeviceError):
-    """The firmware's CLI answered and refused a setting: launching again would not help."""
-
-
 class PortBusy(DeviceError):
     """The firmware could not bind its MSP port: worth another launch a moment later."""
 
@@ -163,16 +160,30 @@ class SitlProcess:
         lines = cli_lines(settings or {})
         if workdir is None:
             workdir = Path(tempfile.mkdtemp(prefix="rotorbench-sitl-"))
-        for attempt in range(1, CONFIGURE_LAUNCHES + 1) if lines else ():
+        if lines:
+            cls.configure_in(binary, workdir, lambda sitl: sitl.configure(lines, timeout_s),
+                             timeout_s=timeout_s)
+        return cls._start(binary, workdir, timeout_s)
+
+    @classmethod
+    def configure_in(cls, binary: Path, workdir: Path, apply: Callable[[SitlProcess], None],
+                     *, timeout_s: float = START_TIMEOUT_S) -> None:
+        """A configuring instance in ``workdir``: launched, ``apply`` gives it its settings
+        (it saves them and exits), then stopped. One whose CLI never answered is launched
+        again, up to ``CONFIGURE_LAUNCHES`` times; a refused setting (``CliError``) is
+        final."""
+        for attempt in range(1, CONFIGURE_LAUNCHES + 1):
+            sitl = cls.launch(binary, workdir=workdir, timeout_s=timeout_s)
             try:
-                cls._start(binary, workdir, timeout_s).configure(lines, timeout_s)
-                break
-            except SettingsRefused:
+                apply(sitl)
+                return
+            except CliError:
                 raise
             except DeviceError:  # its CLI never answered (module doc): launch it again
                 if attempt == CONFIGURE_LAUNCHES:
                     raise
-        return cls._start(binary, workdir, timeout_s)
+            finally:
+                sitl.stop(keep=True)
 
     @classmethod
     def _start(cls, binary: Path, workdir: Path, timeout_s: float) -> SitlProcess:
@@ -229,8 +240,8 @@ class SitlProcess:
         with open(self.log_path, "ab") as log:
             log.write(b"\n[rotorbench] CLI settings:\n" + out + b"\n")
         if CLI_ERROR in out or b"saving" not in out:
-            raise SettingsRefused(f"the Betaflight SITL refused its settings {lines} (log: "
-                                  f"{self.log_path})")
+            raise CliError(f"the Betaflight SITL refused its settings {lines} (log: "
+                           f"{self.log_path})")
 
     def alive(self) -> bool:
         return self.proc.poll() is None

@@ -208,18 +208,20 @@ class MspImu:
     def _request(self, nan: msp.Attitude) -> tuple[Any, Any]:
         """RAW_IMU and ATTITUDE: one MSP_MULTIPLE_MSP round trip with ``multiple``."""
         if self.attitude and self.multiple:
-            return self._split(self.client.request(msp.multiple_request(RAW_AND_ATTITUDE)))
+            raw, att = self._split(self.client.request(msp.multiple_request(RAW_AND_ATTITUDE)))
+            return raw, att
         raw = self.client.request(msp.Request(msp.MSP_RAW_IMU))
         att = self.client.request(msp.Request(msp.MSP_ATTITUDE)) if self.attitude else nan
         return raw, att
 
-    def _split(self, reply: msp.MspMessage) -> tuple[Any, Any]:
-        """RAW_IMU and ATTITUDE out of a MSP_MULTIPLE_MSP reply (``DeviceError`` if not)."""
+    def _split(self, reply: msp.MspMessage,
+               cmds: tuple[int, ...] = RAW_AND_ATTITUDE) -> list[msp.MspMessage]:
+        """The replies to ``cmds`` (RAW_IMU, ATTITUDE) out of a MSP_MULTIPLE_MSP reply
+        (``DeviceError`` if not)."""
         try:
-            raw, att = msp.split_multiple(RAW_AND_ATTITUDE, reply)
+            return msp.split_multiple(cmds, reply)
         except msp.PayloadError as exc:
             raise DeviceError(f"{self.url}: {exc}") from None
-        return raw, att
 
     def link_errors(self) -> dict[str, int]:
         """Replies lost on the serial link (bad checksums, truncated, malformed frames)."""

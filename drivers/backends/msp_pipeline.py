@@ -33,6 +33,7 @@ from __future__ import annotations
 import collections
 import select
 import time
+from typing import Any
 
 from drivers.backends.msp_fc import RAW_AND_ATTITUDE, MspImu
 from drivers.backends.serial_link import read_some, write_all
@@ -55,6 +56,12 @@ MAX_IN_FLIGHT = 3
 class PipelinedMspImu(MspImu):
     """:class:`MspImu` (``attitude``, ``multiple``) polled as the module doc says."""
 
+    def __init__(self, client: Any, **kwargs: Any) -> None:
+        # before the poll thread starts (MspImu.__init__ starts it): each row's bound on
+        # the FC's clock against the host's (_serve_delay)
+        self._bounds: collections.deque[float] = collections.deque(maxlen=OFFSET_ROWS)
+        super().__init__(client, **kwargs)
+
     def _poll(self) -> None:
         client, period = self.client, 1.0 / self.rate_hz
         try:
@@ -63,7 +70,6 @@ class PipelinedMspImu(MspImu):
             with self._lock:
                 self._error = exc
             return
-        self._bounds: collections.deque[float] = collections.deque(maxlen=OFFSET_ROWS)
         frame = msp.encode_message(msp.multiple_request(cmds), client.version)
         sock = client.port.sock
         sent: collections.deque[tuple[float, float, float]] = collections.deque()
@@ -107,10 +113,7 @@ class PipelinedMspImu(MspImu):
                 and sent):
             return
         stamp, paused, sent_wall = sent.popleft()
-        try:
-            raw, att, *clock = msp.split_multiple(cmds, reply)
-        except msp.PayloadError as exc:
-            raise DeviceError(f"{self.url}: {exc}") from None
+        raw, att, *clock = self._split(reply, cmds)
         served_ms = msp.rtc_ms(clock[0]) if clock else None
         if served_ms is None:
             self._add_row(stamp, paused, raw, att)
