@@ -15,7 +15,7 @@ the actuator measured on the simulated bench (``rotorbench step``, fitted by ``f
    constants from the log's eRPM, synthesized from the plant, against the actuator.
 
 Prints the Markdown tables of docs/flight.md ("The loop closed"). Needs the ``sitl`` extra,
-root and ``unshare`` (each flight runs in a network namespace of its own), about 40 s a
+root and ``unshare`` (each flight runs in a network namespace of its own), about 30 s a
 flight; a flight that fails (the host's load) is flown again, up to 3 times. Usage:
 ``python benchmarks/betaflight_loop_closed.py [--flights K]`` (K flights a design: the
 spread under host load); ``--reread DIR`` prints the tables again from the flights' JSON
