@@ -98,11 +98,10 @@ def recorded(tmp_path_factory: pytest.TempPathFactory):
         return bench
 
     try:
-        # a loaded host (two cores, a suite beside) stalls the loop, and the feeder (the
-        # firmware then reads nothing new: its rows are dropped), for a second or two at times
+        # the run settings `rotorbench calibrate` uses: the host's 1 s watchdog, a device
+        # silent for 0.5 s ends the run
         run = run_calibration(load_imu_rig(RIG), root / "runs", sequences=_sequences(),
-                              open_bench=opener,
-                              options=HexapodRunOptions(watchdog_timeout_s=3.0, stale_s=5.0))
+                              open_bench=opener, options=HexapodRunOptions())
     finally:
         ns.stop()
     log = collect_log([s.run_dir for s in run.stages], root / "cal.parquet")
