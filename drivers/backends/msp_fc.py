@@ -50,6 +50,16 @@ from drivers.errors import DeviceError
 DEFAULT_TIMEOUT_S = 0.1  # §1.9 timing note: ~100 ms at 115200 baud [U]
 
 
+class MspRefused(DeviceError):
+    """The FC answered a command with MSP's error flag: it does not know or allow it. A
+    caller with a fallback (an older firmware's STATUS, a clock it need not set) catches
+    this one; any other device error stays an error."""
+
+
+class MspNoReply(DeviceError):
+    """No reply to a command within the client's timeout."""
+
+
 class MspClient:
     """Request/response over one serial port, shared by the IMU poller and the ESC."""
 
@@ -80,12 +90,12 @@ class MspClient:
                     if getattr(reply, "cmd", getattr(reply, "CMD", None)) != cmd:
                         continue  # a late reply to an earlier request
                     if isinstance(reply, msp.ErrorReply):
-                        raise DeviceError(f"{self.name}: FC refused MSP command {cmd}")
+                        raise MspRefused(f"{self.name}: FC refused MSP command {cmd}")
                     if isinstance(reply, (msp.Request, msp.SetMotor)):
                         continue  # our own request echoed (loopback)
                     return reply
                 if last_look:
-                    raise DeviceError(f"{self.name}: no reply to MSP command {cmd} within "
+                    raise MspNoReply(f"{self.name}: no reply to MSP command {cmd} within "
                                       f"{self.timeout_s * 1e3:.0f} ms")
 
     def identify(self) -> tuple[str, msp.ApiVersion]:
@@ -103,9 +113,7 @@ class MspClient:
         for cmd, key in ((msp.MSP_FC_VERSION, "version"), (msp.MSP_BOARD_INFO, "board")):
             try:
                 reply = self.request(msp.Request(cmd))
-            except DeviceError as exc:
-                if "refused" not in str(exc):
-                    raise
+            except MspRefused:
                 continue
             if isinstance(reply, msp.FcVersion):
                 out[key] = str(reply)
@@ -118,9 +126,7 @@ class MspClient:
         """Arming state from STATUS_EX (STATUS where refused): flight-mode flag bit 0."""
         try:
             reply = self.request(msp.Request(msp.MSP_STATUS_EX))
-        except DeviceError as exc:
-            if "refused" not in str(exc):
-                raise
+        except MspRefused:
             reply = self.request(msp.Request(msp.MSP_STATUS))
         if not isinstance(reply, (msp.StatusEx, msp.FcStatus)):
             raise DeviceError(f"{self.name}: unexpected status reply {reply!r}")

@@ -35,7 +35,7 @@ import select
 import time
 from typing import Any
 
-from drivers.backends.msp_fc import RAW_AND_ATTITUDE, MspImu
+from drivers.backends.msp_fc import RAW_AND_ATTITUDE, MspImu, MspRefused
 from drivers.backends.serial_link import read_some, write_all
 from drivers.codecs import msp
 from drivers.errors import DeviceError
@@ -98,17 +98,15 @@ class PipelinedMspImu(MspImu):
         """Set the FC's clock (module doc); False when the FC refuses it."""
         try:
             self.client.request(msp.set_rtc_request(RTC_EPOCH_S))
-        except DeviceError as exc:
-            if "refused" in str(exc):
-                return False
-            raise
+        except MspRefused:
+            return False
         return True
 
     def _take(self, reply: msp.MspMessage, sent: collections.deque,
               cmds: tuple[int, ...]) -> None:
         """The reply to the oldest request in flight (the firmware answers in order)."""
         if isinstance(reply, msp.ErrorReply) and reply.cmd == msp.MSP_MULTIPLE_MSP:
-            raise DeviceError(f"{self.url}: FC refused MSP_MULTIPLE_MSP")
+            raise MspRefused(f"{self.url}: FC refused MSP_MULTIPLE_MSP")
         if not (isinstance(reply, msp.Unknown) and reply.cmd == msp.MSP_MULTIPLE_MSP
                 and sent):
             return

@@ -23,6 +23,7 @@ import threading
 import time
 from typing import Any
 
+from drivers.backends.msp_fc import MspNoReply, MspRefused
 from drivers.codecs import msp
 from drivers.codecs import msp_rc as rc
 from drivers.contracts import ChannelInfo, DeviceInfo
@@ -93,13 +94,11 @@ class MspRcEsc:
     def _call(self, cmd: int, payload: bytes = b"", what: str = "") -> bytes:
         try:
             reply = self.client.request(msp.Unknown(msp.REQUEST, cmd, payload.hex()))
-        except DeviceError as exc:
-            if "refused" in str(exc):
-                raise DeviceError(f"{self.url}: the flight controller refused {what or cmd}: "
+        except MspRefused:
+            raise DeviceError(f"{self.url}: the flight controller refused {what or cmd}: "
                                   "the RC control path needs Betaflight's MSP receiver; for "
                                   "the motor test remove the propeller and set "
                                   "options.propellers_off = true") from None
-            raise
         return bytes.fromhex(getattr(reply, "payload_hex", ""))
 
     def _status(self) -> msp.StatusEx:
@@ -170,7 +169,7 @@ class MspRcEsc:
             try:
                 self._call(rc.MSP_SET_RAW_RC, frame, "MSP_SET_RAW_RC")
             except DeviceError as exc:
-                if "no reply" in str(exc) and \
+                if isinstance(exc, MspNoReply) and \
                         time.monotonic() - last_ok < self.failsafe_delay_ds / 10:
                     continue
                 self._error = exc  # raised by the host's next command; the FC's failsafe acts

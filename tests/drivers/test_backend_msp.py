@@ -9,7 +9,13 @@ import pytest
 
 serial = pytest.importorskip("serial")
 
-from drivers.backends.msp_fc import MspClient, MspImu, MspMotorEsc  # noqa: E402
+from drivers.backends.msp_fc import (  # noqa: E402
+    MspClient,
+    MspImu,
+    MspMotorEsc,
+    MspNoReply,
+    MspRefused,
+)
 from drivers.backends.serial_link import open_port  # noqa: E402
 from drivers.codecs import msp  # noqa: E402
 from drivers.contracts import Esc, Sensor  # noqa: E402
@@ -68,11 +74,11 @@ def test_motor_test_applies_only_while_disarmed(fc):
 
 def test_fc_refusal_and_silence_become_device_errors(fc):
     sim, client = fc
-    with pytest.raises(DeviceError, match="refused MSP command 151"):
+    with pytest.raises(MspRefused, match="refused MSP command 151"):
         client.request(msp.Request(151))
     sim.port.disconnect()
     t0 = time.monotonic()
-    with pytest.raises(DeviceError, match="no reply"):
+    with pytest.raises(MspNoReply, match="no reply"):
         client.request(msp.Request(msp.MSP_ATTITUDE))
     assert time.monotonic() - t0 < 0.3
     esc = MspMotorEsc(client, 0, propellers_off=True)

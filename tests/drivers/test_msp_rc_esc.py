@@ -8,6 +8,7 @@ import time
 
 import pytest
 
+from drivers.backends.msp_fc import MspNoReply
 from drivers.backends.msp_rc_esc import MspRcEsc
 from drivers.codecs import msp
 from drivers.codecs import msp_rc as rc
@@ -42,7 +43,7 @@ class ScriptedFc:
         if m.cmd == rc.MSP_SET_RAW_RC:
             if self.slow_s:
                 time.sleep(self.slow_s)
-                raise DeviceError("fc: no reply to MSP command 200 within 100 ms")
+                raise MspNoReply("fc: no reply to MSP command 200 within 100 ms")
             payload = bytes.fromhex(m.payload_hex)
             self.frames.append(payload)
             self.armed = payload[8:10] != (1000).to_bytes(2, "little")  # AUX1
