@@ -31,11 +31,12 @@ from pathlib import Path
 from drivers.backends.tcp_link import connect
 from drivers.errors import DeviceError
 
-__all__ = ["CLI_TIMEOUT_S", "CliError", "apply_and_save", "unknown_settings"]
+__all__ = ["CLI_TIMEOUT_S", "ERROR_MARKS", "CliError", "apply_and_save", "unknown_settings"]
 
 PROMPT = b"\r\n# "
 CLI_TIMEOUT_S = 2.0  # one line's answer (the serial task runs at 100 Hz)
 ENTER = b"#"
+#: how the CLI answers a line it refused (cli.c:442-446 and its parsers)
 ERROR_MARKS = ("###ERROR", "Invalid name", "Invalid value", "Parse error")
 
 

@@ -45,7 +45,7 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
-from drivers.backends.betaflight_cli import CliError
+from drivers.backends.betaflight_cli import ERROR_MARKS, CliError, unknown_settings
 from drivers.codecs.sitl import FDM_PORT, MOTOR_RAW_PORT, MSP_PORT, RC_PORT
 from drivers.device_priority import raise_device_priority
 from drivers.errors import DeviceError
@@ -64,7 +64,6 @@ CONFIGURE_LAUNCHES = 3
 #: what the firmware prints when its MSP port's bind fails (serial_tcp.c)
 BIND_FAILED = b"bind port 5761 for UART1 failed"
 _LISTEN = "0A"  # TCP_LISTEN in /proc/net/tcp
-CLI_ERROR = b"###ERROR"  # how the CLI reports a line it refused (cli.c:442-446)
 _WORD = re.compile(r"[A-Za-z0-9_.+-]+")
 
 
@@ -158,6 +157,13 @@ class SitlProcess:
                               ": another SITL or program holds them; stop it (one instance per "
                               "network namespace)")
         lines = cli_lines(settings or {})
+        # a name this build does not have: one line before any launch, as for a flight's
+        # CLI file (drivers.backends.betaflight_cli.unknown_settings)
+        unknown = unknown_settings(binary, [(f"setting {n!r}", ln)
+                                            for n, ln in zip(settings or {}, lines, strict=True)])
+        if unknown:
+            raise CliError(f"{unknown[0][0]}: no such setting in the Betaflight SITL "
+                           f"{binary} (a typo, or a setting of another build)")
         if workdir is None:
             workdir = Path(tempfile.mkdtemp(prefix="rotorbench-sitl-"))
         if lines:
@@ -239,7 +245,7 @@ class SitlProcess:
                               f"{self.log_path})") from None
         with open(self.log_path, "ab") as log:
             log.write(b"\n[rotorbench] CLI settings:\n" + out + b"\n")
-        if CLI_ERROR in out or b"saving" not in out:
+        if any(mark.encode() in out for mark in ERROR_MARKS) or b"saving" not in out:
             raise CliError(f"the Betaflight SITL refused its settings {lines} (log: "
                            f"{self.log_path})")
 

@@ -131,3 +131,20 @@ def test_firmware_settings_are_single_cli_words():
     for bad in ({"acc_lpf_hz": "0\nsave"}, {"a b": 1}, {"acc_lpf_hz": True}, {"x": ""}):
         with pytest.raises(DeviceError, match="expected a setting name"):
             cli_lines(bad)
+
+
+def test_a_setting_the_build_does_not_have_is_refused_before_any_launch(tmp_path, monkeypatch):
+    """A rig's ``cli_settings`` are checked against the binary's names before it runs, as
+    a flight's CLI file is: one line naming the setting, no firmware started."""
+    from drivers.backends import betaflight_sitl
+    from drivers.backends.betaflight_cli import CliError
+
+    binary = tmp_path / "betaflight_SITL.elf"
+    binary.write_bytes(b"\0acc_lpf_hz\0serial_update_rate_hz\0")
+    monkeypatch.setattr(betaflight_sitl, "ports_in_use", lambda: [])
+    monkeypatch.setattr(betaflight_sitl.subprocess, "Popen",
+                        lambda *a, **k: pytest.fail("the firmware was launched"))
+    with pytest.raises(CliError, match=r"^setting 'dshot_bidir': no such setting in the "
+                                       r"Betaflight SITL .* another build\)$"):
+        betaflight_sitl.SitlProcess.launch(binary, workdir=tmp_path,
+                                           settings={"acc_lpf_hz": 0, "dshot_bidir": "ON"})
