@@ -13,6 +13,7 @@ and whatever needs to parse it names the extra. A folder store never needs psyco
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,6 +28,15 @@ STORE_ENV = "ROTORBENCH_STORE"
 LAB_EXTRA = "pip install 'rotorbench[lab]'"
 SECRET_KEYS = ("password", "sslpassword")
 _PG_SCHEMES = ("postgresql", "postgres")
+#: a URL's start (RFC 3986 scheme, then ``://``): a libpq keyword string may hold ``://``
+#: in a value (``password=999://``) and is no URL for it
+_URL_START = re.compile(r"\s*([A-Za-z][A-Za-z0-9+.-]*)://")
+
+
+def _scheme(text: str) -> str | None:
+    """The URL scheme of ``text`` (lower case), or None when it is no URL."""
+    m = _URL_START.match(text)
+    return m.group(1).lower() if m else None
 # libpq's keywords (PostgreSQL 15, "Parameter Key Words"): a text whose first word is one
 # of them followed by '=' is a keyword=value connection string, not a folder
 _KEYWORDS = frozenset(
@@ -64,7 +74,7 @@ def parse_store(text: str | os.PathLike[str] | None, default: str = "runs") -> S
     raw = str(text) if text is not None else os.environ.get(STORE_ENV) or default
     if _is_catalog(raw):
         return StoreUrl(raw, dsn=raw)
-    scheme = urlsplit(raw).scheme.lower() if "://" in raw else ""
+    scheme = _scheme(raw) or ""
     if scheme == "file":
         return StoreUrl(raw, folder=Path(urlsplit(raw).path))
     if scheme:
@@ -74,10 +84,10 @@ def parse_store(text: str | os.PathLike[str] | None, default: str = "runs") -> S
 
 
 def _is_catalog(raw: str) -> bool:
-    head = raw.lstrip()
-    if "://" in head:
-        return head.split("://", 1)[0].lower() in _PG_SCHEMES
-    key, eq, _ = head.partition("=")
+    scheme = _scheme(raw)
+    if scheme is not None:
+        return scheme in _PG_SCHEMES
+    key, eq, _ = raw.lstrip().partition("=")
     return bool(eq) and key.strip().lower() in _KEYWORDS
 
 
@@ -143,14 +153,15 @@ def redact(text: str) -> str:
         except RigError:
             return _hidden(text)
         return _shown(params, url=_is_url(text))
-    if "://" in text and "@" in text:  # user info; a raw '/' in a secret ends the netloc
+    if _scheme(text) is not None and "@" in text:  # user info (a raw '/' in a secret ends
+        # the netloc, so the last '@' is taken)
         scheme, rest = text.split("://", 1)
         return f"{scheme}://***@{rest.rsplit('@', 1)[1]}"
     return text
 
 
 def _is_url(text: str) -> bool:
-    return "://" in text.lstrip()
+    return _scheme(text) is not None
 
 
 def _hidden(text: str) -> str:

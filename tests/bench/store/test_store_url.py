@@ -76,3 +76,13 @@ def test_without_psycopg_a_folder_store_works_and_a_catalog_names_the_extra(
         assert lab.returncode == 2 and "pip install 'rotorbench[lab]'" in lab.stderr, lab.stderr
         assert "Traceback" not in lab.stderr and "pw-secret" not in lab.stderr
         assert len(lab.stderr.strip().splitlines()) == 1
+
+
+def test_a_keyword_string_whose_password_holds_a_url_start_is_still_redacted() -> None:
+    """``://`` inside a value is no URL: the text is a libpq keyword string all the same
+    (hypothesis found ``password=999://`` shown as typed)."""
+    for text in ("host=db.lab password=999://", "dbname=lab password=a://b@c"):
+        shown = redact(text)
+        assert "999" not in shown and "a://b" not in shown, shown
+        assert parse_store(text).is_lab
+    assert redact("s3://KEY:SECRET@bucket/x") == "s3://***@bucket/x"
