@@ -2,8 +2,8 @@
 
 Start-up matters (a 20-repeat simulated step takes about as long as importing every
 command with its numpy/scipy/pandas/matplotlib dependencies), so ``main`` imports only the
-module of the command it was given when that module is named like the command; ``--help``,
-an unknown command or a command named unlike its module builds the full parser.
+module of the command it was given (the module named like the command, or the one
+``_MODULE_OF`` names); ``--help`` or an unknown command builds the full parser.
 
 Errors caused by the user's input (bad file, rig, catalog, device bytes) are
 exceptions with an ``exit_code`` attribute; they are printed as one line and
@@ -114,12 +114,16 @@ def configure_logging(verbose: int = 0, level: str | None = None) -> logging.Han
     return handler
 
 
+#: the commands whose module cannot be named like them (``import`` is a Python keyword)
+_MODULE_OF = {"import": "import_log"}
+
+
 def _parser_for(argv: Sequence[str]) -> argparse.ArgumentParser:
     """A parser holding only the given command when its module is named like it (the
     command's own ``--help`` and errors are the same either way), else the full one."""
     if argv and not argv[0].startswith("-"):
         first = argv[0]
-        name = first.replace("-", "_")
+        name = _MODULE_OF.get(first, first.replace("-", "_"))
         if name in _command_modules():
             parser = build_parser(only=name)
             sub = next(a for a in parser._actions

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import subprocess
 import sys
 
@@ -70,6 +71,10 @@ def test_a_command_alone_gets_the_same_parser_as_with_all_the_others(capsys):
         assert _help_of(argv, capsys=capsys) == _help_of(argv, full, capsys)
     assert vars(_parser_for(["step", "--repeats", "3"]).parse_args(["step", "--repeats", "3"])) \
         .keys() == vars(full.parse_args(["step", "--repeats", "3"])).keys()
+    for argv in (["import", "log.csv"], ["import-sizinglab"], ["flight-report", "RUN"]):
+        sub = next(a for a in _parser_for(argv)._actions
+                   if isinstance(a, argparse._SubParsersAction))
+        assert list(sub.choices) == [argv[0]], argv  # not every command's module imported
 
 
 def test_a_step_run_imports_neither_scipy_nor_pandas(tmp_path):
