@@ -15,6 +15,12 @@ mean of 20 repeats), and compares the two directions by the RMS of their differe
 * the 63 % rise time is read from the data (first crossing of 63.2 % of the fitted
   change, measured from the command edge, so it includes the latency: ``L + tau`` when
   the model fits); a level held less than 4 tau gets a note (not settled);
+* when the single edges' latencies scatter more than their fits' noise explains, by over
+  ``ALIGN_TAUS`` of tau (a firmware whose output waits on its own task, a host that sent a
+  command late), the repeats are averaged aligned at their own latencies: averaged at the
+  command edge, a latency spread sigma widens the mean's lag to about sqrt(tau^2 +
+  sigma^2) (a Betaflight ESC's five down edges each fitted 29.5-30.0 ms, their latencies
+  5-46 ms, and the plain mean read 37.1 ms); the latency is then their mean;
 * the spread of the single-edge estimates gives each estimate's uncertainty (``Estimate``:
   ``std`` is the spread of one edge, ``stderr`` that of the mean of the repeats);
 * a second-order fit with two real poles (the form of C.1) is available as an option.
@@ -60,6 +66,10 @@ MIN_SAMPLES_PER_TAU = 1.0  # a signal sampled more slowly than tau cannot resolv
 # every speed sample of the REST_WINDOW_S before the edge at most REST_FRACTION of the top.
 REST_FRACTION = 0.01
 REST_WINDOW_S = 0.1
+#: the edges' latency scatter beyond their fits' noise, in time constants, above which the
+#: repeats are averaged aligned at their own latencies (module doc): 0.1 tau widens the
+#: plain mean's lag by 0.5 %
+ALIGN_TAUS = 0.1
 START_WHY = ("start from standstill (the ESC's start-up routine, not a first-order lag of "
              "a turning rotor)")
 
@@ -271,6 +281,7 @@ class DirectionFit:
     y_mean: np.ndarray = field(repr=False)  # mean response of the repeats
     second_order: SecondOrderFit | None = None
     pooled: bool = False  # values are means of single-edge fits at different levels
+    aligned: bool = False  # the repeats averaged aligned at their own latencies
 
     @property
     def fitted_edges(self) -> tuple[int, ...]:
@@ -283,7 +294,8 @@ class DirectionFit:
         if self.pooled:
             return (f"mean of {n} single-edge fits at different levels (no level pair "
                     "repeated)")
-        return (f"fit of the mean of {len(self.edges)} repeats {self.u_before:g} -> "
+        how = " aligned at their own latencies" if self.aligned else ""
+        return (f"fit of the mean of {len(self.edges)} repeats{how} {self.u_before:g} -> "
                 f"{self.u_after:g} ({n} single edges fitted)")
 
 
@@ -528,6 +540,39 @@ def _fit_second_order(tb: np.ndarray, yb: np.ndarray, cnt: np.ndarray, step: flo
     return SecondOrderFit(lat, tau1, tau1 * r, (y1 - y0) / step, y0, y1, rms)
 
 
+def _mean_window(rows: list[tuple[np.ndarray, np.ndarray, np.ndarray]]
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The bins of several edge windows averaged: mean time, mean value, summed count."""
+    y_all = np.stack([r[1] for r in rows])
+    # bins no edge filled (a slow or multi-rate signal) stay NaN: numpy's "Mean of empty
+    # slice" warning about them is expected, not news for the user
+    with np.errstate(invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        tb = np.nanmean(np.stack([r[0] for r in rows]), axis=0)
+        y_mean = np.nanmean(y_all, axis=0) if len(rows) > 1 else y_all[0]
+    return tb, y_mean, np.stack([r[2] for r in rows]).sum(axis=0)
+
+
+def _latency_shifts(singles: tuple[FirstOrderFit, ...], mean: FirstOrderFit, pre_s: float
+                    ) -> np.ndarray | None:
+    """Each edge's latency less the edges' mean (s), when they scatter by more than their
+    fits' noise explains and more than ``ALIGN_TAUS`` of tau (module doc); else None. An
+    edge without a fit is not moved; a scatter wider than the window's lead-in is no
+    jitter of one actuator and is left alone."""
+    good = [f for f in singles if f.fitted]
+    if len(good) < 3 or not mean.fitted:
+        return None
+    lat = np.array([f.latency_s for f in good])
+    noise = np.array([f.u_latency_s for f in good])
+    beyond = float(np.var(lat, ddof=1)) - float(np.nanmean(noise ** 2)) \
+        if np.isfinite(noise).any() else float(np.var(lat, ddof=1))
+    if beyond <= (ALIGN_TAUS * mean.tau_s) ** 2:
+        return None
+    centre = float(np.mean(lat))
+    shifts = np.array([f.latency_s - centre if f.fitted else 0.0 for f in singles])
+    return shifts if float(np.max(np.abs(shifts))) < pre_s else None
+
+
 def fit_step_response(
     t: np.ndarray,
     y: np.ndarray,
@@ -591,21 +636,24 @@ def fit_step_response(
     groups: list[DirectionFit] = []
     for (direction, _, _), idx in keys.items():
         rows = [_bin_window(t, y, edges[i].t_s, pre_s, post_s, bin_s) for i in idx]
-        cnt_all = np.stack([r[2] for r in rows])
-        y_all = np.stack([r[1] for r in rows])
-        # bins no edge filled (a slow or multi-rate signal) stay NaN: numpy's "Mean of
-        # empty slice" warning about them is expected, not news for the user
-        with np.errstate(invalid="ignore"), warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            tb = np.nanmean(np.stack([r[0] for r in rows]), axis=0)
-            y_mean = np.nanmean(y_all, axis=0) if len(rows) > 1 else y_all[0]
-        cnt = cnt_all.sum(axis=0)
+        tb, y_mean, cnt = _mean_window(rows)
         steps = np.array([edges[i].step for i in idx])
         step = float(np.mean(steps))
         mean = _fit_first_order(tb, y_mean, cnt, step, post_s, cell, square_law)
         singles = tuple(_fit_first_order(r[0], r[1], r[2], float(s), post_s, cell, square_law,
                                          start=mean)
                         for r, s in zip(rows, steps, strict=True))
+        shifts = _latency_shifts(singles, mean, pre_s)
+        if shifts is not None:
+            post_a = post_s - float(np.max(shifts))  # no window reads past its hold
+            tb, y_mean, cnt = _mean_window(
+                [_bin_window(t, y, edges[i].t_s + d, pre_s, post_a, bin_s)
+                 for i, d in zip(idx, shifts, strict=True)])
+            aligned = _fit_first_order(tb, y_mean, cnt, step, post_a, cell, square_law)
+            # the aligned windows start at each edge plus its shift: the mean fit's latency
+            # is the edges' mean latency, as the plain mean's would be without the scatter
+            mean = aligned if aligned.fitted else mean
+            shifts = shifts if aligned.fitted else None
         so = _fit_second_order(tb, y_mean, cnt, step, post_s, mean) if second_order and \
             mean.ok else None
         good = [s for s in singles if s.fitted]
@@ -624,6 +672,7 @@ def fit_step_response(
             t_s=tb,
             y_mean=y_mean,
             second_order=so,
+            aligned=shifts is not None,
         ))
 
     up, down = _headline(groups, "up"), _headline(groups, "down")

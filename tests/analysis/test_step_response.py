@@ -26,7 +26,8 @@ FS = 25_000.0
 def synth(levels, hold_s, lat, tau_up, tau_dn, noise=0.0, gain=1.0, seed=0, ramp_s=0.0,
           model="first", tau2=0.0):
     """Command steps between ``levels`` (held ``hold_s``), response = delayed first-order
-    lag from each settled level (up and down time constants differ)."""
+    lag from each settled level (up and down time constants differ); ``lat`` one latency
+    or one per edge."""
     n_seg = len(levels)
     t = np.arange(int(n_seg * hold_s * FS)) / FS
     u = np.repeat(levels, int(hold_s * FS)).astype(float)
@@ -36,10 +37,11 @@ def synth(levels, hold_s, lat, tau_up, tau_dn, noise=0.0, gain=1.0, seed=0, ramp
         sel = t >= t0
         a, b = gain * levels[k - 1], gain * levels[k]
         tau = tau_up if b > a else tau_dn
+        lag = float(lat[k - 1]) if np.ndim(lat) else lat
         if model == "first":
-            shape = first_order_step(t[sel] - t0, lat, tau)
+            shape = first_order_step(t[sel] - t0, lag, tau)
         else:
-            shape = second_order_step(t[sel] - t0, lat, tau, tau2)
+            shape = second_order_step(t[sel] - t0, lag, tau, tau2)
         y[sel] = a + (b - a) * shape
     if ramp_s:  # a slow ramp in front, as a sweep or a soft start has
         pre_t = np.arange(int(ramp_s * FS)) / FS
@@ -62,6 +64,25 @@ def test_first_order_recovered_exactly_without_noise():
     # the 63 % rise time read from the data is delay + tau for a first-order lag
     assert res.up.t63.value == pytest.approx(0.045, abs=3e-4)
     assert res.down.t63.value == pytest.approx(0.080, abs=3e-4)
+
+
+def test_repeats_whose_latencies_scatter_are_averaged_aligned():
+    """A firmware ESC's outputs wait on its own tasks: each edge's latency differs (here
+    5-46 ms, as a Betaflight SITL's down edges had), its lag does not. Averaged at the
+    command edge the mean's lag widens to about sqrt(tau^2 + sigma^2) (37 ms read for
+    30 ms); aligned at each edge's own latency the fit gives the lag, and the latency is
+    the edges' mean."""
+    lats = [0.012, 0.046, 0.009, 0.016, 0.007, 0.016, 0.019, 0.016, 0.010, 0.005]
+    t, u, y = synth([1.5, 1.75] * 5 + [1.5], 0.5, lats, 0.030, 0.030, noise=0.002, seed=1)
+    res = fit_step_response(t, y, u)
+    for d, edge_lats in ((res.up, lats[0::2]), (res.down, lats[1::2])):
+        assert d.aligned and "aligned at their own latencies" in d.describe()
+        assert d.tau.value == pytest.approx(0.030, rel=0.01), d.describe()
+        assert d.latency.value == pytest.approx(np.mean(edge_lats), abs=5e-4)
+    # without a scatter beyond the noise nothing is moved
+    t, u, y = synth([1.5, 1.75] * 5 + [1.5], 0.5, 0.015, 0.030, 0.030, noise=0.002, seed=1)
+    res = fit_step_response(t, y, u)
+    assert not res.up.aligned and not res.down.aligned
 
 
 def test_noise_spread_gives_the_uncertainty():
