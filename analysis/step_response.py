@@ -643,19 +643,22 @@ def fit_step_response(
         singles = tuple(_fit_first_order(r[0], r[1], r[2], float(s), post_s, cell, square_law,
                                          start=mean)
                         for r, s in zip(rows, steps, strict=True))
+        window_s_used = post_s
         shifts = _latency_shifts(singles, mean, pre_s)
         if shifts is not None:
             post_a = post_s - float(np.max(shifts))  # no window reads past its hold
-            tb, y_mean, cnt = _mean_window(
+            tb_a, y_a, cnt_a = _mean_window(
                 [_bin_window(t, y, edges[i].t_s + d, pre_s, post_a, bin_s)
                  for i, d in zip(idx, shifts, strict=True)])
-            aligned = _fit_first_order(tb, y_mean, cnt, step, post_a, cell, square_law)
+            aligned = _fit_first_order(tb_a, y_a, cnt_a, step, post_a, cell, square_law)
             # the aligned windows start at each edge plus its shift: the mean fit's latency
             # is the edges' mean latency, as the plain mean's would be without the scatter
-            mean = aligned if aligned.fitted else mean
-            shifts = shifts if aligned.fitted else None
-        so = _fit_second_order(tb, y_mean, cnt, step, post_s, mean) if second_order and \
-            mean.ok else None
+            if aligned.fitted:
+                mean, tb, y_mean, cnt, window_s_used = aligned, tb_a, y_a, cnt_a, post_a
+            else:
+                shifts = None
+        so = _fit_second_order(tb, y_mean, cnt, step, window_s_used, mean) \
+            if second_order and mean.ok else None
         good = [s for s in singles if s.fitted]
         groups.append(DirectionFit(
             direction=direction,
