@@ -57,13 +57,15 @@ def _in_namespace(tmp: Path, args: list[str], timeout_s: float = 90.0, **popen):
 
 @pytest.fixture(scope="module")
 def flown(tmp_path_factory) -> dict[str, Any]:
-    """One flight: hover and 4.8 s of rate steps, no RC smoothing (clean setpoint steps)."""
+    """One flight: hover and 9.6 s of rate steps (16 steps: H1 pools 9-10 segments of 2 s
+    with stick input; with 4.8 s it had 3-6, and from 3 a loaded host's run read its
+    coherence cut-off at 7.8 Hz and the rise 11 % long), no RC smoothing (clean steps)."""
     tmp = tmp_path_factory.mktemp("fly")
     cli = tmp / "tune.txt"
     cli.write_text("# the test's tune\nset rc_smoothing = OFF\n\nsave\n")
     t0 = time.monotonic()
     res = _in_namespace(tmp, ["fly", "--controller", "betaflight", *DESIGN, "--maneuver",
-                              "--rate-steps", "4.8", "--betaflight-cli", str(cli),
+                              "--rate-steps", "9.6", "--betaflight-cli", str(cli),
                               "--store", str(tmp / "runs"), "--json"])
     wall = time.monotonic() - t0
     assert res.returncode == 0, res.stdout[-2000:] + res.stderr[-3000:]
