@@ -1,7 +1,7 @@
 """The log's deconvolved rise time against the one read directly on the same flight's gyro.
 
 Flies the test's flight (``tests/drivers/test_sitl_fly.py``: thesis-e P1+M2+B1, the catalog
-actuator, hover and 4.8 s of roll and pitch rate steps, RC smoothing off) K times and prints,
+actuator, hover and 9.6 s of roll and pitch rate steps, RC smoothing off) K times and prints,
 per flight and axis, the rate loop's 10-90 % rise from the deconvolved step response (H1,
 every window of the log pooled) and the median and mean of the gyro's own rise over the
 flight's steps, and how far H1 is from each. Needs the ``sitl`` extra, root and
@@ -32,7 +32,7 @@ def main() -> int:
     worst = {"median": 0.0, "mean": 0.0}
     for k in range(args.flights):
         out = run("fly", "--controller", "betaflight", *DESIGN, "--maneuver", "--rate-steps",
-                  "4.8", "--betaflight-cli", str(cli), "--store", str(tmp / "runs"),
+                  "9.6", "--betaflight-cli", str(cli), "--store", str(tmp / "runs"),
                   netns=True)
         for axis, r in out["log_step_response"].items():
             h1, rises = r["h1"].get("rise_ms"), r["direct_rises_ms"]
