@@ -32,11 +32,6 @@ _PG_SCHEMES = ("postgresql", "postgres")
 #: in a value (``password=999://``) and is no URL for it
 _URL_START = re.compile(r"\s*([A-Za-z][A-Za-z0-9+.-]*)://")
 
-
-def _scheme(text: str) -> str | None:
-    """The URL scheme of ``text`` (lower case), or None when it is no URL."""
-    m = _URL_START.match(text)
-    return m.group(1).lower() if m else None
 # libpq's keywords (PostgreSQL 15, "Parameter Key Words"): a text whose first word is one
 # of them followed by '=' is a keyword=value connection string, not a folder
 _KEYWORDS = frozenset(
@@ -49,6 +44,12 @@ _KEYWORDS = frozenset(
 _NOT_ENCODED = ("a character of the password is not percent-encoded (# as %23, / as %2F, "
                 "? as %3F, @ as %40, % as %25), or give the password in PGPASSWORD or "
                 "~/.pgpass")
+
+
+def _scheme(text: str) -> str | None:
+    """The URL scheme of ``text`` (lower case), or None when it is no URL."""
+    m = _URL_START.match(text)
+    return m.group(1).lower() if m else None
 
 
 @dataclass(frozen=True)
