@@ -21,6 +21,12 @@ mean of 20 repeats), and compares the two directions by the RMS of their differe
   command edge, a latency spread sigma widens the mean's lag to about sqrt(tau^2 +
   sigma^2) (a Betaflight ESC's five down edges each fitted 29.5-30.0 ms, their latencies
   5-46 ms, and the plain mean read 37.1 ms); the latency is then their mean;
+* a repeat whose single fit's lag is off its repeats' median by more than a factor
+  ``REPEAT_TAU_RATIO`` and by more than ``REPEAT_TAU_SIGMAS`` of its own fit's uncertainty
+  is no response of the actuator the others show (a host stall bunched its samples, a
+  dropout cut it) and is listed with why, not averaged (a wire rig's down edge fitted
+  latency 0 and tau 6.2 ms beside two of 16 and 30 ms, and pulled the latency 5 ms early);
+  never more than a minority of a group's edges, at least three fitted;
 * the spread of the single-edge estimates gives each estimate's uncertainty (``Estimate``:
   ``std`` is the spread of one edge, ``stderr`` that of the mean of the repeats);
 * a second-order fit with two real poles (the form of C.1) is available as an option.
@@ -70,6 +76,10 @@ REST_WINDOW_S = 0.1
 #: repeats are averaged aligned at their own latencies (module doc): 0.1 tau widens the
 #: plain mean's lag by 0.5 %
 ALIGN_TAUS = 0.1
+#: a repeat whose tau is off its repeats' median by more than this factor, and by more than
+#: ``REPEAT_TAU_SIGMAS`` of its fit's uncertainty, is left out of the mean (module doc)
+REPEAT_TAU_RATIO = 2.0
+REPEAT_TAU_SIGMAS = 3.0
 START_WHY = ("start from standstill (the ESC's start-up routine, not a first-order lag of "
              "a turning rotor)")
 
@@ -553,6 +563,32 @@ def _mean_window(rows: list[tuple[np.ndarray, np.ndarray, np.ndarray]]
     return tb, y_mean, np.stack([r[2] for r in rows]).sum(axis=0)
 
 
+def _inconsistent_repeats(singles: tuple[FirstOrderFit, ...]) -> list[str]:
+    """For each edge of a group, why its single fit is no repeat of the others' response
+    ("" where it is one; module doc). Needs three fitted edges; flags only a minority."""
+    why = [""] * len(singles)
+    taus = np.array([f.tau_s if f.fitted else math.nan for f in singles])
+    fitted = np.isfinite(taus)
+    if np.count_nonzero(fitted) < 3:
+        return why
+    median = float(np.median(taus[fitted]))
+    if median <= 0:
+        return why
+    for k, f in enumerate(singles):
+        if not fitted[k]:
+            continue
+        ratio = f.tau_s / median
+        off = abs(f.tau_s - median)
+        sure = not math.isfinite(f.u_tau_s) or off > REPEAT_TAU_SIGMAS * f.u_tau_s
+        if (ratio > REPEAT_TAU_RATIO or ratio < 1 / REPEAT_TAU_RATIO) and sure:
+            why[k] = (f"no repeat of its group's response: tau {f.tau_s * 1e3:.1f} ms "
+                      f"(latency {f.latency_s * 1e3:.1f} ms) against the repeats' median "
+                      f"{median * 1e3:.1f} ms (a stall bunched its samples, or a dropout)")
+    if 2 * sum(map(bool, why)) >= int(np.count_nonzero(fitted)):
+        return [""] * len(singles)  # no majority to stand for the actuator's response
+    return why
+
+
 def _latency_shifts(singles: tuple[FirstOrderFit, ...], mean: FirstOrderFit, pre_s: float
                     ) -> np.ndarray | None:
     """Each edge's latency less the edges' mean (s), when they scatter by more than their
@@ -643,6 +679,15 @@ def fit_step_response(
         singles = tuple(_fit_first_order(r[0], r[1], r[2], float(s), post_s, cell, square_law,
                                          start=mean)
                         for r, s in zip(rows, steps, strict=True))
+        odd = _inconsistent_repeats(singles)
+        if any(odd):
+            excluded += tuple((i, w) for i, w in zip(idx, odd, strict=True) if w)
+            keep = [k for k, w in enumerate(odd) if not w]
+            idx, rows, steps = [idx[k] for k in keep], [rows[k] for k in keep], steps[keep]
+            singles = tuple(singles[k] for k in keep)
+            tb, y_mean, cnt = _mean_window(rows)
+            step = float(np.mean(steps))
+            mean = _fit_first_order(tb, y_mean, cnt, step, post_s, cell, square_law)
         window_s_used = post_s
         shifts = _latency_shifts(singles, mean, pre_s)
         if shifts is not None:

@@ -48,6 +48,10 @@ from drivers.contracts import IMU_CHANNELS as BENCH_IMU_CHANNELS
 from drivers.errors import DeviceError
 
 DEFAULT_TIMEOUT_S = 0.1  # §1.9 timing note: ~100 ms at 115200 baud [U]
+#: an IMU poll with no reply for this long has lost its FC (a single missed reply is a
+#: frame lost on the line, counted, and the poll goes on): the silence a run allows any
+#: device (``bench.engine.run_loop``'s ``stale_s``)
+NO_REPLY_LIMIT_S = 0.5
 
 
 class MspRefused(DeviceError):
@@ -79,6 +83,7 @@ class MspClient:
         else:
             cmd = message.CMD
         with self.lock:
+            self._drop_waiting()
             write_all(self.port, msp.encode_message(message, self.version), self.name)
             deadline = Deadline(self.timeout_s)
             while True:
@@ -97,6 +102,18 @@ class MspClient:
                 if last_look:
                     raise MspNoReply(f"{self.name}: no reply to MSP command {cmd} within "
                                       f"{self.timeout_s * 1e3:.0f} ms")
+
+    def _drop_waiting(self) -> None:
+        """Drop what waits unread before a request: a reply that came after its request
+        was given up on, which MSP (no sequence numbers) would otherwise hand to this
+        request if it is of the same command."""
+        try:
+            waiting = self.port.in_waiting
+        except (OSError, AttributeError, TypeError, ValueError):
+            return  # a port closed or gone (pyserial's closed port: TypeError): the write
+            # that follows says so
+        if waiting > 0:
+            self.decoder.feed(read_some(self.port, self.name))  # counted, and dropped
 
     def identify(self) -> tuple[str, msp.ApiVersion]:
         variant = self.request(msp.Request(msp.MSP_FC_VARIANT))
@@ -152,6 +169,7 @@ class MspImu:
         # trip took longer has a time stamp worse than that, and is dropped
         self.max_round_trip_s = max_round_trip_s
         self.slow_rows = 0
+        self.missed_replies = 0
         self.rate_hz = rate_hz
         self.attitude = attitude  # False: RAW_IMU only (roll/pitch/yaw NaN), twice the rate
         self.clock = clock or MonotonicClock()
@@ -178,10 +196,15 @@ class MspImu:
                                          for n, u in zip(IMU_CHANNELS, units, strict=True)))
 
     def _poll(self) -> None:
-        """Polls on a fixed schedule (a slow reply delays one poll, not all later ones)."""
+        """Polls on a fixed schedule (a slow reply delays one poll, not all later ones). A
+        reply that does not come is counted (``link_errors``: ``no_reply``) and the poll
+        goes on, as over a UART that lost a frame; the next poll's row is dropped (it may
+        have been handed the late reply; later ones cannot, ``MspClient._drop_waiting``).
+        No reply for ``NO_REPLY_LIMIT_S`` is the FC gone, and ends the poll with the error."""
         period = 1.0 / self.rate_hz
         nan = msp.Attitude(math.nan, math.nan, math.nan)
-        due = time.monotonic()
+        due = last_reply = time.monotonic()
+        after_miss = False
         while not self._stop.wait(max(0.0, due - time.monotonic())):
             due = max(due + period, time.monotonic() - period)
             # the FC answers with its latest sample, taken about when the request arrives:
@@ -190,10 +213,23 @@ class MspImu:
             paused = getattr(self.clock, "paused_s", 0.0)  # a paced clock's stalls
             try:
                 raw, att = self._request(nan)
+            except MspNoReply as exc:
+                if time.monotonic() - last_reply > NO_REPLY_LIMIT_S:
+                    with self._lock:
+                        self._error = DeviceError(f"{exc} (none for {NO_REPLY_LIMIT_S:g} s)")
+                    return
+                self.missed_replies += 1  # a reply lost on the line, or late: if late,
+                after_miss = True  # the next poll may be handed it, and is not kept
+                continue
             except DeviceError as exc:
                 with self._lock:
                     self._error = exc
                 return
+            last_reply = time.monotonic()
+            if after_miss:
+                after_miss = False
+                self.slow_rows += 1
+                continue
             self._add_row(stamp, paused, raw, att)
 
     def _add_row(self, stamp: float, paused: float, raw: Any, att: Any, *,
@@ -230,8 +266,10 @@ class MspImu:
             raise DeviceError(f"{self.url}: {exc}") from None
 
     def link_errors(self) -> dict[str, int]:
-        """Replies lost on the serial link (bad checksums, truncated, malformed frames)."""
-        return link_losses(self.client.decoder.stats)
+        """Replies lost on the serial link (bad checksums, truncated, malformed frames;
+        requests no reply came to)."""
+        lost = link_losses(self.client.decoder.stats)
+        return {**lost, "no_reply": self.missed_replies} if self.missed_replies else lost
 
     def read_block(self) -> Block:
         with self._lock:
@@ -279,6 +317,7 @@ class MspMotorEsc:
         self.max_us = min(max_us, msp.MOTOR_MAX_US)
         self.url = url
         self._armed = False
+        self.missed_replies = 0
 
     def describe(self) -> DeviceInfo:
         return DeviceInfo(kind="esc", model="flight controller motor test (MSP_SET_MOTOR)",
@@ -289,11 +328,21 @@ class MspMotorEsc:
                                  "dead_host": DEAD_HOST})
 
     def _send(self, pulse_us: float) -> None:
+        """SET_MOTOR, sent once more if no reply came: it sets every motor's value, so a
+        second one does what the first did (a reply lost on the line does not end a run)."""
         values = [msp.MOTOR_MIN_US] * msp.MOTOR_SLOTS
         values[self.motor_index] = round(pulse_us)
-        reply = self.client.request(msp.SetMotor(tuple(values)))
+        try:
+            reply = self.client.request(msp.SetMotor(tuple(values)))
+        except MspNoReply:
+            self.missed_replies += 1
+            reply = self.client.request(msp.SetMotor(tuple(values)))
         if not isinstance(reply, msp.Ack):
             raise DeviceError(f"{self.url}: SET_MOTOR not acknowledged ({reply!r})")
+
+    def link_errors(self) -> dict[str, int]:
+        """SET_MOTOR commands no reply came to (each sent once more)."""
+        return {"no_reply": self.missed_replies} if self.missed_replies else {}
 
     def arm(self) -> None:
         if self.client.armed():

@@ -85,6 +85,25 @@ def test_repeats_whose_latencies_scatter_are_averaged_aligned():
     assert not res.up.aligned and not res.down.aligned
 
 
+def test_a_damaged_repeat_is_left_out_not_averaged():
+    """One of three down edges bunched by a stall (latency 0, tau 6 ms, as a wire rig's
+    host-stamped load-cell lines once were) is listed with why; the fit is the others'."""
+    levels = [1.5, 1.75] * 3 + [1.5]
+    t, u, y = synth(levels, 0.5, 0.016, 0.030, 0.030, noise=0.002, seed=2)
+    t0 = 4 * 0.5  # the second down edge
+    sel = (t >= t0) & (t < t0 + 0.5)
+    y[sel] = 1.75 - 0.25 * first_order_step(t[sel] - t0, 0.0, 0.006)
+    res = fit_step_response(t, y, u)
+    assert res.down.tau.value == pytest.approx(0.030, rel=0.02)
+    assert res.down.latency.value == pytest.approx(0.016, abs=5e-4)
+    left_out = {i: e["why"] for i, e in enumerate(res.summary()["edges"]) if not e["used"]}
+    assert list(left_out) == [3] and "no repeat of its group's response" in left_out[3]
+    assert res.up.tau.n == 3 and res.down.tau.n == 2
+    # without the damage every edge is averaged
+    t, u, y = synth(levels, 0.5, 0.016, 0.030, 0.030, noise=0.002, seed=2)
+    assert all(e["used"] for e in fit_step_response(t, y, u).summary()["edges"])
+
+
 def test_noise_spread_gives_the_uncertainty():
     t, u, y = synth([1.7, 3.2] * 8 + [1.7], 0.5, 0.015, 0.030, 0.050, noise=0.05, seed=3)
     res = fit_step_response(t, y, u)

@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 import math
+import threading
 import time
 
+import numpy as np
 import pytest
 
 serial = pytest.importorskip("serial")
 
 from drivers.backends.msp_fc import (  # noqa: E402
+    NO_REPLY_LIMIT_S,
     MspClient,
     MspImu,
     MspMotorEsc,
@@ -18,7 +21,7 @@ from drivers.backends.msp_fc import (  # noqa: E402
 )
 from drivers.backends.serial_link import open_port  # noqa: E402
 from drivers.codecs import msp  # noqa: E402
-from drivers.contracts import Esc, Sensor  # noqa: E402
+from drivers.contracts import Esc, MonotonicClock, Sensor  # noqa: E402
 from drivers.errors import DeviceError  # noqa: E402
 from drivers.wire_sim.msp_fc import SimFlightController  # noqa: E402
 
@@ -85,14 +88,99 @@ def test_fc_refusal_and_silence_become_device_errors(fc):
     esc.disarm()  # never raises, even with the FC silent
 
 
+class LostAckFc(SimFlightController):
+    """An FC that applies the first SET_MOTOR but whose acknowledgement is lost."""
+
+    def __init__(self) -> None:
+        super().__init__(imu, acc_1g=2048)
+        self.lost = 0
+
+    def handle(self, data: bytes) -> bytes:
+        out = super().handle(data)
+        if data[4:5] == bytes([msp.MSP_SET_MOTOR]) and not self.lost:
+            self.lost += 1
+            return b""
+        return out
+
+
+def test_a_lost_set_motor_reply_is_sent_again_and_counted():
+    sim = LostAckFc().start()
+    port = open_port(sim.path, 115200)
+    try:
+        esc = MspMotorEsc(MspClient(port, "fc"), 1, propellers_off=True)
+        esc.arm()  # its SET_MOTOR 1000 loses its reply: sent once more
+        esc.set_pulse_us(1400)
+        assert sim.lost == 1 and sim.motors()[1] == 1400
+        assert esc.link_errors() == {"no_reply": 1}
+        sim.port.disconnect()  # gone: the second try fails too, and that is the error
+        with pytest.raises(MspNoReply, match="no reply"):
+            esc.set_pulse_us(1500)
+        assert esc.link_errors() == {"no_reply": 2}
+    finally:
+        port.close()
+        sim.stop()
+
+
 def test_imu_poller_reports_a_silent_fc(fc):
     sim, client = fc
     dev = MspImu(client, rate_hz=100.0, acc_1g=2048)
     sim.port.disconnect()
-    time.sleep(0.3)
-    with pytest.raises(DeviceError, match="no reply"):
-        dev.read_block()
+    t_end = time.monotonic() + NO_REPLY_LIMIT_S + 2.0
+    with pytest.raises(DeviceError, match=f"no reply.*none for {NO_REPLY_LIMIT_S:g} s"):
+        while time.monotonic() < t_end:
+            dev.read_block()
+            time.sleep(0.05)
+    assert dev.link_errors()["no_reply"] >= 1
     dev.close()
+
+
+class LateReplyFc(SimFlightController):
+    """An FC whose reply to the 20th RAW_IMU request is held ``LATE_S`` on the line (a
+    USB-serial adapter's latency timer, a bridge's buffer) while it goes on answering:
+    the late reply comes after the client gave up, between or inside later requests. Its
+    acc x is its own clock (10 m/s^2 a second) when it read its IMU."""
+
+    LATE_S = 0.25
+
+    def __init__(self, clock: MonotonicClock) -> None:
+        super().__init__(lambda _t: ((10.0 * clock.now(), 0.0, G), (0.0, 0.0, 0.0),
+                                     (0.0, 0.0, 0.0)), acc_1g=2048)
+        self.raw_requests = 0
+
+    def handle(self, data: bytes) -> bytes:
+        out = super().handle(data)
+        if msp.encode_message(msp.Request(msp.MSP_RAW_IMU)) in data:
+            self.raw_requests += 1
+            if self.raw_requests == 20:
+                threading.Timer(self.LATE_S, self.port.write, (out,)).start()
+                return b""
+        return out
+
+
+def test_a_late_reply_is_counted_and_no_row_takes_it():
+    """MSP replies carry no sequence number: a reply that comes after its request was given
+    up on would be taken by a later request (stamped the delay too late), and each reply
+    after it by the request after its own. The poll goes on, counts the miss, and no row
+    kept holds any reply but its own."""
+    clock = MonotonicClock()  # the FC's and the rows' stamps
+    sim = LateReplyFc(clock).start()
+    port = open_port(sim.path, 115200)
+    client = MspClient(port, "fc")
+    try:
+        dev = MspImu(client, rate_hz=100.0, acc_1g=2048, attitude=False, clock=clock,
+                     max_round_trip_s=0.05)
+        time.sleep(0.2 + LateReplyFc.LATE_S + 0.5)
+        block = dev.read_block()
+        served = block.values["acc_x_m_s2"] / 10.0  # the FC's clock when it read its IMU
+        late = served - block.t_s
+        assert sim.raw_requests > 40 and dev.link_errors()["no_reply"] == 1
+        assert np.count_nonzero(block.t_s > 0.2 + LateReplyFc.LATE_S) > 20  # it went on
+        # a row is served after it was sent (an LSB is 0.5 ms), and within its round trip
+        assert late.min() > -0.002 and late.max() < 0.06, (late.min(), late.max())
+        dev.close()
+    finally:
+        port.close()
+        sim.stop()
 
 
 def test_betaflight_needs_acc_scale(fc):

@@ -15,6 +15,7 @@ import csv
 import json
 import math
 import re
+import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -29,6 +30,7 @@ from bench.plan_runner.session import run_stage
 from bench.plans.calibration_sequences import Move, Rest, SetPivot, compile_plan
 from bench.plans.sequences import Sequence
 from bench.rig.rig import load_imu_rig
+from drivers.backends.msp_fc import NO_REPLY_LIMIT_S
 from drivers.contracts import POSE_CHANNELS
 from drivers.errors import DeviceError
 from drivers.factory import open_rig
@@ -41,6 +43,8 @@ WIRE_RIG_PATH = REPO / "bench" / "data" / "rigs" / "sim-imu-wire.toml"
 RIG = load_imu_rig(WIRE_RIG_PATH)
 SEQ = Sequence("cal_test", (SetPivot(), Rest(0.5, "gyro"),
                                        Move(gyro_sines(beats=1), "gyro"), Rest(0.5, "gyro")))
+MSP_TIMEOUT_S = tomllib.loads(WIRE_RIG_PATH.read_text())["devices"]["imu"]["options"][
+    "timeout_s"]
 MSP_GYRO_LSB = math.radians(1.0)  # Betaflight RAW_IMU: whole deg/s (§1.4)
 MSP_ACC_LSB = 9.80665 / 2048  # acc_1g of the rig file
 
@@ -162,9 +166,9 @@ def _record(root: Path) -> tuple[dict, list[dict], pd.DataFrame]:
 ])
 def test_a_device_lost_mid_run_stops_the_hexapod_and_keeps_the_data(
         tmp_path: Path, role: str, fault: str, message: str) -> None:
-    """Whichever notices first names the cause: the backend (MSP's 0.1 s reply timeout, the
-    GX3's stale stream, a failed read on the closed port) or the runner's 0.5 s of bench
-    time without a sample (83 ms of wall time at time_scale 6)."""
+    """Whichever notices first names the cause: the backend (an MSP poll without a reply
+    for NO_REPLY_LIMIT_S, the GX3's stale stream, a failed read on the closed port) or
+    the runner's bench time without a sample."""
     fault_at = 3.0
     hit: list[float] = []
     for attempt in range(2):  # one retry: a loaded host stalled a device before the fault
@@ -191,10 +195,12 @@ def test_a_device_lost_mid_run_stops_the_hexapod_and_keeps_the_data(
             assert bench.hexapod.stop_calls >= 1 and not plant.is_moving()
             run = plant.get("_runs")[-1]  # the plant in the world's process
             assert run.stopped_at < run.t0 + run.duration  # the 22 s motion was cut short
-            # stopped soon after the loss: the backend's timeout (0.1 s MSP, 0.2 s GX3 stale)
-            # and a tick, in wall time; x time_scale in bench time
+            # stopped soon after the loss, in wall time (x time_scale in bench time): the
+            # backend's notice and a tick. The GX3's is its 0.2 s stale limit; an MSP
+            # poll's the reply timeout that ends NO_REPLY_LIMIT_S past the last reply
             scale = bench.clock.time_scale
-            assert run.stopped_at - hit[0] < scale * 0.5
+            notice = NO_REPLY_LIMIT_S + MSP_TIMEOUT_S if role == "imu" else 0.3
+            assert run.stopped_at - hit[0] < scale * (notice + 0.2)
             # the data up to then is kept: rows up to the fault and past it (MSP polls ~100 Hz
             # of bench time, about 300 rows by then; a third or less while the suite's other
             # processes starve the simulated devices, 55 seen)
