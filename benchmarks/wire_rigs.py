@@ -4,7 +4,8 @@
    sim-can.toml, then ``rotorbench fit --json``: latency, tau up/down and gain per rig.
 2. A hold at 1500 us through ``bench.plan_runner.session.run_sequence`` with a device failing after
    1.2 s (board unplugged, board silent, VESC gone, flight controller silent): the time
-   from the backend's first DeviceError (detection) to the plant's ESC at idle, and
+   from the backend's first DeviceError, or the runner's safe stop when its silence
+   limit found it first (detection), to the plant's ESC at idle, and
    whether the rows up to the fault reached the run folder.
 
 Real time: about 10 s per wire step run plus ~2 s per fault case.
@@ -110,7 +111,7 @@ def fault_case(rig_name: str, fault, out: Path) -> dict:
 
     def on_progress(t, _total, _seg):
         if t >= KILL_AT_S and "fault" not in log:
-            log["fault"] = time.monotonic()
+            log["fault"], log["fault_t"] = time.monotonic(), t
             fault(opened[0])
 
     with contextlib.suppress(DeviceError):
@@ -119,6 +120,10 @@ def fault_case(rig_name: str, fault, out: Path) -> dict:
     (run_dir,) = [p for p in out.iterdir() if p.is_dir()]
     rec = read_run(run_dir)
     t = rec.column("t_s")
+    if "detected" not in log:  # the runner's silence limit found it, not a backend: the
+        # safe stop's run time, on the monotonic clock through the fault's
+        stop_t = float(rec.events.loc[rec.events["kind"] == "safe_stop", "t_s"].iloc[0])
+        log["detected"] = log["fault"] + stop_t - log["fault_t"]
     return {"detect_ms": (log["detected"] - log["fault"]) * 1e3,
             "idle_ms": (log["idle"] - log["detected"]) * 1e3 if log.get("idle") else None,
             "last_row_s": float(t[-1]), "reason": rec.meta["reason"]}
