@@ -110,9 +110,10 @@ DEVICE_LANE = "tests::device stand-ins on the wall clock, one file at a time"
 
 def _in_device_lane(path: str | Path) -> bool:
     """A test file that runs the Betaflight SITL or wire-level simulated devices on the
-    wall clock: ``sitl`` or ``wire`` in its name."""
+    wall clock: ``sitl``, ``wire`` or ``tcp`` (a ``tcp://sim`` hexapod's world) in its
+    name."""
     name = Path(path).name
-    return "sitl" in name or "wire" in name
+    return any(word in name for word in ("sitl", "wire", "tcp"))
 
 
 def _longest_files_first(items: list[pytest.Item]) -> None:

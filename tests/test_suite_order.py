@@ -50,4 +50,5 @@ def test_the_files_that_run_the_firmware_go_as_one_unit_of_their_summed_wall_tim
         == {DEVICE_LANE}
     assert lane._split_scope("tests/bench/commands/test_calibrate_wire.py::t") == DEVICE_LANE
     assert lane._split_scope("tests/drivers/test_imu_wire_rig.py::t") == DEVICE_LANE
+    assert lane._split_scope("tests/bench/commands/test_calibrate_tcp.py::t") == DEVICE_LANE
     assert lane._split_scope("tests/drivers/test_other.py::t") == "tests/drivers/test_other.py"

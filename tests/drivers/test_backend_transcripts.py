@@ -6,7 +6,7 @@ replies. Serial and TCP backends run on ``expected_protocol.ScriptedPort``; the 
 backends on a python-can ``virtual`` bus whose other end is the script. The NI-DAQmx
 backend's calls into a mocked nidaqmx interpreter are checked in
 ``test_factory_nidaq.py`` and ``test_dead_host_ni.py``; the KISS telemetry backend's in
-``test_backend_kiss.py``.
+``test_backend_kiss_wire.py``.
 """
 
 from __future__ import annotations
