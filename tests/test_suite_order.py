@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import pytest
 
-from tests.conftest import _longest_files_first
+from tests.conftest import _in_device_lane, _longest_files_first
 
 
 @dataclass
@@ -52,3 +53,18 @@ def test_the_files_that_run_the_firmware_go_as_one_unit_of_their_summed_wall_tim
     assert lane._split_scope("tests/drivers/test_imu_wire_rig.py::t") == DEVICE_LANE
     assert lane._split_scope("tests/bench/commands/test_calibrate_tcp.py::t") == DEVICE_LANE
     assert lane._split_scope("tests/drivers/test_other.py::t") == "tests/drivers/test_other.py"
+
+
+#: what starts a firmware or a wire-level device world in a test file
+STARTS_DEVICES = re.compile(r"rotorbench_tests_sitl|SitlProcess|WorldProcess\(|"
+                            r"imu_world_process|wire_plant\(|def test_\w+\([^)]*\bsitl\b")
+
+
+def test_files_that_start_device_stand_ins_are_in_the_device_lane() -> None:
+    """Outside the lane a firmware or a world runs at a device's priority beside the lane's
+    (docs/architecture.md, "One device lane"): a file that starts one is named into it."""
+    here = Path(__file__)
+    outside = [p.relative_to(here.parent).as_posix()
+               for p in sorted(here.parent.rglob("test_*.py")) if p != here and
+               not _in_device_lane(p) and STARTS_DEVICES.search(p.read_text("utf-8"))]
+    assert outside == []
