@@ -566,27 +566,23 @@ def _mean_window(rows: list[tuple[np.ndarray, np.ndarray, np.ndarray]]
 def _inconsistent_repeats(singles: tuple[FirstOrderFit, ...]) -> list[str]:
     """For each edge of a group, why its single fit is no repeat of the others' response
     ("" where it is one; module doc). Needs three fitted edges; flags only a minority."""
-    why = [""] * len(singles)
-    taus = np.array([f.tau_s if f.fitted else math.nan for f in singles])
-    fitted = np.isfinite(taus)
-    if np.count_nonzero(fitted) < 3:
-        return why
-    median = float(np.median(taus[fitted]))
-    if median <= 0:
-        return why
-    for k, f in enumerate(singles):
-        if not fitted[k]:
-            continue
+    none = [""] * len(singles)
+    fitted = [f for f in singles if f.fitted]
+    median = float(np.median([f.tau_s for f in fitted])) if len(fitted) >= 3 else math.nan
+    if not median > 0:
+        return none
+
+    def odd(f: FirstOrderFit) -> bool:
         ratio = f.tau_s / median
-        off = abs(f.tau_s - median)
-        sure = not math.isfinite(f.u_tau_s) or off > REPEAT_TAU_SIGMAS * f.u_tau_s
-        if (ratio > REPEAT_TAU_RATIO or ratio < 1 / REPEAT_TAU_RATIO) and sure:
-            why[k] = (f"no repeat of its group's response: tau {f.tau_s * 1e3:.1f} ms "
-                      f"(latency {f.latency_s * 1e3:.1f} ms) against the repeats' median "
-                      f"{median * 1e3:.1f} ms (a stall bunched its samples, or a dropout)")
-    if 2 * sum(map(bool, why)) >= int(np.count_nonzero(fitted)):
-        return [""] * len(singles)  # no majority to stand for the actuator's response
-    return why
+        sure = not math.isfinite(f.u_tau_s) or abs(f.tau_s - median) > \
+            REPEAT_TAU_SIGMAS * f.u_tau_s
+        return f.fitted and sure and not 1 / REPEAT_TAU_RATIO <= ratio <= REPEAT_TAU_RATIO
+
+    why = [f"no repeat of its group's response: tau {f.tau_s * 1e3:.1f} ms (latency "
+           f"{f.latency_s * 1e3:.1f} ms) against the repeats' median {median * 1e3:.1f} ms "
+           "(a stall bunched its samples, or a dropout)" if odd(f) else "" for f in singles]
+    # a majority left out would leave none to stand for the actuator's response
+    return why if 2 * sum(map(bool, why)) < len(fitted) else none
 
 
 def _latency_shifts(singles: tuple[FirstOrderFit, ...], mean: FirstOrderFit, pre_s: float
@@ -669,13 +665,19 @@ def fit_step_response(
         q = 0.02 * span
         keys.setdefault((e.direction, round(e.u_before / q), round(e.u_after / q)), []).append(i)
 
+    def mean_fit(rows: list[tuple[np.ndarray, np.ndarray, np.ndarray]], steps: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, FirstOrderFit]:
+        """The repeats' mean window (bin times, values, counts), mean step and its fit."""
+        tb, y_mean, cnt = _mean_window(rows)
+        step = float(np.mean(steps))
+        return tb, y_mean, cnt, step, _fit_first_order(tb, y_mean, cnt, step, post_s, cell,
+                                                       square_law)
+
     groups: list[DirectionFit] = []
     for (direction, _, _), idx in keys.items():
         rows = [_bin_window(t, y, edges[i].t_s, pre_s, post_s, bin_s) for i in idx]
-        tb, y_mean, cnt = _mean_window(rows)
         steps = np.array([edges[i].step for i in idx])
-        step = float(np.mean(steps))
-        mean = _fit_first_order(tb, y_mean, cnt, step, post_s, cell, square_law)
+        tb, y_mean, cnt, step, mean = mean_fit(rows, steps)
         singles = tuple(_fit_first_order(r[0], r[1], r[2], float(s), post_s, cell, square_law,
                                          start=mean)
                         for r, s in zip(rows, steps, strict=True))
@@ -685,9 +687,7 @@ def fit_step_response(
             keep = [k for k, w in enumerate(odd) if not w]
             idx, rows, steps = [idx[k] for k in keep], [rows[k] for k in keep], steps[keep]
             singles = tuple(singles[k] for k in keep)
-            tb, y_mean, cnt = _mean_window(rows)
-            step = float(np.mean(steps))
-            mean = _fit_first_order(tb, y_mean, cnt, step, post_s, cell, square_law)
+            tb, y_mean, cnt, step, mean = mean_fit(rows, steps)
         window_s_used = post_s
         shifts = _latency_shifts(singles, mean, pre_s)
         if shifts is not None:

@@ -15,7 +15,6 @@ import csv
 import json
 import math
 import re
-import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -43,8 +42,7 @@ WIRE_RIG_PATH = REPO / "bench" / "data" / "rigs" / "sim-imu-wire.toml"
 RIG = load_imu_rig(WIRE_RIG_PATH)
 SEQ = Sequence("cal_test", (SetPivot(), Rest(0.5, "gyro"),
                                        Move(gyro_sines(beats=1), "gyro"), Rest(0.5, "gyro")))
-MSP_TIMEOUT_S = tomllib.loads(WIRE_RIG_PATH.read_text())["devices"]["imu"]["options"][
-    "timeout_s"]
+MSP_TIMEOUT_S = RIG.devices["imu"].options["timeout_s"]
 MSP_GYRO_LSB = math.radians(1.0)  # Betaflight RAW_IMU: whole deg/s (§1.4)
 MSP_ACC_LSB = 9.80665 / 2048  # acc_1g of the rig file
 
