@@ -35,6 +35,7 @@ import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -56,6 +57,9 @@ G = STANDARD_GRAVITY
 
 UdpPacket = Callable[[], bytes]
 
+
+#: the repository: where the CLI runs from in the firmware tests
+REPO = Path(__file__).resolve().parents[1]
 
 def missing(what: str) -> None:
     """Skip on a laptop, fail in CI, with one line."""
@@ -215,10 +219,12 @@ def _launch(workdir: Path) -> tuple[Sitl, str]:
     with open(workdir / "sitl.log", "wb") as log:
         proc = subprocess.Popen(["unshare", "-n", "sh", "-c", 'ip link set lo up && exec "$0"',
                                  str(binary)], cwd=workdir, stdout=log,
-                                stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
+                                stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                                start_new_session=True)
     # unshare, sh and the firmware are one process (each execs the next): raised from its
     # first instruction, as the bench's launcher does, so its start-up never waits behind
-    # the suite's other workers; the threads it starts inherit the niceness
+    # the suite's other workers; the threads it starts inherit the niceness, and its
+    # session's scheduling group is its own (drivers.device_priority)
     raise_device_priority(proc.pid)
     deadline = t0 + START_TIMEOUT_S
     netns_fd = -1
@@ -325,6 +331,30 @@ def attach_logs(item: pytest.Item, report: pytest.TestReport) -> None:
     if report.failed:
         for s in getattr(item, "_sitl_instances", []):
             report.sections.append((f"Betaflight SITL log ({s.log_path})", s.log_tail()))
+
+
+def bench_in_namespace(tmp: Path, code: str, timeout_s: float = 90.0,
+                       **popen: Any) -> Any:
+    """Run ``python -c code`` (the CLI) as a user runs the bench: in a fresh network
+    namespace (the firmware's fixed ports) and a session of its own, as from a terminal
+    of its own, not inside the suite's (with autogroup, Linux shares the cores between
+    sessions first: drivers.device_priority). The firmware's working folders go under
+    ``tmp/tmp`` (TMPDIR), where the test can see what is left. With ``popen`` keywords the
+    process is returned running, else its ``CompletedProcess``."""
+    (tmp / "tmp").mkdir(parents=True, exist_ok=True)
+    env = {**os.environ, "TMPDIR": str(tmp / "tmp"), "COLUMNS": "200"}
+    cmd = ["unshare", "-n", "sh", "-c", 'ip link set lo up && exec "$0" -c "$1"',
+           sys.executable, code]
+    if popen:
+        return subprocess.Popen(cmd, cwd=REPO, env=env, text=True, start_new_session=True,
+                                **popen)
+    return subprocess.run(cmd, cwd=REPO, env=env, capture_output=True, text=True,
+                          timeout=timeout_s, start_new_session=True)
+
+
+def cli_code(*args: str) -> str:
+    """``python -c`` code that runs ``rotorbench ARGS``."""
+    return f"import sys; from bench.cli import main; sys.exit(main({list(args)!r}))"
 
 
 def no_firmware_left(tmp_path: Path) -> None:

@@ -56,7 +56,8 @@ class WorldProcess:
             p for p in (root, os.environ.get("PYTHONPATH", "")) if p)}
         self.process = subprocess.Popen(
             [sys.executable, "-m", __name__, str(theirs.fileno()), str(os.getpid())],
-            pass_fds=(theirs.fileno(),), env=env, stdin=subprocess.DEVNULL)
+            pass_fds=(theirs.fileno(),), env=env, stdin=subprocess.DEVNULL,
+            start_new_session=True)  # its own scheduling group (drivers.device_priority)
         theirs.close()
         self._conn = Connection(ours.detach())
         self._conn.send((build, args))

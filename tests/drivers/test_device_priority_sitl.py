@@ -12,7 +12,12 @@ from pathlib import Path
 
 import pytest
 
-from drivers.device_priority import DEVICE_NICE, DEVICE_TIMER_SLACK_NS, raise_device_priority
+from drivers.device_priority import (
+    DEVICE_NICE,
+    DEVICE_TIMER_SLACK_NS,
+    raise_device_priority,
+    session_group_nice,
+)
 
 ROOT = os.geteuid() == 0
 
@@ -58,6 +63,27 @@ def test_every_thread_and_a_later_one_run_at_the_device_niceness() -> None:
         assert not raised and set(nices) == {os.getpriority(os.PRIO_PROCESS, 0)}
 
 
+@pytest.mark.skipif(session_group_nice(os.getpid()) is None, reason="a kernel without autogroup")
+def test_a_session_of_its_own_is_raised_and_the_callers_is_left_alone() -> None:
+    """Niceness orders threads only within a session's scheduling group: a stand-in in a
+    session of its own has that group raised; one in the caller's session leaves the
+    caller's group (the terminal's, the suite's) as it was."""
+    ours = session_group_nice(os.getpid())
+    sleep = [sys.executable, "-c", "import time; time.sleep(30)"]
+    with subprocess.Popen(sleep, start_new_session=True) as own, subprocess.Popen(sleep) as shared:
+        try:
+            raised = raise_device_priority(own.pid), raise_device_priority(shared.pid)
+            groups = session_group_nice(own.pid), session_group_nice(shared.pid)
+        finally:
+            own.kill()
+            shared.kill()
+    assert groups[1] == ours == session_group_nice(os.getpid())
+    if ROOT:
+        assert raised == (True, True) and groups[0] == DEVICE_NICE
+    else:
+        assert raised[0] is False and groups[0] == 0
+
+
 def test_a_gone_process_is_no_error() -> None:
     proc = subprocess.Popen([sys.executable, "-c", "pass"])
     proc.wait()
@@ -68,4 +94,6 @@ def test_a_gone_process_is_no_error() -> None:
 @pytest.mark.skipif(not ROOT, reason="the firmware tests run as root (network namespaces)")
 def test_the_firmware_runs_at_the_device_niceness(sitl) -> None:
     assert set(_nices(sitl.proc.pid)) == {DEVICE_NICE}
+    assert os.getsid(sitl.proc.pid) == sitl.proc.pid
+    assert session_group_nice(sitl.proc.pid) in (DEVICE_NICE, None)
     assert set(_slacks(sitl.proc.pid)) == {DEVICE_TIMER_SLACK_NS}

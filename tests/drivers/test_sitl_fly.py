@@ -11,22 +11,25 @@ refusals come before any launch; the safety flight is cut short a moment after a
 from __future__ import annotations
 
 import json
-import os
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
-from rotorbench_tests_sitl import _preconditions, no_firmware_left, sitl_binary
+from rotorbench_tests_sitl import (
+    _preconditions,
+    bench_in_namespace,
+    cli_code,
+    no_firmware_left,
+    sitl_binary,
+)
 
 from bench.cli import main
 
 pytestmark = pytest.mark.slow(wall_s=40)
-ROOT = Path(__file__).resolve().parents[2]
 DESIGN = ["--actuators", "4", "--propeller", "P1", "--motor", "M2", "--battery", "B1"]
 #: the rate loop's deconvolved rise against the median of the gyro's own steps: 0.5-5.8 %
 #: apart over four flights beside a fresh-clone suite (docs/flight.md)
@@ -41,20 +44,6 @@ def _firmware_available() -> None:
     sitl_binary()
 
 
-def _in_namespace(tmp: Path, args: list[str], timeout_s: float = 90.0, **popen):
-    """``rotorbench ARGS`` in a fresh network namespace; the firmware's folders go under
-    ``tmp/tmp`` (TMPDIR), where the test can see what is left."""
-    (tmp / "tmp").mkdir(parents=True, exist_ok=True)
-    env = {**os.environ, "TMPDIR": str(tmp / "tmp"), "COLUMNS": "200"}
-    code = f"import sys; from bench.cli import main; sys.exit(main({args!r}))"
-    cmd = ["unshare", "-n", "sh", "-c", 'ip link set lo up && exec "$0" -c "$1"',
-           sys.executable, code]
-    if popen:
-        return subprocess.Popen(cmd, cwd=ROOT, env=env, text=True, **popen)
-    return subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True,
-                          timeout=timeout_s)
-
-
 @pytest.fixture(scope="module")
 def flown(tmp_path_factory) -> dict[str, Any]:
     """One flight: hover and 9.6 s of rate steps (16 steps: H1 pools 9-10 segments of 2 s
@@ -64,9 +53,9 @@ def flown(tmp_path_factory) -> dict[str, Any]:
     cli = tmp / "tune.txt"
     cli.write_text("# the test's tune\nset rc_smoothing = OFF\n\nsave\n")
     t0 = time.monotonic()
-    res = _in_namespace(tmp, ["fly", "--controller", "betaflight", *DESIGN, "--maneuver",
-                              "--rate-steps", "9.6", "--betaflight-cli", str(cli),
-                              "--store", str(tmp / "runs"), "--json"])
+    res = bench_in_namespace(tmp, cli_code(
+        "fly", "--controller", "betaflight", *DESIGN, "--maneuver", "--rate-steps", "9.6",
+        "--betaflight-cli", str(cli), "--store", str(tmp / "runs"), "--json"))
     wall = time.monotonic() - t0
     assert res.returncode == 0, res.stdout[-2000:] + res.stderr[-3000:]
     out = json.loads(res.stdout)
@@ -189,9 +178,9 @@ def test_a_flight_stopped_mid_air_ends_disarmed_with_the_firmware_stopped(tmp_pa
     """SIGTERM (as Ctrl-C) a moment after arming: exit 143, no firmware left, and the
     firmware's log stored, ended by its disarm (LOG_END)."""
     store = tmp_path / "runs"
-    proc = _in_namespace(tmp_path, ["fly", "--controller", "betaflight", *DESIGN,
-                                    "--maneuver", "--rate-steps", "3", "--store", str(store)],
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc = bench_in_namespace(tmp_path, cli_code(
+        "fly", "--controller", "betaflight", *DESIGN, "--maneuver", "--rate-steps", "3",
+        "--store", str(store)), stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     before = ""  # what it said up to arming (kept: a flight that never armed says why)
     try:
         assert proc.stderr is not None

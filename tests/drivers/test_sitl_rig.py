@@ -14,14 +14,20 @@ from __future__ import annotations
 import json
 import os
 import subprocess
-import sys
 import threading
 import time
 from pathlib import Path
 
 import numpy as np
 import pytest
-from rotorbench_tests_sitl import Sitl, _preconditions, no_firmware_left, sitl_binary
+from rotorbench_tests_sitl import (
+    Sitl,
+    _preconditions,
+    bench_in_namespace,
+    cli_code,
+    no_firmware_left,
+    sitl_binary,
+)
 
 from analysis.report import OUTPUT_DELAY
 from analysis.step_response import fit_step_response
@@ -50,22 +56,6 @@ def _firmware_available() -> None:
     sitl_binary()
 
 
-def _in_namespace(tmp_path: Path, code: str, timeout_s: float = 90.0
-                  ) -> subprocess.CompletedProcess[str]:
-    """Run ``python -c code`` (the CLI) in a fresh network namespace; the firmware's
-    working directories go under ``tmp_path/tmp`` (TMPDIR) so the test can see them."""
-    tmp = tmp_path / "tmp"
-    tmp.mkdir(exist_ok=True)
-    env = {**os.environ, "TMPDIR": str(tmp), "COLUMNS": "200"}
-    return subprocess.run(["unshare", "-n", "sh", "-c", 'ip link set lo up && exec "$0" -c "$1"',
-                           sys.executable, code], cwd=ROOT, env=env, capture_output=True,
-                          text=True, timeout=timeout_s)
-
-
-def _cli(*args: str) -> str:
-    return f"import sys; from bench.cli import main; sys.exit(main({list(args)!r}))"
-
-
 def _true_taus() -> tuple[float, float]:
     """The plant's own tau_up and tau_down for Step 1 (175 g <-> 325 g): the noise-free
     true thrust of the rig's [sim] plant fitted by the same model as `fit` (thrust the
@@ -84,13 +74,13 @@ def _true_taus() -> tuple[float, float]:
 
 def test_check_step_and_fit_run_through_the_firmware(tmp_path, capsys):
     out = tmp_path / "runs"
-    check = _in_namespace(tmp_path, _cli("check", "--rig", str(RIG)))
+    check = bench_in_namespace(tmp_path, cli_code("check", "--rig", str(RIG)))
     assert check.returncode == 0, check.stdout + check.stderr[-2000:]
     assert "Betaflight SITL launched by the bench" in check.stdout
     assert "flight controller BTFL, MSP API 1.47" in check.stdout
     no_firmware_left(tmp_path)
 
-    step = _in_namespace(tmp_path, _cli("step", "--rig", str(RIG), "--repeats", "5",
+    step = bench_in_namespace(tmp_path, cli_code("step", "--rig", str(RIG), "--repeats", "5",
                                         "--out", str(out)))
     assert step.returncode == 0, step.stderr[-2000:]
     assert "success" in step.stdout
@@ -132,7 +122,7 @@ def test_the_console_runs_a_manual_session_through_the_firmware(tmp_path):
     the throttle through the firmware's motor test and stops; the run ends idle, records
     the command-to-output delay, and leaves no firmware behind."""
     out = tmp_path / "runs"
-    res = _in_namespace(tmp_path, _cli("console", "--selftest", "--rig", str(RIG),
+    res = bench_in_namespace(tmp_path, cli_code("console", "--selftest", "--rig", str(RIG),
                                        "--out", str(out), "--min-fps", "0"), timeout_s=120)
     assert res.returncode == 0, res.stdout + res.stderr[-2000:]
     assert "recorded throttle: up to 1300 us, last 1000 us" in res.stdout
@@ -153,15 +143,15 @@ def test_missing_package_port_in_use_and_early_exit_are_one_line_exit_2(tmp_path
     rig.write_text(RIG.read_text().replace(
         'launch = "betaflight-sitl",', 'launch = "betaflight-sitl", sitl_binary = "/bin/false",')
         .replace('file = "sim.thrust_map.csv"', f'file = "{RIG.parent / "sim.thrust_map.csv"}"'))
+    step = cli_code("step", "--rig", str(RIG), "--out", str(out))
     cases = {
-        "pip install 'rotorbench[sitl]'": hide + _cli("step", "--rig", str(RIG), "--out", str(out)),
-        "fixed ports are in use (TCP 5761)": occupy + _cli("step", "--rig", str(RIG),
-                                                           "--out", str(out)),
-        "exited with code 1 before its MSP port opened": _cli("step", "--rig", str(rig),
-                                                              "--out", str(out)),
+        "pip install 'rotorbench[sitl]'": hide + step,
+        "fixed ports are in use (TCP 5761)": occupy + step,
+        "exited with code 1 before its MSP port opened": cli_code("step", "--rig", str(rig),
+                                                                  "--out", str(out)),
     }
     for expected, code in cases.items():
-        res = _in_namespace(tmp_path, code)
+        res = bench_in_namespace(tmp_path, code)
         assert res.returncode == 2, (expected, res.stdout, res.stderr)
         lines = res.stderr.strip().splitlines()
         assert len(lines) == 1 and expected in lines[0], (expected, res.stderr)

@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 
 from bench.rig.rig import default_rig_path, load_rig
+from drivers.device_priority import DEVICE_NICE, session_group_nice
 from drivers.errors import DeviceError
 from drivers.sim_worlds import wire_plant
 
@@ -38,7 +39,12 @@ def test_a_board_in_the_world_process_prints_on_its_pty() -> None:
         from drivers.codecs.loadcell_lines import TESTSTAND_V2
 
         board = wire.start_peer("serial:loadcell", "loadcell", (TESTSTAND_V2, 0.004))
-        assert wire.plant.world.process.pid != os.getpid()
+        pid = wire.plant.world.process.pid
+        assert pid != os.getpid()
+        # a device's process: in a scheduling group of its own, raised where it may be
+        assert os.getsid(pid) == pid
+        if os.geteuid() == 0:
+            assert session_group_nice(pid) in (DEVICE_NICE, None)
         with serial.Serial(board.path, 115_200, timeout=1.0) as port:
             port.write(b"\n")
             assert port.readline().startswith(b"Load cell ready")
