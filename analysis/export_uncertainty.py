@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from analysis.exports import GazeboFits, gazebo_fits
 from analysis.metrology.constant_budgets import (
     entry,
     static_budgets,
@@ -18,8 +19,6 @@ from analysis.metrology.constant_budgets import (
     tare_uncertainty,
 )
 from analysis.run_record import RunRecord
-from analysis.static_curves import fit_static_run
-from analysis.step_response import fit_run
 
 __all__ = ["export_uncertainties"]
 
@@ -35,19 +34,21 @@ def _calibration_ids(record: RunRecord, channel: str) -> list[str]:
 
 def export_uncertainties(target: str, params: dict[str, Any], record: RunRecord,
                          thrust_record: RunRecord | None = None,
-                         step_record: RunRecord | None = None) -> dict[str, Any]:
-    """The sidecar of ``params`` (``analysis.exports.export_params``' result)."""
+                         step_record: RunRecord | None = None,
+                         fits: GazeboFits | None = None) -> dict[str, Any]:
+    """The sidecar of ``params`` (``analysis.exports.export_params``' result); ``fits``:
+    the Gazebo fits those parameters came from, when the caller has them."""
     constants: dict[str, Any] = {}
     if target == "gazebo":
+        fits = fits or gazebo_fits(record, thrust_record, step_record)
         static_rec = thrust_record or record
-        s = fit_static_run(static_rec)
-        b = static_budgets(s, static_rec.meta.get("calibrations") or {},
+        b = static_budgets(fits.static, static_rec.meta.get("calibrations") or {},
                            tare_uncertainty(static_rec.meta))
         if "k_f_n_s2" in b:
             constants["motorConstant"] = entry(b["k_f_n_s2"], static_rec.id,
                                                _calibration_ids(static_rec, "thrust_n"))
-        if step_record is not None:
-            sb = step_budgets(fit_run(step_record, signal="rpm"))
+        if step_record is not None and fits.step is not None:
+            sb = step_budgets(fits.step)
             for name in ("timeConstantUp", "timeConstantDown"):
                 if GAZEBO[name] in sb:
                     constants[name] = entry(sb[GAZEBO[name]], step_record.id)

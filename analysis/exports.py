@@ -37,18 +37,22 @@ from analysis.run_record import RunRecord
 from analysis.static_curves import (
     REVERSED_THRUST_NOTE,
     RPM_TO_RAD_S,
+    StaticCurves,
     command_curve,
     fit_static_run,
     thrust_sign,
 )
+from analysis.step_response import StepResponse
 
 __all__ = [
+    "GazeboFits",
     "ThrustCurve",
     "actuator_of",
     "ardupilot_params",
     "expo_least_squares",
     "expo_webtool",
     "export_params",
+    "gazebo_fits",
     "gazebo_params",
     "px4_params",
     "thrust_curve_from_runs",
@@ -346,25 +350,40 @@ def thrust_curve_from_runs(record: RunRecord, thrust_record: RunRecord | None = 
     return ThrustCurve(a, t, f"{record.path} via {thrust_record.path}", static.notes)
 
 
-def export_params(target: str, record: RunRecord, thrust_record: RunRecord | None = None,
-                  step_record: RunRecord | None = None,
-                  hover_thrust_n: float | None = None) -> dict[str, Any]:
-    """The parameters of one export target (``ardupilot``, ``px4``, ``gazebo``) from a
-    run with static data: what ``rotorbench export`` and the web view's download give."""
+@dataclass(frozen=True)
+class GazeboFits:
+    """The fits a Gazebo export reads, made once: its parameters and its uncertainty
+    sidecar (``analysis.export_uncertainty``) come from the same two."""
+
+    static: StaticCurves  #: of the thrust run (else the run itself)
+    step: StepResponse | None  #: of the step run, on rpm, when one is given
+
+
+def gazebo_fits(record: RunRecord, thrust_record: RunRecord | None = None,
+                step_record: RunRecord | None = None) -> GazeboFits:
     from analysis.step_response import fit_run
 
+    return GazeboFits(fit_static_run(thrust_record or record),
+                      fit_run(step_record, signal="rpm") if step_record is not None else None)
+
+
+def export_params(target: str, record: RunRecord, thrust_record: RunRecord | None = None,
+                  step_record: RunRecord | None = None,
+                  hover_thrust_n: float | None = None,
+                  fits: GazeboFits | None = None) -> dict[str, Any]:
+    """The parameters of one export target (``ardupilot``, ``px4``, ``gazebo``) from a
+    run with static data: what ``rotorbench export`` and the web view's download give.
+    ``fits``: the Gazebo fits when the caller made them already (``gazebo_fits``)."""
     if target in ("ardupilot", "px4"):
         curve = thrust_curve_from_runs(record, thrust_record)
         out = ardupilot_params(curve, hover_thrust_n) if target == "ardupilot" \
             else px4_params(curve)
         out["command_axis"] = actuator_of(record)[1]
     elif target == "gazebo":
-        static = fit_static_run(thrust_record or record)
-        tau_up = tau_dn = None
-        if step_record is not None:
-            fit = fit_run(step_record, signal="rpm")
-            tau_up = fit.up.tau.value if fit.up else None
-            tau_dn = fit.down.tau.value if fit.down else None
+        fits = fits or gazebo_fits(record, thrust_record, step_record)
+        static, fit = fits.static, fits.step
+        tau_up = fit.up.tau.value if fit is not None and fit.up else None
+        tau_dn = fit.down.tau.value if fit is not None and fit.down else None
         omega_max = static.omega_max
         try:
             act = actuator_of(record)[0]

@@ -71,11 +71,12 @@ def _check_finite(out: dict[str, Any], source: Path) -> None:
                            "the run does not support this export")
 
 
-def build(args: argparse.Namespace) -> tuple[dict[str, Any], tuple[Any, Any, Any]]:
+def build(args: argparse.Namespace) -> tuple[dict[str, Any], tuple[Any, Any, Any], Any]:
     """The parameters of ``args.target`` (one home: ``analysis.exports.export_params``,
-    which the web view's downloads use too), after the options are checked; and the run
-    records they came from (run, thrust run, step run: None where not given), read once."""
-    from analysis.exports import export_params
+    which the web view's downloads use too), after the options are checked; the run
+    records they came from (run, thrust run, step run: None where not given), read once;
+    and a Gazebo export's fits (else None), made once for the parameters and the sidecar."""
+    from analysis.exports import export_params, gazebo_fits
     from analysis.run_record import read_run
     from bench.cli_args.option_values import refuse_unused
 
@@ -88,9 +89,10 @@ def build(args: argparse.Namespace) -> tuple[dict[str, Any], tuple[Any, Any, Any
     hover = _hover(args)  # options first: a bad one is named before any fit
     records = (read_run(args.run), read_run(args.thrust_run) if args.thrust_run else None,
                read_run(args.step_run) if args.step_run is not None else None)
-    out = export_params(args.target, *records, hover)
+    fits = gazebo_fits(*records) if args.target == "gazebo" else None
+    out = export_params(args.target, *records, hover, fits=fits)
     _check_finite(out, records[0].path)
-    return out, records
+    return out, records, fits
 
 
 def handler(args: argparse.Namespace) -> int:
@@ -101,17 +103,18 @@ def handler(args: argparse.Namespace) -> int:
         from bench.paths.outputs import check_writable
 
         check_writable(args.out, "--out", folder=False)
-    out, records = build(args)
+    out, records, fits = build(args)
     text = json.dumps(out, indent=2, allow_nan=False) if args.json else _lines(args, out)
     if args.out is None:
         print(text)
         return 0
     from analysis.export_uncertainty import export_uncertainties
 
-    side = export_uncertainties(args.target, out, *records)
+    side = export_uncertainties(args.target, out, *records, fits=fits)
+    side_text = json.dumps(side, indent=2, allow_nan=False)  # both made before either is written
     args.out.write_text(text + "\n", encoding="utf-8")
     sidecar = sidecar_path(args.out)
-    sidecar.write_text(json.dumps(side, indent=2, allow_nan=False) + "\n", encoding="utf-8")
+    sidecar.write_text(side_text + "\n", encoding="utf-8")
     print(f"wrote {args.out} and {sidecar}")
     return 0
 

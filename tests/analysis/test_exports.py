@@ -7,6 +7,8 @@ import json
 import numpy as np
 import pytest
 
+from analysis import exports as exports_module
+from analysis import step_response
 from analysis.errors import LogError
 from analysis.exports import (
     ThrustCurve,
@@ -101,7 +103,7 @@ def test_real_f40_exports(real_runs, capsys):
     assert "no command column" in capsys.readouterr().err
 
 
-def test_sim_gazebo_export_matches_the_plant(tmp_path, capsys):
+def test_sim_gazebo_export_matches_the_plant(tmp_path, capsys, monkeypatch):
     rig = load_rig(default_rig_path())
     opts = RunOptions(tick_s=0.02)
     sw = run_sequence(rig, sweep(duration_s=6.0), tmp_path, open_rig, options=opts).run_dir
@@ -115,9 +117,16 @@ def test_sim_gazebo_export_matches_the_plant(tmp_path, capsys):
     assert gz["timeConstantUp"] == pytest.approx(truth.tau_up_s(hover), rel=0.05)
     assert gz["timeConstantDown"] == pytest.approx(truth.tau_dn_s(hover), rel=0.05)
     assert gz["momentConstant"] is None
-    # --out: the parameters to a file, and beside it their uncertainties
+    # --out: the parameters to a file, and beside it their uncertainties, from one fit of
+    # each run (the sidecar budgets the fits the parameters came from)
+    fitted: list[str] = []
+    for module, name in ((exports_module, "fit_static_run"), (step_response, "fit_run")):
+        real = getattr(module, name)
+        monkeypatch.setattr(module, name, lambda *a, _real=real, _name=name, **k:
+                            fitted.append(_name) or _real(*a, **k))
     sdf = tmp_path / "motor.sdf"
     assert main(["export", "gazebo", str(sw), "--step-run", str(st), "--out", str(sdf)]) == 0
+    assert sorted(fitted) == ["fit_run", "fit_static_run"]
     assert capsys.readouterr().out.startswith(f"wrote {sdf} and ")
     assert f"<motorConstant>{gz['motorConstant']}</motorConstant>" in sdf.read_text()
     side = json.loads((tmp_path / "motor.uncertainty.json").read_text())
