@@ -49,6 +49,13 @@ class RunRecord:
         comp = self.meta.get("components")
         return dict(comp) if isinstance(comp, dict) else {}
 
+    def thrust_zeroed(self) -> bool:
+        """Whether the run's thrust reads from zero: the bench's propulsion runs do, and
+        keep ``tare`` (each channel the run zeroed, empty where none: the cell reads from
+        its board's zero; runs recorded before kept the thrust's offset alone, as
+        ``tare_offset_n``); an imported log need not."""
+        return "tare" in self.meta or "tare_offset_n" in self.meta
+
     def column(self, name: str) -> np.ndarray:
         """A sample column as float array; ``LogError`` naming the file if missing."""
         if name not in self.samples.columns:

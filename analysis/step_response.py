@@ -922,7 +922,7 @@ def fit_run(record: RunRecord, signal: str = "auto", command: str | None = None,
         # its cell's mechanics are modelled where the run declares them
         thrust = col == "thrust_n"
         model = {"cell": CellDynamics.from_meta(record.meta, col) if thrust else None,
-                 "square_law": thrust and "tare_offset_n" in record.meta}
+                 "square_law": thrust and record.thrust_zeroed()}
         try:
             res = fit_step_response(t, y, u, sp, event_times(record), signal=col, command=cmd,
                                     gain_unit=f"{'N' if thrust else 'rpm'}/{unit}",

@@ -324,7 +324,7 @@ class Runner(PlanRunner):
         return self.esc.safe_stop()
 
     def _finish_fields(self) -> dict[str, Any]:
-        return {"tare_offset_n": self.tare_offset_n, "tare": self.tare.record()}
+        return {"tare": self.tare.record()}  # the thrust's offset is tare.thrust_n.offset
 
     def _complete_rows(self, rows: dict[str, np.ndarray], read_at: np.ndarray | float) -> None:
         t = rows["t_s"]
