@@ -87,18 +87,9 @@ def _raise_session_group(pid: int) -> bool:
             return True
         with open(f"/proc/{pid}/autogroup", "w") as group:
             group.write(str(DEVICE_NICE))
-    except FileNotFoundError:  # no such process, or a kernel without autogroup
-        return session_group_nice(pid) is None and _exists(pid)
+    except FileNotFoundError:  # a kernel without autogroup, or the process ended meanwhile
+        return os.path.isdir(f"/proc/{pid}")
     except OSError:  # no privilege, or the process ended meanwhile
         return False
     return True
 
-
-def _exists(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
