@@ -1,8 +1,9 @@
 """``bench/data/rigs/betaflight-sitl-imu.toml``: the IMU bench whose IMU under test is the
 real firmware (Betaflight 4.6.0 SITL), fed the simulated hexapod's motion through FDM.
 
-One recorded calibration (the rig opened in a fresh network namespace, as in
-``test_sitl_rig.py``), then the commands as a user types them on the recorded log:
+One recorded calibration, by a bench in a process, session and network namespace of its
+own as a user's (``sitl_imu_recording.py``, which holds the stages), then the commands as
+a user types them on the recorded log:
 ``rotorbench calibrate --from-log`` and ``rotorbench attitude --compare``.
 
 The stages are Paper A's kinds of motion, shortened for the suite (a 47 s recording).
@@ -18,94 +19,48 @@ of the paced clock, or with no FDM packet accepted in the 10 ms before, are drop
 gave (K_w to 1.3 %, K_a to 3 %, R to 79 mm) until more loaded runs back a tighter one.
 """
 
-# Hexapod steps ride in plans.sequences.Sequence, typed as the propulsion bench's (as in
-# bench/plans/calibration_sequences.py).
-# pyright: reportArgumentType=false
-
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import time
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
-from rotorbench_tests_sitl import Sitl, _preconditions, sitl_binary
+from rotorbench_tests_sitl import (
+    _preconditions,
+    bench_in_namespace,
+    no_firmware_left,
+    sitl_binary,
+)
 from scipy.spatial.transform import Rotation
 
 from analysis.imu_calibration import load_calibration
 from bench.cli import main
-from bench.jobs.calibration_stages import collect_log, run_calibration
-from bench.plan_runner.runner import HexapodRunOptions
-from bench.plans.calibration_sequences import Move, Rest, SetPivot
-from bench.plans.sequences import Sequence
-from bench.rig.rig import load_imu_rig
+from bench.jobs.calibration_stages import collect_log
 from drivers.contracts import IMU_ATTITUDE_CHANNELS, POSE_CHANNELS
-from drivers.factory import open_rig
-from drivers.hexapod_motions import Motion, gyro_sines, lever_arm_motion
 
 pytestmark = pytest.mark.slow(wall_s=75)  # a 47 s recording through the firmware
 
 ROOT = Path(__file__).resolve().parents[2]
 RIG = ROOT / "bench" / "data" / "rigs" / "betaflight-sitl-imu.toml"
-TILT = np.radians(15.0)
-TRANSLATION_M = 0.035  # 0.33 m/s and 3.1 m/s^2 at 1.5 Hz: within 0.6 m/s and 6 m/s^2
-
-
-def _sequences() -> list[Sequence]:
-    """Paper A's stages, short enough for the suite (see module doc): sines of 9 degrees
-    at 0.4, 0.5, 0.6 Hz (together every 10 s) for the gyro; translations at 1.1, 1.3,
-    1.5 Hz under a slow 15 degree conical tilt (0.1 Hz) for the accelerometer, every 10 s;
-    10 degrees at 0.6 Hz about each lever axis. Each within the hexapod's limits."""
-    trans = [((TRANSLATION_M, f, 0.0),) for f in (1.1, 1.3, 1.5)]
-    acc = Motion("acc_translations", 12.0, (*trans, ((TILT, 0.1, 0.0),),
-                                            ((TILT, 0.1, np.pi / 2),), ()), 1.0)
-    lever: list = [SetPivot()]
-    for a in "xyz":
-        lever += [Rest(0.5, f"lever_{a}"),
-                  Move(lever_arm_motion(a, amplitude_deg=10.0, freq_hz=0.6, duration_s=6.0),
-                       f"lever_{a}")]
-    return [Sequence("cal_bias", (SetPivot(), Rest(3.0, "bias"))),
-            Sequence("cal_gyro", (SetPivot(), Rest(0.5, "gyro"),
-                                  Move(gyro_sines(9.0, (0.4, 0.5, 0.6), beats=1), "gyro"),
-                                  Rest(0.5, "gyro"))),
-            Sequence("cal_acc", (SetPivot(), Rest(0.5, "acc"), Move(acc, "acc"),
-                                 Rest(0.5, "acc"))),
-            Sequence("cal_lever", (*lever, Rest(0.5, "lever_z")))]
+RECORDING = Path(__file__).with_name("sitl_imu_recording.py")  # the stages and the recording
 
 
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory: pytest.TempPathFactory):
+    """The recording, made by a bench in a process, session and network namespace of its
+    own, as a user's (``sitl_imu_recording.py``)."""
     _preconditions()
     sitl_binary()
     root = tmp_path_factory.mktemp("sitl_imu")
-    proc = subprocess.Popen(["unshare", "-n", "sh", "-c", "ip link set lo up && exec sleep 300"],
-                            stdin=subprocess.DEVNULL)
-    deadline = time.monotonic() + 5.0
-    while time.monotonic() < deadline and not os.readlink(f"/proc/{proc.pid}/exe").endswith(
-            "sleep"):
-        time.sleep(0.01)
-    ns = Sitl(proc, root, os.open(f"/proc/{proc.pid}/ns/net", os.O_RDONLY))
-    opened: dict = {}
-
-    def opener(rig, seed=None):
-        with ns.inside():
-            bench = open_rig(rig, seed=seed)
-        opened["bench"] = bench
-        return bench
-
-    try:
-        # the run settings `rotorbench calibrate` uses: the host's 1 s watchdog, a device
-        # silent for 0.5 s ends the run
-        run = run_calibration(load_imu_rig(RIG), root / "runs", sequences=_sequences(),
-                              open_bench=opener, options=HexapodRunOptions())
-    finally:
-        ns.stop()
-    log = collect_log([s.run_dir for s in run.stages], root / "cal.parquet")
-    return run, log, opened["bench"], root
+    code = (f"import runpy, sys; sys.argv = ['record', {str(RIG)!r}, {str(root / 'runs')!r}]; "
+            f"runpy.run_path({str(RECORDING)!r}, run_name='__main__')")
+    res = bench_in_namespace(root, code, timeout_s=180.0)
+    assert res.returncode == 0, res.stdout[-2000:] + res.stderr[-3000:]
+    run = json.loads(res.stdout.strip().splitlines()[-1])
+    log = collect_log([Path(d) for d in run["run_dirs"]], root / "cal.parquet")
+    return run, log, root
 
 
 def _rel(a, b) -> float:
@@ -114,39 +69,21 @@ def _rel(a, b) -> float:
 
 
 def test_every_stage_ran_and_the_firmware_stopped(recorded) -> None:
-    run, log, bench, _ = recorded
-    assert run.complete, [s.result.reason for s in run.stages]
-    peer = bench.peers["imu"]
-    assert peer.updates > 1000  # the firmware answered the FDM stream throughout
-    assert bench.close_errors == []  # closed cleanly: feeder, connection, firmware
+    run, log, root = recorded
+    assert run["complete"], run["reasons"]
+    assert run["firmware_updates"] > 1000  # the firmware answered the FDM stream throughout
+    assert run["close_errors"] == []  # closed cleanly: feeder, connection, firmware
     df = pd.read_parquet(log)
     assert set(IMU_ATTITUDE_CHANNELS) <= set(df.columns)
-    # the firmware child ran in the namespace and was stopped with the rig
-    assert not any(os.path.exists(f"/proc/{p}") and "betaflight" in _exe(p)
-                   for p in _children_of(os.getpid()))
-
-
-def _exe(pid: str) -> str:
-    try:
-        return os.readlink(f"/proc/{pid}/exe")
-    except OSError:
-        return ""
-
-
-def _children_of(pid: int) -> list[str]:
-    try:
-        text = Path(f"/proc/{pid}/task/{pid}/children").read_text()
-    except OSError:
-        return []
-    return text.split()
+    no_firmware_left(root)  # the firmware was stopped with the rig, its folder removed
 
 
 def test_calibrate_on_the_recorded_run_recovers_the_imu_model(recorded, capsys) -> None:
-    run, log, _, root = recorded
+    run, log, root = recorded
     out = root / "cal.json"
     assert main(["calibrate", "--from-log", str(log), "--out", str(out)]) == 0
     capsys.readouterr()
-    cal, truth = load_calibration(out), run.truth
+    cal, truth = load_calibration(out), run["truth"]
     k_gyro = _rel(cal.k_gyro, truth["k_gyro"])
     k_acc = _rel(cal.k_acc, truth["k_acc"])
     lever = np.abs(np.asarray(cal.lever_arm_m) - truth["lever_arm_from_pivot_m"]).max()
@@ -177,7 +114,7 @@ def test_the_firmware_attitude_is_the_echoed_platform_attitude(recorded, capsys)
     quaternion back, so it matches the hexapod's pose to MSP's resolution (0.1 deg roll and
     pitch, 1 deg heading) plus the poll's timing; ``rotorbench attitude --compare`` shows
     it as the device row beside the estimators."""
-    _, log, _, _ = recorded
+    _, log, _ = recorded
     df = pd.read_parquet(log)
     fc = Rotation.from_quat(df[list(IMU_ATTITUDE_CHANNELS)].to_numpy(), scalar_first=True)
     pose = Rotation.from_euler("xyz", df[list(POSE_CHANNELS[3:])].to_numpy())
