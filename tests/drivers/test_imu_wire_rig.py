@@ -78,14 +78,9 @@ def test_the_wire_rig_opens_the_real_backends(bench) -> None:
     assert process.pid != os.getpid() and process.poll() is None  # the devices' own
 
 
-def test_msp_rows_are_si_at_the_imu_rate_on_the_host_clock(bench) -> None:
+def test_msp_rows_are_si_on_the_host_clock(bench) -> None:
     b = _collect(bench, "imu", 3.0)
     assert set(b.values) == set(IMU_CHANNELS)
-    rate = (len(b) - 1) / (b.t_s[-1] - b.t_s[0])
-    # polled at [imu] rate_hz (100 Hz of bench time: 600 polls a wall second at 6x, of
-    # which a fresh-clone suite run got 77 % through the bench's process at the default
-    # niceness, once 56 %; a run raises it, and so does _collect)
-    assert 70.0 < rate < 110.0
     assert np.all(np.diff(b.t_s) > 0)
     assert abs(b.t_s[-1] - bench.clock.now()) < 0.3
     gyro = np.column_stack([b.values[c] for c in IMU_CHANNELS[:3]])
@@ -96,6 +91,21 @@ def test_msp_rows_are_si_at_the_imu_rate_on_the_host_clock(bench) -> None:
     # accelerometer counts with 1 g = 2048: a multiple of g/2048; at rest |a| is ~1 g
     np.testing.assert_allclose(acc * 2048 / G, np.round(acc * 2048 / G), atol=1e-6)
     assert np.linalg.norm(acc, axis=1).mean() == pytest.approx(_at_rest(bench), abs=0.02)
+
+
+def test_an_fc_in_real_time_is_polled_at_the_imu_rate(tmp_path) -> None:
+    """[imu] rate_hz of a flight controller on the wall clock, as on a real bench: 100
+    polls a second. The shipped rig runs 6x faster than real time (600 polls a wall second
+    through two processes), which measures the machine: a fresh-clone suite beside it gave
+    that 56-77 % of its rate, and the rate there is not the device's."""
+    path = _rig(tmp_path, "time_scale = 6.0", "time_scale = 1.0")
+    with open_rig(load_imu_rig(path)) as real_time:
+        assert real_time.clock.time_scale == 1.0
+        real_time.imu.read_block()
+        b = _collect(real_time, "imu", 2.0)
+    rate = (len(b) - 1) / (b.t_s[-1] - b.t_s[0])
+    print(f"MSP rows at {rate:.1f} Hz of the rig's 100 Hz")
+    assert 90.0 < rate < 105.0, rate
 
 
 def test_gx3_rows_are_unit_quaternions_stamped_from_the_device_timer(bench) -> None:
