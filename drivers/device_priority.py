@@ -92,4 +92,3 @@ def _raise_session_group(pid: int) -> bool:
     except OSError:  # no privilege, or the process ended meanwhile
         return False
     return True
-

@@ -61,6 +61,7 @@ UdpPacket = Callable[[], bytes]
 #: the repository: where the CLI runs from in the firmware tests
 REPO = Path(__file__).resolve().parents[1]
 
+
 def missing(what: str) -> None:
     """Skip on a laptop, fail in CI, with one line."""
     msg = f"Betaflight SITL: {what}"
