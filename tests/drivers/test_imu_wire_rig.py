@@ -4,7 +4,10 @@ URL and option errors; the host-clock mapping of device stamps."""
 
 from __future__ import annotations
 
+import json
 import os
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -93,17 +96,36 @@ def test_msp_rows_are_si_on_the_host_clock(bench) -> None:
     assert np.linalg.norm(acc, axis=1).mean() == pytest.approx(_at_rest(bench), abs=0.02)
 
 
+#: a bench as a user runs it, reading the IMU of the rig file argv[1] for 2 s on the wall
+#: clock with its threads raised as a run raises them; prints the rows' time stamps
+_POLL_2_S = """
+import json, sys
+from bench.engine.host_priority import HostPriority
+from bench.rig.rig import load_imu_rig
+from drivers.factory import open_rig
+with open_rig(load_imu_rig(sys.argv[1])) as bench, HostPriority(True):
+    bench.imu.read_block()
+    stamps, end = [], bench.clock.now() + 2.0
+    while bench.clock.now() < end:
+        bench.clock.sleep(0.1)
+        stamps += bench.imu.read_block().t_s.tolist()
+print(json.dumps(stamps))
+"""
+
+
 def test_an_fc_in_real_time_is_polled_at_the_imu_rate(tmp_path) -> None:
     """[imu] rate_hz of a flight controller on the wall clock, as on a real bench: 100
-    polls a second. The shipped rig runs 6x faster than real time (600 polls a wall second
-    through two processes), which measures the machine: a fresh-clone suite beside it gave
-    that 56-77 % of its rate, and the rate there is not the device's."""
+    polls a second, by a bench in a process and session of its own, as a user's. The
+    shipped rig runs 6x faster than real time (600 polls a wall second through two
+    processes), which measured the machine: a fresh-clone suite beside it gave that 56-77 %
+    of its rate. Inside a test process the poller shares the suite's scheduling group with
+    the other test processes, and got 70 % of 100 Hz in one fresh-clone run."""
     path = _rig(tmp_path, "time_scale = 6.0", "time_scale = 1.0")
-    with open_rig(load_imu_rig(path)) as real_time:
-        assert real_time.clock.time_scale == 1.0
-        real_time.imu.read_block()
-        b = _collect(real_time, "imu", 2.0)
-    rate = (len(b) - 1) / (b.t_s[-1] - b.t_s[0])
+    res = subprocess.run([sys.executable, "-c", _POLL_2_S, str(path)], cwd=REPO,
+                         capture_output=True, text=True, timeout=60, start_new_session=True)
+    assert res.returncode == 0, res.stderr[-2000:]
+    t = np.asarray(json.loads(res.stdout))
+    rate = (len(t) - 1) / (t[-1] - t[0])
     print(f"MSP rows at {rate:.1f} Hz of the rig's 100 Hz")
     assert 90.0 < rate < 105.0, rate
 
