@@ -62,6 +62,12 @@ UdpPacket = Callable[[], bytes]
 REPO = Path(__file__).resolve().parents[1]
 
 
+def in_new_netns(*argv: str) -> list[str]:
+    """The command that runs ``argv`` in a network namespace of its own with its loopback
+    up (the firmware's ports are fixed); each step execs the next, so it is one process."""
+    return ["unshare", "-n", "sh", "-c", 'ip link set lo up && exec "$@"', "sh", *argv]
+
+
 def missing(what: str) -> None:
     """Skip on a laptop, fail in CI, with one line."""
     msg = f"Betaflight SITL: {what}"
@@ -218,8 +224,7 @@ def _launch(workdir: Path) -> tuple[Sitl, str]:
     workdir.mkdir(parents=True, exist_ok=True)
     t0 = time.monotonic()
     with open(workdir / "sitl.log", "wb") as log:
-        proc = subprocess.Popen(["unshare", "-n", "sh", "-c", 'ip link set lo up && exec "$0"',
-                                 str(binary)], cwd=workdir, stdout=log,
+        proc = subprocess.Popen(in_new_netns(str(binary)), cwd=workdir, stdout=log,
                                 stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                                 start_new_session=True)
     # unshare, sh and the firmware are one process (each execs the next): raised from its
@@ -344,8 +349,7 @@ def bench_in_namespace(tmp: Path, code: str, timeout_s: float = 90.0,
     process is returned running, else its ``CompletedProcess``."""
     (tmp / "tmp").mkdir(parents=True, exist_ok=True)
     env = {**os.environ, "TMPDIR": str(tmp / "tmp"), "COLUMNS": "200"}
-    cmd = ["unshare", "-n", "sh", "-c", 'ip link set lo up && exec "$0" -c "$1"',
-           sys.executable, code]
+    cmd = in_new_netns(sys.executable, "-c", code)
     if popen:
         return subprocess.Popen(cmd, cwd=REPO, env=env, text=True, start_new_session=True,
                                 **popen)

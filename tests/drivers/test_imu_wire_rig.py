@@ -96,20 +96,17 @@ def test_msp_rows_are_si_on_the_host_clock(bench) -> None:
     assert np.linalg.norm(acc, axis=1).mean() == pytest.approx(_at_rest(bench), abs=0.02)
 
 
-#: a bench as a user runs it, reading the IMU of the rig file argv[1] for 2 s on the wall
-#: clock with its threads raised as a run raises them; prints the rows' time stamps
-_POLL_2_S = """
+#: a bench as a user runs it: the rows of 2 s of the IMU of the rig file argv[1], read by
+#: this module's _collect; prints their time stamps
+_POLL_2_S = f"""
 import json, sys
-from bench.engine.host_priority import HostPriority
+sys.path.insert(0, {str(Path(__file__).parent)!r})
+from {Path(__file__).stem} import _collect
 from bench.rig.rig import load_imu_rig
 from drivers.factory import open_rig
-with open_rig(load_imu_rig(sys.argv[1])) as bench, HostPriority(True):
+with open_rig(load_imu_rig(sys.argv[1])) as bench:
     bench.imu.read_block()
-    stamps, end = [], bench.clock.now() + 2.0
-    while bench.clock.now() < end:
-        bench.clock.sleep(0.1)
-        stamps += bench.imu.read_block().t_s.tolist()
-print(json.dumps(stamps))
+    print(json.dumps(_collect(bench, "imu", 2.0).t_s.tolist()))
 """
 
 

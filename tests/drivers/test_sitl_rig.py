@@ -25,6 +25,7 @@ from rotorbench_tests_sitl import (
     _preconditions,
     bench_in_namespace,
     cli_code,
+    in_new_netns,
     no_firmware_left,
     sitl_binary,
 )
@@ -164,8 +165,7 @@ def test_missing_package_port_in_use_and_early_exit_are_one_line_exit_2(tmp_path
 @pytest.fixture
 def netns(tmp_path):
     """A fresh network namespace (held by a sleeping process) to open the rig in."""
-    proc = subprocess.Popen(["unshare", "-n", "sh", "-c", "ip link set lo up && exec sleep 120"],
-                            stdin=subprocess.DEVNULL)
+    proc = subprocess.Popen(in_new_netns("sleep", "120"), stdin=subprocess.DEVNULL)
     deadline = time.monotonic() + 5.0
     while time.monotonic() < deadline:
         if os.readlink(f"/proc/{proc.pid}/exe").endswith("sleep"):
