@@ -54,6 +54,8 @@ __all__ = ["RemoteSitlPeer", "SitlPlantPeer"]
 
 IDLE_WAIT_S = 0.3  # at stop: how long the firmware's output may take to reach idle
 MAX_SILENCE_S = 0.5  # fed but no motor update for this long: the firmware stalled
+LIVENESS_PERIOD_S = 0.05  # the host's handle asks the peer in the world this often
+WORLD_SILENT_S = 1.0  # the world's process unanswering for this long: the plant is deaf
 
 
 class SitlPlantPeer:
@@ -219,17 +221,39 @@ _COUNTERS = ("updates", "fdm_sent", "last_us")
 class RemoteSitlPeer:
     """The host's handle on a :class:`SitlPlantPeer` in the plant's world process (the
     same calls, each a request there); ``updates``, ``fdm_sent`` and ``last_us`` are read
-    there, and answered as they were at ``stop()`` once stopped."""
+    there, and answered as they were at ``stop()`` once stopped.
+
+    ``check()`` asks nothing: the bench calls it before every command, and a request to a
+    busy world process held the bench's command loop in it (0.51 s once, past the loop's
+    watchdog). A thread of this handle asks the peer every ``LIVENESS_PERIOD_S`` instead;
+    ``check()`` raises what that thread last heard, or if the world has not answered it
+    for ``WORLD_SILENT_S`` (a world that slow no longer drives the plant on time either).
+    """
 
     def __init__(self, world: Any, motor_index: int, rate_hz: float) -> None:
         self._world = world  # a drivers.wire_sim.world_process.WorldProcess
         self._key = f"sitl-plant:{next(_KEYS)}"  # a relaunch starts a new peer
         self._args = (motor_index, rate_hz)
         self._final: dict[str, Any] | None = None
+        self._heard_t = math.nan  # when the world last answered the liveness check
+        self._error: DeviceError | None = None  # what it answered, if not alive
+        self._stop_watch = threading.Event()
+        self._watcher = threading.Thread(target=self._watch, name="sitl-liveness", daemon=True)
 
     def start(self) -> Self:
         self._world.request("call", None, ("start_sitl",), (self._key, *self._args))
+        self._heard_t = time.monotonic()
+        self._watcher.start()
         return self
+
+    def _watch(self) -> None:
+        while not self._stop_watch.wait(LIVENESS_PERIOD_S):
+            try:
+                self._call("check")
+            except DeviceError as exc:
+                self._error = exc
+                return
+            self._heard_t = time.monotonic()
 
     def _call(self, name: str, *args: Any) -> Any:
         return self._world.request("call", self._key, (name,), args)
@@ -255,7 +279,13 @@ class RemoteSitlPeer:
         self._call("wait_output", timeout_s)
 
     def check(self) -> None:
-        self._call("check")
+        """Raise what the liveness thread last heard (class doc), without a request."""
+        if self._error is not None:
+            raise self._error
+        silent = time.monotonic() - self._heard_t
+        if self._final is None and silent > WORLD_SILENT_S:
+            raise DeviceError(f"the simulated plant's process has not answered for "
+                              f"{silent:.2f} s: the firmware's output may not reach the plant")
 
     def changes(self, since: float = -math.inf) -> list[tuple[float, float]]:
         return self._call("changes", since)
@@ -268,6 +298,9 @@ class RemoteSitlPeer:
 
     def stop(self) -> None:
         """Stops the peer there (see :meth:`SitlPlantPeer.stop`) and keeps its counters."""
+        self._stop_watch.set()
+        if self._watcher.is_alive():
+            self._watcher.join(WORLD_SILENT_S)
         if self._final is None:
             self._call("stop")
             self._final = {name: self._get(name) for name in _COUNTERS}

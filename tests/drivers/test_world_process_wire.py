@@ -110,3 +110,39 @@ def test_the_imu_worlds_device_errors_keep_their_words() -> None:
     finally:
         world.close()
     assert _gone(world.process.process.pid, 5.0)
+
+
+def test_the_firmware_peers_liveness_is_read_without_a_request() -> None:
+    """The bench asks before every command whether the firmware's output still reaches the
+    plant; the answer must not wait on the world's process (a busy one held the command
+    loop past its watchdog), yet a world stopped for long, or a deaf firmware, is told."""
+    from drivers.wire_sim.sitl_plant import WORLD_SILENT_S
+
+    wire = wire_plant(load_rig(RIG))
+    peer = wire.sitl_peer(0, 250.0).start()  # no firmware listens: it will never answer
+    try:
+        peer.check()  # just started: not yet silent for long
+        pid = wire.plant.world.process.pid
+        os.kill(pid, signal.SIGSTOP)  # the world's process does nothing at all
+        try:
+            t0 = time.monotonic()
+            peer.check()
+            assert time.monotonic() - t0 < 0.05  # answered here, not there
+            time.sleep(WORLD_SILENT_S + 0.2)
+            with pytest.raises(DeviceError, match="plant's process has not answered"):
+                peer.check()
+        finally:
+            os.kill(pid, signal.SIGCONT)
+        deadline = time.monotonic() + 2.0
+        while time.monotonic() < deadline:
+            try:
+                peer.check()
+            except DeviceError as exc:
+                if "motor output stopped" in str(exc):
+                    break
+            time.sleep(0.02)
+        else:
+            pytest.fail("the deaf firmware was never reported")
+    finally:
+        peer.stop()
+        wire.close()
