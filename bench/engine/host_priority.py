@@ -11,6 +11,12 @@ and the devices' (``drivers.device_priority``): the stand-ins of device firmware
 answer first. A run on a simulated clock runs flat out and is not raised. Raising needs
 the privilege (root, or CAP_SYS_NICE); without it the run keeps the default share. At
 the last run's end every thread goes back to the niceness the process had.
+
+Niceness orders threads inside one scheduling group only; where Linux groups each
+session's processes (autogroup), a bench that leads a session of its own (started by a
+service manager, ``setsid``, a test) is raised as a group too, at the same level, and
+handed back at the end. A bench typed in a terminal shares the terminal's session and its
+group is left alone: it is not the bench's (``drivers.device_priority``).
 """
 
 from __future__ import annotations
@@ -19,7 +25,12 @@ import os
 from typing import ClassVar
 
 from bench.engine.process_wide import ProcessWide
-from drivers.device_priority import DEVICE_NICE, process_threads
+from drivers.device_priority import (
+    DEVICE_NICE,
+    process_threads,
+    raise_session_group,
+    session_group_nice,
+)
 
 __all__ = ["HOST_LOOP_NICE", "HostPriority"]
 
@@ -31,15 +42,31 @@ class HostPriority(ProcessWide):
     ``on_wall``; runs in threads of one process may overlap (the last one restores)."""
 
     _before: ClassVar[dict[int, int]]
+    _group_before: ClassVar[int | None]
 
     def __init__(self, on_wall: bool) -> None:
         self.active = on_wall
 
     def _begin(self) -> None:
         HostPriority._before = _raise_threads(HOST_LOOP_NICE)
+        HostPriority._group_before = _raise_own_group(HOST_LOOP_NICE)
 
     def _end(self) -> None:
         _restore_threads(HostPriority._before)
+        if HostPriority._group_before is not None:
+            raise_session_group(os.getpid(), HostPriority._group_before)
+
+
+def _raise_own_group(nice: int) -> int | None:
+    """The niceness of this process's session group before, if this process leads its
+    session and raised it (module doc); else None."""
+    pid = os.getpid()
+    was = session_group_nice(pid)
+    if was is None or was <= nice or os.getsid(0) != pid:
+        return None
+    if not raise_session_group(pid, nice) or session_group_nice(pid) != nice:
+        return None
+    return was
 
 
 def _raise_threads(nice: int) -> dict[int, int]:

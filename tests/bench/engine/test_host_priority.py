@@ -68,3 +68,35 @@ def test_a_run_on_a_simulated_clock_leaves_the_niceness_alone():
     before = _nice(threading.get_native_id())
     with HostPriority(False):
         assert _nice(threading.get_native_id()) == before
+
+
+_GROUPS = """
+import json, os
+from bench.engine.host_priority import HostPriority
+from drivers.device_priority import session_group_nice
+seen = [session_group_nice(os.getpid())]
+with HostPriority(True), HostPriority(True):
+    seen.append(session_group_nice(os.getpid()))
+seen.append(session_group_nice(os.getpid()))
+print(json.dumps(seen))
+"""
+
+
+@pytest.mark.parametrize("own_session", [True, False])
+def test_a_bench_leading_its_session_raises_its_group_for_the_run(own_session):
+    """Its own group only: a bench in a terminal's (here: the suite's) session leaves it."""
+    import json
+    import subprocess
+    import sys
+
+    from drivers.device_priority import session_group_nice
+
+    if os.geteuid() != 0 or session_group_nice(os.getpid()) is None:
+        pytest.skip("needs root and a kernel with scheduling groups per session (autogroup)")
+    res = subprocess.run([sys.executable, "-c", _GROUPS], capture_output=True, text=True,
+                         timeout=60, start_new_session=own_session, check=True)
+    before, during, after = json.loads(res.stdout)
+    if own_session:
+        assert before == 0  # a new session's group starts at the default
+    assert during == (HOST_LOOP_NICE if own_session else before)
+    assert after == before
