@@ -9,7 +9,7 @@ Why each step is the way it is (docs/protocols.md, "Betaflight SITL as a peer"):
   (a stale one would carry another run's settings) and hangs at 100 % CPU when the cwd is
   not writable; its stdout/stderr go to ``sitl.log`` there (an undrained pipe would block
   it). The directory is removed after a clean stop and kept (named in the error) when
-  the launch failed;
+  the launch failed, unless a relaunch follows (``PortBusy``: the caller removes it);
 * its ports are fixed (MSP TCP 5761, FDM UDP 9003, RC 9004, motors out to 9001/9002) and
   bound with ``SO_REUSEADDR``: a second instance would silently share the UDP ports and
   fail only on stderr for TCP, so ports already in use are refused before launch, and
@@ -129,7 +129,13 @@ def _owns(pid: int, inodes: set[str]) -> bool:
 
 
 class PortBusy(DeviceError):
-    """The firmware could not bind its MSP port: worth another launch a moment later."""
+    """The firmware could not bind its MSP port: worth another launch a moment later.
+    ``workdir`` is the launch's directory, kept for its log until the caller knows whether
+    this was the last try."""
+
+    def __init__(self, message: str, workdir: Path) -> None:
+        super().__init__(message)
+        self.workdir = workdir
 
 
 class SitlProcess:
@@ -214,8 +220,8 @@ class SitlProcess:
                     return sitl
                 if sitl.bind_failed():
                     raise PortBusy(f"the Betaflight SITL could not bind its MSP port "
-                                      f"{MSP_PORT} (a connection of an earlier instance may "
-                                      f"still hold it; log: {sitl.log_path})")
+                                   f"{MSP_PORT} (a connection of an earlier instance may "
+                                   f"still hold it; log: {sitl.log_path})", workdir)
                 time.sleep(0.02)
             raise DeviceError(f"the Betaflight SITL's MSP port {MSP_PORT} did not open within "
                               f"{timeout_s:g} s (log: {sitl.log_path})")

@@ -24,6 +24,7 @@ the plant) and the firmware (SIGTERM, then SIGKILL), whatever happened before.
 from __future__ import annotations
 
 import logging
+import shutil
 import time
 from collections.abc import Callable
 from typing import Any
@@ -181,6 +182,9 @@ def _launch(ctx: Any, spec: DeviceUrl, launcher: Any, binary: Any,
                 raise
             log.info("Betaflight SITL launch %d of %d not usable (%s): relaunching",
                      attempt, LAUNCHES, exc)
+            kept = getattr(exc, "workdir", None)  # a PortBusy's: for the last try's error
+            if kept is not None:
+                shutil.rmtree(kept, ignore_errors=True)
             time.sleep(RELAUNCH_PAUSE_S)  # a connection of the last one may still linger
     raise AssertionError("unreachable")
 

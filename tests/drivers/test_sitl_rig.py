@@ -11,9 +11,13 @@ Preconditions as in ``tests/sitl.py``: a laptop without them skips, CI fails.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
+import socket
+import struct
 import subprocess
+import tempfile
 import threading
 import time
 from pathlib import Path
@@ -211,6 +215,46 @@ def test_the_plant_follows_the_firmware_output_not_the_request(netns):
     assert peer.last_us == 1000  # closed: the firmware's last output was idle...
     assert firmware.proc.returncode is not None  # ...and the firmware is stopped
     assert plant.pulse_us == 1000
+
+
+def test_a_launch_that_lost_its_port_is_relaunched_and_leaves_no_directory(
+        netns, tmp_path, monkeypatch):
+    """A connection of an earlier instance on TCP 5761 (not listening, so the port check
+    passes) makes the firmware's bind fail; the bench launches it again once that is gone,
+    and the failed launch's directory, kept for its log, goes with the retry."""
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp))
+    with netns.inside():
+        server = socket.create_server(("127.0.0.1", 0))
+        holder = socket.socket()
+        holder.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+        holder.bind(("127.0.0.1", 5761))  # closed with a reset below: no TIME_WAIT after
+        holder.connect(server.getsockname())
+
+    def bind_failed() -> bool:
+        for log in tmp.glob("*/sitl.log"):
+            with contextlib.suppress(OSError):
+                if b"bind port 5761" in log.read_bytes():
+                    return True
+        return False
+
+    def release() -> None:
+        _wait(bind_failed, 20.0)
+        holder.close()
+
+    releaser = threading.Thread(target=release)
+    releaser.start()
+    try:
+        with netns.inside():
+            rig = open_rig(load_rig(RIG))
+        with rig:
+            assert holder.fileno() == -1  # the first launch did lose its port
+            assert len(list(tmp.iterdir())) == 1  # the running firmware's own
+    finally:
+        releaser.join()
+        server.close()
+    assert list(tmp.iterdir()) == []
 
 
 def test_an_aborted_run_ends_idle_with_the_firmware_stopped(netns, tmp_path):
