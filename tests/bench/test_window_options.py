@@ -42,3 +42,25 @@ def test_console_options_are_checked_before_the_window(tmp_path: Path, capsys, m
     err = run_bad(capsys, "console", *extra)
     assert expected in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["afile"]
+
+
+@pytest.mark.parametrize("min_fps, code", [(30.0, 1), (0.0, 0)])
+def test_the_selftest_holds_the_window_to_its_frame_rate_floor(tmp_path: Path, capsys,
+                                                               min_fps, code) -> None:
+    """A window that refreshed 28.8 times a second fails the default floor (30), and passes
+    with ``--min-fps 0``: the floor is the user's check of their machine."""
+    from types import SimpleNamespace
+
+    import pandas as pd
+
+    from bench.commands.console import _selftest_verdict
+
+    pd.DataFrame({"throttle_us": [1000.0, 1300.0, 1000.0]}).to_parquet(
+        tmp_path / "samples.parquet")
+    bench = SimpleNamespace(selftest={
+        "ok": True, "frames_per_s": 28.8, "size": (1100, 680), "screenshot": "shot.png",
+        "finished": {"status": "success", "reason": "", "run_dir": str(tmp_path)}})
+    rig = SimpleNamespace(esc=SimpleNamespace(idle_us=1000.0))
+    assert (_selftest_verdict(bench, rig, min_fps) != 0) == bool(code)
+    err = capsys.readouterr().err
+    assert ("plot refresh 28.8 frames/s < 30" in err) == bool(code)
