@@ -1,4 +1,8 @@
-"""``rotorbench check --rig FILE``: connect to every device of a rig and report what answers."""
+"""``rotorbench check --rig FILE``: connect to every device of a rig and report what answers.
+
+The devices are read on the wall clock as in a run, so the bench is raised for the check as
+for a run (``bench.engine.host_priority``): a rate it reports is one a run would get, not
+what a busy machine left the reader."""
 
 from __future__ import annotations
 
@@ -7,6 +11,7 @@ import json
 import math
 from pathlib import Path
 
+from bench.engine.host_priority import HostPriority
 from bench.errors import RigError
 from bench.paths.outputs import check_writable
 
@@ -61,7 +66,8 @@ def deep(args: argparse.Namespace, path: Path) -> int:
     except OSError as exc:
         raise RigError(f"--save {out}: cannot create its folder {out.parent} "
                        f"({exc.strerror or exc})") from None
-    report = bringup_report(rig, seconds)
+    with HostPriority(True):  # the rates it reports are the ones a run would get
+        report = bringup_report(rig, seconds)
     atomic_write_json(out, report)
     if args.json:
         for d in report["devices"]:
@@ -100,7 +106,8 @@ def handler(args: argparse.Namespace) -> int:
     from drivers.check import check_rig
 
     rig = load_imu_rig(path) if is_imu_rig(path) else load_rig(path)
-    reports = check_rig(rig, timeout_s=args.timeout)
+    with HostPriority(True):  # the rates it reports are the ones a run would get
+        reports = check_rig(rig, timeout_s=args.timeout)
     if args.json:
         for r in reports:
             print(json.dumps({"role": r.role, "url": r.url, "ok": r.ok, "detail": r.detail}))
