@@ -38,7 +38,7 @@ import os
 import threading
 
 __all__ = ["DEVICE_NICE", "DEVICE_TIMER_SLACK_NS", "process_threads", "raise_device_priority",
-           "raise_session_group", "session_group_nice"]
+           "session_group_nice", "set_session_group"]
 
 DEVICE_NICE = -10
 DEVICE_TIMER_SLACK_NS = 1000
@@ -67,7 +67,7 @@ def raise_device_priority(pid: int = 0) -> bool:
     with ``DEVICE_TIMER_SLACK_NS``, and its session's scheduling group at ``DEVICE_NICE``
     when it leads a session of its own (module doc); whether it could."""
     tasks = [threading.get_native_id()] if pid == 0 else process_threads(pid)
-    ok = raise_session_group(pid or os.getpid(), DEVICE_NICE)
+    ok = set_session_group(pid or os.getpid(), DEVICE_NICE)
     for tid in tasks:
         try:
             os.setpriority(os.PRIO_PROCESS, tid, DEVICE_NICE)
@@ -78,10 +78,10 @@ def raise_device_priority(pid: int = 0) -> bool:
     return ok
 
 
-def raise_session_group(pid: int, nice: int) -> bool:
+def set_session_group(pid: int, nice: int) -> bool:
     """Set the scheduling group of ``pid``'s session to ``nice``, only when ``pid`` leads
     that session: another's group (the terminal's, the test suite's) is not the process's
-    to raise. True where there is nothing to raise."""
+    to change. True where there is nothing to raise."""
     try:
         if os.getsid(pid) != pid:
             return True

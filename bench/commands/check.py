@@ -66,8 +66,7 @@ def deep(args: argparse.Namespace, path: Path) -> int:
     except OSError as exc:
         raise RigError(f"--save {out}: cannot create its folder {out.parent} "
                        f"({exc.strerror or exc})") from None
-    with HostPriority(True):  # the rates it reports are the ones a run would get
-        report = bringup_report(rig, seconds)
+    report = bringup_report(rig, seconds)
     atomic_write_json(out, report)
     if args.json:
         for d in report["devices"]:
@@ -92,22 +91,27 @@ def deep(args: argparse.Namespace, path: Path) -> int:
 
 
 def handler(args: argparse.Namespace) -> int:
-    from bench.rig.rig import default_rig_path, is_imu_rig, load_imu_rig, load_rig
+    from bench.rig.rig import default_rig_path
 
     if not (math.isfinite(args.timeout) and 0 < args.timeout <= MAX_TIMEOUT_S):
         raise RigError(f"--timeout: expected seconds > 0 per device (at most "
                        f"{MAX_TIMEOUT_S:g}), got {args.timeout:g}")
     path = args.rig or default_rig_path()
-    if args.deep:
-        return deep(args, path)
+    with HostPriority(True):  # the rates it reports are the ones a run would get
+        return deep(args, path) if args.deep else _check(args, path)
+
+
+def _check(args: argparse.Namespace, path: Path) -> int:
+    """The plain check: one line per device."""
+    from bench.rig.rig import is_imu_rig, load_imu_rig, load_rig
+
     for flag, value in (("--seconds", args.seconds), ("--save", args.save)):
         if value is not None:
             raise RigError(f"{flag}: only applies with --deep")
     from drivers.check import check_rig
 
     rig = load_imu_rig(path) if is_imu_rig(path) else load_rig(path)
-    with HostPriority(True):  # the rates it reports are the ones a run would get
-        reports = check_rig(rig, timeout_s=args.timeout)
+    reports = check_rig(rig, timeout_s=args.timeout)
     if args.json:
         for r in reports:
             print(json.dumps({"role": r.role, "url": r.url, "ok": r.ok, "detail": r.detail}))

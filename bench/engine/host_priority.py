@@ -28,8 +28,8 @@ from bench.engine.process_wide import ProcessWide
 from drivers.device_priority import (
     DEVICE_NICE,
     process_threads,
-    raise_session_group,
     session_group_nice,
+    set_session_group,
 )
 
 __all__ = ["HOST_LOOP_NICE", "HostPriority"]
@@ -54,7 +54,7 @@ class HostPriority(ProcessWide):
     def _end(self) -> None:
         _restore_threads(HostPriority._before)
         if HostPriority._group_before is not None:
-            raise_session_group(os.getpid(), HostPriority._group_before)
+            set_session_group(os.getpid(), HostPriority._group_before)
 
 
 def _raise_own_group(nice: int) -> int | None:
@@ -64,9 +64,7 @@ def _raise_own_group(nice: int) -> int | None:
     was = session_group_nice(pid)
     if was is None or was <= nice or os.getsid(0) != pid:
         return None
-    if not raise_session_group(pid, nice) or session_group_nice(pid) != nice:
-        return None
-    return was
+    return was if set_session_group(pid, nice) else None
 
 
 def _raise_threads(nice: int) -> dict[int, int]:
