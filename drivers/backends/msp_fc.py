@@ -48,6 +48,9 @@ from drivers.contracts import IMU_CHANNELS as BENCH_IMU_CHANNELS
 from drivers.errors import DeviceError
 
 DEFAULT_TIMEOUT_S = 0.1  # §1.9 timing note: ~100 ms at 115200 baud [U]
+#: an MSP request unanswered this long is sent again (``MspClient.request``): the FCs here
+#: answer within 10-20 ms (a serial task at 100 Hz)
+RESEND_AFTER_S = 0.05
 #: an IMU poll with no reply for this long has lost its FC (a single missed reply is a
 #: frame lost on the line, counted, and the poll goes on): the silence a run allows any
 #: device (``bench.engine.run_loop``'s ``stale_s``)
@@ -75,17 +78,29 @@ class MspClient:
         self.version = version
         self.decoder = msp.MspDecoder(max_payload, typed=True)
         self.lock = threading.RLock()
+        self.resends = 0  # requests sent again (``request``)
 
     def request(self, message: msp.MspMessage) -> msp.MspMessage:
-        """Send a request (or SET command) and return the FC's reply to that command."""
+        """Send a request (or SET command) and return the FC's reply to that command.
+
+        A request not answered within ``RESEND_AFTER_S`` is sent again, then after twice
+        that, and so on until ``timeout_s``: a reply lost on the link (a UART's noise; the
+        SITL's TCP thread drops and repeats reply bytes, a race in its ``dyad`` buffer,
+        docs/protocols.md) costs that wait, not the whole timeout, as Betaflight
+        Configurator sends an unanswered request again after its ``MSP.TIMEOUT``. The
+        commands sent here set values or read them, so a second one does what the first
+        did; the doubling bounds what a stalled FC has queued when it wakes."""
         if isinstance(message, msp.Request | msp.Ack | msp.ErrorReply | msp.Unknown):
             cmd = message.cmd  # the messages without a CMD of their own
         else:
             cmd = message.CMD
+        frame = msp.encode_message(message, self.version)
         with self.lock:
             self._drop_waiting()
-            write_all(self.port, msp.encode_message(message, self.version), self.name)
+            write_all(self.port, frame, self.name)
             deadline = Deadline(self.timeout_s)
+            wait = RESEND_AFTER_S
+            resend_at = time.monotonic() + wait
             while True:
                 # the timeout stands only if a read begun after the deadline finds no
                 # reply: a host that was itself off the processor past it reads the reply
@@ -102,6 +117,11 @@ class MspClient:
                 if last_look:
                     raise MspNoReply(f"{self.name}: no reply to MSP command {cmd} within "
                                       f"{self.timeout_s * 1e3:.0f} ms")
+                if time.monotonic() >= resend_at:
+                    write_all(self.port, frame, self.name)
+                    self.resends += 1
+                    wait *= 2
+                    resend_at = time.monotonic() + wait
 
     def _drop_waiting(self) -> None:
         """Drop what waits unread before a request: a reply that came after its request
@@ -170,6 +190,7 @@ class MspImu:
         self.max_round_trip_s = max_round_trip_s
         self.slow_rows = 0
         self.missed_replies = 0
+        self.resent = 0  # polls whose request was sent again (MspClient.request)
         self.rate_hz = rate_hz
         self.attitude = attitude  # False: RAW_IMU only (roll/pitch/yaw NaN), twice the rate
         self.clock = clock or MonotonicClock()
@@ -198,9 +219,11 @@ class MspImu:
     def _poll(self) -> None:
         """Polls on a fixed schedule (a slow reply delays one poll, not all later ones). A
         reply that does not come is counted (``link_errors``: ``no_reply``) and the poll
-        goes on, as over a UART that lost a frame; the next poll's row is dropped (it may
-        have been handed the late reply; later ones cannot, ``MspClient._drop_waiting``).
-        No reply for ``NO_REPLY_LIMIT_S`` is the FC gone, and ends the poll with the error."""
+        goes on, as over a UART that lost a frame; so does a request sent again
+        (``MspClient.request``), whose second reply may still come. The next poll's row is
+        dropped (it may have been handed the late reply; later ones cannot,
+        ``MspClient._drop_waiting``). No reply for ``NO_REPLY_LIMIT_S`` is the FC gone, and
+        ends the poll with the error."""
         period = 1.0 / self.rate_hz
         nan = msp.Attitude(math.nan, math.nan, math.nan)
         due = last_reply = time.monotonic()
@@ -211,6 +234,7 @@ class MspImu:
             # the send time is the host time least disturbed by the reply's read latency
             stamp = self.clock.now()
             paused = getattr(self.clock, "paused_s", 0.0)  # a paced clock's stalls
+            resends = self.client.resends
             try:
                 raw, att = self._request(nan)
             except MspNoReply as exc:
@@ -226,8 +250,10 @@ class MspImu:
                     self._error = exc
                 return
             last_reply = time.monotonic()
-            if after_miss:
-                after_miss = False
+            resent = self.client.resends != resends  # this row's time is unknown, and the
+            self.resent += resent  # second reply may come to the next poll
+            if after_miss or resent:
+                after_miss = resent
                 self.slow_rows += 1
                 continue
             self._add_row(stamp, paused, raw, att)
@@ -267,9 +293,10 @@ class MspImu:
 
     def link_errors(self) -> dict[str, int]:
         """Replies lost on the serial link (bad checksums, truncated, malformed frames;
-        requests no reply came to)."""
+        requests no reply came to, requests sent again)."""
         lost = link_losses(self.client.decoder.stats)
-        return {**lost, "no_reply": self.missed_replies} if self.missed_replies else lost
+        counts = {"no_reply": self.missed_replies, "resent": self.resent}
+        return {**lost, **{k: n for k, n in counts.items() if n}}
 
     def read_block(self) -> Block:
         with self._lock:
@@ -317,7 +344,7 @@ class MspMotorEsc:
         self.max_us = min(max_us, msp.MOTOR_MAX_US)
         self.url = url
         self._armed = False
-        self.missed_replies = 0
+        self.resent = 0
 
     def describe(self) -> DeviceInfo:
         return DeviceInfo(kind="esc", model="flight controller motor test (MSP_SET_MOTOR)",
@@ -328,21 +355,23 @@ class MspMotorEsc:
                                  "dead_host": DEAD_HOST})
 
     def _send(self, pulse_us: float) -> None:
-        """SET_MOTOR, sent once more if no reply came: it sets every motor's value, so a
-        second one does what the first did (a reply lost on the line does not end a run)."""
+        """SET_MOTOR, sent again while no reply comes (``MspClient.request``): it sets
+        every motor's value, so a second one does what the first did (a reply lost on the
+        line does not end a run)."""
         values = [msp.MOTOR_MIN_US] * msp.MOTOR_SLOTS
         values[self.motor_index] = round(pulse_us)
-        try:
-            reply = self.client.request(msp.SetMotor(tuple(values)))
-        except MspNoReply:
-            self.missed_replies += 1
-            reply = self.client.request(msp.SetMotor(tuple(values)))
+        with self.client.lock:  # the resends of this request only (an IMU poll shares it)
+            before = self.client.resends
+            try:
+                reply = self.client.request(msp.SetMotor(tuple(values)))
+            finally:
+                self.resent += self.client.resends - before
         if not isinstance(reply, msp.Ack):
             raise DeviceError(f"{self.url}: SET_MOTOR not acknowledged ({reply!r})")
 
     def link_errors(self) -> dict[str, int]:
-        """SET_MOTOR commands no reply came to (each sent once more)."""
-        return {"no_reply": self.missed_replies} if self.missed_replies else {}
+        """SET_MOTOR commands sent again because no reply came in time."""
+        return {"resent": self.resent} if self.resent else {}
 
     def arm(self) -> None:
         if self.client.armed():

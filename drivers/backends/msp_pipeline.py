@@ -26,6 +26,22 @@ clock run at one rate (the SITL's is that clock, at rate 1 with the feeder's 25 
 stamps); their offset is the largest ``send - served`` of the last rows (a request is
 served after it was sent; the fastest one was served at once). An FC that refuses the
 clock keeps the send-time stamps.
+
+Replies carry no sequence number, and the link loses and repeats them: the SITL's main
+thread appends reply bytes to its TCP stream's buffer while its TCP thread sends from and
+empties that buffer, without a lock (serial_tcp.c ``tcpWrite``, dyad.c ``dyad_write`` and
+``stream_flushWriteBuffer``), so a reply's bytes are now and then dropped or sent twice
+(under load about one reply in 12 000 here; 3 requests more were answered than were
+sent). Matched by order, each such event shifted every later reply onto the wrong
+request for good, and three lost ones left three requests in flight that no reply would
+ever come to: the poll stopped, and the run with it ("no reply within 3000 ms"). So each
+request is tagged: ``k`` (0 to ``TAGS - 1``, in turn) extra MSP_API_VERSIONs at its end,
+answered by as many extra parts in its reply. A reply is its request's, the oldest in
+flight with its tag; the requests before that one lost theirs (counted, ``no_reply``); a
+reply whose tag none in flight has is a repeat or came after its request was given up
+(counted, ``stray_reply``), and is dropped. A request unanswered for ``LOST_AFTER_S`` is
+given up, so lost replies never stall the poll; its late reply would need ``TAGS``
+requests sent after it to be taken for another's.
 """
 
 from __future__ import annotations
@@ -33,14 +49,14 @@ from __future__ import annotations
 import collections
 import select
 import time
-from typing import Any
+from typing import Any, NamedTuple
 
 from drivers.backends.msp_fc import RAW_AND_ATTITUDE, MspImu, MspRefused
 from drivers.backends.serial_link import read_some, write_all
 from drivers.codecs import msp
 from drivers.errors import DeviceError
 
-__all__ = ["MAX_IN_FLIGHT", "RTC_EPOCH_S", "PipelinedMspImu"]
+__all__ = ["LOST_AFTER_S", "MAX_IN_FLIGHT", "RTC_EPOCH_S", "TAGS", "PipelinedMspImu"]
 
 RAW_ATTITUDE_RTC = (*RAW_AND_ATTITUDE, msp.MSP_RTC)
 RTC_EPOCH_S = 1_000_000_000  # the FC's clock is set to this (2001): its time counts from it
@@ -51,6 +67,20 @@ OFFSET_ROWS = 400  # the rows (2 s at 200 a second) whose best bound gives the c
 #: out to wake the TCP thread, and the replies waited for its timeout; the poll then stayed
 #: locked at about 67 replies/s, each 12-15 ms late (measured; three: 200/s, none late)
 MAX_IN_FLIGHT = 3
+TAGS = 8  # a request's tag: how many TAG_FILLERs end it (module doc)
+TAG_FILLER = msp.MSP_API_VERSION  # a read with a 3-byte reply and no side effect
+#: a request unanswered this long is given up (its reply lost, or the FC stalled): well
+#: within the half second of silence that ends a run, well past a loaded host's round trip
+LOST_AFTER_S = 0.25
+
+
+class _Sent(NamedTuple):
+    """A request in flight: its tag, the rig clock's time and pauses, the host's time."""
+
+    tag: int
+    stamp: float
+    paused: float
+    wall: float
 
 
 class PipelinedMspImu(MspImu):
@@ -60,6 +90,7 @@ class PipelinedMspImu(MspImu):
         # before the poll thread starts (MspImu.__init__ starts it): each row's bound on
         # the FC's clock against the host's (_serve_delay)
         self._bounds: collections.deque[float] = collections.deque(maxlen=OFFSET_ROWS)
+        self.stray_replies = 0
         super().__init__(client, **kwargs)
 
     def _poll(self) -> None:
@@ -70,26 +101,33 @@ class PipelinedMspImu(MspImu):
             with self._lock:
                 self._error = exc
             return
-        frame = msp.encode_message(msp.multiple_request(cmds), client.version)
+        frames = [msp.encode_message(msp.multiple_request((*cmds, *(TAG_FILLER,) * tag)),
+                                     client.version) for tag in range(TAGS)]
         sock = client.port.sock
-        sent: collections.deque[tuple[float, float, float]] = collections.deque()
-        due = time.monotonic()
+        sent: collections.deque[_Sent] = collections.deque()
+        due = heard = time.monotonic()
+        count = 0
         try:
             while not self._stop.is_set():
                 now = time.monotonic()
                 if now >= due:
                     due = max(due + period, now)
-                    if sent and now - sent[0][2] > client.timeout_s:
+                    if now - heard > client.timeout_s:
                         raise DeviceError(f"{self.url}: no reply to MSP_MULTIPLE_MSP within "
                                           f"{client.timeout_s * 1e3:.0f} ms")
+                    while sent and now - sent[0].wall > LOST_AFTER_S:
+                        sent.popleft()
+                        self.missed_replies += 1
                     if len(sent) < MAX_IN_FLIGHT:
+                        tag, count = count % TAGS, count + 1
                         stamp, paused = self.clock.now(), getattr(self.clock, "paused_s", 0.0)
                         with client.lock:
-                            write_all(client.port, frame, client.name)
-                        sent.append((stamp, paused, now))
+                            write_all(client.port, frames[tag], client.name)
+                        sent.append(_Sent(tag, stamp, paused, now))
                 if select.select([sock], [], [], max(0.0, due - time.monotonic()))[0]:
                     for reply in client.decoder.feed(read_some(client.port, client.name)):
-                        self._take(reply, sent, cmds)
+                        if self._take(reply, sent, cmds):
+                            heard = time.monotonic()
         except DeviceError as exc:
             with self._lock:
                 self._error = exc
@@ -102,22 +140,34 @@ class PipelinedMspImu(MspImu):
             return False
         return True
 
-    def _take(self, reply: msp.MspMessage, sent: collections.deque,
-              cmds: tuple[int, ...]) -> None:
-        """The reply to the oldest request in flight (the firmware answers in order)."""
+    def _take(self, reply: msp.MspMessage, sent: collections.deque[_Sent],
+              cmds: tuple[int, ...]) -> bool:
+        """The reply to the request in flight with its tag (module doc); whether it was
+        one."""
         if isinstance(reply, msp.ErrorReply) and reply.cmd == msp.MSP_MULTIPLE_MSP:
             raise MspRefused(f"{self.url}: FC refused MSP_MULTIPLE_MSP")
-        if not (isinstance(reply, msp.Unknown) and reply.cmd == msp.MSP_MULTIPLE_MSP
-                and sent):
-            return
-        stamp, paused, sent_wall = sent.popleft()
-        raw, att, *clock = self._split(reply, cmds)
+        if not (isinstance(reply, msp.Unknown) and reply.cmd == msp.MSP_MULTIPLE_MSP):
+            return False
+        try:
+            tag = msp.multiple_count(reply) - len(cmds)
+        except msp.PayloadError:
+            tag = -1
+        older = next((i for i, req in enumerate(sent) if req.tag == tag), None)
+        if older is None:
+            self.stray_replies += 1
+            return False
+        for _ in range(older):
+            sent.popleft()
+            self.missed_replies += 1
+        req = sent.popleft()
+        raw, att, *clock = self._split(reply, (*cmds, *(TAG_FILLER,) * tag))[:len(cmds)]
         served_ms = msp.rtc_ms(clock[0]) if clock else None
         if served_ms is None:
-            self._add_row(stamp, paused, raw, att)
-            return
-        self._add_row(stamp + self._serve_delay(served_ms, sent_wall), paused, raw, att,
-                      timed=True)
+            self._add_row(req.stamp, req.paused, raw, att)
+        else:
+            self._add_row(req.stamp + self._serve_delay(served_ms, req.wall), req.paused,
+                          raw, att, timed=True)
+        return True
 
     def _serve_delay(self, served_ms: int, sent_wall: float) -> float:
         """From the request's send to the FC's serving it, in seconds (module doc). The
@@ -128,3 +178,8 @@ class PipelinedMspImu(MspImu):
         served = (served_ms - RTC_EPOCH_S * 1000) / 1000.0
         self._bounds.append(sent_wall - served)
         return served + max(self._bounds) - sent_wall + 5e-4
+
+    def link_errors(self) -> dict[str, int]:
+        """:meth:`MspImu.link_errors`, and the replies dropped as repeats or too late."""
+        errors = super().link_errors()
+        return {**errors, "stray_reply": self.stray_replies} if self.stray_replies else errors

@@ -770,6 +770,20 @@ def multiple_request(cmds: tuple[int, ...]) -> Unknown:
     return Unknown(REQUEST, MSP_MULTIPLE_MSP, bytes(cmds).hex())
 
 
+def multiple_count(reply: MspMessage) -> int:
+    """How many commands a MSP_MULTIPLE_MSP reply answers (its size-prefixed parts);
+    ``PayloadError`` if the parts do not fill it exactly."""
+    if not isinstance(reply, Unknown) or reply.cmd != MSP_MULTIPLE_MSP:
+        raise PayloadError(f"not a MSP_MULTIPLE_MSP reply: {reply!r}")
+    p, at, count = bytes.fromhex(reply.payload_hex), 0, 0
+    while at < len(p):
+        at += 1 + p[at]
+        count += 1
+    if at != len(p):
+        raise PayloadError(f"MSP_MULTIPLE_MSP reply of {len(p)} bytes: its last part is cut")
+    return count
+
+
 def split_multiple(cmds: tuple[int, ...], reply: MspMessage) -> list[MspMessage]:
     """The typed replies in a MSP_MULTIPLE_MSP reply: per command a u8 size, then its
     payload; the firmware leaves out the commands that did not fit its buffer, which is

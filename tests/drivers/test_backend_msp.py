@@ -107,15 +107,19 @@ def test_a_lost_set_motor_reply_is_sent_again_and_counted():
     sim = LostAckFc().start()
     port = open_port(sim.path, 115200)
     try:
-        esc = MspMotorEsc(MspClient(port, "fc"), 1, propellers_off=True)
-        esc.arm()  # its SET_MOTOR 1000 loses its reply: sent once more
+        client = MspClient(port, "fc", timeout_s=1.0)
+        esc = MspMotorEsc(client, 1, propellers_off=True)
+        t0 = time.monotonic()
+        esc.arm()  # its SET_MOTOR 1000 loses its reply: sent again after RESEND_AFTER_S
+        assert time.monotonic() - t0 < 0.5  # not the whole timeout
         esc.set_pulse_us(1400)
         assert sim.lost == 1 and sim.motors()[1] == 1400
-        assert esc.link_errors() == {"no_reply": 1}
-        sim.port.disconnect()  # gone: the second try fails too, and that is the error
+        assert esc.link_errors() == {"resent": 1}
+        sim.port.disconnect()  # gone: sent again, twice as late each time, until the timeout
         with pytest.raises(MspNoReply, match="no reply"):
             esc.set_pulse_us(1500)
-        assert esc.link_errors() == {"no_reply": 2}
+        # after 0.05, 0.15, 0.35 and 0.75 s of the 1 s
+        assert esc.link_errors() == {"resent": 1 + 4}
     finally:
         port.close()
         sim.stop()
@@ -158,10 +162,10 @@ class LateReplyFc(SimFlightController):
 
 
 def test_a_late_reply_is_counted_and_no_row_takes_it():
-    """MSP replies carry no sequence number: a reply that comes after its request was given
-    up on would be taken by a later request (stamped the delay too late), and each reply
-    after it by the request after its own. The poll goes on, counts the miss, and no row
-    kept holds any reply but its own."""
+    """MSP replies carry no sequence number: a reply that comes after its request was sent
+    again (and answered) would be taken by a later request (stamped the delay too late),
+    and each reply after it by the request after its own. The poll goes on, counts the
+    request sent again, and no row kept holds any reply but its own."""
     clock = MonotonicClock()  # the FC's and the rows' stamps
     sim = LateReplyFc(clock).start()
     port = open_port(sim.path, 115200)
@@ -173,7 +177,8 @@ def test_a_late_reply_is_counted_and_no_row_takes_it():
         block = dev.read_block()
         served = block.values["acc_x_m_s2"] / 10.0  # the FC's clock when it read its IMU
         late = served - block.t_s
-        assert sim.raw_requests > 40 and dev.link_errors()["no_reply"] == 1
+        # sent again after RESEND_AFTER_S and answered: the late reply comes as well
+        assert sim.raw_requests > 40 and dev.link_errors()["resent"] == 1
         assert np.count_nonzero(block.t_s > 0.2 + LateReplyFc.LATE_S) > 20  # it went on
         # a row is served after it was sent (an LSB is 0.5 ms), and within its round trip
         assert late.min() > -0.002 and late.max() < 0.06, (late.min(), late.max())
