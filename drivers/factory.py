@@ -365,9 +365,5 @@ def open_hexapod(url: str, *, where: str = "hexapod", timeout_s: float = 2.0) ->
     from drivers.backends import pi_hexapod
     from drivers.codecs.gcs import PORT
 
-    sock = pi_hexapod.open_tcp(parts.hostname, parts.port or PORT, timeout_s)
-    try:
-        return pi_hexapod.PiHexapod(sock, url=url)
-    except BaseException:
-        sock.close()
-        raise
+    return pi_hexapod.PiHexapod(pi_hexapod.open_tcp(parts.hostname, parts.port or PORT,
+                                                    timeout_s), url=url)

@@ -235,17 +235,20 @@ class _Link:
             raise DeviceError(f"{self.url}: send failed, controller gone? ({exc})") from None
 
     def reply(self) -> gcs.GcsReply:
+        """The next reply. The timeout stands only if a read begun after the deadline
+        finds nothing: a host that was itself off the processor past the deadline reads
+        the reply waiting in its socket (the controller did answer in time)."""
         end = time.monotonic() + self.timeout_s
         while not self.replies:
             left = end - time.monotonic()
-            if left <= 0:
-                self.dead = True  # a late reply would answer the next question: start over
-                raise DeviceError(f"{self.url}: no reply within {self.timeout_s} s")
             try:
-                self.sock.settimeout(left)
+                self.sock.settimeout(max(left, 1e-3))
                 data = self.sock.recv(1 << 16)
             except TimeoutError:
-                continue
+                if left > 0:
+                    continue
+                self.dead = True  # a late reply would answer the next question: start over
+                raise DeviceError(f"{self.url}: no reply within {self.timeout_s} s") from None
             except OSError as exc:
                 self.dead = True
                 raise DeviceError(f"{self.url}: receive failed ({exc})") from None
@@ -392,40 +395,44 @@ class PiHexapod:
                  gravity: float = GRAVITY_M_S2, start_tolerance: float = 1e-6,
                  stop_lock_timeout_s: float = 0.2,
                  derivative_window: int = DEFAULT_DERIVATIVE_WINDOW) -> None:
-        self.url = url
-        self.timeout_s = timeout_s
-        self.errcheck = errcheck
-        self.dialect = dialect or GcsDialect()
-        self._limits = limits or HexapodLimits()
-        self.clock: Clock = clock or MonotonicClock()
-        self.gravity = gravity
-        self.start_tolerance = start_tolerance
-        self.stop_lock_timeout_s = stop_lock_timeout_s
-        self._connect = connect
-        self._diff = _Differentiator(derivative_window, url)
-        self._main = _Link(sock, url, timeout_s)
-        self._lock = threading.RLock()  # the main conversation
-        self._stop_lock = threading.Lock()  # the stop connection
-        self._stop_link: _Link | None = None
-        self.pivot_m = (0.0, 0.0, 0.0)
-        self.record_cycles = self.dialect.cycles_per_point(log_rate_hz, "log rate")
-        self.log_period_s = self.record_cycles * self.dialect.servo_cycle_s
-        self._uploaded: Trajectory | None = None
-        self._upload_pose = np.zeros(6)
-        self._run: _RunLog | None = None
-        self._pending: list[Block] = []
-        self._rest_anchor = self.clock.now()
-        self._rest_k = 1
-        self._last_t = -math.inf
-        self.stop_calls = 0
-        self.closed = False
-        self.identification = self._identify()
-        self.state = self.controller_state()  # read before any motion (limits, reference)
-        if connect is not None:
-            try:
-                self._stop_link = _Link(connect(), url + " (stop connection)", timeout_s)
-            except DeviceError:
-                self._stop_link = None  # one-connection controllers: the lock path only
+        try:  # the socket is this object's from here on, whatever happens
+            self.url = url
+            self.timeout_s = timeout_s
+            self.errcheck = errcheck
+            self.dialect = dialect or GcsDialect()
+            self._limits = limits or HexapodLimits()
+            self.clock: Clock = clock or MonotonicClock()
+            self.gravity = gravity
+            self.start_tolerance = start_tolerance
+            self.stop_lock_timeout_s = stop_lock_timeout_s
+            self._connect = connect
+            self._diff = _Differentiator(derivative_window, url)
+            self._main = _Link(sock, url, timeout_s)
+            self._lock = threading.RLock()  # the main conversation
+            self._stop_lock = threading.Lock()  # the stop connection
+            self._stop_link: _Link | None = None
+            self.pivot_m = (0.0, 0.0, 0.0)
+            self.record_cycles = self.dialect.cycles_per_point(log_rate_hz, "log rate")
+            self.log_period_s = self.record_cycles * self.dialect.servo_cycle_s
+            self._uploaded: Trajectory | None = None
+            self._upload_pose = np.zeros(6)
+            self._run: _RunLog | None = None
+            self._pending: list[Block] = []
+            self._rest_anchor = self.clock.now()
+            self._rest_k = 1
+            self._last_t = -math.inf
+            self.stop_calls = 0
+            self.closed = False
+            self.identification = self._identify()
+            self.state = self.controller_state()  # read before any motion (limits, reference)
+            if connect is not None:
+                try:
+                    self._stop_link = _Link(connect(), url + " (stop connection)", timeout_s)
+                except DeviceError:
+                    self._stop_link = None  # one-connection controllers: the lock path only
+        except BaseException:
+            sock.close()
+            raise
 
     @property
     def sock(self) -> socket.socket:

@@ -50,15 +50,10 @@ def open_pi_hexapod(rig: RigView, url: str, options: dict[str, Any], clock: Any,
         return open_tcp(host, port, timeout_s=min(timeout_s, 2.0))
 
     hexapod = section(rig, rig.hexapod, "hexapod")
-    sock = connect()
-    try:
-        return PiHexapod(sock, url=url, timeout_s=timeout_s, connect=connect,
-                         limits=hexapod.hexapod_limits(), clock=clock,
-                         log_rate_hz=hexapod.log_rate_hz, dialect=dialect,
-                         start_tolerance=tolerance, derivative_window=window)
-    except BaseException:
-        sock.close()
-        raise
+    limits, log_rate_hz = hexapod.hexapod_limits(), hexapod.log_rate_hz
+    return PiHexapod(connect(), url=url, timeout_s=timeout_s, connect=connect, limits=limits,
+                     clock=clock, log_rate_hz=log_rate_hz, dialect=dialect,
+                     start_tolerance=tolerance, derivative_window=window)
 
 
 @register("tcp", None, ("hexapod",), summary="the PI GCS hexapod of the IMU bench",

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import socket
 import time
 
 import pytest
@@ -115,3 +116,16 @@ def test_connection_refused_is_a_device_error():
     sim.stop()
     with pytest.raises(DeviceError, match="cannot connect"):
         open_tcp(host, port, timeout_s=0.5)
+
+
+def test_a_controller_that_never_answers_is_refused_and_its_socket_closed():
+    """The socket is the backend's from construction: refused at open, it is closed, not
+    left for the garbage collector to warn about in whatever runs next."""
+    server = socket.create_server(("127.0.0.1", 0))
+    try:
+        sock = open_tcp(*server.getsockname())
+        with pytest.raises(DeviceError, match=r"no reply within 0\.1 s"):
+            PiHexapod(sock, url="tcp://mute", timeout_s=0.1)
+        assert sock.fileno() == -1
+    finally:
+        server.close()
