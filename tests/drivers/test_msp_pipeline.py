@@ -4,6 +4,7 @@ no reply is taken for another request's, and lost ones do not stop the poll."""
 
 from __future__ import annotations
 
+import contextlib
 import datetime
 import socket
 import struct
@@ -40,7 +41,7 @@ class LossyFc:
     def _serve(self) -> None:
         conn, _ = self.server.accept()
         decoder = msp.MspDecoder()
-        with conn:
+        with conn, contextlib.suppress(OSError):  # the poll closed with replies unread
             while data := conn.recv(4096):
                 for frame in decoder.feed(data):
                     conn.sendall(self._reply(frame))
