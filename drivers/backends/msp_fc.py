@@ -80,16 +80,18 @@ class MspClient:
         self.lock = threading.RLock()
         self.resends = 0  # requests sent again (``request``)
 
-    def request(self, message: msp.MspMessage) -> msp.MspMessage:
+    def request(self, message: msp.MspMessage, *, resend: bool = True) -> msp.MspMessage:
         """Send a request (or SET command) and return the FC's reply to that command.
 
-        A request not answered within ``RESEND_AFTER_S`` is sent again, then after twice
-        that, and so on until ``timeout_s``: a reply lost on the link (a UART's noise; the
-        SITL's TCP thread drops and repeats reply bytes, a race in its ``dyad`` buffer,
-        docs/protocols.md) costs that wait, not the whole timeout, as Betaflight
-        Configurator sends an unanswered request again after its ``MSP.TIMEOUT``. The
-        commands sent here set values or read them, so a second one does what the first
-        did; the doubling bounds what a stalled FC has queued when it wakes."""
+        With ``resend``, a request not answered within ``RESEND_AFTER_S`` is sent again,
+        then after twice that, and so on until ``timeout_s``: a reply lost on the link (a
+        UART's noise; the SITL's TCP thread drops and repeats reply bytes, a race in its
+        ``dyad`` buffer, docs/protocols.md) costs that wait, not the whole timeout, as
+        Betaflight Configurator sends an unanswered request again after its ``MSP.TIMEOUT``.
+        The commands sent here set values or read them, so a second one does what the first
+        did; the doubling bounds what a stalled FC has queued when it wakes. A poll asks
+        without: its next poll is its retry, and a second reply to a slow request would be
+        taken by the polls after it, each stamped a poll late."""
         if isinstance(message, msp.Request | msp.Ack | msp.ErrorReply | msp.Unknown):
             cmd = message.cmd  # the messages without a CMD of their own
         else:
@@ -100,7 +102,7 @@ class MspClient:
             write_all(self.port, frame, self.name)
             deadline = Deadline(self.timeout_s)
             wait = RESEND_AFTER_S
-            resend_at = time.monotonic() + wait
+            resend_at = time.monotonic() + wait if resend else math.inf
             while True:
                 # the timeout stands only if a read begun after the deadline finds no
                 # reply: a host that was itself off the processor past it reads the reply
@@ -190,7 +192,6 @@ class MspImu:
         self.max_round_trip_s = max_round_trip_s
         self.slow_rows = 0
         self.missed_replies = 0
-        self.resent = 0  # polls whose request was sent again (MspClient.request)
         self.rate_hz = rate_hz
         self.attitude = attitude  # False: RAW_IMU only (roll/pitch/yaw NaN), twice the rate
         self.clock = clock or MonotonicClock()
@@ -219,11 +220,10 @@ class MspImu:
     def _poll(self) -> None:
         """Polls on a fixed schedule (a slow reply delays one poll, not all later ones). A
         reply that does not come is counted (``link_errors``: ``no_reply``) and the poll
-        goes on, as over a UART that lost a frame; so does a request sent again
-        (``MspClient.request``), whose second reply may still come. The next poll's row is
-        dropped (it may have been handed the late reply; later ones cannot,
-        ``MspClient._drop_waiting``). No reply for ``NO_REPLY_LIMIT_S`` is the FC gone, and
-        ends the poll with the error."""
+        goes on, as over a UART that lost a frame (its requests are not sent again: the next
+        poll is the retry); the next poll's row is dropped (it may have been handed the late
+        reply; later ones cannot, ``MspClient._drop_waiting``). No reply for
+        ``NO_REPLY_LIMIT_S`` is the FC gone, and ends the poll with the error."""
         period = 1.0 / self.rate_hz
         nan = msp.Attitude(math.nan, math.nan, math.nan)
         due = last_reply = time.monotonic()
@@ -234,7 +234,6 @@ class MspImu:
             # the send time is the host time least disturbed by the reply's read latency
             stamp = self.clock.now()
             paused = getattr(self.clock, "paused_s", 0.0)  # a paced clock's stalls
-            resends = self.client.resends
             try:
                 raw, att = self._request(nan)
             except MspNoReply as exc:
@@ -250,10 +249,8 @@ class MspImu:
                     self._error = exc
                 return
             last_reply = time.monotonic()
-            resent = self.client.resends != resends  # this row's time is unknown, and the
-            self.resent += resent  # second reply may come to the next poll
-            if after_miss or resent:
-                after_miss = resent
+            if after_miss:
+                after_miss = False
                 self.slow_rows += 1
                 continue
             self._add_row(stamp, paused, raw, att)
@@ -275,11 +272,12 @@ class MspImu:
 
     def _request(self, nan: msp.Attitude) -> tuple[Any, Any]:
         """RAW_IMU and ATTITUDE: one MSP_MULTIPLE_MSP round trip with ``multiple``."""
+        request = self.client.request
         if self.attitude and self.multiple:
-            raw, att = self._split(self.client.request(msp.multiple_request(RAW_AND_ATTITUDE)))
+            raw, att = self._split(request(msp.multiple_request(RAW_AND_ATTITUDE), resend=False))
             return raw, att
-        raw = self.client.request(msp.Request(msp.MSP_RAW_IMU))
-        att = self.client.request(msp.Request(msp.MSP_ATTITUDE)) if self.attitude else nan
+        raw = request(msp.Request(msp.MSP_RAW_IMU), resend=False)
+        att = request(msp.Request(msp.MSP_ATTITUDE), resend=False) if self.attitude else nan
         return raw, att
 
     def _split(self, reply: msp.MspMessage,
@@ -293,10 +291,9 @@ class MspImu:
 
     def link_errors(self) -> dict[str, int]:
         """Replies lost on the serial link (bad checksums, truncated, malformed frames;
-        requests no reply came to, requests sent again)."""
+        requests no reply came to)."""
         lost = link_losses(self.client.decoder.stats)
-        counts = {"no_reply": self.missed_replies, "resent": self.resent}
-        return {**lost, **{k: n for k, n in counts.items() if n}}
+        return {**lost, "no_reply": self.missed_replies} if self.missed_replies else lost
 
     def read_block(self) -> Block:
         with self._lock:
