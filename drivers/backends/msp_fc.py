@@ -357,7 +357,7 @@ class MspMotorEsc:
         line does not end a run)."""
         values = [msp.MOTOR_MIN_US] * msp.MOTOR_SLOTS
         values[self.motor_index] = round(pulse_us)
-        with self.client.lock:  # the resends of this request only (an IMU poll shares it)
+        with self.client.lock:  # the resends of this request only (others share the client)
             before = self.client.resends
             try:
                 reply = self.client.request(msp.SetMotor(tuple(values)))

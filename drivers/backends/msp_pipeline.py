@@ -149,9 +149,10 @@ class PipelinedMspImu(MspImu):
         if not (isinstance(reply, msp.Unknown) and reply.cmd == msp.MSP_MULTIPLE_MSP):
             return False
         try:
-            tag = msp.multiple_count(reply) - len(cmds)
+            parts = msp.multiple_parts(reply)
         except msp.PayloadError:
-            tag = -1
+            parts = []  # a tag below 0: no request's
+        tag = len(parts) - len(cmds)
         older = next((i for i, req in enumerate(sent) if req.tag == tag), None)
         if older is None:
             self.stray_replies += 1
@@ -160,7 +161,10 @@ class PipelinedMspImu(MspImu):
             sent.popleft()
             self.missed_replies += 1
         req = sent.popleft()
-        raw, att, *clock = self._split(reply, (*cmds, *(TAG_FILLER,) * tag))[:len(cmds)]
+        try:  # the tag's fillers are counted, not read
+            raw, att, *clock = msp.parse_multiple(cmds, parts)
+        except msp.PayloadError as exc:
+            raise DeviceError(f"{self.url}: {exc}") from None
         served_ms = msp.rtc_ms(clock[0]) if clock else None
         if served_ms is None:
             self._add_row(req.stamp, req.paused, raw, att)

@@ -770,35 +770,45 @@ def multiple_request(cmds: tuple[int, ...]) -> Unknown:
     return Unknown(REQUEST, MSP_MULTIPLE_MSP, bytes(cmds).hex())
 
 
-def multiple_count(reply: MspMessage) -> int:
-    """How many commands a MSP_MULTIPLE_MSP reply answers (its size-prefixed parts);
-    ``PayloadError`` if the parts do not fill it exactly."""
+def _multiple_walk(reply: MspMessage) -> tuple[list[bytes], int]:
+    """The whole size-prefixed parts of a MSP_MULTIPLE_MSP reply (a u8 size, then the
+    payload, per command it answers) and how many bytes follow the last of them."""
     if not isinstance(reply, Unknown) or reply.cmd != MSP_MULTIPLE_MSP:
         raise PayloadError(f"not a MSP_MULTIPLE_MSP reply: {reply!r}")
-    p, at, count = bytes.fromhex(reply.payload_hex), 0, 0
-    while at < len(p):
+    p, at, parts = bytes.fromhex(reply.payload_hex), 0, []
+    while at < len(p) and at + 1 + p[at] <= len(p):
+        parts.append(p[at + 1:at + 1 + p[at]])
         at += 1 + p[at]
-        count += 1
-    if at != len(p):
-        raise PayloadError(f"MSP_MULTIPLE_MSP reply of {len(p)} bytes: its last part is cut")
-    return count
+    return parts, len(p) - at
+
+
+def multiple_parts(reply: MspMessage) -> list[bytes]:
+    """The payloads of a MSP_MULTIPLE_MSP reply, one per command it answers;
+    ``PayloadError`` if it is not one or its last part is cut."""
+    parts, rest = _multiple_walk(reply)
+    if rest:
+        raise PayloadError(f"MSP_MULTIPLE_MSP reply: its last part is cut ({rest} bytes)")
+    return parts
+
+
+def parse_multiple(cmds: tuple[int, ...], parts: list[bytes]) -> list[MspMessage]:
+    """The typed replies to ``cmds`` out of the first of ``parts`` (``multiple_parts``)."""
+    return [parse(MspFrame(1, REPLY, cmd, part)) for cmd, part in zip(cmds, parts, strict=False)]
 
 
 def split_multiple(cmds: tuple[int, ...], reply: MspMessage) -> list[MspMessage]:
-    """The typed replies in a MSP_MULTIPLE_MSP reply: per command a u8 size, then its
-    payload; the firmware leaves out the commands that did not fit its buffer, which is
-    a ``PayloadError`` here, as is any other mismatch."""
-    if not isinstance(reply, Unknown) or reply.cmd != MSP_MULTIPLE_MSP:
-        raise PayloadError(f"not a MSP_MULTIPLE_MSP reply: {reply!r}")
-    p, at, out = bytes.fromhex(reply.payload_hex), 0, []
-    for cmd in cmds:
-        if at >= len(p) or at + 1 + p[at] > len(p):
-            raise PayloadError(f"MSP_MULTIPLE_MSP reply of {len(p)} bytes ends before {cmd}")
-        out.append(parse(MspFrame(1, REPLY, cmd, p[at + 1:at + 1 + p[at]])))
-        at += 1 + p[at]
-    if at != len(p):
-        raise PayloadError(f"MSP_MULTIPLE_MSP reply has {len(p) - at} bytes left over")
-    return out
+    """The typed replies in a MSP_MULTIPLE_MSP reply, exactly one part per command; the
+    firmware leaves out the commands that did not fit its buffer, which is a
+    ``PayloadError`` here, as is any other mismatch."""
+    parts, rest = _multiple_walk(reply)
+    if len(parts) < len(cmds):
+        size = rest + sum(1 + len(part) for part in parts)
+        raise PayloadError(f"MSP_MULTIPLE_MSP reply of {size} bytes ends before "
+                           f"{cmds[len(parts)]}")
+    left = rest + sum(1 + len(part) for part in parts[len(cmds):])
+    if left:
+        raise PayloadError(f"MSP_MULTIPLE_MSP reply has {left} bytes left over")
+    return parse_multiple(cmds, parts)
 
 
 def encode_message(msg: MspMessage, version: int = 1) -> bytes:

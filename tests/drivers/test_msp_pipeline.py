@@ -67,7 +67,7 @@ class LossyFc:
         if frame.cmd == msp.MSP_FC_VARIANT:
             return msp.encode_v1(msp.REPLY, frame.cmd, b"BTFL")
         if frame.cmd == msp.MSP_API_VERSION:
-            return msp.encode_v1(msp.REPLY, frame.cmd, bytes((0, 1, 47)))
+            return msp.encode_v1(msp.REPLY, frame.cmd, self._part(frame.cmd))
         if frame.cmd == msp.MSP_SET_RTC:
             seconds, millis = struct.unpack("<iH", frame.payload)
             self.rtc = (seconds * 1000 + millis, time.monotonic())
