@@ -85,6 +85,9 @@ class SimHexapodDevice:
         self._next_k = math.floor(clock.now() * self.log_rate_hz) + 1
         self.stop_calls = 0
         self.closed = False
+        # counts starts and stops: truth computed ahead of time (a simulated sensor's block
+        # of readings, drivers.wire_sim.grid_sampler) holds while it is unchanged
+        self.motion_version = 0
 
     # -- truth --------------------------------------------------------------------------
     def kinematics_at(self, t_s: Array) -> tuple[Array, Array, Array]:
@@ -182,6 +185,7 @@ class SimHexapodDevice:
         traj, spline = self._uploaded
         self._uploaded = None
         self._runs.append(_Run(traj.name, self.clock.now(), spline, traj.duration_s))
+        self.motion_version += 1
 
     def read_log(self) -> Block:
         now = self.clock.now()
@@ -202,6 +206,7 @@ class SimHexapodDevice:
         for run in self._runs:
             if run.t0 <= now < run.t_end:
                 run.stopped_at = now
+        self.motion_version += 1
         self._uploaded = None
         self.faults.check(now, "stop")  # the platform is stopped; the reply may be lost
 

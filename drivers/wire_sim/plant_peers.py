@@ -18,15 +18,15 @@ duty and whose status broadcasts carry the plant's speed, currents and voltage.
 
 IMU bench: the simulated IMU bench (:class:`drivers.sim.imu_rig.SimImuRig`) on a
 :class:`drivers.wire_sim.paced_clock.PacedClock`. :func:`start_msp_peer` answers MSP from
-the same IMU model ``sim://imu`` uses (mounting, scale, axes, lever arm, bias, noise),
-sampled ``clock_offset_s`` before the request arrives (the FC's sensor latency);
-:func:`start_gx3_peer` streams the platform's attitude and rates with the reference's
-noise, its timer counting simulated time.
+the same IMU model ``sim://imu`` uses (mounting, scale, axes, lever arm, bias, noise):
+the last sample of the FC's sensor loop (``FC_LOOP_HZ``) taken ``clock_offset_s`` before
+the request arrived (the FC's sensor latency); :func:`start_gx3_peer` streams the
+platform's attitude and rates with the reference's noise, its timer counting simulated
+time. Both compute their readings a block at a time (``drivers.wire_sim.grid_sampler``).
 """
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import threading
 import time
@@ -39,8 +39,8 @@ import numpy as np
 from drivers.codecs import gx3, msp
 from drivers.errors import DeviceError
 from drivers.sim.clock import SimClock
-from drivers.sim.imu import ImuModel, SimImu
 from drivers.sim.rig import PlantTruth, SimRig
+from drivers.wire_sim.grid_sampler import GridSampler
 
 if TYPE_CHECKING:  # the IMU bench's world (scipy) loads only for its peers
     from drivers.sim.imu_rig import SimImuRig
@@ -50,6 +50,12 @@ __all__ = ["BTFL_ACC_1G", "CAN_PEERS", "ESC_TEMPERATURE_C", "SERIAL_PEERS", "Pro
 
 BTFL_ACC_1G = 2048  # protocols.md §1.4: Betaflight MPU6000/6050-class acc_1G (512 * 4), ±16 g
 _MAX_BURST = 16  # GX3 packets written per wakeup of the simulated device at most
+# The simulated FC's sensor loop (Betaflight's gyro loop runs at kilohertz rates): an MSP
+# reply carries its latest sample, 0.5 ms old at most; and how much of its readings, and
+# the GX3's stream, are computed in one call (drivers.wire_sim.grid_sampler)
+FC_LOOP_HZ = 2000.0
+_FC_BLOCK_S = 0.1
+_GX3_BLOCK = 25
 
 ESC_TEMPERATURE_C = 25.0  # the plant has no thermal model: telemetry reports ambient
 
@@ -473,46 +479,40 @@ CAN_PEERS: dict[str, Callable[..., Any]] = {"vesc": start_vesc, "dronecan": star
 
 
 # -- IMU-bench peers ------------------------------------------------------------------------------
-class _FixedModel(ImuModel):
-    """An :class:`ImuModel` whose forward matrices are computed once (one sample a call)."""
-
-    def forward_gyro(self) -> Any:
-        if "_fg" not in self.__dict__:
-            self.__dict__["_fg"] = ImuModel.forward_gyro(self)
-        return self.__dict__["_fg"]
-
-    def forward_acc(self) -> Any:
-        if "_fa" not in self.__dict__:
-            self.__dict__["_fa"] = ImuModel.forward_acc(self)
-        return self.__dict__["_fa"]
-
-
 class _PlantImu:
-    """The IMU under test's model on the plant, one sample at a time (thread-safe)."""
+    """The IMU under test's readings on the FC's sensor loop (thread-safe): an MSP reply
+    carries the loop's latest sample, taken ``clock_offset_s`` (the FC's sensor latency)
+    before the request arrived; the model is the simulated IMU's own
+    (``SimImuDevice.sample_at``), computed a block of loop samples at a time."""
 
     def __init__(self, sim: SimImuRig, clock: SimClock) -> None:
         self.sim, self.clock = sim, clock
-        self.lock = threading.Lock()
-        self._sensor: SimImu | None = None
+        self.grid = GridSampler(self._readings, 1.0 / FC_LOOP_HZ,
+                                block=round(_FC_BLOCK_S * FC_LOOP_HZ), version=self._motion)
 
-    def _model(self) -> SimImu:
-        lever = tuple(self.sim.imu.lever_arm_from_pivot().tolist())
-        if self._sensor is None or self._sensor.model.lever_arm_m != lever:
-            fields = {f.name: getattr(self.sim.model, f.name)
-                      for f in dataclasses.fields(self.sim.model)}
-            model = _FixedModel(**{**fields, "lever_arm_m": lever})
-            self._sensor = SimImu(model, self.sim.imu.rng)
-        return self._sensor
+    def _motion(self) -> tuple[int, tuple[float, float, float]]:
+        hexapod = self.sim.hexapod
+        return hexapod.motion_version, hexapod.pivot_m  # the lever arm is from the pivot
+
+    def _readings(self, t: Any) -> Any:
+        """acc, gyro and attitude of the samples taken at ``t`` (stamped an offset later)."""
+        truth, gyro, acc = self.sim.imu.sample_at(t + self.sim.model.clock_offset_s)
+        return np.hstack([acc, gyro, truth.euler_rad])
+
+    def _sampled_at(self) -> float:
+        return self.clock.now() - self.sim.model.clock_offset_s
 
     def __call__(self, _wall_t: float) -> tuple[Any, Any, Any]:
         alive = getattr(self.clock, "alive", None)
         if alive is not None:
             alive("msp")
-        with self.lock:
-            t = self.clock.now() - self.sim.model.clock_offset_s  # the FC's sensor latency
-            truth = self.sim.hexapod.state_at(np.array([t]))
-            gyro, acc = self._model().measure(truth)
-        return tuple(acc[0]), tuple(gyro[0]), tuple(truth.euler_rad[0])
+        r = self.grid.at(self._sampled_at())
+        return (r[0], r[1], r[2]), (r[3], r[4], r[5]), (r[6], r[7], r[8])
+
+    def prefetch(self) -> bytes:
+        """Between requests (the FC's port tick): the next block before a reply needs it."""
+        self.grid.prefetch(self._sampled_at())
+        return b""
 
 
 def start_msp_peer(sim: SimImuRig, clock: SimClock, *, variant: str = "BTFL",
@@ -527,7 +527,10 @@ def start_msp_peer(sim: SimImuRig, clock: SimClock, *, variant: str = "BTFL",
             return super()._reply(m)
 
     gyro_lsb = 1.0 if variant == "INAV" else msp.BTFL_GYRO_LSB_PER_DPS
-    return PlantFc(_PlantImu(sim, clock), acc_1g=acc_1g, gyro_lsb_per_dps=gyro_lsb).start()
+    imu = _PlantImu(sim, clock)
+    fc = PlantFc(imu, acc_1g=acc_1g, gyro_lsb_per_dps=gyro_lsb)
+    fc.port.tick = imu.prefetch
+    return fc.start()
 
 
 def start_gx3_peer(sim: SimImuRig, clock: SimClock) -> Any:
@@ -541,46 +544,75 @@ def start_gx3_peer(sim: SimImuRig, clock: SimClock) -> Any:
     alive = getattr(clock, "alive", None)
     lock = threading.Lock()
 
-    def sample(t: float) -> tuple[Any, Any, Any]:
+    def readings(t: Any) -> Any:
+        """Body rates and attitude (each with the reference's noise) at times ``t``."""
         with lock:
-            s = sim.hexapod.state_at(np.array([t]))
+            s = sim.hexapod.state_at(t)
+            n = len(s.t_s)
             att = Rotation.from_euler("xyz", s.euler_rad) * Rotation.from_rotvec(
-                ref.rng.normal(0.0, ref.attitude_noise_rad, (1, 3)))
-            rate = s.omega_b_rad_s[0] + ref.rng.normal(0.0, ref.gyro_noise_rad_s, 3)
-        return (0.0, 0.0, 0.0), tuple(rate), tuple(att.as_euler("xyz")[0])
+                ref.rng.normal(0.0, ref.attitude_noise_rad, (n, 3)))
+            rate = s.omega_b_rad_s + ref.rng.normal(0.0, ref.gyro_noise_rad_s, (n, 3))
+        return np.hstack([rate, att.as_euler("xyz")])
+
+    def motion() -> int:
+        return sim.hexapod.motion_version
 
     class PlantGx3(SimGx3):
+        grid: GridSampler | None = None  # the stream's timer grid, from its start
+        k_next = 0  # the stream's next packet on it
+
         def _packet(self, cmd: int, t: float | None = None) -> bytes:
             """The packet of the sample taken at ``t`` (default now), timer included."""
-            t = clock.now() if t is None else t
-            ticks = round(t * gx3.TICKS_PER_SECOND) & 0xFFFFFFFF
             if cmd != gx3.EULER_RATES:
                 return super()._packet(cmd)
-            _, rate, (roll, pitch, yaw) = sample(t)
-            return gx3.encode_reply(gx3.EulerRates(ticks, roll, pitch, yaw, rate))
+            t = clock.now() if t is None else t
+            return self._euler_rates(t, readings(np.array([t]))[0].tolist())
+
+        @staticmethod
+        def _euler_rates(t: float, row: list[float]) -> bytes:
+            ticks = round(t * gx3.TICKS_PER_SECOND) & 0xFFFFFFFF
+            return gx3.encode_reply(gx3.EulerRates(ticks, row[3], row[4], row[5],
+                                                   (row[0], row[1], row[2])))
 
         def handle(self, data: bytes) -> bytes:
             seen = len(self.requests)
             out = super().handle(data)
             if any(r[0] == gx3.SET_CONTINUOUS for r in self.requests[seen:]):
-                self._next = clock.now()  # the stream starts now, on the plant clock
+                # the stream starts now, on the plant clock
+                self.grid = GridSampler(readings, period, origin_s=clock.now(),
+                                        block=_GX3_BLOCK, version=motion)
+                self.k_next = 0
             return out
 
         def tick(self) -> bytes:
-            """Every packet due on the plant clock (a late wakeup sends the backlog)."""
-            if self.stream_cmd is None:
+            """Every packet due on the plant clock (a late wakeup sends the backlog), then
+            the stream's next readings computed before they are due."""
+            grid = self.grid
+            if self.stream_cmd is None or grid is None:
                 return b""
             if alive is not None:
                 alive("gx3")
             out = bytearray()
+            now = clock.now()
             for _ in range(_MAX_BURST):  # a starved thread writes what it has, then goes on
-                if self.stream_cmd is None or clock.now() < self._next:
+                t = grid.time_of(self.k_next)
+                if now < t:
                     break
-                out += self._packet(self.stream_cmd, self._next)  # on the device's grid
-                self._next += self.period_s
+                row = grid.row(self.k_next)
+                if self.stream_cmd == gx3.EULER_RATES:
+                    out += self._euler_rates(t, row)
+                else:
+                    out += super()._packet(self.stream_cmd)
+                self.k_next += 1
+            grid.prefetch(now)
             return bytes(out)
 
-    peer = PlantGx3(lambda t: sample(clock.now()), period_s=period)
+    def sample_now(_t: float) -> tuple[Any, Any, Any]:
+        """What a polled packet other than EULER_RATES reads (no accelerometer)."""
+        row = readings(np.array([clock.now()]))[0].tolist()
+        return (0.0, 0.0, 0.0), tuple(row[:3]), tuple(row[3:])
+
+    peer = PlantGx3(sample_now, period_s=period)
     # wake every 2 ms of wall time at most (fewer wakeups: less GIL traffic for the host)
     peer.port.tick_s = min(0.002, period / getattr(clock, "time_scale", 1.0) / 2)
     return peer.start()
