@@ -11,9 +11,11 @@ the gyro's counts, 16.4 per deg/s (``msp.BTFL_GYRO_LSB_PER_DPS``; ``gyro_lsb_per
 for a gyro at another range);
 the accelerometer in counts, 1 g = ``acc_1g`` (Betaflight: the driver's ``acc_1G``, 2048
 for the MPU6000/6050/ICM-2060x class at ±16 g; INAV: always 512). RAW_IMU carries no time
-stamp, so a row is stamped with the host clock when its reply arrives: the FC's
+stamp, so a row is stamped with the host clock when its request went out: the FC's
 sensor/filter latency and the wire's latency become part of the hexapod-IMU time offset
-the calibration estimates, and their jitter is noise.
+the calibration estimates, and their jitter is noise; unless the FC tells its clock in the
+same reply (Betaflight: ``MSP_SET_RTC`` once, then ``MSP_RTC`` in each poll's
+``MSP_MULTIPLE_MSP``, ``MspImu._poll``), which keeps that jitter out.
 
 Safety, from §1.7: Betaflight applies SET_MOTOR values **only while disarmed** (the
 configurator motor test), and the motors then really spin. Betaflight and INAV keep the
@@ -26,6 +28,7 @@ motor to 1000.
 
 from __future__ import annotations
 
+import collections
 import math
 import threading
 import time
@@ -174,6 +177,8 @@ class MspClient:
 
 #: what the IMU role asks a Betaflight FC for in one MSP_MULTIPLE_MSP request
 RAW_AND_ATTITUDE = (msp.MSP_RAW_IMU, msp.MSP_ATTITUDE)
+RTC_EPOCH_S = 1_000_000_000  # the FC's clock is set to this (2001): its time counts from it
+OFFSET_ROWS = 400  # the rows whose best bound gives the FC's clock against the host's
 IMU_CHANNELS = ("acc_x_m_s2", "acc_y_m_s2", "acc_z_m_s2", "gyro_x_rad_s", "gyro_y_rad_s",
                 "gyro_z_rad_s", "roll_rad", "pitch_rad", "yaw_rad")
 
@@ -204,6 +209,8 @@ class MspImu:
         except ValueError as exc:
             raise DeviceError(f"{url}: {exc}") from None
         self._rows: list[tuple[float, ...]] = []
+        # each timed row's bound on the FC's clock against the host's (_serve_delay)
+        self._bounds: collections.deque[float] = collections.deque(maxlen=OFFSET_ROWS)
         self._error: DeviceError | None = None
         self._lock = threading.Lock()
         self._stop = threading.Event()
@@ -223,9 +230,22 @@ class MspImu:
         goes on, as over a UART that lost a frame (its requests are not sent again: the next
         poll is the retry); the next poll's row is dropped (it may have been handed the late
         reply; later ones cannot, ``MspClient._drop_waiting``). No reply for
-        ``NO_REPLY_LIMIT_S`` is the FC gone, and ends the poll with the error."""
+        ``NO_REPLY_LIMIT_S`` is the FC gone, and ends the poll with the error.
+
+        An FC that takes the host's time (``MSP_SET_RTC``) and answers ``MSP_MULTIPLE_MSP``
+        (Betaflight) is asked its clock (``MSP_RTC``) in each poll's request, read by the
+        firmware within microseconds of RAW_IMU: the row is stamped when the FC served it
+        (``_serve_delay``), not when the host sent for it, so the host's and the link's
+        latency jitter (a loaded host's, or a simulated FC's at its time scale) stays out
+        of the stamps. Its clock counts whole milliseconds."""
         period = 1.0 / self.rate_hz
         nan = msp.Attitude(math.nan, math.nan, math.nan)
+        try:
+            timed = self._set_rtc()
+        except DeviceError as exc:
+            with self._lock:
+                self._error = exc
+            return
         due = last_reply = time.monotonic()
         after_miss = False
         while not self._stop.wait(max(0.0, due - time.monotonic())):
@@ -235,7 +255,14 @@ class MspImu:
             stamp = self.clock.now()
             paused = getattr(self.clock, "paused_s", 0.0)  # a paced clock's stalls
             try:
-                raw, att = self._request(nan)
+                raw, att, served_ms = self._request(nan, timed)
+            except MspRefused as exc:
+                if not timed:
+                    with self._lock:
+                        self._error = exc
+                    return
+                timed = False  # MSP_MULTIPLE_MSP refused (INAV): the send-time stamps
+                continue
             except MspNoReply as exc:
                 if time.monotonic() - last_reply > NO_REPLY_LIMIT_S:
                     with self._lock:
@@ -253,7 +280,30 @@ class MspImu:
                 after_miss = False
                 self.slow_rows += 1
                 continue
-            self._add_row(stamp, paused, raw, att)
+            if served_ms is None:
+                self._add_row(stamp, paused, raw, att)
+            else:  # the rig's clock runs at the FC's rate: a real one's, or a world's paced
+                self._add_row(stamp + self._serve_delay(served_ms, stamp), paused, raw, att,
+                              timed=True)
+
+    def _set_rtc(self) -> bool:
+        """Set the FC's clock (``_poll``); False when the FC refuses it or says nothing."""
+        try:
+            self.client.request(msp.set_rtc_request(RTC_EPOCH_S))
+        except (MspRefused, MspNoReply):
+            return False
+        return True
+
+    def _serve_delay(self, served_ms: int, sent: float) -> float:
+        """From the request's send (``sent``, on a host clock at the rate of the FC's) to
+        the FC's serving it, in seconds. The FC's clock against the host's is offset by the
+        largest ``sent - served`` of the last ``OFFSET_ROWS`` rows (a request is served
+        after it was sent; the fastest one was served at once); both clocks run on through
+        any pause of the rig's (a row spanning one is dropped), so the offset holds. Half a
+        millisecond is added: the FC's clock counts whole ones."""
+        served = (served_ms - RTC_EPOCH_S * 1000) / 1000.0
+        self._bounds.append(sent - served)
+        return served + max(self._bounds) - sent + 5e-4
 
     def _add_row(self, stamp: float, paused: float, raw: Any, att: Any, *,
                  timed: bool = False) -> None:
@@ -270,15 +320,23 @@ class MspImu:
         with self._lock:
             self._rows.append((stamp, *acc, *gyro, att.roll_rad, att.pitch_rad, att.yaw_rad))
 
-    def _request(self, nan: msp.Attitude) -> tuple[Any, Any]:
-        """RAW_IMU and ATTITUDE: one MSP_MULTIPLE_MSP round trip with ``multiple``."""
+    def _request(self, nan: msp.Attitude, timed: bool = False) -> tuple[Any, Any, int | None]:
+        """RAW_IMU and ATTITUDE, and the FC's clock when ``timed``: one MSP_MULTIPLE_MSP
+        round trip with ``multiple`` or ``timed``."""
         request = self.client.request
+        if timed:
+            cmds = (*(RAW_AND_ATTITUDE if self.attitude else RAW_AND_ATTITUDE[:1]),
+                    msp.MSP_RTC)
+            raw, *rest, clock = self._split(request(msp.multiple_request(cmds),
+                                                    resend=False), cmds)
+            served_ms = msp.rtc_ms(clock)
+            return raw, rest[0] if rest else nan, served_ms
         if self.attitude and self.multiple:
             raw, att = self._split(request(msp.multiple_request(RAW_AND_ATTITUDE), resend=False))
-            return raw, att
+            return raw, att, None
         raw = request(msp.Request(msp.MSP_RAW_IMU), resend=False)
         att = request(msp.Request(msp.MSP_ATTITUDE), resend=False) if self.attitude else nan
-        return raw, att
+        return raw, att, None
 
     def _split(self, reply: msp.MspMessage,
                cmds: tuple[int, ...] = RAW_AND_ATTITUDE) -> list[msp.MspMessage]:
@@ -429,7 +487,8 @@ class MspImuSensor:
                       for c in BENCH_IMU_CHANNELS)
         chans += tuple(ChannelInfo(c, "", rate) for c in self.channels[len(chans):])
         return DeviceInfo("imu", info.model, info.url, chans,
-                          {"time_stamps": "host clock at reply arrival (RAW_IMU has none)"})
+                          {"time_stamps": "when the FC read it, by its clock (MSP_RTC), or "
+                                          "the host clock at the request (RAW_IMU has none)"})
 
     def link_errors(self) -> dict[str, int]:
         return self.imu.link_errors()

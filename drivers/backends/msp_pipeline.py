@@ -51,7 +51,7 @@ import select
 import time
 from typing import Any, NamedTuple
 
-from drivers.backends.msp_fc import RAW_AND_ATTITUDE, MspImu, MspRefused
+from drivers.backends.msp_fc import RAW_AND_ATTITUDE, RTC_EPOCH_S, MspImu, MspRefused
 from drivers.backends.serial_link import read_some, write_all
 from drivers.codecs import msp
 from drivers.errors import DeviceError
@@ -59,8 +59,6 @@ from drivers.errors import DeviceError
 __all__ = ["LOST_AFTER_S", "MAX_IN_FLIGHT", "RTC_EPOCH_S", "TAGS", "PipelinedMspImu"]
 
 RAW_ATTITUDE_RTC = (*RAW_AND_ATTITUDE, msp.MSP_RTC)
-RTC_EPOCH_S = 1_000_000_000  # the FC's clock is set to this (2001): its time counts from it
-OFFSET_ROWS = 400  # the rows (2 s at 200 a second) whose best bound gives the clocks' offset
 
 #: one answered by the next one's arrival, and one to spare: with two, a reply the serial
 #: task had not written when the next request arrived left both in flight, no request went
@@ -87,10 +85,7 @@ class PipelinedMspImu(MspImu):
     """:class:`MspImu` (``attitude``, ``multiple``) polled as the module doc says."""
 
     def __init__(self, client: Any, **kwargs: Any) -> None:
-        # before the poll thread starts (MspImu.__init__ starts it): each row's bound on
-        # the FC's clock against the host's (_serve_delay)
-        self._bounds: collections.deque[float] = collections.deque(maxlen=OFFSET_ROWS)
-        self.stray_replies = 0
+        self.stray_replies = 0  # before the poll thread starts (MspImu.__init__ starts it)
         super().__init__(client, **kwargs)
 
     def _poll(self) -> None:
@@ -132,14 +127,6 @@ class PipelinedMspImu(MspImu):
             with self._lock:
                 self._error = exc
 
-    def _set_rtc(self) -> bool:
-        """Set the FC's clock (module doc); False when the FC refuses it."""
-        try:
-            self.client.request(msp.set_rtc_request(RTC_EPOCH_S))
-        except MspRefused:
-            return False
-        return True
-
     def _take(self, reply: msp.MspMessage, sent: collections.deque[_Sent],
               cmds: tuple[int, ...]) -> bool:
         """The reply to the request in flight with its tag (module doc); whether it was
@@ -172,16 +159,6 @@ class PipelinedMspImu(MspImu):
             self._add_row(req.stamp + self._serve_delay(served_ms, req.wall), req.paused,
                           raw, att, timed=True)
         return True
-
-    def _serve_delay(self, served_ms: int, sent_wall: float) -> float:
-        """From the request's send to the FC's serving it, in seconds (module doc). The
-        FC's clock against the host's monotonic one is offset by the largest ``send -
-        served`` of the last ``OFFSET_ROWS`` rows; both clocks run on, through any pause
-        of the rig's (a row spanning one is dropped), so the offset holds. Half a
-        millisecond is added: the FC's clock counts whole ones."""
-        served = (served_ms - RTC_EPOCH_S * 1000) / 1000.0
-        self._bounds.append(sent_wall - served)
-        return served + max(self._bounds) - sent_wall + 5e-4
 
     def link_errors(self) -> dict[str, int]:
         """:meth:`MspImu.link_errors`, and the replies dropped as repeats or too late."""

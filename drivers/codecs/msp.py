@@ -761,6 +761,16 @@ def rtc_ms(reply: MspMessage) -> int | None:
     return int(at.timestamp()) * 1000 + millis
 
 
+def rtc_reply(ms: int | None) -> Unknown:
+    """The FC's MSP_RTC reply (``rtc_ms`` reads it): the date and time of ``ms`` since 1970
+    (UTC), to the millisecond; empty when its clock was never set."""
+    if ms is None:
+        return Unknown(REPLY, MSP_RTC, "")
+    at = datetime.datetime.fromtimestamp(ms // 1000, datetime.UTC)
+    return Unknown(REPLY, MSP_RTC, struct.pack("<HBBBBBH", at.year, at.month, at.day, at.hour,
+                                               at.minute, at.second, ms % 1000).hex())
+
+
 def multiple_request(cmds: tuple[int, ...]) -> Unknown:
     """Betaflight's MSP_MULTIPLE_MSP: one request whose payload lists "out" commands (one
     byte each), answered in one reply, so in one run of the firmware's serial task, which

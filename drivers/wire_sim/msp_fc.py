@@ -2,7 +2,10 @@
 
 Answers (protocols.md §1): API_VERSION, FC_VARIANT ("BTFL"), FC_VERSION, BOARD_INFO,
 BUILD_INFO, UID, ACC_TRIM, NAME (what yamspy's ``MSPy.basic_info`` asks at connect),
-STATUS and STATUS_EX (bit 0 of the flight-mode flags set while ``armed``), ANALOG (from
+STATUS and STATUS_EX (bit 0 of the flight-mode flags set while ``armed``), SET_RTC and RTC
+(the FC's clock: set to the host's time, then counting on ``rtc_clock``), MULTIPLE_MSP (one
+size-prefixed part per command, in one reply; ``multiple=False``: refused, as INAV does),
+ANALOG (from
 ``battery() -> (V, A)``), RAW_IMU (acc in counts with ``acc_1g``; gyro in counts,
 ``gyro_lsb_per_dps``: Betaflight's 16.4, or 1 for INAV's whole deg/s), ATTITUDE (0.1°
 roll/pitch, whole-degree yaw, §1.5), MOTOR, SET_MOTOR (ack; values apply only while
@@ -16,6 +19,7 @@ The IMU values come from ``imu(t_s) -> (acc_m_s2, gyro_rad_s, (roll, pitch, yaw)
 from __future__ import annotations
 
 import math
+import struct
 import threading
 import time
 from collections.abc import Callable
@@ -38,7 +42,8 @@ class SimFlightController(PtySimulator):
     def __init__(self, imu: ImuModel, *, acc_1g: int = 2048,
                  gyro_lsb_per_dps: float = msp.BTFL_GYRO_LSB_PER_DPS, motor_count: int = 4,
                  api: tuple[int, int] = (1, 46), version: tuple[int, int, int] = (4, 5, 0),
-                 battery: Callable[[], tuple[float, float]] = lambda: (0.0, 0.0)) -> None:
+                 battery: Callable[[], tuple[float, float]] = lambda: (0.0, 0.0),
+                 rtc_clock: Callable[[], float] | None = None, multiple: bool = True) -> None:
         self.imu = imu
         self.version = version  # what this simulator reports; not a claim about a firmware
         self.battery = battery
@@ -52,6 +57,10 @@ class SimFlightController(PtySimulator):
         self.requests: list[msp.MspMessage] = []
         self._decoder = msp.MspDecoder(typed=True)
         self._t0 = time.monotonic()
+        # the FC's millisecond timer (a simulated world's: its clock, paced as it is)
+        self.rtc_clock = rtc_clock or (lambda: time.monotonic() - self._t0)
+        self.multiple = multiple
+        self._rtc_offset_s: float | None = None  # the time MSP_SET_RTC set, less rtc_clock's
         self._lock = threading.Lock()
         self.port = PtyDevice(self.handle)
 
@@ -76,6 +85,8 @@ class SimFlightController(PtySimulator):
             with self._lock:
                 self.motor_disarmed = list(m.values_us[: self.motor_count])
             return enc(msp.Ack(msp.MSP_SET_MOTOR))
+        if isinstance(m, msp.Unknown) and m.direction == msp.REQUEST:
+            return self._reply_with_payload(m.cmd, bytes.fromhex(m.payload_hex))
         if not isinstance(m, msp.Request):
             return b""
         cmd = m.cmd
@@ -107,6 +118,10 @@ class SimFlightController(PtySimulator):
             volts, amps = self.battery()
             return enc(msp.Analog(min(255, round(volts * 10)), 0, 0,
                                   _i16(amps * 100), round(volts * 100)))
+        if cmd == msp.MSP_RTC:
+            offset = self._rtc_offset_s
+            return enc(msp.rtc_reply(None if offset is None else
+                                     math.floor((offset + self.rtc_clock()) * 1000)))
         if cmd == msp.MSP_MOTOR:
             vals = self.motors() + [0] * (msp.MOTOR_SLOTS - self.motor_count)
             return enc(msp.Motor(tuple(vals)))
@@ -118,3 +133,18 @@ class SimFlightController(PtySimulator):
             rates = tuple(_i16(math.degrees(g) * self.gyro_lsb_per_dps) for g in gyro)
             return enc(msp.RawImu(counts, rates, (0, 0, 0)))  # type: ignore[arg-type]
         return enc(msp.ErrorReply(cmd))
+
+    def _reply_with_payload(self, cmd: int, payload: bytes) -> bytes:
+        """SET_RTC and MULTIPLE_MSP (see module doc); anything else is refused."""
+        if cmd == msp.MSP_SET_RTC and len(payload) == 6:
+            seconds, millis = struct.unpack("<iH", payload)
+            self._rtc_offset_s = seconds + millis / 1000 - self.rtc_clock()
+            return msp.encode_message(msp.Ack(cmd))
+        if cmd == msp.MSP_MULTIPLE_MSP and self.multiple and payload:
+            parts = bytearray()
+            for each in payload:  # a refused command's part is empty
+                frame = self._reply(msp.Request(each))
+                body = frame[5:-1] if frame[2:3] == msp.REPLY.encode() else b""
+                parts += bytes([len(body)]) + body
+            return msp.encode_v1(msp.REPLY, cmd, bytes(parts))
+        return msp.encode_message(msp.ErrorReply(cmd))

@@ -528,7 +528,8 @@ def start_msp_peer(sim: SimImuRig, clock: SimClock, *, variant: str = "BTFL",
 
     gyro_lsb = 1.0 if variant == "INAV" else msp.BTFL_GYRO_LSB_PER_DPS
     imu = _PlantImu(sim, clock)
-    fc = PlantFc(imu, acc_1g=acc_1g, gyro_lsb_per_dps=gyro_lsb)
+    fc = PlantFc(imu, acc_1g=acc_1g, gyro_lsb_per_dps=gyro_lsb, rtc_clock=clock.now,
+                 multiple=variant != "INAV")
     fc.port.tick = imu.prefetch
     return fc.start()
 

@@ -142,13 +142,14 @@ class LateReplyFc(SimFlightController):
     """An FC whose reply to the 20th RAW_IMU request is held ``LATE_S`` on the line (a
     USB-serial adapter's latency timer, a bridge's buffer) while it goes on answering:
     the late reply comes after the client gave up, between or inside later requests. Its
-    acc x is its own clock (10 m/s^2 a second) when it read its IMU."""
+    acc x is its own clock (10 m/s^2 a second) when it read its IMU. It answers no
+    MSP_MULTIPLE_MSP (as INAV), so the poll asks RAW_IMU alone, stamped by the host."""
 
     LATE_S = 0.25
 
     def __init__(self, clock: MonotonicClock) -> None:
         super().__init__(lambda _t: ((10.0 * clock.now(), 0.0, G), (0.0, 0.0, 0.0),
-                                     (0.0, 0.0, 0.0)), acc_1g=2048)
+                                     (0.0, 0.0, 0.0)), acc_1g=2048, multiple=False)
         self.raw_requests = 0
 
     def handle(self, data: bytes) -> bytes:
@@ -185,6 +186,50 @@ def test_a_late_reply_is_counted_and_no_row_takes_it():
     finally:
         port.close()
         sim.stop()
+
+
+class SlowLinkFc(SimFlightController):
+    """An FC whose requests reach it 0-15 ms late (a loaded host, a USB adapter's latency
+    timer, a simulated FC's time scale): its acc x is its clock (10 m/s^2 a second) when it
+    read its IMU, its MSP_RTC counts on the same clock."""
+
+    def __init__(self, clock: MonotonicClock, *, multiple: bool) -> None:
+        super().__init__(lambda _t: ((10.0 * clock.now(), 0.0, G), (0.0, 0.0, 0.0),
+                                     (0.0, 0.0, 0.0)), acc_1g=2048, rtc_clock=clock.now,
+                         multiple=multiple)
+        self.rng = np.random.default_rng(3)
+
+    def handle(self, data: bytes) -> bytes:
+        time.sleep(float(self.rng.uniform(0.0, 0.015)))
+        return super().handle(data)
+
+
+@pytest.mark.parametrize("multiple", [True, False], ids=["betaflight", "inav"])
+def test_rows_are_stamped_when_the_fc_read_its_imu_if_it_tells_its_clock(multiple):
+    """With MSP_SET_RTC taken and MSP_RTC answered in the poll's MSP_MULTIPLE_MSP, a row's
+    stamp is the FC's reading time to its clock's millisecond, however late the request
+    reached it; an FC without MSP_MULTIPLE_MSP is stamped at the send time, the link's
+    delay in it."""
+    clock = MonotonicClock()
+    sim = SlowLinkFc(clock, multiple=multiple).start()
+    port = open_port(sim.path, 115200)
+    try:
+        dev = MspImu(MspClient(port, "fc"), rate_hz=50.0, acc_1g=2048, attitude=False,
+                     clock=clock)
+        time.sleep(1.5)
+        block = dev.read_block()
+        dev.close()
+    finally:
+        port.close()
+        sim.stop()
+    late = block.values["acc_x_m_s2"] / 10.0 - block.t_s  # reading time less the stamp
+    assert block.t_s.size > 40
+    if multiple:  # one LSB of acc x is 0.5 ms of its clock; the clocks' offset is known
+        # once a request reached the FC at once (the fastest of the rows so far)
+        assert np.abs(late[20:]).max() < 2e-3, (late[20:].min(), late[20:].max())
+        assert late.min() > -2e-3 and late.max() < 0.016
+    else:
+        assert late.max() - late.min() > 8e-3 and late.min() > -2e-3
 
 
 def test_betaflight_needs_acc_scale(fc):

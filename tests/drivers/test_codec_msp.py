@@ -257,3 +257,6 @@ def test_the_fcs_clock_is_set_and_read_to_the_millisecond():
     assert msp.rtc_ms(msp.parse(msp.MspFrame(1, msp.REPLY, msp.MSP_RTC, b""))) is None
     bad = struct.pack("<HBBBBBH", 2001, 13, 9, 1, 46, 40, 5)  # month 13: no date
     assert msp.rtc_ms(msp.parse(msp.MspFrame(1, msp.REPLY, msp.MSP_RTC, bad))) is None
+    # a simulated FC's reply is the same bytes
+    assert bytes.fromhex(msp.rtc_reply(1_000_000_000_005).payload_hex) == body
+    assert msp.rtc_reply(None).payload_hex == ""
