@@ -50,20 +50,22 @@ _MARKER_BYTES = [bytes([c]) for c in b"IPSGHE"]  # every frame and event starts 
 
 
 def find_logs(fh: BinaryIO, size: int) -> list[tuple[int, int]]:
-    """(start, end) byte offsets of every log in the file, found in windows."""
+    """(start, end) byte offsets of every log in the file, found in windows. A marker
+    across two windows is found in their seam (the last bytes of one and the first of the
+    next), not by copying each window behind the last one's tail."""
     starts: list[int] = []
     offset, keep = 0, len(MARKER) - 1
     prev = b""
     while offset < size:
         fh.seek(offset)
-        chunk = prev + fh.read(WINDOW)
-        base = offset - len(prev)
-        i = chunk.find(MARKER)
-        while i >= 0:
-            starts.append(base + i)
-            i = chunk.find(MARKER, i + 1)
+        window = fh.read(WINDOW)
+        for base, chunk in ((offset - len(prev), prev + window[:keep]), (offset, window)):
+            i = chunk.find(MARKER)
+            while i >= 0:
+                starts.append(base + i)
+                i = chunk.find(MARKER, i + 1)
         offset += WINDOW
-        prev = chunk[-keep:]
+        prev = window[-keep:]
     starts = sorted(set(starts))
     return list(zip(starts, [*starts[1:], size], strict=False))
 

@@ -100,7 +100,10 @@ def _windows(fh: BinaryIO, size: int, overlap: int):
 def _formats(fh: BinaryIO, size: int, where: str) -> dict[int, MessageFormat]:
     found: dict[int, MessageFormat] = {}
     for _, chunk in _windows(fh, size, FMT_LEN):
-        if _FMT_HEAD not in chunk:  # memchr-fast: the regex engine walks no empty window
+        # memchr-fast: the regex engine walks no empty window. The lead byte alone first:
+        # CPython's search for the three bytes skips a zero-filled window byte by byte
+        # (0x80's low six bits are a zero's: its skip filter lets every zero through)
+        if HEAD[:1] not in chunk or _FMT_HEAD not in chunk:
             continue
         for m in _FMT_RX.finditer(chunk):
             mf = _parse_fmt(m.group()[3:])

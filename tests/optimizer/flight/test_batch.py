@@ -16,7 +16,7 @@ from optimizer.flight.batch import DesignBatch, fly_batch
 from optimizer.flight.batch_loop import simulate
 from optimizer.flight.design import feasible_indices, gains_for, setup
 from optimizer.flight.maneuvers import HOVER, MANEUVERS, Maneuver, fly
-from optimizer.flight.ranking import roll_step
+from optimizer.flight.ranking import _row, roll_step
 from optimizer.model.design_model import evaluate_grid
 from optimizer.sweep.ranking import rank
 from tests.conftest import CATALOGS
@@ -76,22 +76,37 @@ def thesis_n4(catalog, grids):
     return _models(catalog, grids[4], feasible_indices(grids[4]))
 
 
+@pytest.fixture(scope="module")
+def n4_roll_step(thesis_n4) -> list[dict]:
+    """The scalar loop's full 4 s roll_step of every feasible N = 4 design, flown once: the
+    figures (a) holds the batch to, and those ``roll_step`` makes the ranking's rows of."""
+    return _scalar(thesis_n4, MANEUVERS["roll_step"])
+
+
 def test_every_feasible_n4_design_flies_the_full_roll_step_as_the_scalar_loop(
-        thesis_n4) -> None:
+        thesis_n4, n4_roll_step) -> None:
     """(a) the full 4 s roll_step of all 48 designs in one batch."""
     man = MANEUVERS["roll_step"]
     assert len(thesis_n4) == 48
-    _assert_same(_batch(thesis_n4, man), _scalar(thesis_n4, man))
+    _assert_same(_batch(thesis_n4, man), n4_roll_step)
 
 
-def test_the_ranking_flies_its_designs_in_a_batch_with_the_same_rows(catalog, grids) -> None:
+def test_the_ranking_flies_its_designs_in_a_batch_with_the_same_rows(
+        catalog, grids, thesis_n4, n4_roll_step) -> None:
     """``rank`` flies the designs through the sweep engine (batch flights): its rows are
-    ``roll_step``'s, one design at a time, also for those that cannot hover."""
+    ``roll_step``'s, one design at a time, also for those that cannot hover. ``roll_step``
+    is ``fly`` of the design's ``setup`` made a row: the rows are made of the flights (a)
+    checked, and ``roll_step`` itself gives them for a design that hovers and one that
+    cannot (its every design would fly all 48 full roll steps a second time)."""
     grid = grids[4]
     indices = feasible_indices(grid)
     assert any(setup(catalog, grid, i)[0].hover_shortfall() for i in indices)
     got = rank(catalog, grid).rows
-    want = [roll_step(catalog, grid, idx) for idx in indices]
+    want = [_row(grid, idx, v, a, fig)
+            for idx, (v, a), fig in zip(indices, thesis_n4, n4_roll_step, strict=True)]
+    spot = [next(k for k, r in enumerate(want) if r.note),
+            next(k for k, r in enumerate(want) if not r.note)]
+    assert [roll_step(catalog, grid, indices[k]) for k in spot] == [want[k] for k in spot]
     assert [r.note for r in got] == [r.note for r in want]
     _assert_same([dataclasses.asdict(r) for r in got], [dataclasses.asdict(r) for r in want])
 
