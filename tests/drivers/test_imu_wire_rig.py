@@ -85,7 +85,9 @@ def test_msp_rows_are_si_on_the_host_clock(bench) -> None:
     b = _collect(bench, "imu", 3.0)
     assert set(b.values) == set(IMU_CHANNELS)
     assert np.all(np.diff(b.t_s) > 0)
-    assert abs(b.t_s[-1] - bench.clock.now()) < 0.3
+    # on the bench's clock, up to now: the last row is a poll or two old, in wall time (a
+    # poll thread starved 0.09 s of wall time once left it 0.55 s of bench time at 6x)
+    assert abs(b.t_s[-1] - bench.clock.now()) < 0.3 * bench.clock.time_scale
     gyro = np.column_stack([b.values[c] for c in IMU_CHANNELS[:3]])
     acc = np.column_stack([b.values[c] for c in IMU_CHANNELS[3:]])
     # Betaflight sends the gyro's counts: every value is a multiple of 1/16.4 deg/s
@@ -135,10 +137,16 @@ def test_gx3_rows_are_unit_quaternions_stamped_from_the_device_timer(bench) -> N
     assert np.all(q[:, 0] > 0.99)  # level platform at rest, scalar first
     dt = np.diff(b.t_s)
     # the device timer's spacing (10 ms at 100 Hz), not the pty's arrival jitter; the
-    # offset only moves when a less delayed packet arrives: by less than the pty's latency
-    # between two processes, under half a millisecond of wall time (3 ms of bench time at 6x)
+    # device-to-host offset only moves when a less delayed packet arrives, shortening the
+    # interval it moves at, never lengthening one: in all, by what the first packets were
+    # delayed beyond the least delayed (wall time: 0.05-0.25 ms here, once 1.1 ms at a loaded
+    # moment of a fresh-clone suite; bound at 3 ms, times the rig's time_scale)
+    off = dt[np.abs(dt - 0.01) > 1e-6]
+    print(f"GX3 intervals off the timer's 10 ms: {np.round(off, 5)}")
     assert np.median(dt) == pytest.approx(0.01, abs=1e-6)
-    assert np.abs(dt - 0.01).max() < 0.5e-3 * bench.clock.time_scale
+    assert dt.min() >= 0.0 and dt.max() < 0.01 + 1e-6
+    assert off.size < 0.05 * dt.size
+    assert np.sum(0.01 - off) < 3e-3 * bench.clock.time_scale
 
 
 def test_held_uploads_take_no_bench_time(bench) -> None:
