@@ -100,9 +100,9 @@ class LivePlots(QtWidgets.QWidget):
         first = None
         for i, (key, title, unit) in enumerate(PLOT_CHANNELS):
             # a PlotItem hands its ViewBox's methods on at run time, which its stubs omit
-            plot: Any = self.graphics.ci.addPlot(row=i // 2, col=i % 2)
+            # no context menu: not built at all (its forms were a third of a window's start)
+            plot: Any = self.graphics.ci.addPlot(row=i // 2, col=i % 2, enableMenu=False)
             plot.setLabel("left", title, units=unit)
-            plot.setMenuEnabled(False)
             # x is time relative to the newest row: a fixed range, so the time axes are
             # drawn once; y ranges move in steps (_fit_y). Unchanged axes are blitted from
             # a pixmap: axis text dominated the frame time on the offscreen platform.
