@@ -307,11 +307,12 @@ def opened(executor: Executor, say: Callable[[str], None]) -> Iterator[Any]:
             bokeh = importlib.util.find_spec("bokeh") is not None
             # the scheduler's HTTP server on a free port: the default (8787) is taken by
             # any other cluster on the machine, which distributed warns about
-            cluster = stack.enter_context(d.LocalCluster(
-                n_workers=executor.workers, threads_per_worker=1, processes=True,
-                host="127.0.0.1", dashboard_address="127.0.0.1:0" if bokeh else None,
-                scheduler_kwargs={} if bokeh else {"dashboard_address": "127.0.0.1:0"},
-                silence_logs=logging.CRITICAL, preload=["bench.jobs.sweep_worker"]))
+            with _unprofiled(not bokeh):
+                cluster = stack.enter_context(d.LocalCluster(
+                    n_workers=executor.workers, threads_per_worker=1, processes=True,
+                    host="127.0.0.1", dashboard_address="127.0.0.1:0" if bokeh else None,
+                    scheduler_kwargs={} if bokeh else {"dashboard_address": "127.0.0.1:0"},
+                    silence_logs=logging.CRITICAL, preload=["bench.jobs.sweep_worker"]))
             client = stack.enter_context(d.Client(cluster, set_as_default=False))
             what = f"Dask LocalCluster of {executor.workers} worker processes"
         runner = _Dask(client, d)
@@ -319,6 +320,22 @@ def opened(executor: Executor, say: Callable[[str], None]) -> Iterator[Any]:
         if executor.scheduler is not None and not client.nthreads():
             say("no workers on the cluster yet: the chunks wait for them")
         yield runner
+
+
+@contextlib.contextmanager
+def _unprofiled(off: bool) -> Iterator[None]:
+    """With ``off``, the LocalCluster's workers start without their statistical profiler.
+    Without a dashboard nobody reads its profiles, while it samples the flying thread's
+    stack every 10 ms (about a tenth of a worker's CPU in a sweep). Each worker takes the
+    configuration its nanny was made with, so the setting needs to hold only while the
+    cluster starts."""
+    if not off:
+        yield
+        return
+    import dask.config
+
+    with dask.config.set({"distributed.worker.profile.enabled": False}):
+        yield
 
 
 def _dashboard(client: Any, executor: Executor) -> str:

@@ -35,13 +35,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
-from typing import Any, cast
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
-from scipy import signal
 from scipy.optimize import brentq
 
 from optimizer.errors import RequestError
+
+if TYPE_CHECKING:  # scipy.signal (1.5 s of CPU to import) loads only for closed_loop:
+    # every process that flies (a sweep's workers, each CLI run) needs the gains only
+    from scipy import signal
 
 RATE_PHASE_MARGIN_DEG = 50.0
 ATTITUDE_PHASE_MARGIN_DEG = 65.0
@@ -108,6 +111,8 @@ def _pade(delay: float) -> tuple[np.ndarray, np.ndarray]:
 
 def closed_loop(g: Gains) -> signal.TransferFunction:
     """Linearised attitude (or height) closed loop: setpoint -> angle, Pade delay."""
+    from scipy import signal
+
     pn, pd = _pade(g.delay_s)
     num_l = g.k_p * np.polymul([1.0, g.w_i], pn)  # k_p (s + w_i) Pade_num
     den_l = np.polymul(np.polymul([1.0, 0.0, 0.0], [g.tau_s, 1.0]), pd)  # s^2 (tau s+1) ...

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import subprocess
@@ -19,12 +20,26 @@ from optimizer.catalogs.catalog import load_catalog
 from tests.conftest import CATALOGS
 
 
+@contextlib.contextmanager
+def unprofiled_cluster(workers: int) -> Iterator[DaskCluster]:
+    """``dask_cluster(workers)`` whose workers, the ones a test adds later too, run without
+    Dask's statistical profiler: it samples the flying thread's stack every 10 ms for a
+    dashboard that no test reads (about a tenth of a worker's CPU), and it costs CPU idle.
+    Scheduling, heartbeats and a lost worker are Dask's defaults."""
+    import dask.config  # noqa: F401 (this process's own configuration read first)
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED", "False")
+        with dask_cluster(workers=workers) as cluster:
+            yield cluster
+
+
 @pytest.fixture(scope="module")
 def dask() -> Iterator[DaskCluster]:
     """One scheduler with two single-thread workers for the module that asks for it. Not
     for the session: idle, the three processes still cost 2 s of CPU per 30 s (heartbeats),
     about 14 s of a suite that runs on saturated cores after the file has ended."""
-    with dask_cluster(workers=2) as cluster:
+    with unprofiled_cluster(workers=2) as cluster:
         yield cluster
 
 

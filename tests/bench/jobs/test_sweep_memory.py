@@ -7,8 +7,10 @@ import math
 import os
 import re
 import tracemalloc
+from collections.abc import Iterator
 
 import pytest
+from rotorbench_tests_services import DaskCluster
 
 from bench.errors import RigError
 from bench.jobs.sweep_memory import (
@@ -21,7 +23,7 @@ from optimizer.flight.maneuvers import MANEUVERS, Maneuver
 from optimizer.sweep.designs import plan_designs
 from optimizer.sweep.flight_params import STD_PREFIX
 from optimizer.sweep.fly_rows import Chunk, fly_chunk
-from tests.bench.jobs.conftest import SWEEP, run_cli
+from tests.bench.jobs.conftest import SWEEP, run_cli, unprofiled_cluster
 
 pytestmark = pytest.mark.slow(wall_s=15)  # CLI runs in subprocesses, a Dask cluster
 
@@ -53,8 +55,16 @@ def test_samples_that_cannot_fit_are_one_line_exit_2(tmp_path) -> None:
     assert list(tmp_path.iterdir()) == []
 
 
-def test_on_a_cluster_the_limit_is_a_workers(tmp_path, dask) -> None:
-    done = run_cli([*SWEEP, "--samples", str(TOO_MANY), "--scheduler", dask.address,
+@pytest.fixture(scope="module")
+def one_worker() -> Iterator[DaskCluster]:
+    """A scheduler and one worker: the limit is the smallest worker's, and one worker has
+    it as well as two on this machine (nothing flies: the check comes first)."""
+    with unprofiled_cluster(workers=1) as cluster:
+        yield cluster
+
+
+def test_on_a_cluster_the_limit_is_a_workers(tmp_path, one_worker) -> None:
+    done = run_cli([*SWEEP, "--samples", str(TOO_MANY), "--scheduler", one_worker.address,
                     "--out", str(tmp_path / "s.parquet")])
     assert done.returncode == 2, done.stderr
     assert " is available per worker thread of the cluster; " in \

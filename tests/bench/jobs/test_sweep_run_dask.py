@@ -32,10 +32,12 @@ def assert_same_rows(a, b) -> None:
 
 
 def test_every_executor_gives_the_in_process_rows(capsys, tmp_path, dask, reference) -> None:
-    # uneven chunkings of the 44 designs (4 chunks of 11; 5 of 9, the last of 8); each chunk
-    # flies the maneuver's whole tick loop, so many tiny chunks would only cost time
-    runs = {"local": ["--workers", "2", "--chunk-size", "11"],
-            "remote": ["--scheduler", dask.address, "--chunk-size", "9"]}
+    # chunkings of the 44 designs other than the in-process one chunk (2 chunks of 22, one
+    # per worker; 3 of 15, the last of 14), finished in any order; each chunk flies the
+    # maneuver's whole tick loop, a second whatever its size, so more chunks would only
+    # cost time
+    runs = {"local": ["--workers", "2", "--chunk-size", "22"],
+            "remote": ["--scheduler", dask.address, "--chunk-size", "15"]}
     for name, options in runs.items():
         out = tmp_path / f"{name}.parquet"
         assert main([*SWEEP, *options, "--out", str(out)]) == 0

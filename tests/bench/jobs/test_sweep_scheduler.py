@@ -13,9 +13,10 @@ import time
 from collections.abc import Iterator
 
 import pytest
+from rotorbench_tests_services import DaskCluster
 
 from bench.jobs.sweep_scheduler import NotAScheduler, probe
-from tests.bench.jobs.conftest import SWEEP, run_cli
+from tests.bench.jobs.conftest import SWEEP, run_cli, unprofiled_cluster
 
 pytestmark = pytest.mark.slow(wall_s=15)  # each CLI run waits out the probe's 4 s at most
 
@@ -99,5 +100,13 @@ def test_a_closed_port_is_unreachable() -> None:
         probe(address, timeout_s=1.0)
 
 
-def test_a_real_schedulers_handshake_passes(dask) -> None:
-    probe(dask.address, timeout_s=4.0)
+@pytest.fixture(scope="module")
+def scheduler() -> Iterator[DaskCluster]:
+    """A real ``dask scheduler`` alone: the handshake is the scheduler's, no worker takes
+    part in it (two would cost seconds of CPU to start, and heartbeats)."""
+    with unprofiled_cluster(workers=0) as cluster:
+        yield cluster
+
+
+def test_a_real_schedulers_handshake_passes(scheduler) -> None:
+    probe(scheduler.address, timeout_s=4.0)
