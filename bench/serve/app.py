@@ -16,6 +16,7 @@ read-only: the app never writes.
 
 from __future__ import annotations
 
+import functools
 import io
 import json
 import math
@@ -74,10 +75,9 @@ def _plotly_js() -> Path:
 def create_app(store: Store, *, token: str | None = None, title: str = "rotorbench") -> Any:
     """The ASGI app (wrapped in the guard) serving ``store``."""
     app = FastAPI(title=f"{title} runs", version="1", docs_url=None, redoc_url=None)
-    templates = Jinja2Templates(directory=str(HERE / "templates"))
+    templates = _templates()
     cache = RecordCache()
     series_cache = SeriesCache()
-    _warm(templates)
     if isinstance(store, FolderStore) and not store.read_only:
         store = replace(store, read_only=True)
     app.state.store = store
@@ -347,6 +347,15 @@ def create_app(store: Store, *, token: str | None = None, title: str = "rotorben
                             status_code=422 if isinstance(exc, BadFilter) else 503)
 
     return Guard(app, token)
+
+
+@functools.cache
+def _templates() -> Jinja2Templates:
+    """The pages, compiled once per process and shared by every app made in it (an app
+    sets nothing on them; compiling them was two thirds of ``create_app``)."""
+    templates = Jinja2Templates(directory=str(HERE / "templates"))
+    _warm(templates)
+    return templates
 
 
 def _warm(templates: Any) -> None:

@@ -24,6 +24,32 @@ def recorded(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
+@pytest.fixture(scope="session")
+def recorded_lab(recorded: Path, pg_cluster: object, s3: object,
+                 tmp_path_factory: pytest.TempPathFactory) -> str:
+    """The recorded runs pushed into a lab catalog (a database of the session's cluster,
+    a bucket of its S3), once per test process: the web view only reads, so every test
+    over it sees the same catalog, through its own spool and download cache."""
+    import os
+
+    import psycopg
+
+    name = f"served_{os.getpid()}"
+    with psycopg.connect(pg_cluster.url(), autocommit=True) as con:
+        con.execute(f"DROP DATABASE IF EXISTS {name}")
+        con.execute(f"CREATE DATABASE {name}")
+    url = pg_cluster.url(db=name)
+    bucket = name.replace("_", "-")
+    s3.create_bucket(bucket)
+    with pytest.MonkeyPatch.context() as mp:
+        for k, v in s3.env.items():
+            mp.setenv(k, v)
+        mp.setenv("XDG_CACHE_HOME", str(tmp_path_factory.mktemp("lab-cache")))
+        assert main(["store", "init", url, "--data", f"s3://{bucket}/runs"]) == 0
+        assert main(["store", "push", str(recorded), "--store", url]) == 0
+    return url
+
+
 @pytest.fixture(params=["folder", "lab"])
 def store(request: pytest.FixtureRequest, recorded: Path, tmp_path: Path,
           monkeypatch: pytest.MonkeyPatch) -> Iterator[object]:
@@ -35,13 +61,11 @@ def store(request: pytest.FixtureRequest, recorded: Path, tmp_path: Path,
         shutil.copytree(recorded, copy)
         yield open_store(str(copy))
         return
-    pg_url = request.getfixturevalue("pg_url")
-    s3 = request.getfixturevalue("s3_env")
-    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
-    data = f"s3://{s3.bucket}/runs"
-    assert main(["store", "init", pg_url, "--data", data]) == 0
-    assert main(["store", "push", str(recorded), "--store", pg_url]) == 0
-    yield open_store(pg_url, spool=tmp_path / "spool")
+    url = request.getfixturevalue("recorded_lab")
+    for k, v in request.getfixturevalue("s3").env.items():
+        monkeypatch.setenv(k, v)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))  # each test downloads
+    yield open_store(url, spool=tmp_path / "spool")
 
 
 @pytest.fixture

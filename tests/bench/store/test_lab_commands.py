@@ -13,7 +13,7 @@ from pathlib import Path
 
 import psycopg
 import pytest
-from rotorbench_tests_services import SUPERUSER_PASSWORD, postgres_cluster, s3_server
+from rotorbench_tests_services import SUPERUSER_PASSWORD, Postgres, s3_server
 
 from bench.cli import main
 
@@ -29,15 +29,46 @@ def _env(s3: object, tmp_path: Path, **extra: str) -> dict[str, str]:
     return env
 
 
-def _runs(url: str, env: dict[str, str]) -> list[dict]:
-    out = subprocess.run([*ROTORBENCH, "runs", "--store", url, "--json"], env=env,
-                         capture_output=True, text=True, timeout=120, check=True).stdout
+def _here(monkeypatch: pytest.MonkeyPatch, env: dict[str, str]) -> None:
+    """This process's environment made ``env``, the one its ``rotorbench`` processes get,
+    for the commands the test runs in-process."""
+    for k in set(os.environ) - set(env):
+        monkeypatch.delenv(k)
+    for k, v in env.items():
+        if os.environ.get(k) != v:
+            monkeypatch.setenv(k, v)
+
+
+def _cli_here(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
+    """A command run in this process through ``main``, the entry point ``rotorbench`` runs,
+    for the steps of a test that are not about a process of their own (a fresh interpreter
+    per step was most of this file's CPU); its exit code, stdout and stderr."""
+    capsys.readouterr()
+    code = main(list(argv))
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def _runs(url: str, capsys: pytest.CaptureFixture[str]) -> list[dict]:
+    """``runs --json`` (in-process; test_lab_secrets runs it as a process of its own)."""
+    code, out, err = _cli_here(capsys, "runs", "--store", url, "--json")
+    assert code == 0, err
     return json.loads(out)
 
 
-def test_two_benches_at_once_then_list_fit_and_push(pg_url: str, s3_env: object,
-                                                     tmp_path: Path) -> None:
+def _under_way(spool: Path, bench: subprocess.Popen[str] | subprocess.Popen[bytes]) -> None:
+    """Returns once the recording ``bench`` has written its first part into ``spool``."""
+    end = time.monotonic() + 60
+    while not list(spool.glob("*/samples.parquet/part-*.parquet")):
+        assert time.monotonic() < end and bench.poll() is None
+        time.sleep(0.1)
+
+
+def test_two_benches_at_once_then_list_fit_and_push(
+        pg_url: str, s3_env: object, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
     env = _env(s3_env, tmp_path)
+    _here(monkeypatch, env)
     data = f"s3://{s3_env.bucket}/runs"
     assert main(["store", "init", pg_url]) == 0
     benches = [subprocess.Popen(
@@ -49,7 +80,7 @@ def test_two_benches_at_once_then_list_fit_and_push(pg_url: str, s3_env: object,
     for p, (out, err) in zip(benches, outs, strict=True):
         assert p.returncode == 0, err
         assert "stored in postgresql://postgres:***@" in out and SUPERUSER_PASSWORD not in out
-    runs = _runs(pg_url, env)
+    runs = _runs(pg_url, capsys)
     assert sorted(r["bench"] for r in runs) == ["stand-a", "stand-b"]
     assert len({r["run_id"] for r in runs}) == 2
     import pandas as pd
@@ -76,7 +107,7 @@ def test_two_benches_at_once_then_list_fit_and_push(pg_url: str, s3_env: object,
                           text=True, timeout=120)
     assert push.returncode == 0, push.stderr
     assert "pushed 0 runs (1 already there)" in push.stdout
-    assert len(_runs(pg_url, env)) == 2
+    assert len(_runs(pg_url, capsys)) == 2
 
 
 def test_reader_only_login_is_refused_before_anything_spins(
@@ -101,60 +132,66 @@ def test_folder_out_to_s3_without_a_catalog_is_refused(tmp_path: Path,
     assert "give the catalog with --store postgresql://" in capsys.readouterr().err
 
 
-def test_outage_mid_run_then_sync(tmp_path: Path) -> None:
+def test_outage_mid_run_then_sync(pg_cluster: Postgres, pg_url: str, tmp_path: Path,
+                                  monkeypatch: pytest.MonkeyPatch,
+                                  capsys: pytest.CaptureFixture[str]) -> None:
     """Both servers stop while a bench records in real time: the run ends normally,
-    says it is spooled, and `store sync` delivers it once the servers are back."""
-    with postgres_cluster() as pg, s3_server() as s3:
+    says it is spooled, and `store sync` delivers it once the servers are back. (The
+    session's cluster stops and starts again, as test_spool_destinations' does; the S3
+    server is the test's own.)"""
+    with s3_server() as s3:
         env = _env(s3, tmp_path)
-        url = pg.url()
+        _here(monkeypatch, env)
+        url = pg_url
+        spool = tmp_path / "spool"
         s3.create_bucket("lab")
-        assert subprocess.run([*ROTORBENCH, "store", "init", url, "--data", "s3://lab/runs"],
-                              env=env, capture_output=True, timeout=120).returncode == 0
+        assert main(["store", "init", url, "--data", "s3://lab/runs"]) == 0
         bench = subprocess.Popen([*ROTORBENCH, "step", "--repeats", "1", "--realtime",
-                                  "--store", url, "--spool", str(tmp_path / "spool")],
+                                  "--store", url, "--spool", str(spool)],
                                  env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                  text=True)
-        time.sleep(2.0)  # the run is under way (4.5 s in real time)
-        pg.stop()
-        port = s3.port
-        s3.stop()
-        out, err = bench.communicate(timeout=120)
+        _under_way(spool, bench)  # (4.5 s in real time)
+        with psycopg.connect(url, autocommit=True) as con:  # the test cluster commits
+            con.execute("CHECKPOINT")  # asynchronously and stops at once: keep what it has
+        pg_cluster.stop()
+        try:
+            port = s3.port
+            s3.stop()
+            out, err = bench.communicate(timeout=120)
+        finally:
+            pg_cluster.start()
         assert bench.returncode == 0, err
         assert "success" in out and "spooled:" in out and "store sync" in out
         assert SUPERUSER_PASSWORD not in out + err
-        pg.start()
         with s3_server(port) as back:
             back.create_bucket("lab")
-            sync = [subprocess.run([*ROTORBENCH, "store", "sync", "--store", url, "--spool",
-                                    str(tmp_path / "spool")], env=env, capture_output=True,
-                                   text=True, timeout=120) for _ in range(2)]
-            assert "synced 1 of 1 waiting runs" in sync[0].stdout, sync[0].stderr
-            assert "synced 0 of 0 waiting runs" in sync[1].stdout
-            (run,) = _runs(url, env)
+            sync = [_cli_here(capsys, "store", "sync", "--store", url, "--spool", str(spool))
+                    for _ in range(2)]
+            assert "synced 1 of 1 waiting runs" in sync[0][1], sync[0][2]
+            assert "synced 0 of 0 waiting runs" in sync[1][1]
+            (run,) = _runs(url, capsys)
             assert run["status"] == "success" and run["samples"] > 100_000
 
 
-def test_kill_9_keeps_the_spooled_run_and_sync_delivers_it(pg_url: str, s3_env: object,
-                                                           tmp_path: Path) -> None:
+def test_kill_9_keeps_the_spooled_run_and_sync_delivers_it(
+        pg_url: str, s3_env: object, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
     import signal
 
     env = _env(s3_env, tmp_path)
+    _here(monkeypatch, env)
     assert main(["store", "init", pg_url, "--data", f"s3://{s3_env.bucket}/runs"]) == 0
     spool = tmp_path / "spool"
     bench = subprocess.Popen([*ROTORBENCH, "step", "--repeats", "3", "--realtime", "--store",
                               pg_url, "--spool", str(spool)], env=env,
                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    end = time.monotonic() + 60
-    while not list(spool.glob("*/samples.parquet/part-*.parquet")):
-        assert time.monotonic() < end and bench.poll() is None
-        time.sleep(0.1)
+    _under_way(spool, bench)
     time.sleep(1.5)
     bench.send_signal(signal.SIGKILL)
     bench.communicate(timeout=30)
-    sync = subprocess.run([*ROTORBENCH, "store", "sync", "--store", pg_url, "--spool",
-                           str(spool)], env=env, capture_output=True, text=True, timeout=120)
-    assert "synced 1 of 1 waiting runs" in sync.stdout, sync.stdout + sync.stderr
-    (run,) = _runs(pg_url, env)
+    _, out, err = _cli_here(capsys, "store", "sync", "--store", pg_url, "--spool", str(spool))
+    assert "synced 1 of 1 waiting runs" in out, out + err
+    (run,) = _runs(pg_url, capsys)
     assert run["status"] == "killed" and run["samples"] > 0
 
 

@@ -122,8 +122,16 @@ def test_the_web_page_header_shows_the_catalog_without_its_password(
 
 
 def test_a_key_in_an_s3_data_location_is_refused_and_shown_nowhere(
-        pg_url: str, s3_env: object, tmp_path: Path) -> None:
-    env = _env(s3_env, tmp_path)
+        pg_url: str, s3_env: object, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capfd: pytest.CaptureFixture[str]) -> None:
+    """Each refused before anything is opened: run in this process (the first test above
+    runs the commands as processes of their own), its output read at the file
+    descriptors, so what a library writes there is read too."""
+    for k, v in _env(s3_env, tmp_path).items():
+        if os.environ.get(k) != v:
+            monkeypatch.setenv(k, v)
+    for k in ("ROTORBENCH_STORE", "PGPASSWORD"):
+        monkeypatch.delenv(k, raising=False)
     assert main(["store", "init", pg_url]) == 0
     spool = tmp_path / "spool"
     located = f"s3://AKIALABKEY:{S3_SECRET}@{s3_env.bucket}/runs"
@@ -135,11 +143,13 @@ def test_a_key_in_an_s3_data_location_is_refused_and_shown_nowhere(
               f"s3://{s3_env.bucket}/runs?secret_key={quote(S3_SECRET, safe='')}",
               "--spool", str(spool)]]
     for args in tries:
-        out = _cli(args, env)
-        text = out.stdout + out.stderr
-        assert out.returncode == 2, (args, text)
-        assert "holds credentials" in out.stderr and "AWS_ACCESS_KEY_ID" in out.stderr
-        assert len(out.stderr.strip().splitlines()) == 1 and "Traceback" not in text
+        capfd.readouterr()
+        code = main(args)
+        out = capfd.readouterr()
+        text = out.out + out.err
+        assert code == 2, (args, text)
+        assert "holds credentials" in out.err and "AWS_ACCESS_KEY_ID" in out.err
+        assert len(out.err.strip().splitlines()) == 1 and "Traceback" not in text
         assert not _leaks(text, S3_SECRET) and "AKIALABKEY" not in text, text
     assert not list(spool.glob("*/run.json"))  # nothing recorded
     with psycopg.connect(pg_url) as con:
@@ -147,14 +157,17 @@ def test_a_key_in_an_s3_data_location_is_refused_and_shown_nowhere(
     assert "AKIALABKEY" not in dump and not _leaks(dump, S3_SECRET)
 
 
-def test_a_token_on_the_command_line_is_warned_about(tmp_path: Path) -> None:
+def test_a_token_on_the_command_line_is_warned_about(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capfd: pytest.CaptureFixture[str]) -> None:
     """``--token`` is visible in ``ps``: serve says so on stderr and names the variable
-    (the port is refused right after, so nothing is served)."""
-    out = subprocess.run([*ROTORBENCH, "serve", "--store", str(tmp_path), "--token",
-                          "a-long-enough-token", "--port", "0"], capture_output=True,
-                         text=True, timeout=60)
-    assert "--token is visible" in out.stderr and "ROTORBENCH_TOKEN" in out.stderr
-    quiet = subprocess.run([*ROTORBENCH, "serve", "--store", str(tmp_path), "--port", "0"],
-                           capture_output=True, text=True, timeout=60,
-                           env={**os.environ, "ROTORBENCH_TOKEN": "a-long-enough-token"})
-    assert "warning" not in quiet.stderr
+    (the port is refused right after, so nothing is served). In this process: what is
+    tested is the command's words, not a process."""
+    monkeypatch.delenv("ROTORBENCH_TOKEN", raising=False)
+    assert main(["serve", "--store", str(tmp_path), "--token", "a-long-enough-token",
+                 "--port", "0"]) == 2
+    err = capfd.readouterr().err
+    assert "--token is visible" in err and "ROTORBENCH_TOKEN" in err
+    monkeypatch.setenv("ROTORBENCH_TOKEN", "a-long-enough-token")
+    assert main(["serve", "--store", str(tmp_path), "--port", "0"]) == 2
+    assert "warning" not in capfd.readouterr().err

@@ -17,6 +17,7 @@ from psycopg.conninfo import conninfo_to_dict
 
 from bench.cli import main
 from bench.store.lab_catalog import LabCatalog
+from tests.bench.store.conftest import cli_in_process
 
 pytestmark = pytest.mark.slow(wall_s=30)
 
@@ -38,6 +39,10 @@ def _env(s3: object, tmp_path: Path) -> dict[str, str]:
            "XDG_DATA_HOME": str(tmp_path / "data")}
     env.pop("ROTORBENCH_STORE", None)
     return env
+
+
+def _sync(args: list[str], env: dict[str, str]) -> subprocess.CompletedProcess[str]:
+    return cli_in_process(["store", "sync", *args], env)
 
 
 def _objects(s3: object) -> list[str]:
@@ -122,15 +127,11 @@ def test_a_running_run_is_listed_live_and_another_writer_may_not_sync_it(
         assert bench.returncode == 0 and "spooled:" in out, out + err
     with s3_server(port) as back:
         back.create_bucket("lab")
-        other = subprocess.run([*ROTORBENCH, "store", "sync", "--store", bench_b, "--spool",
-                                str(spool)], env=env, capture_output=True, text=True,
-                               timeout=120)
+        other = _sync(["--store", bench_b, "--spool", str(spool)], env)
         assert other.returncode == 2, other.stdout + other.stderr
         (line,) = [x for x in other.stdout.splitlines() if x.startswith("still spooled")]
         assert "by login ba_" in line and "login bb_" in line and "writer role" not in line
-        own_sync = subprocess.run([*ROTORBENCH, "store", "sync", "--store", bench_a,
-                                   "--spool", str(spool)], env=env, capture_output=True,
-                                  text=True, timeout=120)
+        own_sync = _sync(["--store", bench_a, "--spool", str(spool)], env)
         assert own_sync.returncode == 0 and "synced 1 of 1" in own_sync.stdout, own_sync.stderr
     (row,) = LabCatalog(pg_url).list_runs()
     assert row.status == "success"

@@ -17,6 +17,7 @@ from rotorbench_tests_services import SUPERUSER_PASSWORD, free_port
 from bench.cli import main
 from bench.store.lab_catalog import LabCatalog
 from bench.store.spool_destinations import LEDGER
+from tests.bench.store.conftest import cli_in_process
 
 pytestmark = pytest.mark.slow(wall_s=30)
 
@@ -31,8 +32,13 @@ def _env(s3: object, tmp_path: Path, **extra: str) -> dict[str, str]:
 
 
 def _cli(args: list[str], env: dict[str, str]) -> subprocess.CompletedProcess[str]:
+    """A recording command, a process of its own: the ledger tells runs by their process."""
     return subprocess.run([*ROTORBENCH, *args], env=env, capture_output=True, text=True,
                           timeout=180)
+
+
+def _sync(args: list[str], env: dict[str, str]) -> subprocess.CompletedProcess[str]:
+    return cli_in_process(["store", "sync", *args], env)
 
 
 def _spelled_otherwise(url: str) -> str:
@@ -73,21 +79,19 @@ def test_two_catalogs_one_spool_each_run_goes_where_it_was_going(
     assert len(b_ids) == 1  # B lists B's run; A at most A's own, announced as it ran
     assert {r.run_id for r in LabCatalog(a_url).list_runs()} <= {a_id}
     # syncing B leaves A's run alone and says so
-    b_sync = _cli(["store", "sync", "--store", b_url, "--spool", str(spool)], env)
+    b_sync = _sync(["--store", b_url, "--spool", str(spool)], env)
     assert b_sync.returncode == 0 and "synced 0 of 0" in b_sync.stdout
     assert "1 runs going to other catalogs" in b_sync.stdout
     # `store sync` alone: each run to its own catalog and data location (the password
     # from PGPASSWORD, as libpq takes it; the spool kept none)
-    alone = _cli(["store", "sync", "--spool", str(spool)],
-                 {**env, "PGPASSWORD": SUPERUSER_PASSWORD})
+    alone = _sync(["--spool", str(spool)], {**env, "PGPASSWORD": SUPERUSER_PASSWORD})
     assert alone.returncode == 0, alone.stdout + alone.stderr
     assert "synced 1 of 1 waiting runs" in alone.stdout
     (a_row,) = LabCatalog(a_url).list_runs()
     assert a_row.run_id == a_id and a_row.status == "success"
     assert a_row.data.startswith(a_data + "/") and LabCatalog(b_url).count_runs() == 1
     # the same catalog spelled otherwise publishes nothing again
-    again = _cli(["store", "sync", "--store", _spelled_otherwise(a_url), "--spool",
-                  str(spool)], env)
+    again = _sync(["--store", _spelled_otherwise(a_url), "--spool", str(spool)], env)
     assert again.returncode == 0 and "synced 0 of 0" in again.stdout, again.stderr
     assert LabCatalog(a_url).count_runs() == 1 and LabCatalog(b_url).count_runs() == 1
     for ledger in (spool / LEDGER).glob("*.json"):  # no secret kept for the way there
@@ -111,7 +115,7 @@ def test_a_run_recorded_with_its_catalog_away_is_resolved_at_sync(
     try:
         run = _cli(["step", "--repeats", "1", "--store", url, "--spool", str(spool)], env)
         assert run.returncode == 0 and "spooled:" in run.stdout, run.stdout + run.stderr
-        down = _cli(["store", "sync", "--store", url, "--spool", str(spool)], env)
+        down = _sync(["--store", url, "--spool", str(spool)], env)
         assert down.returncode == 2 and "cannot connect" in down.stderr, down.stderr
         assert "no data location" not in down.stderr
         assert len(down.stderr.strip().splitlines()) == 1
@@ -119,8 +123,7 @@ def test_a_run_recorded_with_its_catalog_away_is_resolved_at_sync(
         pg_cluster.start()
     (entry,) = [json.loads(p.read_text()) for p in (spool / LEDGER).glob("*.json")]
     assert entry["catalog_id"] is None and entry["params"]["dbname"] in pg_url
-    sync = _cli(["store", "sync", "--store", _spelled_otherwise(pg_url), "--spool",
-                 str(spool)], env)
+    sync = _sync(["--store", _spelled_otherwise(pg_url), "--spool", str(spool)], env)
     assert sync.returncode == 0 and "synced 1 of 1" in sync.stdout, sync.stdout + sync.stderr
     (entry,) = [json.loads(p.read_text()) for p in (spool / LEDGER).glob("*.json")]
     assert entry["catalog_id"] == LabCatalog(pg_url).identity().catalog_id
