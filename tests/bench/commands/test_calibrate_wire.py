@@ -160,7 +160,8 @@ def _record(root: Path) -> tuple[dict, list[dict], pd.DataFrame]:
 
 
 @pytest.mark.parametrize(("role", "fault", "message"), [
-    ("imu", "silent", r"no reply to MSP command 102|imu: no samples for"),
+    # the poll's MSP_MULTIPLE_MSP (230: RAW_IMU and the FC's clock)
+    ("imu", "silent", r"no reply to MSP command 230|imu: no samples for"),
     ("imu", "closed", r"serial://sim/msp-imu: serial (read|write) failed|imu: no samples"),
     ("reference_imu", "silent", r"serial://sim/gx3: no packet for|reference_imu: no samples"),
     ("reference_imu", "closed", r"serial://sim/gx3: serial read failed|reference_imu: no sam"),
