@@ -177,7 +177,6 @@ class MspClient:
 
 #: what the IMU role asks a Betaflight FC for in one MSP_MULTIPLE_MSP request
 RAW_AND_ATTITUDE = (msp.MSP_RAW_IMU, msp.MSP_ATTITUDE)
-RTC_EPOCH_S = 1_000_000_000  # the FC's clock is set to this (2001): its time counts from it
 OFFSET_ROWS = 400  # the rows whose best bound gives the FC's clock against the host's
 IMU_CHANNELS = ("acc_x_m_s2", "acc_y_m_s2", "acc_z_m_s2", "gyro_x_rad_s", "gyro_y_rad_s",
                 "gyro_z_rad_s", "roll_rad", "pitch_rad", "yaw_rad")
@@ -209,8 +208,10 @@ class MspImu:
         except ValueError as exc:
             raise DeviceError(f"{url}: {exc}") from None
         self._rows: list[tuple[float, ...]] = []
-        # each timed row's bound on the FC's clock against the host's (_serve_delay)
+        # each timed row's bound on the FC's clock against the host's (_serve_delay), and
+        # the whole second the FC's clock was set to (_set_rtc)
         self._bounds: collections.deque[float] = collections.deque(maxlen=OFFSET_ROWS)
+        self._rtc_set_s = 0
         self._error: DeviceError | None = None
         self._lock = threading.Lock()
         self._stop = threading.Event()
@@ -287,9 +288,12 @@ class MspImu:
                               timed=True)
 
     def _set_rtc(self) -> bool:
-        """Set the FC's clock (``_poll``); False when the FC refuses it or says nothing."""
+        """Set the FC's clock to the time of day, as the radios' and ground stations' MSP
+        scripts do on connect (its blackbox logs keep true dates); False when the FC
+        refuses it or says nothing."""
+        self._rtc_set_s = int(time.time())
         try:
-            self.client.request(msp.set_rtc_request(RTC_EPOCH_S))
+            self.client.request(msp.set_rtc_request(self._rtc_set_s))
         except (MspRefused, MspNoReply):
             return False
         return True
@@ -301,7 +305,7 @@ class MspImu:
         after it was sent; the fastest one was served at once); both clocks run on through
         any pause of the rig's (a row spanning one is dropped), so the offset holds. Half a
         millisecond is added: the FC's clock counts whole ones."""
-        served = (served_ms - RTC_EPOCH_S * 1000) / 1000.0
+        served = (served_ms - self._rtc_set_s * 1000) / 1000.0
         self._bounds.append(sent - served)
         return served + max(self._bounds) - sent + 5e-4
 

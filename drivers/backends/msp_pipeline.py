@@ -51,12 +51,12 @@ import select
 import time
 from typing import Any, NamedTuple
 
-from drivers.backends.msp_fc import RAW_AND_ATTITUDE, RTC_EPOCH_S, MspImu, MspRefused
+from drivers.backends.msp_fc import RAW_AND_ATTITUDE, MspImu, MspRefused
 from drivers.backends.serial_link import read_some, write_all
 from drivers.codecs import msp
 from drivers.errors import DeviceError
 
-__all__ = ["LOST_AFTER_S", "MAX_IN_FLIGHT", "RTC_EPOCH_S", "TAGS", "PipelinedMspImu"]
+__all__ = ["LOST_AFTER_S", "MAX_IN_FLIGHT", "TAGS", "PipelinedMspImu"]
 
 RAW_ATTITUDE_RTC = (*RAW_AND_ATTITUDE, msp.MSP_RTC)
 

@@ -119,9 +119,8 @@ class SimFlightController(PtySimulator):
             return enc(msp.Analog(min(255, round(volts * 10)), 0, 0,
                                   _i16(amps * 100), round(volts * 100)))
         if cmd == msp.MSP_RTC:
-            offset = self._rtc_offset_s
-            return enc(msp.rtc_reply(None if offset is None else
-                                     math.floor((offset + self.rtc_clock()) * 1000)))
+            now = self.rtc_s()
+            return enc(msp.rtc_reply(None if now is None else math.floor(now * 1000)))
         if cmd == msp.MSP_MOTOR:
             vals = self.motors() + [0] * (msp.MOTOR_SLOTS - self.motor_count)
             return enc(msp.Motor(tuple(vals)))
@@ -133,6 +132,11 @@ class SimFlightController(PtySimulator):
             rates = tuple(_i16(math.degrees(g) * self.gyro_lsb_per_dps) for g in gyro)
             return enc(msp.RawImu(counts, rates, (0, 0, 0)))  # type: ignore[arg-type]
         return enc(msp.ErrorReply(cmd))
+
+    def rtc_s(self) -> float | None:
+        """The FC's clock (seconds since 1970, UTC); None until MSP_SET_RTC set it."""
+        offset = self._rtc_offset_s
+        return None if offset is None else offset + self.rtc_clock()
 
     def _reply_with_payload(self, cmd: int, payload: bytes) -> bytes:
         """SET_RTC and MULTIPLE_MSP (see module doc); anything else is refused."""

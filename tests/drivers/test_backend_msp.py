@@ -219,11 +219,13 @@ def test_rows_are_stamped_when_the_fc_read_its_imu_if_it_tells_its_clock(multipl
         time.sleep(1.5)
         block = dev.read_block()
         dev.close()
+        fc_time = sim.rtc_s()  # set to the time of day, as radios' MSP scripts set it
     finally:
         port.close()
         sim.stop()
     late = block.values["acc_x_m_s2"] / 10.0 - block.t_s  # reading time less the stamp
     assert block.t_s.size > 40
+    assert fc_time is not None and abs(fc_time - time.time()) < 2.0
     if multiple:  # one LSB of acc x is 0.5 ms of its clock; the clocks' offset is known
         # once a request reached the FC at once (the fastest of the rows so far)
         assert np.abs(late[20:]).max() < 2e-3, (late[20:].min(), late[20:].max())
