@@ -226,11 +226,16 @@ def test_rows_are_stamped_when_the_fc_read_its_imu_if_it_tells_its_clock(multipl
     late = block.values["acc_x_m_s2"] / 10.0 - block.t_s  # reading time less the stamp
     assert block.t_s.size > 40
     assert fc_time is not None and abs(fc_time - time.time()) < 2.0
-    if multiple:  # one LSB of acc x is 0.5 ms of its clock; the clocks' offset is known
-        # once a request reached the FC at once (the fastest of the rows so far)
-        assert np.abs(late[20:]).max() < 2e-3, (late[20:].min(), late[20:].max())
+    if multiple:
+        # the link's 0-15 ms are not in the stamps: what is left is the FC's whole
+        # milliseconds (one LSB of acc x is 0.5 ms of its clock) and the estimate of the
+        # clocks' offset, the fastest request so far (taken as served at once: on a loaded
+        # host the fastest of a few dozen took 1-2 ms, a bias the calibration's time offset
+        # takes in, not jitter)
+        spread = late[20:].max() - late[20:].min()
+        assert spread < 3e-3, (late[20:].min(), late[20:].max())
         assert late.min() > -2e-3 and late.max() < 0.016
-    else:
+    else:  # the send time: the link's delay in each stamp
         assert late.max() - late.min() > 8e-3 and late.min() > -2e-3
 
 
