@@ -70,10 +70,7 @@ class GridSampler:
         k = self.index_at(t_s)
         with self._lock:
             key = self.version()
-            end = self._k0 + len(self._rows)
-            if key != self._key or not self._k0 <= k < end:
-                self._fill(k, key)
-            elif k >= end - self.block // 2:
+            if key != self._key or not self._k0 <= k < self._k0 + len(self._rows) - self.block // 2:
                 self._fill(k, key)
 
     def _fill(self, k: int, key: Hashable) -> None:

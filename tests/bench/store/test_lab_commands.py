@@ -16,6 +16,7 @@ import pytest
 from rotorbench_tests_services import SUPERUSER_PASSWORD, Postgres, s3_server
 
 from bench.cli import main
+from tests.bench.store.conftest import as_environment
 
 pytestmark = pytest.mark.slow(wall_s=30)  # servers started, stopped and restarted: started first
 
@@ -27,16 +28,6 @@ def _env(s3: object, tmp_path: Path, **extra: str) -> dict[str, str]:
            "XDG_DATA_HOME": str(tmp_path / "data"), **extra}
     env.pop("ROTORBENCH_STORE", None)
     return env
-
-
-def _here(monkeypatch: pytest.MonkeyPatch, env: dict[str, str]) -> None:
-    """This process's environment made ``env``, the one its ``rotorbench`` processes get,
-    for the commands the test runs in-process."""
-    for k in set(os.environ) - set(env):
-        monkeypatch.delenv(k)
-    for k, v in env.items():
-        if os.environ.get(k) != v:
-            monkeypatch.setenv(k, v)
 
 
 def _cli_here(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
@@ -68,7 +59,7 @@ def test_two_benches_at_once_then_list_fit_and_push(
         pg_url: str, s3_env: object, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
         capsys: pytest.CaptureFixture[str]) -> None:
     env = _env(s3_env, tmp_path)
-    _here(monkeypatch, env)
+    as_environment(monkeypatch, env)
     data = f"s3://{s3_env.bucket}/runs"
     assert main(["store", "init", pg_url]) == 0
     benches = [subprocess.Popen(
@@ -141,7 +132,7 @@ def test_outage_mid_run_then_sync(pg_cluster: Postgres, pg_url: str, tmp_path: P
     server is the test's own.)"""
     with s3_server() as s3:
         env = _env(s3, tmp_path)
-        _here(monkeypatch, env)
+        as_environment(monkeypatch, env)
         url = pg_url
         spool = tmp_path / "spool"
         s3.create_bucket("lab")
@@ -179,7 +170,7 @@ def test_kill_9_keeps_the_spooled_run_and_sync_delivers_it(
     import signal
 
     env = _env(s3_env, tmp_path)
-    _here(monkeypatch, env)
+    as_environment(monkeypatch, env)
     assert main(["store", "init", pg_url, "--data", f"s3://{s3_env.bucket}/runs"]) == 0
     spool = tmp_path / "spool"
     bench = subprocess.Popen([*ROTORBENCH, "step", "--repeats", "3", "--realtime", "--store",
