@@ -212,6 +212,10 @@ class MspImu:
         # the whole second the FC's clock was set to (_set_rtc)
         self._bounds: collections.deque[float] = collections.deque(maxlen=OFFSET_ROWS)
         self._rtc_set_s = 0
+        # a timed poll's request (_request), made once: it goes out hundreds of times a second
+        self._timed_cmds = (*(RAW_AND_ATTITUDE if attitude else RAW_AND_ATTITUDE[:1]),
+                            msp.MSP_RTC)
+        self._timed_request = msp.multiple_request(self._timed_cmds)
         self._error: DeviceError | None = None
         self._lock = threading.Lock()
         self._stop = threading.Event()
@@ -329,10 +333,8 @@ class MspImu:
         round trip with ``multiple`` or ``timed``."""
         request = self.client.request
         if timed:
-            cmds = (*(RAW_AND_ATTITUDE if self.attitude else RAW_AND_ATTITUDE[:1]),
-                    msp.MSP_RTC)
-            raw, *rest, clock = self._split(request(msp.multiple_request(cmds),
-                                                    resend=False), cmds)
+            cmds = self._timed_cmds
+            raw, *rest, clock = self._split(request(self._timed_request, resend=False), cmds)
             served_ms = msp.rtc_ms(clock)
             return raw, rest[0] if rest else nan, served_ms
         if self.attitude and self.multiple:
