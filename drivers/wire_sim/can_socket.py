@@ -19,7 +19,7 @@ from typing import Any
 from drivers.codecs.can_log import CanFrame
 from drivers.errors import DeviceError
 
-__all__ = ["SocketCanLink", "relay"]
+__all__ = ["SocketCanLink", "bridge", "relay"]
 
 _HEADER = struct.Struct("<I?B")  # arbitration id, extended id, data length
 
@@ -91,3 +91,24 @@ def relay(a: Any, b: Any) -> Callable[[], None]:
         b.unsubscribe(a.send)
 
     return undo
+
+
+def bridge(link: Any, connect: Callable[[int], object],
+           name: str) -> tuple[SocketCanLink, Callable[[], None]]:
+    """Joins ``link`` (the nodes' end of a host's bus) to nodes in another process:
+    ``connect(port)`` has them connect to a loopback listener on ``port``; frames are
+    relayed both ways. Returns the host's socket link and the stop (relay undone, socket
+    closed)."""
+    with socket.create_server(("127.0.0.1", 0)) as server:
+        server.settimeout(10.0)
+        connect(server.getsockname()[1])
+        conn, _ = server.accept()
+    conn.settimeout(None)
+    far = SocketCanLink(conn, name)
+    undo = relay(link, far)
+
+    def stop() -> None:
+        undo()
+        far.close()
+
+    return far, stop

@@ -293,23 +293,10 @@ class ProcessWireSims(WireSims):
     def bridge_can(self, channel: str, link: Any) -> None:
         """Joins ``link`` (the nodes' end of the host's virtual ``channel``) to the world's
         nodes by a loopback socket (``drivers.wire_sim.can_socket``)."""
-        import socket
+        from drivers.wire_sim.can_socket import bridge
 
-        from drivers.wire_sim.can_socket import SocketCanLink, relay
-
-        with socket.create_server(("127.0.0.1", 0)) as server:
-            server.settimeout(10.0)
-            self.plant.world.request("call", None, ("connect_can",),
-                                     (channel, server.getsockname()[1]))
-            conn, _ = server.accept()
-        conn.settimeout(None)
-        far = SocketCanLink(conn, f"world's nodes on {channel}")
-        undo = relay(link, far)
-
-        def stop() -> None:
-            undo()
-            far.close()
-
+        far, stop = bridge(link, lambda port: self.plant.world.request(
+            "call", None, ("connect_can",), (channel, port)), f"world's nodes on {channel}")
         self.add(f"can-bridge:{channel}", far, stop)
 
     def sitl_peer(self, motor_index: int, rate_hz: float) -> Any:

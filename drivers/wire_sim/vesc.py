@@ -9,6 +9,7 @@ The motor itself is the ``model`` callable: ``model(t_s, command) -> VescState``
 
 from __future__ import annotations
 
+import socket
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -43,6 +44,37 @@ class VescState:
 
 
 VescModel = Callable[[float, VescCommand], VescState]
+
+
+@dataclass(frozen=True)
+class LinearVescMotor:
+    """A stand-in motor (a ``VescModel``): steady erpm and currents proportional to the
+    commanded duty, at rest for any other command. A value, so it crosses to a device
+    process pickled."""
+
+    erpm_per_duty: float
+    motor_current_per_duty_a: float
+    input_current_per_duty_a: float
+    voltage_in_v: float
+    temp_fet_c: float
+    temp_motor_c: float
+
+    def __call__(self, _t: float, cmd: VescCommand) -> VescState:
+        duty = cmd.value if cmd.kind == "duty" else 0.0
+        return VescState(self.erpm_per_duty * duty, self.motor_current_per_duty_a * duty, duty,
+                         self.input_current_per_duty_a * duty, self.voltage_in_v,
+                         self.temp_fet_c, self.temp_motor_c)
+
+
+def socket_vesc(port: int, controller_id: int, model: VescModel,
+                **settings: float) -> SimVescDevice:
+    """A simulated VESC on a CAN cable to a host in another process: a socket to loopback
+    ``port`` (``drivers.wire_sim.can_socket.bridge``); ``settings`` as SimVescDevice's."""
+    from drivers.wire_sim.can_socket import SocketCanLink
+
+    link = SocketCanLink(socket.create_connection(("127.0.0.1", port)), "sim-vesc cable")
+    return SimVescDevice(link, controller_id, model,  # type: ignore[arg-type]  # CanLink's face
+                         **settings)
 
 
 class SimVescDevice(SimCanNode):

@@ -33,7 +33,8 @@ from typing import Any
 from drivers.device_priority import raise_device_priority
 from drivers.errors import DeviceError
 
-__all__ = ["FastSwitching", "Remote", "RemoteDevice", "WorldProcess"]
+__all__ = ["DeviceWorld", "FastSwitching", "Remote", "RemoteDevice", "WorldProcess",
+           "one_device"]
 
 _START_TIMEOUT_S = 30.0  # a fresh interpreter imports numpy and scipy: seconds when loaded
 _STOP_TIMEOUT_S = 5.0
@@ -73,7 +74,7 @@ class WorldProcess:
             raise
 
     def request(self, op: str, key: str | None, attrs: tuple[str, ...], args: tuple = ()) -> Any:
-        """``op`` "call" or "get" on ``attrs`` of the world's object ``key``."""
+        """``op`` "call", "get" or "set" on ``attrs`` of the world's object ``key``."""
         with self._lock:
             try:
                 self._conn.send((op, key, attrs, args))
@@ -157,6 +158,10 @@ class Remote:
     def get(self, name: str) -> Any:
         return self._world.request("get", self._key, (*self._attrs, name))
 
+    def set(self, name: str, value: Any) -> None:
+        """Set an attribute there (a fault switch, a controller's state)."""
+        self._world.request("set", self._key, (*self._attrs, name), (value,))
+
 
 class RemoteDevice:
     """A device of a child's world as the host holds it: where to open it (``path``, a pty,
@@ -172,6 +177,25 @@ class RemoteDevice:
 
     def stop(self) -> None:
         self.remote.stop()
+
+
+class DeviceWorld:
+    """A world of one device (key ``device``): a device stand-in of its own in a process,
+    as a unit test of its backend wants one, stopped with the world."""
+
+    def __init__(self, device: Any) -> None:
+        self.device = device
+        self.peers = {"device": device}
+
+    def close(self) -> None:
+        self.device.stop()
+
+
+def one_device(make: Callable[..., Any], kwargs: dict[str, Any]) -> DeviceWorld:
+    """``WorldProcess(one_device, make, kwargs)``: the child's world is ``make(**kwargs)``,
+    started (``make`` an importable class or function; its device has ``start`` and
+    ``stop``)."""
+    return DeviceWorld(make(**kwargs).start())
 
 
 # -- the child ---------------------------------------------------------------------------
@@ -204,9 +228,15 @@ def _serve(conn: Connection, parent_pid: int) -> None:
                 break
             try:
                 obj = world if key is None else world.peers[key]
-                for name in attrs[:-1] if op == "call" else attrs:
+                for name in attrs if op == "get" else attrs[:-1]:
                     obj = getattr(obj, name)
-                value = getattr(obj, attrs[-1])(*call_args) if op == "call" else obj
+                if op == "call":
+                    value = getattr(obj, attrs[-1])(*call_args)
+                elif op == "set":
+                    setattr(obj, attrs[-1], call_args[0])
+                    value = None
+                else:
+                    value = obj
                 conn.send(("ok", value))
             except DeviceError as exc:  # a device's own words, as in the host's process
                 conn.send(("device", str(exc)))

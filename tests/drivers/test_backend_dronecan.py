@@ -9,6 +9,8 @@ import pytest
 
 can = pytest.importorskip("can")
 
+from rotorbench_tests_services import wait_until  # noqa: E402
+
 from drivers.backends.can_link import CanLink  # noqa: E402
 from drivers.backends.dronecan_esc import (  # noqa: E402
     DroneCanEsc,
@@ -26,14 +28,6 @@ _channels = itertools.count()
 def model(_t, raw):
     return dc.EscStatus(0, 16.0, raw / 8191 * 20.0, 300.0, round(raw * 2), 0, 2)
 
-
-def wait_until(cond, timeout=1.0):
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if cond():
-            return True
-        time.sleep(0.005)
-    return False
 
 
 @pytest.fixture

@@ -8,6 +8,8 @@ import pytest
 
 pytest.importorskip("serial")
 
+from rotorbench_tests_services import wait_until
+
 from drivers.backends.serial_link import open_port
 from drivers.backends.vesc_uart import (
     VescUartEsc,
@@ -36,14 +38,6 @@ def vesc():
     sim.stop()
 
 
-def _wait(cond, timeout=1.0) -> bool:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if cond():
-            return True
-        time.sleep(0.005)
-    return False
-
 
 def test_throttle_to_duty_and_telemetry(vesc):
     sim, link = vesc
@@ -52,16 +46,16 @@ def test_throttle_to_duty_and_telemetry(vesc):
     assert isinstance(esc, Esc) and isinstance(tel, Sensor)
     assert tel.describe().extra["controller_id"] == 5
     esc.arm()
-    assert _wait(lambda: sim.command == VescCommand("current", 0.0))  # idle: no torque
+    assert wait_until(lambda: sim.command == VescCommand("current", 0.0))  # idle: no torque
     esc.set_pulse_us(1500)
-    assert _wait(lambda: sim.command == VescCommand("duty", 0.5))
+    assert wait_until(lambda: sim.command == VescCommand("duty", 0.5))
     time.sleep(0.1)
     b = tel.read_block()
     assert len(b) >= 5 and b.values["rpm"][-1] == pytest.approx(70_000 * 0.5 / 7)
     assert b.values["voltage_v"][-1] == pytest.approx(12.3)
     esc.close()
     tel.close()
-    assert _wait(lambda: sim.command == VescCommand("current", 0.0))
+    assert wait_until(lambda: sim.command == VescCommand("current", 0.0))
 
 
 def test_keepalive_holds_the_command_past_the_vesc_timeout(vesc):
@@ -81,8 +75,8 @@ def test_stalled_host_lets_the_vesc_release_the_motor(vesc):
     esc = VescUartEsc(link, VescUartSettings(keepalive_s=0.05, host_timeout_s=0.1))
     esc.arm()
     esc.set_pulse_us(1800)
-    assert _wait(lambda: esc.host_stalled, 1.0)  # the host went silent: one stop sent
-    assert _wait(lambda: sim.command == VescCommand("current", 0.0))
+    assert wait_until(lambda: esc.host_stalled, 1.0)  # the host went silent: one stop sent
+    assert wait_until(lambda: sim.command == VescCommand("current", 0.0))
     esc.close()
 
 

@@ -21,21 +21,24 @@ from pipython.pidevice.gcsmessages import GCSMessages  # noqa: E402
 from pipython.pidevice.interfaces.pisocket import PISocket  # noqa: E402
 
 from drivers.wire_sim.pi_hexapod import SimPiController  # noqa: E402
+from drivers.wire_sim.world_process import WorldProcess, one_device  # noqa: E402
 
 AXES = ["X", "Y", "Z", "U", "V", "W"]
 
 
 @pytest.fixture
 def pidev():
-    sim = SimPiController(velocity=50.0, limit=50.0,
-                          travel={"Z": (-25.0, 25.0), "W": (-30.0, 30.0)}).start()
-    host, port = sim.address
+    world = WorldProcess(one_device, SimPiController, {
+        "velocity": 50.0, "limit": 50.0, "travel": {"Z": (-25.0, 25.0), "W": (-30.0, 30.0)}},
+        name="sim-pi")  # in a process of its own, as the controller's firmware is
+    sim = world.remote("device")
+    host, port = sim.get("address")
     # as context managers: PIPython registers each GCSCommands with every gateway (a class
     # attribute) until it is left, and a stale one would talk to a closed socket
     with PISocket(host=host, port=port) as gateway, \
             GCSCommands(GCSMessages(gateway)) as dev:
         yield sim, dev
-    sim.stop()
+    world.close()
 
 
 def test_pipython_start_up_queries(pidev):
@@ -79,18 +82,19 @@ def test_pipython_wave_generator_and_data_recorder(pidev):
     dev.WGO(1, 1)
     dev.WGO(1, 0)
     assert dev.qWGO() == dict.fromkeys(range(1, 7), 0)
-    wav = next(c for c in sim.commands if c.name == "WAV")
+    wav = next(c for c in sim.get("commands") if c.name == "WAV")
     assert wav.args[:3] == ("1", "X", "SIN_P")  # PIPython's argument order (§6.3)
 
 
 def test_an_unreferenced_controller_refuses_motion_as_pipython_sees_it():
-    sim = SimPiController(referenced=False).start()
+    world = WorldProcess(one_device, SimPiController, {"referenced": False}, name="sim-pi")
+    host, port = world.remote("device").get("address")
     try:
-        with PISocket(host=sim.address[0], port=sim.address[1]) as gateway, \
+        with PISocket(host=host, port=port) as gateway, \
                 GCSCommands(GCSMessages(gateway)) as dev:
             _unreferenced(dev)
     finally:
-        sim.stop()
+        world.close()
 
 
 def _unreferenced(dev) -> None:
