@@ -26,6 +26,7 @@ import sys
 import threading
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any
@@ -33,8 +34,8 @@ from typing import Any
 from drivers.device_priority import raise_device_priority
 from drivers.errors import DeviceError
 
-__all__ = ["DeviceWorld", "FastSwitching", "Remote", "RemoteDevice", "WorldProcess",
-           "one_device"]
+__all__ = ["Constant", "DeviceWorld", "FastSwitching", "Remote", "RemoteDevice",
+           "WorldProcess", "one_device"]
 
 _START_TIMEOUT_S = 30.0  # a fresh interpreter imports numpy and scipy: seconds when loaded
 _STOP_TIMEOUT_S = 5.0
@@ -189,6 +190,17 @@ class DeviceWorld:
 
     def close(self) -> None:
         self.device.stop()
+
+
+@dataclass(frozen=True)
+class Constant:
+    """A stand-in model that reads the same whatever it is asked (``Constant(v)(t) == v``):
+    a value, so it crosses to a device's process pickled, where a lambda cannot."""
+
+    value: Any
+
+    def __call__(self, *_args: Any) -> Any:
+        return self.value
 
 
 def one_device(make: Callable[..., Any], kwargs: dict[str, Any]) -> DeviceWorld:
