@@ -234,8 +234,11 @@ class MspImu:
         reply that does not come is counted (``link_errors``: ``no_reply``) and the poll
         goes on, as over a UART that lost a frame (its requests are not sent again: the next
         poll is the retry); the next poll's row is dropped (it may have been handed the late
-        reply; later ones cannot, ``MspClient._drop_waiting``). No reply for
-        ``NO_REPLY_LIMIT_S`` is the FC gone, and ends the poll with the error.
+        reply). A reply still later is dropped before a later request is sent
+        (``MspClient._drop_waiting``), unless it comes inside that request's round trip,
+        ahead of its own reply: no MSP client can tell the two apart, but a timed poll (below)
+        can, by the FC's clock, and drops it. No reply for ``NO_REPLY_LIMIT_S`` is the FC
+        gone, and ends the poll with the error.
 
         An FC that takes the host's time (``MSP_SET_RTC``) and answers ``MSP_MULTIPLE_MSP``
         (Betaflight) is asked its clock (``MSP_RTC``) in each poll's request, read by the
@@ -253,6 +256,7 @@ class MspImu:
             return
         due = last_reply = time.monotonic()
         after_miss = False
+        last_served_ms = -1
         while not self._stop.wait(max(0.0, due - time.monotonic())):
             due = max(due + period, time.monotonic() - period)
             # the FC answers with its latest sample, taken about when the request arrives:
@@ -287,7 +291,10 @@ class MspImu:
                 continue
             if served_ms is None:
                 self._add_row(stamp, paused, raw, att)
+            elif served_ms < last_served_ms:  # served before the last row's: an earlier
+                self.slow_rows += 1  # request's late reply, handed to this one
             else:  # the rig's clock runs at the FC's rate: a real one's, or a world's paced
+                last_served_ms = served_ms
                 self._add_row(stamp + self._serve_delay(served_ms, stamp), paused, raw, att,
                               timed=True)
 

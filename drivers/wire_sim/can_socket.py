@@ -14,12 +14,15 @@ import socket
 import struct
 import threading
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from drivers.codecs.can_log import CanFrame
 from drivers.errors import DeviceError
 
-__all__ = ["SocketCanLink", "bridge", "relay"]
+if TYPE_CHECKING:
+    from drivers.wire_sim.world_process import Remote
+
+__all__ = ["SocketCanLink", "bridge", "node_process", "relay"]
 
 _HEADER = struct.Struct("<I?B")  # arbitration id, extended id, data length
 
@@ -82,13 +85,22 @@ class SocketCanLink:
 
 def relay(a: Any, b: Any) -> Callable[[], None]:
     """Every frame heard on link ``a`` is sent on ``b`` and back (both CanLink-like);
-    returns the undo, to call before either link closes."""
-    a.subscribe(b.send)
-    b.subscribe(a.send)
+    returns the undo. A frame for a link already closed is dropped, as a cable pulled out
+    drops it: a bus's reader thread may be handing one over as the other end closes."""
+
+    def to(link: Any) -> Callable[[CanFrame], None]:
+        def send(frame: CanFrame) -> None:
+            with contextlib.suppress(DeviceError):
+                link.send(frame)
+        return send
+
+    to_b, to_a = to(b), to(a)
+    a.subscribe(to_b)
+    b.subscribe(to_a)
 
     def undo() -> None:
-        a.unsubscribe(b.send)
-        b.unsubscribe(a.send)
+        a.unsubscribe(to_b)
+        b.unsubscribe(to_a)
 
     return undo
 
@@ -112,3 +124,23 @@ def bridge(link: Any, connect: Callable[[int], object],
         far.close()
 
     return far, stop
+
+
+def node_process(link: Any, make: Callable[..., Any], settings: dict[str, Any],
+                 name: str) -> tuple[Remote, Callable[[], None]]:
+    """A simulated CAN node in a process of its own, as a device's firmware runs on its own
+    processor, on a cable to ``link`` (the nodes' end of a host's bus): ``make(port=...,
+    **settings)`` there connects a :class:`SocketCanLink` to loopback ``port`` (e.g.
+    ``drivers.wire_sim.vesc.socket_vesc``). Returns the node there (a ``Remote``:
+    ``node.get("command")``) and the stop (cable out, process ended)."""
+    from drivers.wire_sim.world_process import WorldProcess, one_device
+
+    worlds: list[WorldProcess] = []
+    _, unplug = bridge(link, lambda port: worlds.append(WorldProcess(
+        one_device, make, {"port": port, **settings}, name=name)), f"{name} cable")
+
+    def stop() -> None:
+        unplug()
+        worlds[0].close()
+
+    return worlds[0].remote("device"), stop

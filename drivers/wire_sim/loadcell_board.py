@@ -9,10 +9,27 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 
 from drivers.codecs.loadcell_lines import LineLayout
 from drivers.wire_sim.pty_port import PtyDevice
 from drivers.wire_sim.pty_sim import PtySimulator
+
+__all__ = ["SimLoadcellBoard", "SteadyReadings"]
+
+
+@dataclass(frozen=True)
+class SteadyReadings:
+    """A stand-in model (``model(t_s)``): the same ``readings`` on every line but the board's
+    clock column ``clock``, its seconds since start to the microsecond (the firmware's
+    ``micros()``). A value, so it crosses to a device process pickled, where a lambda
+    cannot."""
+
+    readings: Mapping[str, float]
+    clock: str
+
+    def __call__(self, t_s: float) -> dict[str, float]:
+        return {**self.readings, self.clock: round(t_s, 6)}
 
 
 class SimLoadcellBoard(PtySimulator):

@@ -14,19 +14,29 @@ else gets the error reply ``$M!`` as Betaflight sends for a command it does not 
 Like Betaflight and INAV, the motor-test values have no expiry: when the host stops
 sending, the motors keep the last value (docs/protocols.md, dead host).
 The IMU values come from ``imu(t_s) -> (acc_m_s2, gyro_rad_s, (roll, pitch, yaw) rad)``.
+Faults of the line, for the backend's tests (values, so they cross to a device process):
+``lost_acks`` (the first SET_MOTOR acknowledgements lost, the values applied),
+``late_reply`` (one RAW_IMU reply held on the line while the FC goes on answering) and
+``link_delay_s`` (each request reaches the FC up to that late).
 """
 
 from __future__ import annotations
 
 import math
+import random
 import struct
 import threading
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from drivers.codecs import msp
 from drivers.wire_sim.pty_port import PtyDevice
 from drivers.wire_sim.pty_sim import PtySimulator
+
+if TYPE_CHECKING:  # not imported here: numpy's import time at each device process's start
+    from drivers.contracts import MonotonicClock
 
 Vec3 = tuple[float, float, float]
 ImuModel = Callable[[float], tuple[Vec3, Vec3, Vec3]]
@@ -36,6 +46,29 @@ def _i16(x: float) -> int:
     return max(-(2**15), min(2**15 - 1, round(x)))
 
 
+@dataclass(frozen=True)
+class ClockImu:
+    """A stand-in IMU (an ``ImuModel``) at rest, level, whose acc x reads ``clock``
+    (``acc_x_per_s`` m/s^2 a second): a row tells when the FC read its IMU. A value, so it
+    crosses to a device process pickled, where a lambda cannot; a ``MonotonicClock`` reads
+    the same there as in the host (one monotonic clock per machine)."""
+
+    clock: MonotonicClock
+    acc_x_per_s: float = 10.0
+
+    def __call__(self, _t: float) -> tuple[Vec3, Vec3, Vec3]:
+        return ((self.acc_x_per_s * self.clock.now(), 0.0, msp.STANDARD_GRAVITY),
+                (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+
+
+def _asks_imu(m: msp.MspMessage) -> bool:
+    """A request for RAW_IMU, alone or first in an MSP_MULTIPLE_MSP."""
+    if isinstance(m, msp.Request):
+        return m.cmd == msp.MSP_RAW_IMU
+    return (isinstance(m, msp.Unknown) and m.direction == msp.REQUEST
+            and m.cmd == msp.MSP_MULTIPLE_MSP and m.payload_hex[:2] == f"{msp.MSP_RAW_IMU:02x}")
+
+
 class SimFlightController(PtySimulator):
     """MSP responder; ``armed`` switches SET_MOTOR off like the real firmware."""
 
@@ -43,7 +76,19 @@ class SimFlightController(PtySimulator):
                  gyro_lsb_per_dps: float = msp.BTFL_GYRO_LSB_PER_DPS, motor_count: int = 4,
                  api: tuple[int, int] = (1, 46), version: tuple[int, int, int] = (4, 5, 0),
                  battery: Callable[[], tuple[float, float]] = lambda: (0.0, 0.0),
-                 rtc_clock: Callable[[], float] | None = None, multiple: bool = True) -> None:
+                 rtc_clock: Callable[[], float] | None = None, multiple: bool = True,
+                 lost_acks: int = 0, late_reply: tuple[int, float] | None = None,
+                 late_ahead: bool = False, link_delay_s: float = 0.0) -> None:
+        """``lost_acks``: the first that many SET_MOTOR acknowledgements are lost (the values
+        apply; ``lost`` counts them). ``late_reply=(n, delay_s)``: the reply to the n-th
+        request for RAW_IMU, alone or in MSP_MULTIPLE_MSP (``raw_requests`` counts them), is
+        held ``delay_s`` on the line (a USB-serial adapter's latency timer, a bridge's
+        buffer) while the FC goes on answering, then sent right behind its next reply
+        (inside a later request, after that request's own reply, however the host and this
+        process are scheduled), or right ahead of it with ``late_ahead`` (the race no MSP
+        client can see: the later request is handed the late reply). ``link_delay_s``:
+        each chunk of requests reaches the FC 0 to that many seconds late (uniform, seeded:
+        a loaded host, an adapter's latency timer)."""
         self.imu = imu
         self.version = version  # what this simulator reports; not a claim about a firmware
         self.battery = battery
@@ -62,6 +107,14 @@ class SimFlightController(PtySimulator):
         self.multiple = multiple
         self._rtc_offset_s: float | None = None  # the time MSP_SET_RTC set, less rtc_clock's
         self._lock = threading.Lock()
+        self.lost_acks = lost_acks
+        self.lost = 0
+        self.late_reply = late_reply
+        self.late_ahead = late_ahead
+        self.raw_requests = 0
+        self._held: tuple[float, bytes] | None = None  # a late reply: when due, its bytes
+        self.link_delay_s = link_delay_s
+        self._link_rng = random.Random(3)
         self.port = PtyDevice(self.handle)
 
     def motors(self) -> list[int]:
@@ -71,10 +124,27 @@ class SimFlightController(PtySimulator):
                 [msp.MOTOR_MIN_US] * self.motor_count
 
     def handle(self, data: bytes) -> bytes:
+        if self.link_delay_s:
+            time.sleep(self._link_rng.uniform(0.0, self.link_delay_s))
         out = bytearray()
         for m in self._decoder.feed(data):
             self.requests.append(m)
-            out += self._reply(m)
+            reply = self._reply(m)
+            if isinstance(m, msp.SetMotor) and self.lost < self.lost_acks:
+                self.lost += 1
+                continue  # applied, the acknowledgement lost
+            if _asks_imu(m):
+                self.raw_requests += 1
+                if self.late_reply is not None and self.raw_requests == self.late_reply[0]:
+                    self._held = (time.monotonic() + self.late_reply[1], reply)
+                    continue
+            out += reply
+        if out and self._held is not None and time.monotonic() >= self._held[0]:
+            if self.late_ahead:  # ahead of the reply it waited for, or behind it
+                out[:0] = self._held[1]
+            else:
+                out += self._held[1]
+            self._held = None
         return bytes(out)
 
     def _reply(self, m: msp.MspMessage) -> bytes:

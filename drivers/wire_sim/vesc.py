@@ -58,12 +58,13 @@ class LinearVescMotor:
     voltage_in_v: float
     temp_fet_c: float
     temp_motor_c: float
+    tachometer: int = 0
 
     def __call__(self, _t: float, cmd: VescCommand) -> VescState:
         duty = cmd.value if cmd.kind == "duty" else 0.0
         return VescState(self.erpm_per_duty * duty, self.motor_current_per_duty_a * duty, duty,
                          self.input_current_per_duty_a * duty, self.voltage_in_v,
-                         self.temp_fet_c, self.temp_motor_c)
+                         self.temp_fet_c, self.temp_motor_c, self.tachometer)
 
 
 def socket_vesc(port: int, controller_id: int, model: VescModel,

@@ -16,9 +16,8 @@ from drivers.backends.can_link import CanLink  # noqa: E402
 from drivers.backends.vesc import VescEsc, VescEscSettings, VescTelemetry  # noqa: E402
 from drivers.contracts import Esc, Sensor  # noqa: E402
 from drivers.errors import DeviceError  # noqa: E402
-from drivers.wire_sim.can_socket import bridge  # noqa: E402
 from drivers.wire_sim.vesc import LinearVescMotor, VescCommand, socket_vesc  # noqa: E402
-from drivers.wire_sim.world_process import Remote, WorldProcess, one_device  # noqa: E402
+from drivers.wire_sim.world_process import Remote  # noqa: E402
 
 _channels = itertools.count()
 POLE_PAIRS = 7
@@ -30,34 +29,21 @@ MOTOR = LinearVescMotor(ERPM_PER_DUTY, motor_current_per_duty_a=20.0,
 
 
 @pytest.fixture
-def rig():
+def rig(can_bench):
     """``make(...)``: the simulated VESC in its process (a ``Remote``: ``sim.get("command")``
     reads it there), the ESC backend and the telemetry on the host's bus."""
-    channel = f"vesc-test-{next(_channels)}"
-    host_bus = can.Bus(interface="virtual", channel=channel)
-    dev_bus = can.Bus(interface="virtual", channel=channel)
-    host, dev = CanLink(host_bus, "host"), CanLink(dev_bus, "sim-vesc")
-    closers = []
 
     def make(*, sim_timeout=1.0, keepalive=0.05, host_timeout=0.5, stale=0.3):
-        worlds = []
-        _, stop = bridge(dev, lambda port: worlds.append(WorldProcess(
-            one_device, socket_vesc, {"port": port, "controller_id": 1, "model": MOTOR,
-                                      "status_rate_hz": 100.0, "timeout_s": sim_timeout},
-            name="sim-vesc")), "sim-vesc cable")
-        closers.extend([worlds[0].close, stop])
+        sim = can_bench.node(socket_vesc, {"controller_id": 1, "model": MOTOR,
+                                           "status_rate_hz": 100.0, "timeout_s": sim_timeout},
+                             "sim-vesc")
+        host = can_bench.host
         esc = VescEsc(host, VescEscSettings(1, keepalive_s=keepalive, host_timeout_s=host_timeout))
         tel = VescTelemetry(host, 1, POLE_PAIRS, stale_s=stale)
-        closers.extend([esc.close, tel.close])
-        return worlds[0].remote("device"), esc, tel
+        can_bench.on_close(esc.close, tel.close)
+        return sim, esc, tel
 
-    yield make
-    for close in reversed(closers):
-        close()
-    host.close()
-    dev.close()
-    host_bus.shutdown()
-    dev_bus.shutdown()
+    return make
 
 
 def command(sim: Remote) -> VescCommand:

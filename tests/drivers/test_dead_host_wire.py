@@ -1,10 +1,12 @@
 """A dead host stops the motor: each ESC backend, host killed with kill -9 mid-step.
 
-The host (the real backend) runs in a child process; the simulated device runs here, in
-the test process, and reports when its motor is released. CAN frames cross the process
-boundary through a loopback TCP socket standing in for the CAN adapter (python-can's
-``virtual`` bus lives inside one process): when the host dies, its frames stop, as they
-would on a real bus. Serial devices share a pseudo-terminal, as a USB cable would.
+The host (the real backend) runs in a child process, the simulated device in another
+(``drivers.wire_sim.world_process``, as its firmware runs on its own processor), which
+reports when its motor is released. CAN frames cross from the host through a loopback TCP
+socket standing in for the CAN adapter onto a python-can ``virtual`` bus here, and on to
+the device's process by its CAN cable (``can_socket.node_process``): when the host dies,
+its frames stop, as they would on a real bus. Serial devices share a pseudo-terminal, as a
+USB cable would.
 
 Bounds: VESC, its command timeout (1 s firmware default, protocols.md §3.2); DroneCAN,
 the ESC's own command timeout (firmware specific; the simulated one is 0.5 s). MSP motor
@@ -31,8 +33,10 @@ can = pytest.importorskip("can")
 
 from drivers.backends.can_link import CanLink  # noqa: E402
 from drivers.codecs import dronecan as dc  # noqa: E402
-from drivers.wire_sim.dronecan_esc import SimDroneCanEsc  # noqa: E402
-from drivers.wire_sim.vesc import SimVescDevice, VescCommand, VescState  # noqa: E402
+from drivers.wire_sim.can_socket import node_process  # noqa: E402
+from drivers.wire_sim.dronecan_esc import LinearEscMotor, socket_dronecan_esc  # noqa: E402
+from drivers.wire_sim.vesc import LinearVescMotor, socket_vesc  # noqa: E402
+from drivers.wire_sim.world_process import Constant, WorldProcess, one_device  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
 _channels = itertools.count()
@@ -117,9 +121,9 @@ def _kill_mid_step(kind: str, bridge: Bridge, running, released, bound_s: float)
     return time.monotonic() - killed
 
 
-def _model(_t: float, cmd: VescCommand) -> VescState:
-    duty = cmd.value if cmd.kind == "duty" else 0.0
-    return VescState(70_000 * duty, 0.0, duty, 0.0, 12.0, 25.0, 25.0)
+VESC_MOTOR = LinearVescMotor(70_000.0, motor_current_per_duty_a=0.0,
+                             input_current_per_duty_a=0.0, voltage_in_v=12.0,
+                             temp_fet_c=25.0, temp_motor_c=25.0)
 
 
 @pytest.mark.slow
@@ -127,18 +131,20 @@ def test_kill_9_of_the_host_releases_the_vesc_within_its_timeout():
     channel = f"dead-vesc-{next(_channels)}-{os.getpid()}"
     bridge = Bridge(channel)
     link = CanLink(can.Bus(channel, interface="virtual"), "device side")
-    vesc = SimVescDevice(link, 1, _model, status_rate_hz=200.0).start()
+    vesc, stop = node_process(link, socket_vesc, {
+        "controller_id": 1, "model": VESC_MOTOR, "status_rate_hz": 200.0}, "sim-vesc")
     try:
         took = _kill_mid_step(
             "vesc", bridge,
-            running=lambda: vesc.command.kind == "duty" and vesc.command.value > 0.4,
-            released=lambda: vesc.command.kind == "release", bound_s=1.0)
+            running=lambda: (c := vesc.get("command")).kind == "duty" and c.value > 0.4,
+            released=lambda: vesc.get("command").kind == "release", bound_s=1.0)
+        timeouts = vesc.get("timeouts")
     finally:
-        vesc.stop()
+        stop()
         link.close()
         link.bus.shutdown()
         bridge.close()
-    assert vesc.timeouts == 1  # released by its own command timeout, nothing else
+    assert timeouts == 1  # released by its own command timeout, nothing else
     assert took <= 1.0 + 0.05, f"VESC released {took:.3f} s after the kill (bound 1 s)"
     print(f"VESC (CAN): motor released {took:.3f} s after kill -9 (bound 1.0 s + 5 ms tick)")
 
@@ -148,20 +154,20 @@ def test_kill_9_of_the_host_stops_the_dronecan_esc_within_its_timeout():
     channel = f"dead-dronecan-{next(_channels)}-{os.getpid()}"
     bridge = Bridge(channel)
     link = CanLink(can.Bus(channel, interface="virtual"), "device side")
-
-    def model(_t: float, raw: int) -> dc.EscStatus:
-        return dc.EscStatus(0, 12.0, 0.0, 300.0, raw, 0, 0)
-
-    esc = SimDroneCanEsc(link, 21, 0, model, status_period_s=0.005, timeout_s=0.5).start()
+    model = LinearEscMotor(dc.EscStatus(0, 12.0, 0.0, 300.0, 0, 0, 0), rpm_per_raw=1.0)
+    esc, stop = node_process(link, socket_dronecan_esc, {
+        "node_id": 21, "esc_index": 0, "model": model, "status_period_s": 0.005,
+        "timeout_s": 0.5}, "sim-dronecan")
     try:
-        took = _kill_mid_step("dronecan", bridge, running=lambda: esc.raw > 4000,
-                              released=lambda: esc.raw == 0, bound_s=0.5)
+        took = _kill_mid_step("dronecan", bridge, running=lambda: esc.get("raw") > 4000,
+                              released=lambda: esc.get("raw") == 0, bound_s=0.5)
+        timeouts = esc.get("timeouts")
     finally:
-        esc.stop()
+        stop()
         link.close()
         link.bus.shutdown()
         bridge.close()
-    assert esc.timeouts == 1
+    assert timeouts == 1
     assert took <= 0.5 + 0.05, f"DroneCAN ESC stopped {took:.3f} s after the kill (bound 0.5 s)"
     print(f"DroneCAN: ESC stopped {took:.3f} s after kill -9 (bound 0.5 s + 5 ms tick)")
 
@@ -187,10 +193,12 @@ def test_kill_9_of_the_host_leaves_the_msp_motor_test_running_as_betaflight_does
     pytest.importorskip("serial")
     from drivers.wire_sim.msp_fc import SimFlightController
 
-    fc = SimFlightController(lambda _t: ((0.0, 0.0, 9.8), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)))
-    fc.start()
+    world = WorldProcess(one_device, SimFlightController, {
+        "imu": Constant(((0.0, 0.0, 9.8), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)))}, name="sim-fc")
+    fc = world.remote("device")
     env = {**os.environ, "PYTHONPATH": str(REPO)}
-    child = subprocess.Popen([sys.executable, "-c", MSP_CHILD, fc.path], env=env, cwd=REPO)
+    child = subprocess.Popen([sys.executable, "-c", MSP_CHILD, fc.get("path")], env=env,
+                             cwd=REPO)
     try:
         deadline = time.monotonic() + 30.0
         while fc.motors()[0] != 1500:
@@ -204,7 +212,7 @@ def test_kill_9_of_the_host_leaves_the_msp_motor_test_running_as_betaflight_does
         if child.poll() is None:
             child.kill()
             child.communicate()  # reaped, pipes closed: no leak warning in a later test
-        fc.stop()
+        world.close()
 
 
 VESC_UART_CHILD = r"""
@@ -225,20 +233,21 @@ def test_kill_9_of_the_host_releases_the_vesc_on_usb_within_its_timeout():
     pytest.importorskip("serial")
     from drivers.wire_sim.vesc_uart import SimVescUart
 
-    vesc = SimVescUart(_model).start()
+    world = WorldProcess(one_device, SimVescUart, {"model": VESC_MOTOR}, name="sim-vesc-uart")
+    vesc = world.remote("device")
     env = {**os.environ, "PYTHONPATH": str(REPO)}
-    child = subprocess.Popen([sys.executable, "-c", VESC_UART_CHILD, vesc.path], env=env,
-                             cwd=REPO)
+    child = subprocess.Popen([sys.executable, "-c", VESC_UART_CHILD, vesc.get("path")],
+                             env=env, cwd=REPO)
     try:
         deadline = time.monotonic() + 30.0
-        while not (vesc.command.kind == "duty" and vesc.command.value > 0.4):
+        while not ((c := vesc.get("command")).kind == "duty" and c.value > 0.4):
             assert child.poll() is None and time.monotonic() < deadline
             time.sleep(0.01)
         time.sleep(0.3)
         child.send_signal(signal.SIGKILL)
         killed = time.monotonic()
         child.wait(timeout=10)
-        while vesc.command.kind != "release":
+        while vesc.get("command").kind != "release":
             assert time.monotonic() - killed < 3.0, "the VESC never released the motor"
             time.sleep(0.002)
         took = time.monotonic() - killed
@@ -246,7 +255,8 @@ def test_kill_9_of_the_host_releases_the_vesc_on_usb_within_its_timeout():
         if child.poll() is None:
             child.kill()
             child.communicate()  # reaped, pipes closed: no leak warning in a later test
-        vesc.stop()
-    assert vesc.timeouts == 1
+        timeouts = vesc.get("timeouts")
+        world.close()
+    assert timeouts == 1
     assert took <= 1.0 + 0.05, f"VESC released {took:.3f} s after the kill (bound 1 s)"
     print(f"VESC (USB/UART): motor released {took:.3f} s after kill -9 (bound 1.0 s)")

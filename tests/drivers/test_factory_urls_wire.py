@@ -136,16 +136,17 @@ def test_check_names_the_failing_device(tmp_path, capsys):
 def test_open_hexapod_over_tcp_and_bad_urls():
     from drivers.factory import open_hexapod
     from drivers.wire_sim.pi_hexapod import SimPiController
+    from drivers.wire_sim.world_process import WorldProcess, one_device
 
     with pytest.raises(DeviceError, match=r"hexapod: 'serial://x': expected tcp://<host>"):
         open_hexapod("serial://x")
-    sim = SimPiController().start()
+    world = WorldProcess(one_device, SimPiController, {}, name="sim-pi")
     try:
-        host, port = sim.address
+        host, port = world.remote("device").get("address")
         hexapod = open_hexapod(f"tcp://{host}:{port}")
         try:
             assert "C-887" in str(hexapod.identification)
         finally:
             hexapod.close()
     finally:
-        sim.stop()
+        world.close()

@@ -266,10 +266,11 @@ def test_bad_wire_rigs_name_file_table_and_field(tmp_path: Path, old, new, match
 def test_a_missing_real_port_is_named(tmp_path: Path) -> None:
     """An all-real rig whose hexapod answers but whose FC port does not exist."""
     from drivers.wire_sim.pi_hexapod import SimPiController
+    from drivers.wire_sim.world_process import WorldProcess, one_device
 
-    ctl = SimPiController().start()
+    world = WorldProcess(one_device, SimPiController, {}, name="sim-pi")
     try:
-        host, port = ctl.address
+        host, port = world.remote("device").get("address")
         text = WIRE_RIG.read_text(encoding="utf-8")
         text = text.replace('url = "tcp://sim"', f'url = "tcp://{host}:{port}"')
         text = text.replace("serial://sim/msp-imu", "serial:///dev/rotorbench-no-such-fc")
@@ -280,4 +281,4 @@ def test_a_missing_real_port_is_named(tmp_path: Path) -> None:
         with pytest.raises(DeviceError, match=r"\[devices.imu\].*rotorbench-no-such-fc"):
             open_rig(load_imu_rig(path))
     finally:
-        ctl.stop()
+        world.close()

@@ -1,9 +1,9 @@
-"""MSP flight-controller backend end to end against the simulated FC on a pseudo-terminal."""
+"""MSP flight-controller backend end to end against the simulated FC on a pseudo-terminal,
+in a process of its own as a flight controller's firmware is."""
 
 from __future__ import annotations
 
 import math
-import threading
 import time
 
 import numpy as np
@@ -23,23 +23,27 @@ from drivers.backends.serial_link import open_port  # noqa: E402
 from drivers.codecs import msp  # noqa: E402
 from drivers.contracts import Esc, MonotonicClock, Sensor  # noqa: E402
 from drivers.errors import DeviceError  # noqa: E402
-from drivers.wire_sim.msp_fc import SimFlightController  # noqa: E402
+from drivers.wire_sim.msp_fc import ClockImu, SimFlightController  # noqa: E402
+from drivers.wire_sim.world_process import Constant, Remote, WorldProcess, one_device  # noqa: E402
 
 G = msp.STANDARD_GRAVITY
+IMU = Constant(((0.0, 0.0, G), (0.0, math.radians(90), 0.0), (math.radians(12.5), 0.0, math.pi)))
 
 
-def imu(t):
-    return ((0.0, 0.0, G), (0.0, math.radians(90), 0.0), (math.radians(12.5), 0.0, math.pi))
+def flight_controller(**settings) -> tuple[WorldProcess, Remote]:
+    """The simulated FC in its process, and the handle that reads and sets it."""
+    world = WorldProcess(one_device, SimFlightController, settings, name="sim-fc")
+    return world, world.remote("device")
 
 
 @pytest.fixture
 def fc():
-    sim = SimFlightController(imu, acc_1g=2048).start()
-    port = open_port(sim.path, 115200)
+    world, sim = flight_controller(imu=IMU, acc_1g=2048)
+    port = open_port(sim.get("path"), 115200)
     client = MspClient(port, "fc")
     yield sim, client
     port.close()
-    sim.stop()
+    world.close()
 
 
 def test_imu_in_si_through_the_pty(fc):
@@ -67,10 +71,10 @@ def test_motor_test_applies_only_while_disarmed(fc):
     assert client.request(msp.Request(msp.MSP_MOTOR)).values_us[:4] == (1000, 1000, 1350, 1000)
     esc.set_pulse_us(5000)  # clamped to 2000
     assert sim.motors()[2] == 2000
-    sim.armed = True  # the FC was armed by the pilot: motor-test values do not apply
+    sim.set("armed", True)  # the FC was armed by the pilot: motor-test values do not apply
     esc.set_pulse_us(1500)
     assert sim.motors() == [1000] * 4
-    sim.armed = False
+    sim.set("armed", False)
     esc.close()
     assert sim.motors() == [1000] * 4
 
@@ -88,24 +92,10 @@ def test_fc_refusal_and_silence_become_device_errors(fc):
     esc.disarm()  # never raises, even with the FC silent
 
 
-class LostAckFc(SimFlightController):
-    """An FC that applies the first SET_MOTOR but whose acknowledgement is lost."""
-
-    def __init__(self) -> None:
-        super().__init__(imu, acc_1g=2048)
-        self.lost = 0
-
-    def handle(self, data: bytes) -> bytes:
-        out = super().handle(data)
-        if data[4:5] == bytes([msp.MSP_SET_MOTOR]) and not self.lost:
-            self.lost += 1
-            return b""
-        return out
-
-
 def test_a_lost_set_motor_reply_is_sent_again_and_counted():
-    sim = LostAckFc().start()
-    port = open_port(sim.path, 115200)
+    # an FC that applies the first SET_MOTOR but whose acknowledgement is lost
+    world, sim = flight_controller(imu=IMU, acc_1g=2048, lost_acks=1)
+    port = open_port(sim.get("path"), 115200)
     try:
         client = MspClient(port, "fc", timeout_s=1.0)
         esc = MspMotorEsc(client, 1, propellers_off=True)
@@ -113,7 +103,7 @@ def test_a_lost_set_motor_reply_is_sent_again_and_counted():
         esc.arm()  # its SET_MOTOR 1000 loses its reply: sent again after RESEND_AFTER_S
         assert time.monotonic() - t0 < 0.5  # not the whole timeout
         esc.set_pulse_us(1400)
-        assert sim.lost == 1 and sim.motors()[1] == 1400
+        assert sim.get("lost") == 1 and sim.motors()[1] == 1400
         assert esc.link_errors() == {"resent": 1}
         sim.port.disconnect()  # gone: sent again, twice as late each time, until the timeout
         with pytest.raises(MspNoReply, match="no reply"):
@@ -122,7 +112,7 @@ def test_a_lost_set_motor_reply_is_sent_again_and_counted():
         assert esc.link_errors() == {"resent": 1 + 4}
     finally:
         port.close()
-        sim.stop()
+        world.close()
 
 
 def test_imu_poller_reports_a_silent_fc(fc):
@@ -138,70 +128,67 @@ def test_imu_poller_reports_a_silent_fc(fc):
     dev.close()
 
 
-class LateReplyFc(SimFlightController):
-    """An FC whose reply to the 20th RAW_IMU request is held ``LATE_S`` on the line (a
-    USB-serial adapter's latency timer, a bridge's buffer) while it goes on answering:
-    the late reply comes after the client gave up, between or inside later requests. Its
-    acc x is its own clock (10 m/s^2 a second) when it read its IMU. It answers no
-    MSP_MULTIPLE_MSP (as INAV), so the poll asks RAW_IMU alone, stamped by the host."""
-
-    LATE_S = 0.25
-
-    def __init__(self, clock: MonotonicClock) -> None:
-        super().__init__(lambda _t: ((10.0 * clock.now(), 0.0, G), (0.0, 0.0, 0.0),
-                                     (0.0, 0.0, 0.0)), acc_1g=2048, multiple=False)
-        self.raw_requests = 0
-
-    def handle(self, data: bytes) -> bytes:
-        out = super().handle(data)
-        if msp.encode_message(msp.Request(msp.MSP_RAW_IMU)) in data:
-            self.raw_requests += 1
-            if self.raw_requests == 20:
-                threading.Timer(self.LATE_S, self.port.write, (out,)).start()
-                return b""
-        return out
+LATE_S = 0.25
 
 
 def test_a_late_reply_is_counted_and_no_row_takes_it():
     """MSP replies carry no sequence number: a reply that comes after its request was given
     up on would be taken by a later request (stamped the delay too late), and each reply
     after it by the request after its own. The poll goes on, counts the miss, and no row
-    kept holds any reply but its own."""
+    kept holds any reply but its own.
+
+    The FC holds its reply to the 20th RAW_IMU request ``LATE_S`` on the line (a
+    USB-serial adapter's latency timer, a bridge's buffer) while it goes on answering, then
+    sends it behind its next reply: the late reply comes after the client gave up, inside
+    a later request (after that request's own reply) or waiting before the next one. Its
+    acc x is its own clock (10 m/s^2 a second) when it read its IMU. It answers no
+    MSP_MULTIPLE_MSP (as INAV), so the poll asks RAW_IMU alone, stamped by the host."""
     clock = MonotonicClock()  # the FC's and the rows' stamps
-    sim = LateReplyFc(clock).start()
-    port = open_port(sim.path, 115200)
+    world, sim = flight_controller(imu=ClockImu(clock), acc_1g=2048, multiple=False,
+                                   late_reply=(20, LATE_S))
+    port = open_port(sim.get("path"), 115200)
     client = MspClient(port, "fc")
     try:
         dev = MspImu(client, rate_hz=100.0, acc_1g=2048, attitude=False, clock=clock,
                      max_round_trip_s=0.05)
-        time.sleep(0.2 + LateReplyFc.LATE_S + 0.5)
+        time.sleep(0.2 + LATE_S + 0.5)
         block = dev.read_block()
         served = block.values["acc_x_m_s2"] / 10.0  # the FC's clock when it read its IMU
         late = served - block.t_s
-        assert sim.raw_requests > 40 and dev.link_errors()["no_reply"] == 1
-        assert np.count_nonzero(block.t_s > 0.2 + LateReplyFc.LATE_S) > 20  # it went on
+        assert sim.get("raw_requests") > 40 and dev.link_errors()["no_reply"] == 1
+        assert np.count_nonzero(block.t_s > 0.2 + LATE_S) > 20  # it went on
         # a row is served after it was sent (an LSB is 0.5 ms), and within its round trip
         assert late.min() > -0.002 and late.max() < 0.06, (late.min(), late.max())
         dev.close()
     finally:
         port.close()
-        sim.stop()
+        world.close()
 
 
-class SlowLinkFc(SimFlightController):
-    """An FC whose requests reach it 0-15 ms late (a loaded host, a USB adapter's latency
-    timer, a simulated FC's time scale): its acc x is its clock (10 m/s^2 a second) when it
-    read its IMU, its MSP_RTC counts on the same clock."""
-
-    def __init__(self, clock: MonotonicClock, *, multiple: bool) -> None:
-        super().__init__(lambda _t: ((10.0 * clock.now(), 0.0, G), (0.0, 0.0, 0.0),
-                                     (0.0, 0.0, 0.0)), acc_1g=2048, rtc_clock=clock.now,
-                         multiple=multiple)
-        self.rng = np.random.default_rng(3)
-
-    def handle(self, data: bytes) -> bytes:
-        time.sleep(float(self.rng.uniform(0.0, 0.015)))
-        return super().handle(data)
+def test_a_late_reply_handed_to_a_later_timed_request_is_dropped_by_the_fc_clock():
+    """The race no MSP client can see: the late reply comes inside a later request's round
+    trip, ahead of that request's own reply (``late_ahead``), and is taken as its answer.
+    An FC that tells its clock served it before the last row: the poll drops it, and
+    neither a row's stamp nor the clocks' offset (the largest ``send - served`` of the last
+    rows, which it would have moved by ``LATE_S`` for 400 rows) takes it in."""
+    clock = MonotonicClock()
+    world, sim = flight_controller(imu=ClockImu(clock), acc_1g=2048, rtc_clock=clock.now,
+                                   late_reply=(20, LATE_S), late_ahead=True)
+    port = open_port(sim.get("path"), 115200)
+    try:
+        dev = MspImu(MspClient(port, "fc"), rate_hz=100.0, acc_1g=2048, attitude=False,
+                     clock=clock)
+        time.sleep(0.2 + LATE_S + 0.5)
+        block = dev.read_block()
+        dropped = dev.slow_rows
+        dev.close()
+    finally:
+        port.close()
+        world.close()
+    late = block.values["acc_x_m_s2"] / 10.0 - block.t_s  # reading time less the stamp
+    assert late.min() > -2e-3 and late.max() < 0.016, (late.min(), late.max())
+    assert dev.link_errors()["no_reply"] == 1 and dropped >= 2  # after the miss, and it
+    assert np.count_nonzero(block.t_s > 0.2 + LATE_S) > 20  # it went on
 
 
 @pytest.mark.parametrize("multiple", [True, False], ids=["betaflight", "inav"])
@@ -209,10 +196,13 @@ def test_rows_are_stamped_when_the_fc_read_its_imu_if_it_tells_its_clock(multipl
     """With MSP_SET_RTC taken and MSP_RTC answered in the poll's MSP_MULTIPLE_MSP, a row's
     stamp is the FC's reading time to its clock's millisecond, however late the request
     reached it; an FC without MSP_MULTIPLE_MSP is stamped at the send time, the link's
-    delay in it."""
+    delay in it. The FC's requests reach it 0-15 ms late (a loaded host, a USB adapter's
+    latency timer, a simulated FC's time scale): its acc x is its clock (10 m/s^2 a second)
+    when it read its IMU, its MSP_RTC counts on the same clock."""
     clock = MonotonicClock()
-    sim = SlowLinkFc(clock, multiple=multiple).start()
-    port = open_port(sim.path, 115200)
+    world, sim = flight_controller(imu=ClockImu(clock), acc_1g=2048, rtc_clock=clock.now,
+                                   multiple=multiple, link_delay_s=0.015)
+    port = open_port(sim.get("path"), 115200)
     try:
         dev = MspImu(MspClient(port, "fc"), rate_hz=50.0, acc_1g=2048, attitude=False,
                      clock=clock)
@@ -222,7 +212,7 @@ def test_rows_are_stamped_when_the_fc_read_its_imu_if_it_tells_its_clock(multipl
         fc_time = sim.rtc_s()  # set to the time of day, as radios' MSP scripts set it
     finally:
         port.close()
-        sim.stop()
+        world.close()
     late = block.values["acc_x_m_s2"] / 10.0 - block.t_s  # reading time less the stamp
     assert block.t_s.size > 40
     assert fc_time is not None and abs(fc_time - time.time()) < 2.0
@@ -250,14 +240,14 @@ def test_identity_and_arming_state_are_read_and_an_armed_fc_is_refused(fc):
     assert client.firmware() == {"variant": "BTFL", "msp_api": "1.46", "version": "4.5.0",
                                  "board": "SIMF (ROTORBENCH_SIM)"}
     assert client.armed() is False
-    sim.armed = True
+    sim.set("armed", True)
     assert client.armed() is True
     esc = MspMotorEsc(client, 1, propellers_off=True)
     with pytest.raises(DeviceError, match="flight controller is armed"):
         esc.arm()
     assert not any(isinstance(m, msp.SetMotor) and m.values_us[1] != 1000
-                   for m in sim.requests)
-    sim.armed = False
+                   for m in sim.get("requests"))
+    sim.set("armed", False)
     esc.arm()
     esc.set_pulse_us(1200)
     assert sim.motors()[1] == 1200

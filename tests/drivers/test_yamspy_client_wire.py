@@ -1,4 +1,5 @@
-"""yamspy (an MSP client for Betaflight and INAV, PyPI 0.3.3) against the simulated FC.
+"""yamspy (an MSP client for Betaflight and INAV, PyPI 0.3.3) against the simulated FC, in a
+process of its own as a flight controller's firmware is.
 
 yamspy's ``MSPy`` opens the pty like a serial port and asks, at connect, API_VERSION,
 FC_VARIANT, FC_VERSION, BUILD_INFO, BOARD_INFO, UID, ACC_TRIM, NAME, STATUS and STATUS_EX
@@ -17,19 +18,22 @@ yamspy = pytest.importorskip("yamspy")
 
 from drivers.codecs import msp  # noqa: E402
 from drivers.wire_sim.msp_fc import SimFlightController  # noqa: E402
+from drivers.wire_sim.world_process import Constant, WorldProcess, one_device  # noqa: E402
 
 G = 9.80665
 
 
 @pytest.fixture
 def board():
-    sim = SimFlightController(
-        lambda _t: ((0.0, 0.0, G), (math.radians(10), 0.0, 0.0), (0.0, 0.0, 0.0)),
-        acc_1g=2048, battery=lambda: (12.34, 1.5)).start()
-    with yamspy.MSPy(device=sim.path, logfilename=None, loglevel="WARNING") as b:
+    world = WorldProcess(one_device, SimFlightController, {
+        "imu": Constant(((0.0, 0.0, G), (math.radians(10), 0.0, 0.0), (0.0, 0.0, 0.0))),
+        "acc_1g": 2048, "battery": Constant((12.34, 1.5))},
+        name="sim-fc")  # in a process of its own, as the FC's firmware is
+    sim = world.remote("device")
+    with yamspy.MSPy(device=sim.get("path"), logfilename=None, loglevel="WARNING") as b:
         assert b != 1, "yamspy could not connect"
         yield sim, b
-    sim.stop()
+    world.close()
 
 
 def _ask(b, name: str) -> dict:
@@ -56,7 +60,7 @@ def test_yamspy_identifies_the_simulated_fc(board):
 def test_every_connect_time_request_is_served(board):
     """``MSPy.basic_info`` asks these at connect; none may get the '$M!' error reply."""
     sim, _ = board
-    asked = {m.cmd for m in sim.requests if isinstance(m, msp.Request)}
+    asked = {m.cmd for m in sim.get("requests") if isinstance(m, msp.Request)}
     connect = {msp.MSP_API_VERSION, msp.MSP_FC_VARIANT, msp.MSP_FC_VERSION, msp.MSP_BUILD_INFO,
                msp.MSP_BOARD_INFO, msp.MSP_UID, msp.MSP_ACC_TRIM, msp.MSP_NAME,
                msp.MSP_STATUS, msp.MSP_STATUS_EX}
@@ -84,7 +88,7 @@ def test_yamspy_reads_values_in_its_own_units(board):
     assert b.SENSOR_DATA["accelerometer"] == [0, 0, 2048]
     # Betaflight: the gyro's counts, 16.4 per deg/s (10 deg/s here)
     assert b.SENSOR_DATA["gyroscope"] == [164, 0, 0]
-    sim.armed = True
+    sim.set("armed", True)
     _ask(b, "MSP_STATUS_EX")
     assert b.CONFIG["mode"] & 1  # the arming bit yamspy shows
     _ask(b, "MSP_MOTOR")

@@ -1,5 +1,8 @@
 """Other people's CAN clients against the simulated CAN devices (python-can ``virtual``).
 
+The simulated ESC runs in a process of its own, as a real ESC's firmware does, on a CAN
+cable (a loopback socket) bridged to the virtual bus here, and so does the simulated VESC.
+
 * The ``dronecan`` package's own node (PyPI 1.0.27, protocols.md §4.3) broadcasts
   ``uavcan.equipment.esc.RawCommand`` and listens for ``esc.Status``: the simulated ESC
   follows the command and its Status decodes in dronecan's own DSDL types. dronecan's
@@ -24,8 +27,9 @@ dronecan = pytest.importorskip("dronecan")
 
 from drivers.backends.can_link import CanLink  # noqa: E402
 from drivers.codecs import dronecan as dc  # noqa: E402
-from drivers.wire_sim.dronecan_esc import SimDroneCanEsc  # noqa: E402
-from drivers.wire_sim.vesc import SimVescDevice, VescCommand, VescState  # noqa: E402
+from drivers.wire_sim.can_socket import node_process  # noqa: E402
+from drivers.wire_sim.dronecan_esc import LinearEscMotor, socket_dronecan_esc  # noqa: E402
+from drivers.wire_sim.vesc import LinearVescMotor, VescCommand, socket_vesc  # noqa: E402
 
 _channels = itertools.count()
 
@@ -42,27 +46,27 @@ def test_the_dronecan_node_drives_the_simulated_esc(monkeypatch):
     monkeypatch.setattr(VirtualBus, "flush_tx_buffer", lambda self: None, raising=False)
     channel = _channel("dronecan")
     link = CanLink(can.Bus(channel, interface="virtual"), "sim side")
-
-    def model(_t: float, raw: int) -> dc.EscStatus:
-        return dc.EscStatus(7, 12.5, 3.25, 300.0, raw, 0, 2)
-
-    esc = SimDroneCanEsc(link, 21, 2, model, status_period_s=0.01).start()
+    motor = LinearEscMotor(dc.EscStatus(7, 12.5, 3.25, 300.0, 0, 0, 2), rpm_per_raw=1.0)
+    esc, stop = node_process(link, socket_dronecan_esc, {
+        "node_id": 21, "esc_index": 2, "model": motor, "status_period_s": 0.01},
+        "sim-dronecan")
     node = dronecan.make_node(channel, node_id=100, bitrate=1_000_000, bustype="virtual")
     seen = []
     node.add_handler(dronecan.uavcan.equipment.esc.Status, lambda e: seen.append(e.message))
     try:
         end = time.monotonic() + 5.0  # the node's NodeStatus comes once a second
-        while time.monotonic() < end and not (esc.raw == 4096 and seen and esc.host_node_status):
+        while time.monotonic() < end and not (
+                esc.get("raw") == 4096 and seen and esc.get("host_node_status")):
             node.broadcast(dronecan.uavcan.equipment.esc.RawCommand(cmd=[0, 0, 4096]))
             node.spin(0.02e-3)  # 20 ms (see module doc)
-        assert esc.raw == 4096  # the simulated ESC took dronecan's RawCommand
-        assert esc.host_node_status >= 1  # and heard the dronecan node's NodeStatus
+        assert esc.get("raw") == 4096  # the simulated ESC took dronecan's RawCommand
+        assert esc.get("host_node_status") >= 1  # and heard the dronecan node's NodeStatus
         st = seen[-1]
         assert (st.esc_index, st.error_count, st.rpm) == (2, 7, 4096)
         assert st.voltage == pytest.approx(12.5) and st.temperature == pytest.approx(300.0)
     finally:
         node.close()
-        esc.stop()
+        stop()
         link.close()
         link.bus.shutdown()
 
@@ -70,12 +74,12 @@ def test_the_dronecan_node_drives_the_simulated_esc(monkeypatch):
 def test_python_can_drives_the_simulated_vesc_with_the_reference_frames():
     channel = _channel("vesc")
     link = CanLink(can.Bus(channel, interface="virtual"), "sim side")
-
-    def model(_t: float, cmd: VescCommand) -> VescState:
-        duty = cmd.value if cmd.kind == "duty" else 0.0
-        return VescState(48_000 * duty, 10.5, duty, 3.1, 24.3, 35.2, 40.0, 123456)
-
-    vesc = SimVescDevice(link, 1, model, status_rate_hz=100.0).start()
+    # at duty 0.25: 12000 ERPM, 10.5 A, 3.1 A in; 24.3 V, 35.2 and 40.0 C, tachometer 123456
+    motor = LinearVescMotor(48_000.0, motor_current_per_duty_a=42.0,
+                            input_current_per_duty_a=12.4, voltage_in_v=24.3, temp_fet_c=35.2,
+                            temp_motor_c=40.0, tachometer=123456)
+    vesc, stop = node_process(link, socket_vesc, {
+        "controller_id": 1, "model": motor, "status_rate_hz": 100.0}, "sim-vesc")
     bus = can.Bus(channel, interface="virtual")
     try:
         # §3.2: SET_DUTY 0.25 to controller 1 = id 0x00000001, data 00 00 61 A8, sent
@@ -85,23 +89,27 @@ def test_python_can_drives_the_simulated_vesc_with_the_reference_frames():
                            is_extended_id=True)
         bus.send(duty)
         end = time.monotonic() + 2.0
-        while time.monotonic() < end and vesc.command != VescCommand("duty", 0.25):
+        while time.monotonic() < end and vesc.get("command") != VescCommand("duty", 0.25):
             time.sleep(0.005)
-        assert vesc.command == VescCommand("duty", 0.25)
-        while bus.recv(0.0) is not None:  # statuses from before the command took effect
-            pass
+        assert vesc.get("command") == VescCommand("duty", 0.25)
+        # statuses from before the command took effect (on the bus, or still on the cable
+        # from the VESC's process) report duty 0; a tick's statuses go out 1, 4, 5 in
+        # order, so the 4 and 5 after a STATUS with a duty are that tick's
         status = {}
         while time.monotonic() < end and len(status) < 3:
             bus.send(duty)
             msg = bus.recv(0.1)
-            if msg is not None and msg.arbitration_id >> 8 in (9, 16, 27):
-                status[msg.arbitration_id >> 8] = bytes(msg.data)
+            kind = None if msg is None else msg.arbitration_id >> 8
+            if kind == 9:
+                status = {9: bytes(msg.data)} if any(msg.data[6:8]) else {}
+            elif status and kind in (16, 27):
+                status[kind] = bytes(msg.data)
         # STATUS (12000 ERPM, 10.5 A, duty 0.25), STATUS_4 and STATUS_5 as in §3.2
         assert status[9] == bytes.fromhex("00002EE0006900FA")
         assert status[16] == bytes.fromhex("01600190001F0000")
         assert status[27] == bytes.fromhex("0001E24000F30000")
     finally:
         bus.shutdown()
-        vesc.stop()
+        stop()
         link.close()
         link.bus.shutdown()

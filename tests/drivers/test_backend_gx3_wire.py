@@ -1,4 +1,5 @@
-"""3DM-GX3-25 backend end to end against the simulated IMU on a pseudo-terminal."""
+"""3DM-GX3-25 backend end to end against the simulated IMU on a pseudo-terminal, in a
+process of its own as the IMU's firmware is."""
 
 from __future__ import annotations
 
@@ -16,26 +17,28 @@ from drivers.codecs import gx3
 from drivers.contracts import Sensor
 from drivers.errors import DeviceError
 from drivers.wire_sim.gx3 import SimGx3
+from drivers.wire_sim.world_process import Constant, WorldProcess, one_device
 
 ep = sys.modules["rotorbench_tests_expected_protocol"]
 
 
-def imu(t):
-    return (0.0, 0.0, -gx3.STANDARD_GRAVITY), (0.01, 0.0, 0.0), (0.1, -0.05, 1.5)
+IMU = Constant(((0.0, 0.0, -gx3.STANDARD_GRAVITY), (0.01, 0.0, 0.0), (0.1, -0.05, 1.5)))
 
 
 @pytest.fixture
 def sim():
-    s = SimGx3(imu, period_s=0.005).start()
-    yield s
-    s.stop()
+    """The simulated IMU in its process (a ``Remote``: ``sim.get("requests")`` reads it
+    there)."""
+    world = WorldProcess(one_device, SimGx3, {"imu": IMU, "period_s": 0.005}, name="sim-gx3")
+    yield world.remote("device")
+    world.close()
 
 
 def test_continuous_stream_in_si(sim):
-    port = open_port(sim.path, gx3.BAUD)
+    port = open_port(sim.get("path"), gx3.BAUD)
     dev = Gx3Imu(port, packet=gx3.ACCEL_RATE)
     assert isinstance(dev, Sensor)
-    assert sim.requests[:2] == [gx3.stop_continuous(), gx3.set_continuous(gx3.ACCEL_RATE)]
+    assert sim.get("requests")[:2] == [gx3.stop_continuous(), gx3.set_continuous(gx3.ACCEL_RATE)]
     time.sleep(0.15)
     b = dev.read_block()
     assert len(b) > 10
@@ -45,13 +48,13 @@ def test_continuous_stream_in_si(sim):
     assert np.all(spacing > 0)
     dev.close()
     time.sleep(0.05)
-    assert sim.requests[-1] == gx3.stop_continuous()
-    assert sim.stream_cmd is None
+    assert sim.get("requests")[-1] == gx3.stop_continuous()
+    assert sim.get("stream_cmd") is None
     port.close()
 
 
 def test_euler_rates_packet(sim):
-    port = open_port(sim.path, gx3.BAUD)
+    port = open_port(sim.get("path"), gx3.BAUD)
     dev = Gx3Imu(port, packet=gx3.EULER_RATES)
     time.sleep(0.05)
     b = dev.read_block()
@@ -63,7 +66,7 @@ def test_euler_rates_packet(sim):
 
 
 def test_silence_is_detected(sim):
-    port = open_port(sim.path, gx3.BAUD)
+    port = open_port(sim.get("path"), gx3.BAUD)
     dev = Gx3Imu(port, stale_s=0.1)
     sim.port.disconnect()
     time.sleep(0.2)
@@ -75,7 +78,7 @@ def test_silence_is_detected(sim):
 
 def test_no_ack_is_reported(sim):
     sim.port.disconnect()
-    port = open_port(sim.path, gx3.BAUD)
+    port = open_port(sim.get("path"), gx3.BAUD)
     with pytest.raises(DeviceError, match="no continuous-mode ack"):
         Gx3Imu(port, open_timeout_s=0.1)
     port.close()
