@@ -48,3 +48,29 @@ def test_a_sensor_with_fewer_samples_than_the_window_still_answers() -> None:
 
     answer = sensor_answer(_Once(), clock, timeout_s=1.0)
     assert answer.endswith("x=1") and RATE_MIN_SAMPLES > 1
+
+
+def test_a_paced_rig_is_read_for_half_a_second_of_wall_time_too() -> None:
+    """At 6x, 0.5 s of rig time is 0.08 s of wall time: a host stall that costs the poller
+    0.3 s of rig time (0.05 s of wall time) would take 60 % of such a window's samples."""
+    from drivers.wire_sim.paced_clock import PacedClock
+
+    clock = PacedClock(6.0, max_gap_s=float("inf"))
+    start = clock.now()
+
+    class _Stalled:
+        """100 Hz of rig time, none in the 0.3 s a stall took just after the check began."""
+
+        def __init__(self) -> None:
+            self._next = start
+
+        def read_block(self) -> Block:
+            t = np.arange(self._next, clock.now(), 0.01)
+            self._next = float(t[-1]) + 0.01 if t.size else self._next
+            t = t[(t < start + 0.05) | (t > start + 0.35)]
+            return Block(t, {"gyro_x": np.zeros(t.size)})
+
+    answer = sensor_answer(_Stalled(), clock, timeout_s=5.0)
+    rate = float(answer.split(" samples/s")[0])
+    assert clock.now() - start >= 6.0 * 0.5  # half a second of wall time
+    assert rate > 85.0, answer  # over 3 s of rig time the stall costs a tenth
