@@ -21,7 +21,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -51,17 +51,6 @@ def wait_port(port: int, timeout_s: float) -> bool:
         with contextlib.suppress(OSError), socket.create_connection(("127.0.0.1", port), 0.2):
             return True
         time.sleep(0.05)
-    return False
-
-
-def wait_until(cond: Callable[[], object], timeout: float = 1.0) -> bool:
-    """True once ``cond()`` holds (polled every 5 ms), False after ``timeout`` seconds: a
-    device stand-in's state, read as it changes."""
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if cond():
-            return True
-        time.sleep(0.005)
     return False
 
 

@@ -30,6 +30,10 @@ class ScriptedPort:
         self._cond = threading.Condition()
         self.closed = False
         self.errors: list[str] = []
+        # reads that found nothing: one after the stream's last byte means the reader has
+        # decoded and stored all it read, and asks again (its decoder's byte count runs
+        # ahead of the rows it stores)
+        self.idle_reads = 0
         self._release_unasked()
 
     # -- the script ------------------------------------------------------------------------
@@ -89,6 +93,7 @@ class ScriptedPort:
             while not self._out and not self.closed:
                 left = deadline - time.monotonic()
                 if left <= 0:
+                    self.idle_reads += 1
                     return b""
                 self._cond.wait(left)
             out = bytes(self._out[:n])

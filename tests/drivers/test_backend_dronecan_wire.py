@@ -10,7 +10,7 @@ import pytest
 
 can = pytest.importorskip("can")
 
-from rotorbench_tests_services import wait_until  # noqa: E402
+from rotorbench_tests_expected_protocol import wait_for  # noqa: E402
 
 from drivers.backends.dronecan_esc import (  # noqa: E402
     DroneCanEsc,
@@ -48,32 +48,32 @@ def test_command_and_status(rig):
     assert isinstance(esc, Esc) and isinstance(tel, Sensor)
     esc.arm()
     esc.set_pulse_us(1500)
-    assert wait_until(lambda: sim.get("raw") == 4096)
+    assert wait_for(lambda: sim.get("raw") == 4096)
     assert sim.get("commands_seen")[-1] == (0, 0, 4096)  # other slots stay at 0 = stop
     time.sleep(0.1)
     b = tel.read_block()
     assert b.values["rpm"][-1] == 8192
     assert b.values["temp_esc_c"][-1] == pytest.approx(300.0 - 273.15)
     assert b.values["voltage_v"][-1] == 16.0
-    assert wait_until(lambda: sim.get("host_node_status") >= 1)
+    assert wait_for(lambda: sim.get("host_node_status") >= 1)
 
 
 def test_stalled_host_and_disarm_stop_the_esc(rig):
     sim, esc, _ = rig(timeout_s=5.0)
     esc.arm()
     esc.set_pulse_us(2000)
-    assert wait_until(lambda: sim.get("raw") == 8191)
-    assert wait_until(lambda: sim.get("raw") == 0, timeout=0.5)  # host silent > 0.15 s
+    assert wait_for(lambda: sim.get("raw") == 8191)
+    assert wait_for(lambda: sim.get("raw") == 0, timeout_s=0.5)  # host silent > 0.15 s
     assert esc.host_stalled
     esc.set_pulse_us(1250)
-    assert wait_until(lambda: sim.get("raw") == dc.raw_from_fraction(0.25))
+    assert wait_for(lambda: sim.get("raw") == dc.raw_from_fraction(0.25))
     esc.disarm()
-    assert wait_until(lambda: sim.get("raw") == 0)
+    assert wait_for(lambda: sim.get("raw") == 0)
 
 
 def test_lost_node_is_detected(rig):
     sim, _, tel = rig()
-    assert wait_until(lambda: len(tel.read_block()) > 0)
+    assert wait_for(lambda: len(tel.read_block()) > 0)
     sim.disconnect()
     time.sleep(0.3)
     with pytest.raises(DeviceError, match=r"no esc\.Status"):

@@ -127,7 +127,8 @@ def test_loadcell_board_lines_to_si_and_the_backend_writes_nothing():
     text = (T / "loadcell" / "teststand_v2.txt").read_bytes()
     port = ep.ScriptedPort([(b"", text)])  # the board prints; the backend only listens
     dev = LineLoadCell(port, TESTSTAND_V2, stale_s=1.0)
-    assert ep.wait_for(lambda: dev.decoder.stats.bytes_in == len(text))
+    assert ep.wait_for(lambda: port.idle_reads > 0)  # all read, decoded and stored
+    assert dev.decoder.stats.bytes_in == len(text)
     b = dev.read_block()
     assert len(b) >= 1 and np.all(np.isfinite(b.values["thrust_n"]))
     assert dev.decoder.stats.malformed == 0

@@ -9,7 +9,7 @@ import pytest
 
 pytest.importorskip("serial")
 
-from rotorbench_tests_services import wait_until
+from rotorbench_tests_expected_protocol import wait_for
 
 from drivers.backends.serial_link import open_port
 from drivers.backends.vesc_uart import (
@@ -49,16 +49,16 @@ def test_throttle_to_duty_and_telemetry(vesc):
     assert isinstance(esc, Esc) and isinstance(tel, Sensor)
     assert tel.describe().extra["controller_id"] == 5
     esc.arm()
-    assert wait_until(lambda: sim.get("command") == VescCommand("current", 0.0))  # idle: no torque
+    assert wait_for(lambda: sim.get("command") == VescCommand("current", 0.0))  # idle: no torque
     esc.set_pulse_us(1500)
-    assert wait_until(lambda: sim.get("command") == VescCommand("duty", 0.5))
+    assert wait_for(lambda: sim.get("command") == VescCommand("duty", 0.5))
     time.sleep(0.1)
     b = tel.read_block()
     assert len(b) >= 5 and b.values["rpm"][-1] == pytest.approx(70_000 * 0.5 / 7)
     assert b.values["voltage_v"][-1] == pytest.approx(12.3)
     esc.close()
     tel.close()
-    assert wait_until(lambda: sim.get("command") == VescCommand("current", 0.0))
+    assert wait_for(lambda: sim.get("command") == VescCommand("current", 0.0))
 
 
 def commanding(vesc, host_timeout_s: float) -> tuple[Remote, VescUartEsc]:
@@ -81,8 +81,8 @@ def test_keepalive_holds_the_command_past_the_vesc_timeout(vesc):
 
 def test_stalled_host_lets_the_vesc_release_the_motor(vesc):
     sim, esc = commanding(vesc, host_timeout_s=0.1)
-    assert wait_until(lambda: esc.host_stalled, 1.0)  # the host went silent: one stop sent
-    assert wait_until(lambda: sim.get("command") == VescCommand("current", 0.0))
+    assert wait_for(lambda: esc.host_stalled, 1.0)  # the host went silent: one stop sent
+    assert wait_for(lambda: sim.get("command") == VescCommand("current", 0.0))
     esc.close()
 
 

@@ -10,7 +10,7 @@ import pytest
 
 can = pytest.importorskip("can")
 
-from rotorbench_tests_services import wait_until  # noqa: E402
+from rotorbench_tests_expected_protocol import wait_for  # noqa: E402
 
 from drivers.backends.can_link import CanLink  # noqa: E402
 from drivers.backends.vesc import VescEsc, VescEscSettings, VescTelemetry  # noqa: E402
@@ -55,7 +55,7 @@ def test_contracts_and_throttle_to_speed(rig):
     assert isinstance(esc, Esc) and isinstance(tel, Sensor)
     esc.arm()
     esc.set_pulse_us(1500)
-    assert wait_until(lambda: command(sim) == VescCommand("duty", 0.5))
+    assert wait_for(lambda: command(sim) == VescCommand("duty", 0.5))
     time.sleep(0.1)
     block = tel.read_block()
     assert len(block) > 3
@@ -80,21 +80,21 @@ def test_stalled_host_stops_the_motor(rig):
     sim, esc, _ = rig(sim_timeout=1.0, keepalive=0.03, host_timeout=0.1)
     esc.arm()
     esc.set_pulse_us(1800)
-    assert wait_until(lambda: command(sim).kind == "duty")
+    assert wait_for(lambda: command(sim).kind == "duty")
     # the host goes silent: within host_timeout + keepalive the VESC gets current 0
-    assert wait_until(lambda: command(sim) == VescCommand("current", 0.0), timeout=0.4)
+    assert wait_for(lambda: command(sim) == VescCommand("current", 0.0), timeout_s=0.4)
     assert esc.host_stalled
     esc.set_pulse_us(1200)  # the host is back: commands flow again
-    assert wait_until(lambda: command(sim) == VescCommand("duty", pytest.approx(0.2)))
+    assert wait_for(lambda: command(sim) == VescCommand("duty", pytest.approx(0.2)))
 
 
 def test_disarm_and_close_send_zero_current(rig):
     sim, esc, _ = rig()
     esc.arm()
     esc.set_pulse_us(1700)
-    assert wait_until(lambda: command(sim).kind == "duty")
+    assert wait_for(lambda: command(sim).kind == "duty")
     esc.disarm()
-    assert wait_until(lambda: command(sim) == VescCommand("current", 0.0))
+    assert wait_for(lambda: command(sim) == VescCommand("current", 0.0))
     n = len(sim.get("commands_seen"))
     time.sleep(0.2)
     seen = sim.get("commands_seen")
@@ -107,7 +107,7 @@ def test_disarm_and_close_send_zero_current(rig):
 def test_disconnect_is_detected_by_telemetry(rig):
     sim, esc, tel = rig(stale=0.2)
     esc.arm()
-    assert wait_until(lambda: len(tel.read_block()) > 0)
+    assert wait_for(lambda: len(tel.read_block()) > 0)
     sim.disconnect()
     t0 = time.monotonic()
     with pytest.raises(DeviceError, match="silent"):
