@@ -9,7 +9,10 @@ Why each step is the way it is (docs/protocols.md, "Betaflight SITL as a peer"):
   (a stale one would carry another run's settings) and hangs at 100 % CPU when the cwd is
   not writable; its stdout/stderr go to ``sitl.log`` there (an undrained pipe would block
   it). The directory is removed after a clean stop and kept (named in the error) when
-  the launch failed, unless a relaunch follows (``PortBusy``: the caller removes it);
+  the launch failed;
+* a launch whose MSP port's bind failed (a connection of the instance before it, e.g.
+  the configuring one's, may still hold the port a moment) is launched again in the same
+  directory after ``BIND_PAUSE_S``, up to ``BIND_LAUNCHES`` times (``PortBusy``);
 * its ports are fixed (MSP TCP 5761, FDM UDP 9003, RC 9004, motors out to 9001/9002) and
   bound with ``SO_REUSEADDR``: a second instance would silently share the UDP ports and
   fail only on stderr for TCP, so ports already in use are refused before launch, and
@@ -61,8 +64,11 @@ STOP_TIMEOUT_S = 2.0
 #: launches of the configuring instance: one whose CLI never answered (its settings timed
 #: out, nothing saved: seen once in a fresh-clone suite) is launched again
 CONFIGURE_LAUNCHES = 3
-#: what the firmware prints when its MSP port's bind fails (serial_tcp.c)
+#: what the firmware prints when its MSP port's bind fails (serial_tcp.c), and how often
+#: and after what pause such a launch is tried again
 BIND_FAILED = b"bind port 5761 for UART1 failed"
+BIND_LAUNCHES = 3
+BIND_PAUSE_S = 0.5
 _LISTEN = "0A"  # TCP_LISTEN in /proc/net/tcp
 _WORD = re.compile(r"[A-Za-z0-9_.+-]+")
 
@@ -129,9 +135,9 @@ def _owns(pid: int, inodes: set[str]) -> bool:
 
 
 class PortBusy(DeviceError):
-    """The firmware could not bind its MSP port: worth another launch a moment later.
-    ``workdir`` is the launch's directory, kept for its log until the caller knows whether
-    this was the last try."""
+    """The firmware could not bind its MSP port: worth another launch a moment later
+    (``SitlProcess.launch`` makes it). ``workdir`` is the launch's directory, with its
+    log."""
 
     def __init__(self, message: str, workdir: Path) -> None:
         super().__init__(message)
@@ -141,10 +147,12 @@ class PortBusy(DeviceError):
 class SitlProcess:
     """One running firmware: its process and working directory (see module doc)."""
 
-    def __init__(self, proc: subprocess.Popen[bytes], workdir: Path, started_s: float) -> None:
+    def __init__(self, proc: subprocess.Popen[bytes], workdir: Path, started_s: float,
+                 log_from: int = 0) -> None:
         self.proc = proc
         self.workdir = workdir
         self.started_s = started_s  # launch to its MSP port listening
+        self.log_from = log_from  # where this launch's output starts in sitl.log
 
     @property
     def log_path(self) -> Path:
@@ -175,7 +183,14 @@ class SitlProcess:
         if lines:
             cls.configure_in(binary, workdir, lambda sitl: sitl.configure(lines, timeout_s),
                              timeout_s=timeout_s)
-        return cls._start(binary, workdir, timeout_s)
+        for attempt in range(1, BIND_LAUNCHES + 1):
+            try:
+                return cls._start(binary, workdir, timeout_s)
+            except PortBusy:
+                if attempt == BIND_LAUNCHES:
+                    raise
+                time.sleep(BIND_PAUSE_S)  # a connection of the last instance may linger
+        raise AssertionError("unreachable")
 
     @classmethod
     def configure_in(cls, binary: Path, workdir: Path, apply: Callable[[SitlProcess], None],
@@ -201,13 +216,14 @@ class SitlProcess:
     def _start(cls, binary: Path, workdir: Path, timeout_s: float) -> SitlProcess:
         t0 = time.monotonic()
         with open(workdir / "sitl.log", "ab") as log:
+            log_from = log.tell()
             proc = subprocess.Popen([str(binary)], cwd=workdir, stdout=log,
                                     stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                                     start_new_session=True)
         # ahead of the host from its first instruction: its start-up (eeprom, TCP server)
         # must not wait behind a loaded machine; threads it starts inherit the niceness
         raise_device_priority(proc.pid)
-        sitl = cls(proc, workdir, 0.0)
+        sitl = cls(proc, workdir, 0.0, log_from)
         try:
             while time.monotonic() - t0 < timeout_s:
                 code = proc.poll()
@@ -260,9 +276,10 @@ class SitlProcess:
 
     def bind_failed(self) -> bool:
         """Whether the firmware said it could not bind its MSP port (it then runs on
-        without one, and would never answer)."""
+        without one, and would never answer), in this launch's part of the log."""
         try:
             with open(self.log_path, "rb") as fh:
+                fh.seek(self.log_from)
                 return BIND_FAILED in fh.read()
         except OSError:
             return False

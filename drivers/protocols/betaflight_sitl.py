@@ -24,7 +24,6 @@ the plant) and the firmware (SIGTERM, then SIGKILL), whatever happened before.
 from __future__ import annotations
 
 import logging
-import shutil
 import time
 from collections.abc import Callable
 from typing import Any
@@ -174,17 +173,14 @@ def _launch(ctx: Any, spec: DeviceUrl, launcher: Any, binary: Any,
                 port.close()
             if firmware is not None:
                 firmware.stop()
-            # a firmware that exits at start or never opens its port would do so again;
-            # one that lost its port to a lingering connection or ran no control loop not
-            retry = isinstance(exc, launcher.PortBusy) or (
-                firmware is not None and isinstance(exc, DeviceError))
+            # a firmware that exits at start or never opens its port would do so again
+            # (one that lost its port to a lingering connection the launch tried again);
+            # one that ran no control loop not
+            retry = firmware is not None and isinstance(exc, DeviceError)
             if not retry or attempt == LAUNCHES:
                 raise
             log.info("Betaflight SITL launch %d of %d not usable (%s): relaunching",
                      attempt, LAUNCHES, exc)
-            kept = getattr(exc, "workdir", None)  # a PortBusy's: for the last try's error
-            if kept is not None:
-                shutil.rmtree(kept, ignore_errors=True)
             time.sleep(RELAUNCH_PAUSE_S)  # a connection of the last one may still linger
     raise AssertionError("unreachable")
 

@@ -220,8 +220,8 @@ def test_the_plant_follows_the_firmware_output_not_the_request(netns):
 def test_a_launch_that_lost_its_port_is_relaunched_and_leaves_no_directory(
         netns, tmp_path, monkeypatch):
     """A connection of an earlier instance on TCP 5761 (not listening, so the port check
-    passes) makes the firmware's bind fail; the bench launches it again once that is gone,
-    and the failed launch's directory, kept for its log, goes with the retry."""
+    passes) makes the firmware's bind fail; the launch tries again in the same directory
+    once that is gone (``SitlProcess.launch``), which goes when the firmware stops."""
     tmp = tmp_path / "tmp"
     tmp.mkdir()
     monkeypatch.setattr(tempfile, "tempdir", str(tmp))
