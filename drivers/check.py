@@ -52,7 +52,7 @@ def sensor_answer(sensor: Sensor, clock: Clock, timeout_s: float) -> str:
     wall_window = RATE_WINDOW_S if getattr(clock, "time_scale", None) else 0.0
     t0, w0 = clock.now(), time.monotonic()
     n, last, first_t, last_t = 0, None, None, None
-    deadline = time.monotonic() + timeout_s
+    deadline = w0 + timeout_s
     while True:
         clock.sleep(0.02)
         b = sensor.read_block()

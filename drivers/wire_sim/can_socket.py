@@ -22,7 +22,7 @@ from drivers.errors import DeviceError
 if TYPE_CHECKING:
     from drivers.wire_sim.world_process import Remote
 
-__all__ = ["SocketCanLink", "bridge", "node_process", "relay"]
+__all__ = ["SocketCanLink", "bridge", "cabled_node", "node_process", "relay"]
 
 _HEADER = struct.Struct("<I?B")  # arbitration id, extended id, data length
 
@@ -129,18 +129,26 @@ def bridge(link: Any, connect: Callable[[int], object],
 def node_process(link: Any, make: Callable[..., Any], settings: dict[str, Any],
                  name: str) -> tuple[Remote, Callable[[], None]]:
     """A simulated CAN node in a process of its own, as a device's firmware runs on its own
-    processor, on a cable to ``link`` (the nodes' end of a host's bus): ``make(port=...,
-    **settings)`` there connects a :class:`SocketCanLink` to loopback ``port`` (e.g.
-    ``drivers.wire_sim.vesc.socket_vesc``). Returns the node there (a ``Remote``:
-    ``node.get("command")``) and the stop (cable out, process ended)."""
+    processor, on a cable to ``link`` (the nodes' end of a host's bus): ``make(cable,
+    **settings)`` there (e.g. ``SimVescDevice``), its cable a :class:`SocketCanLink` to a
+    loopback listener here. Returns the node there (a ``Remote``: ``node.get("command")``)
+    and the stop (cable out, process ended)."""
     from drivers.wire_sim.world_process import WorldProcess, one_device
 
     worlds: list[WorldProcess] = []
     _, unplug = bridge(link, lambda port: worlds.append(WorldProcess(
-        one_device, make, {"port": port, **settings}, name=name)), f"{name} cable")
+        one_device, cabled_node, {"make": make, "port": port, "name": name, **settings},
+        name=name)), f"{name} cable")
 
     def stop() -> None:
         unplug()
         worlds[0].close()
 
     return worlds[0].remote("device"), stop
+
+
+def cabled_node(make: Callable[..., Any], port: int, name: str, **settings: Any) -> Any:
+    """``make(cable, **settings)`` on a cable to loopback ``port`` (the node's process's
+    side of :func:`node_process`)."""
+    return make(SocketCanLink(socket.create_connection(("127.0.0.1", port)),
+                              f"{name} cable"), **settings)

@@ -4,13 +4,12 @@ Behaviour from protocols.md §4: RawCommand ``cmd[esc_index]`` (int14, 0 = stop)
 the ``model(t_s, raw) -> EscStatus``; Status goes out every ``status_period_s`` as a
 three-frame transfer, NodeStatus once a second. With no RawCommand for ``timeout_s`` the
 command falls back to 0 (the real timeout is ESC firmware specific; this is the sim's).
-``socket_dronecan_esc`` makes one on a CAN cable to a host in another process
-(``drivers.wire_sim.can_socket.node_process``).
+``drivers.wire_sim.can_socket.node_process`` runs one on a CAN cable to a host in another
+process.
 """
 
 from __future__ import annotations
 
-import socket
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -20,7 +19,6 @@ from drivers.codecs import dronecan as dc
 from drivers.codecs.can_log import CanFrame
 from drivers.errors import DeviceError
 from drivers.wire_sim.can_node import SimCanNode
-from drivers.wire_sim.can_socket import SocketCanLink
 
 EscModel = Callable[[float, int], dc.EscStatus]
 
@@ -38,16 +36,6 @@ class LinearEscMotor:
     def __call__(self, _t: float, raw: int) -> dc.EscStatus:
         return replace(self.rest, rpm=self.rest.rpm + round(raw * self.rpm_per_raw),
                        current_a=self.rest.current_a + raw / dc.RAW_MAX * self.current_at_max_a)
-
-
-def socket_dronecan_esc(port: int, node_id: int, esc_index: int, model: EscModel,
-                        **settings: float) -> SimDroneCanEsc:
-    """A simulated DroneCAN ESC on a CAN cable to a host in another process: a socket to
-    loopback ``port`` (``drivers.wire_sim.can_socket.bridge``); ``settings`` as
-    SimDroneCanEsc's."""
-    link = SocketCanLink(socket.create_connection(("127.0.0.1", port)), "sim-dronecan cable")
-    return SimDroneCanEsc(link, node_id, esc_index, model,  # type: ignore[arg-type]  # CanLink
-                          **settings)
 
 
 class SimDroneCanEsc(SimCanNode):

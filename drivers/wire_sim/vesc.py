@@ -9,7 +9,6 @@ The motor itself is the ``model`` callable: ``model(t_s, command) -> VescState``
 
 from __future__ import annotations
 
-import socket
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -65,17 +64,6 @@ class LinearVescMotor:
         return VescState(self.erpm_per_duty * duty, self.motor_current_per_duty_a * duty, duty,
                          self.input_current_per_duty_a * duty, self.voltage_in_v,
                          self.temp_fet_c, self.temp_motor_c, self.tachometer)
-
-
-def socket_vesc(port: int, controller_id: int, model: VescModel,
-                **settings: float) -> SimVescDevice:
-    """A simulated VESC on a CAN cable to a host in another process: a socket to loopback
-    ``port`` (``drivers.wire_sim.can_socket.bridge``); ``settings`` as SimVescDevice's."""
-    from drivers.wire_sim.can_socket import SocketCanLink
-
-    link = SocketCanLink(socket.create_connection(("127.0.0.1", port)), "sim-vesc cable")
-    return SimVescDevice(link, controller_id, model,  # type: ignore[arg-type]  # CanLink's face
-                         **settings)
 
 
 class SimVescDevice(SimCanNode):

@@ -20,7 +20,7 @@ from drivers.backends.dronecan_esc import (  # noqa: E402
 from drivers.codecs import dronecan as dc  # noqa: E402
 from drivers.contracts import Esc, Sensor  # noqa: E402
 from drivers.errors import DeviceError  # noqa: E402
-from drivers.wire_sim.dronecan_esc import LinearEscMotor, socket_dronecan_esc  # noqa: E402
+from drivers.wire_sim.dronecan_esc import LinearEscMotor, SimDroneCanEsc  # noqa: E402
 
 MOTOR = LinearEscMotor(dc.EscStatus(0, 16.0, 0.0, 300.0, 0, 0, 2), rpm_per_raw=2.0,
                        current_at_max_a=20.0)
@@ -32,7 +32,7 @@ def rig(can_bench):
     reads it there), the ESC backend and the telemetry on the host's bus."""
 
     def make(**kw):
-        sim = can_bench.node(socket_dronecan_esc, {"node_id": 21, "esc_index": 2,
+        sim = can_bench.node(SimDroneCanEsc, {"node_id": 21, "esc_index": 2,
                                                    "model": MOTOR, **kw}, "sim-dronecan")
         esc = DroneCanEsc(can_bench.host, DroneCanEscSettings(esc_index=2, period_s=0.02,
                                                               host_timeout_s=0.15))

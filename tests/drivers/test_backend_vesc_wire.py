@@ -16,7 +16,7 @@ from drivers.backends.can_link import CanLink  # noqa: E402
 from drivers.backends.vesc import VescEsc, VescEscSettings, VescTelemetry  # noqa: E402
 from drivers.contracts import Esc, Sensor  # noqa: E402
 from drivers.errors import DeviceError  # noqa: E402
-from drivers.wire_sim.vesc import LinearVescMotor, VescCommand, socket_vesc  # noqa: E402
+from drivers.wire_sim.vesc import LinearVescMotor, SimVescDevice, VescCommand  # noqa: E402
 from drivers.wire_sim.world_process import Remote  # noqa: E402
 
 _channels = itertools.count()
@@ -34,7 +34,7 @@ def rig(can_bench):
     reads it there), the ESC backend and the telemetry on the host's bus."""
 
     def make(*, sim_timeout=1.0, keepalive=0.05, host_timeout=0.5, stale=0.3):
-        sim = can_bench.node(socket_vesc, {"controller_id": 1, "model": MOTOR,
+        sim = can_bench.node(SimVescDevice, {"controller_id": 1, "model": MOTOR,
                                            "status_rate_hz": 100.0, "timeout_s": sim_timeout},
                              "sim-vesc")
         host = can_bench.host

@@ -34,8 +34,8 @@ can = pytest.importorskip("can")
 from drivers.backends.can_link import CanLink  # noqa: E402
 from drivers.codecs import dronecan as dc  # noqa: E402
 from drivers.wire_sim.can_socket import node_process  # noqa: E402
-from drivers.wire_sim.dronecan_esc import LinearEscMotor, socket_dronecan_esc  # noqa: E402
-from drivers.wire_sim.vesc import LinearVescMotor, socket_vesc  # noqa: E402
+from drivers.wire_sim.dronecan_esc import LinearEscMotor, SimDroneCanEsc  # noqa: E402
+from drivers.wire_sim.vesc import LinearVescMotor, SimVescDevice  # noqa: E402
 from drivers.wire_sim.world_process import Constant, WorldProcess, one_device  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
@@ -131,7 +131,7 @@ def test_kill_9_of_the_host_releases_the_vesc_within_its_timeout():
     channel = f"dead-vesc-{next(_channels)}-{os.getpid()}"
     bridge = Bridge(channel)
     link = CanLink(can.Bus(channel, interface="virtual"), "device side")
-    vesc, stop = node_process(link, socket_vesc, {
+    vesc, stop = node_process(link, SimVescDevice, {
         "controller_id": 1, "model": VESC_MOTOR, "status_rate_hz": 200.0}, "sim-vesc")
     try:
         took = _kill_mid_step(
@@ -155,7 +155,7 @@ def test_kill_9_of_the_host_stops_the_dronecan_esc_within_its_timeout():
     bridge = Bridge(channel)
     link = CanLink(can.Bus(channel, interface="virtual"), "device side")
     model = LinearEscMotor(dc.EscStatus(0, 12.0, 0.0, 300.0, 0, 0, 0), rpm_per_raw=1.0)
-    esc, stop = node_process(link, socket_dronecan_esc, {
+    esc, stop = node_process(link, SimDroneCanEsc, {
         "node_id": 21, "esc_index": 0, "model": model, "status_period_s": 0.005,
         "timeout_s": 0.5}, "sim-dronecan")
     try:

@@ -28,8 +28,8 @@ dronecan = pytest.importorskip("dronecan")
 from drivers.backends.can_link import CanLink  # noqa: E402
 from drivers.codecs import dronecan as dc  # noqa: E402
 from drivers.wire_sim.can_socket import node_process  # noqa: E402
-from drivers.wire_sim.dronecan_esc import LinearEscMotor, socket_dronecan_esc  # noqa: E402
-from drivers.wire_sim.vesc import LinearVescMotor, VescCommand, socket_vesc  # noqa: E402
+from drivers.wire_sim.dronecan_esc import LinearEscMotor, SimDroneCanEsc  # noqa: E402
+from drivers.wire_sim.vesc import LinearVescMotor, SimVescDevice, VescCommand  # noqa: E402
 
 _channels = itertools.count()
 
@@ -47,7 +47,7 @@ def test_the_dronecan_node_drives_the_simulated_esc(monkeypatch):
     channel = _channel("dronecan")
     link = CanLink(can.Bus(channel, interface="virtual"), "sim side")
     motor = LinearEscMotor(dc.EscStatus(7, 12.5, 3.25, 300.0, 0, 0, 2), rpm_per_raw=1.0)
-    esc, stop = node_process(link, socket_dronecan_esc, {
+    esc, stop = node_process(link, SimDroneCanEsc, {
         "node_id": 21, "esc_index": 2, "model": motor, "status_period_s": 0.01},
         "sim-dronecan")
     node = dronecan.make_node(channel, node_id=100, bitrate=1_000_000, bustype="virtual")
@@ -78,7 +78,7 @@ def test_python_can_drives_the_simulated_vesc_with_the_reference_frames():
     motor = LinearVescMotor(48_000.0, motor_current_per_duty_a=42.0,
                             input_current_per_duty_a=12.4, voltage_in_v=24.3, temp_fet_c=35.2,
                             temp_motor_c=40.0, tachometer=123456)
-    vesc, stop = node_process(link, socket_vesc, {
+    vesc, stop = node_process(link, SimVescDevice, {
         "controller_id": 1, "model": motor, "status_rate_hz": 100.0}, "sim-vesc")
     bus = can.Bus(channel, interface="virtual")
     try:
