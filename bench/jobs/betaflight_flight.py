@@ -260,16 +260,22 @@ def _fly_firmware(path: Path, workdir: Path, lines: list[tuple[str, str]],
                   plant: ExternalPlant, maneuvers: list[str], rate_steps_s: float,
                   log_to: Path, tell: Callable[[str], None], u_hover: float
                   ) -> BetaflightFlight:
-    """The flight itself: launch, arm, fly, and the firmware stopped whatever happens."""
+    """The flight itself: launch, arm, fly, and the firmware stopped whatever happens; its
+    directory removed, unless its launch failed (the error names the log there)."""
     vehicle = plant.vehicle
     sitl = port = link = loop = rc = client = None
     firmware: dict[str, Any] = {}
     marks: list[tuple[Segment, float]] = []
     release = [math.nan]
+    keep = False  # the firmware's directory, with its log, when its launch failed
     try:
         tell("configuring the firmware")
-        _configure(path, workdir, lines)
-        sitl, port, client = _launch_running(path, workdir)
+        try:
+            _configure(path, workdir, lines)
+            sitl, port, client = _launch_running(path, workdir)
+        except DeviceError:
+            keep = True  # the error names its log there
+            raise
         firmware = client.firmware()
         link = FdmLink(HOST)
         loop = PlantLoop(plant, link)
@@ -294,7 +300,8 @@ def _fly_firmware(path: Path, workdir: Path, lines: list[tuple[str, str]],
             if sitl is not None:
                 sitl.stop(keep=True)
             copied = _copy_log(workdir / LOG_NAME, log_to)
-            shutil.rmtree(workdir, ignore_errors=True)
+            if not keep:
+                shutil.rmtree(workdir, ignore_errors=True)
     firmware["disarmed_at_end"] = disarmed
     firmware["simplified_master_multiplier"] = pid_scale(vehicle)
     assert loop is not None

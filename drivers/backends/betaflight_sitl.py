@@ -10,9 +10,11 @@ Why each step is the way it is (docs/protocols.md, "Betaflight SITL as a peer"):
   not writable; its stdout/stderr go to ``sitl.log`` there (an undrained pipe would block
   it). The directory is removed after a clean stop and kept (named in the error) when
   the launch failed;
-* a launch whose MSP port's bind failed (a connection of the instance before it, e.g.
-  the configuring one's, may still hold the port a moment) is launched again in the same
-  directory after ``BIND_PAUSE_S``, up to ``BIND_LAUNCHES`` times (``PortBusy``);
+* a launch whose MSP port did not come up is launched again in the same directory after
+  ``BIND_PAUSE_S``, up to ``BIND_LAUNCHES`` times (``NoMspPort``): its bind failed (a
+  connection of the instance before it, e.g. the configuring one's, may still hold the
+  port a moment), or it did not listen within ``START_TIMEOUT_S`` (it listens after about
+  0.5 s; once in a fresh-clone suite one had not after 5 s, so it never would);
 * its ports are fixed (MSP TCP 5761, FDM UDP 9003, RC 9004, motors out to 9001/9002) and
   bound with ``SO_REUSEADDR``: a second instance would silently share the UDP ports and
   fail only on stderr for TCP, so ports already in use are refused before launch, and
@@ -36,6 +38,7 @@ from __future__ import annotations
 
 import contextlib
 import importlib.util
+import logging
 import os
 import re
 import shutil
@@ -65,12 +68,14 @@ STOP_TIMEOUT_S = 2.0
 #: out, nothing saved: seen once in a fresh-clone suite) is launched again
 CONFIGURE_LAUNCHES = 3
 #: what the firmware prints when its MSP port's bind fails (serial_tcp.c), and how often
-#: and after what pause such a launch is tried again
+#: and after what pause a launch whose port did not come up is tried again
 BIND_FAILED = b"bind port 5761 for UART1 failed"
 BIND_LAUNCHES = 3
 BIND_PAUSE_S = 0.5
 _LISTEN = "0A"  # TCP_LISTEN in /proc/net/tcp
 _WORD = re.compile(r"[A-Za-z0-9_.+-]+")
+
+log = logging.getLogger(__name__)
 
 
 def find_binary(explicit: str | None = None) -> Path:
@@ -134,10 +139,10 @@ def _owns(pid: int, inodes: set[str]) -> bool:
     return False
 
 
-class PortBusy(DeviceError):
-    """The firmware could not bind its MSP port: worth another launch a moment later
-    (``SitlProcess.launch`` makes it). ``workdir`` is the launch's directory, with its
-    log."""
+class NoMspPort(DeviceError):
+    """The firmware's MSP port did not come up (its bind failed, or it did not listen in
+    time): worth another launch a moment later (``SitlProcess.launch`` makes it).
+    ``workdir`` is the launch's directory, with its log."""
 
     def __init__(self, message: str, workdir: Path) -> None:
         super().__init__(message)
@@ -186,9 +191,11 @@ class SitlProcess:
         for attempt in range(1, BIND_LAUNCHES + 1):
             try:
                 return cls._start(binary, workdir, timeout_s)
-            except PortBusy:
+            except NoMspPort as exc:
                 if attempt == BIND_LAUNCHES:
                     raise
+                log.info("Betaflight SITL launch %d of %d: %s; launching again", attempt,
+                         BIND_LAUNCHES, exc)
                 time.sleep(BIND_PAUSE_S)  # a connection of the last instance may linger
         raise AssertionError("unreachable")
 
@@ -215,9 +222,9 @@ class SitlProcess:
     @classmethod
     def _start(cls, binary: Path, workdir: Path, timeout_s: float) -> SitlProcess:
         t0 = time.monotonic()
-        with open(workdir / "sitl.log", "ab") as log:
-            log_from = log.tell()
-            proc = subprocess.Popen([str(binary)], cwd=workdir, stdout=log,
+        with open(workdir / "sitl.log", "ab") as out:
+            log_from = out.tell()
+            proc = subprocess.Popen([str(binary)], cwd=workdir, stdout=out,
                                     stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                                     start_new_session=True)
         # ahead of the host from its first instruction: its start-up (eeprom, TCP server)
@@ -235,12 +242,12 @@ class SitlProcess:
                     raise_device_priority(proc.pid)  # threads started before the first raise
                     return sitl
                 if sitl.bind_failed():
-                    raise PortBusy(f"the Betaflight SITL could not bind its MSP port "
-                                   f"{MSP_PORT} (a connection of an earlier instance may "
-                                   f"still hold it; log: {sitl.log_path})", workdir)
+                    raise NoMspPort(f"the Betaflight SITL could not bind its MSP port "
+                                    f"{MSP_PORT} (a connection of an earlier instance may "
+                                    f"still hold it; log: {sitl.log_path})", workdir)
                 time.sleep(0.02)
-            raise DeviceError(f"the Betaflight SITL's MSP port {MSP_PORT} did not open within "
-                              f"{timeout_s:g} s (log: {sitl.log_path})")
+            raise NoMspPort(f"the Betaflight SITL's MSP port {MSP_PORT} did not open within "
+                            f"{timeout_s:g} s (log: {sitl.log_path})", workdir)
         except BaseException:
             sitl.stop(keep=True)
             raise

@@ -202,3 +202,24 @@ def test_a_flight_stopped_mid_air_ends_disarmed_with_the_firmware_stopped(tmp_pa
     assert meta["kind"] == "flight"
     assert not any("LOG_END" in n for n in meta["flight"].get("notes", [])), meta["flight"]
     assert f"flight run {run_dir}" in err
+
+
+def test_a_firmware_that_cannot_start_leaves_its_log_where_the_error_says(
+        tmp_path, monkeypatch, capsys):
+    """A launch that fails (here a stand-in that exits at once) ends the command in one line
+    naming the firmware's log, and the directory with that log is kept for the user."""
+    import tempfile
+
+    import bench.jobs.betaflight_flight as flight
+
+    stand_in = tmp_path / "exits"
+    stand_in.write_text("#!/bin/sh\necho 'stand-in: no firmware here'\nexit 3\n")
+    stand_in.chmod(0o755)
+    monkeypatch.setattr(flight, "find_binary", lambda _binary=None: stand_in)
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    assert main(["fly", "--controller", "betaflight", *DESIGN, "--maneuver", "--rate-steps",
+                 "1", "--store", str(tmp_path / "runs")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "exited with code 3" in err, err
+    log = Path(err.split("(log: ")[1].rstrip(")"))
+    assert log.is_relative_to(tmp_path) and b"stand-in: no firmware here" in log.read_bytes()

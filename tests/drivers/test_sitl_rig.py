@@ -257,6 +257,38 @@ def test_a_launch_that_lost_its_port_is_relaunched_and_leaves_no_directory(
     assert list(tmp.iterdir()) == []
 
 
+def test_a_launch_that_never_listens_is_stopped_and_launched_again(netns, tmp_path):
+    """A firmware that has not opened its MSP port within the start timeout is stopped and
+    launched again in the same directory (``SitlProcess.launch``). The first launch here
+    is one that never will (it sleeps in the firmware's place), the second the firmware."""
+    from drivers.backends.betaflight_sitl import SitlProcess
+
+    stand_in = tmp_path / "first-launch-hangs"
+    stand_in.write_text(f"#!/bin/sh\n[ -e hung ] && exec {sitl_binary()}\n"
+                        f"touch hung\nexec sleep 60\n")  # cwd: the launch's directory
+    stand_in.chmod(0o755)
+    workdir = tmp_path / "firmware"
+    workdir.mkdir()
+    with netns.inside():
+        sitl = SitlProcess.launch(stand_in, workdir=workdir, timeout_s=1.0)
+    try:
+        assert sitl.alive() and (workdir / "hung").exists()
+        assert os.readlink(f"/proc/{sitl.proc.pid}/exe").endswith("_SITL")
+        sleeping = [pid for pid in filter(str.isdigit, os.listdir("/proc"))
+                    if _cwd(pid) == str(workdir) and int(pid) != sitl.proc.pid]
+        assert sleeping == []  # the launch that never listened was stopped
+    finally:
+        sitl.stop()
+    assert not workdir.exists()
+
+
+def _cwd(pid: str) -> str:
+    try:
+        return os.readlink(f"/proc/{pid}/cwd")
+    except OSError:
+        return ""
+
+
 def test_an_aborted_run_ends_idle_with_the_firmware_stopped(netns, tmp_path):
     """An operator stop mid-run, then a firmware killed mid-run (the MSP link breaks):
     either way the motor ends idle at the plant, the firmware is stopped and the run is
