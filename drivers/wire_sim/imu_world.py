@@ -13,7 +13,8 @@ read the world in this process, and get the same devices from :func:`start_imu_d
 One time base: the child's :class:`~drivers.wire_sim.paced_clock.PacedClock` and the host's
 :class:`HostPacedClock` share their epoch and scale, so both read the same bench time from
 the system-wide monotonic clock with no request per reading; a hold (trajectory upload) is
-made in both. Neither pauses for a starved process: the other could not know.
+made in both, here first, so this clock never reads ahead of the world's held time.
+Neither pauses for a starved process: the other could not know.
 """
 
 from __future__ import annotations
@@ -106,8 +107,20 @@ class HostPacedClock(PacedClock):
         self.world: Remote | None = None  # the world's clock, once its process runs
 
     def freeze(self, held_ns: int | None = None) -> int:
-        if self.world is not None:
+        """Held here first, then in the world, then here at the world's held instant (a
+        step forward). Held in the world first, this clock ran on through the request's
+        round trip, ahead of the world's: an MSP poll sent then and served by the held
+        world read ``sent - served`` too large by that round trip (5 ms of wall time on a
+        loaded machine, 25 ms of bench time at 6x), and the FC-clock offset, the largest
+        over 400 rows, stamped the next 4 s of rows that much late (K_w 0.86 % off)."""
+        if self.world is None:
+            return super().freeze(held_ns)
+        super().freeze()
+        try:
             held_ns = self.world.freeze()
+        except DeviceError:  # the world is gone: this clock runs on alone
+            super().resume()
+            raise
         return super().freeze(held_ns)
 
     def resume(self, epoch: float | None = None) -> float:

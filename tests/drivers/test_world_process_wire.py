@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import math
 import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -146,3 +148,52 @@ def test_the_firmware_peers_liveness_is_read_without_a_request() -> None:
     finally:
         peer.stop()
         wire.close()
+
+
+def test_the_hosts_clock_never_reads_ahead_of_the_held_worlds() -> None:
+    """A hold (a trajectory upload) stops bench time in the world's process and here. The
+    world's answer to ``freeze`` takes a round trip; were this clock still running
+    meanwhile, a reading here would be ahead of the world's held time, and an MSP poll sent
+    then would pair a late send stamp with the held FC clock (its offset estimate, the
+    largest over 400 rows, then stamps 4 s of rows late by that round trip)."""
+    from drivers.wire_sim.imu_world import HostPacedClock
+    from drivers.wire_sim.paced_clock import PacedClock
+
+    class SlowWorldClock:  # the world's clock, 50 ms of request away
+        def __init__(self, epoch: float) -> None:
+            self.clock = PacedClock(6.0, max_gap_s=math.inf, epoch=epoch)
+            self.held_ns: int | None = None
+
+        def freeze(self) -> int:
+            time.sleep(0.025)
+            self.held_ns = self.clock.freeze()
+            time.sleep(0.025)
+            return self.held_ns
+
+        def resume(self) -> float:
+            return self.clock.resume()
+
+    host = HostPacedClock(6.0)
+    world = SlowWorldClock(host.epoch)
+    host.world = world  # type: ignore[assignment]
+    readings: list[int] = []
+    done = threading.Event()
+
+    def read() -> None:
+        while not done.is_set():
+            readings.append(host.now_ns())
+            time.sleep(0.001)
+
+    reader = threading.Thread(target=read)
+    reader.start()
+    try:
+        time.sleep(0.01)
+        held = host.freeze()
+        time.sleep(0.01)
+    finally:
+        done.set()
+        reader.join()
+    assert held == world.held_ns
+    assert max(readings) <= world.held_ns
+    host.resume()
+    assert abs(host.now() - world.clock.now()) < 0.01
