@@ -51,13 +51,16 @@ class LossyFc:
         set_ms, at = self.rtc
         return set_ms + int((time.monotonic() - at) * 1000)
 
-    def _part(self, cmd: int) -> bytes:
+    def _part(self, cmd: int, ms: int) -> bytes:
+        """One part of a reply served at the FC's millisecond ``ms``: one reading of its
+        clock per reply, as a real FC serves one request in one run of its task (read
+        per part, a thread starved between the parts gave RAW_IMU and RTC milliseconds
+        apart, and the test blamed the poll's stamps)."""
         if cmd == msp.MSP_RAW_IMU:
-            return struct.pack("<9h", self._now_ms() % 30000, 0, ACC_1G, 0, 0, 0, 0, 0, 0)
+            return struct.pack("<9h", ms % 30000, 0, ACC_1G, 0, 0, 0, 0, 0, 0)
         if cmd == msp.MSP_ATTITUDE:
             return struct.pack("<3h", 0, 0, 0)
         if cmd == msp.MSP_RTC:
-            ms = self._now_ms()
             at = datetime.datetime.fromtimestamp(ms // 1000, datetime.UTC)
             return struct.pack("<HBBBBBH", at.year, at.month, at.day, at.hour, at.minute,
                                at.second, ms % 1000)
@@ -67,14 +70,16 @@ class LossyFc:
         if frame.cmd == msp.MSP_FC_VARIANT:
             return msp.encode_v1(msp.REPLY, frame.cmd, b"BTFL")
         if frame.cmd == msp.MSP_API_VERSION:
-            return msp.encode_v1(msp.REPLY, frame.cmd, self._part(frame.cmd))
+            return msp.encode_v1(msp.REPLY, frame.cmd, self._part(frame.cmd, 0))
         if frame.cmd == msp.MSP_SET_RTC:
             seconds, millis = struct.unpack("<iH", frame.payload)
             self.rtc = (seconds * 1000 + millis, time.monotonic())
             return msp.encode_v1(msp.REPLY, frame.cmd)
         assert frame.cmd == msp.MSP_MULTIPLE_MSP
         self.served += 1
-        parts = b"".join(bytes((len(p),)) + p for p in map(self._part, frame.payload))
+        ms = self._now_ms()
+        parts = b"".join(bytes((len(p),)) + p
+                         for p in (self._part(cmd, ms) for cmd in frame.payload))
         out = msp.encode_v1(msp.REPLY, frame.cmd, parts)
         assert self.rtc is not None
         since_set = time.monotonic() - self.rtc[1]
