@@ -365,11 +365,19 @@ def cli_code(*args: str) -> str:
 def no_firmware_left(tmp_path: Path) -> None:
     """No process runs in, and no firmware directory is left under, ``tmp_path/tmp`` (the
     commands' TMPDIR in the firmware tests)."""
-    tmp = str(tmp_path / "tmp")
+    left = running_in(tmp_path / "tmp")
+    assert not left, f"processes {left} still run there"
+    assert list((tmp_path / "tmp").iterdir()) == []
+
+
+def running_in(folder: Path) -> list[int]:
+    """The processes whose working directory is ``folder`` or below it."""
+    found = []
     for pid in filter(str.isdigit, os.listdir("/proc")):
         try:
-            cwd = os.readlink(f"/proc/{pid}/cwd")
+            cwd = Path(os.readlink(f"/proc/{pid}/cwd"))
         except OSError:
             continue
-        assert not cwd.startswith(tmp), f"process {pid} still runs in {cwd}"
-    assert list((tmp_path / "tmp").iterdir()) == []
+        if cwd.is_relative_to(folder):
+            found.append(int(pid))
+    return found

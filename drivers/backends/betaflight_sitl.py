@@ -11,7 +11,7 @@ Why each step is the way it is (docs/protocols.md, "Betaflight SITL as a peer"):
   it). The directory is removed after a clean stop and kept (named in the error) when
   the launch failed;
 * a launch whose MSP port did not come up is launched again in the same directory after
-  ``BIND_PAUSE_S``, up to ``BIND_LAUNCHES`` times (``NoMspPort``): its bind failed (a
+  ``PORT_PAUSE_S``, up to ``PORT_LAUNCHES`` times (``NoMspPort``): its bind failed (a
   connection of the instance before it, e.g. the configuring one's, may still hold the
   port a moment), or it did not listen within ``START_TIMEOUT_S`` (it listens after about
   0.54 s, at most 0.57 s in 40 launches beside three busy processes; once, in a
@@ -71,8 +71,8 @@ CONFIGURE_LAUNCHES = 3
 #: what the firmware prints when its MSP port's bind fails (serial_tcp.c), and how often
 #: and after what pause a launch whose port did not come up is tried again
 BIND_FAILED = b"bind port 5761 for UART1 failed"
-BIND_LAUNCHES = 3
-BIND_PAUSE_S = 0.5
+PORT_LAUNCHES = 3
+PORT_PAUSE_S = 0.5
 _LISTEN = "0A"  # TCP_LISTEN in /proc/net/tcp
 _WORD = re.compile(r"[A-Za-z0-9_.+-]+")
 
@@ -143,11 +143,7 @@ def _owns(pid: int, inodes: set[str]) -> bool:
 class NoMspPort(DeviceError):
     """The firmware's MSP port did not come up (its bind failed, or it did not listen in
     time): worth another launch a moment later (``SitlProcess.launch`` makes it).
-    ``workdir`` is the launch's directory, with its log."""
-
-    def __init__(self, message: str, workdir: Path) -> None:
-        super().__init__(message)
-        self.workdir = workdir
+    Its message names the launch's log."""
 
 
 class SitlProcess:
@@ -189,15 +185,15 @@ class SitlProcess:
         if lines:
             cls.configure_in(binary, workdir, lambda sitl: sitl.configure(lines, timeout_s),
                              timeout_s=timeout_s)
-        for attempt in range(1, BIND_LAUNCHES + 1):
+        for attempt in range(1, PORT_LAUNCHES + 1):
             try:
                 return cls._start(binary, workdir, timeout_s)
             except NoMspPort as exc:
-                if attempt == BIND_LAUNCHES:
+                if attempt == PORT_LAUNCHES:
                     raise
                 log.info("Betaflight SITL launch %d of %d: %s; launching again", attempt,
-                         BIND_LAUNCHES, exc)
-                time.sleep(BIND_PAUSE_S)  # a connection of the last instance may linger
+                         PORT_LAUNCHES, exc)
+                time.sleep(PORT_PAUSE_S)  # a connection of the last instance may linger
         raise AssertionError("unreachable")
 
     @classmethod
@@ -245,10 +241,10 @@ class SitlProcess:
                 if sitl.bind_failed():
                     raise NoMspPort(f"the Betaflight SITL could not bind its MSP port "
                                     f"{MSP_PORT} (a connection of an earlier instance may "
-                                    f"still hold it; log: {sitl.log_path})", workdir)
+                                    f"still hold it; log: {sitl.log_path})")
                 time.sleep(0.02)
             raise NoMspPort(f"the Betaflight SITL's MSP port {MSP_PORT} did not open within "
-                            f"{timeout_s:g} s (log: {sitl.log_path})", workdir)
+                            f"{timeout_s:g} s (log: {sitl.log_path})")
         except BaseException:
             sitl.stop(keep=True)
             raise

@@ -31,6 +31,7 @@ from rotorbench_tests_sitl import (
     cli_code,
     in_new_netns,
     no_firmware_left,
+    running_in,
     sitl_binary,
 )
 
@@ -274,19 +275,10 @@ def test_a_launch_that_never_listens_is_stopped_and_launched_again(netns, tmp_pa
     try:
         assert sitl.alive() and (workdir / "hung").exists()
         assert os.readlink(f"/proc/{sitl.proc.pid}/exe").endswith("_SITL")
-        sleeping = [pid for pid in filter(str.isdigit, os.listdir("/proc"))
-                    if _cwd(pid) == str(workdir) and int(pid) != sitl.proc.pid]
-        assert sleeping == []  # the launch that never listened was stopped
+        assert running_in(workdir) == [sitl.proc.pid]  # the one that never listened stopped
     finally:
         sitl.stop()
     assert not workdir.exists()
-
-
-def _cwd(pid: str) -> str:
-    try:
-        return os.readlink(f"/proc/{pid}/cwd")
-    except OSError:
-        return ""
 
 
 def test_an_aborted_run_ends_idle_with_the_firmware_stopped(netns, tmp_path):
