@@ -105,6 +105,9 @@ class HostPacedClock(PacedClock):
     def __init__(self, time_scale: float) -> None:
         super().__init__(time_scale, max_gap_s=math.inf)
         self.world: Remote | None = None  # the world's clock, once its process runs
+        # bench time the last freeze stepped forward to meet the world's held instant:
+        # the freeze request's trip to the world, the only bench time a hold takes here
+        self.freeze_step_s = 0.0
 
     def freeze(self, held_ns: int | None = None) -> int:
         """Held here first, then in the world, then here at the world's held instant (a
@@ -115,12 +118,13 @@ class HostPacedClock(PacedClock):
         over 400 rows, stamped the next 4 s of rows that much late (K_w 0.86 % off)."""
         if self.world is None:
             return super().freeze(held_ns)
-        super().freeze()
+        own_ns = super().freeze()
         try:
             held_ns = self.world.freeze()
         except DeviceError:  # the world is gone: this clock runs on alone
             super().resume()
             raise
+        self.freeze_step_s = (held_ns - own_ns) * 1e-9
         return super().freeze(held_ns)
 
     def resume(self, epoch: float | None = None) -> float:
