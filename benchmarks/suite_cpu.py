@@ -11,7 +11,8 @@ suite as ``make test`` does (same test processes, same scheduling) and prints bo
 - per kind of child Python process (``rotorbench`` command, simulated-device world,
   Dask, other): how many ran and their CPU. Each Python process the suite starts writes
   its own CPU at exit through a ``sitecustomize`` on ``PYTHONPATH`` (one killed by a
-  signal writes nothing: Dask workers and killed benches are undercounted).
+  signal writes nothing: Dask workers and killed benches are undercounted). The world
+  processes, forked by a zygote, are counted in their zygote's line (it reaps them).
 
 Usage: ``python benchmarks/suite_cpu.py [--workers N] [--top K] [pytest args ...]``
 from the repository root with the venv's python (``make`` sets it up); about as long
@@ -46,6 +47,7 @@ if _out:
             with open(os.path.join(_out, f"proc-{os.getpid()}.json"), "w") as fh:
                 json.dump({"argv": list(getattr(sys, "orig_argv", sys.argv)),
                            "cpu_s": t.user + t.system, "wall_s": time.monotonic() - _t0,
+                           "children_cpu_s": t.children_user + t.children_system,
                            "test": os.environ.get("PYTEST_CURRENT_TEST")}, fh)
         except OSError:
             pass
@@ -83,8 +85,8 @@ def busy_cpu_s() -> float:
 def kind_of(argv: list[str]) -> str:
     """What a child Python process was, from its command line."""
     line = " ".join(argv)
-    if "world_process" in line:
-        return "simulated-device world (drivers.wire_sim.world_process)"
+    if "world_forks" in line:  # the zygote: its CPU with that of the worlds it forked
+        return "simulated-device worlds (drivers.wire_sim.world_forks and its forks)"
     if "exec(eval(sys.stdin" in line or argv[1:3] == ["-m", "pytest"]:  # an xdist worker
         return "pytest"
     called = re.search(r"main\(\[\s*['\"]([\w-]+)", line)  # python -c "...main(['step', ..."
@@ -151,7 +153,10 @@ def main(argv: list[str]) -> int:
         k = kind_of(p["argv"])
         if k != "pytest":
             kinds[k][0] += 1
-            kinds[k][1] += p["cpu_s"]
+            # a zygote's forks end without writing; it reaped them, so its children's
+            # CPU is theirs (no other kind adds its children: they write their own)
+            kinds[k][1] += p["cpu_s"] + (p.get("children_cpu_s", 0.0)
+                                         if "world_forks" in k else 0.0)
     count, cpu = sum(v[0] for v in kinds.values()), sum(v[1] for v in kinds.values())
     print(f"\nchild Python processes that wrote their CPU at exit: {count}, {cpu:.0f} s of CPU")
     print(f"{'CPU s':>7} {'count':>6} {'each':>6}  kind")

@@ -120,12 +120,12 @@ class HostPacedClock(PacedClock):
             return super().freeze(held_ns)
         own_ns = super().freeze()
         try:
-            held_ns = self.world.freeze()
+            world_ns: int = self.world.freeze()
         except DeviceError:  # the world is gone: this clock runs on alone
             super().resume()
             raise
-        self.freeze_step_s = (held_ns - own_ns) * 1e-9
-        return super().freeze(held_ns)
+        self.freeze_step_s = (world_ns - own_ns) * 1e-9
+        return super().freeze(world_ns)
 
     def resume(self, epoch: float | None = None) -> float:
         if self.world is not None:

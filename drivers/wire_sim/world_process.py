@@ -4,42 +4,42 @@ Why: as threads of the host's process the simulated devices share its interprete
 so a loaded machine (or a busy host) starves them and they answer late; in a process of
 their own they are scheduled like the firmware they stand for.
 
-:class:`WorldProcess` starts the child (``python -m`` this module: a fresh interpreter,
-no copy of the host's threads or locks, and unlike multiprocessing's ``spawn`` it does not
-import the host's ``__main__``), which calls ``build(*args)`` (an importable function, so
-it pickles by name) for the world object and then serves requests over a socket pair
-until told to stop or until its parent dies (end of file; the parent's pid is checked too). A
-request names an object of the world (``None``: the world itself; else a key of its
-``peers``) and an attribute path on it, to call or to read (a ``DeviceError`` raised there
-is raised here with its message). :class:`Remote` is the host's
-handle on such an object. The devices' transports (pty paths, loopback ports) work across
-processes as they do across a cable; the world reports what to open in the replies.
+:class:`WorldProcess` has the child forked by this host's zygote
+(:mod:`drivers.wire_sim.world_forks`: an interpreter that has imported numpy, scipy and
+the devices once, with no copy of the host's threads or locks). The child calls
+``build(*args)`` (an importable function, so it pickles by name) for the world object and
+then serves requests over a socket pair until told to stop or until its host ends (end
+of file, or the host's pidfd). A request names an object of the world (``None``: the
+world itself; else a key of its ``peers``) and an attribute path on it, to call or to
+read (a ``DeviceError`` raised there is raised here with its message). :class:`Remote` is
+the host's handle on such an object. The devices' transports (pty paths, loopback ports)
+work across processes as they do across a cable; the world reports what to open in the
+replies.
 """
 
 from __future__ import annotations
 
 import gc
 import os
+import select
 import socket
 import subprocess
 import sys
 import threading
-import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from multiprocessing.connection import Connection
-from pathlib import Path
 from typing import Any
 
 from drivers.device_priority import raise_device_priority
 from drivers.errors import DeviceError
+from drivers.wire_sim.world_forks import fork_world
 
 __all__ = ["Constant", "DeviceWorld", "FastSwitching", "Remote", "RemoteDevice",
-           "WorldProcess", "one_device"]
+           "WorldProcess", "one_device", "serve"]
 
-_START_TIMEOUT_S = 30.0  # a fresh interpreter imports numpy and scipy: seconds when loaded
+_START_TIMEOUT_S = 30.0  # a world's build: seconds on a loaded machine
 _STOP_TIMEOUT_S = 5.0
-_PARENT_CHECK_S = 0.5
 # Each device is a thread that wakes for a request or a frame, answers in well under a
 # millisecond and sleeps again. A thread woken from a short system call while another
 # thread runs Python waits up to the interpreter's switch interval (5 ms by default) for
@@ -54,14 +54,13 @@ class WorldProcess:
         ours, theirs = socket.socketpair()
         self._lock = threading.Lock()
         self.name = name
-        root = str(Path(__file__).resolve().parents[2])  # where ``drivers`` is importable
-        env = {**os.environ, "PYTHONPATH": os.pathsep.join(
-            p for p in (root, os.environ.get("PYTHONPATH", "")) if p)}
-        self.process = subprocess.Popen(
-            [sys.executable, "-m", __name__, str(theirs.fileno()), str(os.getpid())],
-            pass_fds=(theirs.fileno(),), env=env, stdin=subprocess.DEVNULL,
-            start_new_session=True)  # its own scheduling group (drivers.device_priority)
-        theirs.close()
+        try:
+            self.process = fork_world(theirs.fileno(), serve)
+        except BaseException:
+            ours.close()
+            raise
+        finally:
+            theirs.close()
         self._conn = Connection(ours.detach())
         self._conn.send((build, args))
         if not self._conn.poll(_START_TIMEOUT_S):
@@ -81,8 +80,8 @@ class WorldProcess:
                 self._conn.send((op, key, attrs, args))
                 return self._reply()
             except (EOFError, OSError, BrokenPipeError):
-                raise DeviceError(f"{self.name}: the simulated devices' process is gone "
-                                  f"(exit code {self.process.poll()})") from None
+                raise DeviceError(f"{self.name}: the simulated devices' process is "
+                                  f"gone") from None
 
     def _reply(self) -> Any:
         status, value = self._conn.recv()
@@ -211,10 +210,11 @@ def one_device(make: Callable[..., Any], kwargs: dict[str, Any]) -> DeviceWorld:
 
 
 # -- the child ---------------------------------------------------------------------------
-def _serve(conn: Connection, parent_pid: int) -> None:
-    """The child's main: build the world, report ready, serve until stop or orphaned."""
+def serve(conn: Connection, host: int) -> None:
+    """The child's main: build the world, report ready, serve until stop or until the
+    process whose pidfd is ``host`` has ended."""
     raise_device_priority()  # before any thread: each inherits it
-    threading.Thread(target=_watch_parent, args=(parent_pid,), name="parent-watch",
+    threading.Thread(target=_watch_host, args=(host,), name="host-watch",
                      daemon=True).start()
     sys.setswitchinterval(SWITCH_INTERVAL_S)
     try:
@@ -258,12 +258,7 @@ def _serve(conn: Connection, parent_pid: int) -> None:
         world.close()
 
 
-def _watch_parent(parent_pid: int) -> None:
-    """End the child when its parent is gone (reparented), whatever the main loop does."""
-    while os.getppid() == parent_pid:
-        time.sleep(_PARENT_CHECK_S)
+def _watch_host(host: int) -> None:
+    """End the child when its host is gone, whatever the main loop does."""
+    select.select([host], [], [])
     os._exit(0)
-
-
-if __name__ == "__main__":
-    _serve(Connection(int(sys.argv[1])), int(sys.argv[2]))

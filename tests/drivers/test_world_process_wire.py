@@ -197,3 +197,41 @@ def test_the_hosts_clock_never_reads_ahead_of_the_held_worlds() -> None:
     assert max(readings) <= world.held_ns
     host.resume()
     assert abs(host.now() - world.clock.now()) < 0.01
+
+
+def _parent(pid: int) -> int:
+    with open(f"/proc/{pid}/stat") as stat:  # "pid (comm) state ppid ..."
+        return int(stat.read().rsplit(")", 1)[1].split()[1])
+
+
+def test_worlds_are_forked_by_one_zygote_and_outlive_it() -> None:
+    """Each world is forked from this process's zygote (one interpreter that imported the
+    devices once), in a session of its own; a zygote that died is started again, and the
+    worlds it forked serve on without it."""
+    from drivers.wire_sim import world_forks
+    from drivers.wire_sim.pi_hexapod import SimPiController
+    from drivers.wire_sim.world_process import WorldProcess, one_device
+
+    first = WorldProcess(one_device, SimPiController, {}, name="sim-pi")
+    second = WorldProcess(one_device, SimPiController, {}, name="sim-pi")
+    try:
+        zygote = _parent(first.process.pid)
+        assert zygote == _parent(second.process.pid) != os.getpid()
+        assert os.getsid(first.process.pid) == first.process.pid != os.getsid(0)
+        assert world_forks._zygote is not None and world_forks._zygote.process.pid == zygote
+        os.kill(zygote, signal.SIGKILL)
+        world_forks._zygote.process.wait(5.0)
+        assert first.remote("device").get("referenced") in (True, False)  # still serving
+        third = WorldProcess(one_device, SimPiController, {}, name="sim-pi")
+        try:
+            assert _parent(third.process.pid) not in (zygote, os.getpid())
+        finally:
+            third.close()
+        second.process.kill()  # its handle ends it by its pidfd
+        assert second.process.wait(5.0) == -1 and second.process.poll() == -1
+        with pytest.raises(DeviceError, match="sim-pi: the simulated devices' process is gone"):
+            second.remote("device").get("referenced")
+    finally:
+        first.close()
+        second.close()
+    assert _gone(first.process.pid, 5.0)
