@@ -117,6 +117,7 @@ class _Zygote:
         theirs.close()
         self.socket = ours
         self.owner = os.getpid()
+        self.netns = _netns()  # the zygote's, and its worlds': the starting thread's
         ours.settimeout(_START_TIMEOUT_S)
         try:
             if ours.recv(5) != b"ready":
@@ -162,16 +163,19 @@ def _close_zygote() -> None:
 
 
 def fork_world(fd: int, main: ChildMain) -> ForkedProcess:
-    """Fork a world process from this host's zygote (started on first use; again in a
-    forked host, or when it ended) that runs ``main(connection on fd, host's pidfd)``
-    (``drivers.wire_sim.world_process.serve``; pickled by name)."""
+    """Fork a world process that runs ``main(connection on fd, host's pidfd)``
+    (``drivers.wire_sim.world_process.serve``; pickled by name) from this host's zygote:
+    started on first use, and again in a forked host, when it ended, or when the calling
+    thread is in another network namespace than the zygote (a test beside a firmware in
+    a namespace of its own), so the world's loopback is always the caller's."""
     global _zygote
     with _lock:
         for attempt in (1, 2):
             if _zygote is not None and _zygote.owner != os.getpid():
                 _zygote.socket.close()  # a forked host's copy: the zygote is its parent's
                 _zygote = None
-            if _zygote is not None and _zygote.process.poll() is not None:
+            if _zygote is not None and (_zygote.process.poll() is not None
+                                        or _zygote.netns != _netns()):
                 _zygote.close()
                 _zygote = None
             if _zygote is None:
@@ -185,6 +189,14 @@ def fork_world(fd: int, main: ChildMain) -> ForkedProcess:
                     raise DeviceError(f"the simulated devices' zygote failed to fork a "
                                       f"world ({exc})") from None
     raise AssertionError("unreachable")
+
+
+def _netns() -> int:
+    """The calling thread's network namespace, by inode; 0 where /proc cannot tell."""
+    try:
+        return os.stat("/proc/thread-self/ns/net").st_ino
+    except OSError:
+        return 0
 
 
 # -- the zygote ----------------------------------------------------------------------------
