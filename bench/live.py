@@ -16,6 +16,7 @@ binding are the optional ``live`` extra, imported only in the window process.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import multiprocessing as mp
 import os
@@ -300,15 +301,19 @@ def _window_main(names: tuple[str, ...], capacity: int, memory: Any, lock: Any, 
     started = time.monotonic()
 
     def poll() -> None:
-        while conn.poll():
-            kind, *rest = conn.recv()
-            if kind == "finished":
-                view.refresh()
-                view.win.setWindowTitle(f"{title} - finished ({rest[0]})")
-                if close_when_done:
+        try:
+            while conn.poll():
+                kind, *rest = conn.recv()
+                if kind == "finished":
+                    view.refresh()
+                    view.win.setWindowTitle(f"{title} - finished ({rest[0]})")
+                    if close_when_done:
+                        app.quit()
+                elif kind == "quit":
                     app.quit()
-            elif kind == "quit":
-                app.quit()
+        except (EOFError, OSError):  # the run's process is gone (its end of the pipe
+            app.quit()  # closed): raised here on every tick, it kept an orphan window
+            return  # redrawing, a core's worth, until someone killed it
         if parent is not None and not parent.is_alive():
             app.quit()
 
@@ -319,7 +324,8 @@ def _window_main(names: tuple[str, ...], capacity: int, memory: Any, lock: Any, 
     conn.send(("ready", title))
     app.exec()
     view.close()
-    conn.send(("frames", view.refreshes, time.monotonic() - started))
+    with contextlib.suppress(OSError):  # the run's process may be gone
+        conn.send(("frames", view.refreshes, time.monotonic() - started))
 
 
 class _Window:

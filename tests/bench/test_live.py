@@ -3,6 +3,7 @@ process of its own, and the run stopped safely when that window closes or crashe
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import multiprocessing as mp
 import os
@@ -214,6 +215,43 @@ def test_closing_the_window_is_an_operator_stop():
         window.close()
 
 
+HOST = """
+import sys, time
+from bench.live import _Window
+window = _Window(("t_s", "thrust_n"), 100, 1.0, 50, "orphan", False)
+window.wait_ready(60)
+print(window.proc.pid, flush=True)
+sys.stdin.read()
+"""
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_the_window_ends_with_a_killed_run_process():
+    """A bench killed outright (SIGKILL) leaves its window's pipe at end of file: the
+    window quits instead of redrawing on, orphaned, at a core's worth of CPU."""
+    import subprocess
+
+    host = subprocess.Popen([sys.executable, "-c", HOST], stdin=subprocess.PIPE,
+                            stdout=subprocess.PIPE, text=True,
+                            env={**os.environ, "QT_QPA_PLATFORM": "offscreen"})
+    window = None
+    try:
+        assert host.stdout is not None
+        window = int(host.stdout.readline())
+        host.kill()
+        host.wait(10)
+        deadline = time.monotonic() + 10.0
+        while time.monotonic() < deadline and os.path.exists(f"/proc/{window}"):
+            time.sleep(0.05)
+        assert not os.path.exists(f"/proc/{window}"), "the window outlived its run"
+    finally:
+        if host.poll() is None:
+            host.kill()
+        if window is not None and os.path.exists(f"/proc/{window}"):
+            os.kill(window, signal.SIGKILL)  # it holds the host's stdout open
+        host.communicate(timeout=60)
+
+
 def test_the_installed_binding_draws_without_corrupting_none():
     assert binding_fault() is None
 
@@ -244,8 +282,11 @@ def _window_processes(pid: int) -> list[int]:
     for task in os.listdir(f"/proc/{pid}/task"):
         with open(f"/proc/{pid}/task/{task}/children") as f:
             for kid in f.read().split():
-                with open(f"/proc/{kid}/cmdline", "rb") as c:
-                    cmdline = c.read()
+                try:
+                    with open(f"/proc/{kid}/cmdline", "rb") as c:
+                        cmdline = c.read()
+                except OSError:  # a short-lived child that has ended meanwhile
+                    continue
                 if b"spawn_main" in cmdline and b"resource_tracker" not in cmdline:
                     kids.append(int(kid))
     return kids
@@ -280,8 +321,12 @@ def test_step_live_from_the_command_line_runs_to_the_end(tmp_path, fixtures_dir)
         out, err = proc.communicate(timeout=60)
     finally:
         if proc.poll() is None:
+            windows = _window_processes(proc.pid)
             proc.kill()
-            proc.communicate()  # reaped, pipes closed: no leak warning in a later test
+            for window in windows:  # it holds the command's pipes: communicate waits on it
+                with contextlib.suppress(ProcessLookupError):
+                    os.kill(window, signal.SIGKILL)
+            proc.communicate(timeout=60)  # reaped, pipes closed: no leak warning later
     assert proc.returncode == 0, err
     assert "Fatal Python error" not in err
     assert ": success: sequence complete" in out
