@@ -126,21 +126,34 @@ def estimate_attitude(
     qa_all = accelerometer_quaternion(acc_f)
     q = quat.normalize(qa_all[0] if q0 is None else np.asarray(q0, dtype=float))
     out[0] = q
-    dts = np.diff(t).tolist()
-    wl = w.tolist()
     s0, s1, s2, s3 = (float(v) for v in q)
-    qal = qa_all.tolist()
-    for k in range(1, n):
-        dt = dts[k - 1]
-        wx, wy, wz = wl[k - shift]
+    cols = [c.tolist() for c in (np.diff(t), *w[1 - shift:n - shift].T, *qa_all[1:].T)]
+    rows = _printed_loop(s0, s1, s2, s3, cols, p, tilt == "yaw-aligned")
+    if rows[0]:
+        out[1:] = np.array(rows).T
+    return out
+
+
+def _printed_loop(s0: float, s1: float, s2: float, s3: float, cols: list[list[float]],
+                  p: float, yaw_aligned: bool) -> tuple[list[float], ...]:
+    """The ``tilt="body"`` and ``"yaw-aligned"`` loop of :func:`estimate_attitude`.
+
+    ``cols``: per sample t_s, ω x, y, z and q^a w, x, y, z as flat lists of floats; the
+    result is one list per quaternion component. No per-sample tuple or list: the garbage
+    collector would keep scanning those (as costly as the arithmetic in a large heap).
+    """
+    r0: list[float] = []
+    r1: list[float] = []
+    r2: list[float] = []
+    r3: list[float] = []
+    for dt, wx, wy, wz, a0, a1, a2, a3 in zip(*cols, strict=True):
         h = 0.5 * dt
         # (B.5), (B.12): q^g = q + ts·½ q ⊗ [0, ω]
         g0 = s0 + h * (-s1 * wx - s2 * wy - s3 * wz)
         g1 = s1 + h * (s0 * wx + s2 * wz - s3 * wy)
         g2 = s2 + h * (s0 * wy - s1 * wz + s3 * wx)
         g3 = s3 + h * (s0 * wz + s1 * wy - s2 * wx)
-        a0, a1, a2, a3 = qal[k]
-        if tilt == "yaw-aligned":  # q^a ← h(q^g) ⊗ q^a, h = [g0, 0, 0, g3]/‖·‖
+        if yaw_aligned:  # q^a ← h(q^g) ⊗ q^a, h = [g0, 0, 0, g3]/‖·‖
             nh = math.sqrt(g0 * g0 + g3 * g3)
             if nh > 0.0:
                 c, s = g0 / nh, g3 / nh
@@ -154,8 +167,11 @@ def estimate_attitude(
         s3 = g3 + p * (a3 - g3)
         nq = math.sqrt(s0 * s0 + s1 * s1 + s2 * s2 + s3 * s3)  # (B.20)
         s0, s1, s2, s3 = s0 / nq, s1 / nq, s2 / nq, s3 / nq
-        out[k] = (s0, s1, s2, s3)
-    return out
+        r0.append(s0)
+        r1.append(s1)
+        r2.append(s2)
+        r3.append(s3)
+    return r0, r1, r2, r3
 
 
 def _estimate_frame_loop(out: Array, s0: float, s1: float, s2: float, s3: float, t: Array,
@@ -174,10 +190,14 @@ def _estimate_frame_loop(out: Array, s0: float, s1: float, s2: float, s3: float,
     al = acc[1:] / np.linalg.norm(acc[1:], axis=1, keepdims=True)
     sqrt = math.sqrt
     q1p = 1.0 - p
-    rows: list[tuple[float, float, float, float]] = []
-    append = rows.append
-    for (hx, hy, hz), (ax, ay, az), r in zip(hw.tolist(), al.tolist(), inv2.tolist(),
-                                             strict=True):
+    # flat lists of floats in and out, no per-sample tuple or list: the garbage collector
+    # would keep scanning those (as costly as the arithmetic in a test session's heap)
+    cols = [c.tolist() for c in (*hw.T, *al.T, inv2)]
+    r0: list[float] = []
+    r1: list[float] = []
+    r2: list[float] = []
+    r3: list[float] = []
+    for hx, hy, hz, ax, ay, az, r in zip(*cols, strict=True):
         # (B.5), (B.12): q^g = q + ts·½ q ⊗ [0, ω] = q ⊗ [1, ½ts·ω]
         g0 = s0 - s1 * hx - s2 * hy - s3 * hz
         g1 = s1 + s0 * hx + s2 * hz - s3 * hy
@@ -209,9 +229,12 @@ def _estimate_frame_loop(out: Array, s0: float, s1: float, s2: float, s3: float,
         s1 *= nq
         s2 *= nq
         s3 *= nq
-        append((s0, s1, s2, s3))
-    if rows:
-        out[1:] = rows
+        r0.append(s0)
+        r1.append(s1)
+        r2.append(s2)
+        r3.append(s3)
+    if r0:
+        out[1:] = np.array((r0, r1, r2, r3)).T
     return out
 
 

@@ -74,21 +74,28 @@ def estimate_attitude_inertial(t_s: ArrayLike, gyro: ArrayLike, acc: ArrayLike, 
     alpha = 1.0 - np.exp(-dts / tau_lp_s) if tau_lp_s > 0 else np.ones_like(dts)
     s0, s1, s2, s3 = (float(v) for v in q)
     lx, ly, lz = (float(v) for v in quat.rotate(q, a[0]))  # the low-pass starts at a_0
-    rows = _loop(s0, s1, s2, s3, lx, ly, lz, hw.tolist(), scale.tolist(), a[1:].tolist(),
-                 alpha.tolist(), float(gain))
-    out[1:] = rows
+    cols = (*hw.T, scale, *a[1:].T, alpha)
+    out[1:] = np.array(_loop(s0, s1, s2, s3, lx, ly, lz, [c.tolist() for c in cols],
+                             float(gain))).T
     return out
 
 
 def _loop(s0: float, s1: float, s2: float, s3: float, lx: float, ly: float, lz: float,
-          hw: list, scale: list, acc: list, alpha: list, p: float
-          ) -> list[tuple[float, float, float, float]]:
-    """The sequential part on Python floats (everything else is computed before)."""
+          cols: list[list[float]], p: float) -> tuple[list[float], ...]:
+    """The sequential part on Python floats (everything else is computed before).
+
+    ``cols`` are the per-sample inputs as flat lists (½t_s·ω x, y, z; 1/‖q^g‖; a x, y, z;
+    the low-pass α) and the result is one list per quaternion component: plain floats, no
+    per-sample tuple or list, which the garbage collector would otherwise keep scanning
+    (it cost as much as the arithmetic in a test session's heap).
+    """
     sqrt = math.sqrt
     q1p = 1.0 - p
-    rows: list[tuple[float, float, float, float]] = []
-    append = rows.append
-    for (hx, hy, hz), k, (ax, ay, az), al in zip(hw, scale, acc, alpha, strict=True):
+    r0: list[float] = []
+    r1: list[float] = []
+    r2: list[float] = []
+    r3: list[float] = []
+    for hx, hy, hz, k, ax, ay, az, al in zip(*cols, strict=True):
         # (B.5), (B.12) as q ⊗ [1, ½t_s·ω], normalised
         g0 = (s0 - s1 * hx - s2 * hy - s3 * hz) * k
         g1 = (s1 + s0 * hx + s2 * hz - s3 * hy) * k
@@ -133,5 +140,8 @@ def _loop(s0: float, s1: float, s2: float, s3: float, lx: float, ly: float, lz: 
         tz = 2.0 * (d1 * ly - d2 * lx)
         lx, ly, lz = (lx + d0 * tx + d2 * tz, ly + d0 * ty - d1 * tz,
                       lz + d0 * tz + d1 * ty - d2 * tx)
-        append((s0, s1, s2, s3))
-    return rows
+        r0.append(s0)
+        r1.append(s1)
+        r2.append(s2)
+        r3.append(s3)
+    return r0, r1, r2, r3

@@ -49,13 +49,16 @@ def _rec(d: dict) -> ImuRecording:
 
 
 class _Cases:
-    """Trial 07, each variant (seed 0) and each filter's attitude on it, computed once for
-    the module: the tests below score the same VQF runs on the same variants several times."""
+    """Trial 07, each variant (seed 0), each filter's attitude on it and its scores, computed
+    once for the module: the tests below score the same VQF runs on the same variants
+    several times, and run offlineVQF's defaults on one variant three times."""
 
     def __init__(self, trial: dict) -> None:
         self.trial = trial
         self._data: dict[str, dict] = {}
         self._runs: dict[tuple, tuple[np.ndarray, bool]] = {}
+        self._offline: dict[tuple, dict] = {}
+        self._deg: dict[tuple, tuple[float, float]] = {}
 
     def data(self, name: str) -> dict:
         if name in ("trial 07", "base"):
@@ -71,6 +74,20 @@ class _Cases:
             out = run_filter(filt, _rec(self.data(name)), **options)
             self._runs[key] = (out.quat, out.nine_d)
         return self._runs[key]
+
+    def offline(self, name: str, **params: object) -> dict:
+        """``offlineVQF`` on the case with ``params`` (the package's defaults if none)."""
+        key = (name, tuple(sorted(params.items())))
+        if key not in self._offline:
+            self._offline[key] = _offline(self.data(name), **params)
+        return self._offline[key]
+
+    def deg(self, name: str, filt: str, nine_d: bool) -> tuple[float, float]:
+        """``_deg`` of the filter's run on the case (9D or 6D scoring)."""
+        key = (name, filt, nine_d)
+        if key not in self._deg:
+            self._deg[key] = _deg(self.run(name, filt)[0], self.data(name), nine_d)
+        return self._deg[key]
 
 
 @pytest.fixture(scope="module")
@@ -90,8 +107,8 @@ def test_default_within_the_issue_bounds_of_vqf(cases: _Cases, name: str) -> Non
     default, nine_d = cases.run(name, "default")
     assert nine_d  # a BROAD trial has a magnetometer: the default is 9D
     incl, head = _deg(default, d, True)
-    vqf6_incl, _ = _deg(cases.run(name, "vqf-6d")[0], d, False)
-    _, vqf9_head = _deg(cases.run(name, "vqf-9d")[0], d, True)
+    vqf6_incl, _ = cases.deg(name, "vqf-6d", False)
+    _, vqf9_head = cases.deg(name, "vqf-9d", True)
     assert incl <= 1.25 * vqf6_incl + 0.1, (incl, vqf6_incl)
     if name in UNDISTURBED:
         assert head <= 1.5 * vqf9_head + 0.5, (head, vqf9_head)
@@ -126,8 +143,8 @@ def test_default_chain_is_active_and_helps(cases: _Cases, name: str, off: dict, 
     default, _ = cases.run(name, "default", six_d=not nine_d)
     with_it = _deg(default, d, nine_d)
     # the default is offlineVQF with the package's defaults: identical to calling it
-    np.testing.assert_allclose(default, _offline(d)[quat], atol=1e-9)
-    without = _deg(_offline(d, **off)[quat], d, nine_d)
+    np.testing.assert_allclose(default, cases.offline(name)[quat], atol=1e-9)
+    without = _deg(cases.offline(name, **off)[quat], d, nine_d)
     i = 0 if metric == "inclination" else 1
     assert without[i] > worse_by * with_it[i], (with_it, without)
 
@@ -168,8 +185,8 @@ def test_paper_b_is_not_tilted_by_vibration(cases: _Cases, name: str) -> None:
     Paper B's printed correction (measured 1.63° -> 2.20° on the vibration variant); the
     (B.28) low-pass ahead of it (τ_a = 5 ms) removes that (1.64° -> 1.66°). ``paper-b``
     low-passes in the earth frame before normalising, linearly: 1.03° -> 1.03°."""
-    still = _deg(cases.run("trial 07", name)[0], cases.trial, False)[0]
-    shaken = _deg(cases.run("vibration", name)[0], cases.data("vibration"), False)[0]
+    still = cases.deg("trial 07", name, False)[0]
+    shaken = cases.deg("vibration", name, False)[0]
     assert shaken < 1.1 * still
 
 
@@ -178,8 +195,7 @@ LIVELY = ("swing_wrist", "swing_forearm", "combined_with_breaks")
 
 def _vqf_6d_incl(cases: _Cases, name: str) -> float:
     """VQF's 6D inclination RMSE, the better of its online and offline forms."""
-    return min(_deg(cases.run(name, n)[0], cases.data(name), False)[0]
-               for n in ("vqf-6d", "vqf-offline-6d"))
+    return min(cases.deg(name, n, False)[0] for n in ("vqf-6d", "vqf-offline-6d"))
 
 
 @pytest.mark.parametrize("name", ["trial 07", *VARIANTS])
@@ -188,7 +204,7 @@ def test_paper_b_within_twice_vqf_plus_half_a_degree(cases: _Cases, name: str) -
     earth-frame low-pass (``paper-b-printed`` now) the lively ones failed it: measured
     7.6-22° (swing at the wrist 14.6°, at the forearm 20.6°, combined with breaks 11.4°)
     against VQF's 1.0-1.7°."""
-    incl = _deg(cases.run(name, "paper-b")[0], cases.data(name), False)[0]
+    incl = cases.deg(name, "paper-b", False)[0]
     vqf6 = _vqf_6d_incl(cases, name)
     assert incl <= 2.0 * vqf6 + 0.5, (incl, vqf6)
 
@@ -197,7 +213,7 @@ def test_paper_b_within_twice_vqf_plus_half_a_degree(cases: _Cases, name: str) -
 def test_lively_variants_tilt_the_printed_correction(cases: _Cases, name: str) -> None:
     """The reproduction: on fast rotation combined with translation, Paper B's printed
     correction (each sample's normalised accelerometer) is far outside the bound."""
-    printed = _deg(cases.run(name, "paper-b-printed")[0], cases.data(name), False)[0]
+    printed = cases.deg(name, "paper-b-printed", False)[0]
     assert printed > 3.0 * (2.0 * _vqf_6d_incl(cases, name) + 0.5), printed
 
 

@@ -238,9 +238,27 @@ def _logged_rows(n: int, gaps: bool, seed: int = 0) -> np.ndarray:
     return keep
 
 
+@pytest.fixture(scope="module")
+def tumble_30s() -> dict:
+    """The 30 s tumble at 200 Hz and each filter's score on all of it, kept for the module:
+    both parametrizations (rows dropped, gaps) compare against the same whole-log run."""
+    return {"sim": simulate_tumble(duration_s=30.0, rate_hz=200.0, seed=1), "whole": {}}
+
+
+def _whole_log_score(tumble_30s: dict, name: str) -> tuple[tuple[float, float], bool]:
+    """The filter's (inclination, heading) RMSE (°) on the whole log, and whether 9D."""
+    if name not in tumble_30s["whole"]:
+        whole = _rec(tumble_30s["sim"])
+        run = run_filter(name, whole)
+        s = score(run.quat, whole.ref_quat, whole.movement, not run.nine_d)
+        tumble_30s["whole"][name] = (_deg(s), run.nine_d)
+    return tumble_30s["whole"][name]
+
+
 @pytest.mark.parametrize("gaps", [False, True])
 @pytest.mark.parametrize("name", ["default", "default-causal", "vqf-9d", "madgwick-6d"])
-def test_fixed_rate_filters_survive_dropped_rows_and_gaps(name: str, gaps: bool) -> None:
+def test_fixed_rate_filters_survive_dropped_rows_and_gaps(tumble_30s: dict, name: str,
+                                                          gaps: bool) -> None:
     """VQF and ahrs take one sample time: on a log with dropped rows they integrated every
     interval as the median one. Measured on this 30 s tumble at 200 Hz (inclination °),
     before -> after running them on a uniform grid: 5 % rows dropped, default 0.70 -> 0.17
@@ -248,15 +266,13 @@ def test_fixed_rate_filters_survive_dropped_rows_and_gaps(name: str, gaps: bool)
     five 0.5 s gaps 8.2 -> 0.25, 12.8 -> 0.42, 13.1 -> 2.02."""
     if name.startswith("madgwick"):
         pytest.importorskip("ahrs")
-    c = simulate_tumble(duration_s=30.0, rate_hz=200.0, seed=1)
-    whole = _rec(c)
+    c = tumble_30s["sim"]
     keep = _logged_rows(len(c["t_s"]), gaps)
     cut = ImuRecording("logged", c["t_s"][keep], c["gyro"][keep], c["acc"][keep],
                        c["mag"][keep], c["quat"][keep], c["movement"][keep])
-    run_whole, run_cut = run_filter(name, whole), run_filter(name, cut)
+    ref, nine = _whole_log_score(tumble_30s, name)
+    run_cut = run_filter(name, cut)
     assert run_cut.quat.shape == (keep.sum(), 4)  # one estimate per logged row
-    nine = run_whole.nine_d
-    ref = _deg(score(run_whole.quat, whole.ref_quat, whole.movement, not nine))
     got = _deg(score(run_cut.quat, cut.ref_quat, cut.movement, not nine))
     if gaps:  # 2.5 s of data are missing: a little worse, not lost
         assert got[0] < 1.5 * ref[0] + 0.1 and got[1] < 2.0 * ref[1] + 0.1, (ref, got)
