@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 import pyqtgraph as pg
@@ -46,34 +47,55 @@ def plate_points(pose: Sequence[float] | np.ndarray) -> np.ndarray:
 
 
 class PoseView(QtWidgets.QWidget):
-    """Front and side views of the platform, and the pose in numbers."""
+    """Front and side views of the platform, and the pose in numbers. Each view is a bare
+    ViewBox under a title: a PlotItem (hidden axes) built a context menu and its option
+    forms per view, about a fifth of the whole window's construction."""
 
     def __init__(self) -> None:
         super().__init__()
         layout = QtWidgets.QHBoxLayout(self)
         self.views: dict[str, tuple[int, int]] = {"front (x-z)": (0, 2), "side (y-z)": (1, 2)}
-        self.curves: dict[str, tuple[pg.PlotDataItem, pg.PlotDataItem, pg.PlotDataItem]] = {}
+        self.curves: dict[str, tuple[pg.PlotCurveItem, pg.PlotCurveItem, pg.PlotCurveItem]] = {}
         for title in self.views:
-            plot = pg.PlotWidget(title=title)
-            plot.setAspectLocked(True)
-            plot.setXRange(-0.2, 0.2)
-            plot.setYRange(-0.02, 0.3)
-            plot.hideAxis("bottom")
-            plot.hideAxis("left")
-            plot.setMouseEnabled(False, False)
-            base = plot.plot(pen=pg.mkPen("#888", width=3))
-            legs = plot.plot(pen=pg.mkPen("#4a90d9", width=2), connect="pairs")
-            plate = plot.plot(pen=pg.mkPen("#e0a030", width=4))
+            view = pg.GraphicsLayoutWidget()
+            vb = self._view_box(view, title)
+            base = pg.PlotCurveItem(pen=pg.mkPen("#888", width=3))
+            legs = pg.PlotCurveItem(pen=pg.mkPen("#4a90d9", width=2), connect="pairs")
+            plate = pg.PlotCurveItem(pen=pg.mkPen("#e0a030", width=4))
+            for curve in (base, legs, plate):
+                vb.addItem(curve)
             self.curves[title] = (base, legs, plate)
-            layout.addWidget(plot, 1)
+            layout.addWidget(view, 1)
         self.numbers = QtWidgets.QLabel("")
         self.numbers.setMinimumWidth(150)
         layout.addWidget(self.numbers)
         self.pose = np.zeros(6)
+        self._drawn: np.ndarray | None = None
         self.show_pose(self.pose)
 
+    @staticmethod
+    def _view_box(view: pg.GraphicsLayoutWidget, title: str) -> pg.ViewBox:
+        """The title over a fixed, aspect-locked view without mouse or menu."""
+        grid: Any = view.ci
+        grid.setContentsMargins(1, 1, 1, 1)  # as a PlotItem lays its title and view out
+        grid.setSpacing(0)
+        label = grid.addLabel(title, row=0, col=0, size="11pt")
+        label.setMaximumHeight(30)
+        grid.layout.setRowFixedHeight(0, 30)
+        vb = grid.addViewBox(row=1, col=0, enableMenu=False)
+        vb.setAspectLocked(True)
+        vb.setXRange(-0.2, 0.2)
+        vb.setYRange(-0.02, 0.3)
+        vb.setMouseEnabled(False, False)
+        return vb
+
     def show_pose(self, pose: Sequence[float] | np.ndarray) -> None:
+        """Draw ``pose``; the same pose again (a hold sends the home pose ten times a
+        second) is already drawn."""
         self.pose = np.asarray(pose, dtype=float)
+        if self._drawn is not None and np.array_equal(self._drawn, self.pose):
+            return
+        self._drawn = self.pose.copy()
         plate = plate_points(self.pose)
         for title, (h, v) in self.views.items():
             base_c, legs_c, plate_c = self.curves[title]

@@ -345,7 +345,7 @@ class ConsoleBench:
                                "target_us": idle, "manual": False, "progress": None,
                                "imu": None}
         if run is not None and run.ended_at is None and run.imu is not None:
-            out.update(kind=run.kind, imu=dict(run.imu.progress))
+            out.update(kind=run.kind, imu=run.imu.snapshot())
         elif run is not None and run.ended_at is None and run.cell is not None:
             out.update(kind=run.kind, cell_prompt=run.cell.prompt)
         elif run is not None and run.ended_at is None:

@@ -31,8 +31,8 @@ class _StopKeys(QtCore.QObject):
     check: reading each event's type made an enum object per event (about 5 % of the
     window's process while it painted a run)."""
 
-    def __init__(self, stop: Any) -> None:
-        super().__init__()
+    def __init__(self, stop: Any, parent: Any) -> None:
+        super().__init__(parent)  # destroyed with its window, and with it the filter
         self.stop = stop
 
     def eventFilter(self, _obj: Any, event: Any) -> bool:
@@ -97,7 +97,7 @@ class ConsoleWindow(QtWidgets.QMainWindow):
         layout.addWidget(self.banner)
         layout.addWidget(self.tabs, 1)
         self.setCentralWidget(body)
-        self._keys = _StopKeys(self.stop)
+        self._keys = _StopKeys(self.stop, self)
         app = QtWidgets.QApplication.instance()
         assert app is not None  # a window lives in the application
         app.installEventFilter(self._keys)
@@ -135,6 +135,15 @@ class ConsoleWindow(QtWidgets.QMainWindow):
     def closeEvent(self, event: Any) -> None:
         self.request("closed")  # the bench stops any run (it also sees the process end)
         event.accept()
+        self._release_keys()
+
+    def _release_keys(self) -> None:
+        """A closed window no longer filters every event of the application: a filter
+        left installed until garbage collection taxed each event of the windows opened
+        after it (about half of their construction time)."""
+        app = QtWidgets.QApplication.instance()
+        if app is not None:
+            app.removeEventFilter(self._keys)
 
     # -- messages -----------------------------------------------------------------------
 
