@@ -147,10 +147,17 @@ def _read_csv(path: Path) -> _Table:
     except (pd.errors.ParserError, UnicodeDecodeError) as exc:
         raise CatalogError(f"{label}: not a readable CSV file: {exc}") from None
     frame.columns = [str(c).strip() for c in frame.columns]
-    blank = (frame.map(lambda v: str(v).strip()) == "").all(axis=1).to_numpy(bool)
+    blank = _blank_rows(frame)
     lines = [i + 2 for i in range(len(frame)) if not blank[i]]  # header is line 1
     frame = frame.loc[~blank].reset_index(drop=True)
     return _Table(label, frame, lines)
+
+
+def _blank_rows(frame: pd.DataFrame) -> np.ndarray:
+    """Rows whose every cell is empty or spaces (plain Python over the cells: a pandas
+    ``map`` builds a whole new frame to answer this)."""
+    return np.array([all(str(v).strip() == "" for v in row) for row in frame.to_numpy(object)],
+                    bool).reshape(len(frame))
 
 
 def _parse_number(table: _Table, i: int, column: Column, raw: Any, *, allow_empty: bool) -> float:

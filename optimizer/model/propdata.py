@@ -18,8 +18,9 @@ constants; ``match_report`` lists both.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from itertools import pairwise
 from pathlib import Path
-from typing import Any, cast
+from typing import Any
 
 import numpy as np
 
@@ -39,6 +40,8 @@ RPM_STEP = 100.0
 
 _COLS = ("COMP", "TYPE", "RPM", "DIAMETER(IN)", "PITCH(IN)", "BLADE(nb)", "THRUST(LBF)",
          "TORQUE(IN.LBF)")
+#: the columns that name one data propeller
+_KEYS = ("COMP", "TYPE", "DIAMETER(IN)", "PITCH(IN)", "BLADE(nb)")
 
 
 @dataclass(frozen=True)
@@ -65,22 +68,38 @@ def load_curves(folder: str | Path) -> list[PropCurve]:
     data = read_sizinglab_table(Path(folder) / FILE, _COLS)
     data = data.loc[data["THRUST(LBF)"] >= MIN_THRUST_LBF]
     data = data.loc[data["TORQUE(IN.LBF)"] >= MIN_TORQUE_IN_LBF]
+    # one sort, then slices: a pandas group per propeller costs more than its numbers
+    # (rows missing a key column name no propeller, as a groupby drops them)
+    data = data.dropna(subset=list(_KEYS)).sort_values([*_KEYS, "RPM"], kind="stable")
+    keys = [data[k].to_numpy(object) for k in _KEYS]
+    rpm = data["RPM"].to_numpy(float)
+    thrust_lbf = data["THRUST(LBF)"].to_numpy(float)
+    torque_in_lbf = data["TORQUE(IN.LBF)"].to_numpy(float)
     out = []
-    for key, group in data.groupby(
-        ["COMP", "TYPE", "DIAMETER(IN)", "PITCH(IN)", "BLADE(nb)"], sort=True
-    ):
-        comp, family, d_in, p_in, blades = cast(tuple[Any, ...], key)  # one per grouped column
-        rows = group.sort_values("RPM")
-        n = rows["RPM"].to_numpy(float) / 60.0
+    for start, stop in _runs(keys):
+        comp, family, d_in, p_in, blades = (k[start] for k in keys)
+        n = rpm[start:stop] / 60.0
         d = float(d_in) * 0.0254
-        thrust = rows["THRUST(LBF)"].to_numpy(float) * LBF_TO_N
-        torque = rows["TORQUE(IN.LBF)"].to_numpy(float) * IN_LBF_TO_NM
+        thrust = thrust_lbf[start:stop] * LBF_TO_N
+        torque = torque_in_lbf[start:stop] * IN_LBF_TO_NM
         ct = physics.thrust_coefficient(thrust, RHO_APC, n, d)  # (E.1)
         cp = physics.power_coefficient(torque, RHO_APC, n, d)  # (E.2) with P = 2 pi n Q
         fam = "" if str(family) in ("NULL", "nan") else str(family)
         out.append(PropCurve(int(comp), fam, float(d_in), float(p_in), int(blades),
-                             rows["RPM"].to_numpy(float), ct, cp))
+                             rpm[start:stop].copy(), ct, cp))
     return out
+
+
+def _runs(keys: list[np.ndarray]) -> list[tuple[int, int]]:
+    """(start, stop) of each run of equal keys in sorted columns (one run per propeller)."""
+    size = keys[0].size
+    if size == 0:
+        return []
+    change = np.zeros(size - 1, bool)
+    for k in keys:
+        change |= k[1:] != k[:-1]
+    edges = [0, *(np.flatnonzero(change) + 1).tolist(), size]
+    return list(pairwise(edges))
 
 
 def _family(name: str) -> str | None:

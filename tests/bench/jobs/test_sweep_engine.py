@@ -60,25 +60,40 @@ def test_pack_designs_are_keyed_by_cell_series_and_parallel(thesis_e) -> None:
     assert list(plan["series"]) == sorted(plan["series"])  # one series count after another
 
 
-def _row(catalog, maneuvers, propeller, motor, battery):
+def _pick(catalog, propeller, motor, battery):
     plan = plan_designs(catalog, [4])
-    pick = plan[(plan["propeller"] == propeller) & (plan["motor"] == motor) &
+    return plan[(plan["propeller"] == propeller) & (plan["motor"] == motor) &
                 (plan["battery"] == battery)]
-    [row] = fly_chunk(Chunk(pick, tuple(maneuvers)))
-    return row
 
 
-@pytest.mark.parametrize("design, rules", [(("P1", "M1", "B1"), []),
-                                           (("P1", "M1", "B3"), ["--thesis-rules"])])
-def test_rows_hold_the_numbers_rotorbench_fly_prints(capsys, thesis_e, design, rules) -> None:
+#: one design under the margin, and the thesis' pick that cannot hover (--thesis-rules)
+FLOWN = [(("P1", "M1", "B1"), []), (("P1", "M1", "B3"), ["--thesis-rules"])]
+
+
+@pytest.fixture(scope="module")
+def flown_rows(thesis_e):
+    """The sweep engine's rows of the :data:`FLOWN` designs, by design: both in one chunk,
+    as a sweep flies them (a design's numbers do not depend on its chunk), so each
+    maneuver is one batch flight instead of one per design."""
+    import pandas as pd
+
+    plain = load_catalog(CATALOGS / "thesis-e")
+    picks = [_pick(plain if rules else thesis_e, *design) for design, rules in FLOWN]
+    assert [len(p) for p in picks] == [1, 1]
+    rows = fly_chunk(Chunk(pd.concat(picks, ignore_index=True), ("roll_step", "gust")))
+    return {design: row for (design, _), row in zip(FLOWN, rows, strict=True)}
+
+
+@pytest.mark.parametrize("design, rules", FLOWN)
+def test_rows_hold_the_numbers_rotorbench_fly_prints(capsys, flown_rows, design,
+                                                     rules) -> None:
     """The same figures, exactly: one design under the margin, and the thesis' pick that
     cannot hover (flown under --thesis-rules, its note kept)."""
     argv = ["fly", "--actuators", "4", "--propeller", design[0], "--motor", design[1],
             "--battery", design[2], "--maneuver", "roll_step", "gust", "--json", *rules]
     assert main(argv) == 0
     doc = json.loads(capsys.readouterr().out)
-    catalog = load_catalog(CATALOGS / "thesis-e") if rules else thesis_e
-    row = _row(catalog, ["roll_step", "gust"], *design)
+    row = flown_rows[design]
     for m in ("roll_step", "gust"):
         assert {f: row[f"{m}_{f}"] for f in figure_names(m)} == doc["maneuvers"][m]
     assert row["time_constant_ms"] == doc["design"]["time_constant_ms"]

@@ -16,8 +16,9 @@ from optimizer.model.propdata import catalog_curves, load_curves, match, match_r
 from tests.conftest import CATALOGS, SIZINGLAB
 
 
-@pytest.fixture
-def curves(shared_data):
+@pytest.fixture(scope="module")
+def curves():
+    """The APC curves, read once for the file (the tests only read them)."""
     return load_curves(SIZINGLAB)
 
 
