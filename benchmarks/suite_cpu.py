@@ -24,6 +24,7 @@ from __future__ import annotations
 import argparse
 import collections
 import json
+import math
 import os
 import re
 import subprocess
@@ -76,6 +77,19 @@ def pytest_sessionfinish(session):
 '''
 
 
+def machine_speed_s() -> float:
+    """CPU seconds of a fixed pure-Python loop (10 million additions), best of three: the
+    machine's speed at the time, so that runs hours apart can be compared (this machine's
+    varied by half through one day for the same suite)."""
+    best = math.inf
+    for _ in range(3):
+        t0, total = time.process_time(), 0
+        for i in range(10_000_000):
+            total += i
+        best = min(best, time.process_time() - t0)
+    return best
+
+
 def busy_cpu_s() -> float:
     """The machine's busy CPU seconds since boot (all but idle and iowait)."""
     fields = [int(x) for x in Path("/proc/stat").read_text().split("\n", 1)[0].split()[1:]]
@@ -122,9 +136,11 @@ def main(argv: list[str]) -> int:
         cmd = [sys.executable, "-m", "pytest", "-q", "-p", "suite_cpu_plugin",
                "-n", str(workers), "--dist", "loadfile", "--no-loadscope-reorder",
                *pytest_args]
+        speed_before = machine_speed_s()
         busy0, wall0 = busy_cpu_s(), time.monotonic()
         code = subprocess.run(cmd, cwd=REPO, env=env, check=False).returncode
         busy, wall = busy_cpu_s() - busy0, time.monotonic() - wall0
+        speed_after = machine_speed_s()
         files: dict[str, list[float]] = collections.defaultdict(lambda: [0.0, 0.0, 0.0])
         workers_wall: list[float] = []
         lane_wall = 0.0
@@ -136,7 +152,9 @@ def main(argv: list[str]) -> int:
                 files[name] = [a + b for a, b in zip(files[name], row, strict=True)]
                 lane_wall += row[2] if _in_device_lane(name) else 0.0
         procs = [json.loads(p.read_text()) for p in out.glob("proc-*.json")]
-    print(f"\npytest exit {code}; {workers} test processes on {cores} cores")
+    print(f"\npytest exit {code}; {workers} test processes on {cores} cores; the machine's "
+          f"speed: 10 million Python additions in {speed_before:.2f} s of CPU before the "
+          f"suite, {speed_after:.2f} s after")
     print(f"wall {wall:.0f} s, machine busy CPU {busy:.0f} s "
           f"(CPU / cores = {busy / cores:.0f} s: the floor the CPU sets)")
     print(f"device lane: {lane_wall:.0f} s of wall time in one test process (its floor); "
