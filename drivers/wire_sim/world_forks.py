@@ -1,12 +1,13 @@
 """Simulated-device world processes forked from one interpreter that has imported them.
 
 Why: a world process started as a fresh interpreter imported numpy, scipy and the
-simulated devices before it could serve: about 0.7 s of CPU each, and seconds of wall time
-on a loaded machine, while the host waited (the test suite starts 130 of them). A zygote,
-as multiprocessing's ``forkserver`` is, imports them once per host process and forks a
-child per world, which starts serving in milliseconds. The zygote is a fresh interpreter
-(``python -m`` this module), single-threaded, so a fork copies no other thread's locks;
-multiprocessing's own forkserver would import the host's ``__main__`` into every child.
+simulated devices before it could serve, while the host waited: 0.3-1.1 s of CPU and as
+much wall time on a loaded machine (the test suite starts 130 of them). A zygote, as
+multiprocessing's ``forkserver`` is, imports them once per host process and forks a
+child per world, which answers in 0.05-0.08 s (``benchmarks/world_start.py``). The
+zygote is a fresh interpreter (``python -m`` this module), single-threaded, so a fork
+copies no other thread's locks; multiprocessing's own forkserver would import the host's
+``__main__`` into every child.
 
 Each child leads a session of its own (``drivers.device_priority``) and watches the host
 that asked for it through a pidfd, so it ends with that host whoever its parent is. The
@@ -120,12 +121,15 @@ class _Zygote:
         self.netns = _netns()  # the zygote's, and its worlds': the starting thread's
         ours.settimeout(_START_TIMEOUT_S)
         try:
-            if ours.recv(5) != b"ready":
-                raise OSError("it ended")
+            ready = ours.recv(5) == b"ready"
         except OSError as exc:
             self.close()
             raise DeviceError(f"the simulated devices' zygote did not start in "
                               f"{_START_TIMEOUT_S:g} s ({exc})") from None
+        if not ready:
+            self.close()
+            raise DeviceError("the simulated devices' zygote ended before it was ready "
+                              "(its error is on stderr)")
         ours.settimeout(_REPLY_TIMEOUT_S)
 
     def fork(self, fd: int, main: ChildMain) -> int:
