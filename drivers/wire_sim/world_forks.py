@@ -58,29 +58,25 @@ ChildMain = Callable[[Connection, int], None]
 
 class ForkedProcess:
     """The host's handle on a world's process, as ``subprocess.Popen`` is on a child's:
-    ``pid``, ``poll()`` (None while it runs), ``wait(timeout)`` and ``kill()``."""
+    ``pid``, ``poll()`` (None while it runs), ``wait(timeout)`` and ``kill()``. Its pidfd
+    is open while the process runs: that is the whole state."""
 
     def __init__(self, pid: int) -> None:
         self.pid = pid
-        self.returncode: int | None = None
         try:
             self._pidfd: int | None = os.pidfd_open(pid)
         except ProcessLookupError:  # it ended already
-            self._pidfd, self.returncode = None, -1
+            self._pidfd = None
 
     def poll(self) -> int | None:
         """None while the process runs; -1 once it has ended (its code is not kept)."""
-        if self.returncode is None and self._pidfd is not None:
-            if select.select([self._pidfd], [], [], 0)[0]:
-                self._ended()
-        return self.returncode
+        return self._waited(0.0)
 
     def wait(self, timeout: float | None = None) -> int:
-        if self.returncode is None and self._pidfd is not None:
-            if not select.select([self._pidfd], [], [], timeout)[0]:
-                raise subprocess.TimeoutExpired(f"world process {self.pid}", timeout or 0.0)
-            self._ended()
-        return -1 if self.returncode is None else self.returncode
+        code = self._waited(timeout)
+        if code is None:
+            raise subprocess.TimeoutExpired(f"world process {self.pid}", timeout or 0.0)
+        return code
 
     def kill(self) -> None:
         if self.poll() is None and self._pidfd is not None:
@@ -89,11 +85,12 @@ class ForkedProcess:
             except ProcessLookupError:
                 pass
 
-    def _ended(self) -> None:
-        self.returncode = -1
-        if self._pidfd is not None:
+    def _waited(self, timeout: float | None) -> int | None:
+        """-1 if the process has ended within ``timeout`` (its pidfd then closed), else None."""
+        if self._pidfd is not None and select.select([self._pidfd], [], [], timeout)[0]:
             os.close(self._pidfd)
             self._pidfd = None
+        return None if self._pidfd is not None else -1
 
     def __del__(self) -> None:
         pidfd = getattr(self, "_pidfd", None)
@@ -135,12 +132,9 @@ class _Zygote:
     def fork(self, fd: int, main: ChildMain) -> int:
         """A child that runs ``main`` on socket ``fd``; its pid."""
         socket.send_fds(self.socket, [pickle.dumps((os.getcwd(), main))], [fd])
-        pid = b""
-        while len(pid) < _PID:
-            part = self.socket.recv(_PID - len(pid))
-            if not part:
-                raise OSError("the zygote ended")
-            pid += part
+        pid = self.socket.recv(_PID, socket.MSG_WAITALL)
+        if len(pid) < _PID:
+            raise OSError("the zygote ended")
         return int.from_bytes(pid, "little")
 
     def close(self) -> None:
@@ -168,31 +162,39 @@ def _close_zygote() -> None:
 
 def fork_world(fd: int, main: ChildMain) -> ForkedProcess:
     """Fork a world process that runs ``main(connection on fd, host's pidfd)``
-    (``drivers.wire_sim.world_process.serve``; pickled by name) from this host's zygote:
-    started on first use, and again in a forked host, when it ended, or when the calling
-    thread is in another network namespace than the zygote (a test beside a firmware in
-    a namespace of its own), so the world's loopback is always the caller's."""
+    (``drivers.wire_sim.world_process.serve``; pickled by name) from this host's zygote
+    (:func:`_zygote_here`); a zygote that fails the fork is replaced once."""
     global _zygote
     with _lock:
         for attempt in (1, 2):
-            if _zygote is not None and _zygote.owner != os.getpid():
-                _zygote.socket.close()  # a forked host's copy: the zygote is its parent's
-                _zygote = None
-            if _zygote is not None and (_zygote.process.poll() is not None
-                                        or _zygote.netns != _netns()):
-                _zygote.close()
-                _zygote = None
-            if _zygote is None:
-                _zygote = _Zygote()
+            zygote = _zygote_here()
             try:
-                return ForkedProcess(_zygote.fork(fd, main))
+                return ForkedProcess(zygote.fork(fd, main))
             except OSError as exc:
-                _zygote.close()
+                zygote.close()
                 _zygote = None
                 if attempt == 2:
                     raise DeviceError(f"the simulated devices' zygote failed to fork a "
                                       f"world ({exc})") from None
     raise AssertionError("unreachable")
+
+
+def _zygote_here() -> _Zygote:
+    """The kept zygote, started on first use, and again in a forked host, when it ended,
+    or when the calling thread is in another network namespace than the zygote (a test
+    beside a firmware in a namespace of its own), so the world's loopback is always the
+    caller's. Called under ``_lock``."""
+    global _zygote
+    if _zygote is not None and _zygote.owner != os.getpid():
+        _zygote.socket.close()  # a forked host's copy: the zygote is its parent's
+        _zygote = None
+    elif _zygote is not None and (_zygote.process.poll() is not None
+                                  or _zygote.netns != _netns()):
+        _zygote.close()
+        _zygote = None
+    if _zygote is None:
+        _zygote = _Zygote()
+    return _zygote
 
 
 def _netns() -> int:
