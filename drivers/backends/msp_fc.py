@@ -32,6 +32,7 @@ import collections
 import math
 import threading
 import time
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -82,9 +83,13 @@ class MspClient:
         self.decoder = msp.MspDecoder(max_payload, typed=True)
         self.lock = threading.RLock()
         self.resends = 0  # requests sent again (``request``)
+        self.stale_replies = 0  # earlier requests' replies passed over (``request``)
 
-    def request(self, message: msp.MspMessage, *, resend: bool = True) -> msp.MspMessage:
+    def request(self, message: msp.MspMessage, *, resend: bool = True,
+                stale: Callable[[msp.MspMessage], bool] | None = None) -> msp.MspMessage:
         """Send a request (or SET command) and return the FC's reply to that command.
+        A reply ``stale`` says is an earlier request's (counted, ``stale_replies``) is
+        passed over, and the wait goes on for this request's own.
 
         With ``resend``, a request not answered within ``RESEND_AFTER_S`` is sent again,
         then after twice that, and so on until ``timeout_s``: a reply lost on the link (a
@@ -118,6 +123,9 @@ class MspClient:
                         raise MspRefused(f"{self.name}: FC refused MSP command {cmd}")
                     if isinstance(reply, (msp.Request, msp.SetMotor)):
                         continue  # our own request echoed (loopback)
+                    if stale is not None and stale(reply):
+                        self.stale_replies += 1
+                        continue
                     return reply
                 if last_look:
                     raise MspNoReply(f"{self.name}: no reply to MSP command {cmd} within "
@@ -237,7 +245,9 @@ class MspImu:
         reply). A reply still later is dropped before a later request is sent
         (``MspClient._drop_waiting``), unless it comes inside that request's round trip,
         ahead of its own reply: no MSP client can tell the two apart, but a timed poll (below)
-        can, by the FC's clock, and drops it. No reply for ``NO_REPLY_LIMIT_S`` is the FC
+        can, by the FC's clock (served before the last row), and waits on for its own
+        reply, which would otherwise be handed to the next request and, a poll too early
+        for it, move the clocks' offset. No reply for ``NO_REPLY_LIMIT_S`` is the FC
         gone, and ends the poll with the error.
 
         An FC that takes the host's time (``MSP_SET_RTC``) and answers ``MSP_MULTIPLE_MSP``
@@ -264,7 +274,7 @@ class MspImu:
             stamp = self.clock.now()
             paused = getattr(self.clock, "paused_s", 0.0)  # a paced clock's stalls
             try:
-                raw, att, served_ms = self._request(nan, timed)
+                raw, att, served_ms = self._request(nan, timed, last_served_ms)
             except MspRefused as exc:
                 if not timed:
                     with self._lock:
@@ -291,8 +301,6 @@ class MspImu:
                 continue
             if served_ms is None:
                 self._add_row(stamp, paused, raw, att)
-            elif served_ms < last_served_ms:  # served before the last row's: an earlier
-                self.slow_rows += 1  # request's late reply, handed to this one
             else:  # the rig's clock runs at the FC's rate: a real one's, or a world's paced
                 last_served_ms = served_ms
                 self._add_row(stamp + self._serve_delay(served_ms, stamp), paused, raw, att,
@@ -335,13 +343,24 @@ class MspImu:
         with self._lock:
             self._rows.append((stamp, *acc, *gyro, att.roll_rad, att.pitch_rad, att.yaw_rad))
 
-    def _request(self, nan: msp.Attitude, timed: bool = False) -> tuple[Any, Any, int | None]:
+    def _request(self, nan: msp.Attitude, timed: bool = False,
+                 served_after_ms: int = -1) -> tuple[Any, Any, int | None]:
         """RAW_IMU and ATTITUDE, and the FC's clock when ``timed``: one MSP_MULTIPLE_MSP
-        round trip with ``multiple`` or ``timed``."""
+        round trip with ``multiple`` or ``timed``; a timed reply the FC served before
+        ``served_after_ms`` is an earlier request's, passed over."""
         request = self.client.request
         if timed:
             cmds = self._timed_cmds
-            raw, *rest, clock = self._split(request(self._timed_request, resend=False), cmds)
+
+            def stale(reply: msp.MspMessage) -> bool:
+                try:
+                    served = msp.rtc_ms(msp.split_multiple(cmds, reply)[-1])
+                except msp.PayloadError:
+                    return False  # not a timed reply: _split says so
+                return served is not None and served < served_after_ms
+
+            raw, *rest, clock = self._split(
+                request(self._timed_request, resend=False, stale=stale), cmds)
             served_ms = msp.rtc_ms(clock)
             return raw, rest[0] if rest else nan, served_ms
         if self.attitude and self.multiple:

@@ -78,15 +78,17 @@ class SimFlightController(PtySimulator):
                  battery: Callable[[], tuple[float, float]] = lambda: (0.0, 0.0),
                  rtc_clock: Callable[[], float] | None = None, multiple: bool = True,
                  lost_acks: int = 0, late_reply: tuple[int, float] | None = None,
-                 late_ahead: bool = False, link_delay_s: float = 0.0) -> None:
+                 late_ahead_s: float | None = None, link_delay_s: float = 0.0) -> None:
         """``lost_acks``: the first that many SET_MOTOR acknowledgements are lost (the values
         apply; ``lost`` counts them). ``late_reply=(n, delay_s)``: the reply to the n-th
         request for RAW_IMU, alone or in MSP_MULTIPLE_MSP (``raw_requests`` counts them), is
         held ``delay_s`` on the line (a USB-serial adapter's latency timer, a bridge's
         buffer) while the FC goes on answering, then sent right behind its next reply
         (inside a later request, after that request's own reply, however the host and this
-        process are scheduled), or right ahead of it with ``late_ahead`` (the race no MSP
-        client can see: the later request is handed the late reply). ``link_delay_s``:
+        process are scheduled), or right ahead of it with ``late_ahead_s``, that request's own
+        reply following that many seconds later (the race no MSP client can see: the later
+        request is handed the late reply, its own comes in a later packet of a USB
+        adapter's, and the request after it would be handed that). ``link_delay_s``:
         each chunk of requests reaches the FC 0 to that many seconds late (uniform, seeded:
         a loaded host, an adapter's latency timer)."""
         self.imu = imu
@@ -110,7 +112,7 @@ class SimFlightController(PtySimulator):
         self.lost_acks = lost_acks
         self.lost = 0
         self.late_reply = late_reply
-        self.late_ahead = late_ahead
+        self.late_ahead_s = late_ahead_s
         self.raw_requests = 0
         self._held: tuple[float, bytes] | None = None  # a late reply: when due, its bytes
         self.link_delay_s = link_delay_s
@@ -140,11 +142,12 @@ class SimFlightController(PtySimulator):
                     continue
             out += reply
         if out and self._held is not None and time.monotonic() >= self._held[0]:
-            if self.late_ahead:  # ahead of the reply it waited for, or behind it
-                out[:0] = self._held[1]
-            else:
-                out += self._held[1]
-            self._held = None
+            held, self._held = self._held[1], None
+            if self.late_ahead_s is None:
+                out += held  # behind the reply it waited for
+            else:  # ahead of it, the reply itself in a later packet
+                self.port.write(held)
+                time.sleep(self.late_ahead_s)
         return bytes(out)
 
     def _reply(self, m: msp.MspMessage) -> bytes:
