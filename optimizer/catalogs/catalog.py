@@ -157,7 +157,7 @@ def _blank_rows(frame: pd.DataFrame) -> np.ndarray:
     """Rows whose every cell is empty or spaces (plain Python over the cells: a pandas
     ``map`` builds a whole new frame to answer this)."""
     return np.array([all(str(v).strip() == "" for v in row) for row in frame.to_numpy(object)],
-                    bool).reshape(len(frame))
+                    bool)
 
 
 def _parse_number(table: _Table, i: int, column: Column, raw: Any, *, allow_empty: bool) -> float:

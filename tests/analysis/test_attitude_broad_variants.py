@@ -16,6 +16,8 @@ with translation, where Paper B's printed correction tilts by 10-20°.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import pytest
@@ -55,39 +57,36 @@ class _Cases:
 
     def __init__(self, trial: dict) -> None:
         self.trial = trial
-        self._data: dict[str, dict] = {}
-        self._runs: dict[tuple, tuple[np.ndarray, bool]] = {}
-        self._offline: dict[tuple, dict] = {}
-        self._deg: dict[tuple, tuple[float, float]] = {}
+        self._kept: dict[tuple, Any] = {}
+
+    def _once(self, key: tuple, make: Callable[[], Any]) -> Any:
+        """``make()``, the first time ``key`` is asked for; what it gave, after that."""
+        if key not in self._kept:
+            self._kept[key] = make()
+        return self._kept[key]
 
     def data(self, name: str) -> dict:
         if name in ("trial 07", "base"):
             return self.trial
-        if name not in self._data:
-            self._data[name] = make_variant(self.trial, name, seed=0)
-        return self._data[name]
+        return self._once(("data", name), lambda: make_variant(self.trial, name, seed=0))
 
     def run(self, name: str, filt: str, **options: object) -> tuple[np.ndarray, bool]:
         """The filter's quaternions on the case, and whether it used the magnetometer."""
-        key = (name, filt, tuple(sorted(options.items())))
-        if key not in self._runs:
+        def make() -> tuple[np.ndarray, bool]:
             out = run_filter(filt, _rec(self.data(name)), **options)
-            self._runs[key] = (out.quat, out.nine_d)
-        return self._runs[key]
+            return out.quat, out.nine_d
+
+        return self._once(("run", name, filt, *sorted(options.items())), make)
 
     def offline(self, name: str, **params: object) -> dict:
         """``offlineVQF`` on the case with ``params`` (the package's defaults if none)."""
-        key = (name, tuple(sorted(params.items())))
-        if key not in self._offline:
-            self._offline[key] = _offline(self.data(name), **params)
-        return self._offline[key]
+        return self._once(("offline", name, *sorted(params.items())),
+                          lambda: _offline(self.data(name), **params))
 
     def deg(self, name: str, filt: str, nine_d: bool) -> tuple[float, float]:
         """``_deg`` of the filter's run on the case (9D or 6D scoring)."""
-        key = (name, filt, nine_d)
-        if key not in self._deg:
-            self._deg[key] = _deg(self.run(name, filt)[0], self.data(name), nine_d)
-        return self._deg[key]
+        return self._once(("deg", name, filt, nine_d),
+                          lambda: _deg(self.run(name, filt)[0], self.data(name), nine_d))
 
 
 @pytest.fixture(scope="module")
