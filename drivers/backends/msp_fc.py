@@ -351,22 +351,25 @@ class MspImu:
         request = self.client.request
         if timed:
             cmds = self._timed_cmds
-            # the newest reply looked at, its parts and the FC's clock in it: the reply
-            # taken is the last one looked at, so it is not split a second time
-            seen: list[Any] = [None, [], None]
+            # the last reply the check split, with its parts and the FC's clock: the reply
+            # taken is the last one checked, so it is not split a second time
+            checked: msp.MspMessage | None = None
+            parts: list[msp.MspMessage] = []
+            served_ms: int | None = None
 
             def stale(reply: msp.MspMessage) -> bool:
+                nonlocal checked, parts, served_ms
                 try:
                     parts = msp.split_multiple(cmds, reply)
                 except msp.PayloadError:
                     return False  # not a timed reply: _split says so
-                seen[:] = reply, parts, msp.rtc_ms(parts[-1])
-                return seen[2] is not None and seen[2] < served_after_ms
+                checked, served_ms = reply, msp.rtc_ms(parts[-1])
+                return served_ms is not None and served_ms < served_after_ms
 
             reply = request(self._timed_request, resend=False, stale=stale)
-            if seen[0] is not reply:
+            if checked is not reply:
                 self._split(reply, cmds)  # raises: not a timed reply
-            _, (raw, *rest, _), served_ms = seen  # rest: ATTITUDE, if asked
+            raw, *rest, _ = parts  # rest: ATTITUDE, if asked
             return raw, rest[0] if rest else nan, served_ms
         if self.attitude and self.multiple:
             raw, att = self._split(request(msp.multiple_request(RAW_AND_ATTITUDE), resend=False))
